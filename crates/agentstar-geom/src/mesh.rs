@@ -1,0 +1,279 @@
+//! Indexed triangle meshes: measurement (volume, area, bounds, watertightness), rigid and
+//! affine transforms, merging and vertex welding.
+
+use crate::{Matrix3, Point3, Vector3};
+use std::collections::HashMap;
+
+/// An axis-aligned bounding box. `min > max` componentwise means empty.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Aabb {
+    pub min: Point3,
+    pub max: Point3,
+}
+
+impl Aabb {
+    pub fn empty() -> Self {
+        Aabb {
+            min: Point3::new(f64::INFINITY, f64::INFINITY, f64::INFINITY),
+            max: Point3::new(f64::NEG_INFINITY, f64::NEG_INFINITY, f64::NEG_INFINITY),
+        }
+    }
+    pub fn is_empty(&self) -> bool {
+        self.min.x > self.max.x || self.min.y > self.max.y || self.min.z > self.max.z
+    }
+    pub fn grow(&mut self, p: &Point3) {
+        self.min = self.min.inf(p);
+        self.max = self.max.sup(p);
+    }
+    pub fn union(&self, other: &Aabb) -> Aabb {
+        Aabb { min: self.min.inf(&other.min), max: self.max.sup(&other.max) }
+    }
+    pub fn center(&self) -> Point3 {
+        nalgebra::center(&self.min, &self.max)
+    }
+    pub fn extent(&self) -> Vector3 {
+        if self.is_empty() {
+            Vector3::zeros()
+        } else {
+            self.max - self.min
+        }
+    }
+    pub fn contains(&self, p: &Point3) -> bool {
+        (0..3).all(|i| p[i] >= self.min[i] && p[i] <= self.max[i])
+    }
+    pub fn from_points<'a>(points: impl IntoIterator<Item = &'a Point3>) -> Aabb {
+        let mut b = Aabb::empty();
+        for p in points {
+            b.grow(p);
+        }
+        b
+    }
+}
+
+/// An indexed triangle mesh in some named frame (the owner says which). Triangles are
+/// counter-clockwise seen from outside, so normals point out of closed solids.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct TriMesh {
+    pub positions: Vec<Point3>,
+    pub triangles: Vec<[u32; 3]>,
+}
+
+impl TriMesh {
+    pub fn new(positions: Vec<Point3>, triangles: Vec<[u32; 3]>) -> Self {
+        TriMesh { positions, triangles }
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.triangles.is_empty()
+    }
+
+    pub fn triangle(&self, i: usize) -> [Point3; 3] {
+        let [a, b, c] = self.triangles[i];
+        [self.positions[a as usize], self.positions[b as usize], self.positions[c as usize]]
+    }
+
+    pub fn bounds(&self) -> Aabb {
+        Aabb::from_points(self.positions.iter())
+    }
+
+    /// Bounds of the vertices that triangles use (unused vertices are ignored).
+    pub fn used_bounds(&self) -> Aabb {
+        let mut b = Aabb::empty();
+        for t in &self.triangles {
+            for &i in t {
+                b.grow(&self.positions[i as usize]);
+            }
+        }
+        b
+    }
+
+    /// Signed volume by the divergence theorem; meaningful for closed, outward meshes.
+    pub fn volume(&self) -> f64 {
+        let mut v = 0.0;
+        for i in 0..self.triangles.len() {
+            let [a, b, c] = self.triangle(i);
+            v += a.coords.dot(&b.coords.cross(&c.coords));
+        }
+        v / 6.0
+    }
+
+    pub fn area(&self) -> f64 {
+        (0..self.triangles.len())
+            .map(|i| {
+                let [a, b, c] = self.triangle(i);
+                (b - a).cross(&(c - a)).norm() * 0.5
+            })
+            .sum()
+    }
+
+    /// True when every undirected edge is shared by exactly two triangles that traverse it
+    /// in opposite directions (a closed, consistently oriented 2-manifold edge structure).
+    pub fn is_watertight(&self) -> bool {
+        if self.triangles.is_empty() {
+            return false;
+        }
+        let mut directed: HashMap<(u32, u32), u32> = HashMap::with_capacity(self.triangles.len() * 3);
+        for t in &self.triangles {
+            for k in 0..3 {
+                let e = (t[k], t[(k + 1) % 3]);
+                if e.0 == e.1 {
+                    return false;
+                }
+                *directed.entry(e).or_insert(0) += 1;
+            }
+        }
+        directed.iter().all(|(&(a, b), &n)| n == 1 && directed.get(&(b, a)) == Some(&1))
+    }
+
+    /// Applies `p -> linear * p + offset`; flips winding when the map mirrors.
+    pub fn transform_affine(&mut self, linear: &Matrix3, offset: &Vector3) {
+        for p in &mut self.positions {
+            *p = Point3::from(linear * p.coords + offset);
+        }
+        if linear.determinant() < 0.0 {
+            for t in &mut self.triangles {
+                t.swap(1, 2);
+            }
+        }
+    }
+
+    pub fn translated(mut self, offset: Vector3) -> Self {
+        for p in &mut self.positions {
+            *p += offset;
+        }
+        self
+    }
+
+    pub fn transformed(mut self, linear: &Matrix3, offset: &Vector3) -> Self {
+        self.transform_affine(linear, offset);
+        self
+    }
+
+    /// Appends another mesh (no welding, no boolean: the result may overlap itself).
+    pub fn append(&mut self, other: &TriMesh) {
+        let base = self.positions.len() as u32;
+        self.positions.extend_from_slice(&other.positions);
+        self.triangles.extend(other.triangles.iter().map(|t| [t[0] + base, t[1] + base, t[2] + base]));
+    }
+
+    /// Merges vertices closer than `tolerance` (grid hashing), drops degenerate triangles
+    /// and unused vertices. Keeps the first vertex of each cluster.
+    pub fn welded(&self, tolerance: f64) -> TriMesh {
+        let inv = 1.0 / tolerance.max(1e-15);
+        let key = |p: &Point3| {
+            ((p.x * inv).round() as i64, (p.y * inv).round() as i64, (p.z * inv).round() as i64)
+        };
+        let mut cells: HashMap<(i64, i64, i64), Vec<u32>> = HashMap::new();
+        let mut remap = vec![0u32; self.positions.len()];
+        let mut out_pos: Vec<Point3> = Vec::new();
+        for (i, p) in self.positions.iter().enumerate() {
+            let (kx, ky, kz) = key(p);
+            let mut found = None;
+            'search: for dx in -1..=1 {
+                for dy in -1..=1 {
+                    for dz in -1..=1 {
+                        if let Some(list) = cells.get(&(kx + dx, ky + dy, kz + dz)) {
+                            for &j in list {
+                                if (out_pos[j as usize] - p).norm() <= tolerance {
+                                    found = Some(j);
+                                    break 'search;
+                                }
+                            }
+                        }
+                    }
+                }
+            }
+            let j = match found {
+                Some(j) => j,
+                None => {
+                    let j = out_pos.len() as u32;
+                    out_pos.push(*p);
+                    cells.entry((kx, ky, kz)).or_default().push(j);
+                    j
+                }
+            };
+            remap[i] = j;
+        }
+        let triangles: Vec<[u32; 3]> = self
+            .triangles
+            .iter()
+            .map(|t| [remap[t[0] as usize], remap[t[1] as usize], remap[t[2] as usize]])
+            .filter(|t| t[0] != t[1] && t[1] != t[2] && t[0] != t[2])
+            .collect();
+        TriMesh::new(out_pos, triangles).compacted()
+    }
+
+    /// Drops vertices that no triangle uses, keeping order.
+    pub fn compacted(self) -> TriMesh {
+        let mut used = vec![u32::MAX; self.positions.len()];
+        let mut positions = Vec::new();
+        let mut triangles = Vec::with_capacity(self.triangles.len());
+        for t in &self.triangles {
+            let mut nt = [0u32; 3];
+            for k in 0..3 {
+                let i = t[k] as usize;
+                if used[i] == u32::MAX {
+                    used[i] = positions.len() as u32;
+                    positions.push(self.positions[i]);
+                }
+                nt[k] = used[i];
+            }
+            triangles.push(nt);
+        }
+        TriMesh { positions, triangles }
+    }
+
+    /// Face normal of triangle `i` (unit, or zero for a degenerate triangle).
+    pub fn face_normal(&self, i: usize) -> Vector3 {
+        let [a, b, c] = self.triangle(i);
+        (b - a).cross(&(c - a)).try_normalize(1e-300).unwrap_or_else(Vector3::zeros)
+    }
+
+    /// True when every coordinate is finite.
+    pub fn is_finite(&self) -> bool {
+        self.positions.iter().all(|p| p.coords.iter().all(|c| c.is_finite()))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn tetra() -> TriMesh {
+        TriMesh::new(
+            vec![
+                Point3::new(0.0, 0.0, 0.0),
+                Point3::new(1.0, 0.0, 0.0),
+                Point3::new(0.0, 1.0, 0.0),
+                Point3::new(0.0, 0.0, 1.0),
+            ],
+            vec![[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]],
+        )
+    }
+
+    #[test]
+    fn tetra_volume_and_watertight() {
+        let t = tetra();
+        assert!((t.volume() - 1.0 / 6.0).abs() < 1e-12);
+        assert!(t.is_watertight());
+        let mut open = t.clone();
+        open.triangles.pop();
+        assert!(!open.is_watertight());
+    }
+
+    #[test]
+    fn mirror_keeps_volume_positive() {
+        let m = tetra().transformed(&Matrix3::from_diagonal(&Vector3::new(-1.0, 1.0, 1.0)), &Vector3::zeros());
+        assert!((m.volume() - 1.0 / 6.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn weld_merges_duplicates() {
+        let mut a = tetra();
+        let b = tetra();
+        a.append(&b);
+        let w = a.welded(1e-9);
+        assert_eq!(w.positions.len(), 4);
+        assert_eq!(w.triangles.len(), 8);
+    }
+}
