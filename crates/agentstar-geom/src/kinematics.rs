@@ -270,22 +270,33 @@ impl KinematicTree {
 
     /// The accumulated transform `A_j` of every joint for internal-unit `states`.
     pub fn joint_transforms(&self, states: &[f64]) -> Vec<Rigid> {
-        let mut acc = vec![Rigid::identity(); self.joints.len()];
-        for &i in &self.order {
-            let local = self.joints[i].local_motion(states.get(i).copied().unwrap_or(0.0), &self.unit_axes[i]);
-            acc[i] = match self.parent_index[i] {
-                Some(p) => acc[p] * local,
-                None => local,
-            };
-        }
-        acc
+        let mut joints = Vec::new();
+        self.part_transforms_into(states, &mut joints, &mut Vec::new());
+        joints
     }
 
     /// `object_from_part` for every part (by part index): the canonical placement of each
     /// part's rest geometry under `states`.
     pub fn part_transforms(&self, states: &[f64]) -> Vec<Rigid> {
-        let acc = self.joint_transforms(states);
-        self.part_joint.iter().map(|j| j.map_or_else(Rigid::identity, |j| acc[j])).collect()
+        let mut joints = Vec::new();
+        let mut parts = Vec::new();
+        self.part_transforms_into(states, &mut joints, &mut parts);
+        parts
+    }
+
+    /// [`Self::part_transforms`] into caller-owned buffers (no allocation once they are sized).
+    pub fn part_transforms_into(&self, states: &[f64], joints: &mut Vec<Rigid>, parts: &mut Vec<Rigid>) {
+        joints.clear();
+        joints.resize(self.joints.len(), Rigid::identity());
+        for &i in &self.order {
+            let local = self.joints[i].local_motion(states.get(i).copied().unwrap_or(0.0), &self.unit_axes[i]);
+            joints[i] = match self.parent_index[i] {
+                Some(p) => joints[p] * local,
+                None => local,
+            };
+        }
+        parts.clear();
+        parts.extend(self.part_joint.iter().map(|j| j.map_or_else(Rigid::identity, |j| joints[j])));
     }
 }
 

@@ -125,6 +125,28 @@ impl TriMesh {
         directed.iter().all(|(&(a, b), &n)| n == 1 && directed.get(&(b, a)) == Some(&1))
     }
 
+    /// For a closed, consistently oriented mesh, every undirected edge once as
+    /// `[a, b, f0, f1]`: triangle `f0` traverses `a → b` and triangle `f1` traverses `b → a`.
+    /// `None` when the mesh is not watertight. Sorted by `(a, b)`.
+    pub fn manifold_edges(&self) -> Option<Vec<[u32; 4]>> {
+        if !self.is_watertight() {
+            return None;
+        }
+        let mut directed: HashMap<(u32, u32), u32> = HashMap::with_capacity(self.triangles.len() * 3);
+        for (f, t) in self.triangles.iter().enumerate() {
+            for k in 0..3 {
+                directed.insert((t[k], t[(k + 1) % 3]), f as u32);
+            }
+        }
+        let mut edges: Vec<[u32; 4]> = directed
+            .iter()
+            .filter(|(&(a, b), _)| a < b)
+            .map(|(&(a, b), &f0)| [a, b, f0, directed[&(b, a)]])
+            .collect();
+        edges.sort_unstable();
+        Some(edges)
+    }
+
     /// Applies `p -> linear * p + offset`; flips winding when the map mirrors.
     pub fn transform_affine(&mut self, linear: &Matrix3, offset: &Vector3) {
         for p in &mut self.positions {

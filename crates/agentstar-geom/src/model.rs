@@ -15,12 +15,19 @@ pub struct Part {
     pub color: [f32; 3],
     /// True when the mesh is closed and consistently oriented (renderers may cull back faces).
     pub watertight: bool,
+    /// Bounds of `mesh` in the part's rest frame.
+    pub bounds: Aabb,
+    /// Edge–face adjacency of a watertight mesh (see [`TriMesh::manifold_edges`]), which
+    /// lets renderers fill silhouettes from contour edges alone.
+    pub edges: Option<Arc<Vec<[u32; 4]>>>,
 }
 
 impl Part {
     pub fn new(name: impl Into<String>, mesh: TriMesh, color: [f32; 3]) -> Part {
-        let watertight = mesh.is_watertight() && mesh.volume() > 0.0;
-        Part { name: name.into(), mesh: Arc::new(mesh), color, watertight }
+        let edges = if mesh.volume() > 0.0 { mesh.manifold_edges().map(Arc::new) } else { None };
+        let watertight = edges.is_some();
+        let bounds = mesh.bounds();
+        Part { name: name.into(), mesh: Arc::new(mesh), color, watertight, bounds, edges }
     }
 }
 

@@ -1,14 +1,27 @@
-pub fn add(left: u64, right: u64) -> u64 {
-    left + right
-}
+//! The CPU renderer of agentstar: silhouettes (bit masks, the hot path of every search),
+//! depth, part ids and shaded colour, the scores computed on them, and the images people
+//! and models look at (overlays, silhouette comparisons, part-id views, turntables, sheets).
+//!
+//! No file I/O here: images are built in memory and written by the caller.
 
-#[cfg(test)]
-mod tests {
-    use super::*;
+pub mod full;
+pub mod mask;
+pub mod raster;
+pub mod scene;
+pub mod score;
+pub mod text;
+pub mod views;
 
-    #[test]
-    fn it_works() {
-        let result = add(2, 2);
-        assert_eq!(result, 4);
-    }
+pub use full::{render_full, RenderBuffers, NO_PART};
+pub use mask::BitMask;
+pub use raster::{Affine, Instance, SilhouetteRenderer};
+pub use scene::PosedModel;
+pub use score::{DepthObservation, IouScore, ScoreTarget};
+
+#[derive(Debug, thiserror::Error)]
+pub enum RenderError {
+    #[error("size mismatch: {what} is {got_w}×{got_h}, expected {want_w}×{want_h}")]
+    SizeMismatch { what: String, got_w: u32, got_h: u32, want_w: u32, want_h: u32 },
+    #[error("{0}")]
+    Invalid(String),
 }

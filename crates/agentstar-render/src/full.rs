@@ -1,0 +1,109 @@
+//! The full renderer: planar depth, part id and camera-frame normal per pixel, with a
+//! z-buffer. Coverage is the same scan conversion as the silhouette renderer, so the
+//! covered pixels are identical; depth is exact per pixel (ray–plane intersection).
+//!
+//! Sign convention used for culling: with every depth positive, `n · a = z_a z_b z_c ·
+//! area2D(a', b', c')` where `n = (b − a) × (c − a)` and primes are pixel coordinates, so a
+//! face looking at the camera (`n · a < 0`) has negative signed area in pixel coordinates.
+
+use crate::raster::{camera_inside_bounds, clip_near, project_point, Instance, ScanTriangle, VertexScratch, NEAR_Z};
+use agentstar_geom::PinholeCamera;
+
+/// Sentinel part id for pixels that show no geometry.
+pub const NO_PART: u16 = u16::MAX;
+
+/// Per-pixel render results, row-major.
+#[derive(Debug, Clone)]
+pub struct RenderBuffers {
+    pub width: u32,
+    pub height: u32,
+    /// Planar camera Z; `f32::INFINITY` where no geometry is seen.
+    pub depth: Vec<f32>,
+    pub part: Vec<u16>,
+    /// Unit camera-frame normal of the visible face, turned toward the camera.
+    pub normal: Vec<[f32; 3]>,
+}
+
+impl RenderBuffers {
+    pub fn new(width: u32, height: u32) -> Self {
+        let n = width as usize * height as usize;
+        RenderBuffers { width, height, depth: vec![f32::INFINITY; n], part: vec![NO_PART; n], normal: vec![[0.0; 3]; n] }
+    }
+    pub fn covered(&self, x: u32, y: u32) -> bool {
+        self.part[(y * self.width + x) as usize] != NO_PART
+    }
+    pub fn silhouette(&self) -> crate::BitMask {
+        crate::BitMask::from_fn(self.width, self.height, |x, y| self.covered(x, y))
+    }
+}
+
+/// Renders depth, part ids and normals of `instances` seen by `camera`. Back faces are drawn
+/// too (open meshes show their inside), but the nearest surface wins.
+pub fn render_full(camera: &PinholeCamera, instances: &[Instance<'_>]) -> RenderBuffers {
+    let (w, h) = (camera.width, camera.height);
+    let mut out = RenderBuffers::new(w, h);
+    let mut scratch = VertexScratch::default();
+    for inst in instances {
+        let any_near = scratch.project(inst.mesh, &inst.camera_from_mesh, camera);
+        let cull = inst.closed() && !camera_inside_bounds(inst);
+        for tri in &inst.mesh.triangles {
+            let idx = [tri[0] as usize, tri[1] as usize, tri[2] as usize];
+            let c = [scratch.cam[idx[0]], scratch.cam[idx[1]], scratch.cam[idx[2]]];
+            let e1 = [c[1][0] - c[0][0], c[1][1] - c[0][1], c[1][2] - c[0][2]];
+            let e2 = [c[2][0] - c[0][0], c[2][1] - c[0][1], c[2][2] - c[0][2]];
+            let n = [e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2], e1[0] * e2[1] - e1[1] * e2[0]];
+            let d = n[0] * c[0][0] + n[1] * c[0][1] + n[2] * c[0][2];
+            if cull && d >= 0.0 {
+                continue;
+            }
+            let len = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
+            if len == 0.0 {
+                continue;
+            }
+            // Face the camera: flip normals of back faces seen from inside.
+            let sign = if d > 0.0 { -1.0 } else { 1.0 };
+            let unit = [(sign * n[0] / len) as f32, (sign * n[1] / len) as f32, (sign * n[2] / len) as f32];
+            let mut draw = |st: &ScanTriangle| {
+                let Some((r0, r1)) = st.rows(h) else { return };
+                for j in r0..=r1 {
+                    let Some((x0, x1)) = st.span(j, w) else { continue };
+                    let ry = (j as f64 + 0.5 - camera.cy) / camera.fy;
+                    for i in x0..=x1 {
+                        let rx = (i as f64 + 0.5 - camera.cx) / camera.fx;
+                        let denom = n[0] * rx + n[1] * ry + n[2];
+                        if denom == 0.0 {
+                            continue;
+                        }
+                        let z = d / denom;
+                        if !(z > NEAR_Z) {
+                            continue;
+                        }
+                        let k = (j * w + i) as usize;
+                        let zf = z as f32;
+                        if zf < out.depth[k] {
+                            out.depth[k] = zf;
+                            out.part[k] = inst.part_id;
+                            out.normal[k] = unit;
+                        }
+                    }
+                }
+            };
+            if any_near && c.iter().any(|p| p[2] <= NEAR_Z) {
+                let (poly, m) = clip_near(c);
+                if m >= 3 {
+                    let p: Vec<[f64; 2]> = poly[..m].iter().map(|q| project_point(q, camera)).collect();
+                    for k in 1..m - 1 {
+                        if let Some(st) = ScanTriangle::new(p[0], p[k], p[k + 1]) {
+                            draw(&st);
+                        }
+                    }
+                }
+                continue;
+            }
+            if let Some(st) = ScanTriangle::new(scratch.screen[idx[0]], scratch.screen[idx[1]], scratch.screen[idx[2]]) {
+                draw(&st);
+            }
+        }
+    }
+    out
+}

@@ -1,0 +1,233 @@
+//! Scores of a render against an observation: silhouette IoU with hand pixels excluded
+//! (`iou_visible = |R∩M∩K| / |(R∪M)∩K|`, K = not hand), raw IoU, and the depth term of the
+//! combined score `IoU − w · min(depth error in canonical units, 1)`.
+
+use crate::full::RenderBuffers;
+use crate::mask::BitMask;
+use crate::RenderError;
+
+/// A target mask with its optional don't-care (hand) region, prepared for fast scoring.
+#[derive(Debug, Clone)]
+pub struct ScoreTarget {
+    mask: BitMask,
+    /// `K = not hand`; `None` when the frame has no hand mask.
+    keep: Option<BitMask>,
+    mask_px: u64,
+}
+
+/// IoU figures of one render against one target.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct IouScore {
+    pub iou_raw: f64,
+    /// IoU over the pixels outside the hand mask; `None` when that region holds neither the
+    /// render nor the mask (nothing visible to judge), which fails the gate.
+    pub iou_visible: Option<f64>,
+    pub render_px: u64,
+    pub mask_px: u64,
+    pub intersection_px: u64,
+    pub union_px: u64,
+    /// Pixels of the hand mask (the don't-care region).
+    pub hand_px: u64,
+}
+
+impl IouScore {
+    /// The gate value: `iou_visible` (equal to `iou_raw` without a hand mask), or 0 when
+    /// nothing is visible.
+    pub fn gate(&self) -> f64 {
+        self.iou_visible.unwrap_or(0.0)
+    }
+}
+
+fn ratio(num: u64, den: u64) -> f64 {
+    if den == 0 {
+        0.0
+    } else {
+        num as f64 / den as f64
+    }
+}
+
+impl ScoreTarget {
+    pub fn new(mask: BitMask, hand: Option<BitMask>) -> Result<Self, RenderError> {
+        if let Some(h) = &hand {
+            if (h.width(), h.height()) != (mask.width(), mask.height()) {
+                return Err(RenderError::SizeMismatch {
+                    what: "hand mask".into(),
+                    got_w: h.width(),
+                    got_h: h.height(),
+                    want_w: mask.width(),
+                    want_h: mask.height(),
+                });
+            }
+        }
+        let mask_px = mask.count();
+        Ok(ScoreTarget { keep: hand.map(|h| h.not()), mask, mask_px })
+    }
+
+    pub fn mask(&self) -> &BitMask {
+        &self.mask
+    }
+    pub fn keep(&self) -> Option<&BitMask> {
+        self.keep.as_ref()
+    }
+    pub fn width(&self) -> u32 {
+        self.mask.width()
+    }
+    pub fn height(&self) -> u32 {
+        self.mask.height()
+    }
+
+    /// The gate value only, for search loops: one pass of popcounts over the words.
+    #[inline]
+    pub fn gate(&self, render: &BitMask) -> f64 {
+        let r = render.words();
+        let m = self.mask.words();
+        let (mut inter, mut union) = (0u64, 0u64);
+        match &self.keep {
+            None => {
+                for (a, b) in r.iter().zip(m) {
+                    inter += (a & b).count_ones() as u64;
+                    union += (a | b).count_ones() as u64;
+                }
+            }
+            Some(k) => {
+                for ((a, b), c) in r.iter().zip(m).zip(k.words()) {
+                    inter += (a & b & c).count_ones() as u64;
+                    union += ((a | b) & c).count_ones() as u64;
+                }
+            }
+        }
+        ratio(inter, union)
+    }
+
+    /// Every figure of the score.
+    pub fn score(&self, render: &BitMask) -> IouScore {
+        let r = render.words();
+        let m = self.mask.words();
+        let (mut inter, mut union, mut render_px) = (0u64, 0u64, 0u64);
+        for (a, b) in r.iter().zip(m) {
+            inter += (a & b).count_ones() as u64;
+            union += (a | b).count_ones() as u64;
+            render_px += a.count_ones() as u64;
+        }
+        let iou_raw = ratio(inter, union);
+        let (iou_visible, hand_px) = match &self.keep {
+            None => (if union == 0 { None } else { Some(iou_raw) }, 0),
+            Some(k) => {
+                let (mut vi, mut vu, mut keep_px) = (0u64, 0u64, 0u64);
+                for ((a, b), c) in r.iter().zip(m).zip(k.words()) {
+                    vi += (a & b & c).count_ones() as u64;
+                    vu += ((a | b) & c).count_ones() as u64;
+                    keep_px += c.count_ones() as u64;
+                }
+                let total = self.mask.width() as u64 * self.mask.height() as u64;
+                (if vu == 0 { None } else { Some(ratio(vi, vu)) }, total - keep_px)
+            }
+        };
+        IouScore { iou_raw, iou_visible, render_px, mask_px: self.mask_px, intersection_px: inter, union_px: union, hand_px }
+    }
+}
+
+/// Observed planar depth for one frame, in the capture's units, with per-pixel confidence.
+#[derive(Debug, Clone)]
+pub struct DepthObservation {
+    pub width: u32,
+    pub height: u32,
+    /// Planar depth; non-finite or ≤ 0 means invalid.
+    pub depth: Vec<f32>,
+    /// Confidence in [0, 1] (all 1 when the source has none).
+    pub confidence: Vec<f32>,
+}
+
+/// Depth agreement over the pixels where the mask, the render and a valid, confident
+/// observation overlap, outside the hand region. No scale is fitted, by design.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct DepthScore {
+    pub mae: f64,
+    pub rmse: f64,
+    /// Signed mean (render − observed); positive means the render is too far.
+    pub bias: f64,
+    /// `mae / scale`: the error in canonical object units.
+    pub mae_canon: f64,
+    pub scored_px: u64,
+}
+
+/// Compares rendered depth with an observation (confidence-weighted).
+pub fn depth_score(render: &RenderBuffers, obs: &DepthObservation, target: &ScoreTarget, scale: f64, conf_threshold: f32) -> Result<Option<DepthScore>, RenderError> {
+    if (obs.width, obs.height) != (render.width, render.height) {
+        return Err(RenderError::SizeMismatch { what: "depth".into(), got_w: obs.width, got_h: obs.height, want_w: render.width, want_h: render.height });
+    }
+    let (mut wsum, mut abs, mut sq, mut signed, mut n) = (0f64, 0f64, 0f64, 0f64, 0u64);
+    for y in 0..render.height {
+        for x in 0..render.width {
+            let k = (y * render.width + x) as usize;
+            let zr = render.depth[k];
+            let zo = obs.depth[k];
+            let c = obs.confidence[k];
+            if !zr.is_finite() || !(zo.is_finite() && zo > 0.0) || c < conf_threshold || !target.mask.get(x, y) {
+                continue;
+            }
+            if target.keep.as_ref().is_some_and(|keep| !keep.get(x, y)) {
+                continue;
+            }
+            let e = (zr - zo) as f64;
+            let wgt = c as f64;
+            wsum += wgt;
+            abs += wgt * e.abs();
+            sq += wgt * e * e;
+            signed += wgt * e;
+            n += 1;
+        }
+    }
+    if n == 0 || wsum == 0.0 {
+        return Ok(None);
+    }
+    let mae = abs / wsum;
+    Ok(Some(DepthScore { mae, rmse: (sq / wsum).sqrt(), bias: signed / wsum, mae_canon: mae / scale, scored_px: n }))
+}
+
+/// `combined = iou − weight · min(depth_mae_canon, 1)`; the IoU alone without depth.
+pub fn combined_score(iou: f64, depth: Option<&DepthScore>, weight: f64) -> f64 {
+    match depth {
+        Some(d) => iou - weight * d.mae_canon.min(1.0),
+        None => iou,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn iou_visible_excludes_hands() {
+        // Mask: columns 0..10; render: columns 5..15; hand covers columns 10..15.
+        let (w, h) = (20, 4);
+        let mask = BitMask::from_fn(w, h, |x, _| x < 10);
+        let render = BitMask::from_fn(w, h, |x, _| (5..15).contains(&x));
+        let hand = BitMask::from_fn(w, h, |x, _| (10..15).contains(&x));
+        let t = ScoreTarget::new(mask.clone(), Some(hand)).expect("sizes");
+        let s = t.score(&render);
+        assert!((s.iou_raw - 5.0 / 15.0).abs() < 1e-12);
+        assert!((s.iou_visible.expect("visible") - 5.0 / 10.0).abs() < 1e-12);
+        assert_eq!(s.hand_px, 20);
+        assert!((t.gate(&render) - 0.5).abs() < 1e-12);
+        let plain = ScoreTarget::new(mask, None).expect("ok");
+        assert_eq!(plain.score(&render).iou_visible, Some(5.0 / 15.0));
+    }
+
+    #[test]
+    fn nothing_visible_fails_the_gate() {
+        let hand = BitMask::from_fn(8, 8, |_, _| true);
+        let t = ScoreTarget::new(BitMask::from_fn(8, 8, |x, _| x < 4), Some(hand)).expect("ok");
+        let s = t.score(&BitMask::new(8, 8));
+        assert_eq!(s.iou_visible, None);
+        assert_eq!(s.gate(), 0.0);
+        assert!(ScoreTarget::new(BitMask::new(8, 8), Some(BitMask::new(4, 4))).is_err());
+    }
+
+    #[test]
+    fn combined_caps_the_penalty() {
+        let d = DepthScore { mae: 1.0, rmse: 1.0, bias: 0.0, mae_canon: 5.0, scored_px: 1 };
+        assert_eq!(combined_score(0.9, Some(&d), 0.1), 0.9 - 0.1);
+        assert_eq!(combined_score(0.9, None, 0.1), 0.9);
+    }
+}

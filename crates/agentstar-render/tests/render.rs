@@ -1,0 +1,172 @@
+//! Integration tests of the renderer: exactness against an independent ray caster over many
+//! poses, depth against ray-cast depth, and the silhouette/full renderers agreeing.
+
+use agentstar_geom::kinematics::{JointDef, JointKind};
+use agentstar_geom::pose::Similarity;
+use agentstar_geom::primitives::{cone, cuboid, torus, uv_sphere};
+use agentstar_geom::{KinematicTree, ObjectModel, Part, PinholeCamera, Point3, TriMesh, UnitQuaternion, Vector3};
+use agentstar_render::{render_full, BitMask, PosedModel, SilhouetteRenderer};
+
+/// A deterministic generator for test poses.
+struct Rng(u64);
+impl Rng {
+    fn next(&mut self) -> f64 {
+        self.0 = self.0.wrapping_add(0x9E3779B97F4A7C15);
+        let mut z = self.0;
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58476D1CE4E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D049BB133111EB);
+        ((z ^ (z >> 31)) >> 11) as f64 / (1u64 << 53) as f64
+    }
+    fn range(&mut self, a: f64, b: f64) -> f64 {
+        a + (b - a) * self.next()
+    }
+    fn rotation(&mut self) -> UnitQuaternion {
+        let q = nalgebra::Quaternion::new(self.range(-1.0, 1.0), self.range(-1.0, 1.0), self.range(-1.0, 1.0), self.range(-1.0, 1.0));
+        UnitQuaternion::from_quaternion(q)
+    }
+}
+
+/// Möller–Trumbore from the camera centre, inclusive edges; nearest hit's planar depth.
+fn ray_cast(meshes: &[TriMesh], camera: &PinholeCamera) -> (BitMask, Vec<f64>) {
+    let mut mask = BitMask::new(camera.width, camera.height);
+    let mut depth = vec![f64::INFINITY; (camera.width * camera.height) as usize];
+    for y in 0..camera.height {
+        for x in 0..camera.width {
+            let d = camera.ray_direction(x as f64 + 0.5, y as f64 + 0.5);
+            for mesh in meshes {
+                for i in 0..mesh.triangles.len() {
+                    let [a, b, c] = mesh.triangle(i);
+                    let e1 = b - a;
+                    let e2 = c - a;
+                    let p = d.cross(&e2);
+                    let det = e1.dot(&p);
+                    if det.abs() < 1e-300 {
+                        continue;
+                    }
+                    let inv = 1.0 / det;
+                    let s = -a.coords;
+                    let u = s.dot(&p) * inv;
+                    if !(0.0..=1.0).contains(&u) {
+                        continue;
+                    }
+                    let q = s.cross(&e1);
+                    let v = d.dot(&q) * inv;
+                    if v < 0.0 || u + v > 1.0 {
+                        continue;
+                    }
+                    let t = e2.dot(&q) * inv;
+                    if t > 1e-6 {
+                        mask.set(x, y);
+                        let k = (y * camera.width + x) as usize;
+                        depth[k] = depth[k].min(t);
+                    }
+                }
+            }
+        }
+    }
+    (mask, depth)
+}
+
+fn test_model() -> ObjectModel {
+    let body = cuboid(0.8, 0.5, 0.3).expect("box");
+    let lid = cone(0.2, 0.05, 0.3, 24).expect("cone").translated(Vector3::new(0.0, 0.0, 0.3));
+    let ring = torus(0.2, 0.05, 24, 8).expect("torus").translated(Vector3::new(0.5, 0.0, 0.0));
+    let ball = uv_sphere(0.12, 16, 8).expect("sphere").translated(Vector3::new(-0.45, 0.1, 0.1));
+    let parts = vec![
+        Part::new("body", body, [0.8, 0.2, 0.2]),
+        Part::new("lid", lid, [0.2, 0.8, 0.2]),
+        Part::new("ring", ring, [0.2, 0.2, 0.8]),
+        Part::new("ball", ball, [0.8, 0.8, 0.2]),
+    ];
+    let names: Vec<String> = parts.iter().map(|p| p.name.clone()).collect();
+    let hinge = JointDef {
+        name: "hinge".into(),
+        kind: JointKind::Revolute,
+        parent: None,
+        child: vec!["lid".into()],
+        origin: Vector3::new(0.0, -0.2, 0.15),
+        axis: Vector3::x(),
+        limit: Some((0.0, 120.0)),
+    };
+    ObjectModel { tree: KinematicTree::new(vec![hinge], &names).expect("tree"), parts }
+}
+
+fn posed_meshes(model: &ObjectModel, states: &[f64], pose: &Similarity) -> Vec<TriMesh> {
+    let transforms = model.tree.part_transforms(states);
+    model
+        .parts
+        .iter()
+        .zip(&transforms)
+        .map(|(p, t)| {
+            let full = pose.compose(&Similarity::from_rigid(t));
+            TriMesh::new(p.mesh.positions.iter().map(|q| full.transform_point(q)).collect(), p.mesh.triangles.clone())
+        })
+        .collect()
+}
+
+#[test]
+fn silhouette_is_exact_against_ray_casting_over_many_poses() {
+    let model = test_model();
+    let camera = PinholeCamera::new(90.0, 90.0, 48.0, 36.0, 96, 72).expect("camera");
+    let mut rng = Rng(7);
+    let mut renderer = SilhouetteRenderer::new(96, 72);
+    for trial in 0..60 {
+        let pose = Similarity {
+            scale: rng.range(0.5, 1.5),
+            rotation: rng.rotation(),
+            translation: Vector3::new(rng.range(-0.3, 0.3), rng.range(-0.2, 0.2), rng.range(1.5, 3.0)),
+        };
+        let states = [rng.range(0.0, 2.0)];
+        let posed = PosedModel::new(&model, &states, &pose);
+        let raster = renderer.render(&camera, &posed.instances).clone();
+        let (exact, exact_depth) = ray_cast(&posed_meshes(&model, &states, &pose), &camera);
+        assert!(exact.count() > 50, "trial {trial}: object not in view");
+        let inter = raster.and(&exact).count();
+        let union = raster.or(&exact).count();
+        assert_eq!(inter, union, "trial {trial}: IoU {} ≠ 1", inter as f64 / union as f64);
+        // The full renderer covers the same pixels and its depth is the ray-cast depth.
+        let full = render_full(&camera, &posed.instances);
+        assert_eq!(full.silhouette(), raster, "trial {trial}: full and silhouette renderers differ");
+        for (k, &z) in full.depth.iter().enumerate() {
+            if z.is_finite() {
+                assert!((z as f64 - exact_depth[k]).abs() < 1e-4 * exact_depth[k], "trial {trial}: depth {z} vs {}", exact_depth[k]);
+            }
+        }
+    }
+}
+
+#[test]
+fn geometry_crossing_the_near_plane_is_clipped_not_dropped() {
+    // A large plane through the camera: half of it is behind the camera.
+    let mesh = agentstar_geom::primitives::cuboid(4.0, 4.0, 0.01).expect("box");
+    let part = Part::new("slab", mesh, [1.0; 3]);
+    let model = ObjectModel { tree: KinematicTree::rigid(1), parts: vec![part] };
+    let pose = Similarity {
+        scale: 1.0,
+        rotation: UnitQuaternion::from_axis_angle(&Vector3::x_axis(), 1.3),
+        translation: Vector3::new(0.0, 0.05, 0.5),
+    };
+    let camera = PinholeCamera::new(40.0, 40.0, 24.0, 16.0, 48, 32).expect("camera");
+    let posed = PosedModel::new(&model, &[], &pose);
+    let mut r = SilhouetteRenderer::new(48, 32);
+    let raster = r.render(&camera, &posed.instances).clone();
+    let (exact, _) = ray_cast(&posed_meshes(&model, &[], &pose), &camera);
+    assert!(exact.count() > 200, "{}", exact.count());
+    assert_eq!(raster, exact);
+}
+
+#[test]
+fn renderer_reuse_clears_previous_frames() {
+    let model = test_model();
+    let camera = PinholeCamera::new(90.0, 90.0, 48.0, 36.0, 96, 72).expect("camera");
+    let mut r = SilhouetteRenderer::new(96, 72);
+    let near = Similarity { scale: 1.0, rotation: UnitQuaternion::identity(), translation: Vector3::new(0.0, 0.0, 1.5) };
+    let far = Similarity { translation: Vector3::new(0.2, 0.0, 6.0), ..near };
+    let a = r.render(&camera, &PosedModel::new(&model, &[0.0], &near).instances).count();
+    let b = r.render(&camera, &PosedModel::new(&model, &[0.0], &far).instances).clone();
+    let mut fresh = SilhouetteRenderer::new(96, 72);
+    let c = fresh.render(&camera, &PosedModel::new(&model, &[0.0], &far).instances).clone();
+    assert!(a > b.count());
+    assert_eq!(b, c);
+    let _ = Point3::origin();
+}
