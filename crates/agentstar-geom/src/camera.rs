@@ -16,7 +16,14 @@ pub struct PinholeCamera {
 
 impl PinholeCamera {
     pub fn new(fx: f64, fy: f64, cx: f64, cy: f64, width: u32, height: u32) -> Result<Self> {
-        let cam = PinholeCamera { fx, fy, cx, cy, width, height };
+        let cam = PinholeCamera {
+            fx,
+            fy,
+            cx,
+            cy,
+            width,
+            height,
+        };
         cam.validate()?;
         Ok(cam)
     }
@@ -26,13 +33,19 @@ impl PinholeCamera {
         if vals.iter().any(|v| !v.is_finite()) || self.fx <= 0.0 || self.fy <= 0.0 {
             return Err(GeomError::InvalidArgument {
                 primitive: "camera".into(),
-                reason: format!("intrinsics fx={} fy={} cx={} cy={} must be finite with positive focal lengths", self.fx, self.fy, self.cx, self.cy),
+                reason: format!(
+                    "intrinsics fx={} fy={} cx={} cy={} must be finite with positive focal lengths",
+                    self.fx, self.fy, self.cx, self.cy
+                ),
             });
         }
         if self.width == 0 || self.height == 0 || self.width > 16384 || self.height > 16384 {
             return Err(GeomError::InvalidArgument {
                 primitive: "camera".into(),
-                reason: format!("image size {}×{} must be between 1 and 16384 on each side", self.width, self.height),
+                reason: format!(
+                    "image size {}×{} must be between 1 and 16384 on each side",
+                    self.width, self.height
+                ),
             });
         }
         Ok(())
@@ -64,13 +77,27 @@ impl PinholeCamera {
     pub fn resized(&self, width: u32, height: u32) -> PinholeCamera {
         let sx = width as f64 / self.width as f64;
         let sy = height as f64 / self.height as f64;
-        PinholeCamera { fx: self.fx * sx, fy: self.fy * sy, cx: self.cx * sx, cy: self.cy * sy, width, height }
+        PinholeCamera {
+            fx: self.fx * sx,
+            fy: self.fy * sy,
+            cx: self.cx * sx,
+            cy: self.cy * sy,
+            width,
+            height,
+        }
     }
 
     /// A square camera with the given horizontal field of view (degrees at the interface).
     pub fn with_fov(fov_x_deg: f64, width: u32, height: u32) -> PinholeCamera {
         let fx = width as f64 * 0.5 / (fov_x_deg.to_radians() * 0.5).tan();
-        PinholeCamera { fx, fy: fx, cx: width as f64 * 0.5, cy: height as f64 * 0.5, width, height }
+        PinholeCamera {
+            fx,
+            fy: fx,
+            cx: width as f64 * 0.5,
+            cy: height as f64 * 0.5,
+            width,
+            height,
+        }
     }
 }
 
@@ -89,7 +116,9 @@ pub fn look_at(eye: &Point3, target: &Point3, up_world: &Vector3) -> Rigid {
     let down = forward.cross(&right);
     // Rows of the world-to-camera rotation are the camera axes in world coordinates.
     let r = Matrix3::from_rows(&[right.transpose(), down.transpose(), forward.transpose()]);
-    let rot = nalgebra::UnitQuaternion::from_rotation_matrix(&nalgebra::Rotation3::from_matrix_unchecked(r));
+    let rot = nalgebra::UnitQuaternion::from_rotation_matrix(
+        &nalgebra::Rotation3::from_matrix_unchecked(r),
+    );
     let t = -(rot * eye.coords);
     Rigid::from_parts(nalgebra::Translation3::from(t), rot)
 }
@@ -112,7 +141,11 @@ mod tests {
 
     #[test]
     fn look_at_points_forward_with_image_up() {
-        let cam_from_world = look_at(&Point3::new(0.0, -3.0, 0.0), &Point3::origin(), &Vector3::z());
+        let cam_from_world = look_at(
+            &Point3::new(0.0, -3.0, 0.0),
+            &Point3::origin(),
+            &Vector3::z(),
+        );
         let target_in_cam = cam_from_world * Point3::origin();
         assert!((target_in_cam - Point3::new(0.0, 0.0, 3.0)).norm() < 1e-12);
         // World +Z (up) must appear as image up, i.e. camera −Y.

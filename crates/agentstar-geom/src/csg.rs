@@ -1,0 +1,711 @@
+//! Boolean operations on closed meshes by binary space partitioning (the classic
+//! clip-to-tree formulation), followed by vertex welding and T-junction repair so that the
+//! result of two watertight inputs is watertight again.
+//!
+//! The trees are stored in an arena and built and traversed without recursion, so large
+//! meshes cannot overflow the stack.
+
+use crate::mesh::{Aabb, TriMesh};
+use crate::{GeomError, Point3, Result, Vector3};
+
+#[derive(Clone, Debug)]
+struct Plane {
+    normal: Vector3,
+    w: f64,
+}
+
+impl Plane {
+    fn from_points(a: &Point3, b: &Point3, c: &Point3) -> Option<Plane> {
+        let n = (b - a).cross(&(c - a));
+        let len = n.norm();
+        if len.is_nan() || len <= 1e-300 {
+            return None;
+        }
+        let normal = n / len;
+        Some(Plane {
+            w: normal.dot(&a.coords),
+            normal,
+        })
+    }
+    fn flip(&mut self) {
+        self.normal = -self.normal;
+        self.w = -self.w;
+    }
+}
+
+#[derive(Clone, Debug)]
+struct Polygon {
+    vertices: Vec<Point3>,
+    plane: Plane,
+}
+
+impl Polygon {
+    fn flip(&mut self) {
+        self.vertices.reverse();
+        self.plane.flip();
+    }
+}
+
+const COPLANAR: u8 = 0;
+const FRONT: u8 = 1;
+const BACK: u8 = 2;
+const SPANNING: u8 = 3;
+
+/// Splits `poly` by `plane` into the four output lists.
+fn split(
+    plane: &Plane,
+    poly: Polygon,
+    eps: f64,
+    cf: &mut Vec<Polygon>,
+    cb: &mut Vec<Polygon>,
+    f: &mut Vec<Polygon>,
+    b: &mut Vec<Polygon>,
+) {
+    let mut kind = 0u8;
+    let mut types = Vec::with_capacity(poly.vertices.len());
+    for v in &poly.vertices {
+        let t = plane.normal.dot(&v.coords) - plane.w;
+        let ty = if t < -eps {
+            BACK
+        } else if t > eps {
+            FRONT
+        } else {
+            COPLANAR
+        };
+        kind |= ty;
+        types.push(ty);
+    }
+    match kind {
+        COPLANAR => {
+            if plane.normal.dot(&poly.plane.normal) > 0.0 {
+                cf.push(poly)
+            } else {
+                cb.push(poly)
+            }
+        }
+        FRONT => f.push(poly),
+        BACK => b.push(poly),
+        _ => {
+            let n = poly.vertices.len();
+            let (mut fv, mut bv) = (Vec::with_capacity(n + 1), Vec::with_capacity(n + 1));
+            for i in 0..n {
+                let j = (i + 1) % n;
+                let (ti, tj) = (types[i], types[j]);
+                let (vi, vj) = (poly.vertices[i], poly.vertices[j]);
+                if ti != BACK {
+                    fv.push(vi);
+                }
+                if ti != FRONT {
+                    bv.push(vi);
+                }
+                if (ti | tj) == SPANNING {
+                    let t = (plane.w - plane.normal.dot(&vi.coords)) / plane.normal.dot(&(vj - vi));
+                    let v = vi + (vj - vi) * t;
+                    fv.push(v);
+                    bv.push(v);
+                }
+            }
+            if fv.len() >= 3 {
+                f.push(Polygon {
+                    vertices: fv,
+                    plane: poly.plane.clone(),
+                });
+            }
+            if bv.len() >= 3 {
+                b.push(Polygon {
+                    vertices: bv,
+                    plane: poly.plane,
+                });
+            }
+        }
+    }
+}
+
+#[derive(Debug, Default)]
+struct Node {
+    plane: Option<Plane>,
+    front: Option<usize>,
+    back: Option<usize>,
+    polygons: Vec<Polygon>,
+}
+
+#[derive(Debug, Default)]
+struct Bsp {
+    nodes: Vec<Node>,
+    eps: f64,
+}
+
+impl Bsp {
+    fn new(polygons: Vec<Polygon>, eps: f64) -> Bsp {
+        let mut t = Bsp {
+            nodes: vec![Node::default()],
+            eps,
+        };
+        t.build(0, polygons);
+        t
+    }
+
+    /// Inserts polygons below `root`, iteratively.
+    fn build(&mut self, root: usize, polygons: Vec<Polygon>) {
+        let mut work = vec![(root, polygons)];
+        while let Some((ni, polys)) = work.pop() {
+            if polys.is_empty() {
+                continue;
+            }
+            if self.nodes[ni].plane.is_none() {
+                self.nodes[ni].plane = Some(polys[0].plane.clone());
+            }
+            let plane = self.nodes[ni].plane.clone().expect("plane set above");
+            let (mut f, mut b) = (Vec::new(), Vec::new());
+            let mut cf = Vec::new();
+            let mut cb = Vec::new();
+            for p in polys {
+                split(&plane, p, self.eps, &mut cf, &mut cb, &mut f, &mut b);
+            }
+            self.nodes[ni].polygons.extend(cf);
+            self.nodes[ni].polygons.extend(cb);
+            if !f.is_empty() {
+                let child = self.child(ni, true);
+                work.push((child, f));
+            }
+            if !b.is_empty() {
+                let child = self.child(ni, false);
+                work.push((child, b));
+            }
+        }
+    }
+
+    fn child(&mut self, ni: usize, front: bool) -> usize {
+        let existing = if front {
+            self.nodes[ni].front
+        } else {
+            self.nodes[ni].back
+        };
+        if let Some(c) = existing {
+            return c;
+        }
+        self.nodes.push(Node::default());
+        let c = self.nodes.len() - 1;
+        if front {
+            self.nodes[ni].front = Some(c);
+        } else {
+            self.nodes[ni].back = Some(c);
+        }
+        c
+    }
+
+    fn invert(&mut self) {
+        for n in &mut self.nodes {
+            for p in &mut n.polygons {
+                p.flip();
+            }
+            if let Some(pl) = &mut n.plane {
+                pl.flip();
+            }
+            std::mem::swap(&mut n.front, &mut n.back);
+        }
+    }
+
+    /// Removes the parts of `polygons` inside this tree's solid.
+    fn clip_polygons(&self, polygons: Vec<Polygon>) -> Vec<Polygon> {
+        let mut out = Vec::new();
+        let mut work = vec![(0usize, polygons)];
+        while let Some((ni, polys)) = work.pop() {
+            let node = &self.nodes[ni];
+            let Some(plane) = &node.plane else {
+                out.extend(polys);
+                continue;
+            };
+            let (mut f, mut b) = (Vec::new(), Vec::new());
+            let (mut cf, mut cb) = (Vec::new(), Vec::new());
+            for p in polys {
+                split(plane, p, self.eps, &mut cf, &mut cb, &mut f, &mut b);
+            }
+            f.extend(cf);
+            b.extend(cb);
+            match node.front {
+                Some(c) => work.push((c, f)),
+                None => out.extend(f),
+            }
+            // Polygons behind a leaf are inside the solid and dropped.
+            if let Some(c) = node.back {
+                work.push((c, b));
+            }
+        }
+        out
+    }
+
+    fn clip_to(&mut self, other: &Bsp) {
+        for i in 0..self.nodes.len() {
+            let polys = std::mem::take(&mut self.nodes[i].polygons);
+            self.nodes[i].polygons = other.clip_polygons(polys);
+        }
+    }
+
+    fn all_polygons(&self) -> Vec<Polygon> {
+        self.nodes
+            .iter()
+            .flat_map(|n| n.polygons.iter().cloned())
+            .collect()
+    }
+}
+
+fn to_polygons(mesh: &TriMesh) -> Vec<Polygon> {
+    (0..mesh.triangles.len())
+        .filter_map(|i| {
+            let [a, b, c] = mesh.triangle(i);
+            Plane::from_points(&a, &b, &c).map(|plane| Polygon {
+                vertices: vec![a, b, c],
+                plane,
+            })
+        })
+        .collect()
+}
+
+fn check_input(mesh: &TriMesh, which: &str, op: &str) -> Result<()> {
+    if mesh.is_empty() || !mesh.is_finite() {
+        return Err(GeomError::InvalidArgument {
+            primitive: op.into(),
+            reason: format!("the {which} operand is empty or has non-finite coordinates"),
+        });
+    }
+    if !mesh.is_watertight() {
+        return Err(GeomError::InvalidArgument {
+            primitive: op.into(),
+            reason: format!("the {which} operand is not a closed solid (open surfaces such as plane or disc cannot take part in booleans)"),
+        });
+    }
+    Ok(())
+}
+
+#[derive(Clone, Copy)]
+enum Op {
+    Union,
+    Difference,
+    Intersection,
+}
+
+fn boolean(a: &TriMesh, b: &TriMesh, op: Op) -> Result<TriMesh> {
+    let name = match op {
+        Op::Union => "union",
+        Op::Difference => "difference",
+        Op::Intersection => "intersection",
+    };
+    check_input(a, "first", name)?;
+    check_input(b, "second", name)?;
+    let (ba, bb) = (a.bounds(), b.bounds());
+    let size = ba.union(&bb).extent().max().max(1e-12);
+    let eps = size * 1e-9;
+    // Disjoint bounds: the answer needs no partitioning.
+    let overlap = (0..3).all(|i| ba.min[i] <= bb.max[i] + eps && bb.min[i] <= ba.max[i] + eps);
+    if !overlap {
+        return Ok(match op {
+            Op::Union => {
+                let mut m = a.clone();
+                m.append(b);
+                m
+            }
+            Op::Difference => a.clone(),
+            Op::Intersection => TriMesh::default(),
+        });
+    }
+    let mut ta = Bsp::new(to_polygons(a), eps);
+    let mut tb = Bsp::new(to_polygons(b), eps);
+    match op {
+        Op::Union => {
+            ta.clip_to(&tb);
+            tb.clip_to(&ta);
+            tb.invert();
+            tb.clip_to(&ta);
+            tb.invert();
+            let polys = tb.all_polygons();
+            ta.build(0, polys);
+        }
+        Op::Difference => {
+            ta.invert();
+            ta.clip_to(&tb);
+            tb.clip_to(&ta);
+            tb.invert();
+            tb.clip_to(&ta);
+            tb.invert();
+            let polys = tb.all_polygons();
+            ta.build(0, polys);
+            ta.invert();
+        }
+        Op::Intersection => {
+            ta.invert();
+            tb.clip_to(&ta);
+            tb.invert();
+            ta.clip_to(&tb);
+            tb.clip_to(&ta);
+            let polys = tb.all_polygons();
+            ta.build(0, polys);
+            ta.invert();
+        }
+    }
+    Ok(polygons_to_mesh(ta.all_polygons(), size))
+}
+
+/// Welds polygon vertices, inserts vertices that lie on other polygons' edges (repairing
+/// T-junctions), and fans each polygon into triangles.
+fn polygons_to_mesh(polys: Vec<Polygon>, size: f64) -> TriMesh {
+    let tol = size * 1e-7;
+    let mut soup = TriMesh::default();
+    let mut loops: Vec<Vec<u32>> = Vec::with_capacity(polys.len());
+    for p in &polys {
+        let base = soup.positions.len() as u32;
+        soup.positions.extend_from_slice(&p.vertices);
+        loops.push((0..p.vertices.len() as u32).map(|k| base + k).collect());
+    }
+    // Weld through a degenerate-free triangle-less pass: reuse the mesh welder's clustering.
+    let welded_index = weld_indices(&soup.positions, tol);
+    let mut positions: Vec<Point3> = Vec::new();
+    let mut remap = vec![u32::MAX; welded_index.len()];
+    for (i, &w) in welded_index.iter().enumerate() {
+        if remap[w as usize] == u32::MAX {
+            remap[w as usize] = positions.len() as u32;
+            positions.push(soup.positions[w as usize]);
+        }
+        remap[i] = remap[w as usize];
+    }
+    let loops: Vec<Vec<u32>> = loops
+        .into_iter()
+        .map(|l| {
+            let mut v: Vec<u32> = l.iter().map(|&i| remap[i as usize]).collect();
+            v.dedup();
+            while v.len() > 1 && v.first() == v.last() {
+                v.pop();
+            }
+            v
+        })
+        .filter(|l| l.len() >= 3)
+        .collect();
+    // T-junction repair: vertices strictly inside an edge's span are inserted into it.
+    let grid = Grid::new(&positions, size / 64.0);
+    let mut triangles = Vec::new();
+    for l in &loops {
+        let mut full: Vec<u32> = Vec::with_capacity(l.len() * 2);
+        for k in 0..l.len() {
+            let (a, b) = (l[k], l[(k + 1) % l.len()]);
+            full.push(a);
+            let (pa, pb) = (positions[a as usize], positions[b as usize]);
+            let d = pb - pa;
+            let len2 = d.norm_squared();
+            if len2 <= tol * tol {
+                continue;
+            }
+            let mut on_edge: Vec<(f64, u32)> = Vec::new();
+            grid.for_each_near_segment(&pa, &pb, tol, |vi| {
+                if vi == a || vi == b {
+                    return;
+                }
+                let p = positions[vi as usize];
+                let t = (p - pa).dot(&d) / len2;
+                if t <= 0.0 || t >= 1.0 {
+                    return;
+                }
+                if (pa + d * t - p).norm() <= tol {
+                    on_edge.push((t, vi));
+                }
+            });
+            on_edge.sort_by(|x, y| x.0.total_cmp(&y.0));
+            on_edge.dedup_by(|x, y| x.1 == y.1);
+            full.extend(on_edge.into_iter().map(|(_, v)| v));
+        }
+        fan_convex(&full, &positions, &mut triangles);
+    }
+    TriMesh::new(positions, triangles).compacted()
+}
+
+/// Triangulates a convex polygon whose boundary may carry collinear vertices, choosing a
+/// fan apex at a true corner so that no triangle is degenerate when one can be avoided.
+fn fan_convex(l: &[u32], positions: &[Point3], out: &mut Vec<[u32; 3]>) {
+    let n = l.len();
+    let corner = |k: usize| {
+        let (a, b, c) = (
+            positions[l[(k + n - 1) % n] as usize],
+            positions[l[k] as usize],
+            positions[l[(k + 1) % n] as usize],
+        );
+        (b - a).cross(&(c - b)).norm()
+    };
+    // Fan from the vertex just after a run of collinear ones when possible: a strictly
+    // convex corner whose two neighbours are corners too avoids slivers in the usual case.
+    let apex = (0..n)
+        .max_by(|&i, &j| corner(i).total_cmp(&corner(j)))
+        .unwrap_or(0);
+    for k in 1..n - 1 {
+        let (i1, i2) = ((apex + k) % n, (apex + k + 1) % n);
+        out.push([l[apex], l[i1], l[i2]]);
+    }
+}
+
+/// Maps every point to a representative within `tol` (first seen wins).
+fn weld_indices(points: &[Point3], tol: f64) -> Vec<u32> {
+    let inv = 1.0 / tol.max(1e-300);
+    let mut cells: std::collections::HashMap<(i64, i64, i64), Vec<u32>> =
+        std::collections::HashMap::new();
+    let mut out = Vec::with_capacity(points.len());
+    for (i, p) in points.iter().enumerate() {
+        let k = (
+            (p.x * inv).floor() as i64,
+            (p.y * inv).floor() as i64,
+            (p.z * inv).floor() as i64,
+        );
+        let mut found = None;
+        'outer: for dx in -1..=1 {
+            for dy in -1..=1 {
+                for dz in -1..=1 {
+                    if let Some(list) = cells.get(&(k.0 + dx, k.1 + dy, k.2 + dz)) {
+                        for &j in list {
+                            if (points[j as usize] - p).norm() <= tol {
+                                found = Some(j);
+                                break 'outer;
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        match found {
+            Some(j) => out.push(j),
+            None => {
+                cells.entry(k).or_default().push(i as u32);
+                out.push(i as u32);
+            }
+        }
+    }
+    out
+}
+
+/// A uniform grid over points for segment proximity queries.
+struct Grid {
+    cell: f64,
+    origin: Point3,
+    dims: [i64; 3],
+    cells: std::collections::HashMap<(i64, i64, i64), Vec<u32>>,
+}
+
+impl Grid {
+    fn new(points: &[Point3], cell: f64) -> Grid {
+        let b = Aabb::from_points(points.iter());
+        let cell = cell.max(1e-12);
+        let mut cells: std::collections::HashMap<(i64, i64, i64), Vec<u32>> =
+            std::collections::HashMap::new();
+        let origin = if b.is_empty() {
+            Point3::origin()
+        } else {
+            b.min
+        };
+        for (i, p) in points.iter().enumerate() {
+            let k = Self::key(&origin, cell, p);
+            cells.entry(k).or_default().push(i as u32);
+        }
+        let ext = b.extent();
+        let dims = [
+            (ext.x / cell) as i64 + 1,
+            (ext.y / cell) as i64 + 1,
+            (ext.z / cell) as i64 + 1,
+        ];
+        Grid {
+            cell,
+            origin,
+            dims,
+            cells,
+        }
+    }
+    fn key(origin: &Point3, cell: f64, p: &Point3) -> (i64, i64, i64) {
+        (
+            ((p.x - origin.x) / cell).floor() as i64,
+            ((p.y - origin.y) / cell).floor() as i64,
+            ((p.z - origin.z) / cell).floor() as i64,
+        )
+    }
+    fn for_each_near_segment(&self, a: &Point3, b: &Point3, tol: f64, mut f: impl FnMut(u32)) {
+        let lo = Point3::new(a.x.min(b.x) - tol, a.y.min(b.y) - tol, a.z.min(b.z) - tol);
+        let hi = Point3::new(a.x.max(b.x) + tol, a.y.max(b.y) + tol, a.z.max(b.z) + tol);
+        let k0 = Self::key(&self.origin, self.cell, &lo);
+        let k1 = Self::key(&self.origin, self.cell, &hi);
+        let clamp = |v: i64, d: i64| v.clamp(-1, d + 1);
+        let cells_in_box = (clamp(k1.0, self.dims[0]) - clamp(k0.0, self.dims[0]) + 1)
+            * (clamp(k1.1, self.dims[1]) - clamp(k0.1, self.dims[1]) + 1)
+            * (clamp(k1.2, self.dims[2]) - clamp(k0.2, self.dims[2]) + 1);
+        if cells_in_box > self.cells.len() as i64 {
+            for list in self.cells.values() {
+                list.iter().for_each(|&v| f(v));
+            }
+            return;
+        }
+        for x in clamp(k0.0, self.dims[0])..=clamp(k1.0, self.dims[0]) {
+            for y in clamp(k0.1, self.dims[1])..=clamp(k1.1, self.dims[1]) {
+                for z in clamp(k0.2, self.dims[2])..=clamp(k1.2, self.dims[2]) {
+                    if let Some(list) = self.cells.get(&(x, y, z)) {
+                        list.iter().for_each(|&v| f(v));
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// `a ∪ b`.
+pub fn union(a: &TriMesh, b: &TriMesh) -> Result<TriMesh> {
+    boolean(a, b, Op::Union)
+}
+
+/// `a \ b`.
+pub fn difference(a: &TriMesh, b: &TriMesh) -> Result<TriMesh> {
+    boolean(a, b, Op::Difference)
+}
+
+/// `a ∩ b`.
+pub fn intersection(a: &TriMesh, b: &TriMesh) -> Result<TriMesh> {
+    boolean(a, b, Op::Intersection)
+}
+
+/// Whether `p` is inside the closed mesh, by the parity of crossings along a fixed,
+/// irrational-looking direction (used by tests and by inside/outside checks).
+pub fn contains_point(mesh: &TriMesh, p: &Point3) -> bool {
+    let d = Vector3::new(
+        0.5773502691896258,
+        0.5773502691896258 + 1.234e-4,
+        0.5773502691896258 - 2.345e-4,
+    )
+    .normalize();
+    let mut crossings = 0;
+    for i in 0..mesh.triangles.len() {
+        let [a, b, c] = mesh.triangle(i);
+        let e1 = b - a;
+        let e2 = c - a;
+        let pv = d.cross(&e2);
+        let det = e1.dot(&pv);
+        if det.abs() < 1e-300 {
+            continue;
+        }
+        let inv = 1.0 / det;
+        let s = p - a;
+        let u = s.dot(&pv) * inv;
+        if !(0.0..=1.0).contains(&u) {
+            continue;
+        }
+        let q = s.cross(&e1);
+        let v = d.dot(&q) * inv;
+        if v < 0.0 || u + v > 1.0 {
+            continue;
+        }
+        if e2.dot(&q) * inv > 0.0 {
+            crossings += 1;
+        }
+    }
+    crossings % 2 == 1
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::primitives::{cuboid, cylinder, torus, uv_sphere};
+    use std::f64::consts::PI;
+
+    fn rel(a: f64, b: f64) -> f64 {
+        (a - b).abs() / b.abs()
+    }
+
+    #[test]
+    fn overlapping_boxes() {
+        let a = cuboid(1.0, 1.0, 1.0).expect("box");
+        let b = cuboid(1.0, 1.0, 1.0)
+            .expect("box")
+            .translated(Vector3::new(0.5, 0.5, 0.0));
+        let u = union(&a, &b).expect("union");
+        assert!(u.is_watertight(), "union not watertight");
+        assert!(rel(u.volume(), 1.75) < 1e-9, "{}", u.volume());
+        let d = difference(&a, &b).expect("diff");
+        assert!(d.is_watertight());
+        assert!(rel(d.volume(), 0.75) < 1e-9, "{}", d.volume());
+        let i = intersection(&a, &b).expect("inter");
+        assert!(i.is_watertight());
+        assert!(rel(i.volume(), 0.25) < 1e-9, "{}", i.volume());
+    }
+
+    #[test]
+    fn hollow_mug_with_ring_handle() {
+        // The reference's worked example: body r=0.45 h=1.0 minus cavity r=0.37 h=0.9 at z=0.12,
+        // plus a torus handle (R=0.22, r=0.055) at x=0.55 rotated 90° about X.
+        let n = 64;
+        let body = cylinder(0.45, 1.0, n).expect("body");
+        let cavity = cylinder(0.37, 0.9, n)
+            .expect("cavity")
+            .translated(Vector3::new(0.0, 0.0, 0.12));
+        let cup = difference(&body, &cavity).expect("cup");
+        assert!(cup.is_watertight());
+        let ring = |r: f64| r * r * (n as f64 / 2.0) * (2.0 * PI / n as f64).sin();
+        // The cavity pokes out of the top by 0.07: the cup keeps 0.88 − (0.12 − 0.45 …) of it.
+        let cavity_inside = 0.5 - (0.12 - 0.45);
+        let expected = ring(0.45) * 1.0 - ring(0.37) * cavity_inside;
+        assert!(
+            rel(cup.volume(), expected) < 1e-6,
+            "{} vs {expected}",
+            cup.volume()
+        );
+        let rot = nalgebra::Rotation3::from_axis_angle(&Vector3::x_axis(), PI / 2.0).into_inner();
+        let handle = torus(0.22, 0.055, 48, 16)
+            .expect("torus")
+            .transformed(&rot, &Vector3::new(0.55, 0.0, 0.0));
+        let mug = union(&cup, &handle).expect("mug");
+        assert!(mug.is_watertight(), "mug not watertight");
+        // Inside the wall, in the cavity, in the handle, in the handle's hole.
+        assert!(contains_point(&mug, &Point3::new(0.41, 0.0, 0.0)));
+        assert!(!contains_point(&mug, &Point3::new(0.0, 0.0, 0.2)));
+        assert!(contains_point(&mug, &Point3::new(0.77, 0.0, 0.0)));
+        assert!(!contains_point(&mug, &Point3::new(0.6, 0.0, 0.0)));
+        assert!(contains_point(&mug, &Point3::new(0.0, 0.0, -0.45)));
+        let handle_outside =
+            handle.volume() - intersection(&handle, &cup).expect("overlap").volume();
+        assert!(
+            rel(mug.volume(), expected + handle_outside) < 1e-3,
+            "{}",
+            mug.volume()
+        );
+    }
+
+    #[test]
+    fn slot_through_a_plate() {
+        let plate = cuboid(1.0, 0.6, 0.1).expect("plate");
+        let slot = cuboid(0.5, 0.1, 0.3).expect("slot");
+        let cut = difference(&plate, &slot).expect("slot");
+        assert!(cut.is_watertight());
+        assert!(rel(cut.volume(), 0.06 - 0.5 * 0.1 * 0.1) < 1e-9);
+        assert!(!contains_point(&cut, &Point3::new(0.0, 0.0, 0.0)));
+        assert!(contains_point(&cut, &Point3::new(0.0, 0.2, 0.0)));
+        // A coplanar-faced cutter (flush with the top) still cuts a blind pocket.
+        let pocket = cuboid(0.2, 0.2, 0.05)
+            .expect("pocket")
+            .translated(Vector3::new(0.0, 0.0, 0.025));
+        let pocketed = difference(&plate, &pocket).expect("pocket");
+        assert!(
+            rel(pocketed.volume(), 0.06 - 0.2 * 0.2 * 0.05) < 1e-9,
+            "{}",
+            pocketed.volume()
+        );
+    }
+
+    #[test]
+    fn spheres_and_disjoint_operands() {
+        let a = uv_sphere(0.5, 32, 16).expect("s");
+        let b = uv_sphere(0.5, 32, 16)
+            .expect("s")
+            .translated(Vector3::new(3.0, 0.0, 0.0));
+        let u = union(&a, &b).expect("u");
+        assert!(rel(u.volume(), 2.0 * a.volume()) < 1e-12);
+        assert!(intersection(&a, &b).expect("i").is_empty());
+        let c = uv_sphere(0.5, 32, 16)
+            .expect("s")
+            .translated(Vector3::new(0.4, 0.0, 0.0));
+        let u = union(&a, &c).expect("u");
+        let i = intersection(&a, &c).expect("i");
+        assert!(u.is_watertight() && i.is_watertight());
+        // Inclusion–exclusion holds for the meshed solids.
+        assert!(rel(u.volume() + i.volume(), 2.0 * a.volume()) < 1e-6);
+        assert!(union(&a, &crate::primitives::plane(1.0, 1.0).expect("plane")).is_err());
+    }
+}

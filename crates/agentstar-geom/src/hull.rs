@@ -16,16 +16,30 @@ struct Face {
 fn make_face(points: &[Point3], a: usize, b: usize, c: usize) -> Face {
     let n = (points[b] - points[a]).cross(&(points[c] - points[a]));
     let normal = n.try_normalize(1e-300).unwrap_or_else(Vector3::zeros);
-    Face { v: [a, b, c], normal, offset: normal.dot(&points[a].coords), alive: true }
+    Face {
+        v: [a, b, c],
+        normal,
+        offset: normal.dot(&points[a].coords),
+        alive: true,
+    }
 }
 
 /// The convex hull of `points`. Needs at least four points that are not coplanar.
 pub fn convex_hull(points: &[Point3]) -> Result<TriMesh> {
-    let err = |reason: String| GeomError::InvalidArgument { primitive: "hull".into(), reason };
+    let err = |reason: String| GeomError::InvalidArgument {
+        primitive: "hull".into(),
+        reason,
+    };
     if points.len() < 4 {
-        return Err(err(format!("needs at least 4 points, got {}", points.len())));
+        return Err(err(format!(
+            "needs at least 4 points, got {}",
+            points.len()
+        )));
     }
-    if points.iter().any(|p| !p.coords.iter().all(|c| c.is_finite())) {
+    if points
+        .iter()
+        .any(|p| !p.coords.iter().all(|c| c.is_finite()))
+    {
         return Err(err("a point has a non-finite coordinate".into()));
     }
     let bounds = Aabb::from_points(points.iter());
@@ -35,12 +49,18 @@ pub fn convex_hull(points: &[Point3]) -> Result<TriMesh> {
     // An initial tetrahedron from extreme points.
     let i0 = 0;
     let i1 = (0..points.len())
-        .max_by(|&a, &b| (points[a] - points[i0]).norm().total_cmp(&(points[b] - points[i0]).norm()))
+        .max_by(|&a, &b| {
+            (points[a] - points[i0])
+                .norm()
+                .total_cmp(&(points[b] - points[i0]).norm())
+        })
         .unwrap_or(0);
     let line = points[i1] - points[i0];
     let i2 = (0..points.len())
         .max_by(|&a, &b| {
-            line.cross(&(points[a] - points[i0])).norm().total_cmp(&line.cross(&(points[b] - points[i0])).norm())
+            line.cross(&(points[a] - points[i0]))
+                .norm()
+                .total_cmp(&line.cross(&(points[b] - points[i0])).norm())
         })
         .unwrap_or(0);
     let plane_n = line.cross(&(points[i2] - points[i0]));
@@ -49,14 +69,21 @@ pub fn convex_hull(points: &[Point3]) -> Result<TriMesh> {
     }
     let plane_n = plane_n.normalize();
     let i3 = (0..points.len())
-        .max_by(|&a, &b| plane_n.dot(&(points[a] - points[i0])).abs().total_cmp(&plane_n.dot(&(points[b] - points[i0])).abs()))
+        .max_by(|&a, &b| {
+            plane_n
+                .dot(&(points[a] - points[i0]))
+                .abs()
+                .total_cmp(&plane_n.dot(&(points[b] - points[i0])).abs())
+        })
         .unwrap_or(0);
     if plane_n.dot(&(points[i3] - points[i0])).abs() < eps * 10.0 {
         return Err(err("all points are coplanar; a hull needs volume".into()));
     }
 
     let mut faces: Vec<Face> = Vec::new();
-    let centroid = Point3::from((points[i0].coords + points[i1].coords + points[i2].coords + points[i3].coords) / 4.0);
+    let centroid = Point3::from(
+        (points[i0].coords + points[i1].coords + points[i2].coords + points[i3].coords) / 4.0,
+    );
     for (a, b, c) in [(i0, i1, i2), (i0, i1, i3), (i0, i2, i3), (i1, i2, i3)] {
         let mut f = make_face(points, a, b, c);
         if f.normal.dot(&(centroid - points[a])) > 0.0 {
@@ -84,7 +111,11 @@ pub fn convex_hull(points: &[Point3]) -> Result<TriMesh> {
             }
             faces[f].alive = false;
         }
-        let mut horizon: Vec<(usize, usize)> = edges.iter().copied().filter(|&(a, b)| !edges.contains(&(b, a))).collect();
+        let mut horizon: Vec<(usize, usize)> = edges
+            .iter()
+            .copied()
+            .filter(|&(a, b)| !edges.contains(&(b, a)))
+            .collect();
         horizon.sort_unstable();
         for (a, b) in horizon {
             faces.push(make_face(points, a, b, pi));
@@ -93,8 +124,11 @@ pub fn convex_hull(points: &[Point3]) -> Result<TriMesh> {
             faces.retain(|f| f.alive);
         }
     }
-    let triangles: Vec<[u32; 3]> =
-        faces.iter().filter(|f| f.alive).map(|f| [f.v[0] as u32, f.v[1] as u32, f.v[2] as u32]).collect();
+    let triangles: Vec<[u32; 3]> = faces
+        .iter()
+        .filter(|f| f.alive)
+        .map(|f| [f.v[0] as u32, f.v[1] as u32, f.v[2] as u32])
+        .collect();
     Ok(TriMesh::new(points.to_vec(), triangles).compacted())
 }
 
@@ -122,7 +156,9 @@ mod tests {
 
     #[test]
     fn degenerate_inputs_are_refused() {
-        let flat: Vec<Point3> = (0..10).map(|i| Point3::new(i as f64, (i * i) as f64, 0.0)).collect();
+        let flat: Vec<Point3> = (0..10)
+            .map(|i| Point3::new(i as f64, (i * i) as f64, 0.0))
+            .collect();
         assert!(convex_hull(&flat).is_err());
         assert!(convex_hull(&flat[..3]).is_err());
     }

@@ -88,7 +88,10 @@ impl JointDef {
                 let t = self.origin - rot * self.origin;
                 Rigid::from_parts(Translation3::from(t), rot)
             }
-            JointKind::Prismatic => Rigid::from_parts(Translation3::from(unit_axis.into_inner() * state), UnitQuaternion::identity()),
+            JointKind::Prismatic => Rigid::from_parts(
+                Translation3::from(unit_axis.into_inner() * state),
+                UnitQuaternion::identity(),
+            ),
             JointKind::Fixed => Rigid::identity(),
         }
     }
@@ -108,14 +111,23 @@ pub struct KinematicTree {
 
 impl KinematicTree {
     pub fn rigid(part_count: usize) -> Self {
-        KinematicTree { joints: vec![], unit_axes: vec![], order: vec![], parent_index: vec![], part_joint: vec![None; part_count] }
+        KinematicTree {
+            joints: vec![],
+            unit_axes: vec![],
+            order: vec![],
+            parent_index: vec![],
+            part_joint: vec![None; part_count],
+        }
     }
 
     /// Validates `joints` against `part_names`: unique names, known parents and children,
     /// each part under at most one joint, no cycles, finite origins, non-zero axes,
     /// well-formed limits.
     pub fn new(joints: Vec<JointDef>, part_names: &[String]) -> Result<Self> {
-        let bad = |j: &JointDef, reason: String| GeomError::InvalidJoint { joint: j.name.clone(), reason };
+        let bad = |j: &JointDef, reason: String| GeomError::InvalidJoint {
+            joint: j.name.clone(),
+            reason,
+        };
         let mut by_name: BTreeMap<&str, usize> = BTreeMap::new();
         for (i, j) in joints.iter().enumerate() {
             if j.name.is_empty() {
@@ -130,20 +142,33 @@ impl KinematicTree {
         let mut part_joint = vec![None; part_names.len()];
         for (i, j) in joints.iter().enumerate() {
             if !j.origin.iter().all(|c| c.is_finite()) {
-                return Err(bad(j, format!("origin {:?} has a non-finite component", j.origin.as_slice())));
+                return Err(bad(
+                    j,
+                    format!(
+                        "origin {:?} has a non-finite component",
+                        j.origin.as_slice()
+                    ),
+                ));
             }
             if !j.axis.iter().all(|c| c.is_finite()) || j.axis.norm() < 1e-9 {
-                return Err(bad(j, format!("axis {:?} must be a finite, non-zero vector", j.axis.as_slice())));
+                return Err(bad(
+                    j,
+                    format!(
+                        "axis {:?} must be a finite, non-zero vector",
+                        j.axis.as_slice()
+                    ),
+                ));
             }
             unit_axes.push(Unit::new_normalize(j.axis));
             match (j.kind, j.limit) {
                 (JointKind::Revolute | JointKind::Prismatic, None) => {
                     return Err(bad(j, format!("a {} joint needs `limit: [lower, upper]` (use type \"continuous\" for an unlimited rotation)", j.kind.as_str())));
                 }
-                (_, Some((lo, hi))) => {
-                    if !(lo.is_finite() && hi.is_finite()) || lo > hi {
-                        return Err(bad(j, format!("limit [{lo}, {hi}] must be finite with lower ≤ upper")));
-                    }
+                (_, Some((lo, hi))) if !(lo.is_finite() && hi.is_finite()) || lo > hi => {
+                    return Err(bad(
+                        j,
+                        format!("limit [{lo}, {hi}] must be finite with lower ≤ upper"),
+                    ));
                 }
                 _ => {}
             }
@@ -152,7 +177,13 @@ impl KinematicTree {
             }
             for c in &j.child {
                 let Some(pi) = part_names.iter().position(|p| p == c) else {
-                    return Err(bad(j, format!("child part `{c}` is not defined; parts are: {}", list(part_names))));
+                    return Err(bad(
+                        j,
+                        format!(
+                            "child part `{c}` is not defined; parts are: {}",
+                            list(part_names)
+                        ),
+                    ));
                 };
                 if let Some(other) = part_joint[pi] {
                     let other: &JointDef = &joints[other];
@@ -163,11 +194,19 @@ impl KinematicTree {
             parent_index.push(match &j.parent {
                 None => None,
                 Some(p) => match by_name.get(p.as_str()) {
-                    Some(&pi) if pi == i => return Err(bad(j, "a joint cannot be its own parent".into())),
+                    Some(&pi) if pi == i => {
+                        return Err(bad(j, "a joint cannot be its own parent".into()))
+                    }
                     Some(&pi) => Some(pi),
                     None => {
                         let names: Vec<String> = joints.iter().map(|j| j.name.clone()).collect();
-                        return Err(bad(j, format!("parent joint `{p}` is not declared; joints are: {}", list(&names))));
+                        return Err(bad(
+                            j,
+                            format!(
+                                "parent joint `{p}` is not declared; joints are: {}",
+                                list(&names)
+                            ),
+                        ));
                     }
                 },
             });
@@ -175,10 +214,21 @@ impl KinematicTree {
         // Topological order with cycle detection.
         let mut order = Vec::with_capacity(joints.len());
         let mut state = vec![0u8; joints.len()]; // 0 new, 1 visiting, 2 done
-        fn visit(i: usize, parents: &[Option<usize>], state: &mut [u8], order: &mut Vec<usize>, joints: &[JointDef]) -> Result<()> {
+        fn visit(
+            i: usize,
+            parents: &[Option<usize>],
+            state: &mut [u8],
+            order: &mut Vec<usize>,
+            joints: &[JointDef],
+        ) -> Result<()> {
             match state[i] {
                 2 => return Ok(()),
-                1 => return Err(GeomError::InvalidTree(format!("joint `{}` is part of a parent cycle", joints[i].name))),
+                1 => {
+                    return Err(GeomError::InvalidTree(format!(
+                        "joint `{}` is part of a parent cycle",
+                        joints[i].name
+                    )))
+                }
                 _ => {}
             }
             state[i] = 1;
@@ -192,7 +242,13 @@ impl KinematicTree {
         for i in 0..joints.len() {
             visit(i, &parent_index, &mut state, &mut order, &joints)?;
         }
-        Ok(KinematicTree { joints, unit_axes, order, parent_index, part_joint })
+        Ok(KinematicTree {
+            joints,
+            unit_axes,
+            order,
+            parent_index,
+            part_joint,
+        })
     }
 
     pub fn joints(&self) -> &[JointDef] {
@@ -224,7 +280,10 @@ impl KinematicTree {
         for name in named.keys() {
             if self.joint_index(name).is_none() {
                 let names: Vec<String> = self.joints.iter().map(|j| j.name.clone()).collect();
-                return Err(GeomError::InvalidJoint { joint: name.clone(), reason: format!("no such joint; joints are: {}", list(&names)) });
+                return Err(GeomError::InvalidJoint {
+                    joint: name.clone(),
+                    reason: format!("no such joint; joints are: {}", list(&names)),
+                });
             }
         }
         let mut states = self.rest_states();
@@ -233,15 +292,25 @@ impl KinematicTree {
                 continue;
             }
             let Some(&v) = named.get(&j.name) else {
-                return Err(GeomError::InvalidJoint { joint: j.name.clone(), reason: "state is missing (states are absolute; give every non-fixed joint)".into() });
+                return Err(GeomError::InvalidJoint {
+                    joint: j.name.clone(),
+                    reason: "state is missing (states are absolute; give every non-fixed joint)"
+                        .into(),
+                });
             };
             if !v.is_finite() {
-                return Err(GeomError::InvalidJoint { joint: j.name.clone(), reason: format!("state {v} is not finite") });
+                return Err(GeomError::InvalidJoint {
+                    joint: j.name.clone(),
+                    reason: format!("state {v} is not finite"),
+                });
             }
             if let Some((lo, hi)) = j.limit {
                 let tol = 1e-6 * (hi - lo).abs().max(1.0);
                 if v < lo - tol || v > hi + tol {
-                    return Err(GeomError::InvalidJoint { joint: j.name.clone(), reason: format!("state {v} is outside its limit [{lo}, {hi}]") });
+                    return Err(GeomError::InvalidJoint {
+                        joint: j.name.clone(),
+                        reason: format!("state {v} is outside its limit [{lo}, {hi}]"),
+                    });
                 }
             }
             states[i] = j.to_internal(v);
@@ -285,18 +354,28 @@ impl KinematicTree {
     }
 
     /// [`Self::part_transforms`] into caller-owned buffers (no allocation once they are sized).
-    pub fn part_transforms_into(&self, states: &[f64], joints: &mut Vec<Rigid>, parts: &mut Vec<Rigid>) {
+    pub fn part_transforms_into(
+        &self,
+        states: &[f64],
+        joints: &mut Vec<Rigid>,
+        parts: &mut Vec<Rigid>,
+    ) {
         joints.clear();
         joints.resize(self.joints.len(), Rigid::identity());
         for &i in &self.order {
-            let local = self.joints[i].local_motion(states.get(i).copied().unwrap_or(0.0), &self.unit_axes[i]);
+            let local = self.joints[i]
+                .local_motion(states.get(i).copied().unwrap_or(0.0), &self.unit_axes[i]);
             joints[i] = match self.parent_index[i] {
                 Some(p) => joints[p] * local,
                 None => local,
             };
         }
         parts.clear();
-        parts.extend(self.part_joint.iter().map(|j| j.map_or_else(Rigid::identity, |j| joints[j])));
+        parts.extend(
+            self.part_joint
+                .iter()
+                .map(|j| j.map_or_else(Rigid::identity, |j| joints[j])),
+        );
     }
 }
 
@@ -304,7 +383,11 @@ fn list(names: &[String]) -> String {
     if names.is_empty() {
         "(none)".into()
     } else {
-        names.iter().map(|n| format!("`{n}`")).collect::<Vec<_>>().join(", ")
+        names
+            .iter()
+            .map(|n| format!("`{n}`"))
+            .collect::<Vec<_>>()
+            .join(", ")
     }
 }
 
@@ -318,7 +401,13 @@ mod tests {
         n.iter().map(|s| s.to_string()).collect()
     }
 
-    fn hinge(name: &str, parent: Option<&str>, child: &str, origin: [f64; 3], axis: [f64; 3]) -> JointDef {
+    fn hinge(
+        name: &str,
+        parent: Option<&str>,
+        child: &str,
+        origin: [f64; 3],
+        axis: [f64; 3],
+    ) -> JointDef {
         JointDef {
             name: name.into(),
             kind: JointKind::Revolute,
@@ -334,7 +423,17 @@ mod tests {
     fn revolute_hand_computed() {
         // Lid hinged on the X axis through (0, -0.5, 0.05); +90° swings a point at the lid's
         // front (0, 0.5, 0.05) up to (0, -0.5, 1.05).
-        let tree = KinematicTree::new(vec![hinge("hinge", None, "lid", [0.0, -0.5, 0.05], [1.0, 0.0, 0.0])], &names(&["body", "lid"])).expect("tree");
+        let tree = KinematicTree::new(
+            vec![hinge(
+                "hinge",
+                None,
+                "lid",
+                [0.0, -0.5, 0.05],
+                [1.0, 0.0, 0.0],
+            )],
+            &names(&["body", "lid"]),
+        )
+        .expect("tree");
         let t = tree.part_transforms(&[90f64.to_radians()]);
         assert_eq!(t[0], Rigid::identity());
         let p = t[1] * Point3::new(0.0, 0.5, 0.05);
@@ -347,8 +446,15 @@ mod tests {
         drawer.kind = JointKind::Prismatic;
         drawer.limit = Some((0.0, 0.5));
         // A knob that turns about Z through the drawer front (0, 0.5, 0), mounted on the drawer.
-        let knob = hinge("knob", Some("slide"), "knob", [0.0, 0.5, 0.0], [0.0, 0.0, 1.0]);
-        let tree = KinematicTree::new(vec![knob, drawer], &names(&["cabinet", "drawer", "knob"])).expect("tree");
+        let knob = hinge(
+            "knob",
+            Some("slide"),
+            "knob",
+            [0.0, 0.5, 0.0],
+            [0.0, 0.0, 1.0],
+        );
+        let tree = KinematicTree::new(vec![knob, drawer], &names(&["cabinet", "drawer", "knob"]))
+            .expect("tree");
         let states = [90f64.to_radians(), 0.3]; // knob, slide (declaration order)
         let t = tree.part_transforms(&states);
         let p = t[1] * Point3::new(0.0, 0.5, 0.0);
@@ -363,7 +469,10 @@ mod tests {
         let parts = names(&["a", "b"]);
         let mut j = hinge("j", None, "c", [0.0; 3], [1.0, 0.0, 0.0]);
         let e = KinematicTree::new(vec![j.clone()], &parts).expect_err("unknown child");
-        assert!(e.to_string().contains("`c` is not defined") && e.to_string().contains("`a`, `b`"), "{e}");
+        assert!(
+            e.to_string().contains("`c` is not defined") && e.to_string().contains("`a`, `b`"),
+            "{e}"
+        );
         j.child = vec!["a".into()];
         j.axis = Vector3::zeros();
         assert!(KinematicTree::new(vec![j.clone()], &parts).is_err());
@@ -386,7 +495,11 @@ mod tests {
         let mut m = BTreeMap::new();
         assert!(tree.states_from_interface(&m).is_err());
         m.insert("hinge".to_string(), 150.0);
-        assert!(tree.states_from_interface(&m).expect_err("limit").to_string().contains("outside"));
+        assert!(tree
+            .states_from_interface(&m)
+            .expect_err("limit")
+            .to_string()
+            .contains("outside"));
         m.insert("hinge".to_string(), 90.0);
         let s = tree.states_from_interface(&m).expect("ok");
         assert!((s[0] - std::f64::consts::FRAC_PI_2).abs() < 1e-12);

@@ -26,7 +26,10 @@ impl Aabb {
         self.max = self.max.sup(p);
     }
     pub fn union(&self, other: &Aabb) -> Aabb {
-        Aabb { min: self.min.inf(&other.min), max: self.max.sup(&other.max) }
+        Aabb {
+            min: self.min.inf(&other.min),
+            max: self.max.sup(&other.max),
+        }
     }
     pub fn center(&self) -> Point3 {
         nalgebra::center(&self.min, &self.max)
@@ -60,7 +63,10 @@ pub struct TriMesh {
 
 impl TriMesh {
     pub fn new(positions: Vec<Point3>, triangles: Vec<[u32; 3]>) -> Self {
-        TriMesh { positions, triangles }
+        TriMesh {
+            positions,
+            triangles,
+        }
     }
 
     pub fn is_empty(&self) -> bool {
@@ -69,7 +75,11 @@ impl TriMesh {
 
     pub fn triangle(&self, i: usize) -> [Point3; 3] {
         let [a, b, c] = self.triangles[i];
-        [self.positions[a as usize], self.positions[b as usize], self.positions[c as usize]]
+        [
+            self.positions[a as usize],
+            self.positions[b as usize],
+            self.positions[c as usize],
+        ]
     }
 
     pub fn bounds(&self) -> Aabb {
@@ -112,7 +122,8 @@ impl TriMesh {
         if self.triangles.is_empty() {
             return false;
         }
-        let mut directed: HashMap<(u32, u32), u32> = HashMap::with_capacity(self.triangles.len() * 3);
+        let mut directed: HashMap<(u32, u32), u32> =
+            HashMap::with_capacity(self.triangles.len() * 3);
         for t in &self.triangles {
             for k in 0..3 {
                 let e = (t[k], t[(k + 1) % 3]);
@@ -122,7 +133,9 @@ impl TriMesh {
                 *directed.entry(e).or_insert(0) += 1;
             }
         }
-        directed.iter().all(|(&(a, b), &n)| n == 1 && directed.get(&(b, a)) == Some(&1))
+        directed
+            .iter()
+            .all(|(&(a, b), &n)| n == 1 && directed.get(&(b, a)) == Some(&1))
     }
 
     /// For a closed, consistently oriented mesh, every undirected edge once as
@@ -132,7 +145,8 @@ impl TriMesh {
         if !self.is_watertight() {
             return None;
         }
-        let mut directed: HashMap<(u32, u32), u32> = HashMap::with_capacity(self.triangles.len() * 3);
+        let mut directed: HashMap<(u32, u32), u32> =
+            HashMap::with_capacity(self.triangles.len() * 3);
         for (f, t) in self.triangles.iter().enumerate() {
             for k in 0..3 {
                 directed.insert((t[k], t[(k + 1) % 3]), f as u32);
@@ -175,7 +189,12 @@ impl TriMesh {
     pub fn append(&mut self, other: &TriMesh) {
         let base = self.positions.len() as u32;
         self.positions.extend_from_slice(&other.positions);
-        self.triangles.extend(other.triangles.iter().map(|t| [t[0] + base, t[1] + base, t[2] + base]));
+        self.triangles.extend(
+            other
+                .triangles
+                .iter()
+                .map(|t| [t[0] + base, t[1] + base, t[2] + base]),
+        );
     }
 
     /// Merges vertices closer than `tolerance` (grid hashing), drops degenerate triangles
@@ -183,7 +202,11 @@ impl TriMesh {
     pub fn welded(&self, tolerance: f64) -> TriMesh {
         let inv = 1.0 / tolerance.max(1e-15);
         let key = |p: &Point3| {
-            ((p.x * inv).round() as i64, (p.y * inv).round() as i64, (p.z * inv).round() as i64)
+            (
+                (p.x * inv).round() as i64,
+                (p.y * inv).round() as i64,
+                (p.z * inv).round() as i64,
+            )
         };
         let mut cells: HashMap<(i64, i64, i64), Vec<u32>> = HashMap::new();
         let mut remap = vec![0u32; self.positions.len()];
@@ -219,7 +242,13 @@ impl TriMesh {
         let triangles: Vec<[u32; 3]> = self
             .triangles
             .iter()
-            .map(|t| [remap[t[0] as usize], remap[t[1] as usize], remap[t[2] as usize]])
+            .map(|t| {
+                [
+                    remap[t[0] as usize],
+                    remap[t[1] as usize],
+                    remap[t[2] as usize],
+                ]
+            })
             .filter(|t| t[0] != t[1] && t[1] != t[2] && t[0] != t[2])
             .collect();
         TriMesh::new(out_pos, triangles).compacted()
@@ -242,18 +271,26 @@ impl TriMesh {
             }
             triangles.push(nt);
         }
-        TriMesh { positions, triangles }
+        TriMesh {
+            positions,
+            triangles,
+        }
     }
 
     /// Face normal of triangle `i` (unit, or zero for a degenerate triangle).
     pub fn face_normal(&self, i: usize) -> Vector3 {
         let [a, b, c] = self.triangle(i);
-        (b - a).cross(&(c - a)).try_normalize(1e-300).unwrap_or_else(Vector3::zeros)
+        (b - a)
+            .cross(&(c - a))
+            .try_normalize(1e-300)
+            .unwrap_or_else(Vector3::zeros)
     }
 
     /// True when every coordinate is finite.
     pub fn is_finite(&self) -> bool {
-        self.positions.iter().all(|p| p.coords.iter().all(|c| c.is_finite()))
+        self.positions
+            .iter()
+            .all(|p| p.coords.iter().all(|c| c.is_finite()))
     }
 }
 
@@ -285,7 +322,10 @@ mod tests {
 
     #[test]
     fn mirror_keeps_volume_positive() {
-        let m = tetra().transformed(&Matrix3::from_diagonal(&Vector3::new(-1.0, 1.0, 1.0)), &Vector3::zeros());
+        let m = tetra().transformed(
+            &Matrix3::from_diagonal(&Vector3::new(-1.0, 1.0, 1.0)),
+            &Vector3::zeros(),
+        );
         assert!((m.volume() - 1.0 / 6.0).abs() < 1e-12);
     }
 

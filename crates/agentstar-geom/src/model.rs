@@ -24,10 +24,21 @@ pub struct Part {
 
 impl Part {
     pub fn new(name: impl Into<String>, mesh: TriMesh, color: [f32; 3]) -> Part {
-        let edges = if mesh.volume() > 0.0 { mesh.manifold_edges().map(Arc::new) } else { None };
+        let edges = if mesh.volume() > 0.0 {
+            mesh.manifold_edges().map(Arc::new)
+        } else {
+            None
+        };
         let watertight = edges.is_some();
         let bounds = mesh.bounds();
-        Part { name: name.into(), mesh: Arc::new(mesh), color, watertight, bounds, edges }
+        Part {
+            name: name.into(),
+            mesh: Arc::new(mesh),
+            color,
+            watertight,
+            bounds,
+            edges,
+        }
     }
 }
 
@@ -96,7 +107,11 @@ impl ObjectModel {
     pub fn canonical_report(&self) -> CanonicalReport {
         let b = self.posed_bounds(&self.tree.rest_states());
         let ext = b.extent();
-        let center = if b.is_empty() { Point3::origin() } else { b.center() };
+        let center = if b.is_empty() {
+            Point3::origin()
+        } else {
+            b.center()
+        };
         let longest = ext.max();
         let mut warnings = Vec::new();
         if b.is_empty() {
@@ -109,12 +124,22 @@ impl ObjectModel {
                 ));
             }
             if !(0.8..=1.25).contains(&longest) {
-                warnings.push(format!("longest side is {longest:.3}; the canonical frame expects about 1 (0.8–1.25)"));
+                warnings.push(format!(
+                    "longest side is {longest:.3}; the canonical frame expects about 1 (0.8–1.25)"
+                ));
             }
         }
         CanonicalReport {
-            bbox_min: if b.is_empty() { [0.0; 3] } else { b.min.coords.into() },
-            bbox_max: if b.is_empty() { [0.0; 3] } else { b.max.coords.into() },
+            bbox_min: if b.is_empty() {
+                [0.0; 3]
+            } else {
+                b.min.coords.into()
+            },
+            bbox_max: if b.is_empty() {
+                [0.0; 3]
+            } else {
+                b.max.coords.into()
+            },
             extent: ext.into(),
             center: center.coords.into(),
             longest_side: longest,
@@ -126,7 +151,10 @@ impl ObjectModel {
 
 /// A copy of `mesh` mapped by a rigid transform.
 pub fn transform_rigid(mesh: &TriMesh, t: &Rigid) -> TriMesh {
-    TriMesh { positions: mesh.positions.iter().map(|p| t * p).collect(), triangles: mesh.triangles.clone() }
+    TriMesh {
+        positions: mesh.positions.iter().map(|p| t * p).collect(),
+        triangles: mesh.triangles.clone(),
+    }
 }
 
 /// The unit direction of a vector or `None` for a zero vector.
@@ -142,13 +170,29 @@ mod tests {
 
     #[test]
     fn canonical_report_flags_drift() {
-        let parts = vec![Part::new("body", cuboid(1.0, 0.5, 0.4).expect("box"), [0.5; 3])];
-        let model = ObjectModel { tree: KinematicTree::rigid(1), parts };
+        let parts = vec![Part::new(
+            "body",
+            cuboid(1.0, 0.5, 0.4).expect("box"),
+            [0.5; 3],
+        )];
+        let model = ObjectModel {
+            tree: KinematicTree::rigid(1),
+            parts,
+        };
         let r = model.canonical_report();
         assert!(r.warnings.is_empty(), "{:?}", r.warnings);
         assert!((r.longest_side - 1.0).abs() < 1e-12);
-        let moved = Part::new("body", cuboid(2.0, 0.5, 0.4).expect("box").translated(Vector3::new(0.5, 0.0, 0.0)), [0.5; 3]);
-        let model = ObjectModel { tree: KinematicTree::rigid(1), parts: vec![moved] };
+        let moved = Part::new(
+            "body",
+            cuboid(2.0, 0.5, 0.4)
+                .expect("box")
+                .translated(Vector3::new(0.5, 0.0, 0.0)),
+            [0.5; 3],
+        );
+        let model = ObjectModel {
+            tree: KinematicTree::rigid(1),
+            parts: vec![moved],
+        };
         assert_eq!(model.canonical_report().warnings.len(), 2);
     }
 
@@ -156,7 +200,13 @@ mod tests {
     fn posed_bounds_follow_joints() {
         let parts = vec![
             Part::new("body", cuboid(1.0, 1.0, 0.2).expect("box"), [0.5; 3]),
-            Part::new("lid", cuboid(1.0, 1.0, 0.1).expect("box").translated(Vector3::new(0.0, 0.0, 0.15)), [0.5; 3]),
+            Part::new(
+                "lid",
+                cuboid(1.0, 1.0, 0.1)
+                    .expect("box")
+                    .translated(Vector3::new(0.0, 0.0, 0.15)),
+                [0.5; 3],
+            ),
         ];
         let joint = JointDef {
             name: "hinge".into(),
@@ -167,7 +217,8 @@ mod tests {
             axis: Vector3::x(),
             limit: Some((0.0, 180.0)),
         };
-        let tree = KinematicTree::new(vec![joint], &["body".to_string(), "lid".to_string()]).expect("tree");
+        let tree = KinematicTree::new(vec![joint], &["body".to_string(), "lid".to_string()])
+            .expect("tree");
         let model = ObjectModel { parts, tree };
         let b = model.posed_bounds(&[std::f64::consts::FRAC_PI_2]);
         assert!((b.max.z - 1.1).abs() < 1e-9, "{:?}", b);

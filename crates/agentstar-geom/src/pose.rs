@@ -25,13 +25,23 @@ pub struct ObjectPose {
 
 impl ObjectPose {
     pub fn identity() -> Self {
-        ObjectPose { rotation: UnitQuaternion::identity(), translation: Vector3::zeros() }
+        ObjectPose {
+            rotation: UnitQuaternion::identity(),
+            translation: Vector3::zeros(),
+        }
     }
     pub fn new(rotation: UnitQuaternion, translation: Vector3) -> Self {
-        ObjectPose { rotation, translation }
+        ObjectPose {
+            rotation,
+            translation,
+        }
     }
     pub fn with_scale(&self, scale: f64) -> Similarity {
-        Similarity { scale, rotation: self.rotation, translation: self.translation }
+        Similarity {
+            scale,
+            rotation: self.rotation,
+            translation: self.translation,
+        }
     }
     pub fn to_rigid(&self) -> Rigid {
         Isometry3::from_parts(Translation3::from(self.translation), self.rotation)
@@ -51,10 +61,18 @@ impl ObjectPose {
 
 impl Similarity {
     pub fn identity() -> Self {
-        Similarity { scale: 1.0, rotation: UnitQuaternion::identity(), translation: Vector3::zeros() }
+        Similarity {
+            scale: 1.0,
+            rotation: UnitQuaternion::identity(),
+            translation: Vector3::zeros(),
+        }
     }
     pub fn from_rigid(rigid: &Rigid) -> Self {
-        Similarity { scale: 1.0, rotation: rigid.rotation, translation: rigid.translation.vector }
+        Similarity {
+            scale: 1.0,
+            rotation: rigid.rotation,
+            translation: rigid.translation.vector,
+        }
     }
     pub fn transform_point(&self, p: &Point3) -> Point3 {
         Point3::from(self.rotation * (p.coords * self.scale) + self.translation)
@@ -73,7 +91,11 @@ impl Similarity {
     pub fn inverse(&self) -> Similarity {
         let inv_rot = self.rotation.inverse();
         let inv_scale = 1.0 / self.scale;
-        Similarity { scale: inv_scale, rotation: inv_rot, translation: -(inv_rot * self.translation) * inv_scale }
+        Similarity {
+            scale: inv_scale,
+            rotation: inv_rot,
+            translation: -(inv_rot * self.translation) * inv_scale,
+        }
     }
     pub fn to_matrix(&self) -> Matrix4 {
         let mut m = Matrix4::identity();
@@ -87,11 +109,15 @@ impl Similarity {
 /// A unit quaternion from scalar-first `[w, x, y, z]`, renormalised.
 pub fn quat_from_wxyz(q: [f64; 4]) -> Result<UnitQuaternion> {
     if q.iter().any(|c| !c.is_finite()) {
-        return Err(GeomError::InvalidPose(format!("quaternion {q:?} has a non-finite component")));
+        return Err(GeomError::InvalidPose(format!(
+            "quaternion {q:?} has a non-finite component"
+        )));
     }
     let raw = Quaternion::new(q[0], q[1], q[2], q[3]);
     if raw.norm() < 1e-9 {
-        return Err(GeomError::InvalidPose(format!("quaternion {q:?} has zero length")));
+        return Err(GeomError::InvalidPose(format!(
+            "quaternion {q:?} has zero length"
+        )));
     }
     Ok(UnitQuaternion::from_quaternion(raw))
 }
@@ -102,7 +128,9 @@ pub fn quat_to_wxyz(q: &UnitQuaternion) -> [f64; 4] {
 
 fn finite_vector(v: [f64; 3], what: &str) -> Result<Vector3> {
     if v.iter().any(|c| !c.is_finite()) {
-        return Err(GeomError::InvalidPose(format!("{what} {v:?} has a non-finite component")));
+        return Err(GeomError::InvalidPose(format!(
+            "{what} {v:?} has a non-finite component"
+        )));
     }
     Ok(Vector3::new(v[0], v[1], v[2]))
 }
@@ -111,7 +139,9 @@ fn finite_vector(v: [f64; 3], what: &str) -> Result<Vector3> {
 /// (orthonormal within `1e-3`, determinant +1).
 pub fn rigid_from_matrix(m: &Matrix4) -> Result<Rigid> {
     if m.iter().any(|c| !c.is_finite()) {
-        return Err(GeomError::InvalidPose("matrix has a non-finite entry".into()));
+        return Err(GeomError::InvalidPose(
+            "matrix has a non-finite entry".into(),
+        ));
     }
     let r = m.fixed_view::<3, 3>(0, 0).into_owned();
     let err = (r.transpose() * r - crate::Matrix3::identity()).abs().max();
@@ -123,12 +153,19 @@ pub fn rigid_from_matrix(m: &Matrix4) -> Result<Rigid> {
     }
     let rot = nalgebra::Rotation3::from_matrix(&r);
     let t = m.fixed_view::<3, 1>(0, 3).into_owned();
-    Ok(Isometry3::from_parts(Translation3::from(t), UnitQuaternion::from_rotation_matrix(&rot)))
+    Ok(Isometry3::from_parts(
+        Translation3::from(t),
+        UnitQuaternion::from_rotation_matrix(&rot),
+    ))
 }
 
 /// Seeds a frame's object pose from the reference frame's through the cameras:
 /// `M_k = inv(c2w_k) · c2w_ref · M_ref` (the object stays still in the world).
-pub fn seed_from_reference(world_from_camera_k: &Rigid, world_from_camera_ref: &Rigid, pose_ref: &ObjectPose) -> ObjectPose {
+pub fn seed_from_reference(
+    world_from_camera_k: &Rigid,
+    world_from_camera_ref: &Rigid,
+    pose_ref: &ObjectPose,
+) -> ObjectPose {
     let k_from_ref = world_from_camera_k.inverse() * world_from_camera_ref;
     ObjectPose {
         rotation: k_from_ref.rotation * pose_ref.rotation,
@@ -143,10 +180,15 @@ mod tests {
 
     fn sim(s: f64, axis: [f64; 3], angle: f64, t: [f64; 3]) -> Similarity {
         let axis = nalgebra::Unit::new_normalize(Vector3::from(axis));
-        Similarity { scale: s, rotation: UnitQuaternion::from_axis_angle(&axis, angle), translation: Vector3::from(t) }
+        Similarity {
+            scale: s,
+            rotation: UnitQuaternion::from_axis_angle(&axis, angle),
+            translation: Vector3::from(t),
+        }
     }
 
     #[test]
+    #[allow(clippy::approx_constant)] // the reference's example writes 0.707107 literally
     fn quaternion_is_renormalised_and_scalar_first() {
         let q = quat_from_wxyz([2.0, 0.0, 0.0, 0.0]).expect("valid");
         assert_eq!(quat_to_wxyz(&q), [1.0, 0.0, 0.0, 0.0]);
@@ -165,7 +207,10 @@ mod tests {
             Translation3::new(0.3, 0.0, 0.0),
             UnitQuaternion::from_axis_angle(&Vector3::y_axis(), 0.2),
         );
-        let pose_ref = ObjectPose::new(UnitQuaternion::from_axis_angle(&Vector3::x_axis(), 0.5), Vector3::new(0.0, 0.0, 1.0));
+        let pose_ref = ObjectPose::new(
+            UnitQuaternion::from_axis_angle(&Vector3::x_axis(), 0.5),
+            Vector3::new(0.0, 0.0, 1.0),
+        );
         let pose_k = seed_from_reference(&c2w_k, &c2w_ref, &pose_ref);
         let p = Point3::new(0.1, 0.2, 0.3);
         let world_ref = c2w_ref * (pose_ref.to_rigid() * p);

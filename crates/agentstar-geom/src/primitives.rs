@@ -12,26 +12,38 @@ use std::f64::consts::{PI, TAU};
 pub const MAX_SEGMENTS: u32 = 1024;
 
 fn invalid(primitive: &str, reason: impl Into<String>) -> GeomError {
-    GeomError::InvalidArgument { primitive: primitive.into(), reason: reason.into() }
+    GeomError::InvalidArgument {
+        primitive: primitive.into(),
+        reason: reason.into(),
+    }
 }
 
 fn positive(primitive: &str, name: &str, v: f64) -> Result<()> {
     if !(v.is_finite() && v > 0.0) {
-        return Err(invalid(primitive, format!("`{name}` must be a positive finite number, got {v}")));
+        return Err(invalid(
+            primitive,
+            format!("`{name}` must be a positive finite number, got {v}"),
+        ));
     }
     Ok(())
 }
 
 fn non_negative(primitive: &str, name: &str, v: f64) -> Result<()> {
     if !(v.is_finite() && v >= 0.0) {
-        return Err(invalid(primitive, format!("`{name}` must be a finite number ≥ 0, got {v}")));
+        return Err(invalid(
+            primitive,
+            format!("`{name}` must be a finite number ≥ 0, got {v}"),
+        ));
     }
     Ok(())
 }
 
 fn segments(primitive: &str, name: &str, n: i64, min: u32) -> Result<u32> {
     if n < min as i64 || n > MAX_SEGMENTS as i64 {
-        return Err(invalid(primitive, format!("`{name}` must be between {min} and {MAX_SEGMENTS}, got {n}")));
+        return Err(invalid(
+            primitive,
+            format!("`{name}` must be between {min} and {MAX_SEGMENTS}, got {n}"),
+        ));
     }
     Ok(n as u32)
 }
@@ -61,27 +73,50 @@ pub fn cuboid(size_x: f64, size_y: f64, size_z: f64) -> Result<TriMesh> {
             )
         })
         .collect();
-    let quads = [[0, 2, 3, 1], [4, 5, 7, 6], [0, 1, 5, 4], [2, 6, 7, 3], [0, 4, 6, 2], [1, 3, 7, 5]];
-    let triangles = quads.iter().flat_map(|q| [[q[0], q[1], q[2]], [q[0], q[2], q[3]]]).collect();
+    let quads = [
+        [0, 2, 3, 1],
+        [4, 5, 7, 6],
+        [0, 1, 5, 4],
+        [2, 6, 7, 3],
+        [0, 4, 6, 2],
+        [1, 3, 7, 5],
+    ];
+    let triangles = quads
+        .iter()
+        .flat_map(|q| [[q[0], q[1], q[2]], [q[0], q[2], q[3]]])
+        .collect();
     Ok(orient_outward(TriMesh::new(positions, triangles)))
 }
 
 /// A box whose edges are rounded with `radius` (`segments` = 1 gives a chamfer).
-pub fn bevelled_box(size_x: f64, size_y: f64, size_z: f64, radius: f64, segs: i64) -> Result<TriMesh> {
+pub fn bevelled_box(
+    size_x: f64,
+    size_y: f64,
+    size_z: f64,
+    radius: f64,
+    segs: i64,
+) -> Result<TriMesh> {
     for (n, v) in [("size_x", size_x), ("size_y", size_y), ("size_z", size_z)] {
         positive("box", n, v)?;
     }
     non_negative("box", "bevel", radius)?;
     let half_min = size_x.min(size_y).min(size_z) / 2.0;
     if radius >= half_min {
-        return Err(invalid("box", format!("bevel {radius} must be smaller than half the smallest side ({half_min})")));
+        return Err(invalid(
+            "box",
+            format!("bevel {radius} must be smaller than half the smallest side ({half_min})"),
+        ));
     }
     if radius == 0.0 {
         return cuboid(size_x, size_y, size_z);
     }
     let segs = segments("box", "segments", segs, 1)?;
     // The rounded box is the hull of eight corner spheres of the inner box.
-    let inner = [size_x / 2.0 - radius, size_y / 2.0 - radius, size_z / 2.0 - radius];
+    let inner = [
+        size_x / 2.0 - radius,
+        size_y / 2.0 - radius,
+        size_z / 2.0 - radius,
+    ];
     let mut pts = Vec::new();
     for sx in [-1.0, 1.0] {
         for sy in [-1.0, 1.0] {
@@ -90,7 +125,11 @@ pub fn bevelled_box(size_x: f64, size_y: f64, size_z: f64, radius: f64, segs: i6
                     let theta = (PI / 2.0) * i as f64 / segs as f64;
                     for j in 0..=segs {
                         let phi = (PI / 2.0) * j as f64 / segs as f64;
-                        let d = [theta.sin() * phi.cos(), theta.sin() * phi.sin(), theta.cos()];
+                        let d = [
+                            theta.sin() * phi.cos(),
+                            theta.sin() * phi.sin(),
+                            theta.cos(),
+                        ];
                         pts.push(Point3::new(
                             sx * (inner[0] + radius * d[0]),
                             sy * (inner[1] + radius * d[1]),
@@ -118,9 +157,15 @@ fn lathe_named(name: &str, profile: &[(f64, f64)], segs: i64) -> Result<TriMesh>
     let mut prof: Vec<(f64, f64)> = Vec::with_capacity(profile.len());
     for &(r, z) in profile {
         if !(r.is_finite() && z.is_finite()) || r < 0.0 {
-            return Err(invalid(name, format!("profile point ({r}, {z}) must be finite with radius ≥ 0")));
+            return Err(invalid(
+                name,
+                format!("profile point ({r}, {z}) must be finite with radius ≥ 0"),
+            ));
         }
-        if prof.last().is_some_and(|&(pr, pz)| (pr - r).abs() < 1e-12 && (pz - z).abs() < 1e-12) {
+        if prof
+            .last()
+            .is_some_and(|&(pr, pz)| (pr - r).abs() < 1e-12 && (pz - z).abs() < 1e-12)
+        {
             continue;
         }
         prof.push((r, z));
@@ -133,11 +178,17 @@ fn lathe_named(name: &str, profile: &[(f64, f64)], segs: i64) -> Result<TriMesh>
         prof.pop();
     }
     if prof.len() < 2 || (closed && prof.len() < 3) {
-        return Err(invalid(name, "profile needs at least 2 distinct points (3 for a closed loop)"));
+        return Err(invalid(
+            name,
+            "profile needs at least 2 distinct points (3 for a closed loop)",
+        ));
     }
     let pole = |r: f64| r < 1e-12;
     if closed && prof.iter().any(|&(r, _)| pole(r)) {
-        return Err(invalid(name, "a closed profile loop must stay off the axis (radius > 0)"));
+        return Err(invalid(
+            name,
+            "a closed profile loop must stay off the axis (radius > 0)",
+        ));
     }
     let mut positions = Vec::new();
     // For each profile point, its vertex indices (one for a pole, n for a ring).
@@ -214,7 +265,11 @@ pub fn cylinder(radius: f64, height: f64, segs: i64) -> Result<TriMesh> {
     positive("cylinder", "radius", radius)?;
     positive("cylinder", "height", height)?;
     let h = height / 2.0;
-    lathe_named("cylinder", &[(0.0, -h), (radius, -h), (radius, h), (0.0, h)], segs)
+    lathe_named(
+        "cylinder",
+        &[(0.0, -h), (radius, -h), (radius, h), (0.0, h)],
+        segs,
+    )
 }
 
 /// A truncated cone: `radius_bottom` at z = −height/2, `radius_top` at +height/2 (0 for a point).
@@ -226,7 +281,11 @@ pub fn cone(radius_bottom: f64, radius_top: f64, height: f64, segs: i64) -> Resu
         return Err(invalid("cone", "at least one radius must be positive"));
     }
     let h = height / 2.0;
-    lathe_named("cone", &[(0.0, -h), (radius_bottom, -h), (radius_top, h), (0.0, h)], segs)
+    lathe_named(
+        "cone",
+        &[(0.0, -h), (radius_bottom, -h), (radius_top, h), (0.0, h)],
+        segs,
+    )
 }
 
 /// A UV sphere with `segments` around Z and `rings` from pole to pole.
@@ -236,7 +295,14 @@ pub fn uv_sphere(radius: f64, segs: i64, rings: i64) -> Result<TriMesh> {
     let profile: Vec<(f64, f64)> = (0..=rings)
         .map(|i| {
             let a = -PI / 2.0 + PI * i as f64 / rings as f64;
-            (if i == 0 || i == rings { 0.0 } else { radius * a.cos() }, radius * a.sin())
+            (
+                if i == 0 || i == rings {
+                    0.0
+                } else {
+                    radius * a.cos()
+                },
+                radius * a.sin(),
+            )
         })
         .collect();
     lathe_named("sphere", &profile, segs)
@@ -250,11 +316,17 @@ pub fn capsule(radius: f64, length: f64, segs: i64) -> Result<TriMesh> {
     let mut profile = Vec::new();
     for i in 0..=quarter {
         let a = -PI / 2.0 + (PI / 2.0) * i as f64 / quarter as f64;
-        profile.push((if i == 0 { 0.0 } else { radius * a.cos() }, radius * a.sin() - length / 2.0));
+        profile.push((
+            if i == 0 { 0.0 } else { radius * a.cos() },
+            radius * a.sin() - length / 2.0,
+        ));
     }
     for i in 0..=quarter {
         let a = (PI / 2.0) * i as f64 / quarter as f64;
-        profile.push((if i == quarter { 0.0 } else { radius * a.cos() }, radius * a.sin() + length / 2.0));
+        profile.push((
+            if i == quarter { 0.0 } else { radius * a.cos() },
+            radius * a.sin() + length / 2.0,
+        ));
     }
     lathe_named("capsule", &profile, segs)
 }
@@ -263,21 +335,50 @@ pub fn capsule(radius: f64, length: f64, segs: i64) -> Result<TriMesh> {
 pub fn ico_sphere(radius: f64, subdivisions: i64) -> Result<TriMesh> {
     positive("ico_sphere", "radius", radius)?;
     if !(0..=6).contains(&subdivisions) {
-        return Err(invalid("ico_sphere", format!("`subdivisions` must be between 0 and 6, got {subdivisions}")));
+        return Err(invalid(
+            "ico_sphere",
+            format!("`subdivisions` must be between 0 and 6, got {subdivisions}"),
+        ));
     }
     let t = (1.0 + 5f64.sqrt()) / 2.0;
     let mut positions: Vec<Point3> = [
-        (-1.0, t, 0.0), (1.0, t, 0.0), (-1.0, -t, 0.0), (1.0, -t, 0.0),
-        (0.0, -1.0, t), (0.0, 1.0, t), (0.0, -1.0, -t), (0.0, 1.0, -t),
-        (t, 0.0, -1.0), (t, 0.0, 1.0), (-t, 0.0, -1.0), (-t, 0.0, 1.0),
+        (-1.0, t, 0.0),
+        (1.0, t, 0.0),
+        (-1.0, -t, 0.0),
+        (1.0, -t, 0.0),
+        (0.0, -1.0, t),
+        (0.0, 1.0, t),
+        (0.0, -1.0, -t),
+        (0.0, 1.0, -t),
+        (t, 0.0, -1.0),
+        (t, 0.0, 1.0),
+        (-t, 0.0, -1.0),
+        (-t, 0.0, 1.0),
     ]
     .iter()
     .map(|&(x, y, z)| Point3::from(nalgebra::Vector3::new(x, y, z).normalize()))
     .collect();
     let mut triangles: Vec<[u32; 3]> = vec![
-        [0, 11, 5], [0, 5, 1], [0, 1, 7], [0, 7, 10], [0, 10, 11], [1, 5, 9], [5, 11, 4], [11, 10, 2],
-        [10, 7, 6], [7, 1, 8], [3, 9, 4], [3, 4, 2], [3, 2, 6], [3, 6, 8], [3, 8, 9], [4, 9, 5],
-        [2, 4, 11], [6, 2, 10], [8, 6, 7], [9, 8, 1],
+        [0, 11, 5],
+        [0, 5, 1],
+        [0, 1, 7],
+        [0, 7, 10],
+        [0, 10, 11],
+        [1, 5, 9],
+        [5, 11, 4],
+        [11, 10, 2],
+        [10, 7, 6],
+        [7, 1, 8],
+        [3, 9, 4],
+        [3, 4, 2],
+        [3, 2, 6],
+        [3, 6, 8],
+        [3, 8, 9],
+        [4, 9, 5],
+        [2, 4, 11],
+        [6, 2, 10],
+        [8, 6, 7],
+        [9, 8, 1],
     ];
     for _ in 0..subdivisions {
         let mut midpoint = std::collections::HashMap::new();
@@ -305,11 +406,19 @@ pub fn ico_sphere(radius: f64, subdivisions: i64) -> Result<TriMesh> {
 }
 
 /// A torus around Z in the XY plane: `major_radius` to the tube centre, `minor_radius` of the tube.
-pub fn torus(major_radius: f64, minor_radius: f64, major_segs: i64, minor_segs: i64) -> Result<TriMesh> {
+pub fn torus(
+    major_radius: f64,
+    minor_radius: f64,
+    major_segs: i64,
+    minor_segs: i64,
+) -> Result<TriMesh> {
     positive("torus", "major_radius", major_radius)?;
     positive("torus", "minor_radius", minor_radius)?;
     if minor_radius >= major_radius {
-        return Err(invalid("torus", format!("minor_radius {minor_radius} must be smaller than major_radius {major_radius}")));
+        return Err(invalid(
+            "torus",
+            format!("minor_radius {minor_radius} must be smaller than major_radius {major_radius}"),
+        ));
     }
     let m = segments("torus", "minor_segments", minor_segs, 3)?;
     let profile: Vec<(f64, f64)> = (0..=m)
@@ -318,7 +427,10 @@ pub fn torus(major_radius: f64, minor_radius: f64, major_segs: i64, minor_segs: 
             if i == m {
                 (major_radius + minor_radius, 0.0)
             } else {
-                (major_radius + minor_radius * a.cos(), minor_radius * a.sin())
+                (
+                    major_radius + minor_radius * a.cos(),
+                    minor_radius * a.sin(),
+                )
             }
         })
         .collect();
@@ -337,7 +449,10 @@ pub fn plane(size_x: f64, size_y: f64) -> Result<TriMesh> {
         Point3::new(hx, hy, 0.0),
         Point3::new(-hx, hy, 0.0),
     ];
-    Ok(TriMesh::new(positions, vec![[0, 1, 2], [0, 2, 3], [0, 2, 1], [0, 3, 2]]))
+    Ok(TriMesh::new(
+        positions,
+        vec![[0, 1, 2], [0, 2, 3], [0, 2, 1], [0, 3, 2]],
+    ))
 }
 
 /// A zero-thickness disc of `radius` in the XY plane, visible from both sides.
@@ -380,20 +495,33 @@ pub fn wedge(size_x: f64, size_y: f64, size_z: f64) -> Result<TriMesh> {
 pub fn extrude(outline: &[(f64, f64)], holes: &[Vec<(f64, f64)>], height: f64) -> Result<TriMesh> {
     positive("extrude", "height", height)?;
     let signed_area = |l: &[(f64, f64)]| -> f64 {
-        (0..l.len()).map(|i| {
-            let (a, b) = (l[i], l[(i + 1) % l.len()]);
-            a.0 * b.1 - b.0 * a.1
-        }).sum::<f64>() / 2.0
+        (0..l.len())
+            .map(|i| {
+                let (a, b) = (l[i], l[(i + 1) % l.len()]);
+                a.0 * b.1 - b.0 * a.1
+            })
+            .sum::<f64>()
+            / 2.0
     };
     let mut loops: Vec<Vec<(f64, f64)>> = Vec::new();
-    for (li, l) in std::iter::once(outline).chain(holes.iter().map(|h| h.as_slice())).enumerate() {
+    for (li, l) in std::iter::once(outline)
+        .chain(holes.iter().map(|h| h.as_slice()))
+        .enumerate()
+    {
         let mut l: Vec<(f64, f64)> = l.to_vec();
         if l.len() > 1 && l.first() == l.last() {
             l.pop();
         }
-        let what = if li == 0 { "outline".to_string() } else { format!("hole {}", li - 1) };
+        let what = if li == 0 {
+            "outline".to_string()
+        } else {
+            format!("hole {}", li - 1)
+        };
         if l.len() < 3 {
-            return Err(invalid("extrude", format!("{what} needs at least 3 points, got {}", l.len())));
+            return Err(invalid(
+                "extrude",
+                format!("{what} needs at least 3 points, got {}", l.len()),
+            ));
         }
         if l.iter().any(|p| !(p.0.is_finite() && p.1.is_finite())) {
             return Err(invalid("extrude", format!("{what} has a non-finite point")));
@@ -459,7 +587,12 @@ mod tests {
 
     fn check(m: &TriMesh, volume: f64, area: f64, rel: f64) {
         assert!(m.is_watertight(), "not watertight");
-        assert!(close(m.volume(), volume, rel), "volume {} vs {}", m.volume(), volume);
+        assert!(
+            close(m.volume(), volume, rel),
+            "volume {} vs {}",
+            m.volume(),
+            volume
+        );
         assert!(close(m.area(), area, rel), "area {} vs {}", m.area(), area);
     }
 
@@ -473,23 +606,67 @@ mod tests {
         let (a, b, c, r) = (1.0, 0.8, 0.6, 0.1);
         let m = bevelled_box(a, b, c, r, 8).expect("box");
         let (ia, ib, ic) = (a - 2.0 * r, b - 2.0 * r, c - 2.0 * r);
-        let v = ia * ib * ic + 2.0 * r * (ia * ib + ib * ic + ia * ic) + PI * r * r * (ia + ib + ic) + 4.0 / 3.0 * PI * r * r * r;
-        let area = 2.0 * (ia * ib + ib * ic + ia * ic) + 2.0 * PI * r * (ia + ib + ic) + 4.0 * PI * r * r;
+        let v = ia * ib * ic
+            + 2.0 * r * (ia * ib + ib * ic + ia * ic)
+            + PI * r * r * (ia + ib + ic)
+            + 4.0 / 3.0 * PI * r * r * r;
+        let area =
+            2.0 * (ia * ib + ib * ic + ia * ic) + 2.0 * PI * r * (ia + ib + ic) + 4.0 * PI * r * r;
         check(&m, v, area, 0.01);
     }
 
     #[test]
     fn round_primitives_match_analytic_volume_and_area() {
-        check(&cylinder(0.5, 2.0, 128).expect("c"), PI * 0.25 * 2.0, 2.0 * PI * 0.5 * 2.0 + 2.0 * PI * 0.25, 0.002);
+        check(
+            &cylinder(0.5, 2.0, 128).expect("c"),
+            PI * 0.25 * 2.0,
+            2.0 * PI * 0.5 * 2.0 + 2.0 * PI * 0.25,
+            0.002,
+        );
         let (r1, r2, h) = (0.5f64, 0.2f64, 1.0f64);
         let slant = ((r1 - r2) * (r1 - r2) + h * h).sqrt();
-        check(&cone(r1, r2, h, 128).expect("cone"), PI * h / 3.0 * (r1 * r1 + r1 * r2 + r2 * r2), PI * (r1 + r2) * slant + PI * (r1 * r1 + r2 * r2), 0.002);
-        check(&cone(0.5, 0.0, 1.0, 128).expect("cone"), PI * 0.25 / 3.0, PI * 0.5 * (0.25f64 + 1.0).sqrt() + PI * 0.25, 0.002);
-        check(&uv_sphere(0.5, 128, 64).expect("s"), 4.0 / 3.0 * PI * 0.125, 4.0 * PI * 0.25, 0.002);
-        check(&ico_sphere(0.5, 5).expect("s"), 4.0 / 3.0 * PI * 0.125, 4.0 * PI * 0.25, 0.002);
-        check(&torus(0.4, 0.1, 128, 64).expect("t"), 2.0 * PI * PI * 0.4 * 0.01, 4.0 * PI * PI * 0.4 * 0.1, 0.003);
-        check(&capsule(0.2, 0.6, 128).expect("c"), PI * 0.04 * 0.6 + 4.0 / 3.0 * PI * 0.008, 2.0 * PI * 0.2 * 0.6 + 4.0 * PI * 0.04, 0.003);
-        check(&wedge(1.0, 2.0, 3.0).expect("w"), 3.0, 2.0 + 3.0 + 2.0 * 3.0 / 2.0 * 2.0 + (4.0f64 + 9.0).sqrt(), 1e-9);
+        check(
+            &cone(r1, r2, h, 128).expect("cone"),
+            PI * h / 3.0 * (r1 * r1 + r1 * r2 + r2 * r2),
+            PI * (r1 + r2) * slant + PI * (r1 * r1 + r2 * r2),
+            0.002,
+        );
+        check(
+            &cone(0.5, 0.0, 1.0, 128).expect("cone"),
+            PI * 0.25 / 3.0,
+            PI * 0.5 * (0.25f64 + 1.0).sqrt() + PI * 0.25,
+            0.002,
+        );
+        check(
+            &uv_sphere(0.5, 128, 64).expect("s"),
+            4.0 / 3.0 * PI * 0.125,
+            4.0 * PI * 0.25,
+            0.002,
+        );
+        check(
+            &ico_sphere(0.5, 5).expect("s"),
+            4.0 / 3.0 * PI * 0.125,
+            4.0 * PI * 0.25,
+            0.002,
+        );
+        check(
+            &torus(0.4, 0.1, 128, 64).expect("t"),
+            2.0 * PI * PI * 0.4 * 0.01,
+            4.0 * PI * PI * 0.4 * 0.1,
+            0.003,
+        );
+        check(
+            &capsule(0.2, 0.6, 128).expect("c"),
+            PI * 0.04 * 0.6 + 4.0 / 3.0 * PI * 0.008,
+            2.0 * PI * 0.2 * 0.6 + 4.0 * PI * 0.04,
+            0.003,
+        );
+        check(
+            &wedge(1.0, 2.0, 3.0).expect("w"),
+            3.0,
+            2.0 + 3.0 + 2.0 * 3.0 / 2.0 * 2.0 + (4.0f64 + 9.0).sqrt(),
+            1e-9,
+        );
     }
 
     #[test]
@@ -506,21 +683,41 @@ mod tests {
     fn extrusion_with_hole() {
         let outline = [(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)];
         let hole = vec![(-0.5, -0.5), (-0.5, 0.5), (0.5, 0.5), (0.5, -0.5)];
-        let m = extrude(&outline, &[hole.clone()], 0.5).expect("extrude");
+        let m = extrude(&outline, std::slice::from_ref(&hole), 0.5).expect("extrude");
         check(&m, 3.0 * 0.5, 2.0 * 3.0 + 0.5 * 8.0 + 0.5 * 4.0, 1e-9);
         // Orientation of the input does not matter.
         let mut rev = outline.to_vec();
         rev.reverse();
         let mut hrev = hole;
         hrev.reverse();
-        check(&extrude(&rev, &[hrev], 0.5).expect("extrude"), 1.5, 12.0, 1e-9);
+        check(
+            &extrude(&rev, &[hrev], 0.5).expect("extrude"),
+            1.5,
+            12.0,
+            1e-9,
+        );
     }
 
     #[test]
     fn lathe_closed_loop_is_a_ring() {
         // A square cross-section revolved: a washer.
-        let m = lathe(&[(0.3, -0.1), (0.5, -0.1), (0.5, 0.1), (0.3, 0.1), (0.3, -0.1)], 256).expect("ring");
-        check(&m, PI * (0.25 - 0.09) * 0.2, 2.0 * PI * (0.25 - 0.09) + 2.0 * PI * 0.8 * 0.2, 0.002);
+        let m = lathe(
+            &[
+                (0.3, -0.1),
+                (0.5, -0.1),
+                (0.5, 0.1),
+                (0.3, 0.1),
+                (0.3, -0.1),
+            ],
+            256,
+        )
+        .expect("ring");
+        check(
+            &m,
+            PI * (0.25 - 0.09) * 0.2,
+            2.0 * PI * (0.25 - 0.09) + 2.0 * PI * 0.8 * 0.2,
+            0.002,
+        );
     }
 
     #[test]

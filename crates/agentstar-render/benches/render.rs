@@ -5,7 +5,9 @@
 //! when `../shared/bench/mesh5k.obj` is not beside the repository.
 
 use agentstar_geom::pose::Similarity;
-use agentstar_geom::{KinematicTree, ObjectModel, Part, PinholeCamera, Point3, TriMesh, UnitQuaternion, Vector3};
+use agentstar_geom::{
+    KinematicTree, ObjectModel, Part, PinholeCamera, Point3, TriMesh, UnitQuaternion, Vector3,
+};
 use agentstar_render::scene::{fill_instances, InstanceBuilder};
 use agentstar_render::{ScoreTarget, SilhouetteRenderer};
 use std::time::Instant;
@@ -26,7 +28,8 @@ impl Rng {
 }
 
 fn load_obj(path: &std::path::Path) -> TriMesh {
-    let text = std::fs::read_to_string(path).unwrap_or_else(|e| panic!("cannot read {}: {e}", path.display()));
+    let text = std::fs::read_to_string(path)
+        .unwrap_or_else(|e| panic!("cannot read {}: {e}", path.display()));
     let mut m = TriMesh::default();
     for line in text.lines() {
         let mut it = line.split_whitespace();
@@ -36,7 +39,16 @@ fn load_obj(path: &std::path::Path) -> TriMesh {
                 m.positions.push(Point3::new(v[0], v[1], v[2]));
             }
             Some("f") => {
-                let idx: Vec<u32> = it.map(|s| s.split('/').next().expect("index").parse::<u32>().expect("index") - 1).collect();
+                let idx: Vec<u32> = it
+                    .map(|s| {
+                        s.split('/')
+                            .next()
+                            .expect("index")
+                            .parse::<u32>()
+                            .expect("index")
+                            - 1
+                    })
+                    .collect();
                 for k in 1..idx.len() - 1 {
                     m.triangles.push([idx[0], idx[k], idx[k + 1]]);
                 }
@@ -52,25 +64,45 @@ fn median(v: &mut [f64]) -> f64 {
     v[v.len() / 2]
 }
 
-fn setup(name: &str, model: &ObjectModel, camera: PinholeCamera, z_range: (f64, f64), target_z: f64) {
+fn setup(
+    name: &str,
+    model: &ObjectModel,
+    camera: PinholeCamera,
+    z_range: (f64, f64),
+    target_z: f64,
+) {
     let q = nalgebra::Quaternion::new(0.9, 0.3, -0.2, 0.25);
-    let target_pose = Similarity { scale: 1.0, rotation: UnitQuaternion::from_quaternion(q), translation: Vector3::new(0.05, -0.03, target_z) };
+    let target_pose = Similarity {
+        scale: 1.0,
+        rotation: UnitQuaternion::from_quaternion(q),
+        translation: Vector3::new(0.05, -0.03, target_z),
+    };
     let mut renderer = SilhouetteRenderer::new(camera.width, camera.height);
     let mut instances = Vec::new();
     fill_instances(model, &[], &target_pose, &mut instances);
-    let target = ScoreTarget::new(renderer.render(&camera, &instances).clone(), None).expect("target");
+    let target =
+        ScoreTarget::new(renderer.render(&camera, &instances).clone(), None).expect("target");
     let mut rng = Rng(2026);
     let poses: Vec<Similarity> = (0..1000)
         .map(|_| {
-            let q = nalgebra::Quaternion::new(rng.normal(), rng.normal(), rng.normal(), rng.normal());
+            let q =
+                nalgebra::Quaternion::new(rng.normal(), rng.normal(), rng.normal(), rng.normal());
             Similarity {
                 scale: 1.0,
                 rotation: UnitQuaternion::from_quaternion(q),
-                translation: Vector3::new(rng.uniform() * 0.6 - 0.3, rng.uniform() * 0.4 - 0.2, z_range.0 + rng.uniform() * (z_range.1 - z_range.0)),
+                translation: Vector3::new(
+                    rng.uniform() * 0.6 - 0.3,
+                    rng.uniform() * 0.4 - 0.2,
+                    z_range.0 + rng.uniform() * (z_range.1 - z_range.0),
+                ),
             }
         })
         .collect();
-    let eval = |renderer: &mut SilhouetteRenderer, builder: &mut InstanceBuilder, instances: &mut Vec<_>, pose: &Similarity| -> f64 {
+    let eval = |renderer: &mut SilhouetteRenderer,
+                builder: &mut InstanceBuilder,
+                instances: &mut Vec<_>,
+                pose: &Similarity|
+     -> f64 {
         builder.build(model, &[], pose, instances);
         target.gate(renderer.render(&camera, instances))
     };
@@ -91,7 +123,9 @@ fn setup(name: &str, model: &ObjectModel, camera: PinholeCamera, z_range: (f64, 
         }
     }
     let med = median(&mut per_eval_us);
-    let threads = std::thread::available_parallelism().map(|n| n.get()).unwrap_or(1);
+    let threads = std::thread::available_parallelism()
+        .map(|n| n.get())
+        .unwrap_or(1);
     let reps = 20;
     let t0 = Instant::now();
     std::thread::scope(|s| {
@@ -127,11 +161,34 @@ fn setup(name: &str, model: &ObjectModel, camera: PinholeCamera, z_range: (f64, 
 }
 
 fn main() {
-    let default = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/bench/mesh5k.obj");
-    let path = std::env::var_os("AGENTSTAR_BENCH_MESH").map(std::path::PathBuf::from).unwrap_or(default);
+    let default =
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/bench/mesh5k.obj");
+    let path = std::env::var_os("AGENTSTAR_BENCH_MESH")
+        .map(std::path::PathBuf::from)
+        .unwrap_or(default);
     let mesh = load_obj(&path);
-    println!("mesh: {} vertices, {} triangles, watertight: {}", mesh.positions.len(), mesh.triangles.len(), mesh.is_watertight());
-    let model = ObjectModel { tree: KinematicTree::rigid(1), parts: vec![Part::new("mesh5k", mesh, [0.7; 3])] };
-    setup("setup A", &model, PinholeCamera::new(300.0, 300.0, 160.0, 120.0, 320, 240).expect("camera"), (2.5, 3.5), 3.0);
-    setup("setup B", &model, PinholeCamera::new(600.0, 600.0, 320.0, 240.0, 640, 480).expect("camera"), (1.0, 1.4), 1.2);
+    println!(
+        "mesh: {} vertices, {} triangles, watertight: {}",
+        mesh.positions.len(),
+        mesh.triangles.len(),
+        mesh.is_watertight()
+    );
+    let model = ObjectModel {
+        tree: KinematicTree::rigid(1),
+        parts: vec![Part::new("mesh5k", mesh, [0.7; 3])],
+    };
+    setup(
+        "setup A",
+        &model,
+        PinholeCamera::new(300.0, 300.0, 160.0, 120.0, 320, 240).expect("camera"),
+        (2.5, 3.5),
+        3.0,
+    );
+    setup(
+        "setup B",
+        &model,
+        PinholeCamera::new(600.0, 600.0, 320.0, 240.0, 640, 480).expect("camera"),
+        (1.0, 1.4),
+        1.2,
+    );
 }

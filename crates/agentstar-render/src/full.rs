@@ -6,7 +6,9 @@
 //! area2D(a', b', c')` where `n = (b − a) × (c − a)` and primes are pixel coordinates, so a
 //! face looking at the camera (`n · a < 0`) has negative signed area in pixel coordinates.
 
-use crate::raster::{camera_inside_bounds, clip_near, project_point, Instance, ScanTriangle, VertexScratch, NEAR_Z};
+use crate::raster::{
+    camera_inside_bounds, clip_near, project_point, Instance, ScanTriangle, VertexScratch, NEAR_Z,
+};
 use agentstar_geom::PinholeCamera;
 
 /// Sentinel part id for pixels that show no geometry.
@@ -27,7 +29,13 @@ pub struct RenderBuffers {
 impl RenderBuffers {
     pub fn new(width: u32, height: u32) -> Self {
         let n = width as usize * height as usize;
-        RenderBuffers { width, height, depth: vec![f32::INFINITY; n], part: vec![NO_PART; n], normal: vec![[0.0; 3]; n] }
+        RenderBuffers {
+            width,
+            height,
+            depth: vec![f32::INFINITY; n],
+            part: vec![NO_PART; n],
+            normal: vec![[0.0; 3]; n],
+        }
     }
     pub fn covered(&self, x: u32, y: u32) -> bool {
         self.part[(y * self.width + x) as usize] != NO_PART
@@ -48,10 +56,18 @@ pub fn render_full(camera: &PinholeCamera, instances: &[Instance<'_>]) -> Render
         let cull = inst.closed() && !camera_inside_bounds(inst);
         for tri in &inst.mesh.triangles {
             let idx = [tri[0] as usize, tri[1] as usize, tri[2] as usize];
-            let c = [scratch.cam[idx[0]], scratch.cam[idx[1]], scratch.cam[idx[2]]];
+            let c = [
+                scratch.cam[idx[0]],
+                scratch.cam[idx[1]],
+                scratch.cam[idx[2]],
+            ];
             let e1 = [c[1][0] - c[0][0], c[1][1] - c[0][1], c[1][2] - c[0][2]];
             let e2 = [c[2][0] - c[0][0], c[2][1] - c[0][1], c[2][2] - c[0][2]];
-            let n = [e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2], e1[0] * e2[1] - e1[1] * e2[0]];
+            let n = [
+                e1[1] * e2[2] - e1[2] * e2[1],
+                e1[2] * e2[0] - e1[0] * e2[2],
+                e1[0] * e2[1] - e1[1] * e2[0],
+            ];
             let d = n[0] * c[0][0] + n[1] * c[0][1] + n[2] * c[0][2];
             if cull && d >= 0.0 {
                 continue;
@@ -62,11 +78,17 @@ pub fn render_full(camera: &PinholeCamera, instances: &[Instance<'_>]) -> Render
             }
             // Face the camera: flip normals of back faces seen from inside.
             let sign = if d > 0.0 { -1.0 } else { 1.0 };
-            let unit = [(sign * n[0] / len) as f32, (sign * n[1] / len) as f32, (sign * n[2] / len) as f32];
+            let unit = [
+                (sign * n[0] / len) as f32,
+                (sign * n[1] / len) as f32,
+                (sign * n[2] / len) as f32,
+            ];
             let mut draw = |st: &ScanTriangle| {
                 let Some((r0, r1)) = st.rows(h) else { return };
                 for j in r0..=r1 {
-                    let Some((x0, x1)) = st.span(j, w) else { continue };
+                    let Some((x0, x1)) = st.span(j, w) else {
+                        continue;
+                    };
                     let ry = (j as f64 + 0.5 - camera.cy) / camera.fy;
                     for i in x0..=x1 {
                         let rx = (i as f64 + 0.5 - camera.cx) / camera.fx;
@@ -75,7 +97,7 @@ pub fn render_full(camera: &PinholeCamera, instances: &[Instance<'_>]) -> Render
                             continue;
                         }
                         let z = d / denom;
-                        if !(z > NEAR_Z) {
+                        if z.is_nan() || z <= NEAR_Z {
                             continue;
                         }
                         let k = (j * w + i) as usize;
@@ -91,7 +113,8 @@ pub fn render_full(camera: &PinholeCamera, instances: &[Instance<'_>]) -> Render
             if any_near && c.iter().any(|p| p[2] <= NEAR_Z) {
                 let (poly, m) = clip_near(c);
                 if m >= 3 {
-                    let p: Vec<[f64; 2]> = poly[..m].iter().map(|q| project_point(q, camera)).collect();
+                    let p: Vec<[f64; 2]> =
+                        poly[..m].iter().map(|q| project_point(q, camera)).collect();
                     for k in 1..m - 1 {
                         if let Some(st) = ScanTriangle::new(p[0], p[k], p[k + 1]) {
                             draw(&st);
@@ -100,7 +123,11 @@ pub fn render_full(camera: &PinholeCamera, instances: &[Instance<'_>]) -> Render
                 }
                 continue;
             }
-            if let Some(st) = ScanTriangle::new(scratch.screen[idx[0]], scratch.screen[idx[1]], scratch.screen[idx[2]]) {
+            if let Some(st) = ScanTriangle::new(
+                scratch.screen[idx[0]],
+                scratch.screen[idx[1]],
+                scratch.screen[idx[2]],
+            ) {
                 draw(&st);
             }
         }

@@ -21,7 +21,13 @@ pub use score::{DepthObservation, IouScore, ScoreTarget};
 #[derive(Debug, thiserror::Error)]
 pub enum RenderError {
     #[error("size mismatch: {what} is {got_w}×{got_h}, expected {want_w}×{want_h}")]
-    SizeMismatch { what: String, got_w: u32, got_h: u32, want_w: u32, want_h: u32 },
+    SizeMismatch {
+        what: String,
+        got_w: u32,
+        got_h: u32,
+        want_w: u32,
+        want_h: u32,
+    },
     #[error("{0}")]
     Invalid(String),
 }

@@ -13,7 +13,12 @@ pub struct BitMask {
 impl BitMask {
     pub fn new(width: u32, height: u32) -> Self {
         let words_per_row = (width as usize).div_ceil(64);
-        BitMask { width, height, words_per_row, words: vec![0; words_per_row * height as usize] }
+        BitMask {
+            width,
+            height,
+            words_per_row,
+            words: vec![0; words_per_row * height as usize],
+        }
     }
 
     pub fn from_fn(width: u32, height: u32, mut f: impl FnMut(u32, u32) -> bool) -> Self {
@@ -110,12 +115,21 @@ impl BitMask {
     }
 
     fn zip(&self, other: &BitMask, f: impl Fn(u64, u64) -> u64) -> BitMask {
-        assert_eq!((self.width, self.height), (other.width, other.height), "mask sizes differ");
+        assert_eq!(
+            (self.width, self.height),
+            (other.width, other.height),
+            "mask sizes differ"
+        );
         BitMask {
             width: self.width,
             height: self.height,
             words_per_row: self.words_per_row,
-            words: self.words.iter().zip(&other.words).map(|(&a, &b)| f(a, b)).collect(),
+            words: self
+                .words
+                .iter()
+                .zip(&other.words)
+                .map(|(&a, &b)| f(a, b))
+                .collect(),
         }
     }
 

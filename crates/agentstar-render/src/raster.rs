@@ -25,14 +25,20 @@ impl Affine {
     pub fn from_similarity(s: &Similarity) -> Affine {
         let r = s.rotation.to_rotation_matrix().into_inner() * s.scale;
         Affine {
-            linear: [[r[(0, 0)], r[(0, 1)], r[(0, 2)]], [r[(1, 0)], r[(1, 1)], r[(1, 2)]], [r[(2, 0)], r[(2, 1)], r[(2, 2)]]],
+            linear: [
+                [r[(0, 0)], r[(0, 1)], r[(0, 2)]],
+                [r[(1, 0)], r[(1, 1)], r[(1, 2)]],
+                [r[(2, 0)], r[(2, 1)], r[(2, 2)]],
+            ],
             offset: [s.translation.x, s.translation.y, s.translation.z],
         }
     }
 
     /// `camera_from_object ∘ object_from_part`.
     pub fn camera_from_part(camera_from_object: &Similarity, object_from_part: &Rigid) -> Affine {
-        Affine::from_similarity(&camera_from_object.compose(&Similarity::from_rigid(object_from_part)))
+        Affine::from_similarity(
+            &camera_from_object.compose(&Similarity::from_rigid(object_from_part)),
+        )
     }
 
     #[inline(always)]
@@ -95,8 +101,19 @@ impl ScanTriangle {
         if v[2][1] == v[0][1] {
             return None;
         }
-        let inv = |p: [f64; 2], q: [f64; 2]| if q[1] > p[1] { (q[0] - p[0]) / (q[1] - p[1]) } else { 0.0 };
-        Some(ScanTriangle { inv01: inv(v[0], v[1]), inv12: inv(v[1], v[2]), inv02: inv(v[0], v[2]), v })
+        let inv = |p: [f64; 2], q: [f64; 2]| {
+            if q[1] > p[1] {
+                (q[0] - p[0]) / (q[1] - p[1])
+            } else {
+                0.0
+            }
+        };
+        Some(ScanTriangle {
+            inv01: inv(v[0], v[1]),
+            inv12: inv(v[1], v[2]),
+            inv02: inv(v[0], v[2]),
+            v,
+        })
     }
 
     /// Inclusive row range of pixel centres inside the triangle's vertical extent.
@@ -113,7 +130,11 @@ impl ScanTriangle {
         let y = j as f64 + 0.5;
         let [v0, v1, v2] = self.v;
         let xa = v0[0] + (y - v0[1]) * self.inv02;
-        let xb = if y >= v1[1] && v2[1] > v1[1] { v1[0] + (y - v1[1]) * self.inv12 } else { v0[0] + (y - v0[1]) * self.inv01 };
+        let xb = if y >= v1[1] && v2[1] > v1[1] {
+            v1[0] + (y - v1[1]) * self.inv12
+        } else {
+            v0[0] + (y - v0[1]) * self.inv01
+        };
         let (xl, xr) = if xa <= xb { (xa, xb) } else { (xb, xa) };
         let i0 = ceil_i64(xl - 0.5).max(0);
         let i1 = floor_i64(xr - 0.5).min(width as i64 - 1);
@@ -158,7 +179,10 @@ impl VertexScratch {
             self.cam[i] = c;
             if c[2] > NEAR_Z {
                 let iz = 1.0 / c[2];
-                self.screen[i] = [camera.fx * c[0] * iz + camera.cx, camera.fy * c[1] * iz + camera.cy];
+                self.screen[i] = [
+                    camera.fx * c[0] * iz + camera.cx,
+                    camera.fy * c[1] * iz + camera.cy,
+                ];
             } else {
                 any_near = true;
             }
@@ -182,7 +206,11 @@ pub(crate) fn clip_near(tri: [[f64; 3]; 3]) -> ([[f64; 3]; 4], usize) {
         if ina != inb {
             let t = (NEAR_Z - a[2]) / (b[2] - a[2]);
             // Nudge onto the visible side so the projection is finite.
-            let p = [a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1]), NEAR_Z * (1.0 + 1e-9)];
+            let p = [
+                a[0] + t * (b[0] - a[0]),
+                a[1] + t * (b[1] - a[1]),
+                NEAR_Z * (1.0 + 1e-9),
+            ];
             if n < 4 {
                 out[n] = p;
                 n += 1;
@@ -193,7 +221,10 @@ pub(crate) fn clip_near(tri: [[f64; 3]; 3]) -> ([[f64; 3]; 4], usize) {
 }
 
 pub(crate) fn project_point(c: &[f64; 3], camera: &PinholeCamera) -> [f64; 2] {
-    [camera.fx * c[0] / c[2] + camera.cx, camera.fy * c[1] / c[2] + camera.cy]
+    [
+        camera.fx * c[0] / c[2] + camera.cx,
+        camera.fy * c[1] / c[2] + camera.cy,
+    ]
 }
 
 impl Instance<'_> {
@@ -225,7 +256,12 @@ pub struct SilhouetteRenderer {
 
 impl SilhouetteRenderer {
     pub fn new(width: u32, height: u32) -> Self {
-        SilhouetteRenderer { mask: BitMask::new(width, height), scratch: VertexScratch::default(), contour: ContourScratch::default(), dirty: None }
+        SilhouetteRenderer {
+            mask: BitMask::new(width, height),
+            scratch: VertexScratch::default(),
+            contour: ContourScratch::default(),
+            dirty: None,
+        }
     }
 
     /// The silhouette of `instances` seen by `camera` (whose size must match the renderer's).
@@ -240,19 +276,32 @@ impl SilhouetteRenderer {
         let (w, h) = (camera.width, camera.height);
         let mut dirty = (u32::MAX, 0u32);
         for inst in instances {
-            let any_near = self.scratch.project(inst.mesh, &inst.camera_from_mesh, camera);
+            let any_near = self
+                .scratch
+                .project(inst.mesh, &inst.camera_from_mesh, camera);
             // Culling is only valid when the camera is outside the closed mesh; a camera
             // inside the mesh bounds disables it (cheap and conservative).
             let cull = inst.closed() && !camera_inside_bounds(inst);
             if let (true, false, Some(edges)) = (cull, any_near, inst.edges) {
-                fill_from_contour(&mut self.mask, &mut self.contour, inst.mesh, edges, &self.scratch.screen, w, h, &mut dirty);
+                fill_from_contour(
+                    &mut self.mask,
+                    &mut self.contour,
+                    inst.mesh,
+                    edges,
+                    &self.scratch.screen,
+                    w,
+                    h,
+                    &mut dirty,
+                );
                 continue;
             }
             let screen = &self.scratch.screen;
             let cam = &self.scratch.cam;
             for tri in &inst.mesh.triangles {
                 let (ia, ib, ic) = (tri[0] as usize, tri[1] as usize, tri[2] as usize);
-                if any_near && (cam[ia][2] <= NEAR_Z || cam[ib][2] <= NEAR_Z || cam[ic][2] <= NEAR_Z) {
+                if any_near
+                    && (cam[ia][2] <= NEAR_Z || cam[ib][2] <= NEAR_Z || cam[ic][2] <= NEAR_Z)
+                {
                     let (poly, n) = clip_near([cam[ia], cam[ib], cam[ic]]);
                     if n >= 3 {
                         let mut p = [[0.0; 2]; 4];
@@ -359,7 +408,11 @@ fn fill_from_contour(
 ) {
     cs.front.clear();
     cs.front.extend(mesh.triangles.iter().map(|t| {
-        let (a, b, c) = (screen[t[0] as usize], screen[t[1] as usize], screen[t[2] as usize]);
+        let (a, b, c) = (
+            screen[t[0] as usize],
+            screen[t[1] as usize],
+            screen[t[2] as usize],
+        );
         (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0]) < 0.0
     }));
     cs.row_start.clear();
@@ -372,8 +425,18 @@ fn fill_from_contour(
             continue;
         }
         // Oriented as the front face traverses it.
-        let (p, q) = if f0 { (screen[e[0] as usize], screen[e[1] as usize]) } else { (screen[e[1] as usize], screen[e[0] as usize]) };
-        let (top, bottom, dir) = if p[1] < q[1] { (p, q, 1) } else if q[1] < p[1] { (q, p, -1) } else { continue };
+        let (p, q) = if f0 {
+            (screen[e[0] as usize], screen[e[1] as usize])
+        } else {
+            (screen[e[1] as usize], screen[e[0] as usize])
+        };
+        let (top, bottom, dir) = if p[1] < q[1] {
+            (p, q, 1)
+        } else if q[1] < p[1] {
+            (q, p, -1)
+        } else {
+            continue;
+        };
         // Rows whose centre y satisfies top.y <= y < bottom.y.
         let r0 = ceil_i64(top[1] - 0.5).max(0);
         let r1 = (ceil_i64(bottom[1] - 0.5) - 1).min(h as i64 - 1);
@@ -411,7 +474,10 @@ fn fill_from_contour(
         }
     }
     for r in row_min..=row_max {
-        let (s, e) = (cs.row_start[r as usize] as usize, cs.row_start[r as usize + 1] as usize);
+        let (s, e) = (
+            cs.row_start[r as usize] as usize,
+            cs.row_start[r as usize + 1] as usize,
+        );
         let row = &mut cs.crossings[s..e];
         // Few crossings per row: insertion sort beats a general sort here.
         for i in 1..row.len() {

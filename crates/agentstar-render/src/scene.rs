@@ -23,7 +23,12 @@ impl<'a> PosedModel<'a> {
 
 /// Fills `out` (cleared first) with one instance per part. Allocates for forward
 /// kinematics; search loops use [`InstanceBuilder`], which does not.
-pub fn fill_instances<'a>(model: &'a ObjectModel, states: &[f64], camera_from_object: &Similarity, out: &mut Vec<Instance<'a>>) {
+pub fn fill_instances<'a>(
+    model: &'a ObjectModel,
+    states: &[f64],
+    camera_from_object: &Similarity,
+    out: &mut Vec<Instance<'a>>,
+) {
     InstanceBuilder::default().build(model, states, camera_from_object, out);
 }
 
@@ -35,13 +40,26 @@ pub struct InstanceBuilder {
 }
 
 impl InstanceBuilder {
-    pub fn build<'a>(&mut self, model: &'a ObjectModel, states: &[f64], camera_from_object: &Similarity, out: &mut Vec<Instance<'a>>) {
-        model.tree.part_transforms_into(states, &mut self.joints, &mut self.parts);
+    pub fn build<'a>(
+        &mut self,
+        model: &'a ObjectModel,
+        states: &[f64],
+        camera_from_object: &Similarity,
+        out: &mut Vec<Instance<'a>>,
+    ) {
+        model
+            .tree
+            .part_transforms_into(states, &mut self.joints, &mut self.parts);
         place(model, &self.parts, camera_from_object, out);
     }
 }
 
-fn place<'a>(model: &'a ObjectModel, transforms: &[Rigid], camera_from_object: &Similarity, out: &mut Vec<Instance<'a>>) {
+fn place<'a>(
+    model: &'a ObjectModel,
+    transforms: &[Rigid],
+    camera_from_object: &Similarity,
+    out: &mut Vec<Instance<'a>>,
+) {
     out.clear();
     for (i, (part, object_from_part)) in model.parts.iter().zip(transforms).enumerate() {
         out.push(Instance {

@@ -60,7 +60,11 @@ impl ScoreTarget {
             }
         }
         let mask_px = mask.count();
-        Ok(ScoreTarget { keep: hand.map(|h| h.not()), mask, mask_px })
+        Ok(ScoreTarget {
+            keep: hand.map(|h| h.not()),
+            mask,
+            mask_px,
+        })
     }
 
     pub fn mask(&self) -> &BitMask {
@@ -120,10 +124,21 @@ impl ScoreTarget {
                     keep_px += c.count_ones() as u64;
                 }
                 let total = self.mask.width() as u64 * self.mask.height() as u64;
-                (if vu == 0 { None } else { Some(ratio(vi, vu)) }, total - keep_px)
+                (
+                    if vu == 0 { None } else { Some(ratio(vi, vu)) },
+                    total - keep_px,
+                )
             }
         };
-        IouScore { iou_raw, iou_visible, render_px, mask_px: self.mask_px, intersection_px: inter, union_px: union, hand_px }
+        IouScore {
+            iou_raw,
+            iou_visible,
+            render_px,
+            mask_px: self.mask_px,
+            intersection_px: inter,
+            union_px: union,
+            hand_px,
+        }
     }
 }
 
@@ -152,9 +167,21 @@ pub struct DepthScore {
 }
 
 /// Compares rendered depth with an observation (confidence-weighted).
-pub fn depth_score(render: &RenderBuffers, obs: &DepthObservation, target: &ScoreTarget, scale: f64, conf_threshold: f32) -> Result<Option<DepthScore>, RenderError> {
+pub fn depth_score(
+    render: &RenderBuffers,
+    obs: &DepthObservation,
+    target: &ScoreTarget,
+    scale: f64,
+    conf_threshold: f32,
+) -> Result<Option<DepthScore>, RenderError> {
     if (obs.width, obs.height) != (render.width, render.height) {
-        return Err(RenderError::SizeMismatch { what: "depth".into(), got_w: obs.width, got_h: obs.height, want_w: render.width, want_h: render.height });
+        return Err(RenderError::SizeMismatch {
+            what: "depth".into(),
+            got_w: obs.width,
+            got_h: obs.height,
+            want_w: render.width,
+            want_h: render.height,
+        });
     }
     let (mut wsum, mut abs, mut sq, mut signed, mut n) = (0f64, 0f64, 0f64, 0f64, 0u64);
     for y in 0..render.height {
@@ -163,7 +190,12 @@ pub fn depth_score(render: &RenderBuffers, obs: &DepthObservation, target: &Scor
             let zr = render.depth[k];
             let zo = obs.depth[k];
             let c = obs.confidence[k];
-            if !zr.is_finite() || !(zo.is_finite() && zo > 0.0) || c < conf_threshold || !target.mask.get(x, y) {
+            let valid = zr.is_finite()
+                && zo.is_finite()
+                && zo > 0.0
+                && c >= conf_threshold
+                && target.mask.get(x, y);
+            if !valid {
                 continue;
             }
             if target.keep.as_ref().is_some_and(|keep| !keep.get(x, y)) {
@@ -182,7 +214,13 @@ pub fn depth_score(render: &RenderBuffers, obs: &DepthObservation, target: &Scor
         return Ok(None);
     }
     let mae = abs / wsum;
-    Ok(Some(DepthScore { mae, rmse: (sq / wsum).sqrt(), bias: signed / wsum, mae_canon: mae / scale, scored_px: n }))
+    Ok(Some(DepthScore {
+        mae,
+        rmse: (sq / wsum).sqrt(),
+        bias: signed / wsum,
+        mae_canon: mae / scale,
+        scored_px: n,
+    }))
 }
 
 /// `combined = iou − weight · min(depth_mae_canon, 1)`; the IoU alone without depth.
@@ -226,7 +264,13 @@ mod tests {
 
     #[test]
     fn combined_caps_the_penalty() {
-        let d = DepthScore { mae: 1.0, rmse: 1.0, bias: 0.0, mae_canon: 5.0, scored_px: 1 };
+        let d = DepthScore {
+            mae: 1.0,
+            rmse: 1.0,
+            bias: 0.0,
+            mae_canon: 5.0,
+            scored_px: 1,
+        };
         assert_eq!(combined_score(0.9, Some(&d), 0.1), 0.9 - 0.1);
         assert_eq!(combined_score(0.9, None, 0.1), 0.9);
     }

@@ -4,7 +4,9 @@
 use agentstar_geom::kinematics::{JointDef, JointKind};
 use agentstar_geom::pose::Similarity;
 use agentstar_geom::primitives::{cone, cuboid, torus, uv_sphere};
-use agentstar_geom::{KinematicTree, ObjectModel, Part, PinholeCamera, Point3, TriMesh, UnitQuaternion, Vector3};
+use agentstar_geom::{
+    KinematicTree, ObjectModel, Part, PinholeCamera, Point3, TriMesh, UnitQuaternion, Vector3,
+};
 use agentstar_render::{render_full, BitMask, PosedModel, SilhouetteRenderer};
 
 /// A deterministic generator for test poses.
@@ -21,7 +23,12 @@ impl Rng {
         a + (b - a) * self.next()
     }
     fn rotation(&mut self) -> UnitQuaternion {
-        let q = nalgebra::Quaternion::new(self.range(-1.0, 1.0), self.range(-1.0, 1.0), self.range(-1.0, 1.0), self.range(-1.0, 1.0));
+        let q = nalgebra::Quaternion::new(
+            self.range(-1.0, 1.0),
+            self.range(-1.0, 1.0),
+            self.range(-1.0, 1.0),
+            self.range(-1.0, 1.0),
+        );
         UnitQuaternion::from_quaternion(q)
     }
 }
@@ -69,9 +76,15 @@ fn ray_cast(meshes: &[TriMesh], camera: &PinholeCamera) -> (BitMask, Vec<f64>) {
 
 fn test_model() -> ObjectModel {
     let body = cuboid(0.8, 0.5, 0.3).expect("box");
-    let lid = cone(0.2, 0.05, 0.3, 24).expect("cone").translated(Vector3::new(0.0, 0.0, 0.3));
-    let ring = torus(0.2, 0.05, 24, 8).expect("torus").translated(Vector3::new(0.5, 0.0, 0.0));
-    let ball = uv_sphere(0.12, 16, 8).expect("sphere").translated(Vector3::new(-0.45, 0.1, 0.1));
+    let lid = cone(0.2, 0.05, 0.3, 24)
+        .expect("cone")
+        .translated(Vector3::new(0.0, 0.0, 0.3));
+    let ring = torus(0.2, 0.05, 24, 8)
+        .expect("torus")
+        .translated(Vector3::new(0.5, 0.0, 0.0));
+    let ball = uv_sphere(0.12, 16, 8)
+        .expect("sphere")
+        .translated(Vector3::new(-0.45, 0.1, 0.1));
     let parts = vec![
         Part::new("body", body, [0.8, 0.2, 0.2]),
         Part::new("lid", lid, [0.2, 0.8, 0.2]),
@@ -88,7 +101,10 @@ fn test_model() -> ObjectModel {
         axis: Vector3::x(),
         limit: Some((0.0, 120.0)),
     };
-    ObjectModel { tree: KinematicTree::new(vec![hinge], &names).expect("tree"), parts }
+    ObjectModel {
+        tree: KinematicTree::new(vec![hinge], &names).expect("tree"),
+        parts,
+    }
 }
 
 fn posed_meshes(model: &ObjectModel, states: &[f64], pose: &Similarity) -> Vec<TriMesh> {
@@ -99,7 +115,14 @@ fn posed_meshes(model: &ObjectModel, states: &[f64], pose: &Similarity) -> Vec<T
         .zip(&transforms)
         .map(|(p, t)| {
             let full = pose.compose(&Similarity::from_rigid(t));
-            TriMesh::new(p.mesh.positions.iter().map(|q| full.transform_point(q)).collect(), p.mesh.triangles.clone())
+            TriMesh::new(
+                p.mesh
+                    .positions
+                    .iter()
+                    .map(|q| full.transform_point(q))
+                    .collect(),
+                p.mesh.triangles.clone(),
+            )
         })
         .collect()
 }
@@ -114,7 +137,11 @@ fn silhouette_is_exact_against_ray_casting_over_many_poses() {
         let pose = Similarity {
             scale: rng.range(0.5, 1.5),
             rotation: rng.rotation(),
-            translation: Vector3::new(rng.range(-0.3, 0.3), rng.range(-0.2, 0.2), rng.range(1.5, 3.0)),
+            translation: Vector3::new(
+                rng.range(-0.3, 0.3),
+                rng.range(-0.2, 0.2),
+                rng.range(1.5, 3.0),
+            ),
         };
         let states = [rng.range(0.0, 2.0)];
         let posed = PosedModel::new(&model, &states, &pose);
@@ -123,13 +150,26 @@ fn silhouette_is_exact_against_ray_casting_over_many_poses() {
         assert!(exact.count() > 50, "trial {trial}: object not in view");
         let inter = raster.and(&exact).count();
         let union = raster.or(&exact).count();
-        assert_eq!(inter, union, "trial {trial}: IoU {} ≠ 1", inter as f64 / union as f64);
+        assert_eq!(
+            inter,
+            union,
+            "trial {trial}: IoU {} ≠ 1",
+            inter as f64 / union as f64
+        );
         // The full renderer covers the same pixels and its depth is the ray-cast depth.
         let full = render_full(&camera, &posed.instances);
-        assert_eq!(full.silhouette(), raster, "trial {trial}: full and silhouette renderers differ");
+        assert_eq!(
+            full.silhouette(),
+            raster,
+            "trial {trial}: full and silhouette renderers differ"
+        );
         for (k, &z) in full.depth.iter().enumerate() {
             if z.is_finite() {
-                assert!((z as f64 - exact_depth[k]).abs() < 1e-4 * exact_depth[k], "trial {trial}: depth {z} vs {}", exact_depth[k]);
+                assert!(
+                    (z as f64 - exact_depth[k]).abs() < 1e-4 * exact_depth[k],
+                    "trial {trial}: depth {z} vs {}",
+                    exact_depth[k]
+                );
             }
         }
     }
@@ -140,7 +180,10 @@ fn geometry_crossing_the_near_plane_is_clipped_not_dropped() {
     // A large plane through the camera: half of it is behind the camera.
     let mesh = agentstar_geom::primitives::cuboid(4.0, 4.0, 0.01).expect("box");
     let part = Part::new("slab", mesh, [1.0; 3]);
-    let model = ObjectModel { tree: KinematicTree::rigid(1), parts: vec![part] };
+    let model = ObjectModel {
+        tree: KinematicTree::rigid(1),
+        parts: vec![part],
+    };
     let pose = Similarity {
         scale: 1.0,
         rotation: UnitQuaternion::from_axis_angle(&Vector3::x_axis(), 1.3),
@@ -160,12 +203,25 @@ fn renderer_reuse_clears_previous_frames() {
     let model = test_model();
     let camera = PinholeCamera::new(90.0, 90.0, 48.0, 36.0, 96, 72).expect("camera");
     let mut r = SilhouetteRenderer::new(96, 72);
-    let near = Similarity { scale: 1.0, rotation: UnitQuaternion::identity(), translation: Vector3::new(0.0, 0.0, 1.5) };
-    let far = Similarity { translation: Vector3::new(0.2, 0.0, 6.0), ..near };
-    let a = r.render(&camera, &PosedModel::new(&model, &[0.0], &near).instances).count();
-    let b = r.render(&camera, &PosedModel::new(&model, &[0.0], &far).instances).clone();
+    let near = Similarity {
+        scale: 1.0,
+        rotation: UnitQuaternion::identity(),
+        translation: Vector3::new(0.0, 0.0, 1.5),
+    };
+    let far = Similarity {
+        translation: Vector3::new(0.2, 0.0, 6.0),
+        ..near
+    };
+    let a = r
+        .render(&camera, &PosedModel::new(&model, &[0.0], &near).instances)
+        .count();
+    let b = r
+        .render(&camera, &PosedModel::new(&model, &[0.0], &far).instances)
+        .clone();
     let mut fresh = SilhouetteRenderer::new(96, 72);
-    let c = fresh.render(&camera, &PosedModel::new(&model, &[0.0], &far).instances).clone();
+    let c = fresh
+        .render(&camera, &PosedModel::new(&model, &[0.0], &far).instances)
+        .clone();
     assert!(a > b.count());
     assert_eq!(b, c);
     let _ = Point3::origin();

@@ -1,14 +1,83 @@
-pub fn add(left: u64, right: u64) -> u64 {
-    left + right
+//! The object model as code: `scene.rhai`, a script in the embedded language Rhai that
+//! builds named parts from primitives and declares joints. Only the functions registered
+//! here are reachable; the script has no file or network access (mesh files come through a
+//! caller-provided [`MeshSource`]) and runs under bounds on operations, call depth, sizes,
+//! triangles and wall time.
+//!
+//! Errors are written for the model that reads them: line and column, what was expected,
+//! the valid names, and the parts defined so far.
+
+mod api;
+mod diagnostics;
+
+pub use api::{api_names, ApiEntry, API};
+pub use diagnostics::{SceneError, SceneErrorKind};
+
+use agentstar_geom::{CanonicalReport, ObjectModel, TriMesh};
+use std::time::Duration;
+
+/// Loads mesh files that a script names (`mesh("handle.obj")`). Implementations decide
+/// which paths are allowed; the scene layer itself never touches the file system.
+pub trait MeshSource: Send + Sync {
+    fn load(&self, path: &str) -> Result<TriMesh, String>;
 }
 
-#[cfg(test)]
-mod tests {
-    use super::*;
+/// A source that refuses every mesh file (for scripts evaluated without a directory).
+pub struct NoMeshFiles;
 
-    #[test]
-    fn it_works() {
-        let result = add(2, 2);
-        assert_eq!(result, 4);
+impl MeshSource for NoMeshFiles {
+    fn load(&self, path: &str) -> Result<TriMesh, String> {
+        Err(format!(
+            "mesh files are not available here (asked for `{path}`)"
+        ))
     }
+}
+
+/// Bounds on what a script may do.
+#[derive(Debug, Clone)]
+pub struct Limits {
+    pub max_operations: u64,
+    pub max_call_depth: usize,
+    pub max_wall_time: Duration,
+    /// Total triangles over every solid the script creates (intermediate ones included).
+    pub max_triangles: usize,
+    pub max_parts: usize,
+    pub max_script_bytes: usize,
+    pub max_array_len: usize,
+    pub max_string_len: usize,
+}
+
+impl Default for Limits {
+    fn default() -> Self {
+        Limits {
+            max_operations: 20_000_000,
+            max_call_depth: 48,
+            max_wall_time: Duration::from_secs(20),
+            max_triangles: 4_000_000,
+            max_parts: 256,
+            max_script_bytes: 512 * 1024,
+            max_array_len: 200_000,
+            max_string_len: 64 * 1024,
+        }
+    }
+}
+
+/// A successfully built scene.
+#[derive(Debug, Clone)]
+pub struct SceneBuild {
+    pub model: ObjectModel,
+    pub report: CanonicalReport,
+    /// Non-fatal observations (rest state outside a limit, drifting canonical frame…).
+    pub warnings: Vec<String>,
+    /// Lines the script printed with `print`/`debug`, in order.
+    pub printed: Vec<String>,
+}
+
+/// Evaluates a scene script under `limits`.
+pub fn build_scene(
+    source: &str,
+    meshes: &dyn MeshSource,
+    limits: &Limits,
+) -> Result<SceneBuild, SceneError> {
+    api::build(source, meshes, limits)
 }

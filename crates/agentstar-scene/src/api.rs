@@ -1,0 +1,1021 @@
+//! The functions a scene script can call, their registration with a sandboxed Rhai engine,
+//! and the evaluation that turns a script into an object model.
+
+use crate::diagnostics::{did_you_mean, SceneError, SceneErrorKind};
+use crate::{Limits, MeshSource, SceneBuild};
+use agentstar_geom::kinematics::{JointDef, JointKind};
+use agentstar_geom::{
+    csg, primitives as prim, KinematicTree, Matrix3, ObjectModel, Part, Point3, TriMesh,
+    UnitQuaternion, Vector3,
+};
+use rhai::{Array, Dynamic, Engine, EvalAltResult, Map, Position, AST};
+use std::sync::{Arc, Mutex};
+use std::time::Instant;
+
+/// One entry of the scene API, for error messages and generated documentation.
+#[derive(Debug, Clone, Copy)]
+pub struct ApiEntry {
+    pub name: &'static str,
+    pub forms: &'static [&'static str],
+    pub doc: &'static str,
+}
+
+/// Every function a script can call. Units: canonical (longest side about 1); angles in degrees.
+pub const API: &[ApiEntry] = &[
+    ApiEntry { name: "box", forms: &["box(size_x, size_y, size_z)", "box(size_x, size_y, size_z, bevel)", "box(size_x, size_y, size_z, bevel, segments)"], doc: "Axis-aligned box centred at the origin with full extents; `bevel` rounds the edges with that radius (segments = 1 chamfers)." },
+    ApiEntry { name: "cylinder", forms: &["cylinder(radius, height)", "cylinder(radius, height, segments)"], doc: "Cylinder along Z centred at the origin (default 48 segments)." },
+    ApiEntry { name: "cone", forms: &["cone(radius_bottom, radius_top, height)", "cone(radius_bottom, radius_top, height, segments)"], doc: "Truncated cone along Z, bottom at z = −height/2; a radius of 0 makes a point." },
+    ApiEntry { name: "sphere", forms: &["sphere(radius)", "sphere(radius, segments, rings)"], doc: "UV sphere centred at the origin, poles on Z (default 32 × 16)." },
+    ApiEntry { name: "ico_sphere", forms: &["ico_sphere(radius)", "ico_sphere(radius, subdivisions)"], doc: "Subdivided icosahedron (default 2 subdivisions, at most 6)." },
+    ApiEntry { name: "torus", forms: &["torus(major_radius, minor_radius)", "torus(major_radius, minor_radius, segments, minor_segments)"], doc: "Ring around Z in the XY plane: tube centre at major_radius, tube radius minor_radius." },
+    ApiEntry { name: "capsule", forms: &["capsule(radius, length)", "capsule(radius, length, segments)"], doc: "Cylinder of `length` along Z capped by hemispheres (total height length + 2·radius)." },
+    ApiEntry { name: "plane", forms: &["plane(size_x, size_y)"], doc: "Zero-thickness rectangle in the XY plane, visible from both sides (prefer a thin box for solids)." },
+    ApiEntry { name: "disc", forms: &["disc(radius)", "disc(radius, segments)"], doc: "Zero-thickness disc in the XY plane, visible from both sides." },
+    ApiEntry { name: "wedge", forms: &["wedge(size_x, size_y, size_z)"], doc: "Ramp: footprint size_x × size_y, full height at −Y sloping to zero at +Y." },
+    ApiEntry { name: "hull", forms: &["hull(points)"], doc: "Convex hull of [[x, y, z], …] (at least 4 points, not all coplanar)." },
+    ApiEntry { name: "extrude", forms: &["extrude(outline, height)", "extrude(outline, holes, height)"], doc: "Prism from a 2-D polygon [[x, y], …] in XY (holes: a list of polygons), extruded along Z, centred on z = 0." },
+    ApiEntry { name: "lathe", forms: &["lathe(profile)", "lathe(profile, segments)"], doc: "Revolves [[radius, z], …] about Z; radius 0 makes a pole; ends off the axis get flat caps; a closed loop (first = last) makes a ring." },
+    ApiEntry { name: "mesh", forms: &["mesh(path)"], doc: "Loads an OBJ, STL, PLY or GLB file that sits beside the script (no other paths)." },
+    ApiEntry { name: "union", forms: &["union(a, b)", "a + b"], doc: "Boolean union (solids only; never unite parts that move relative to each other)." },
+    ApiEntry { name: "union_all", forms: &["union_all([a, b, …])"], doc: "Boolean union of a list of solids." },
+    ApiEntry { name: "difference", forms: &["difference(a, b)", "a - b"], doc: "Boolean difference: a with b removed. The cutter should stick out through every surface it cuts." },
+    ApiEntry { name: "intersection", forms: &["intersection(a, b)"], doc: "Boolean intersection." },
+    ApiEntry { name: "translate", forms: &["s.translate(x, y, z)", "s.translate([x, y, z])"], doc: "Moves a solid." },
+    ApiEntry { name: "rotate", forms: &["s.rotate([ax, ay, az], angle_deg)"], doc: "Rotates about an axis through the origin, right-handed, degrees." },
+    ApiEntry { name: "rotate_x", forms: &["s.rotate_x(angle_deg)"], doc: "Rotates about +X (degrees)." },
+    ApiEntry { name: "rotate_y", forms: &["s.rotate_y(angle_deg)"], doc: "Rotates about +Y (degrees)." },
+    ApiEntry { name: "rotate_z", forms: &["s.rotate_z(angle_deg)"], doc: "Rotates about +Z (degrees)." },
+    ApiEntry { name: "rotate_euler", forms: &["s.rotate_euler(x_deg, y_deg, z_deg)"], doc: "Euler XYZ as in Blender: about X, then Y, then Z (fixed axes)." },
+    ApiEntry { name: "scale", forms: &["s.scale(factor)", "s.scale(sx, sy, sz)"], doc: "Scales about the origin (factors > 0; use mirror to flip)." },
+    ApiEntry { name: "mirror", forms: &["s.mirror(\"x\")"], doc: "Mirrors across the plane through the origin normal to x, y or z." },
+    ApiEntry { name: "color", forms: &["s.color(r, g, b)", "s.color(\"#rrggbb\")", "s.color(\"red\")"], doc: "Colour of the part (0–1 components, hex, or a name)." },
+    ApiEntry { name: "size", forms: &["s.size()"], doc: "Bounding-box extents [x, y, z]." },
+    ApiEntry { name: "bounds", forms: &["s.bounds()"], doc: "#{min: [..], max: [..], center: [..], size: [..]} of the bounding box." },
+    ApiEntry { name: "volume", forms: &["s.volume()"], doc: "Enclosed volume." },
+    ApiEntry { name: "triangle_count", forms: &["s.triangle_count()"], doc: "Number of triangles." },
+    ApiEntry { name: "part", forms: &["part(name, solid)"], doc: "Declares a named part (the unit that joints move and exports name)." },
+    ApiEntry { name: "joint", forms: &["joint(#{name, type, child, origin, axis, limit, parent})"], doc: "Declares a joint: type revolute (limit in degrees) | continuous (no limit) | prismatic (limit in canonical units) | fixed; child is a part name or a list; origin and axis in the canonical rest frame; parent names another joint for chains." },
+];
+
+/// Names of every API function (sorted, unique).
+pub fn api_names() -> Vec<&'static str> {
+    let mut v: Vec<&str> = API.iter().map(|e| e.name).collect();
+    v.sort_unstable();
+    v.dedup();
+    v
+}
+
+const JOINT_KEYS: [&str; 7] = ["axis", "child", "limit", "name", "origin", "parent", "type"];
+
+const NAMED_COLORS: &[(&str, [f32; 3])] = &[
+    ("black", [0.05, 0.05, 0.05]),
+    ("blue", [0.15, 0.3, 0.85]),
+    ("brown", [0.45, 0.28, 0.15]),
+    ("cyan", [0.1, 0.75, 0.8]),
+    ("gray", [0.5, 0.5, 0.5]),
+    ("green", [0.2, 0.65, 0.25]),
+    ("grey", [0.5, 0.5, 0.5]),
+    ("orange", [0.95, 0.55, 0.1]),
+    ("pink", [0.95, 0.55, 0.7]),
+    ("purple", [0.55, 0.25, 0.7]),
+    ("red", [0.85, 0.15, 0.12]),
+    ("silver", [0.75, 0.75, 0.78]),
+    ("white", [0.95, 0.95, 0.95]),
+    ("yellow", [0.95, 0.85, 0.15]),
+];
+
+/// Distinct default colours for parts that set none.
+const PALETTE: [[f32; 3]; 8] = [
+    [0.85, 0.33, 0.25],
+    [0.25, 0.55, 0.85],
+    [0.35, 0.75, 0.35],
+    [0.9, 0.7, 0.2],
+    [0.6, 0.4, 0.8],
+    [0.2, 0.75, 0.75],
+    [0.9, 0.5, 0.7],
+    [0.6, 0.6, 0.6],
+];
+
+/// A solid value in a script: an immutable mesh and an optional colour.
+#[derive(Debug, Clone)]
+pub struct Solid {
+    mesh: Arc<TriMesh>,
+    color: Option<[f32; 3]>,
+}
+
+struct State {
+    parts: Vec<(String, Solid)>,
+    joints: Vec<(JointDef, Position)>,
+    triangles: usize,
+    printed: Vec<String>,
+    limits: Limits,
+}
+
+type Shared = Arc<Mutex<State>>;
+type RResult<T> = Result<T, Box<EvalAltResult>>;
+
+fn fail<T>(msg: impl Into<String>) -> RResult<T> {
+    Err(Box::new(EvalAltResult::ErrorRuntime(
+        Dynamic::from(msg.into()),
+        Position::NONE,
+    )))
+}
+
+fn lock(state: &Shared) -> std::sync::MutexGuard<'_, State> {
+    // A poisoned lock only means an earlier call panicked; the data is still usable.
+    state.lock().unwrap_or_else(|e| e.into_inner())
+}
+
+fn num(d: &Dynamic, func: &str, param: &str) -> RResult<f64> {
+    if let Ok(f) = d.as_float() {
+        Ok(f)
+    } else if let Ok(i) = d.as_int() {
+        Ok(i as f64)
+    } else {
+        fail(format!(
+            "`{func}`: argument `{param}` must be a number, got {}",
+            d.type_name()
+        ))
+    }
+}
+
+fn int(d: &Dynamic, func: &str, param: &str) -> RResult<i64> {
+    if let Ok(i) = d.as_int() {
+        return Ok(i);
+    }
+    let f = num(d, func, param)?;
+    if f.fract() != 0.0 {
+        return fail(format!(
+            "`{func}`: argument `{param}` must be a whole number, got {f}"
+        ));
+    }
+    Ok(f as i64)
+}
+
+fn numbers(d: &Dynamic, func: &str, param: &str, len: usize) -> RResult<Vec<f64>> {
+    let Some(arr) = d.clone().try_cast::<Array>() else {
+        return fail(format!(
+            "`{func}`: `{param}` must be an array of {len} numbers like [0.0, 0.0, 1.0], got {}",
+            d.type_name()
+        ));
+    };
+    if arr.len() != len {
+        return fail(format!(
+            "`{func}`: `{param}` must have {len} numbers, got {}",
+            arr.len()
+        ));
+    }
+    arr.iter().map(|x| num(x, func, param)).collect()
+}
+
+fn vec3(d: &Dynamic, func: &str, param: &str) -> RResult<Vector3> {
+    let v = numbers(d, func, param, 3)?;
+    Ok(Vector3::new(v[0], v[1], v[2]))
+}
+
+fn point_list(d: &Dynamic, func: &str, param: &str, dim: usize) -> RResult<Vec<Vec<f64>>> {
+    let Some(arr) = d.clone().try_cast::<Array>() else {
+        return fail(format!(
+            "`{func}`: `{param}` must be an array of points, got {}",
+            d.type_name()
+        ));
+    };
+    arr.iter()
+        .enumerate()
+        .map(|(i, p)| numbers(p, func, &format!("{param}[{i}]"), dim))
+        .collect()
+}
+
+fn pairs(d: &Dynamic, func: &str, param: &str) -> RResult<Vec<(f64, f64)>> {
+    Ok(point_list(d, func, param, 2)?
+        .into_iter()
+        .map(|p| (p[0], p[1]))
+        .collect())
+}
+
+fn to_array(v: &Vector3) -> Array {
+    v.iter().map(|&c| Dynamic::from_float(c)).collect()
+}
+
+impl Solid {
+    fn mapped(&self, linear: &Matrix3, offset: &Vector3) -> Solid {
+        Solid {
+            mesh: Arc::new((*self.mesh).clone().transformed(linear, offset)),
+            color: self.color,
+        }
+    }
+}
+
+/// Records a new mesh against the triangle budget.
+fn admit(state: &Shared, mesh: TriMesh, color: Option<[f32; 3]>) -> RResult<Solid> {
+    let mut s = lock(state);
+    s.triangles += mesh.triangles.len();
+    if s.triangles > s.limits.max_triangles {
+        return fail(format!(
+            "the script created {} triangles in total, over the limit of {}; use fewer segments",
+            s.triangles, s.limits.max_triangles
+        ));
+    }
+    if !mesh.is_finite() {
+        return fail("the operation produced non-finite coordinates");
+    }
+    Ok(Solid {
+        mesh: Arc::new(mesh),
+        color,
+    })
+}
+
+fn geom<T>(r: agentstar_geom::Result<T>) -> RResult<T> {
+    r.or_else(|e| fail(e.to_string()))
+}
+
+fn parse_color(s: &str) -> RResult<[f32; 3]> {
+    let t = s.trim();
+    if let Some(hex) = t.strip_prefix('#') {
+        if hex.len() == 6 {
+            if let Ok(v) = u32::from_str_radix(hex, 16) {
+                return Ok([
+                    ((v >> 16) & 255) as f32 / 255.0,
+                    ((v >> 8) & 255) as f32 / 255.0,
+                    (v & 255) as f32 / 255.0,
+                ]);
+            }
+        }
+        return fail(format!("`color`: `{s}` is not a #rrggbb colour"));
+    }
+    let lower = t.to_ascii_lowercase();
+    if let Some((_, c)) = NAMED_COLORS.iter().find(|(n, _)| *n == lower) {
+        return Ok(*c);
+    }
+    let names: Vec<&str> = NAMED_COLORS.iter().map(|(n, _)| *n).collect();
+    fail(format!(
+        "`color`: unknown colour name `{s}`{}; use #rrggbb, r, g, b in 0–1, or one of {}",
+        did_you_mean(&lower, &names),
+        names.join(", ")
+    ))
+}
+
+fn axis_rotation(axis: Vector3, angle_deg: f64, func: &str) -> RResult<Matrix3> {
+    if !angle_deg.is_finite() {
+        return fail(format!("`{func}`: angle {angle_deg} is not finite"));
+    }
+    let Some(unit) = agentstar_geom::nalgebra::Unit::try_new(axis, 1e-12) else {
+        return fail(format!(
+            "`{func}`: axis {:?} has zero length",
+            axis.as_slice()
+        ));
+    };
+    Ok(
+        UnitQuaternion::from_axis_angle(&unit, angle_deg.to_radians())
+            .to_rotation_matrix()
+            .into_inner(),
+    )
+}
+
+fn parse_joint(map: &Map) -> RResult<JointDef> {
+    for key in map.keys() {
+        if !JOINT_KEYS.contains(&key.as_str()) {
+            return fail(format!(
+                "`joint`: unknown key `{key}`{}; valid keys are {}",
+                did_you_mean(key, &JOINT_KEYS),
+                JOINT_KEYS.join(", ")
+            ));
+        }
+    }
+    let get = |k: &str| map.get(k);
+    let name = match get("name").and_then(|d| d.clone().into_string().ok()) {
+        Some(n) if !n.is_empty() => n,
+        _ => return fail("`joint`: `name` must be a non-empty string"),
+    };
+    let ctx = format!("joint `{name}`");
+    let type_str = get("type")
+        .and_then(|d| d.clone().into_string().ok())
+        .unwrap_or_default();
+    let Some(kind) = JointKind::parse(&type_str) else {
+        return fail(format!(
+            "{ctx}: `type` must be one of {}, got `{type_str}`{}",
+            JointKind::NAMES.join(", "),
+            did_you_mean(&type_str, &JointKind::NAMES)
+        ));
+    };
+    let child = match get("child") {
+        Some(d) if d.is_string() => vec![d.clone().into_string().unwrap_or_default()],
+        Some(d) if d.is_array() => {
+            let arr = d.clone().cast::<Array>();
+            let mut v = Vec::new();
+            for c in arr {
+                match c.into_string() {
+                    Ok(s) => v.push(s),
+                    Err(t) => {
+                        return fail(format!(
+                            "{ctx}: `child` entries must be part names (strings), got {t}"
+                        ))
+                    }
+                }
+            }
+            v
+        }
+        _ => {
+            return fail(format!(
+                "{ctx}: `child` must be a part name or a list of part names"
+            ))
+        }
+    };
+    let origin = match get("origin") {
+        Some(d) => vec3(d, &ctx, "origin")?,
+        None => Vector3::zeros(),
+    };
+    let axis = match get("axis") {
+        Some(d) => vec3(d, &ctx, "axis")?,
+        None if kind == JointKind::Fixed => Vector3::z(),
+        None => return fail(format!("{ctx}: `axis` is required, e.g. axis: [1, 0, 0]")),
+    };
+    let limit = match get("limit") {
+        Some(d) if !d.is_unit() => {
+            let v = numbers(d, &ctx, "limit", 2)?;
+            Some((v[0], v[1]))
+        }
+        _ => None,
+    };
+    if kind == JointKind::Continuous && limit.is_some() {
+        return fail(format!(
+            "{ctx}: a continuous joint has no limit; use type \"revolute\" for a limited rotation"
+        ));
+    }
+    let parent = match get("parent") {
+        Some(d) if d.is_unit() => None,
+        Some(d) => match d.clone().into_string() {
+            Ok(s) => Some(s),
+            Err(t) => return fail(format!("{ctx}: `parent` must be a joint name, got {t}")),
+        },
+        None => None,
+    };
+    Ok(JointDef {
+        name,
+        kind,
+        parent,
+        child,
+        origin,
+        axis,
+        limit,
+    })
+}
+
+fn register(engine: &mut Engine, state: &Shared, meshes: Arc<dyn MeshSource>) {
+    engine.register_type_with_name::<Solid>("Solid");
+
+    macro_rules! prim {
+        ($name:literal, |$($arg:ident),*| $body:expr) => {{
+            let st = state.clone();
+            engine.register_fn($name, move |$($arg: Dynamic),*| -> RResult<Solid> {
+                let mesh = $body;
+                admit(&st, mesh, None)
+            });
+        }};
+    }
+
+    prim!("box", |x, y, z| geom(prim::cuboid(
+        num(&x, "box", "size_x")?,
+        num(&y, "box", "size_y")?,
+        num(&z, "box", "size_z")?
+    ))?);
+    prim!("box", |x, y, z, b| geom(prim::bevelled_box(
+        num(&x, "box", "size_x")?,
+        num(&y, "box", "size_y")?,
+        num(&z, "box", "size_z")?,
+        num(&b, "box", "bevel")?,
+        4
+    ))?);
+    prim!("box", |x, y, z, b, n| geom(prim::bevelled_box(
+        num(&x, "box", "size_x")?,
+        num(&y, "box", "size_y")?,
+        num(&z, "box", "size_z")?,
+        num(&b, "box", "bevel")?,
+        int(&n, "box", "segments")?
+    ))?);
+    prim!("cylinder", |r, h| geom(prim::cylinder(
+        num(&r, "cylinder", "radius")?,
+        num(&h, "cylinder", "height")?,
+        48
+    ))?);
+    prim!("cylinder", |r, h, n| geom(prim::cylinder(
+        num(&r, "cylinder", "radius")?,
+        num(&h, "cylinder", "height")?,
+        int(&n, "cylinder", "segments")?
+    ))?);
+    prim!("cone", |a, b, h| geom(prim::cone(
+        num(&a, "cone", "radius_bottom")?,
+        num(&b, "cone", "radius_top")?,
+        num(&h, "cone", "height")?,
+        48
+    ))?);
+    prim!("cone", |a, b, h, n| geom(prim::cone(
+        num(&a, "cone", "radius_bottom")?,
+        num(&b, "cone", "radius_top")?,
+        num(&h, "cone", "height")?,
+        int(&n, "cone", "segments")?
+    ))?);
+    prim!("sphere", |r| geom(prim::uv_sphere(
+        num(&r, "sphere", "radius")?,
+        32,
+        16
+    ))?);
+    prim!("sphere", |r, n, m| geom(prim::uv_sphere(
+        num(&r, "sphere", "radius")?,
+        int(&n, "sphere", "segments")?,
+        int(&m, "sphere", "rings")?
+    ))?);
+    prim!("ico_sphere", |r| geom(prim::ico_sphere(
+        num(&r, "ico_sphere", "radius")?,
+        2
+    ))?);
+    prim!("ico_sphere", |r, n| geom(prim::ico_sphere(
+        num(&r, "ico_sphere", "radius")?,
+        int(&n, "ico_sphere", "subdivisions")?
+    ))?);
+    prim!("torus", |a, b| geom(prim::torus(
+        num(&a, "torus", "major_radius")?,
+        num(&b, "torus", "minor_radius")?,
+        48,
+        16
+    ))?);
+    prim!("torus", |a, b, n, m| geom(prim::torus(
+        num(&a, "torus", "major_radius")?,
+        num(&b, "torus", "minor_radius")?,
+        int(&n, "torus", "segments")?,
+        int(&m, "torus", "minor_segments")?
+    ))?);
+    prim!("capsule", |r, l| geom(prim::capsule(
+        num(&r, "capsule", "radius")?,
+        num(&l, "capsule", "length")?,
+        32
+    ))?);
+    prim!("capsule", |r, l, n| geom(prim::capsule(
+        num(&r, "capsule", "radius")?,
+        num(&l, "capsule", "length")?,
+        int(&n, "capsule", "segments")?
+    ))?);
+    prim!("plane", |x, y| geom(prim::plane(
+        num(&x, "plane", "size_x")?,
+        num(&y, "plane", "size_y")?
+    ))?);
+    prim!("disc", |r| geom(prim::disc(
+        num(&r, "disc", "radius")?,
+        48
+    ))?);
+    prim!("disc", |r, n| geom(prim::disc(
+        num(&r, "disc", "radius")?,
+        int(&n, "disc", "segments")?
+    ))?);
+    prim!("wedge", |x, y, z| geom(prim::wedge(
+        num(&x, "wedge", "size_x")?,
+        num(&y, "wedge", "size_y")?,
+        num(&z, "wedge", "size_z")?
+    ))?);
+    prim!("hull", |p| {
+        let pts: Vec<Point3> = point_list(&p, "hull", "points", 3)?
+            .into_iter()
+            .map(|v| Point3::new(v[0], v[1], v[2]))
+            .collect();
+        geom(agentstar_geom::hull::convex_hull(&pts))?
+    });
+    prim!("extrude", |o, h| geom(prim::extrude(
+        &pairs(&o, "extrude", "outline")?,
+        &[],
+        num(&h, "extrude", "height")?
+    ))?);
+    prim!("extrude", |o, holes, h| {
+        let Some(hs) = holes.clone().try_cast::<Array>() else {
+            return fail("`extrude`: `holes` must be a list of polygons");
+        };
+        let holes: Vec<Vec<(f64, f64)>> = hs
+            .iter()
+            .enumerate()
+            .map(|(i, p)| pairs(p, "extrude", &format!("holes[{i}]")))
+            .collect::<RResult<_>>()?;
+        geom(prim::extrude(
+            &pairs(&o, "extrude", "outline")?,
+            &holes,
+            num(&h, "extrude", "height")?,
+        ))?
+    });
+    prim!("lathe", |p| geom(prim::lathe(
+        &pairs(&p, "lathe", "profile")?,
+        48
+    ))?);
+    prim!("lathe", |p, n| geom(prim::lathe(
+        &pairs(&p, "lathe", "profile")?,
+        int(&n, "lathe", "segments")?
+    ))?);
+    {
+        let st = state.clone();
+        engine.register_fn("mesh", move |path: &str| -> RResult<Solid> {
+            let m = meshes
+                .load(path)
+                .or_else(|e| fail(format!("`mesh`: {e}")))?;
+            admit(&st, m, None)
+        });
+    }
+
+    // Booleans.
+    type Op = fn(&TriMesh, &TriMesh) -> agentstar_geom::Result<TriMesh>;
+    let ops: [(&str, Op); 5] = [
+        ("union", csg::union),
+        ("+", csg::union),
+        ("difference", csg::difference),
+        ("-", csg::difference),
+        ("intersection", csg::intersection),
+    ];
+    for (name, op) in ops {
+        let st = state.clone();
+        engine.register_fn(name, move |a: Solid, b: Solid| -> RResult<Solid> {
+            let m = geom(op(&a.mesh, &b.mesh))?;
+            admit(&st, m, a.color.or(b.color))
+        });
+    }
+    {
+        let st = state.clone();
+        engine.register_fn("union_all", move |list: Array| -> RResult<Solid> {
+            let mut solids = Vec::new();
+            for (i, d) in list.into_iter().enumerate() {
+                match d.try_cast::<Solid>() {
+                    Some(s) => solids.push(s),
+                    None => return fail(format!("`union_all`: item {i} is not a solid")),
+                }
+            }
+            let Some(first) = solids.first().cloned() else {
+                return fail("`union_all`: the list is empty");
+            };
+            let mut acc = (*first.mesh).clone();
+            for s in &solids[1..] {
+                acc = geom(csg::union(&acc, &s.mesh))?;
+            }
+            admit(&st, acc, first.color)
+        });
+    }
+
+    // Transforms.
+    engine.register_fn(
+        "translate",
+        |s: &mut Solid, x: Dynamic, y: Dynamic, z: Dynamic| -> RResult<Solid> {
+            let v = Vector3::new(
+                num(&x, "translate", "x")?,
+                num(&y, "translate", "y")?,
+                num(&z, "translate", "z")?,
+            );
+            if !v.iter().all(|c| c.is_finite()) {
+                return fail("`translate`: offsets must be finite");
+            }
+            Ok(s.mapped(&Matrix3::identity(), &v))
+        },
+    );
+    engine.register_fn("translate", |s: &mut Solid, v: Dynamic| -> RResult<Solid> {
+        Ok(s.mapped(&Matrix3::identity(), &vec3(&v, "translate", "offset")?))
+    });
+    engine.register_fn(
+        "rotate",
+        |s: &mut Solid, axis: Dynamic, angle: Dynamic| -> RResult<Solid> {
+            let r = axis_rotation(
+                vec3(&axis, "rotate", "axis")?,
+                num(&angle, "rotate", "angle_deg")?,
+                "rotate",
+            )?;
+            Ok(s.mapped(&r, &Vector3::zeros()))
+        },
+    );
+    for (name, axis) in [
+        ("rotate_x", Vector3::x()),
+        ("rotate_y", Vector3::y()),
+        ("rotate_z", Vector3::z()),
+    ] {
+        engine.register_fn(
+            name,
+            move |s: &mut Solid, angle: Dynamic| -> RResult<Solid> {
+                let r = axis_rotation(axis, num(&angle, name, "angle_deg")?, name)?;
+                Ok(s.mapped(&r, &Vector3::zeros()))
+            },
+        );
+    }
+    engine.register_fn(
+        "rotate_euler",
+        |s: &mut Solid, x: Dynamic, y: Dynamic, z: Dynamic| -> RResult<Solid> {
+            let rx = axis_rotation(
+                Vector3::x(),
+                num(&x, "rotate_euler", "x_deg")?,
+                "rotate_euler",
+            )?;
+            let ry = axis_rotation(
+                Vector3::y(),
+                num(&y, "rotate_euler", "y_deg")?,
+                "rotate_euler",
+            )?;
+            let rz = axis_rotation(
+                Vector3::z(),
+                num(&z, "rotate_euler", "z_deg")?,
+                "rotate_euler",
+            )?;
+            Ok(s.mapped(&(rz * ry * rx), &Vector3::zeros()))
+        },
+    );
+    engine.register_fn("scale", |s: &mut Solid, f: Dynamic| -> RResult<Solid> {
+        let f = num(&f, "scale", "factor")?;
+        if !(f.is_finite() && f > 0.0) {
+            return fail(format!(
+                "`scale`: factor must be positive and finite, got {f} (use mirror to flip)"
+            ));
+        }
+        Ok(s.mapped(&(Matrix3::identity() * f), &Vector3::zeros()))
+    });
+    engine.register_fn(
+        "scale",
+        |s: &mut Solid, x: Dynamic, y: Dynamic, z: Dynamic| -> RResult<Solid> {
+            let v = Vector3::new(
+                num(&x, "scale", "sx")?,
+                num(&y, "scale", "sy")?,
+                num(&z, "scale", "sz")?,
+            );
+            if !v.iter().all(|c| c.is_finite() && *c > 0.0) {
+                return fail(format!(
+                    "`scale`: factors must be positive and finite, got {:?} (use mirror to flip)",
+                    v.as_slice()
+                ));
+            }
+            Ok(s.mapped(&Matrix3::from_diagonal(&v), &Vector3::zeros()))
+        },
+    );
+    engine.register_fn("mirror", |s: &mut Solid, axis: &str| -> RResult<Solid> {
+        let d = match axis {
+            "x" | "X" => Vector3::new(-1.0, 1.0, 1.0),
+            "y" | "Y" => Vector3::new(1.0, -1.0, 1.0),
+            "z" | "Z" => Vector3::new(1.0, 1.0, -1.0),
+            other => {
+                return fail(format!(
+                    "`mirror`: axis must be \"x\", \"y\" or \"z\", got \"{other}\""
+                ))
+            }
+        };
+        Ok(s.mapped(&Matrix3::from_diagonal(&d), &Vector3::zeros()))
+    });
+    engine.register_fn("color", |s: &mut Solid, r: Dynamic, g: Dynamic, b: Dynamic| -> RResult<Solid> {
+        let c = [num(&r, "color", "r")?, num(&g, "color", "g")?, num(&b, "color", "b")?];
+        if c.iter().any(|v| !(0.0..=1.0).contains(v)) {
+            return fail(format!("`color`: components must be in 0–1, got {c:?} (for 0–255 values divide by 255)"));
+        }
+        Ok(Solid { mesh: s.mesh.clone(), color: Some([c[0] as f32, c[1] as f32, c[2] as f32]) })
+    });
+    engine.register_fn("color", |s: &mut Solid, c: &str| -> RResult<Solid> {
+        Ok(Solid {
+            mesh: s.mesh.clone(),
+            color: Some(parse_color(c)?),
+        })
+    });
+
+    // Queries.
+    engine.register_fn("size", |s: &mut Solid| -> Array {
+        to_array(&s.mesh.bounds().extent())
+    });
+    engine.register_fn("bounds", |s: &mut Solid| -> Map {
+        let b = s.mesh.bounds();
+        let mut m = Map::new();
+        m.insert("min".into(), to_array(&b.min.coords).into());
+        m.insert("max".into(), to_array(&b.max.coords).into());
+        m.insert("center".into(), to_array(&b.center().coords).into());
+        m.insert("size".into(), to_array(&b.extent()).into());
+        m
+    });
+    engine.register_fn("volume", |s: &mut Solid| -> f64 { s.mesh.volume() });
+    engine.register_fn("triangle_count", |s: &mut Solid| -> i64 {
+        s.mesh.triangles.len() as i64
+    });
+
+    // Declarations.
+    {
+        let st = state.clone();
+        engine.register_fn("part", move |name: &str, solid: Solid| -> RResult<()> {
+            let mut s = lock(&st);
+            if name.trim().is_empty() {
+                return fail("`part`: the name must not be empty");
+            }
+            if s.parts.iter().any(|(n, _)| n == name) {
+                return fail(format!(
+                    "`part`: a part named `{name}` already exists; part names are unique"
+                ));
+            }
+            if s.parts.len() >= s.limits.max_parts {
+                return fail(format!("`part`: more than {} parts", s.limits.max_parts));
+            }
+            if solid.mesh.is_empty() {
+                return fail(format!(
+                    "`part`: part `{name}` has no geometry (an empty boolean result?)"
+                ));
+            }
+            s.parts.push((name.to_string(), solid));
+            Ok(())
+        });
+    }
+    {
+        let st = state.clone();
+        engine.register_fn(
+            "joint",
+            move |ctx: rhai::NativeCallContext, map: Map| -> RResult<()> {
+                let j = parse_joint(&map)?;
+                lock(&st).joints.push((j, ctx.call_position()));
+                Ok(())
+            },
+        );
+    }
+    // Catch the common mistake of passing a joint as positional arguments.
+    engine.register_fn("joint", |_: Dynamic, _: Dynamic| -> RResult<()> {
+        fail("`joint` takes one map: joint(#{name: \"hinge\", type: \"revolute\", child: \"lid\", origin: [0, 0, 0], axis: [1, 0, 0], limit: [0, 90]})")
+    });
+}
+
+fn make_engine(state: &Shared, meshes: Arc<dyn MeshSource>, limits: &Limits) -> Engine {
+    let mut engine = Engine::new();
+    engine.set_max_operations(limits.max_operations);
+    engine.set_max_call_levels(limits.max_call_depth);
+    engine.set_max_expr_depths(128, 64);
+    engine.set_max_string_size(limits.max_string_len);
+    engine.set_max_array_size(limits.max_array_len);
+    engine.set_max_map_size(10_000);
+    engine.set_max_variables(10_000);
+    engine.set_max_functions(1_000);
+    engine.disable_symbol("eval");
+    let start = Instant::now();
+    let budget = limits.max_wall_time;
+    engine.on_progress(move |ops| {
+        if ops % 4096 == 0 && start.elapsed() > budget {
+            Some(Dynamic::from(format!(
+                "the script ran longer than {:.1} s",
+                budget.as_secs_f64()
+            )))
+        } else {
+            None
+        }
+    });
+    let printed = state.clone();
+    engine.on_print(move |s| {
+        let mut st = lock(&printed);
+        if st.printed.len() < 1000 {
+            st.printed.push(s.to_string());
+        }
+    });
+    let debugged = state.clone();
+    engine.on_debug(move |s, _, pos| {
+        let mut st = lock(&debugged);
+        if st.printed.len() < 1000 {
+            st.printed.push(format!("[{pos}] {s}"));
+        }
+    });
+    register(&mut engine, state, meshes);
+    engine
+}
+
+pub(crate) fn build(
+    source: &str,
+    meshes: &dyn MeshSource,
+    limits: &Limits,
+) -> Result<SceneBuild, SceneError> {
+    let no_parts = Vec::new;
+    if source.len() > limits.max_script_bytes {
+        return Err(SceneError {
+            kind: SceneErrorKind::Limit,
+            message: format!(
+                "the script is {} bytes, over the limit of {}",
+                source.len(),
+                limits.max_script_bytes
+            ),
+            line: None,
+            column: None,
+            parts_so_far: no_parts(),
+        });
+    }
+    let state: Shared = Arc::new(Mutex::new(State {
+        parts: vec![],
+        joints: vec![],
+        triangles: 0,
+        printed: vec![],
+        limits: limits.clone(),
+    }));
+    // The engine's callbacks must own their data: mesh files named by the script are
+    // loaded up front through the caller's source.
+    let loaded: Arc<dyn MeshSource> = Arc::new(Preloaded::new(source, meshes));
+    let engine = make_engine(&state, loaded, limits);
+    let ast: AST = engine.compile(source).map_err(|e| {
+        let pos = e.position();
+        SceneError {
+            kind: SceneErrorKind::Syntax,
+            message: format!("syntax error: {}", e.err_type()),
+            line: pos.line(),
+            column: pos.position(),
+            parts_so_far: no_parts(),
+        }
+    })?;
+    let run = engine.run_ast(&ast);
+    let st = lock(&state);
+    let parts_so_far: Vec<String> = st.parts.iter().map(|(n, _)| n.clone()).collect();
+    if let Err(e) = run {
+        return Err(explain(*e, parts_so_far, limits));
+    }
+    if st.parts.is_empty() {
+        return Err(SceneError {
+            kind: SceneErrorKind::Model,
+            message: "the script defined no parts; declare each piece with part(\"name\", solid)"
+                .into(),
+            line: None,
+            column: None,
+            parts_so_far,
+        });
+    }
+    let parts: Vec<Part> = st
+        .parts
+        .iter()
+        .enumerate()
+        .map(|(i, (name, solid))| {
+            Part::new(
+                name.clone(),
+                (*solid.mesh).clone(),
+                solid.color.unwrap_or(PALETTE[i % PALETTE.len()]),
+            )
+        })
+        .collect();
+    let names: Vec<String> = parts.iter().map(|p| p.name.clone()).collect();
+    let joints: Vec<JointDef> = st.joints.iter().map(|(j, _)| j.clone()).collect();
+    let tree = KinematicTree::new(joints, &names).map_err(|e| {
+        // Point at the joint() call that declared the offending joint, when we know it.
+        let pos = match &e {
+            agentstar_geom::GeomError::InvalidJoint { joint, .. } => st
+                .joints
+                .iter()
+                .find(|(j, _)| &j.name == joint)
+                .map(|(_, p)| *p),
+            _ => None,
+        };
+        SceneError {
+            kind: SceneErrorKind::Model,
+            message: e.to_string(),
+            line: pos.and_then(|p| p.line()),
+            column: pos.and_then(|p| p.position()),
+            parts_so_far: parts_so_far.clone(),
+        }
+    })?;
+    let mut warnings = Vec::new();
+    for j in tree.joints() {
+        if let Some((lo, hi)) = j.limit {
+            if lo > 0.0 || hi < 0.0 {
+                warnings.push(format!("joint `{}`: the rest state 0 lies outside its limit [{lo}, {hi}]; the canonical model should be built at rest", j.name));
+            }
+        }
+    }
+    for (p, part) in parts.iter().enumerate() {
+        if !part.watertight && part.mesh.volume().abs() > 1e-9 {
+            warnings.push(format!("part `{}` is not watertight (open or self-overlapping surface); silhouettes still render, but it cannot be checked as a solid", names[p]));
+        }
+    }
+    let model = ObjectModel { parts, tree };
+    let report = model.canonical_report();
+    warnings.extend(report.warnings.iter().cloned());
+    let printed = st.printed.clone();
+    drop(st);
+    Ok(SceneBuild {
+        model,
+        report,
+        warnings,
+        printed,
+    })
+}
+
+/// Loads every `mesh("…")` literal of the script up front through the caller's source, so
+/// that the engine's callbacks own their data. Paths built at run time fall back to an
+/// error that says to use a literal.
+struct Preloaded {
+    files: Vec<(String, Result<TriMesh, String>)>,
+}
+
+impl Preloaded {
+    fn new(source: &str, meshes: &dyn MeshSource) -> Self {
+        let mut files = Vec::new();
+        let mut rest = source;
+        while let Some(i) = rest.find("mesh(") {
+            rest = &rest[i + 5..];
+            let t = rest.trim_start();
+            if let Some(stripped) = t.strip_prefix('"') {
+                if let Some(end) = stripped.find('"') {
+                    let path = stripped[..end].to_string();
+                    if !files.iter().any(|(p, _)| *p == path) {
+                        let loaded = meshes.load(&path);
+                        files.push((path, loaded));
+                    }
+                }
+            }
+        }
+        Preloaded { files }
+    }
+}
+
+impl MeshSource for Preloaded {
+    fn load(&self, path: &str) -> Result<TriMesh, String> {
+        match self.files.iter().find(|(p, _)| p == path) {
+            Some((_, r)) => r.clone(),
+            None => Err(format!(
+                "`{path}` must be written as a string literal: mesh(\"{path}\")"
+            )),
+        }
+    }
+}
+
+/// Converts a Rhai error into a [`SceneError`] with position and guidance.
+fn explain(err: EvalAltResult, parts_so_far: Vec<String>, limits: &Limits) -> SceneError {
+    let mut pos = err.position();
+    let mut e = err;
+    // Unwrap calls into script-defined functions, keeping the innermost known position.
+    while let EvalAltResult::ErrorInFunctionCall(_, _, inner, p) = e {
+        if !p.is_none() {
+            pos = p;
+        }
+        if !inner.position().is_none() {
+            pos = inner.position();
+        }
+        e = *inner;
+    }
+    if !e.position().is_none() {
+        pos = e.position();
+    }
+    let names = api_names();
+    let (kind, message) = match &e {
+        EvalAltResult::ErrorFunctionNotFound(sig, _) => {
+            let name = sig.split([' ', '(']).next().unwrap_or(sig).trim();
+            let name = name.rsplit('.').next().unwrap_or(name);
+            if API.iter().any(|a| a.name == name) {
+                let all_forms: Vec<&str> = API
+                    .iter()
+                    .filter(|a| a.name == name)
+                    .flat_map(|a| a.forms.iter().copied())
+                    .collect();
+                (SceneErrorKind::InvalidCall, format!("`{name}` was called with arguments it does not accept ({sig}); valid forms: {}", all_forms.join(" | ")))
+            } else {
+                (
+                    SceneErrorKind::UnknownName,
+                    format!("unknown function `{name}`{}", {
+                        let s = did_you_mean(name, &names);
+                        if s.is_empty() {
+                            format!("; the scene API is: {}", names.join(", "))
+                        } else {
+                            s
+                        }
+                    }),
+                )
+            }
+        }
+        EvalAltResult::ErrorVariableNotFound(v, _) => (
+            SceneErrorKind::UnknownName,
+            format!(
+                "unknown variable `{v}` (declare it with `let {v} = …;` before use){}",
+                did_you_mean(v, &names)
+            ),
+        ),
+        EvalAltResult::ErrorTooManyOperations(_) => (
+            SceneErrorKind::Limit,
+            format!(
+                "the script was stopped after {} operations: an endless loop or far too much work",
+                limits.max_operations
+            ),
+        ),
+        EvalAltResult::ErrorTerminated(d, _) => (
+            SceneErrorKind::Limit,
+            format!("the script was stopped: {d}"),
+        ),
+        EvalAltResult::ErrorStackOverflow(_) => (
+            SceneErrorKind::Limit,
+            format!(
+                "calls nested deeper than {} levels (unbounded recursion?)",
+                limits.max_call_depth
+            ),
+        ),
+        EvalAltResult::ErrorDataTooLarge(what, _) => (
+            SceneErrorKind::Limit,
+            format!("{what} exceeds the sandbox limit"),
+        ),
+        EvalAltResult::ErrorRuntime(d, _) => (SceneErrorKind::InvalidCall, d.to_string()),
+        EvalAltResult::ErrorMismatchDataType(want, got, _) => (
+            SceneErrorKind::InvalidCall,
+            format!("type mismatch: expected {want}, got {got}"),
+        ),
+        other => (
+            SceneErrorKind::InvalidCall,
+            other
+                .to_string()
+                .split(" (line")
+                .next()
+                .unwrap_or_default()
+                .to_string(),
+        ),
+    };
+    SceneError {
+        kind,
+        message,
+        line: pos.line(),
+        column: pos.position(),
+        parts_so_far,
+    }
+}

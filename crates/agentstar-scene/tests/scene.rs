@@ -1,0 +1,252 @@
+//! Scene scripts end to end: the worked examples build, and every kind of mistake a model
+//! makes gets a message with its position, what was expected and the valid names.
+
+use agentstar_scene::{build_scene, Limits, MeshSource, NoMeshFiles, SceneErrorKind};
+use std::time::Duration;
+
+const MUG: &str = r##"
+// The mug: a hollow body and a ring handle, one rigid part.
+let body = cylinder(0.45, 1.0, 64);
+let cavity = cylinder(0.37, 0.9, 64).translate(0, 0, 0.12);
+let handle = torus(0.22, 0.055).rotate_x(90).translate(0.55, 0, 0);
+part("mug", (body - cavity + handle).color("#d04030"));
+"##;
+
+const BOX_WITH_LID: &str = r#"
+let base = box(1.0, 0.6, 0.3).translate(0, 0, -0.05);
+let lid = box(1.0, 0.6, 0.1, 0.02).translate(0, 0, 0.15).color(0.2, 0.4, 0.9);
+part("base", base);
+part("lid", lid);
+joint(#{ name: "hinge", type: "revolute", child: "lid", origin: [0, -0.3, 0.1], axis: [1, 0, 0], limit: [0, 110] });
+"#;
+
+fn build(src: &str) -> Result<agentstar_scene::SceneBuild, agentstar_scene::SceneError> {
+    build_scene(src, &NoMeshFiles, &Limits::default())
+}
+
+#[test]
+fn mug_builds_as_one_watertight_part() {
+    let b = build(MUG).expect("mug");
+    assert_eq!(b.model.parts.len(), 1);
+    assert!(b.model.parts[0].watertight, "warnings: {:?}", b.warnings);
+    assert!((b.model.parts[0].color[0] - 208.0 / 255.0).abs() < 1e-6);
+    // Body plus handle reaching x = 0.825: about 1.27 long, so the report flags the size.
+    assert!(
+        (b.report.bbox_max[0] - 0.825).abs() < 1e-3,
+        "{:?}",
+        b.report
+    );
+    assert!(
+        b.warnings.iter().any(|w| w.contains("longest side")),
+        "{:?}",
+        b.warnings
+    );
+}
+
+#[test]
+fn articulated_box_has_its_joint_and_rest_pose() {
+    let b = build(BOX_WITH_LID).expect("box");
+    assert_eq!(b.model.part_names(), vec!["base", "lid"]);
+    let j = &b.model.tree.joints()[0];
+    assert_eq!((j.name.as_str(), j.limit), ("hinge", Some((0.0, 110.0))));
+    assert!(b.report.warnings.is_empty(), "{:?}", b.report.warnings);
+    // Opening the lid 90° lifts its far edge to z = 0.1 + 0.6.
+    let bounds = b.model.posed_bounds(&[90f64.to_radians()]);
+    assert!((bounds.max.z - 0.7).abs() < 1e-3, "{bounds:?}");
+}
+
+#[test]
+fn unknown_primitive_names_the_closest_one_with_position() {
+    let e = build("let a = box(1, 1, 1);\npart(\"a\", a);\nlet b = cilinder(0.5, 1.0);")
+        .expect_err("typo");
+    assert_eq!(e.kind, SceneErrorKind::UnknownName);
+    assert_eq!((e.line, e.column), (Some(3), Some(9)));
+    let text = e.to_string();
+    assert!(
+        text.contains("unknown function `cilinder`") && text.contains("did you mean `cylinder`?"),
+        "{text}"
+    );
+    assert!(
+        text.contains("at 3:9") && text.contains("parts defined so far: a"),
+        "{text}"
+    );
+}
+
+#[test]
+fn wrong_arguments_list_the_valid_forms() {
+    let e = build("part(\"a\", cylinder(0.5));").expect_err("arity");
+    assert_eq!(e.kind, SceneErrorKind::InvalidCall);
+    assert!(
+        e.message.contains("cylinder(radius, height)")
+            && e.message.contains("cylinder(radius, height, segments)"),
+        "{}",
+        e.message
+    );
+    let e = build("part(\"a\", cylinder(\"big\", 1));").expect_err("type");
+    assert!(
+        e.message.contains("`radius` must be a number"),
+        "{}",
+        e.message
+    );
+    let e = build("part(\"a\", cylinder(-0.5, 1));").expect_err("value");
+    assert!(
+        e.message.contains("`radius` must be a positive"),
+        "{}",
+        e.message
+    );
+    assert_eq!(e.line, Some(1));
+}
+
+#[test]
+fn integer_and_float_arguments_are_interchangeable() {
+    build("part(\"a\", box(1, 2, 3).translate(1, 0.5, 0).rotate([0, 0, 1], 45).scale(0.5));")
+        .expect("ints and floats");
+}
+
+#[test]
+fn endless_loop_is_stopped_with_a_clear_error() {
+    let e = build("let i = 0; loop { i += 1; }").expect_err("loop");
+    assert_eq!(e.kind, SceneErrorKind::Limit);
+    assert!(e.message.contains("operations"), "{}", e.message);
+    // A wall-time budget stops heavy work that stays under the operation count.
+    let limits = Limits {
+        max_wall_time: Duration::from_millis(50),
+        max_operations: u64::MAX,
+        ..Limits::default()
+    };
+    let e = build_scene("let i = 0; loop { i += 1; }", &NoMeshFiles, &limits).expect_err("time");
+    assert!(e.message.contains("longer than"), "{}", e.message);
+}
+
+#[test]
+fn recursion_and_sizes_are_bounded() {
+    let e = build("fn f(x) { f(x + 1) } f(0);").expect_err("recursion");
+    assert_eq!(e.kind, SceneErrorKind::Limit);
+    let limits = Limits {
+        max_triangles: 1000,
+        ..Limits::default()
+    };
+    let e = build_scene("part(\"a\", sphere(1, 256, 128));", &NoMeshFiles, &limits)
+        .expect_err("triangles");
+    assert!(e.message.contains("triangles"), "{}", e.message);
+    assert!(build("eval(\"1\");").is_err());
+}
+
+#[test]
+fn syntax_errors_point_at_the_line() {
+    let e = build("let a = box(1, 1, 1);\npart(\"a\", a;\n").expect_err("syntax");
+    assert_eq!(e.kind, SceneErrorKind::Syntax);
+    assert_eq!(e.line, Some(2));
+}
+
+#[test]
+fn joint_mistakes_are_explained() {
+    let base =
+        "part(\"base\", box(1, 1, 0.2)); part(\"lid\", box(1, 1, 0.1).translate(0, 0, 0.15));\n";
+    let e = build(&format!("{base}joint(#{{ name: \"h\", type: \"revolute\", child: \"lid\", axis: [1, 0, 0], limits: [0, 90] }});")).expect_err("key");
+    assert!(
+        e.message.contains("unknown key `limits`") && e.message.contains("did you mean `limit`"),
+        "{}",
+        e.message
+    );
+    let e = build(&format!(
+        "{base}joint(#{{ name: \"h\", type: \"hinge\", child: \"lid\", axis: [1, 0, 0] }});"
+    ))
+    .expect_err("type");
+    assert!(
+        e.message.contains("revolute, continuous, prismatic, fixed"),
+        "{}",
+        e.message
+    );
+    let e = build(&format!("{base}joint(#{{ name: \"h\", type: \"revolute\", child: \"cap\", axis: [1, 0, 0], limit: [0, 90] }});")).expect_err("child");
+    assert_eq!(e.kind, SceneErrorKind::Model);
+    assert!(
+        e.message.contains("`cap` is not defined") && e.message.contains("`base`, `lid`"),
+        "{}",
+        e.message
+    );
+    assert_eq!(e.line, Some(2));
+    let e = build(&format!(
+        "{base}joint(#{{ name: \"h\", type: \"revolute\", child: \"lid\", axis: [1, 0, 0] }});"
+    ))
+    .expect_err("limit");
+    assert!(e.message.contains("needs `limit"), "{}", e.message);
+    let w = build(&format!("{base}joint(#{{ name: \"h\", type: \"revolute\", child: \"lid\", axis: [1, 0, 0], limit: [10, 90] }});")).expect("builds");
+    assert!(
+        w.warnings.iter().any(|m| m.contains("rest state 0")),
+        "{:?}",
+        w.warnings
+    );
+}
+
+#[test]
+fn duplicate_and_empty_parts_are_refused() {
+    let e = build("part(\"a\", box(1, 1, 1)); part(\"a\", box(1, 1, 1));").expect_err("dup");
+    assert!(e.message.contains("already exists"));
+    let e = build("let x = box(1,1,1);").expect_err("no parts");
+    assert_eq!(e.kind, SceneErrorKind::Model);
+}
+
+struct OneFile;
+impl MeshSource for OneFile {
+    fn load(&self, path: &str) -> Result<agentstar_geom::TriMesh, String> {
+        if path == "handle.obj" {
+            agentstar_geom::primitives::cuboid(0.1, 0.2, 0.3).map_err(|e| e.to_string())
+        } else {
+            Err(format!("no file `{path}` beside the script"))
+        }
+    }
+}
+
+#[test]
+fn mesh_files_come_only_through_the_source() {
+    let b = build_scene(
+        "part(\"h\", mesh(\"handle.obj\").translate(0, 0, 0.1));",
+        &OneFile,
+        &Limits::default(),
+    )
+    .expect("mesh");
+    assert_eq!(b.model.parts[0].mesh.triangles.len(), 12);
+    let e = build_scene(
+        "part(\"h\", mesh(\"../etc/passwd\"));",
+        &OneFile,
+        &Limits::default(),
+    )
+    .expect_err("refused");
+    assert!(e.message.contains("no file"), "{}", e.message);
+    let e = build_scene(
+        "let p = \"handle\" + \".obj\"; part(\"h\", mesh(p));",
+        &OneFile,
+        &Limits::default(),
+    )
+    .expect_err("dynamic");
+    assert!(e.message.contains("string literal"), "{}", e.message);
+}
+
+#[test]
+fn every_primitive_is_reachable() {
+    let src = r#"
+        part("a", box(0.2, 0.2, 0.2));
+        part("b", box(0.2, 0.2, 0.2, 0.02, 2).translate([0.3, 0, 0]));
+        part("c", cone(0.1, 0.05, 0.2));
+        part("d", ico_sphere(0.1, 1));
+        part("e", capsule(0.05, 0.1));
+        part("f", plane(0.2, 0.1));
+        part("g", disc(0.1));
+        part("h", wedge(0.2, 0.2, 0.1));
+        part("i", hull([[0,0,0],[0.1,0,0],[0,0.1,0],[0,0,0.1]]));
+        part("j", extrude([[0,0],[0.2,0],[0.2,0.2],[0,0.2]], [[[0.05,0.05],[0.15,0.05],[0.15,0.15],[0.05,0.15]]], 0.05));
+        part("k", lathe([[0, 0], [0.1, 0], [0.05, 0.2], [0, 0.2]]));
+        part("l", intersection(sphere(0.1), box(0.15, 0.15, 0.15)).mirror("x").rotate_euler(10, 20, 30).rotate_y(5).rotate_z(5));
+        part("m", union_all([box(0.1, 0.1, 0.1), sphere(0.06).translate(0.05, 0, 0)]).scale(1, 2, 1));
+        let s = box(0.1, 0.2, 0.3);
+        print(s.size());
+        print(s.bounds());
+        print(s.volume());
+        print(s.triangle_count());
+    "#;
+    let b = build(src).expect("all primitives");
+    assert_eq!(b.model.parts.len(), 13);
+    assert_eq!(b.printed.len(), 4);
+    assert!(b.model.parts[9].watertight);
+}
