@@ -1,14 +1,58 @@
-pub fn add(left: u64, right: u64) -> u64 {
-    left + right
+//! Every file format agentstar reads or writes: captures (capture/v1), `pose.json`, mesh
+//! files (OBJ, STL, PLY, GLB), URDF models, GLB and URDF export, images and masks.
+//!
+//! This is the only library crate that touches the file system. Every writer goes through
+//! [`atomic::write_atomic`] (temporary file, then rename), so a failure never leaves a
+//! half-written file behind. Bad input is reported with the file and what is wrong.
+
+pub mod atomic;
+pub mod capture;
+pub mod export;
+pub mod images;
+pub mod meshio;
+pub mod npz;
+pub mod posefile;
+pub mod scenefile;
+pub mod urdf;
+
+use std::path::{Path, PathBuf};
+
+/// A data error names the file and what is wrong with it.
+#[derive(Debug, thiserror::Error)]
+pub enum DataError {
+    #[error("{path}: {message}")]
+    Invalid { path: PathBuf, message: String },
+    #[error("{path}: {source}")]
+    Io {
+        path: PathBuf,
+        source: std::io::Error,
+    },
+    #[error("{0}")]
+    Scene(#[from] agentstar_scene::SceneError),
 }
 
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn it_works() {
-        let result = add(2, 2);
-        assert_eq!(result, 4);
+impl DataError {
+    pub fn invalid(path: impl AsRef<Path>, message: impl Into<String>) -> Self {
+        DataError::Invalid {
+            path: path.as_ref().to_path_buf(),
+            message: message.into(),
+        }
     }
+    pub fn io(path: impl AsRef<Path>, source: std::io::Error) -> Self {
+        DataError::Io {
+            path: path.as_ref().to_path_buf(),
+            source,
+        }
+    }
+}
+
+pub type Result<T, E = DataError> = std::result::Result<T, E>;
+
+/// Reads a whole file, naming it in the error.
+pub fn read_bytes(path: &Path) -> Result<Vec<u8>> {
+    std::fs::read(path).map_err(|e| DataError::io(path, e))
+}
+
+pub fn read_text(path: &Path) -> Result<String> {
+    std::fs::read_to_string(path).map_err(|e| DataError::io(path, e))
 }

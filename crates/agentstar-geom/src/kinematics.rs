@@ -172,7 +172,13 @@ impl KinematicTree {
                 }
                 _ => {}
             }
-            if j.child.is_empty() {
+            // A joint may carry no part only when other joints hang from it (a URDF link
+            // without geometry in the middle of a chain).
+            if j.child.is_empty()
+                && !joints
+                    .iter()
+                    .any(|o| o.parent.as_deref() == Some(j.name.as_str()))
+            {
                 return Err(bad(j, "`child` names no part".into()));
             }
             for c in &j.child {

@@ -1,0 +1,664 @@
+//! Captures in the `capture/v1` layout (`formats.md` §2): reading, and validation that
+//! reports every problem at once with the file it concerns.
+
+use crate::images::{image_size, load_mask, load_rgb};
+use crate::npz::read_arrays;
+use crate::{read_text, DataError, Result};
+use agentstar_geom::pose::{rigid_from_matrix, Rigid};
+use agentstar_geom::{Matrix3, Matrix4, PinholeCamera};
+use agentstar_render::{BitMask, DepthObservation};
+use serde::{Deserialize, Serialize};
+use std::path::{Path, PathBuf};
+
+pub const FORMAT: &str = "capture/v1";
+
+/// `capture.json`.
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+pub struct Manifest {
+    pub format: String,
+    pub image_size: [u32; 2],
+    pub frames: Vec<String>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub ref_frame: Option<String>,
+    #[serde(default = "default_depth")]
+    pub depth: String,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub depth_scale: Option<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub dataset: Option<String>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub source: Option<serde_json::Value>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub downscale: Option<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub undistorted: Option<bool>,
+}
+
+fn default_depth() -> String {
+    "none".into()
+}
+
+/// One row of `tracking/keyframes.json`.
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+pub struct Keyframe {
+    pub view: usize,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub frame_index: Option<i64>,
+    pub frame_name: String,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub time_s: Option<f64>,
+}
+
+/// `tracking/cameras.json`: the same keys as `cameras.npz`.
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+pub struct CamerasJson {
+    pub c2w: Vec<[[f64; 4]; 4]>,
+    pub intrinsics: Vec<[[f64; 3]; 3]>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub size: Option<[u32; 2]>,
+}
+
+/// A frame of a capture, in temporal order.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Frame {
+    /// The key used everywhere (`"000010.jpg"`).
+    pub name: String,
+    pub stem: String,
+    /// The integer stem, which orders frames in time.
+    pub number: u64,
+    pub camera: PinholeCamera,
+    pub world_from_camera: Rigid,
+    pub time_s: Option<f64>,
+}
+
+/// An opened, validated capture.
+#[derive(Debug, Clone)]
+pub struct Capture {
+    pub dir: PathBuf,
+    pub manifest: Manifest,
+    pub frames: Vec<Frame>,
+    /// Index into `frames` of the reference frame.
+    pub ref_index: usize,
+    /// Non-fatal observations made while opening (shared camera, rescaled intrinsics…).
+    pub notes: Vec<String>,
+}
+
+/// A problem found in a capture.
+#[derive(Debug, Clone, PartialEq, Eq, PartialOrd, Ord)]
+pub struct Problem {
+    pub path: PathBuf,
+    pub message: String,
+}
+
+impl std::fmt::Display for Problem {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{}: {}", self.path.display(), self.message)
+    }
+}
+
+struct Collector {
+    problems: Vec<Problem>,
+}
+
+impl Collector {
+    fn add(&mut self, path: &Path, message: impl Into<String>) {
+        self.problems.push(Problem {
+            path: path.to_path_buf(),
+            message: message.into(),
+        });
+    }
+}
+
+fn stem_of(name: &str) -> &str {
+    Path::new(name)
+        .file_stem()
+        .and_then(|s| s.to_str())
+        .unwrap_or(name)
+}
+
+impl Capture {
+    pub fn manifest_path(dir: &Path) -> PathBuf {
+        dir.join("capture.json")
+    }
+    pub fn frame_path(&self, i: usize) -> PathBuf {
+        self.dir.join("frames").join(&self.frames[i].name)
+    }
+    pub fn mask_path(&self, i: usize) -> PathBuf {
+        self.dir
+            .join("mask_object")
+            .join(format!("{}.png", self.frames[i].stem))
+    }
+    pub fn hand_path(&self, i: usize) -> PathBuf {
+        self.dir
+            .join("mask_hand")
+            .join(format!("{}.png", self.frames[i].stem))
+    }
+    pub fn width(&self) -> u32 {
+        self.manifest.image_size[0]
+    }
+    pub fn height(&self) -> u32 {
+        self.manifest.image_size[1]
+    }
+    pub fn frame_index(&self, name: &str) -> Option<usize> {
+        self.frames
+            .iter()
+            .position(|f| f.name == name || f.stem == name || f.stem == stem_of(name))
+    }
+
+    pub fn load_frame(&self, i: usize) -> Result<image::RgbImage> {
+        load_rgb(&self.frame_path(i))
+    }
+    pub fn load_mask(&self, i: usize) -> Result<BitMask> {
+        let p = self.mask_path(i);
+        let m = load_mask(&p)?;
+        self.check_size(&p, m.width(), m.height())?;
+        Ok(m)
+    }
+    /// The hand (don't-care) mask, when the capture has one for this frame.
+    pub fn load_hand(&self, i: usize) -> Result<Option<BitMask>> {
+        let p = self.hand_path(i);
+        if !p.is_file() {
+            return Ok(None);
+        }
+        let m = load_mask(&p)?;
+        self.check_size(&p, m.width(), m.height())?;
+        Ok(Some(m))
+    }
+    fn check_size(&self, p: &Path, w: u32, h: u32) -> Result<()> {
+        if [w, h] != self.manifest.image_size {
+            return Err(DataError::invalid(
+                p,
+                format!(
+                    "size {w}×{h} differs from image_size {}×{}",
+                    self.width(),
+                    self.height()
+                ),
+            ));
+        }
+        Ok(())
+    }
+
+    /// Observed depth for a frame, when the capture has depth and this frame has a file.
+    pub fn load_depth(&self, i: usize) -> Result<Option<DepthObservation>> {
+        if self.manifest.depth == "none" {
+            return Ok(None);
+        }
+        let stem = &self.frames[i].stem;
+        let npz = self.dir.join("depth").join(format!("{stem}.npz"));
+        let png = self.dir.join("depth").join(format!("{stem}.png"));
+        let (w, h) = (self.width(), self.height());
+        if npz.is_file() {
+            return load_depth_npz(&npz, w, h).map(Some);
+        }
+        if png.is_file() {
+            let scale = self.manifest.depth_scale.ok_or_else(|| {
+                DataError::invalid(&png, "16-bit depth PNGs need `depth_scale` in capture.json")
+            })?;
+            let img = image::open(&png)
+                .map_err(|e| DataError::invalid(&png, format!("cannot read depth: {e}")))?
+                .to_luma16();
+            self.check_size(&png, img.width(), img.height())?;
+            let depth = img
+                .pixels()
+                .map(|p| {
+                    if p[0] == 0 {
+                        f32::NAN
+                    } else {
+                        (p[0] as f64 * scale) as f32
+                    }
+                })
+                .collect();
+            return Ok(Some(DepthObservation {
+                width: w,
+                height: h,
+                depth,
+                confidence: vec![1.0; (w * h) as usize],
+            }));
+        }
+        Ok(None)
+    }
+
+    /// Opens and validates a capture; fails with every problem found.
+    pub fn open(dir: &Path) -> std::result::Result<Capture, Vec<Problem>> {
+        let mut c = Collector { problems: vec![] };
+        let cap = open_inner(dir, &mut c, true);
+        match cap {
+            Some(cap) if c.problems.is_empty() => Ok(cap),
+            _ => {
+                c.problems.sort();
+                c.problems.dedup();
+                Err(c.problems)
+            }
+        }
+    }
+
+    /// Every problem of a capture (empty when it is valid), including checks that read each
+    /// mask and depth file.
+    pub fn validate(dir: &Path) -> Vec<Problem> {
+        match Capture::open(dir) {
+            Err(p) => p,
+            Ok(cap) => {
+                let mut problems = Vec::new();
+                for i in 0..cap.frames.len() {
+                    for r in [
+                        cap.load_mask(i).map(|_| ()),
+                        cap.load_hand(i).map(|_| ()),
+                        cap.load_depth(i).map(|_| ()),
+                    ] {
+                        if let Err(e) = r {
+                            let (path, message) = match e {
+                                DataError::Invalid { path, message } => (path, message),
+                                other => (cap.dir.clone(), other.to_string()),
+                            };
+                            problems.push(Problem { path, message });
+                        }
+                    }
+                    if let Ok(m) = cap.load_mask(i) {
+                        if m.count() == 0 {
+                            problems.push(Problem {
+                                path: cap.mask_path(i),
+                                message: "the object mask is empty".into(),
+                            });
+                        }
+                    }
+                }
+                problems
+            }
+        }
+    }
+}
+
+fn load_depth_npz(path: &Path, w: u32, h: u32) -> Result<DepthObservation> {
+    let arrays = read_arrays(path, &["local", "conf", "keep"])?;
+    let get = |n: &str| arrays.iter().find(|(k, _)| k == n).map(|(_, a)| a);
+    let local =
+        get("local").ok_or_else(|| DataError::invalid(path, "missing array `local` (H, W, 3)"))?;
+    if local.shape.len() != 3 || local.shape[2] != 3 {
+        return Err(DataError::invalid(
+            path,
+            format!("`local` must have shape (H, W, 3), got {:?}", local.shape),
+        ));
+    }
+    let (dh, dw) = (local.shape[0], local.shape[1]);
+    let n = dh * dw;
+    let conf = get("conf");
+    let keep = get("keep");
+    for (name, a) in [("conf", conf), ("keep", keep)] {
+        if let Some(a) = a {
+            if a.shape != [dh, dw] {
+                return Err(DataError::invalid(
+                    path,
+                    format!("`{name}` must have shape ({dh}, {dw}), got {:?}", a.shape),
+                ));
+            }
+        }
+    }
+    // Nearest-neighbour resampling onto the image grid when the depth grid differs.
+    let mut depth = Vec::with_capacity((w * h) as usize);
+    let mut confidence = Vec::with_capacity((w * h) as usize);
+    for y in 0..h as usize {
+        for x in 0..w as usize {
+            let sy = ((y as f64 + 0.5) * dh as f64 / h as f64) as usize;
+            let sx = ((x as f64 + 0.5) * dw as f64 / w as f64) as usize;
+            let k = sy.min(dh - 1) * dw + sx.min(dw - 1);
+            let z = local.data[k * 3 + 2];
+            let kept = keep.is_none_or(|a| a.data[k] != 0.0);
+            depth.push(if kept && z.is_finite() && z > 0.0 {
+                z as f32
+            } else {
+                f32::NAN
+            });
+            confidence.push(conf.map_or(1.0, |a| a.data[k] as f32));
+        }
+    }
+    let _ = n;
+    Ok(DepthObservation {
+        width: w,
+        height: h,
+        depth,
+        confidence,
+    })
+}
+
+fn read_cameras(
+    dir: &Path,
+    c: &mut Collector,
+) -> Option<(Vec<Matrix4>, Vec<Matrix3>, Option<[u32; 2]>, PathBuf)> {
+    let npz = dir.join("tracking/cameras.npz");
+    let json = dir.join("tracking/cameras.json");
+    if npz.is_file() {
+        let arrays = match read_arrays(&npz, &["c2w", "intrinsics", "size"]) {
+            Ok(a) => a,
+            Err(e) => {
+                c.add(
+                    &npz,
+                    e.to_string()
+                        .trim_start_matches(&format!("{}: ", npz.display()))
+                        .to_string(),
+                );
+                return None;
+            }
+        };
+        let get = |n: &str| arrays.iter().find(|(k, _)| k == n).map(|(_, a)| a.clone());
+        let (Some(c2w), Some(k)) = (get("c2w"), get("intrinsics")) else {
+            c.add(
+                &npz,
+                "needs arrays `c2w` (K, 4, 4) and `intrinsics` (K, 3, 3)",
+            );
+            return None;
+        };
+        if c2w.shape.len() != 3
+            || c2w.shape[1..] != [4, 4]
+            || k.shape.len() != 3
+            || k.shape[1..] != [3, 3]
+            || c2w.shape[0] != k.shape[0]
+        {
+            c.add(&npz, format!("`c2w` must be (K, 4, 4) and `intrinsics` (K, 3, 3) with the same K; got {:?} and {:?}", c2w.shape, k.shape));
+            return None;
+        }
+        let n = c2w.shape[0];
+        let mats = (0..n)
+            .map(|i| Matrix4::from_row_slice(&c2w.data[i * 16..i * 16 + 16]))
+            .collect();
+        let ks = (0..n)
+            .map(|i| Matrix3::from_row_slice(&k.data[i * 9..i * 9 + 9]))
+            .collect();
+        let size = get("size")
+            .and_then(|s| (s.data.len() == 2).then(|| [s.data[0] as u32, s.data[1] as u32]));
+        Some((mats, ks, size, npz))
+    } else if json.is_file() {
+        let parsed: std::result::Result<CamerasJson, String> = read_text(&json)
+            .map_err(|e| e.to_string())
+            .and_then(|t| serde_json::from_str(&t).map_err(|e| e.to_string()));
+        match parsed {
+            Err(e) => {
+                c.add(&json, format!("invalid cameras JSON: {e}"));
+                None
+            }
+            Ok(cj) => {
+                if cj.c2w.len() != cj.intrinsics.len() {
+                    c.add(
+                        &json,
+                        format!(
+                            "`c2w` has {} rows but `intrinsics` has {}",
+                            cj.c2w.len(),
+                            cj.intrinsics.len()
+                        ),
+                    );
+                    return None;
+                }
+                let mats = cj
+                    .c2w
+                    .iter()
+                    .map(|m| Matrix4::from_fn(|r, col| m[r][col]))
+                    .collect();
+                let ks = cj
+                    .intrinsics
+                    .iter()
+                    .map(|m| Matrix3::from_fn(|r, col| m[r][col]))
+                    .collect();
+                Some((mats, ks, cj.size, json))
+            }
+        }
+    } else {
+        c.add(&dir.join("tracking"), "no cameras: expected tracking/cameras.npz or tracking/cameras.json (intrinsics are required; c2w may be the identity)");
+        None
+    }
+}
+
+fn open_inner(dir: &Path, c: &mut Collector, check_files: bool) -> Option<Capture> {
+    let mpath = Capture::manifest_path(dir);
+    let text = match read_text(&mpath) {
+        Ok(t) => t,
+        Err(_) => {
+            c.add(
+                &mpath,
+                if dir.is_dir() {
+                    "missing: a capture directory needs capture.json"
+                } else {
+                    "the capture directory does not exist"
+                },
+            );
+            return None;
+        }
+    };
+    let manifest: Manifest = match serde_json::from_str(&text) {
+        Ok(m) => m,
+        Err(e) => {
+            c.add(&mpath, format!("invalid manifest: {e}"));
+            return None;
+        }
+    };
+    if manifest.format != FORMAT {
+        c.add(
+            &mpath,
+            format!(
+                "unknown format \"{}\"; expected \"{FORMAT}\"",
+                manifest.format
+            ),
+        );
+    }
+    let [w, h] = manifest.image_size;
+    if w == 0 || h == 0 || w > 16384 || h > 16384 {
+        c.add(
+            &mpath,
+            format!("image_size [{w}, {h}] must be positive and at most 16384"),
+        );
+        return None;
+    }
+    if manifest.frames.is_empty() {
+        c.add(&mpath, "`frames` is empty");
+        return None;
+    }
+    if let Some(s) = manifest.depth_scale {
+        if !(s.is_finite() && s > 0.0) {
+            c.add(&mpath, format!("depth_scale {s} must be positive"));
+        }
+    }
+    // Frames: integer stems, unique, present, right size.
+    let mut frames_meta: Vec<(String, String, u64)> = Vec::new();
+    for name in &manifest.frames {
+        let stem = stem_of(name).to_string();
+        let Ok(number) = stem.parse::<u64>() else {
+            c.add(&mpath, format!("frame `{name}`: the file stem must be a zero-padded integer (it orders frames in time)"));
+            continue;
+        };
+        if frames_meta.iter().any(|(n, s, _)| n == name || *s == stem) {
+            c.add(&mpath, format!("frame `{name}` is listed twice"));
+            continue;
+        }
+        if check_files {
+            let fp = dir.join("frames").join(name);
+            if !fp.is_file() {
+                c.add(&fp, "missing frame image");
+            } else {
+                match image_size(&fp) {
+                    Ok((fw, fh)) if [fw, fh] != manifest.image_size => c.add(
+                        &fp,
+                        format!("size {fw}×{fh} differs from image_size {w}×{h}"),
+                    ),
+                    Err(e) => c.add(
+                        &fp,
+                        e.to_string()
+                            .rsplit(": ")
+                            .next()
+                            .unwrap_or("unreadable")
+                            .to_string(),
+                    ),
+                    _ => {}
+                }
+            }
+            let mp = dir.join("mask_object").join(format!("{stem}.png"));
+            if !mp.is_file() {
+                c.add(&mp, format!("missing object mask for frame `{name}`"));
+            } else if let Ok((mw, mh)) = image_size(&mp) {
+                if [mw, mh] != manifest.image_size {
+                    c.add(
+                        &mp,
+                        format!("size {mw}×{mh} differs from image_size {w}×{h}"),
+                    );
+                }
+            } else {
+                c.add(&mp, "unreadable mask image");
+            }
+            let hp = dir.join("mask_hand").join(format!("{stem}.png"));
+            if hp.is_file() {
+                match image_size(&hp) {
+                    Ok((hw, hh)) if [hw, hh] != manifest.image_size => c.add(
+                        &hp,
+                        format!("size {hw}×{hh} differs from image_size {w}×{h}"),
+                    ),
+                    Err(_) => c.add(&hp, "unreadable hand mask image"),
+                    _ => {}
+                }
+            }
+            if manifest.depth != "none" {
+                let has = dir.join("depth").join(format!("{stem}.npz")).is_file()
+                    || dir.join("depth").join(format!("{stem}.png")).is_file();
+                if !has {
+                    c.add(&dir.join("depth"), format!("capture.json declares depth \"{}\" but frame `{name}` has no depth/{stem}.npz or .png", manifest.depth));
+                }
+            }
+        }
+        frames_meta.push((name.clone(), stem, number));
+    }
+    frames_meta.sort_by_key(|f| f.2);
+    let ref_name = manifest
+        .ref_frame
+        .clone()
+        .unwrap_or_else(|| manifest.frames[0].clone());
+    let ref_index = frames_meta
+        .iter()
+        .position(|(n, s, _)| *n == ref_name || *s == stem_of(&ref_name));
+    if ref_index.is_none() {
+        c.add(
+            &mpath,
+            format!("ref_frame `{ref_name}` is not one of the frames"),
+        );
+    }
+    // Cameras.
+    let (c2w, ks, cam_size, cam_path) = read_cameras(dir, c)?;
+    let mut notes = Vec::new();
+    let mut cameras = Vec::with_capacity(c2w.len());
+    for (i, (m, k)) in c2w.iter().zip(&ks).enumerate() {
+        let rigid = match rigid_from_matrix(m) {
+            Ok(r) => Some(r),
+            Err(e) => {
+                c.add(&cam_path, format!("c2w[{i}]: {e}"));
+                None
+            }
+        };
+        let (mut cw, mut ch) = (w, h);
+        if let Some([sw, sh]) = cam_size {
+            (cw, ch) = (sw, sh);
+        }
+        let cam = match PinholeCamera::from_matrix(k, cw.max(1), ch.max(1)) {
+            Ok(cam) => Some(if (cw, ch) != (w, h) {
+                cam.resized(w, h)
+            } else {
+                cam
+            }),
+            Err(e) => {
+                c.add(&cam_path, format!("intrinsics[{i}]: {e}"));
+                None
+            }
+        };
+        cameras.push(rigid.zip(cam));
+    }
+    if let Some([sw, sh]) = cam_size {
+        if [sw, sh] != manifest.image_size {
+            notes.push(format!(
+                "intrinsics were given for {sw}×{sh} and are rescaled to the image size {w}×{h}"
+            ));
+        }
+    }
+    // Frame → camera row.
+    let kf_path = dir.join("tracking/keyframes.json");
+    let mut view_of: Vec<Option<usize>> = vec![None; frames_meta.len()];
+    let mut times: Vec<Option<f64>> = vec![None; frames_meta.len()];
+    if kf_path.is_file() {
+        match read_text(&kf_path)
+            .map_err(|e| e.to_string())
+            .and_then(|t| serde_json::from_str::<Vec<Keyframe>>(&t).map_err(|e| e.to_string()))
+        {
+            Err(e) => c.add(&kf_path, format!("invalid keyframes list: {e}")),
+            Ok(list) => {
+                for kf in list {
+                    match frames_meta
+                        .iter()
+                        .position(|(n, s, _)| *n == kf.frame_name || *s == stem_of(&kf.frame_name))
+                    {
+                        Some(fi) => {
+                            if kf.view >= cameras.len() {
+                                c.add(&kf_path, format!("frame `{}`: view {} is out of range (the cameras have {} rows)", kf.frame_name, kf.view, cameras.len()));
+                            } else {
+                                view_of[fi] = Some(kf.view);
+                                times[fi] = kf.time_s.or(kf.frame_index.map(|n| n as f64 / 30.0));
+                            }
+                        }
+                        None => notes.push(format!(
+                            "keyframes.json lists `{}`, which is not among the capture's frames",
+                            kf.frame_name
+                        )),
+                    }
+                }
+                let missing: Vec<&str> = frames_meta
+                    .iter()
+                    .zip(&view_of)
+                    .filter(|(_, v)| v.is_none())
+                    .map(|((n, _, _), _)| n.as_str())
+                    .collect();
+                if !missing.is_empty() && missing.len() < frames_meta.len() {
+                    c.add(&kf_path, format!("frames without a camera row: {} (a frame may lack one only when no frame has one)", missing.join(", ")));
+                }
+            }
+        }
+    }
+    let shared = view_of.iter().all(|v| v.is_none());
+    if shared {
+        if cameras.len() == 1 {
+            notes.push(
+                "one shared camera for every frame (identity motion unless c2w says otherwise)"
+                    .into(),
+            );
+            view_of = vec![Some(0); frames_meta.len()];
+        } else if cameras.len() == frames_meta.len() {
+            notes.push(
+                "no keyframes.json: camera rows are matched to frames in temporal order".into(),
+            );
+            view_of = (0..frames_meta.len()).map(Some).collect();
+        } else {
+            c.add(
+                &cam_path,
+                format!(
+                    "{} camera rows for {} frames and no tracking/keyframes.json to link them",
+                    cameras.len(),
+                    frames_meta.len()
+                ),
+            );
+            return None;
+        }
+    }
+    let mut frames = Vec::with_capacity(frames_meta.len());
+    for (fi, (name, stem, number)) in frames_meta.into_iter().enumerate() {
+        let Some(view) = view_of[fi] else { continue };
+        let Some(Some((rigid, cam))) = cameras.get(view).copied() else {
+            continue;
+        };
+        frames.push(Frame {
+            name,
+            stem,
+            number,
+            camera: cam,
+            world_from_camera: rigid,
+            time_s: times[fi],
+        });
+    }
+    Some(Capture {
+        dir: dir.to_path_buf(),
+        manifest,
+        frames,
+        ref_index: ref_index.unwrap_or(0),
+        notes,
+    })
+}

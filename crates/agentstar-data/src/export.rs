@@ -1,0 +1,191 @@
+//! Exports of an object model: GLB (canonical rest pose, one node per part named after it,
+//! glTF's Y-up: `p_gltf = (x, z, −y)` of canonical) and URDF with one OBJ mesh per part.
+
+use crate::atomic::write_atomic;
+use crate::meshio::{obj_text, parse_glb};
+use crate::{DataError, Result};
+use agentstar_geom::kinematics::JointKind;
+use agentstar_geom::ObjectModel;
+use serde_json::json;
+use std::path::Path;
+
+/// The GLB bytes of the model at rest.
+pub fn glb_bytes(model: &ObjectModel) -> Vec<u8> {
+    let mut bin: Vec<u8> = Vec::new();
+    let (mut nodes, mut meshes, mut materials, mut accessors, mut views) =
+        (vec![], vec![], vec![], vec![], vec![]);
+    for (i, part) in model.parts.iter().enumerate() {
+        let m = &part.mesh;
+        let mut min = [f32::INFINITY; 3];
+        let mut max = [f32::NEG_INFINITY; 3];
+        let pos_offset = bin.len();
+        for p in &m.positions {
+            let g = [p.x as f32, p.z as f32, -p.y as f32];
+            for k in 0..3 {
+                min[k] = min[k].min(g[k]);
+                max[k] = max[k].max(g[k]);
+                bin.extend_from_slice(&g[k].to_le_bytes());
+            }
+        }
+        let pos_len = bin.len() - pos_offset;
+        let idx_offset = bin.len();
+        for t in &m.triangles {
+            for &k in t {
+                bin.extend_from_slice(&k.to_le_bytes());
+            }
+        }
+        let idx_len = bin.len() - idx_offset;
+        views.push(
+            json!({"buffer": 0, "byteOffset": pos_offset, "byteLength": pos_len, "target": 34962}),
+        );
+        views.push(
+            json!({"buffer": 0, "byteOffset": idx_offset, "byteLength": idx_len, "target": 34963}),
+        );
+        accessors.push(json!({"bufferView": 2 * i, "componentType": 5126, "count": m.positions.len(), "type": "VEC3", "min": min, "max": max}));
+        accessors.push(json!({"bufferView": 2 * i + 1, "componentType": 5125, "count": m.triangles.len() * 3, "type": "SCALAR"}));
+        let c = part.color;
+        materials.push(json!({"name": part.name, "pbrMetallicRoughness": {"baseColorFactor": [c[0], c[1], c[2], 1.0], "metallicFactor": 0.0, "roughnessFactor": 0.6}}));
+        meshes.push(json!({"name": part.name, "primitives": [{"attributes": {"POSITION": 2 * i}, "indices": 2 * i + 1, "material": i}]}));
+        nodes.push(json!({"name": part.name, "mesh": i}));
+    }
+    let doc = json!({
+        "asset": {"version": "2.0", "generator": concat!("agentstar ", env!("CARGO_PKG_VERSION"))},
+        "scene": 0,
+        "scenes": [{"nodes": (0..model.parts.len()).collect::<Vec<_>>()}],
+        "nodes": nodes, "meshes": meshes, "materials": materials,
+        "accessors": accessors, "bufferViews": views,
+        "buffers": [{"byteLength": bin.len()}],
+    });
+    let mut json_bytes = serde_json::to_vec(&doc).unwrap_or_default();
+    while json_bytes.len() % 4 != 0 {
+        json_bytes.push(b' ');
+    }
+    while bin.len() % 4 != 0 {
+        bin.push(0);
+    }
+    let total = 12 + 8 + json_bytes.len() + 8 + bin.len();
+    let mut out = Vec::with_capacity(total);
+    out.extend_from_slice(b"glTF");
+    out.extend_from_slice(&2u32.to_le_bytes());
+    out.extend_from_slice(&(total as u32).to_le_bytes());
+    out.extend_from_slice(&(json_bytes.len() as u32).to_le_bytes());
+    out.extend_from_slice(b"JSON");
+    out.extend_from_slice(&json_bytes);
+    out.extend_from_slice(&(bin.len() as u32).to_le_bytes());
+    out.extend_from_slice(b"BIN\0");
+    out.extend_from_slice(&bin);
+    out
+}
+
+/// Writes `object.glb` atomically and checks, by reading it back, that every part is a node
+/// named after it.
+pub fn write_glb(model: &ObjectModel, path: &Path) -> Result<()> {
+    let bytes = glb_bytes(model);
+    let parts = parse_glb(&bytes).map_err(|e| {
+        DataError::invalid(path, format!("the exported GLB does not read back: {e}"))
+    })?;
+    for p in &model.parts {
+        if !parts.iter().any(|(n, _)| n == &p.name) {
+            return Err(DataError::invalid(
+                path,
+                format!("part `{}` is missing from the exported GLB", p.name),
+            ));
+        }
+    }
+    write_atomic(path, &bytes)
+}
+
+fn xml_escape(s: &str) -> String {
+    s.replace('&', "&amp;")
+        .replace('<', "&lt;")
+        .replace('>', "&gt;")
+        .replace('"', "&quot;")
+}
+
+/// Writes `<dir>/<robot>.urdf` and `<dir>/meshes/<part>.obj`. Each part is a link whose
+/// frame sits at its joint's origin (canonical axes); parts without a joint hang from
+/// `base_link` by fixed joints; further parts of a joint's group hang from its first part.
+/// Revolute limits are written in radians, prismatic limits in canonical units.
+pub fn write_urdf(model: &ObjectModel, dir: &Path, robot: &str) -> Result<std::path::PathBuf> {
+    let joints = model.tree.joints();
+    // Origin of each part's link frame: its joint's origin, or zero.
+    let frame_origin = |part: usize| {
+        model
+            .tree
+            .part_joint(part)
+            .map(|j| joints[j].origin)
+            .unwrap_or_default()
+    };
+    let file_stem = |name: &str| {
+        name.chars()
+            .map(|c| {
+                if c.is_ascii_alphanumeric() || c == '-' || c == '_' {
+                    c
+                } else {
+                    '_'
+                }
+            })
+            .collect::<String>()
+    };
+    let mut x = format!(
+        "<?xml version=\"1.0\"?>\n<robot name=\"{}\">\n  <link name=\"base_link\"/>\n",
+        xml_escape(robot)
+    );
+    for (i, part) in model.parts.iter().enumerate() {
+        let o = frame_origin(i);
+        let local = (*part.mesh).clone().translated(-o);
+        let rel = format!("meshes/{}.obj", file_stem(&part.name));
+        write_atomic(&dir.join(&rel), obj_text(&local, &part.name).as_bytes())?;
+        let c = part.color;
+        x.push_str(&format!(
+            "  <link name=\"{n}\">\n    <visual>\n      <geometry><mesh filename=\"{rel}\"/></geometry>\n      <material name=\"{n}_color\"><color rgba=\"{} {} {} 1\"/></material>\n    </visual>\n    <collision><geometry><mesh filename=\"{rel}\"/></geometry></collision>\n  </link>\n",
+            c[0], c[1], c[2], n = xml_escape(&part.name)
+        ));
+    }
+    // The link that carries each joint's motion: the first part of its child group.
+    let child_link = |j: usize| model.part_index(&joints[j].child[0]).unwrap_or(0);
+    for (i, part) in model.parts.iter().enumerate() {
+        let n = xml_escape(&part.name);
+        match model.tree.part_joint(i) {
+            None => x.push_str(&format!(
+                "  <joint name=\"{n}_fixed\" type=\"fixed\">\n    <parent link=\"base_link\"/>\n    <child link=\"{n}\"/>\n    <origin xyz=\"0 0 0\" rpy=\"0 0 0\"/>\n  </joint>\n"
+            )),
+            Some(j) if child_link(j) != i => {
+                let lead = child_link(j);
+                x.push_str(&format!(
+                    "  <joint name=\"{n}_fixed\" type=\"fixed\">\n    <parent link=\"{}\"/>\n    <child link=\"{n}\"/>\n    <origin xyz=\"0 0 0\" rpy=\"0 0 0\"/>\n  </joint>\n",
+                    xml_escape(&model.parts[lead].name)
+                ));
+            }
+            Some(j) => {
+                let jd = &joints[j];
+                let (parent_link, parent_origin) = match jd.parent.as_deref().and_then(|p| model.tree.joint_index(p)) {
+                    Some(pj) => (model.parts[child_link(pj)].name.clone(), joints[pj].origin),
+                    None => ("base_link".to_string(), Default::default()),
+                };
+                let o = jd.origin - parent_origin;
+                let a = jd.axis.normalize();
+                let ty = match jd.kind {
+                    JointKind::Revolute => "revolute",
+                    JointKind::Continuous => "continuous",
+                    JointKind::Prismatic => "prismatic",
+                    JointKind::Fixed => "fixed",
+                };
+                let limit = match jd.limit {
+                    Some((lo, hi)) => format!("    <limit lower=\"{}\" upper=\"{}\" effort=\"1\" velocity=\"1\"/>\n", jd.to_internal(lo), jd.to_internal(hi)),
+                    None => String::new(),
+                };
+                x.push_str(&format!(
+                    "  <joint name=\"{}\" type=\"{ty}\">\n    <parent link=\"{}\"/>\n    <child link=\"{n}\"/>\n    <origin xyz=\"{} {} {}\" rpy=\"0 0 0\"/>\n    <axis xyz=\"{} {} {}\"/>\n{limit}  </joint>\n",
+                    xml_escape(&jd.name),
+                    xml_escape(&parent_link),
+                    o.x, o.y, o.z, a.x, a.y, a.z
+                ));
+            }
+        }
+    }
+    x.push_str("</robot>\n");
+    let path = dir.join(format!("{}.urdf", file_stem(robot)));
+    write_atomic(&path, x.as_bytes())?;
+    Ok(path)
+}

@@ -1,0 +1,152 @@
+//! Loading an object model from a file: a scene script (`.rhai`, sandboxed, mesh files only
+//! from beside the script), a URDF, or a single mesh file (one rigid part per GLB root node,
+//! else one part). A script that fails leaves the last good model in place: every good
+//! build is remembered in `.agentstar/last_good.rhai` beside the script.
+
+use crate::meshio::{load_mesh, parse_glb, MESH_EXTENSIONS};
+use crate::urdf::load_urdf;
+use crate::{read_bytes, read_text, DataError, Result};
+use agentstar_geom::{KinematicTree, ObjectModel, Part, TriMesh};
+use agentstar_scene::{build_scene, Limits, MeshSource, SceneBuild};
+use std::path::{Component, Path, PathBuf};
+
+/// Mesh files for a script: relative paths inside the script's directory only.
+pub struct ScriptDirMeshes {
+    dir: PathBuf,
+}
+
+impl ScriptDirMeshes {
+    pub fn new(dir: impl Into<PathBuf>) -> Self {
+        ScriptDirMeshes { dir: dir.into() }
+    }
+}
+
+impl MeshSource for ScriptDirMeshes {
+    fn load(&self, path: &str) -> std::result::Result<TriMesh, String> {
+        let p = Path::new(path);
+        if p.is_absolute() || p.components().any(|c| !matches!(c, Component::Normal(_))) {
+            return Err(format!("`{path}` must be a relative path inside the script's directory (no `..`, no absolute paths)"));
+        }
+        let ext = p
+            .extension()
+            .and_then(|e| e.to_str())
+            .unwrap_or("")
+            .to_ascii_lowercase();
+        if !MESH_EXTENSIONS.contains(&ext.as_str()) {
+            return Err(format!(
+                "`{path}` is not a mesh file; use one of .{}",
+                MESH_EXTENSIONS.join(", .")
+            ));
+        }
+        let full = self.dir.join(p);
+        // Refuse symlinks that lead outside the directory.
+        let (Ok(real), Ok(root)) = (full.canonicalize(), self.dir.canonicalize()) else {
+            return Err(format!("no file `{path}` beside the script"));
+        };
+        if !real.starts_with(&root) {
+            return Err(format!("`{path}` leads outside the script's directory"));
+        }
+        load_mesh(&real).map_err(|e| e.to_string())
+    }
+}
+
+/// What a model file turned into.
+#[derive(Debug, Clone)]
+pub struct LoadedModel {
+    pub model: ObjectModel,
+    /// Warnings and the canonical report's observations, for people and models to read.
+    pub warnings: Vec<String>,
+    pub printed: Vec<String>,
+}
+
+fn last_good_path(script: &Path) -> PathBuf {
+    let dir = script.parent().unwrap_or(Path::new("."));
+    let stem = script
+        .file_stem()
+        .and_then(|s| s.to_str())
+        .unwrap_or("scene");
+    dir.join(".agentstar")
+        .join(format!("{stem}.last_good.rhai"))
+}
+
+/// Evaluates a scene script file. On success the script is remembered as the last good one.
+pub fn load_scene_script(path: &Path, limits: &Limits) -> Result<SceneBuild> {
+    let source = read_text(path)?;
+    let dir = path.parent().unwrap_or(Path::new("."));
+    match build_scene(&source, &ScriptDirMeshes::new(dir), limits) {
+        Ok(b) => {
+            // Remembering is best effort: a read-only directory must not fail a good build.
+            let _ = crate::atomic::write_atomic(&last_good_path(path), source.as_bytes());
+            Ok(b)
+        }
+        Err(e) => {
+            let mut e = e;
+            let last = last_good_path(path);
+            if last.is_file() {
+                e.message.push_str(&format!(
+                    "; the last good model ({}) stays in place",
+                    last.display()
+                ));
+            }
+            Err(DataError::invalid(path, e.to_string()))
+        }
+    }
+}
+
+/// The last good script beside `path`, if a build ever succeeded.
+pub fn last_good_script(path: &Path) -> Option<PathBuf> {
+    let p = last_good_path(path);
+    p.is_file().then_some(p)
+}
+
+/// Loads any supported model file by extension.
+pub fn load_model(path: &Path) -> Result<LoadedModel> {
+    let ext = path
+        .extension()
+        .and_then(|e| e.to_str())
+        .unwrap_or("")
+        .to_ascii_lowercase();
+    match ext.as_str() {
+        "rhai" => {
+            let b = load_scene_script(path, &Limits::default())?;
+            Ok(LoadedModel { model: b.model, warnings: b.warnings, printed: b.printed })
+        }
+        "urdf" => {
+            let model = load_urdf(path)?;
+            let warnings = model.canonical_report().warnings;
+            Ok(LoadedModel { model, warnings, printed: vec![] })
+        }
+        "glb" => {
+            let parts = parse_glb(&read_bytes(path)?).map_err(|e| DataError::invalid(path, e))?;
+            let parts: Vec<Part> = parts.into_iter().enumerate().map(|(i, (n, m))| Part::new(n, m, palette(i))).collect();
+            rigid(parts)
+        }
+        e if MESH_EXTENSIONS.contains(&e) => {
+            let name = path.file_stem().and_then(|s| s.to_str()).unwrap_or("object").to_string();
+            rigid(vec![Part::new(name, load_mesh(path)?, palette(0))])
+        }
+        other => Err(DataError::invalid(path, format!("unknown model type `.{other}`; use a scene script (.rhai), a URDF (.urdf) or a mesh (.{})", MESH_EXTENSIONS.join(", .")))),
+    }
+}
+
+fn rigid(parts: Vec<Part>) -> Result<LoadedModel> {
+    let model = ObjectModel {
+        tree: KinematicTree::rigid(parts.len()),
+        parts,
+    };
+    let warnings = model.canonical_report().warnings;
+    Ok(LoadedModel {
+        model,
+        warnings,
+        printed: vec![],
+    })
+}
+
+fn palette(i: usize) -> [f32; 3] {
+    [
+        [0.85, 0.33, 0.25],
+        [0.25, 0.55, 0.85],
+        [0.35, 0.75, 0.35],
+        [0.9, 0.7, 0.2],
+    ][i % 4]
+}
