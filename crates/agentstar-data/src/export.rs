@@ -57,10 +57,10 @@ pub fn glb_bytes(model: &ObjectModel) -> Vec<u8> {
         "buffers": [{"byteLength": bin.len()}],
     });
     let mut json_bytes = serde_json::to_vec(&doc).unwrap_or_default();
-    while json_bytes.len() % 4 != 0 {
+    while !json_bytes.len().is_multiple_of(4) {
         json_bytes.push(b' ');
     }
-    while bin.len() % 4 != 0 {
+    while !bin.len().is_multiple_of(4) {
         bin.push(0);
     }
     let total = 12 + 8 + json_bytes.len() + 8 + bin.len();

@@ -166,7 +166,8 @@ pub fn parse_ply(bytes: &[u8]) -> Result<TriMesh, String> {
     }
     let mut fmt = None;
     // (name, count, properties: (name, type, list count type))
-    let mut elements: Vec<(String, usize, Vec<(String, String, Option<String>)>)> = Vec::new();
+    type Property = (String, String, Option<String>);
+    let mut elements: Vec<(String, usize, Vec<Property>)> = Vec::new();
     for line in lines {
         let t: Vec<&str> = line.split_whitespace().collect();
         match t.as_slice() {
