@@ -323,10 +323,7 @@ fn load_depth_npz(path: &Path, w: u32, h: u32) -> Result<DepthObservation> {
 /// Camera rows as read: c2w matrices, intrinsics, the size they were given for, the file.
 type CameraRows = (Vec<Matrix4>, Vec<Matrix3>, Option<[u32; 2]>, PathBuf);
 
-fn read_cameras(
-    dir: &Path,
-    c: &mut Collector,
-) -> Option<CameraRows> {
+fn read_cameras(dir: &Path, c: &mut Collector) -> Option<CameraRows> {
     let npz = dir.join("tracking/cameras.npz");
     let json = dir.join("tracking/cameras.json");
     if npz.is_file() {

@@ -80,12 +80,14 @@ pub fn read_arrays(path: &Path, names: &[&str]) -> Result<Vec<(String, Array)>> 
                 .into_iter()
                 .map(|b| if b { 1.0 } else { 0.0 })
                 .collect(),
-            other => return Err(DataError::invalid(
-                path,
-                format!(
+            other => {
+                return Err(DataError::invalid(
+                    path,
+                    format!(
                     "array `{name}` has unsupported dtype `{other}` (expected float or integer)"
                 ),
-            )),
+                ))
+            }
         };
         out.push((name.to_string(), Array { shape, data }));
     }

@@ -1,1 +1,428 @@
+//! Images for people and models: the shaded render, the render over the frame, the
+//! silhouette comparison with its legend, the part-id view, turntable cameras and contact
+//! sheets. Labels sit in bars beside the pixels, never over them.
 
+use crate::full::{RenderBuffers, NO_PART};
+use crate::mask::BitMask;
+use crate::text::{draw_text, fill_rect, scale_for_width, text_width};
+use agentstar_geom::camera::look_at;
+use agentstar_geom::pose::{Rigid, Similarity};
+use agentstar_geom::{ObjectModel, PinholeCamera, Point3, UnitQuaternion, Vector3};
+use image::{Rgb, RgbImage, Rgba, RgbaImage};
+
+/// Colours of the silhouette comparison; the legend is drawn from the same constants.
+pub const BOTH: Rgb<u8> = Rgb([40, 190, 70]);
+pub const RENDER_ONLY: Rgb<u8> = Rgb([240, 210, 40]);
+pub const MASK_ONLY: Rgb<u8> = Rgb([220, 40, 200]);
+pub const HAND: Rgb<u8> = Rgb([120, 120, 120]);
+pub const RENDER_IN_HAND: Rgb<u8> = Rgb([60, 110, 230]);
+pub const BACKGROUND: Rgb<u8> = Rgb([18, 18, 22]);
+
+/// Options of the shaded render.
+#[derive(Debug, Clone, Copy)]
+pub struct ShadeOptions {
+    /// Darken pixels on part boundaries and depth discontinuities.
+    pub outlines: bool,
+}
+
+impl Default for ShadeOptions {
+    fn default() -> Self {
+        ShadeOptions { outlines: true }
+    }
+}
+
+fn to_u8(v: f32) -> u8 {
+    (v.clamp(0.0, 1.0) * 255.0 + 0.5) as u8
+}
+
+/// Flat part colours lit by one light near the camera plus ambient light; transparent
+/// where nothing is rendered.
+pub fn shade(buffers: &RenderBuffers, colors: &[[f32; 3]], opts: ShadeOptions) -> RgbaImage {
+    let (w, h) = (buffers.width, buffers.height);
+    let light = {
+        let l = [-0.35f32, -0.55, -1.0];
+        let n = (l[0] * l[0] + l[1] * l[1] + l[2] * l[2]).sqrt();
+        [l[0] / n, l[1] / n, l[2] / n]
+    };
+    let mut img = RgbaImage::new(w, h);
+    for y in 0..h {
+        for x in 0..w {
+            let k = (y * w + x) as usize;
+            let part = buffers.part[k];
+            if part == NO_PART {
+                continue;
+            }
+            let c = colors.get(part as usize).copied().unwrap_or([0.7; 3]);
+            let n = buffers.normal[k];
+            let lambert = (n[0] * light[0] + n[1] * light[1] + n[2] * light[2]).max(0.0);
+            let mut f = 0.35 + 0.65 * lambert;
+            if opts.outlines && is_edge(buffers, x, y) {
+                f *= 0.35;
+            }
+            img.put_pixel(
+                x,
+                y,
+                Rgba([to_u8(c[0] * f), to_u8(c[1] * f), to_u8(c[2] * f), 255]),
+            );
+        }
+    }
+    img
+}
+
+fn is_edge(b: &RenderBuffers, x: u32, y: u32) -> bool {
+    let k = (y * b.width + x) as usize;
+    let (p, z) = (b.part[k], b.depth[k]);
+    let neighbours = [
+        (x.wrapping_sub(1), y),
+        (x + 1, y),
+        (x, y.wrapping_sub(1)),
+        (x, y + 1),
+    ];
+    neighbours.iter().any(|&(nx, ny)| {
+        if nx >= b.width || ny >= b.height {
+            return false;
+        }
+        let j = (ny * b.width + nx) as usize;
+        b.part[j] != p || (b.depth[j] - z).abs() > 0.03 * z
+    })
+}
+
+/// The render blended over the frame (`opacity` of the render where it covers).
+pub fn overlay(frame: &RgbImage, render: &RgbaImage, opacity: f32) -> RgbImage {
+    let mut out = frame.clone();
+    for (x, y, p) in render.enumerate_pixels() {
+        if p[3] == 0 || x >= out.width() || y >= out.height() {
+            continue;
+        }
+        let a = opacity * p[3] as f32 / 255.0;
+        let f = out.get_pixel(x, y);
+        let mix = |i: usize| (f[i] as f32 * (1.0 - a) + p[i] as f32 * a + 0.5) as u8;
+        out.put_pixel(x, y, Rgb([mix(0), mix(1), mix(2)]));
+    }
+    out
+}
+
+/// Adds a bar below `img` with coloured legend swatches and a title line.
+pub fn with_legend(img: &RgbImage, title: &str, entries: &[(Rgb<u8>, String)]) -> RgbImage {
+    let scale = scale_for_width(img.width());
+    let line = 10 * scale;
+    // Lay out entries left to right, wrapping lines.
+    let mut rows: Vec<Vec<(Rgb<u8>, &str)>> = vec![vec![]];
+    let mut x = 0;
+    for (c, label) in entries {
+        let wdt = 18 * scale + text_width(label, scale);
+        if x + wdt > img.width() && !rows.last().is_some_and(|r| r.is_empty()) {
+            rows.push(vec![]);
+            x = 0;
+        }
+        if let Some(r) = rows.last_mut() {
+            r.push((*c, label.as_str()));
+        }
+        x += wdt;
+    }
+    let title_lines = if title.is_empty() { 0 } else { 1 };
+    let bar = (rows.len() as u32 + title_lines) * (line + 2 * scale) + 2 * scale;
+    let mut out = RgbImage::from_pixel(img.width(), img.height() + bar, Rgb([250, 250, 250]));
+    image::imageops::replace(&mut out, img, 0, 0);
+    let mut y = img.height() as i64 + 2 * scale as i64;
+    if title_lines == 1 {
+        draw_text(&mut out, 2 * scale as i64, y, title, scale, Rgb([0, 0, 0]));
+        y += (line + 2 * scale) as i64;
+    }
+    for row in rows {
+        let mut x = 2 * scale as i64;
+        for (c, label) in row {
+            fill_rect(&mut out, x, y, 8 * scale, 8 * scale, c);
+            x += 10 * scale as i64;
+            draw_text(&mut out, x, y, label, scale, Rgb([0, 0, 0]));
+            x += (text_width(label, scale) + 8 * scale) as i64;
+        }
+        y += (line + 2 * scale) as i64;
+    }
+    out
+}
+
+/// Pixel counts of a silhouette comparison.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct ComparisonCounts {
+    pub both: u64,
+    pub render_only: u64,
+    pub mask_only: u64,
+    pub hand: u64,
+    pub render_in_hand: u64,
+}
+
+/// The silhouette comparison: both, render only (extra), mask only (missing), the hand's
+/// don't-care region and the render inside it, each its own colour, over a dark background.
+pub fn silhouette_comparison(
+    render: &BitMask,
+    mask: &BitMask,
+    hand: Option<&BitMask>,
+) -> (RgbImage, ComparisonCounts) {
+    let (w, h) = (mask.width(), mask.height());
+    let mut img = RgbImage::from_pixel(w, h, BACKGROUND);
+    let mut n = ComparisonCounts::default();
+    for y in 0..h {
+        for x in 0..w {
+            let r = render.get(x, y);
+            let m = mask.get(x, y);
+            let in_hand = hand.is_some_and(|hm| hm.get(x, y));
+            let c = if in_hand {
+                if r {
+                    n.render_in_hand += 1;
+                    RENDER_IN_HAND
+                } else {
+                    n.hand += 1;
+                    HAND
+                }
+            } else {
+                match (r, m) {
+                    (true, true) => {
+                        n.both += 1;
+                        BOTH
+                    }
+                    (true, false) => {
+                        n.render_only += 1;
+                        RENDER_ONLY
+                    }
+                    (false, true) => {
+                        n.mask_only += 1;
+                        MASK_ONLY
+                    }
+                    (false, false) => continue,
+                }
+            };
+            img.put_pixel(x, y, c);
+        }
+    }
+    (img, n)
+}
+
+/// The legend entries of the silhouette comparison.
+pub fn comparison_legend(has_hand: bool) -> Vec<(Rgb<u8>, String)> {
+    let mut v = vec![
+        (BOTH, "both".to_string()),
+        (RENDER_ONLY, "render only (extra)".into()),
+        (MASK_ONLY, "mask only (missing)".into()),
+    ];
+    if has_hand {
+        v.push((HAND, "hand (ignored)".into()));
+        v.push((RENDER_IN_HAND, "render under hand".into()));
+    }
+    v
+}
+
+/// A distinct flat colour for part `i`.
+pub fn id_color(i: usize) -> Rgb<u8> {
+    const P: [[u8; 3]; 12] = [
+        [230, 25, 75],
+        [60, 180, 75],
+        [255, 225, 25],
+        [0, 130, 200],
+        [245, 130, 48],
+        [145, 30, 180],
+        [70, 240, 240],
+        [240, 50, 230],
+        [210, 245, 60],
+        [250, 190, 212],
+        [0, 128, 128],
+        [170, 110, 40],
+    ];
+    Rgb(P[i % P.len()])
+}
+
+/// What the part-id view shows of one part.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PartVisibility {
+    pub name: String,
+    pub pixels: u64,
+    /// Mean pixel position of the visible pixels.
+    pub centroid: Option<[f64; 2]>,
+}
+
+/// Every part in its own flat colour, and the visible pixel count of each part.
+pub fn part_id_view(buffers: &RenderBuffers, names: &[String]) -> (RgbImage, Vec<PartVisibility>) {
+    let mut img = RgbImage::from_pixel(buffers.width, buffers.height, BACKGROUND);
+    let mut acc = vec![(0u64, 0f64, 0f64); names.len()];
+    for y in 0..buffers.height {
+        for x in 0..buffers.width {
+            let p = buffers.part[(y * buffers.width + x) as usize];
+            if p == NO_PART {
+                continue;
+            }
+            img.put_pixel(x, y, id_color(p as usize));
+            if let Some(a) = acc.get_mut(p as usize) {
+                a.0 += 1;
+                a.1 += x as f64 + 0.5;
+                a.2 += y as f64 + 0.5;
+            }
+        }
+    }
+    let vis = names
+        .iter()
+        .zip(&acc)
+        .map(|(n, &(c, sx, sy))| PartVisibility {
+            name: n.clone(),
+            pixels: c,
+            centroid: (c > 0).then(|| [sx / c as f64, sy / c as f64]),
+        })
+        .collect();
+    (img, vis)
+}
+
+/// One turntable viewpoint.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TurntableView {
+    pub azimuth_deg: f64,
+    pub elevation_deg: f64,
+}
+
+/// The `sphere8` set: a ring at 20° elevation (azimuths 0/90/180/270), a raised pair at
+/// +60° (45/225) and a dropped pair at −30° (135/315).
+pub fn sphere8() -> Vec<TurntableView> {
+    let mut v: Vec<TurntableView> = [0.0, 90.0, 180.0, 270.0]
+        .iter()
+        .map(|&a| TurntableView {
+            azimuth_deg: a,
+            elevation_deg: 20.0,
+        })
+        .collect();
+    v.extend([45.0, 225.0].iter().map(|&a| TurntableView {
+        azimuth_deg: a,
+        elevation_deg: 60.0,
+    }));
+    v.extend([135.0, 315.0].iter().map(|&a| TurntableView {
+        azimuth_deg: a,
+        elevation_deg: -30.0,
+    }));
+    v
+}
+
+/// `camera_from_object` for a turntable view. The object is oriented as in the reference
+/// view (`reference_rotation`) and centred on its pivot; azimuth 0, elevation 0 looks from
+/// the reference camera; elevation is toward the reference camera's up (−Y).
+pub fn turntable_pose(
+    model: &ObjectModel,
+    states: &[f64],
+    reference_rotation: &UnitQuaternion,
+    view: &TurntableView,
+    fov_x_deg: f64,
+) -> Similarity {
+    let bounds = model.posed_bounds(states);
+    let pivot = bounds.center();
+    let radius = (bounds.extent().norm() * 0.5).max(1e-6);
+    let distance = radius / (fov_x_deg.to_radians() * 0.5).sin() * 1.05;
+    let (az, el) = (
+        view.azimuth_deg.to_radians(),
+        view.elevation_deg.to_radians(),
+    );
+    let up = Vector3::new(0.0, -1.0, 0.0);
+    let eye = Point3::from(
+        (Vector3::x() * az.sin() * el.cos() - Vector3::z() * az.cos() * el.cos() + up * el.sin())
+            * distance,
+    );
+    let camera_from_ref: Rigid = look_at(&eye, &Point3::origin(), &up);
+    // Reference frame: object rotated by the reference rotation, pivot at the origin.
+    let ref_from_object = Similarity {
+        scale: 1.0,
+        rotation: *reference_rotation,
+        translation: -(reference_rotation * pivot.coords),
+    };
+    Similarity::from_rigid(&camera_from_ref).compose(&ref_from_object)
+}
+
+/// Lays tiles out in a grid with a label bar above each tile.
+pub fn contact_sheet(tiles: &[(String, RgbImage)], columns: usize, title: &str) -> RgbImage {
+    let columns = columns.max(1);
+    let tw = tiles.iter().map(|t| t.1.width()).max().unwrap_or(64);
+    let th = tiles.iter().map(|t| t.1.height()).max().unwrap_or(64);
+    let scale = scale_for_width(tw).max(1);
+    let label_h = 12 * scale;
+    let pad = 4;
+    let rows = tiles.len().div_ceil(columns).max(1) as u32;
+    let title_h = if title.is_empty() { 0 } else { 14 * scale };
+    let width = columns as u32 * (tw + pad) + pad;
+    let height = title_h + rows * (th + label_h + pad) + pad;
+    let mut out = RgbImage::from_pixel(width, height, Rgb([235, 235, 235]));
+    if !title.is_empty() {
+        draw_text(
+            &mut out,
+            pad as i64,
+            3 * scale as i64,
+            title,
+            scale,
+            Rgb([0, 0, 0]),
+        );
+    }
+    for (i, (label, img)) in tiles.iter().enumerate() {
+        let (c, r) = ((i % columns) as u32, (i / columns) as u32);
+        let x = pad + c * (tw + pad);
+        let y = title_h + pad + r * (th + label_h + pad);
+        fill_rect(&mut out, x as i64, y as i64, tw, label_h, Rgb([40, 40, 48]));
+        let max_chars = (tw / (8 * scale)) as usize;
+        let shown: String = label.chars().take(max_chars).collect();
+        draw_text(
+            &mut out,
+            x as i64 + 2,
+            y as i64 + 2 * scale as i64,
+            &shown,
+            scale,
+            Rgb([255, 255, 255]),
+        );
+        image::imageops::replace(&mut out, img, x as i64, (y + label_h) as i64);
+    }
+    out
+}
+
+/// Composites an RGBA render over a solid background.
+pub fn flatten(render: &RgbaImage, background: Rgb<u8>) -> RgbImage {
+    RgbImage::from_fn(render.width(), render.height(), |x, y| {
+        let p = render.get_pixel(x, y);
+        let a = p[3] as f32 / 255.0;
+        let m = |i: usize| (p[i] as f32 * a + background[i] as f32 * (1.0 - a) + 0.5) as u8;
+        Rgb([m(0), m(1), m(2)])
+    })
+}
+
+/// A square camera for turntables.
+pub fn turntable_camera(size_px: u32, fov_x_deg: f64) -> PinholeCamera {
+    PinholeCamera::with_fov(fov_x_deg, size_px, size_px)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn comparison_counts_every_category() {
+        let mask = BitMask::from_fn(10, 1, |x, _| x < 5);
+        let render = BitMask::from_fn(10, 1, |x, _| (3..8).contains(&x));
+        let hand = BitMask::from_fn(10, 1, |x, _| x >= 7);
+        let (img, n) = silhouette_comparison(&render, &mask, Some(&hand));
+        assert_eq!(
+            n,
+            ComparisonCounts {
+                both: 2,
+                render_only: 2,
+                mask_only: 3,
+                hand: 2,
+                render_in_hand: 1
+            }
+        );
+        assert_eq!(*img.get_pixel(0, 0), MASK_ONLY);
+        assert_eq!(*img.get_pixel(3, 0), BOTH);
+        assert_eq!(*img.get_pixel(7, 0), RENDER_IN_HAND);
+        let with = with_legend(&img, "frame 000000", &comparison_legend(true));
+        assert!(with.height() > img.height());
+    }
+
+    #[test]
+    fn sphere8_matches_the_reference_set() {
+        let v = sphere8();
+        assert_eq!(v.len(), 8);
+        assert_eq!(v.iter().filter(|t| t.elevation_deg == 20.0).count(), 4);
+        assert!(v
+            .iter()
+            .any(|t| t.elevation_deg == -30.0 && t.azimuth_deg == 315.0));
+    }
+}

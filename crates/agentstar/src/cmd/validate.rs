@@ -1,0 +1,65 @@
+//! `agentstar validate CAPTURE`: every problem of a capture at once.
+
+use crate::common::print_json;
+use agentstar_data::capture::Capture;
+use anyhow::Result;
+use serde_json::json;
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+#[derive(clap::Args)]
+pub struct Args {
+    /// The capture directory (holding capture.json).
+    capture: PathBuf,
+    /// Print JSON instead of text.
+    #[arg(long)]
+    json: bool,
+}
+
+pub fn run(a: Args) -> Result<ExitCode> {
+    let problems = Capture::validate(&a.capture);
+    let summary = match Capture::open(&a.capture) {
+        Ok(c) => Some((
+            c.frames.len(),
+            c.manifest.image_size,
+            c.frames[c.ref_index].name.clone(),
+            c.notes.clone(),
+        )),
+        Err(_) => None,
+    };
+    if a.json {
+        print_json(&json!({
+            "capture": a.capture,
+            "valid": problems.is_empty(),
+            "problems": problems.iter().map(|p| json!({"path": p.path, "message": p.message})).collect::<Vec<_>>(),
+            "frames": summary.as_ref().map(|s| s.0),
+            "image_size": summary.as_ref().map(|s| s.1),
+            "ref_frame": summary.as_ref().map(|s| s.2.clone()),
+            "notes": summary.as_ref().map(|s| s.3.clone()).unwrap_or_default(),
+        }))?;
+    } else if problems.is_empty() {
+        if let Some((n, [w, h], r, notes)) = &summary {
+            println!(
+                "valid: {} ({n} frames, {w}×{h}, reference {r})",
+                a.capture.display()
+            );
+            for note in notes {
+                println!("note: {note}");
+            }
+        }
+    } else {
+        println!(
+            "invalid: {} has {} problem(s)",
+            a.capture.display(),
+            problems.len()
+        );
+        for p in &problems {
+            println!("  {p}");
+        }
+    }
+    Ok(if problems.is_empty() {
+        ExitCode::SUCCESS
+    } else {
+        ExitCode::from(1)
+    })
+}

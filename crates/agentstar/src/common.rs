@@ -1,0 +1,189 @@
+//! Shared wiring of the subcommands: loading a capture, a model and poses; frame selection;
+//! rendering one frame; printing results.
+
+use agentstar_data::capture::Capture;
+use agentstar_data::posefile::{FramePose, PoseFile};
+use agentstar_data::scenefile::{load_model, LoadedModel};
+use agentstar_render::score::{combined_score, depth_score, DepthScore};
+use agentstar_render::{
+    render_full, IouScore, PosedModel, RenderBuffers, ScoreTarget, SilhouetteRenderer,
+};
+use anyhow::{anyhow, bail, Context, Result};
+use serde::Serialize;
+use std::path::{Path, PathBuf};
+
+/// Opens a capture, turning its problem list into one error.
+pub fn open_capture(dir: &Path) -> Result<Capture> {
+    Capture::open(dir).map_err(|problems| {
+        let list: Vec<String> = problems.iter().map(|p| format!("  {p}")).collect();
+        anyhow!(
+            "the capture at {} has {} problem(s):\n{}",
+            dir.display(),
+            problems.len(),
+            list.join("\n")
+        )
+    })
+}
+
+pub fn open_model(path: &Path) -> Result<LoadedModel> {
+    let m = load_model(path)?;
+    for w in &m.warnings {
+        eprintln!("warning: {}: {w}", path.display());
+    }
+    Ok(m)
+}
+
+/// Capture, model and resolved poses of a run.
+pub struct Session {
+    pub capture: Capture,
+    pub model: LoadedModel,
+    pub pose_file: PoseFile,
+    pub poses: Vec<FramePose>,
+}
+
+impl Session {
+    pub fn open(capture: &Path, model: &Path, poses: &Path) -> Result<Session> {
+        let capture = open_capture(capture)?;
+        let model = open_model(model)?;
+        let pose_file = PoseFile::read(poses)?;
+        let resolved = pose_file
+            .resolve(&capture, &model.model.tree)
+            .map_err(|e| anyhow!("{}: {e}", poses.display()))?;
+        Ok(Session {
+            capture,
+            model,
+            pose_file,
+            poses: resolved,
+        })
+    }
+
+    pub fn scale(&self) -> f64 {
+        self.pose_file.scale
+    }
+
+    pub fn posed(&self, i: usize) -> PosedModel<'_> {
+        let p = &self.poses[i];
+        PosedModel::new(
+            &self.model.model,
+            &p.states,
+            &p.pose.with_scale(self.scale()),
+        )
+    }
+
+    pub fn render_buffers(&self, i: usize) -> RenderBuffers {
+        render_full(&self.capture.frames[i].camera, &self.posed(i).instances)
+    }
+
+    /// Scores frame `i`; `depth_weight` enters the combined score when the capture has depth.
+    pub fn score(&self, i: usize, depth_weight: f64) -> Result<FrameScore> {
+        let f = &self.capture.frames[i];
+        let mask = self.capture.load_mask(i)?;
+        let hand = self.capture.load_hand(i)?;
+        let target = ScoreTarget::new(mask, hand)?;
+        let mut r = SilhouetteRenderer::new(f.camera.width, f.camera.height);
+        let s = target.score(r.render(&f.camera, &self.posed(i).instances));
+        let depth = match self.capture.load_depth(i)? {
+            Some(obs) => depth_score(&self.render_buffers(i), &obs, &target, self.scale(), 0.1)?,
+            None => None,
+        };
+        let combined = combined_score(s.gate(), depth.as_ref(), depth_weight);
+        Ok(FrameScore::new(&f.name, &s, depth, combined))
+    }
+}
+
+/// One frame's score, as printed and written.
+#[derive(Debug, Clone, Serialize)]
+pub struct FrameScore {
+    pub frame: String,
+    pub iou_visible: Option<f64>,
+    pub iou_raw: f64,
+    pub render_px: u64,
+    pub mask_px: u64,
+    pub hand_px: u64,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub depth_mae: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub depth_mae_canon: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub depth_bias: Option<f64>,
+    pub combined: f64,
+}
+
+impl FrameScore {
+    fn new(frame: &str, s: &IouScore, d: Option<DepthScore>, combined: f64) -> Self {
+        FrameScore {
+            frame: frame.to_string(),
+            iou_visible: s.iou_visible,
+            iou_raw: s.iou_raw,
+            render_px: s.render_px,
+            mask_px: s.mask_px,
+            hand_px: s.hand_px,
+            depth_mae: d.map(|d| d.mae),
+            depth_mae_canon: d.map(|d| d.mae_canon),
+            depth_bias: d.map(|d| d.bias),
+            combined,
+        }
+    }
+    pub fn gate(&self) -> f64 {
+        self.iou_visible.unwrap_or(0.0)
+    }
+}
+
+/// Parses `--frames`: `all`, names, stems or indices, comma separated, and inclusive ranges
+/// `a..b` of stems. Returns capture indices in temporal order.
+pub fn select_frames(capture: &Capture, spec: Option<&str>) -> Result<Vec<usize>> {
+    let Some(spec) = spec.map(str::trim).filter(|s| !s.is_empty() && *s != "all") else {
+        return Ok((0..capture.frames.len()).collect());
+    };
+    let mut out = Vec::new();
+    for tok in spec.split(',').map(str::trim).filter(|t| !t.is_empty()) {
+        if let Some((a, b)) = tok.split_once("..") {
+            let (ia, ib) = (find_frame(capture, a)?, find_frame(capture, b)?);
+            out.extend(ia.min(ib)..=ia.max(ib));
+        } else {
+            out.push(find_frame(capture, tok)?);
+        }
+    }
+    out.sort_unstable();
+    out.dedup();
+    Ok(out)
+}
+
+fn find_frame(capture: &Capture, tok: &str) -> Result<usize> {
+    if let Some(i) = capture.frame_index(tok) {
+        return Ok(i);
+    }
+    if let Ok(n) = tok.parse::<u64>() {
+        if let Some(i) = capture.frames.iter().position(|f| f.number == n) {
+            return Ok(i);
+        }
+    }
+    let names: Vec<&str> = capture.frames.iter().map(|f| f.name.as_str()).collect();
+    let shown = if names.len() > 8 {
+        format!(
+            "{} … {}",
+            names[..4].join(", "),
+            names[names.len() - 2..].join(", ")
+        )
+    } else {
+        names.join(", ")
+    };
+    bail!("unknown frame `{tok}`; frames are {shown} (use names, stems, `a..b` ranges or `all`)")
+}
+
+/// Prints JSON to stdout.
+pub fn print_json<T: Serialize>(value: &T) -> Result<()> {
+    println!(
+        "{}",
+        serde_json::to_string_pretty(value).context("serialising the result")?
+    );
+    Ok(())
+}
+
+pub fn out_dir(dir: &Path) -> Result<PathBuf> {
+    std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    Ok(dir.to_path_buf())
+}
+
+/// The gate every keyframe must reach.
+pub const PASS_IOU: f64 = 0.98;
