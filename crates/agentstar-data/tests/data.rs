@@ -1,0 +1,448 @@
+//! File formats end to end: a capture written by the test is read back; every kind of bad
+//! input gets its own message naming the file; pose files, URDF and exports round-trip.
+
+use agentstar_data::capture::{CamerasJson, Capture, Keyframe, Manifest};
+use agentstar_data::export::{glb_bytes, write_glb, write_urdf};
+use agentstar_data::meshio::parse_glb;
+use agentstar_data::posefile::PoseFile;
+use agentstar_data::scenefile::{load_model, load_scene_script, ScriptDirMeshes};
+use agentstar_data::urdf::load_urdf;
+use agentstar_geom::pose::ObjectPose;
+use agentstar_geom::{Point3, UnitQuaternion, Vector3};
+use agentstar_scene::MeshSource;
+use image::{GrayImage, Luma, RgbImage};
+use std::path::Path;
+
+const W: u32 = 40;
+const H: u32 = 30;
+
+fn write_capture(dir: &Path, frames: usize, c2w: Vec<[[f64; 4]; 4]>) {
+    let names: Vec<String> = (0..frames).map(|k| format!("{:06}.jpg", k * 10)).collect();
+    std::fs::create_dir_all(dir.join("frames")).expect("dir");
+    std::fs::create_dir_all(dir.join("mask_object")).expect("dir");
+    std::fs::create_dir_all(dir.join("mask_hand")).expect("dir");
+    for (k, n) in names.iter().enumerate() {
+        RgbImage::from_pixel(W, H, image::Rgb([90, 90, 90]))
+            .save(dir.join("frames").join(n))
+            .expect("frame");
+        let stem = &n[..6];
+        GrayImage::from_fn(W, H, |x, _| Luma([if x < 20 { 255 } else { 0 }]))
+            .save(dir.join("mask_object").join(format!("{stem}.png")))
+            .expect("mask");
+        if k == 0 {
+            GrayImage::from_fn(W, H, |x, _| Luma([if x > 30 { 255 } else { 0 }]))
+                .save(dir.join("mask_hand").join(format!("{stem}.png")))
+                .expect("hand");
+        }
+    }
+    let k = [[50.0, 0.0, 20.0], [0.0, 50.0, 15.0], [0.0, 0.0, 1.0]];
+    let cams = CamerasJson {
+        intrinsics: vec![k; c2w.len()],
+        c2w,
+        size: Some([W, H]),
+    };
+    std::fs::create_dir_all(dir.join("tracking")).expect("dir");
+    std::fs::write(
+        dir.join("tracking/cameras.json"),
+        serde_json::to_string(&cams).expect("json"),
+    )
+    .expect("write");
+    let kf: Vec<Keyframe> = names
+        .iter()
+        .enumerate()
+        .map(|(i, n)| Keyframe {
+            view: i,
+            frame_index: Some(10 * i as i64),
+            frame_name: n.clone(),
+            time_s: None,
+        })
+        .collect();
+    std::fs::write(
+        dir.join("tracking/keyframes.json"),
+        serde_json::to_string(&kf).expect("json"),
+    )
+    .expect("write");
+    let m = Manifest {
+        format: "capture/v1".into(),
+        image_size: [W, H],
+        frames: names.iter().rev().cloned().collect(), // listed out of order on purpose
+        ref_frame: None,
+        depth: "none".into(),
+        depth_scale: None,
+        dataset: None,
+        source: None,
+        downscale: None,
+        undistorted: None,
+    };
+    std::fs::write(
+        dir.join("capture.json"),
+        serde_json::to_string(&m).expect("json"),
+    )
+    .expect("write");
+}
+
+fn identity() -> [[f64; 4]; 4] {
+    [
+        [1.0, 0.0, 0.0, 0.0],
+        [0.0, 1.0, 0.0, 0.0],
+        [0.0, 0.0, 1.0, 0.0],
+        [0.0, 0.0, 0.0, 1.0],
+    ]
+}
+
+fn translated(x: f64) -> [[f64; 4]; 4] {
+    let mut m = identity();
+    m[0][3] = x;
+    m
+}
+
+#[test]
+fn capture_written_by_the_test_reads_back() {
+    let dir = tempfile::tempdir().expect("tmp");
+    write_capture(
+        dir.path(),
+        3,
+        vec![identity(), translated(0.1), translated(0.2)],
+    );
+    assert!(
+        Capture::validate(dir.path()).is_empty(),
+        "{:?}",
+        Capture::validate(dir.path())
+    );
+    let c = Capture::open(dir.path()).expect("open");
+    // Temporal order is the integer stem, whatever the manifest's order; the reference
+    // defaults to the first listed frame.
+    let names: Vec<&str> = c.frames.iter().map(|f| f.name.as_str()).collect();
+    assert_eq!(names, ["000000.jpg", "000010.jpg", "000020.jpg"]);
+    assert_eq!(c.frames[c.ref_index].name, "000020.jpg");
+    assert_eq!(c.frames[1].camera.fx, 50.0);
+    assert!((c.frames[2].world_from_camera.translation.vector.x - 0.2).abs() < 1e-12);
+    assert_eq!(c.load_mask(0).expect("mask").count(), 20 * 30);
+    assert!(c.load_hand(0).expect("hand").is_some());
+    assert!(c.load_hand(1).expect("hand").is_none());
+    assert_eq!(c.frame_index("000010"), Some(1));
+}
+
+fn problems_of(dir: &Path) -> String {
+    Capture::validate(dir)
+        .iter()
+        .map(|p| p.to_string())
+        .collect::<Vec<_>>()
+        .join("\n")
+}
+
+#[test]
+fn missing_mask_is_named() {
+    let dir = tempfile::tempdir().expect("tmp");
+    write_capture(dir.path(), 2, vec![identity(), identity()]);
+    std::fs::remove_file(dir.path().join("mask_object/000010.png")).expect("rm");
+    let p = problems_of(dir.path());
+    assert!(
+        p.contains("mask_object/000010.png") && p.contains("missing object mask"),
+        "{p}"
+    );
+}
+
+#[test]
+fn mask_size_mismatch_is_named() {
+    let dir = tempfile::tempdir().expect("tmp");
+    write_capture(dir.path(), 2, vec![identity(), identity()]);
+    GrayImage::new(10, 10)
+        .save(dir.path().join("mask_object/000000.png"))
+        .expect("mask");
+    let p = problems_of(dir.path());
+    assert!(
+        p.contains("000000.png: size 10×10 differs from image_size 40×30"),
+        "{p}"
+    );
+}
+
+#[test]
+fn non_orthonormal_rotation_and_nan_intrinsics_are_both_reported() {
+    let dir = tempfile::tempdir().expect("tmp");
+    let mut bad = identity();
+    bad[0][0] = 2.0;
+    write_capture(dir.path(), 2, vec![identity(), bad]);
+    let mut cams: serde_json::Value = serde_json::from_str(
+        &std::fs::read_to_string(dir.path().join("tracking/cameras.json")).expect("r"),
+    )
+    .expect("json");
+    cams["intrinsics"][0][0][0] = serde_json::json!(-1.0);
+    std::fs::write(dir.path().join("tracking/cameras.json"), cams.to_string()).expect("w");
+    let p = problems_of(dir.path());
+    assert!(p.contains("c2w[1]") && p.contains("not orthonormal"), "{p}");
+    assert!(
+        p.contains("intrinsics[0]") && p.contains("positive focal"),
+        "{p}"
+    );
+}
+
+#[test]
+fn unknown_format_and_bad_stems_are_reported_together() {
+    let dir = tempfile::tempdir().expect("tmp");
+    write_capture(dir.path(), 2, vec![identity(), identity()]);
+    let mut m: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.path().join("capture.json")).expect("r"))
+            .expect("json");
+    m["format"] = serde_json::json!("capture/v9");
+    m["frames"]
+        .as_array_mut()
+        .expect("array")
+        .push(serde_json::json!("frame_a.jpg"));
+    std::fs::write(dir.path().join("capture.json"), m.to_string()).expect("w");
+    let p = problems_of(dir.path());
+    assert!(p.contains("unknown format \"capture/v9\""), "{p}");
+    assert!(
+        p.contains("frame `frame_a.jpg`: the file stem must be a zero-padded integer"),
+        "{p}"
+    );
+}
+
+#[test]
+fn missing_manifest_cameras_and_corrupt_files() {
+    let dir = tempfile::tempdir().expect("tmp");
+    assert!(problems_of(&dir.path().join("nope")).contains("does not exist"));
+    write_capture(dir.path(), 2, vec![identity(), identity()]);
+    std::fs::remove_file(dir.path().join("tracking/cameras.json")).expect("rm");
+    assert!(problems_of(dir.path()).contains("no cameras"));
+    std::fs::write(dir.path().join("tracking/cameras.npz"), b"garbage").expect("w");
+    assert!(
+        problems_of(dir.path()).contains("cameras.npz: not a readable .npz archive"),
+        "{}",
+        problems_of(dir.path())
+    );
+    std::fs::write(dir.path().join("capture.json"), "{ not json").expect("w");
+    assert!(problems_of(dir.path()).contains("capture.json: invalid manifest"));
+}
+
+#[test]
+fn keyframe_view_out_of_range() {
+    let dir = tempfile::tempdir().expect("tmp");
+    write_capture(dir.path(), 2, vec![identity(), identity()]);
+    let kf =
+        r#"[{"view": 0, "frame_name": "000000.jpg"}, {"view": 7, "frame_name": "000010.jpg"}]"#;
+    std::fs::write(dir.path().join("tracking/keyframes.json"), kf).expect("w");
+    let p = problems_of(dir.path());
+    assert!(p.contains("view 7 is out of range"), "{p}");
+}
+
+const LID_SCENE: &str = r#"
+part("base", box(1, 0.6, 0.2));
+part("lid", box(1, 0.6, 0.05).translate(0, 0, 0.125));
+joint(#{ name: "hinge", type: "revolute", child: "lid", origin: [0, 0.3, 0.1], axis: [1, 0, 0], limit: [0, 120] });
+"#;
+
+#[test]
+fn pose_file_resolution_seeds_through_cameras_and_checks_joints() {
+    let dir = tempfile::tempdir().expect("tmp");
+    write_capture(
+        dir.path(),
+        3,
+        vec![identity(), translated(0.1), translated(0.2)],
+    );
+    let cap = Capture::open(dir.path()).expect("open");
+    std::fs::write(dir.path().join("scene.rhai"), LID_SCENE).expect("w");
+    let model = load_model(&dir.path().join("scene.rhai"))
+        .expect("model")
+        .model;
+    let pose = ObjectPose::new(
+        UnitQuaternion::from_axis_angle(&Vector3::x_axis(), 0.4),
+        Vector3::new(0.0, 0.0, 2.0),
+    );
+    let mut pf = PoseFile::initial(&cap, &model.tree, 0.2, &pose);
+    pf.frames
+        .get_mut("000020.jpg")
+        .expect("ref")
+        .joints
+        .insert("hinge".into(), 30.0);
+    let p = dir.path().join("pose.json");
+    pf.write(&p).expect("write");
+    let back = PoseFile::read(&p).expect("read");
+    assert_eq!(back, pf);
+    let resolved = back.resolve(&cap, &model.tree).expect("resolve");
+    // Frame 000000's camera sits 0.2 left of the reference camera: the object appears 0.2
+    // further right, with the reference's joint state.
+    assert!(resolved[0].seeded && !resolved[2].seeded);
+    assert!((resolved[0].pose.translation - Vector3::new(0.2, 0.0, 2.0)).norm() < 1e-9);
+    assert!((resolved[0].states[0] - 30f64.to_radians()).abs() < 1e-12);
+    // A state outside the limit names the frame and the joint.
+    pf.frames
+        .get_mut("000020.jpg")
+        .expect("ref")
+        .joints
+        .insert("hinge".into(), 150.0);
+    let e = pf.resolve(&cap, &model.tree).expect_err("limit");
+    assert!(
+        e.contains("000020.jpg") && e.contains("hinge") && e.contains("outside"),
+        "{e}"
+    );
+}
+
+#[test]
+fn malformed_pose_files_are_explained() {
+    let dir = tempfile::tempdir().expect("tmp");
+    let p = dir.path().join("pose.json");
+    std::fs::write(&p, r#"{"scale": 1, "reference_frame": "a", "frames": {"a": {"object_pose": {"quaternion": [1,0,0,0], "translation": [0,0,1], "joints": {"h": 1}}}}}"#).expect("w");
+    let e = PoseFile::read(&p).expect_err("nested joints").to_string();
+    assert!(e.contains("pose.json") && e.contains("sibling"), "{e}");
+    std::fs::write(&p, r#"{"scale": -1, "reference_frame": "a", "frames": {}}"#).expect("w");
+    assert!(PoseFile::read(&p)
+        .expect_err("scale")
+        .to_string()
+        .contains("scale -1"));
+    std::fs::write(&p, r#"{"scale": 1, "reference_frame": "a", "frames": {"a": {"object_pose": {"quaternion": [0,0,0,0], "translation": [0,0,1]}}}}"#).expect("w");
+    assert!(PoseFile::read(&p)
+        .expect_err("zero quaternion")
+        .to_string()
+        .contains("zero length"));
+}
+
+const URDF: &str = r#"<?xml version="1.0"?>
+<robot name="cabinet">
+  <link name="body"><visual><geometry><box size="0.6 0.4 0.8"/></geometry></visual></link>
+  <link name="door"><visual><origin xyz="0.15 0 0"/><geometry><box size="0.3 0.02 0.7"/></geometry>
+    <material name="wood"><color rgba="0.6 0.4 0.2 1"/></material></visual></link>
+  <link name="knob"><visual><geometry><mesh filename="meshes/knob.obj" scale="1 1 1"/></geometry></visual></link>
+  <joint name="door_hinge" type="revolute">
+    <parent link="body"/><child link="door"/>
+    <origin xyz="-0.3 -0.21 0" rpy="0 0 0"/><axis xyz="0 0 1"/>
+    <limit lower="-1.57" upper="0" effort="1" velocity="1"/>
+  </joint>
+  <joint name="knob_spin" type="continuous">
+    <parent link="door"/><child link="knob"/>
+    <origin xyz="0.25 -0.02 0" rpy="1.5707963267948966 0 0"/><axis xyz="0 0 1"/>
+  </joint>
+</robot>
+"#;
+
+fn write_urdf_fixture(dir: &Path, urdf: &str) -> std::path::PathBuf {
+    std::fs::create_dir_all(dir.join("meshes")).expect("dir");
+    let knob = agentstar_geom::primitives::cylinder(0.02, 0.03, 16).expect("knob");
+    std::fs::write(
+        dir.join("meshes/knob.obj"),
+        agentstar_data::meshio::obj_text(&knob, "knob"),
+    )
+    .expect("w");
+    let p = dir.join("cabinet.urdf");
+    std::fs::write(&p, urdf).expect("w");
+    p
+}
+
+#[test]
+fn urdf_loads_with_rest_placement_and_chain() {
+    let dir = tempfile::tempdir().expect("tmp");
+    let model = load_urdf(&write_urdf_fixture(dir.path(), URDF)).expect("urdf");
+    assert_eq!(model.part_names(), ["body", "door", "knob"]);
+    let j = &model.tree.joints()[0];
+    assert_eq!(j.limit, Some((-1.57f64.to_degrees(), 0.0)));
+    // Opening the door by −90° about +Z at (−0.3, −0.21): its free edge (0, −0.21) swings
+    // out to (−0.3, −0.51).
+    let t = model
+        .tree
+        .part_transforms(&[-std::f64::consts::FRAC_PI_2, 0.0]);
+    let p = t[1] * Point3::new(0.0, -0.21, 0.0);
+    assert!((p - Point3::new(-0.3, -0.51, 0.0)).norm() < 1e-9, "{p}");
+    // The knob rides on the door (its joint's parent is the hinge).
+    assert_eq!(model.tree.joints()[1].parent.as_deref(), Some("door_hinge"));
+    assert!((model.parts[1].color[0] - 0.6).abs() < 1e-6);
+}
+
+#[test]
+fn malformed_urdf_values_name_joint_and_attribute() {
+    let dir = tempfile::tempdir().expect("tmp");
+    let bad = URDF.replace("upper=\"0\"", "upper=\"-z0.008\"");
+    let e = load_urdf(&write_urdf_fixture(dir.path(), &bad))
+        .expect_err("malformed")
+        .to_string();
+    assert!(
+        e.contains("joint `door_hinge`")
+            && e.contains("attribute `upper` of <limit>")
+            && e.contains("-z0.008"),
+        "{e}"
+    );
+    let missing = URDF.replace("meshes/knob.obj", "meshes/gone.obj");
+    let e = load_urdf(&write_urdf_fixture(dir.path(), &missing))
+        .expect_err("mesh")
+        .to_string();
+    assert!(e.contains("link `knob`") && e.contains("gone.obj"), "{e}");
+}
+
+#[test]
+fn glb_export_names_every_part_and_reads_back() {
+    let dir = tempfile::tempdir().expect("tmp");
+    std::fs::write(dir.path().join("scene.rhai"), LID_SCENE).expect("w");
+    let model = load_model(&dir.path().join("scene.rhai"))
+        .expect("model")
+        .model;
+    let parts = parse_glb(&glb_bytes(&model)).expect("glb");
+    assert_eq!(
+        parts.iter().map(|(n, _)| n.as_str()).collect::<Vec<_>>(),
+        ["base", "lid"]
+    );
+    // Y-up in the file, Z-up again after reading: the lid still sits above the base.
+    assert!((parts[1].1.bounds().min.z - 0.1).abs() < 1e-6);
+    assert!((parts[0].1.volume() - 0.12).abs() < 1e-6);
+    write_glb(&model, &dir.path().join("object.glb")).expect("write");
+    let reloaded = load_model(&dir.path().join("object.glb"))
+        .expect("reload")
+        .model;
+    assert_eq!(reloaded.part_names(), ["base", "lid"]);
+}
+
+#[test]
+fn urdf_export_round_trips_forward_kinematics() {
+    let dir = tempfile::tempdir().expect("tmp");
+    let model = load_urdf(&write_urdf_fixture(dir.path(), URDF)).expect("urdf");
+    let out = dir.path().join("export");
+    let path = write_urdf(&model, &out, "cabinet").expect("export");
+    let back = load_urdf(&path).expect("reimport");
+    let states = [-0.7, 1.1];
+    // The export adds fixed joints, so the re-imported joints are matched by name.
+    let back_states: Vec<f64> = back
+        .tree
+        .joints()
+        .iter()
+        .map(|j| model.tree.joint_index(&j.name).map_or(0.0, |k| states[k]))
+        .collect();
+    let (ta, tb) = (
+        model.tree.part_transforms(&states),
+        back.tree.part_transforms(&back_states),
+    );
+    for (i, name) in model.part_names().iter().enumerate() {
+        let j = back.part_index(name).expect("part");
+        let a = agentstar_geom::model::transform_rigid(&model.parts[i].mesh, &ta[i]).bounds();
+        let b = agentstar_geom::model::transform_rigid(&back.parts[j].mesh, &tb[j]).bounds();
+        assert!(
+            (a.min - b.min).norm() < 1e-5 && (a.max - b.max).norm() < 1e-5,
+            "{name}: {a:?} vs {b:?}"
+        );
+    }
+}
+
+#[test]
+fn scripts_reach_only_meshes_beside_them_and_keep_the_last_good_model() {
+    let dir = tempfile::tempdir().expect("tmp");
+    let src = ScriptDirMeshes::new(dir.path());
+    assert!(src
+        .load("../x.obj")
+        .expect_err("parent")
+        .contains("relative path inside"));
+    assert!(src.load("/etc/passwd").is_err());
+    assert!(src
+        .load("notes.txt")
+        .expect_err("ext")
+        .contains("not a mesh file"));
+    let script = dir.path().join("scene.rhai");
+    std::fs::write(&script, LID_SCENE).expect("w");
+    load_scene_script(&script, &Default::default()).expect("good");
+    std::fs::write(&script, "part(\"a\", cilinder(1, 1));").expect("w");
+    let e = load_scene_script(&script, &Default::default())
+        .expect_err("bad")
+        .to_string();
+    assert!(
+        e.contains("did you mean `cylinder`") && e.contains("last good model"),
+        "{e}"
+    );
+    let last = agentstar_data::scenefile::last_good_script(&script).expect("kept");
+    assert_eq!(std::fs::read_to_string(last).expect("r"), LID_SCENE);
+}
