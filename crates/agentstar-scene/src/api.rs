@@ -54,8 +54,19 @@ pub const API: &[ApiEntry] = &[
     ApiEntry { name: "volume", forms: &["s.volume()"], doc: "Enclosed volume." },
     ApiEntry { name: "triangle_count", forms: &["s.triangle_count()"], doc: "Number of triangles." },
     ApiEntry { name: "part", forms: &["part(name, solid)"], doc: "Declares a named part (the unit that joints move and exports name)." },
-    ApiEntry { name: "joint", forms: &["joint(#{name, type, child, origin, axis, limit, parent})"], doc: "Declares a joint: type revolute (limit in degrees) | continuous (no limit) | prismatic (limit in canonical units) | fixed; child is a part name or a list; origin and axis in the canonical rest frame; parent names another joint for chains." },
+    ApiEntry { name: "joint", forms: &["joint(#{name, type, child, origin, axis, limit, parent})"], doc: "Declares a joint: type revolute (limit in degrees), continuous (no limit), prismatic (limit in canonical units) or fixed; child is a part name or a list; origin and axis in the canonical rest frame; parent names another joint for chains." },
 ];
+
+/// The API reference as Markdown (one row per function), the source of `docs/scene.md`'s
+/// reference section so that the docs cannot drift from what is registered.
+pub fn api_markdown() -> String {
+    let mut s = String::from("| function | forms | what it does |\n|---|---|---|\n");
+    for e in API {
+        let forms: Vec<String> = e.forms.iter().map(|f| format!("`{f}`")).collect();
+        s.push_str(&format!("| `{}` | {} | {} |\n", e.name, forms.join("<br>"), e.doc));
+    }
+    s
+}
 
 /// Names of every API function (sorted, unique).
 pub fn api_names() -> Vec<&'static str> {

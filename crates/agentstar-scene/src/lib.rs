@@ -10,7 +10,7 @@
 mod api;
 mod diagnostics;
 
-pub use api::{api_names, ApiEntry, API};
+pub use api::{api_markdown, api_names, ApiEntry, API};
 pub use diagnostics::{SceneError, SceneErrorKind};
 
 use agentstar_geom::{CanonicalReport, ObjectModel, TriMesh};

@@ -250,3 +250,11 @@ fn every_primitive_is_reachable() {
     assert_eq!(b.printed.len(), 4);
     assert!(b.model.parts[9].watertight);
 }
+
+#[test]
+fn docs_reference_matches_the_registered_api() {
+    let doc = include_str!("../../../docs/scene.md");
+    let start = doc.find("<!-- api:begin -->").expect("marker") + "<!-- api:begin -->\n".len();
+    let end = doc.find("<!-- api:end -->").expect("marker");
+    assert_eq!(&doc[start..end], agentstar_scene::api_markdown(), "docs/scene.md is stale: paste api_markdown() between the markers");
+}

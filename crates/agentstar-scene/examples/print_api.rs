@@ -1,0 +1,1 @@
+fn main() { print!("{}", agentstar_scene::api_markdown()); }
