@@ -1,1 +1,3 @@
-fn main() { print!("{}", agentstar_scene::api_markdown()); }
+fn main() {
+    print!("{}", agentstar_scene::api_markdown());
+}

@@ -63,7 +63,12 @@ pub fn api_markdown() -> String {
     let mut s = String::from("| function | forms | what it does |\n|---|---|---|\n");
     for e in API {
         let forms: Vec<String> = e.forms.iter().map(|f| format!("`{f}`")).collect();
-        s.push_str(&format!("| `{}` | {} | {} |\n", e.name, forms.join("<br>"), e.doc));
+        s.push_str(&format!(
+            "| `{}` | {} | {} |\n",
+            e.name,
+            forms.join("<br>"),
+            e.doc
+        ));
     }
     s
 }

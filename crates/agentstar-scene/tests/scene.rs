@@ -256,5 +256,9 @@ fn docs_reference_matches_the_registered_api() {
     let doc = include_str!("../../../docs/scene.md");
     let start = doc.find("<!-- api:begin -->").expect("marker") + "<!-- api:begin -->\n".len();
     let end = doc.find("<!-- api:end -->").expect("marker");
-    assert_eq!(&doc[start..end], agentstar_scene::api_markdown(), "docs/scene.md is stale: paste api_markdown() between the markers");
+    assert_eq!(
+        &doc[start..end],
+        agentstar_scene::api_markdown(),
+        "docs/scene.md is stale: paste api_markdown() between the markers"
+    );
 }
