@@ -446,3 +446,53 @@ fn scripts_reach_only_meshes_beside_them_and_keep_the_last_good_model() {
     let last = agentstar_data::scenefile::last_good_script(&script).expect("kept");
     assert_eq!(std::fs::read_to_string(last).expect("r"), LID_SCENE);
 }
+
+#[test]
+fn depth_files_read_back_and_missing_ones_are_reported() {
+    let dir = tempfile::tempdir().expect("tmp");
+    write_capture(dir.path(), 2, vec![identity(), identity()]);
+    let mut m: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.path().join("capture.json")).expect("r"))
+            .expect("json");
+    m["depth"] = serde_json::json!("pi3x");
+    m["depth_scale"] = serde_json::json!(0.001);
+    std::fs::write(dir.path().join("capture.json"), m.to_string()).expect("w");
+    assert!(problems_of(dir.path()).contains("has no depth/000000.npz or .png"));
+    // Frame 000000: a point map at half resolution with a rejected column; 000010: a PNG in mm.
+    let (dw, dh) = (W as usize / 2, H as usize / 2);
+    let mut local = Vec::new();
+    let mut keep = Vec::new();
+    for _y in 0..dh {
+        for x in 0..dw {
+            local.extend([0.0f32, 0.0, 1.5 + 0.01 * x as f32]);
+            keep.push(if x == 0 { 0i64 } else { 1 });
+        }
+    }
+    std::fs::create_dir_all(dir.path().join("depth")).expect("dir");
+    agentstar_data::npz::write_arrays(
+        &dir.path().join("depth/000000.npz"),
+        &[("local", &[dh, dw, 3], &local)],
+        &[("keep", &[dh, dw], &keep)],
+    )
+    .expect("npz");
+    let png = image::ImageBuffer::<image::Luma<u16>, Vec<u16>>::from_fn(W, H, |x, _| {
+        image::Luma([if x == 0 { 0 } else { 1200 }])
+    });
+    png.save(dir.path().join("depth/000010.png")).expect("png");
+    assert!(
+        Capture::validate(dir.path()).is_empty(),
+        "{}",
+        problems_of(dir.path())
+    );
+    let c = Capture::open(dir.path()).expect("open");
+    let d0 = c.load_depth(0).expect("read").expect("depth");
+    assert_eq!((d0.width, d0.height), (W, H));
+    assert!(
+        d0.depth[0].is_nan() && d0.depth[1].is_nan(),
+        "kept=false pixels are invalid"
+    );
+    assert!((d0.depth[3] - 1.51).abs() < 1e-6, "{}", d0.depth[3]);
+    let d1 = c.load_depth(1).expect("read").expect("depth");
+    assert!(d1.depth[0].is_nan());
+    assert!((d1.depth[1] - 1.2).abs() < 1e-6);
+}

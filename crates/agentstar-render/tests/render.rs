@@ -226,3 +226,80 @@ fn renderer_reuse_clears_previous_frames() {
     assert_eq!(b, c);
     let _ = Point3::origin();
 }
+
+/// Compares against a small committed golden image with explicit tolerances. Run with
+/// `AGENTSTAR_BLESS=1` to rewrite the golden after an intended change, then look at it.
+fn assert_golden(name: &str, img: &image::RgbImage) {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("tests/golden")
+        .join(name);
+    if std::env::var_os("AGENTSTAR_BLESS").is_some() {
+        std::fs::create_dir_all(path.parent().expect("dir")).expect("mkdir");
+        img.save(&path).expect("bless");
+    }
+    let golden = image::open(&path)
+        .unwrap_or_else(|e| panic!("{}: {e} (run with AGENTSTAR_BLESS=1 once)", path.display()))
+        .to_rgb8();
+    assert_eq!(golden.dimensions(), img.dimensions());
+    let mut total = 0u64;
+    let mut far = 0u32;
+    for (a, b) in golden.pixels().zip(img.pixels()) {
+        let d: u32 = (0..3)
+            .map(|k| (a[k] as i32 - b[k] as i32).unsigned_abs())
+            .max()
+            .unwrap_or(0);
+        total += d as u64;
+        if d > 24 {
+            far += 1;
+        }
+    }
+    let n = (img.width() * img.height()) as f64;
+    assert!(
+        total as f64 / n < 2.0 && (far as f64) < 0.01 * n,
+        "{name}: mean diff {:.2}, {far} pixels far off",
+        total as f64 / n
+    );
+}
+
+#[test]
+fn shaded_part_id_and_comparison_views_match_their_goldens() {
+    use agentstar_render::views::{
+        flatten, part_id_view, shade, silhouette_comparison, ShadeOptions,
+    };
+    let model = test_model();
+    let camera = PinholeCamera::new(60.0, 60.0, 32.0, 32.0, 64, 64).expect("camera");
+    let pose = Similarity {
+        scale: 1.0,
+        rotation: UnitQuaternion::from_axis_angle(&Vector3::x_axis(), 2.0)
+            * UnitQuaternion::from_axis_angle(&Vector3::z_axis(), 0.5),
+        translation: Vector3::new(0.0, 0.0, 2.2),
+    };
+    let posed = PosedModel::new(&model, &[0.8], &pose);
+    let buffers = render_full(&camera, &posed.instances);
+    let colors: Vec<[f32; 3]> = model.parts.iter().map(|p| p.color).collect();
+    assert_golden(
+        "shaded.png",
+        &flatten(
+            &shade(&buffers, &colors, ShadeOptions::default()),
+            image::Rgb([0, 0, 0]),
+        ),
+    );
+    let (ids, vis) = part_id_view(&buffers, &model.part_names());
+    assert!(vis.iter().all(|v| v.pixels > 0), "{vis:?}");
+    assert_golden("ids.png", &ids);
+    let shifted = Similarity {
+        translation: Vector3::new(0.05, 0.0, 2.2),
+        ..pose
+    };
+    let mut r = SilhouetteRenderer::new(64, 64);
+    let other = r
+        .render(
+            &camera,
+            &PosedModel::new(&model, &[0.8], &shifted).instances,
+        )
+        .clone();
+    let hand = BitMask::from_fn(64, 64, |x, y| x > 44 && y > 40);
+    let (cmp, counts) = silhouette_comparison(&buffers.silhouette(), &other, Some(&hand));
+    assert!(counts.render_only > 0 && counts.mask_only > 0 && counts.both > counts.render_only);
+    assert_golden("compare.png", &cmp);
+}
