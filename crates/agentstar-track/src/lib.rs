@@ -1,0 +1,27 @@
+//! The numerical half of the agentic loop: pose updates in the reference harness's
+//! conventions (camera-frame orders about the pivot, object-frame rotations, flips),
+//! search spaces with their grammar and presets, scoring of candidates, searches
+//! (differential evolution with restarts, grids, explicit candidates), temporal
+//! diagnostics, and an automatic tracker for a known model. No file I/O.
+
+pub mod objective;
+pub mod search;
+pub mod space;
+pub mod temporal;
+pub mod tracker;
+pub mod update;
+
+pub use objective::{CandidateScore, FrameProblem};
+pub use search::{sweep, Candidate, SweepConfig, SweepResult, Strategy};
+pub use space::{Dof, DofRange, SearchSpace, SpaceKind};
+pub use update::{CameraOrder, GenPose};
+
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum TrackError {
+    #[error("{0}")]
+    Spec(String),
+    #[error("{0}")]
+    Invalid(String),
+    #[error(transparent)]
+    Optim(#[from] agentstar_optim::OptimError),
+}

@@ -1,0 +1,196 @@
+//! Searches over a frame problem: differential evolution with seeded restarts (run in
+//! parallel, one winner per restart, ranked), a refined grid with its 2-DOF score field, and
+//! explicit candidate lists scored exactly.
+
+use crate::objective::{CandidateScore, FrameProblem};
+use crate::space::SearchSpace;
+use crate::update::GenPose;
+use crate::TrackError;
+use agentstar_optim::{differential_evolution, grid_search, DeConfig, GridConfig};
+use rayon::prelude::*;
+
+#[derive(Debug, Clone, PartialEq)]
+pub enum Strategy {
+    /// Differential evolution with `restarts` independent runs (seeds `seed + i`).
+    De,
+    /// Cartesian grid (`steps` per DOF from the space or `default_steps`), refined.
+    Grid { default_steps: usize, refine: usize, shrink: f64 },
+    /// Score exactly these search vectors.
+    Candidates(Vec<Vec<f64>>),
+}
+
+#[derive(Debug, Clone, PartialEq)]
+pub struct SweepConfig {
+    pub strategy: Strategy,
+    pub restarts: usize,
+    /// Evaluations over all restarts (split evenly, at least 5 each).
+    pub total_evals: usize,
+    pub seed: u64,
+    pub popsize: usize,
+    pub mutation: (f64, f64),
+    pub recombination: f64,
+    /// Nelder–Mead polish evaluations over all restarts (0 = none).
+    pub polish_evals: usize,
+    /// How many ranked candidates to return (grid and candidate lists; DE returns one per restart).
+    pub topk: usize,
+}
+
+impl Default for SweepConfig {
+    fn default() -> Self {
+        SweepConfig { strategy: Strategy::De, restarts: 6, total_evals: 3600, seed: 17, popsize: 8, mutation: (0.5, 1.0), recombination: 0.8, polish_evals: 0, topk: 10 }
+    }
+}
+
+/// One ranked finalist.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Candidate {
+    pub rank: usize,
+    /// The search vector (interface units, in the space's DOF order).
+    pub x: Vec<f64>,
+    pub pose: GenPose,
+    pub score: CandidateScore,
+    pub restart: Option<usize>,
+    pub seed: Option<u64>,
+    pub pass: usize,
+}
+
+/// What one DE restart did.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RestartRecord {
+    pub restart: usize,
+    pub seed: u64,
+    pub budget: usize,
+    pub population_size: usize,
+    pub generations: usize,
+    pub generation_best: Vec<f64>,
+    pub nfev: usize,
+    pub polish_nfev: usize,
+    pub best: f64,
+    pub termination: &'static str,
+}
+
+#[derive(Debug, Clone, PartialEq)]
+pub struct SweepResult {
+    pub ranked: Vec<Candidate>,
+    pub restarts: Vec<RestartRecord>,
+    pub n_evals: usize,
+    /// For grids over exactly two DOFs with ≥ 2 steps: `(a values, b values, best score per cell)`.
+    pub score_field: Option<(Vec<f64>, Vec<f64>, Vec<Vec<Option<f64>>>)>,
+}
+
+fn rank(mut c: Vec<Candidate>, topk: usize) -> Vec<Candidate> {
+    c.sort_by(|a, b| b.score.combined.total_cmp(&a.score.combined));
+    c.truncate(topk.max(1));
+    for (i, x) in c.iter_mut().enumerate() {
+        x.rank = i;
+    }
+    c
+}
+
+/// Scores a batch of vectors in parallel, one evaluator per worker chunk.
+fn score_batch(problem: &FrameProblem<'_>, space: &SearchSpace, xs: &[Vec<f64>]) -> Vec<f64> {
+    let chunk = xs.len().div_ceil(rayon::current_num_threads().max(1) * 4).max(1);
+    xs.par_chunks(chunk)
+        .flat_map_iter(|c| {
+            let mut ev = problem.evaluator();
+            c.iter().map(|x| ev.combined(&problem.candidate(space, x))).collect::<Vec<_>>()
+        })
+        .collect()
+}
+
+pub fn sweep(problem: &FrameProblem<'_>, space: &SearchSpace, cfg: &SweepConfig) -> Result<SweepResult, TrackError> {
+    let bounds = space.bounds();
+    match &cfg.strategy {
+        Strategy::Candidates(list) => {
+            for (i, x) in list.iter().enumerate() {
+                if x.len() != space.len() {
+                    return Err(TrackError::Invalid(format!("candidate {i} has {} values for {} degrees of freedom", x.len(), space.len())));
+                }
+            }
+            let cands: Vec<Candidate> = list
+                .par_iter()
+                .map(|x| {
+                    let pose = problem.candidate(space, x);
+                    let score = problem.evaluator().score(&pose);
+                    Candidate { rank: 0, x: x.clone(), pose, score, restart: None, seed: None, pass: 0 }
+                })
+                .collect();
+            let n = cands.len();
+            Ok(SweepResult { ranked: rank(cands, cfg.topk.max(n)), restarts: vec![], n_evals: n, score_field: None })
+        }
+        Strategy::Grid { default_steps, refine, shrink } => {
+            let steps: Vec<usize> = space.ranges.iter().map(|r| r.steps.unwrap_or(*default_steps)).collect();
+            let gcfg = GridConfig { steps: steps.clone(), refine_passes: *refine, shrink: *shrink, max_points: 200_000 };
+            let pts = grid_search(&mut |xs| score_batch(problem, space, xs).into_iter().map(|s| -s).collect(), &bounds, &gcfg)?;
+            let score_field = (space.len() == 2 && steps.iter().all(|&s| s >= 2)).then(|| {
+                let first: Vec<&agentstar_optim::GridPoint> = pts.iter().filter(|p| p.pass == 0).collect();
+                let mut a: Vec<f64> = first.iter().map(|p| p.x[0]).collect();
+                let mut b: Vec<f64> = first.iter().map(|p| p.x[1]).collect();
+                a.sort_by(f64::total_cmp);
+                a.dedup();
+                b.sort_by(f64::total_cmp);
+                b.dedup();
+                let mut cells = vec![vec![None; b.len()]; a.len()];
+                for p in first {
+                    let ia = a.iter().position(|&v| v == p.x[0]).unwrap_or(0);
+                    let ib = b.iter().position(|&v| v == p.x[1]).unwrap_or(0);
+                    cells[ia][ib] = Some(-p.f);
+                }
+                (a, b, cells)
+            });
+            let n_evals = pts.len();
+            let mut best: Vec<&agentstar_optim::GridPoint> = pts.iter().collect();
+            best.sort_by(|p, q| p.f.total_cmp(&q.f));
+            best.dedup_by(|p, q| p.x == q.x);
+            let cands: Vec<Candidate> = best
+                .into_iter()
+                .take(cfg.topk.max(1))
+                .map(|p| {
+                    let pose = problem.candidate(space, &p.x);
+                    let score = problem.evaluator().score(&pose);
+                    Candidate { rank: 0, x: p.x.clone(), pose, score, restart: None, seed: None, pass: p.pass }
+                })
+                .collect();
+            Ok(SweepResult { ranked: rank(cands, cfg.topk), restarts: vec![], n_evals, score_field })
+        }
+        Strategy::De => {
+            let restarts = cfg.restarts.max(1);
+            let per = (cfg.total_evals / restarts).max(5);
+            let polish = cfg.polish_evals / restarts;
+            let x0 = problem.start_vector(space);
+            let runs: Vec<Result<(Candidate, RestartRecord), TrackError>> = (0..restarts)
+                .into_par_iter()
+                .map(|i| {
+                    let seed = cfg.seed + i as u64;
+                    let mut ev = problem.evaluator();
+                    let de = DeConfig { popsize: cfg.popsize, mutation: cfg.mutation, recombination: cfg.recombination, tol: 0.01, atol: 0.0, max_evals: per, seed, polish_evals: polish };
+                    let r = differential_evolution(&mut |x| -ev.combined(&problem.candidate(space, x)), &bounds, Some(&x0), &de)?;
+                    let pose = problem.candidate(space, &r.x);
+                    let score = ev.score(&pose);
+                    let rec = RestartRecord {
+                        restart: i,
+                        seed,
+                        budget: per,
+                        population_size: r.population_size,
+                        generations: r.generations,
+                        generation_best: r.generation_best.iter().map(|v| -v).collect(),
+                        nfev: r.nfev,
+                        polish_nfev: r.polish_nfev,
+                        best: -r.f,
+                        termination: r.termination.as_str(),
+                    };
+                    Ok((Candidate { rank: 0, x: r.x, pose, score, restart: Some(i), seed: Some(seed), pass: 0 }, rec))
+                })
+                .collect();
+            let mut cands = Vec::new();
+            let mut records = Vec::new();
+            for r in runs {
+                let (c, rec) = r?;
+                cands.push(c);
+                records.push(rec);
+            }
+            let n_evals = records.iter().map(|r| r.nfev + r.polish_nfev).sum();
+            Ok(SweepResult { ranked: rank(cands, restarts), restarts: records, n_evals, score_field: None })
+        }
+    }
+}
