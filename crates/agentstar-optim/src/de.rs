@@ -26,7 +26,16 @@ pub struct DeConfig {
 
 impl Default for DeConfig {
     fn default() -> Self {
-        DeConfig { popsize: 8, mutation: (0.5, 1.0), recombination: 0.8, tol: 0.01, atol: 0.0, max_evals: 600, seed: 17, polish_evals: 0 }
+        DeConfig {
+            popsize: 8,
+            mutation: (0.5, 1.0),
+            recombination: 0.8,
+            tol: 0.01,
+            atol: 0.0,
+            max_evals: 600,
+            seed: 17,
+            polish_evals: 0,
+        }
     }
 }
 
@@ -62,14 +71,29 @@ pub struct DeResult {
 }
 
 fn to_real(u: &[f64], bounds: &Bounds) -> Vec<f64> {
-    u.iter().zip(bounds).map(|(&v, &(lo, hi))| lo + v * (hi - lo)).collect()
+    u.iter()
+        .zip(bounds)
+        .map(|(&v, &(lo, hi))| lo + v * (hi - lo))
+        .collect()
 }
 
 /// Minimises `f` over `bounds`. `x0` (clamped into the box) replaces population member 0.
-pub fn differential_evolution(f: &mut dyn FnMut(&[f64]) -> f64, bounds: &Bounds, x0: Option<&[f64]>, cfg: &DeConfig) -> Result<DeResult, OptimError> {
+pub fn differential_evolution(
+    f: &mut dyn FnMut(&[f64]) -> f64,
+    bounds: &Bounds,
+    x0: Option<&[f64]>,
+    cfg: &DeConfig,
+) -> Result<DeResult, OptimError> {
     check_bounds(bounds)?;
-    if !(0.0..=1.0).contains(&cfg.recombination) || cfg.mutation.0 > cfg.mutation.1 || cfg.mutation.0 < 0.0 || cfg.mutation.1 > 2.0 {
-        return Err(OptimError::Config(format!("recombination {} must be in [0, 1] and mutation {:?} within [0, 2]", cfg.recombination, cfg.mutation)));
+    if !(0.0..=1.0).contains(&cfg.recombination)
+        || cfg.mutation.0 > cfg.mutation.1
+        || cfg.mutation.0 < 0.0
+        || cfg.mutation.1 > 2.0
+    {
+        return Err(OptimError::Config(format!(
+            "recombination {} must be in [0, 1] and mutation {:?} within [0, 2]",
+            cfg.recombination, cfg.mutation
+        )));
     }
     let n = bounds.len();
     let mut rng = Rng::new(cfg.seed);
@@ -86,14 +110,25 @@ pub fn differential_evolution(f: &mut dyn FnMut(&[f64]) -> f64, bounds: &Bounds,
     if n == 0 || bounds.iter().all(|&(lo, hi)| lo == hi) {
         let u = vec![0.0; n];
         let v = eval(&u, &mut nfev);
-        return Ok(DeResult { x: to_real(&u, bounds), f: v, nfev, polish_nfev: 0, population_size: 1, generations: 0, generation_best: vec![v], termination: Termination::FixedBounds });
+        return Ok(DeResult {
+            x: to_real(&u, bounds),
+            f: v,
+            nfev,
+            polish_nfev: 0,
+            population_size: 1,
+            generations: 0,
+            generation_best: vec![v],
+            termination: Termination::FixedBounds,
+        });
     }
     let np = (cfg.popsize * n).max(5);
     // Latin hypercube in the unit box.
     let mut pop: Vec<Vec<f64>> = vec![vec![0.0; n]; np];
     let seg = 1.0 / np as f64;
     for d in 0..n {
-        let mut col: Vec<f64> = (0..np).map(|i| seg * rng.uniform() + i as f64 * seg).collect();
+        let mut col: Vec<f64> = (0..np)
+            .map(|i| seg * rng.uniform() + i as f64 * seg)
+            .collect();
         rng.shuffle(&mut col);
         for (i, v) in col.into_iter().enumerate() {
             pop[i][d] = v;
@@ -103,7 +138,13 @@ pub fn differential_evolution(f: &mut dyn FnMut(&[f64]) -> f64, bounds: &Bounds,
         pop[0] = x0
             .iter()
             .zip(bounds)
-            .map(|(&v, &(lo, hi))| if hi > lo { ((v.clamp(lo, hi) - lo) / (hi - lo)).clamp(0.0, 1.0) } else { 0.0 })
+            .map(|(&v, &(lo, hi))| {
+                if hi > lo {
+                    ((v.clamp(lo, hi) - lo) / (hi - lo)).clamp(0.0, 1.0)
+                } else {
+                    0.0
+                }
+            })
             .collect();
     }
     let budget = cfg.max_evals.max(1);
@@ -114,7 +155,9 @@ pub fn differential_evolution(f: &mut dyn FnMut(&[f64]) -> f64, bounds: &Bounds,
         }
         energy[i] = eval(&pop[i], &mut nfev);
     }
-    let best = (0..np).min_by(|&a, &b| energy[a].total_cmp(&energy[b])).unwrap_or(0);
+    let best = (0..np)
+        .min_by(|&a, &b| energy[a].total_cmp(&energy[b]))
+        .unwrap_or(0);
     pop.swap(0, best);
     energy.swap(0, best);
     let mut generation_best = vec![energy[0]];
@@ -134,7 +177,11 @@ pub fn differential_evolution(f: &mut dyn FnMut(&[f64]) -> f64, bounds: &Bounds,
             termination = Termination::Converged;
             break;
         }
-        let fmut = if cfg.mutation.0 == cfg.mutation.1 { cfg.mutation.0 } else { rng.range(cfg.mutation.0, cfg.mutation.1) };
+        let fmut = if cfg.mutation.0 == cfg.mutation.1 {
+            cfg.mutation.0
+        } else {
+            rng.range(cfg.mutation.0, cfg.mutation.1)
+        };
         for c in 0..np {
             if nfev >= budget {
                 break 'outer;
@@ -184,7 +231,10 @@ pub fn differential_evolution(f: &mut dyn FnMut(&[f64]) -> f64, bounds: &Bounds,
     let mut fbest = energy[0];
     let mut polish_nfev = 0;
     if cfg.polish_evals > 0 {
-        let nm = NelderMeadConfig { max_evals: cfg.polish_evals, ..NelderMeadConfig::default() };
+        let nm = NelderMeadConfig {
+            max_evals: cfg.polish_evals,
+            ..NelderMeadConfig::default()
+        };
         let r = nelder_mead(&mut |p: &[f64]| f(p), bounds, &x, &nm)?;
         polish_nfev = r.nfev;
         if r.f < fbest {
@@ -192,7 +242,16 @@ pub fn differential_evolution(f: &mut dyn FnMut(&[f64]) -> f64, bounds: &Bounds,
             fbest = r.f;
         }
     }
-    Ok(DeResult { x, f: fbest, nfev, polish_nfev, population_size: np, generations, generation_best, termination })
+    Ok(DeResult {
+        x,
+        f: fbest,
+        nfev,
+        polish_nfev,
+        population_size: np,
+        generations,
+        generation_best,
+        termination,
+    })
 }
 
 #[cfg(test)]
@@ -204,44 +263,107 @@ mod tests {
     }
 
     fn rastrigin(x: &[f64]) -> f64 {
-        10.0 * x.len() as f64 + x.iter().map(|v| v * v - 10.0 * (std::f64::consts::TAU * v).cos()).sum::<f64>()
+        10.0 * x.len() as f64
+            + x.iter()
+                .map(|v| v * v - 10.0 * (std::f64::consts::TAU * v).cos())
+                .sum::<f64>()
     }
 
     fn rosenbrock(x: &[f64]) -> f64 {
-        (0..x.len() - 1).map(|i| 100.0 * (x[i + 1] - x[i] * x[i]).powi(2) + (1.0 - x[i]).powi(2)).sum()
+        (0..x.len() - 1)
+            .map(|i| 100.0 * (x[i + 1] - x[i] * x[i]).powi(2) + (1.0 - x[i]).powi(2))
+            .sum()
     }
 
     #[test]
     fn converges_on_analytic_functions_within_budget() {
         let b = vec![(-5.0, 5.0); 4];
-        let r = differential_evolution(&mut |x| sphere(x), &b, None, &DeConfig { max_evals: 4000, tol: 1e-8, ..DeConfig::default() }).expect("de");
+        let r = differential_evolution(
+            &mut |x| sphere(x),
+            &b,
+            None,
+            &DeConfig {
+                max_evals: 4000,
+                tol: 1e-8,
+                ..DeConfig::default()
+            },
+        )
+        .expect("de");
         assert!(r.f < 1e-6, "sphere {}", r.f);
         assert!(r.nfev <= 4000);
         let b = vec![(-5.12, 5.12); 2];
-        let r = differential_evolution(&mut |x| rastrigin(x), &b, None, &DeConfig { max_evals: 3000, tol: 1e-10, ..DeConfig::default() }).expect("de");
+        let r = differential_evolution(
+            &mut |x| rastrigin(x),
+            &b,
+            None,
+            &DeConfig {
+                max_evals: 3000,
+                tol: 1e-10,
+                ..DeConfig::default()
+            },
+        )
+        .expect("de");
         assert!(r.f < 1e-3, "rastrigin {} at {:?}", r.f, r.x);
         let b = vec![(-2.0, 2.0); 2];
-        let r = differential_evolution(&mut |x| rosenbrock(x), &b, None, &DeConfig { max_evals: 6000, tol: 1e-12, polish_evals: 400, ..DeConfig::default() }).expect("de");
-        assert!(r.f < 1e-6 && (r.x[0] - 1.0).abs() < 1e-2, "rosenbrock {} at {:?}", r.f, r.x);
+        let r = differential_evolution(
+            &mut |x| rosenbrock(x),
+            &b,
+            None,
+            &DeConfig {
+                max_evals: 6000,
+                tol: 1e-12,
+                polish_evals: 400,
+                ..DeConfig::default()
+            },
+        )
+        .expect("de");
+        assert!(
+            r.f < 1e-6 && (r.x[0] - 1.0).abs() < 1e-2,
+            "rosenbrock {} at {:?}",
+            r.f,
+            r.x
+        );
     }
 
     #[test]
     fn repeats_its_trace_for_a_seed() {
         let b = vec![(-5.12, 5.12); 3];
-        let cfg = DeConfig { max_evals: 900, seed: 42, ..DeConfig::default() };
+        let cfg = DeConfig {
+            max_evals: 900,
+            seed: 42,
+            ..DeConfig::default()
+        };
         let mut trace_a = Vec::new();
-        let a = differential_evolution(&mut |x| {
-            trace_a.push(x.to_vec());
-            rastrigin(x)
-        }, &b, None, &cfg).expect("de");
+        let a = differential_evolution(
+            &mut |x| {
+                trace_a.push(x.to_vec());
+                rastrigin(x)
+            },
+            &b,
+            None,
+            &cfg,
+        )
+        .expect("de");
         let mut trace_b = Vec::new();
-        let bb = differential_evolution(&mut |x| {
-            trace_b.push(x.to_vec());
-            rastrigin(x)
-        }, &b, None, &cfg).expect("de");
+        let bb = differential_evolution(
+            &mut |x| {
+                trace_b.push(x.to_vec());
+                rastrigin(x)
+            },
+            &b,
+            None,
+            &cfg,
+        )
+        .expect("de");
         assert_eq!(trace_a, trace_b);
         assert_eq!(a, bb);
-        let c = differential_evolution(&mut |x| rastrigin(x), &b, None, &DeConfig { seed: 43, ..cfg }).expect("de");
+        let c = differential_evolution(
+            &mut |x| rastrigin(x),
+            &b,
+            None,
+            &DeConfig { seed: 43, ..cfg },
+        )
+        .expect("de");
         assert_ne!(a.generation_best, c.generation_best);
     }
 
@@ -249,18 +371,42 @@ mod tests {
     fn x0_is_in_the_initial_population_and_budget_is_respected() {
         let b = vec![(-1.0, 1.0); 2];
         let mut first = None;
-        let r = differential_evolution(&mut |x| {
-            if first.is_none() {
-                first = Some(x.to_vec());
-            }
-            sphere(x)
-        }, &b, Some(&[0.3, 0.3]), &DeConfig { max_evals: 7, ..DeConfig::default() }).expect("de");
+        let r = differential_evolution(
+            &mut |x| {
+                if first.is_none() {
+                    first = Some(x.to_vec());
+                }
+                sphere(x)
+            },
+            &b,
+            Some(&[0.3, 0.3]),
+            &DeConfig {
+                max_evals: 7,
+                ..DeConfig::default()
+            },
+        )
+        .expect("de");
         let first = first.expect("evaluated");
-        assert!((first[0] - 0.3).abs() < 1e-12 && (first[1] - 0.3).abs() < 1e-12, "{first:?}");
+        assert!(
+            (first[0] - 0.3).abs() < 1e-12 && (first[1] - 0.3).abs() < 1e-12,
+            "{first:?}"
+        );
         assert_eq!(r.nfev, 7);
         assert!(r.f < 1e-12);
-        let fixed = differential_evolution(&mut |x| sphere(x), &[(1.0, 1.0)], None, &DeConfig::default()).expect("de");
+        let fixed = differential_evolution(
+            &mut |x| sphere(x),
+            &[(1.0, 1.0)],
+            None,
+            &DeConfig::default(),
+        )
+        .expect("de");
         assert_eq!(fixed.termination, Termination::FixedBounds);
-        assert!(differential_evolution(&mut |x| sphere(x), &[(1.0, 0.0)], None, &DeConfig::default()).is_err());
+        assert!(differential_evolution(
+            &mut |x| sphere(x),
+            &[(1.0, 0.0)],
+            None,
+            &DeConfig::default()
+        )
+        .is_err());
     }
 }

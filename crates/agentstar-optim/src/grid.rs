@@ -25,18 +25,31 @@ fn linspace(lo: f64, hi: f64, steps: usize) -> Vec<f64> {
     if steps <= 1 {
         return vec![0.5 * (lo + hi)];
     }
-    (0..steps).map(|i| lo + (hi - lo) * i as f64 / (steps - 1) as f64).collect()
+    (0..steps)
+        .map(|i| lo + (hi - lo) * i as f64 / (steps - 1) as f64)
+        .collect()
 }
 
 /// Every point of every pass, in scoring order. `f` is minimised; points of a pass are
 /// handed to `f` as one batch (so callers can score them in parallel).
-pub fn grid_search(f: &mut dyn FnMut(&[Vec<f64>]) -> Vec<f64>, bounds: &Bounds, cfg: &GridConfig) -> Result<Vec<GridPoint>, OptimError> {
+pub fn grid_search(
+    f: &mut dyn FnMut(&[Vec<f64>]) -> Vec<f64>,
+    bounds: &Bounds,
+    cfg: &GridConfig,
+) -> Result<Vec<GridPoint>, OptimError> {
     check_bounds(bounds)?;
     if cfg.steps.len() != bounds.len() {
-        return Err(OptimError::Config(format!("{} step counts for {} dimensions", cfg.steps.len(), bounds.len())));
+        return Err(OptimError::Config(format!(
+            "{} step counts for {} dimensions",
+            cfg.steps.len(),
+            bounds.len()
+        )));
     }
     if !(cfg.shrink > 0.0 && cfg.shrink <= 1.0) {
-        return Err(OptimError::Config(format!("shrink {} must be in (0, 1]", cfg.shrink)));
+        return Err(OptimError::Config(format!(
+            "shrink {} must be in (0, 1]",
+            cfg.shrink
+        )));
     }
     let total: usize = cfg.steps.iter().map(|&s| s.max(1)).product();
     if total > cfg.max_points {
@@ -45,11 +58,20 @@ pub fn grid_search(f: &mut dyn FnMut(&[Vec<f64>]) -> Vec<f64>, bounds: &Bounds, 
     let mut windows: Vec<(f64, f64)> = bounds.to_vec();
     let mut out: Vec<GridPoint> = Vec::new();
     for pass in 0..=cfg.refine_passes {
-        let axes: Vec<Vec<f64>> = windows.iter().zip(&cfg.steps).map(|(&(lo, hi), &s)| linspace(lo, hi, s)).collect();
+        let axes: Vec<Vec<f64>> = windows
+            .iter()
+            .zip(&cfg.steps)
+            .map(|(&(lo, hi), &s)| linspace(lo, hi, s))
+            .collect();
         let mut points = Vec::with_capacity(total);
         let mut idx = vec![0usize; axes.len()];
         loop {
-            points.push(idx.iter().zip(&axes).map(|(&i, a)| a[i]).collect::<Vec<f64>>());
+            points.push(
+                idx.iter()
+                    .zip(&axes)
+                    .map(|(&i, a)| a[i])
+                    .collect::<Vec<f64>>(),
+            );
             let mut d = axes.len();
             loop {
                 if d == 0 {
@@ -72,9 +94,17 @@ pub fn grid_search(f: &mut dyn FnMut(&[Vec<f64>]) -> Vec<f64>, bounds: &Bounds, 
         }
         let values = f(&points);
         for (x, v) in points.into_iter().zip(values) {
-            out.push(GridPoint { x, f: if v.is_nan() { f64::INFINITY } else { v }, pass });
+            out.push(GridPoint {
+                x,
+                f: if v.is_nan() { f64::INFINITY } else { v },
+                pass,
+            });
         }
-        let best = out.iter().min_by(|a, b| a.f.total_cmp(&b.f)).map(|p| p.x.clone()).unwrap_or_default();
+        let best = out
+            .iter()
+            .min_by(|a, b| a.f.total_cmp(&b.f))
+            .map(|p| p.x.clone())
+            .unwrap_or_default();
         windows = windows
             .iter()
             .zip(bounds)
@@ -94,15 +124,32 @@ mod tests {
 
     #[test]
     fn refinement_closes_in_on_the_minimum() {
-        let mut batch = |xs: &[Vec<f64>]| xs.iter().map(|x| (x[0] - 0.37).powi(2) + (x[1] + 0.21).powi(2)).collect::<Vec<f64>>();
-        let cfg = GridConfig { steps: vec![5, 5], refine_passes: 6, shrink: 0.5, max_points: 1000 };
+        let mut batch = |xs: &[Vec<f64>]| {
+            xs.iter()
+                .map(|x| (x[0] - 0.37).powi(2) + (x[1] + 0.21).powi(2))
+                .collect::<Vec<f64>>()
+        };
+        let cfg = GridConfig {
+            steps: vec![5, 5],
+            refine_passes: 6,
+            shrink: 0.5,
+            max_points: 1000,
+        };
         let pts = grid_search(&mut batch, &[(-1.0, 1.0), (-1.0, 1.0)], &cfg).expect("grid");
         assert_eq!(pts.len(), 25 * 7);
         let best = pts.iter().min_by(|a, b| a.f.total_cmp(&b.f)).expect("best");
         assert!(best.f < 1e-3, "{best:?}");
         assert_eq!(pts.iter().filter(|p| p.pass == 0).count(), 25);
         assert!(grid_search(&mut batch, &[(-1.0, 1.0)], &cfg).is_err());
-        let big = GridConfig { steps: vec![1000, 1000], refine_passes: 0, shrink: 0.5, max_points: 20000 };
-        assert!(grid_search(&mut batch, &[(-1.0, 1.0), (-1.0, 1.0)], &big).expect_err("too big").to_string().contains("1000000 points"));
+        let big = GridConfig {
+            steps: vec![1000, 1000],
+            refine_passes: 0,
+            shrink: 0.5,
+            max_points: 20000,
+        };
+        assert!(grid_search(&mut batch, &[(-1.0, 1.0), (-1.0, 1.0)], &big)
+            .expect_err("too big")
+            .to_string()
+            .contains("1000000 points"));
     }
 }

@@ -12,7 +12,7 @@ pub mod tracker;
 pub mod update;
 
 pub use objective::{CandidateScore, FrameProblem};
-pub use search::{sweep, Candidate, SweepConfig, SweepResult, Strategy};
+pub use search::{sweep, Candidate, Strategy, SweepConfig, SweepResult};
 pub use space::{Dof, DofRange, SearchSpace, SpaceKind};
 pub use update::{CameraOrder, GenPose};
 

@@ -3,12 +3,17 @@
 //! candidate pose and a score.
 
 use crate::space::{Dof, SearchSpace};
-use crate::update::{apply_camera_order, apply_object_rotation, pivot_in_camera, rotation_vector_deg, CameraOrder, GenPose};
+use crate::update::{
+    apply_camera_order, apply_object_rotation, pivot_in_camera, rotation_vector_deg, CameraOrder,
+    GenPose,
+};
 use agentstar_geom::{ObjectModel, PinholeCamera, Point3};
 use agentstar_render::raster::Instance;
 use agentstar_render::scene::InstanceBuilder;
 use agentstar_render::score::{combined_score, depth_score};
-use agentstar_render::{render_full, DepthObservation, PosedModel, ScoreTarget, SilhouetteRenderer};
+use agentstar_render::{
+    render_full, DepthObservation, PosedModel, ScoreTarget, SilhouetteRenderer,
+};
 
 /// Score of a candidate that would put the object behind the camera.
 pub const BEHIND_CAMERA: f64 = -1e18;
@@ -40,9 +45,24 @@ pub struct CandidateScore {
 }
 
 impl<'a> FrameProblem<'a> {
-    pub fn new(model: &'a ObjectModel, camera: PinholeCamera, target: &'a ScoreTarget, scale: f64, base: GenPose) -> Self {
+    pub fn new(
+        model: &'a ObjectModel,
+        camera: PinholeCamera,
+        target: &'a ScoreTarget,
+        scale: f64,
+        base: GenPose,
+    ) -> Self {
         let pivot = model.pivot(&base.states);
-        FrameProblem { model, camera, target, depth: None, depth_weight: 0.0, scale, base, pivot }
+        FrameProblem {
+            model,
+            camera,
+            target,
+            depth: None,
+            depth_weight: 0.0,
+            scale,
+            base,
+            pivot,
+        }
     }
 
     /// The candidate a search vector stands for: pose DOFs are increments on the base pose
@@ -68,9 +88,16 @@ impl<'a> FrameProblem<'a> {
             }
         }
         tree.clamp_states(&mut states);
-        let mut pose = apply_camera_order(&self.base.pose, self.scale, &self.pivot, &self.camera, &order);
+        let mut pose = apply_camera_order(
+            &self.base.pose,
+            self.scale,
+            &self.pivot,
+            &self.camera,
+            &order,
+        );
         if rotvec != [0.0; 3] {
-            pose = apply_object_rotation(&pose, self.scale, &self.pivot, &rotation_vector_deg(rotvec));
+            pose =
+                apply_object_rotation(&pose, self.scale, &self.pivot, &rotation_vector_deg(rotvec));
         }
         GenPose { pose, states }
     }
@@ -81,14 +108,21 @@ impl<'a> FrameProblem<'a> {
             .ranges
             .iter()
             .map(|r| match r.dof {
-                Dof::Joint(j) => self.model.tree.joints()[j].to_interface(self.base.states[j]).clamp(r.lo, r.hi),
+                Dof::Joint(j) => self.model.tree.joints()[j]
+                    .to_interface(self.base.states[j])
+                    .clamp(r.lo, r.hi),
                 _ => 0.0f64.clamp(r.lo, r.hi),
             })
             .collect()
     }
 
     pub fn evaluator(&self) -> Evaluator<'_, 'a> {
-        Evaluator { problem: self, renderer: SilhouetteRenderer::new(self.camera.width, self.camera.height), builder: InstanceBuilder::default(), instances: Vec::new() }
+        Evaluator {
+            problem: self,
+            renderer: SilhouetteRenderer::new(self.camera.width, self.camera.height),
+            builder: InstanceBuilder::default(),
+            instances: Vec::new(),
+        }
     }
 }
 
@@ -106,15 +140,32 @@ impl Evaluator<'_, '_> {
         let p = self.problem;
         let sim = g.pose.with_scale(p.scale);
         if pivot_in_camera(&g.pose, p.scale, &p.model.pivot(&g.states)).z <= 0.0 {
-            return CandidateScore { gate: 0.0, iou_raw: 0.0, iou_visible: None, depth_canon: None, combined: BEHIND_CAMERA };
+            return CandidateScore {
+                gate: 0.0,
+                iou_raw: 0.0,
+                iou_visible: None,
+                depth_canon: None,
+                combined: BEHIND_CAMERA,
+            };
         }
-        self.builder.build(p.model, &g.states, &sim, &mut self.instances);
-        let s = p.target.score(self.renderer.render(&p.camera, &self.instances));
+        self.builder
+            .build(p.model, &g.states, &sim, &mut self.instances);
+        let s = p
+            .target
+            .score(self.renderer.render(&p.camera, &self.instances));
         let depth_canon = match p.depth {
             Some(obs) if p.depth_weight > 0.0 => {
-                let buffers = render_full(&p.camera, &PosedModel::new(p.model, &g.states, &sim).instances);
+                let buffers = render_full(
+                    &p.camera,
+                    &PosedModel::new(p.model, &g.states, &sim).instances,
+                );
                 // A candidate with no scorable depth pixels takes the full penalty.
-                Some(depth_score(&buffers, obs, p.target, p.scale, 0.1).ok().flatten().map_or(1.0, |d| d.mae_canon))
+                Some(
+                    depth_score(&buffers, obs, p.target, p.scale, 0.1)
+                        .ok()
+                        .flatten()
+                        .map_or(1.0, |d| d.mae_canon),
+                )
             }
             _ => None,
         };
@@ -122,7 +173,13 @@ impl Evaluator<'_, '_> {
             Some(d) => s.gate() - p.depth_weight * d.min(1.0),
             None => combined_score(s.gate(), None, 0.0),
         };
-        CandidateScore { gate: s.gate(), iou_raw: s.iou_raw, iou_visible: s.iou_visible, depth_canon, combined }
+        CandidateScore {
+            gate: s.gate(),
+            iou_raw: s.iou_raw,
+            iou_visible: s.iou_visible,
+            depth_canon,
+            combined,
+        }
     }
 
     /// The combined score only, for search loops (no depth: one silhouette and popcounts).
@@ -135,7 +192,9 @@ impl Evaluator<'_, '_> {
         if pivot_in_camera(&g.pose, p.scale, &p.pivot).z <= 0.0 {
             return BEHIND_CAMERA;
         }
-        self.builder.build(p.model, &g.states, &sim, &mut self.instances);
-        p.target.gate(self.renderer.render(&p.camera, &self.instances))
+        self.builder
+            .build(p.model, &g.states, &sim, &mut self.instances);
+        p.target
+            .gate(self.renderer.render(&p.camera, &self.instances))
     }
 }

@@ -14,7 +14,11 @@ pub enum Strategy {
     /// Differential evolution with `restarts` independent runs (seeds `seed + i`).
     De,
     /// Cartesian grid (`steps` per DOF from the space or `default_steps`), refined.
-    Grid { default_steps: usize, refine: usize, shrink: f64 },
+    Grid {
+        default_steps: usize,
+        refine: usize,
+        shrink: f64,
+    },
     /// Score exactly these search vectors.
     Candidates(Vec<Vec<f64>>),
 }
@@ -37,7 +41,17 @@ pub struct SweepConfig {
 
 impl Default for SweepConfig {
     fn default() -> Self {
-        SweepConfig { strategy: Strategy::De, restarts: 6, total_evals: 3600, seed: 17, popsize: 8, mutation: (0.5, 1.0), recombination: 0.8, polish_evals: 0, topk: 10 }
+        SweepConfig {
+            strategy: Strategy::De,
+            restarts: 6,
+            total_evals: 3600,
+            seed: 17,
+            popsize: 8,
+            mutation: (0.5, 1.0),
+            recombination: 0.8,
+            polish_evals: 0,
+            topk: 10,
+        }
     }
 }
 
@@ -89,22 +103,35 @@ fn rank(mut c: Vec<Candidate>, topk: usize) -> Vec<Candidate> {
 
 /// Scores a batch of vectors in parallel, one evaluator per worker chunk.
 fn score_batch(problem: &FrameProblem<'_>, space: &SearchSpace, xs: &[Vec<f64>]) -> Vec<f64> {
-    let chunk = xs.len().div_ceil(rayon::current_num_threads().max(1) * 4).max(1);
+    let chunk = xs
+        .len()
+        .div_ceil(rayon::current_num_threads().max(1) * 4)
+        .max(1);
     xs.par_chunks(chunk)
         .flat_map_iter(|c| {
             let mut ev = problem.evaluator();
-            c.iter().map(|x| ev.combined(&problem.candidate(space, x))).collect::<Vec<_>>()
+            c.iter()
+                .map(|x| ev.combined(&problem.candidate(space, x)))
+                .collect::<Vec<_>>()
         })
         .collect()
 }
 
-pub fn sweep(problem: &FrameProblem<'_>, space: &SearchSpace, cfg: &SweepConfig) -> Result<SweepResult, TrackError> {
+pub fn sweep(
+    problem: &FrameProblem<'_>,
+    space: &SearchSpace,
+    cfg: &SweepConfig,
+) -> Result<SweepResult, TrackError> {
     let bounds = space.bounds();
     match &cfg.strategy {
         Strategy::Candidates(list) => {
             for (i, x) in list.iter().enumerate() {
                 if x.len() != space.len() {
-                    return Err(TrackError::Invalid(format!("candidate {i} has {} values for {} degrees of freedom", x.len(), space.len())));
+                    return Err(TrackError::Invalid(format!(
+                        "candidate {i} has {} values for {} degrees of freedom",
+                        x.len(),
+                        space.len()
+                    )));
                 }
             }
             let cands: Vec<Candidate> = list
@@ -112,18 +139,54 @@ pub fn sweep(problem: &FrameProblem<'_>, space: &SearchSpace, cfg: &SweepConfig)
                 .map(|x| {
                     let pose = problem.candidate(space, x);
                     let score = problem.evaluator().score(&pose);
-                    Candidate { rank: 0, x: x.clone(), pose, score, restart: None, seed: None, pass: 0 }
+                    Candidate {
+                        rank: 0,
+                        x: x.clone(),
+                        pose,
+                        score,
+                        restart: None,
+                        seed: None,
+                        pass: 0,
+                    }
                 })
                 .collect();
             let n = cands.len();
-            Ok(SweepResult { ranked: rank(cands, cfg.topk.max(n)), restarts: vec![], n_evals: n, score_field: None })
+            Ok(SweepResult {
+                ranked: rank(cands, cfg.topk.max(n)),
+                restarts: vec![],
+                n_evals: n,
+                score_field: None,
+            })
         }
-        Strategy::Grid { default_steps, refine, shrink } => {
-            let steps: Vec<usize> = space.ranges.iter().map(|r| r.steps.unwrap_or(*default_steps)).collect();
-            let gcfg = GridConfig { steps: steps.clone(), refine_passes: *refine, shrink: *shrink, max_points: 200_000 };
-            let pts = grid_search(&mut |xs| score_batch(problem, space, xs).into_iter().map(|s| -s).collect(), &bounds, &gcfg)?;
+        Strategy::Grid {
+            default_steps,
+            refine,
+            shrink,
+        } => {
+            let steps: Vec<usize> = space
+                .ranges
+                .iter()
+                .map(|r| r.steps.unwrap_or(*default_steps))
+                .collect();
+            let gcfg = GridConfig {
+                steps: steps.clone(),
+                refine_passes: *refine,
+                shrink: *shrink,
+                max_points: 200_000,
+            };
+            let pts = grid_search(
+                &mut |xs| {
+                    score_batch(problem, space, xs)
+                        .into_iter()
+                        .map(|s| -s)
+                        .collect()
+                },
+                &bounds,
+                &gcfg,
+            )?;
             let score_field = (space.len() == 2 && steps.iter().all(|&s| s >= 2)).then(|| {
-                let first: Vec<&agentstar_optim::GridPoint> = pts.iter().filter(|p| p.pass == 0).collect();
+                let first: Vec<&agentstar_optim::GridPoint> =
+                    pts.iter().filter(|p| p.pass == 0).collect();
                 let mut a: Vec<f64> = first.iter().map(|p| p.x[0]).collect();
                 let mut b: Vec<f64> = first.iter().map(|p| p.x[1]).collect();
                 a.sort_by(f64::total_cmp);
@@ -148,10 +211,23 @@ pub fn sweep(problem: &FrameProblem<'_>, space: &SearchSpace, cfg: &SweepConfig)
                 .map(|p| {
                     let pose = problem.candidate(space, &p.x);
                     let score = problem.evaluator().score(&pose);
-                    Candidate { rank: 0, x: p.x.clone(), pose, score, restart: None, seed: None, pass: p.pass }
+                    Candidate {
+                        rank: 0,
+                        x: p.x.clone(),
+                        pose,
+                        score,
+                        restart: None,
+                        seed: None,
+                        pass: p.pass,
+                    }
                 })
                 .collect();
-            Ok(SweepResult { ranked: rank(cands, cfg.topk), restarts: vec![], n_evals, score_field })
+            Ok(SweepResult {
+                ranked: rank(cands, cfg.topk),
+                restarts: vec![],
+                n_evals,
+                score_field,
+            })
         }
         Strategy::De => {
             let restarts = cfg.restarts.max(1);
@@ -163,8 +239,22 @@ pub fn sweep(problem: &FrameProblem<'_>, space: &SearchSpace, cfg: &SweepConfig)
                 .map(|i| {
                     let seed = cfg.seed + i as u64;
                     let mut ev = problem.evaluator();
-                    let de = DeConfig { popsize: cfg.popsize, mutation: cfg.mutation, recombination: cfg.recombination, tol: 0.01, atol: 0.0, max_evals: per, seed, polish_evals: polish };
-                    let r = differential_evolution(&mut |x| -ev.combined(&problem.candidate(space, x)), &bounds, Some(&x0), &de)?;
+                    let de = DeConfig {
+                        popsize: cfg.popsize,
+                        mutation: cfg.mutation,
+                        recombination: cfg.recombination,
+                        tol: 0.01,
+                        atol: 0.0,
+                        max_evals: per,
+                        seed,
+                        polish_evals: polish,
+                    };
+                    let r = differential_evolution(
+                        &mut |x| -ev.combined(&problem.candidate(space, x)),
+                        &bounds,
+                        Some(&x0),
+                        &de,
+                    )?;
                     let pose = problem.candidate(space, &r.x);
                     let score = ev.score(&pose);
                     let rec = RestartRecord {
@@ -179,7 +269,18 @@ pub fn sweep(problem: &FrameProblem<'_>, space: &SearchSpace, cfg: &SweepConfig)
                         best: -r.f,
                         termination: r.termination.as_str(),
                     };
-                    Ok((Candidate { rank: 0, x: r.x, pose, score, restart: Some(i), seed: Some(seed), pass: 0 }, rec))
+                    Ok((
+                        Candidate {
+                            rank: 0,
+                            x: r.x,
+                            pose,
+                            score,
+                            restart: Some(i),
+                            seed: Some(seed),
+                            pass: 0,
+                        },
+                        rec,
+                    ))
                 })
                 .collect();
             let mut cands = Vec::new();
@@ -190,7 +291,12 @@ pub fn sweep(problem: &FrameProblem<'_>, space: &SearchSpace, cfg: &SweepConfig)
                 records.push(rec);
             }
             let n_evals = records.iter().map(|r| r.nfev + r.polish_nfev).sum();
-            Ok(SweepResult { ranked: rank(cands, restarts), restarts: records, n_evals, score_field: None })
+            Ok(SweepResult {
+                ranked: rank(cands, restarts),
+                restarts: records,
+                n_evals,
+                score_field: None,
+            })
         }
     }
 }

@@ -33,13 +33,19 @@ pub enum Dof {
 
 impl Dof {
     pub fn is_camera(&self) -> bool {
-        matches!(self, Dof::Roll | Dof::Yaw | Dof::Pitch | Dof::Dpx | Dof::Dpy | Dof::Tz)
+        matches!(
+            self,
+            Dof::Roll | Dof::Yaw | Dof::Pitch | Dof::Dpx | Dof::Dpy | Dof::Tz
+        )
     }
     pub fn is_object(&self) -> bool {
         matches!(self, Dof::Rx | Dof::Ry | Dof::Rz)
     }
     pub fn is_angle(&self) -> bool {
-        matches!(self, Dof::Roll | Dof::Yaw | Dof::Pitch | Dof::Rx | Dof::Ry | Dof::Rz)
+        matches!(
+            self,
+            Dof::Roll | Dof::Yaw | Dof::Pitch | Dof::Rx | Dof::Ry | Dof::Rz
+        )
     }
     pub fn name(&self, tree: &KinematicTree) -> String {
         match self {
@@ -128,12 +134,25 @@ fn parse_dof(name: &str, tree: &KinematicTree, grammar: Grammar) -> Result<Dof, 
         "rz" => Dof::Rz,
         other => match tree.joint_index(other) {
             Some(j) if tree.joints()[j].kind.has_state() => Dof::Joint(j),
-            Some(_) => return Err(TrackError::Spec(format!("joint `{other}` is fixed and has no state to search"))),
+            Some(_) => {
+                return Err(TrackError::Spec(format!(
+                    "joint `{other}` is fixed and has no state to search"
+                )))
+            }
             None => {
-                let joints: Vec<&str> = tree.joints().iter().filter(|j| j.kind.has_state()).map(|j| j.name.as_str()).collect();
+                let joints: Vec<&str> = tree
+                    .joints()
+                    .iter()
+                    .filter(|j| j.kind.has_state())
+                    .map(|j| j.name.as_str())
+                    .collect();
                 return Err(TrackError::Spec(format!(
                     "unknown degree of freedom `{other}`; joints are {}. {GRAMMAR}",
-                    if joints.is_empty() { "(none)".to_string() } else { joints.join(", ") }
+                    if joints.is_empty() {
+                        "(none)".to_string()
+                    } else {
+                        joints.join(", ")
+                    }
                 )));
             }
         },
@@ -148,12 +167,18 @@ fn parse_dof(name: &str, tree: &KinematicTree, grammar: Grammar) -> Result<Dof, 
 fn parse_number(s: &str, term: &str) -> Result<f64, TrackError> {
     match s.trim().parse::<f64>() {
         Ok(v) if v.is_finite() => Ok(v),
-        _ => Err(TrackError::Spec(format!("`{term}`: `{s}` is not a number. {GRAMMAR}"))),
+        _ => Err(TrackError::Spec(format!(
+            "`{term}`: `{s}` is not a number. {GRAMMAR}"
+        ))),
     }
 }
 
 /// Parses a range spec. Joint windows are clipped to their limits (noted).
-pub fn parse_spec(spec: &str, tree: &KinematicTree, grammar: Grammar) -> Result<SearchSpace, TrackError> {
+pub fn parse_spec(
+    spec: &str,
+    tree: &KinematicTree,
+    grammar: Grammar,
+) -> Result<SearchSpace, TrackError> {
     let mut space = SearchSpace::default();
     for term in spec.split(';').map(str::trim).filter(|t| !t.is_empty()) {
         let Some((name, value)) = term.split_once(':') else {
@@ -161,43 +186,72 @@ pub fn parse_spec(spec: &str, tree: &KinematicTree, grammar: Grammar) -> Result<
         };
         let dof = parse_dof(name.trim(), tree, grammar)?;
         if space.ranges.iter().any(|r| r.dof == dof) {
-            return Err(TrackError::Spec(format!("`{}` is given twice", name.trim())));
+            return Err(TrackError::Spec(format!(
+                "`{}` is given twice",
+                name.trim()
+            )));
         }
         let value = value.trim();
-        let (lo, hi, steps) = if value.chars().next().is_some_and(|c| c.is_ascii_alphabetic()) && !value.contains(',') {
+        let (lo, hi, steps) = if value
+            .chars()
+            .next()
+            .is_some_and(|c| c.is_ascii_alphabetic())
+            && !value.contains(',')
+        {
             if !dof.is_angle() {
-                return Err(TrackError::Spec(format!("`{term}`: presets apply to angles only. {GRAMMAR}")));
+                return Err(TrackError::Spec(format!(
+                    "`{term}`: presets apply to angles only. {GRAMMAR}"
+                )));
             }
             let (preset, dir) = match value.split_once('_') {
                 Some((p, d)) => (p, Some(d)),
                 None => (value, None),
             };
             let Some(h) = preset_half_span(preset) else {
-                return Err(TrackError::Spec(format!("`{term}`: unknown preset `{preset}`. {GRAMMAR}")));
+                return Err(TrackError::Spec(format!(
+                    "`{term}`: unknown preset `{preset}`. {GRAMMAR}"
+                )));
             };
             match (dof, dir) {
                 (_, None) => (-h, h, None),
-                (Dof::Roll, Some("cw")) | (Dof::Yaw, Some("leftcloser")) | (Dof::Pitch, Some("topcloser")) => (0.0, 2.0 * h, None),
-                (Dof::Roll, Some("ccw")) | (Dof::Yaw, Some("rightcloser")) | (Dof::Pitch, Some("bottomcloser")) => (-2.0 * h, 0.0, None),
+                (Dof::Roll, Some("cw"))
+                | (Dof::Yaw, Some("leftcloser"))
+                | (Dof::Pitch, Some("topcloser")) => (0.0, 2.0 * h, None),
+                (Dof::Roll, Some("ccw"))
+                | (Dof::Yaw, Some("rightcloser"))
+                | (Dof::Pitch, Some("bottomcloser")) => (-2.0 * h, 0.0, None),
                 (d, Some(other)) if d.is_object() => {
                     return Err(TrackError::Spec(format!("`{term}`: object-frame axes take symmetric presets only (got direction `{other}`)")));
                 }
-                (_, Some(other)) => return Err(TrackError::Spec(format!("`{term}`: `{other}` is not a direction of `{}`. {GRAMMAR}", name.trim()))),
+                (_, Some(other)) => {
+                    return Err(TrackError::Spec(format!(
+                        "`{term}`: `{other}` is not a direction of `{}`. {GRAMMAR}",
+                        name.trim()
+                    )))
+                }
             }
         } else {
             let parts: Vec<&str> = value.split(',').collect();
             if parts.len() < 2 || parts.len() > 3 {
-                return Err(TrackError::Spec(format!("`{term}`: expected `lower,upper` or `lower,upper,steps`. {GRAMMAR}")));
+                return Err(TrackError::Spec(format!(
+                    "`{term}`: expected `lower,upper` or `lower,upper,steps`. {GRAMMAR}"
+                )));
             }
             let lo = parse_number(parts[0], term)?;
             let hi = parse_number(parts[1], term)?;
             if lo > hi {
-                return Err(TrackError::Spec(format!("`{term}`: lower {lo} is above upper {hi}")));
+                return Err(TrackError::Spec(format!(
+                    "`{term}`: lower {lo} is above upper {hi}"
+                )));
             }
             let steps = match parts.get(2) {
                 Some(s) => match s.trim().parse::<usize>() {
                     Ok(n) if n >= 1 => Some(n),
-                    _ => return Err(TrackError::Spec(format!("`{term}`: steps `{s}` must be a whole number ≥ 1"))),
+                    _ => {
+                        return Err(TrackError::Spec(format!(
+                            "`{term}`: steps `{s}` must be a whole number ≥ 1"
+                        )))
+                    }
                 },
                 None => None,
             };
@@ -209,13 +263,24 @@ pub fn parse_spec(spec: &str, tree: &KinematicTree, grammar: Grammar) -> Result<
     Ok(space)
 }
 
-fn clip_joint(dof: Dof, lo: f64, hi: f64, tree: &KinematicTree, notes: &mut Vec<String>) -> (f64, f64) {
+fn clip_joint(
+    dof: Dof,
+    lo: f64,
+    hi: f64,
+    tree: &KinematicTree,
+    notes: &mut Vec<String>,
+) -> (f64, f64) {
     let Dof::Joint(j) = dof else { return (lo, hi) };
     let jd = &tree.joints()[j];
-    let Some((llo, lhi)) = jd.limit else { return (lo, hi) };
+    let Some((llo, lhi)) = jd.limit else {
+        return (lo, hi);
+    };
     let (clo, chi) = (lo.clamp(llo, lhi), hi.clamp(llo, lhi));
     if (clo, chi) != (lo, hi) {
-        notes.push(format!("joint `{}`: window [{lo}, {hi}] clipped to its limit as [{clo}, {chi}]", jd.name));
+        notes.push(format!(
+            "joint `{}`: window [{lo}, {hi}] clipped to its limit as [{clo}, {chi}]",
+            jd.name
+        ));
     }
     (clo, chi)
 }
@@ -223,7 +288,11 @@ fn clip_joint(dof: Dof, lo: f64, hi: f64, tree: &KinematicTree, notes: &mut Vec<
 /// The default span of a joint: its limit, else ±180° (revolute) or ±1 (prismatic).
 pub fn joint_default(tree: &KinematicTree, j: usize) -> (f64, f64) {
     let jd = &tree.joints()[j];
-    jd.limit.unwrap_or(if jd.kind.is_angular() { (-180.0, 180.0) } else { (-1.0, 1.0) })
+    jd.limit.unwrap_or(if jd.kind.is_angular() {
+        (-180.0, 180.0)
+    } else {
+        (-1.0, 1.0)
+    })
 }
 
 /// The reference's default boxes: pose ±15° angles, dpx/dpy ±0.08, tz ±0.1; joints over
@@ -236,12 +305,29 @@ pub fn default_space(kind: SpaceKind, tree: &KinematicTree) -> SearchSpace {
         .filter(|(_, j)| j.kind.has_state())
         .map(|(i, _)| {
             let (lo, hi) = joint_default(tree, i);
-            DofRange { dof: Dof::Joint(i), lo, hi, steps: None }
+            DofRange {
+                dof: Dof::Joint(i),
+                lo,
+                hi,
+                steps: None,
+            }
         })
         .collect();
-    let r = |dof, h: f64| DofRange { dof, lo: -h, hi: h, steps: None };
+    let r = |dof, h: f64| DofRange {
+        dof,
+        lo: -h,
+        hi: h,
+        steps: None,
+    };
     let ranges = match kind {
-        SpaceKind::Pose => vec![r(Dof::Roll, 15.0), r(Dof::Yaw, 15.0), r(Dof::Pitch, 15.0), r(Dof::Dpx, 0.08), r(Dof::Dpy, 0.08), r(Dof::Tz, 0.1)],
+        SpaceKind::Pose => vec![
+            r(Dof::Roll, 15.0),
+            r(Dof::Yaw, 15.0),
+            r(Dof::Pitch, 15.0),
+            r(Dof::Dpx, 0.08),
+            r(Dof::Dpy, 0.08),
+            r(Dof::Tz, 0.1),
+        ],
         SpaceKind::Joint => joints,
         SpaceKind::Both => {
             let mut v = vec![r(Dof::Yaw, 15.0), r(Dof::Tz, 0.1)];
@@ -249,13 +335,21 @@ pub fn default_space(kind: SpaceKind, tree: &KinematicTree) -> SearchSpace {
             v
         }
     };
-    SearchSpace { ranges, notes: vec![] }
+    SearchSpace {
+        ranges,
+        notes: vec![],
+    }
 }
 
 /// A space from an optional spec and kind: an empty spec gives the default box of the kind
 /// (pose when unspecified); a spec with a kind of `both` or `pose` keeps the named ranges
 /// and fills the default box's other DOFs.
-pub fn build_space(spec: Option<&str>, kind: Option<SpaceKind>, tree: &KinematicTree, grammar: Grammar) -> Result<SearchSpace, TrackError> {
+pub fn build_space(
+    spec: Option<&str>,
+    kind: Option<SpaceKind>,
+    tree: &KinematicTree,
+    grammar: Grammar,
+) -> Result<SearchSpace, TrackError> {
     let parsed = match spec {
         Some(s) if !s.trim().is_empty() => Some(parse_spec(s, tree, grammar)?),
         _ => None,
@@ -264,7 +358,15 @@ pub fn build_space(spec: Option<&str>, kind: Option<SpaceKind>, tree: &Kinematic
         (None, k) => Ok(match grammar {
             Grammar::Camera => default_space(k.unwrap_or(SpaceKind::Pose), tree),
             Grammar::Object => SearchSpace {
-                ranges: [Dof::Rx, Dof::Ry, Dof::Rz].into_iter().map(|d| DofRange { dof: d, lo: -15.0, hi: 15.0, steps: None }).collect(),
+                ranges: [Dof::Rx, Dof::Ry, Dof::Rz]
+                    .into_iter()
+                    .map(|d| DofRange {
+                        dof: d,
+                        lo: -15.0,
+                        hi: 15.0,
+                        steps: None,
+                    })
+                    .collect(),
                 notes: vec![],
             },
         }),
@@ -287,15 +389,35 @@ mod tests {
     use agentstar_geom::Vector3;
 
     fn tree() -> KinematicTree {
-        let j = JointDef { name: "hinge".into(), kind: JointKind::Revolute, parent: None, child: vec!["lid".into()], origin: Vector3::zeros(), axis: Vector3::x(), limit: Some((0.0, 120.0)) };
+        let j = JointDef {
+            name: "hinge".into(),
+            kind: JointKind::Revolute,
+            parent: None,
+            child: vec!["lid".into()],
+            origin: Vector3::zeros(),
+            axis: Vector3::x(),
+            limit: Some((0.0, 120.0)),
+        };
         KinematicTree::new(vec![j], &["base".into(), "lid".into()]).expect("tree")
     }
 
     #[test]
     fn presets_and_directions() {
-        let s = parse_spec("pitch:standard_topcloser; roll:tiny_cw; yaw:large_rightcloser; rz:huge", &tree(), Grammar::Camera);
-        assert!(s.expect_err("rz in camera grammar").to_string().contains("object-frame rotation; use osweep"));
-        let s = parse_spec("pitch:standard_topcloser; roll:tiny_cw; yaw:large_rightcloser; tz:-0.1,0.2,5", &tree(), Grammar::Camera).expect("spec");
+        let s = parse_spec(
+            "pitch:standard_topcloser; roll:tiny_cw; yaw:large_rightcloser; rz:huge",
+            &tree(),
+            Grammar::Camera,
+        );
+        assert!(s
+            .expect_err("rz in camera grammar")
+            .to_string()
+            .contains("object-frame rotation; use osweep"));
+        let s = parse_spec(
+            "pitch:standard_topcloser; roll:tiny_cw; yaw:large_rightcloser; tz:-0.1,0.2,5",
+            &tree(),
+            Grammar::Camera,
+        )
+        .expect("spec");
         let r: Vec<(f64, f64)> = s.bounds();
         assert_eq!(r, vec![(0.0, 30.0), (0.0, 10.0), (-60.0, 0.0), (-0.1, 0.2)]);
         assert_eq!(s.ranges[3].steps, Some(5));
@@ -314,24 +436,53 @@ mod tests {
             ("yaw:enormous", "unknown preset"),
             ("dpx:standard", "presets apply to angles only"),
             ("roll:standard_leftcloser", "not a direction of `roll`"),
-            ("hinj:0,30", "unknown degree of freedom `hinj`; joints are hinge"),
+            (
+                "hinj:0,30",
+                "unknown degree of freedom `hinj`; joints are hinge",
+            ),
             ("tz:0,1,0", "steps"),
             ("yaw:1,2;yaw:3,4", "given twice"),
         ] {
-            let e = parse_spec(spec, &tree(), Grammar::Camera).expect_err(spec).to_string();
+            let e = parse_spec(spec, &tree(), Grammar::Camera)
+                .expect_err(spec)
+                .to_string();
             assert!(e.contains(needle), "{spec}: {e}");
         }
-        let e = parse_spec("yaw:1", &tree(), Grammar::Camera).expect_err("grammar").to_string();
+        let e = parse_spec("yaw:1", &tree(), Grammar::Camera)
+            .expect_err("grammar")
+            .to_string();
         assert!(e.contains("dof:lower,upper[,steps]"), "{e}");
-        assert!(parse_spec("tz:-1,1", &tree(), Grammar::Object).expect_err("camera in object").to_string().contains("use sweep/apply"));
+        assert!(parse_spec("tz:-1,1", &tree(), Grammar::Object)
+            .expect_err("camera in object")
+            .to_string()
+            .contains("use sweep/apply"));
     }
 
     #[test]
     fn defaults_follow_the_reference() {
         let t = tree();
-        assert_eq!(default_space(SpaceKind::Pose, &t).bounds(), vec![(-15.0, 15.0), (-15.0, 15.0), (-15.0, 15.0), (-0.08, 0.08), (-0.08, 0.08), (-0.1, 0.1)]);
-        assert_eq!(default_space(SpaceKind::Both, &t).bounds(), vec![(-15.0, 15.0), (-0.1, 0.1), (0.0, 120.0)]);
-        let b = build_space(Some("hinge:10,20"), Some(SpaceKind::Pose), &t, Grammar::Camera).expect("space");
+        assert_eq!(
+            default_space(SpaceKind::Pose, &t).bounds(),
+            vec![
+                (-15.0, 15.0),
+                (-15.0, 15.0),
+                (-15.0, 15.0),
+                (-0.08, 0.08),
+                (-0.08, 0.08),
+                (-0.1, 0.1)
+            ]
+        );
+        assert_eq!(
+            default_space(SpaceKind::Both, &t).bounds(),
+            vec![(-15.0, 15.0), (-0.1, 0.1), (0.0, 120.0)]
+        );
+        let b = build_space(
+            Some("hinge:10,20"),
+            Some(SpaceKind::Pose),
+            &t,
+            Grammar::Camera,
+        )
+        .expect("space");
         assert_eq!(b.len(), 7);
     }
 }

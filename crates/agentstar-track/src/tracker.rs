@@ -1,0 +1,711 @@
+//! The automatic tracker: fits every keyframe's pose and joint states for a known model
+//! from masks alone. A global initialisation of the frame with the most visible mask (a
+//! covering of rotations and joint states, each placed on the mask by centroid and area,
+//! then differential evolution from the best hypotheses); propagation through the sequence
+//! from the neighbours (through the cameras and by constant velocity), with a wide search
+//! (flips and a covering around the seed) whenever the score drops; a final consistency pass
+//! that searches temporal outliers again from their neighbours.
+
+use crate::objective::FrameProblem;
+use crate::search::{sweep, SweepConfig};
+use crate::space::{joint_default, Dof, DofRange, SearchSpace};
+use crate::temporal::angle_deg;
+use crate::update::{apply_object_rotation, flip, GenPose};
+use crate::TrackError;
+use agentstar_geom::pose::{ObjectPose, Rigid};
+use agentstar_geom::{ObjectModel, PinholeCamera, UnitQuaternion, Vector3};
+use agentstar_optim::Rng;
+use agentstar_render::ScoreTarget;
+use rayon::prelude::*;
+
+/// One frame to track.
+#[derive(Debug, Clone)]
+pub struct TrackFrame<'a> {
+    pub name: String,
+    pub camera: PinholeCamera,
+    pub target: &'a ScoreTarget,
+    pub world_from_camera: Option<Rigid>,
+}
+
+#[derive(Debug, Clone, PartialEq)]
+pub struct TrackConfig {
+    pub seed: u64,
+    /// Rotations in the initial covering.
+    pub rotations: usize,
+    /// Samples per joint in the initial covering.
+    pub joint_samples: usize,
+    /// Evaluations of each local search.
+    pub local_evals: usize,
+    /// A frame whose score falls under this, or this far under its neighbour's, gets a wide search.
+    pub drop_threshold: f64,
+    pub drop_margin: f64,
+    /// Search temporal outliers again at the end.
+    pub consistency_pass: bool,
+    /// Start from this frame instead of the one with the largest visible mask.
+    pub init_frame: Option<usize>,
+}
+
+impl Default for TrackConfig {
+    fn default() -> Self {
+        TrackConfig {
+            seed: 17,
+            rotations: 240,
+            joint_samples: 3,
+            local_evals: 2400,
+            drop_threshold: 0.92,
+            drop_margin: 0.04,
+            consistency_pass: true,
+            init_frame: None,
+        }
+    }
+}
+
+#[derive(Debug, Clone, PartialEq)]
+pub struct TrackResult {
+    pub poses: Vec<GenPose>,
+    /// Gate IoU per frame.
+    pub scores: Vec<f64>,
+    pub init_frame: usize,
+    /// What the tracker did, frame by frame, for people to read.
+    pub log: Vec<String>,
+    pub evaluations: usize,
+}
+
+fn haar_rotations(n: usize, seed: u64) -> Vec<UnitQuaternion> {
+    let mut rng = Rng::new(seed);
+    let mut v = vec![UnitQuaternion::identity()];
+    while v.len() < n.max(1) {
+        let q = agentstar_geom::nalgebra::Quaternion::new(
+            rng.normal(),
+            rng.normal(),
+            rng.normal(),
+            rng.normal(),
+        );
+        if q.norm() > 1e-6 {
+            v.push(UnitQuaternion::from_quaternion(q));
+        }
+    }
+    v
+}
+
+fn mask_stats(target: &ScoreTarget) -> Option<(f64, f64, f64)> {
+    let m = target.mask();
+    let (mut n, mut sx, mut sy) = (0u64, 0f64, 0f64);
+    for y in 0..m.height() {
+        for x in 0..m.width() {
+            if m.get(x, y) {
+                n += 1;
+                sx += x as f64 + 0.5;
+                sy += y as f64 + 0.5;
+            }
+        }
+    }
+    (n > 0).then(|| (sx / n as f64, sy / n as f64, n as f64))
+}
+
+/// Places a rotation and joint state on the mask: pivot on the mask centroid, depth from
+/// the ratio of rendered to observed area (two corrections). Returns the pose and its score.
+fn place(
+    model: &ObjectModel,
+    frame: &TrackFrame<'_>,
+    scale: f64,
+    rotation: UnitQuaternion,
+    states: &[f64],
+    stats: (f64, f64, f64),
+) -> (GenPose, f64) {
+    let cam = &frame.camera;
+    let pivot = model.pivot(states);
+    let radius = (model.posed_bounds(states).extent().norm() * 0.5 * scale).max(1e-9);
+    let (cx, cy, area) = stats;
+    let r_px = (area / std::f64::consts::PI).sqrt().max(1.0);
+    let mut z = cam.fx * radius / r_px;
+    let mut centre = (cx, cy);
+    let problem_pose = |z: f64, centre: (f64, f64)| {
+        let c_cam = Vector3::new(
+            (centre.0 - cam.cx) / cam.fx * z,
+            (centre.1 - cam.cy) / cam.fy * z,
+            z,
+        );
+        ObjectPose::new(rotation, c_cam - rotation * (pivot.coords * scale))
+    };
+    let base = GenPose {
+        pose: problem_pose(z, centre),
+        states: states.to_vec(),
+    };
+    let problem = FrameProblem::new(model, *cam, frame.target, scale, base);
+    let mut ev = problem.evaluator();
+    let mut r = agentstar_render::SilhouetteRenderer::new(cam.width, cam.height);
+    for _ in 0..2 {
+        let pose = problem_pose(z, centre);
+        let inst = agentstar_render::PosedModel::new(model, states, &pose.with_scale(scale));
+        let sil = r.render(cam, &inst.instances);
+        let rendered = sil.count() as f64;
+        if rendered < 1.0 {
+            break;
+        }
+        // Move the render's centroid onto the mask's and match the areas.
+        let (mut sx, mut sy) = (0.0, 0.0);
+        for y in 0..sil.height() {
+            for x in 0..sil.width() {
+                if sil.get(x, y) {
+                    sx += x as f64 + 0.5;
+                    sy += y as f64 + 0.5;
+                }
+            }
+        }
+        let (rx, ry) = (sx / rendered, sy / rendered);
+        centre = (centre.0 + (cx - rx), centre.1 + (cy - ry));
+        z *= (rendered / area).sqrt();
+    }
+    let g = GenPose {
+        pose: problem_pose(z, centre),
+        states: states.to_vec(),
+    };
+    let s = ev.combined(&g);
+    (g, s)
+}
+
+/// The local search box around a pose: camera-frame increments and joints around their state.
+fn local_space(
+    model: &ObjectModel,
+    base: &GenPose,
+    angle: f64,
+    shift: f64,
+    depth: f64,
+    joint_deg: f64,
+) -> SearchSpace {
+    let mut ranges = vec![
+        DofRange {
+            dof: Dof::Roll,
+            lo: -angle,
+            hi: angle,
+            steps: None,
+        },
+        DofRange {
+            dof: Dof::Yaw,
+            lo: -angle,
+            hi: angle,
+            steps: None,
+        },
+        DofRange {
+            dof: Dof::Pitch,
+            lo: -angle,
+            hi: angle,
+            steps: None,
+        },
+        DofRange {
+            dof: Dof::Dpx,
+            lo: -shift,
+            hi: shift,
+            steps: None,
+        },
+        DofRange {
+            dof: Dof::Dpy,
+            lo: -shift,
+            hi: shift,
+            steps: None,
+        },
+        DofRange {
+            dof: Dof::Tz,
+            lo: -depth,
+            hi: depth,
+            steps: None,
+        },
+    ];
+    for (j, jd) in model.tree.joints().iter().enumerate() {
+        if !jd.kind.has_state() {
+            continue;
+        }
+        let (dlo, dhi) = joint_default(&model.tree, j);
+        let cur = jd.to_interface(base.states[j]);
+        let span = if jd.kind.is_angular() {
+            joint_deg
+        } else {
+            joint_deg / 180.0 * (dhi - dlo).abs().max(1e-6)
+        };
+        let (lo, hi) = ((cur - span).max(dlo), (cur + span).min(dhi));
+        ranges.push(DofRange {
+            dof: Dof::Joint(j),
+            lo: lo.min(hi),
+            hi: hi.max(lo),
+            steps: None,
+        });
+    }
+    SearchSpace {
+        ranges,
+        notes: vec![],
+    }
+}
+
+struct Searcher<'m> {
+    model: &'m ObjectModel,
+    scale: f64,
+    cfg: TrackConfig,
+    evals: std::sync::atomic::AtomicUsize,
+}
+
+impl Searcher<'_> {
+    /// DE around `base` in a box, then passes in shrinking boxes re-centred on the best so
+    /// far (each re-based, so its pivot follows), the last with a Nelder–Mead polish.
+    #[allow(clippy::too_many_arguments)]
+    fn refine(
+        &self,
+        frame: &TrackFrame<'_>,
+        base: &GenPose,
+        angle: f64,
+        shift: f64,
+        depth: f64,
+        joint_deg: f64,
+        evals: usize,
+        seed: u64,
+    ) -> Result<(GenPose, f64), TrackError> {
+        let passes = [
+            (1.0, evals, 0usize),
+            (0.3, evals / 2, 0),
+            (0.1, evals / 3, 0),
+            (0.04, evals / 4, 300),
+        ];
+        let mut best = base.clone();
+        let mut best_score = f64::NEG_INFINITY;
+        for (k, &(f, n, polish)) in passes.iter().enumerate() {
+            let problem = FrameProblem::new(
+                self.model,
+                frame.camera,
+                frame.target,
+                self.scale,
+                best.clone(),
+            );
+            let space = local_space(
+                self.model,
+                &best,
+                (angle * f).max(0.5),
+                (shift * f).max(0.002),
+                (depth * f).max(0.004),
+                (joint_deg * f).max(1.0),
+            );
+            let cfg = SweepConfig {
+                restarts: 2,
+                total_evals: n.max(40),
+                seed: seed + 1000 * k as u64,
+                polish_evals: polish,
+                ..SweepConfig::default()
+            };
+            let r = sweep(&problem, &space, &cfg)?;
+            self.evals
+                .fetch_add(r.n_evals, std::sync::atomic::Ordering::Relaxed);
+            let top = r
+                .ranked
+                .into_iter()
+                .next()
+                .ok_or_else(|| TrackError::Invalid("empty search".into()))?;
+            if top.score.combined >= best_score {
+                best_score = top.score.combined;
+                best = top.pose;
+            }
+        }
+        Ok((best, best_score))
+    }
+
+    fn joint_grid(&self) -> Vec<Vec<f64>> {
+        let tree = &self.model.tree;
+        let mut combos: Vec<Vec<f64>> = vec![tree.rest_states()];
+        for (j, jd) in tree.joints().iter().enumerate() {
+            if !jd.kind.has_state() {
+                continue;
+            }
+            let (lo, hi) = joint_default(tree, j);
+            let n = self.cfg.joint_samples.max(1);
+            let values: Vec<f64> = (0..n)
+                .map(|k| {
+                    jd.to_internal(if n == 1 {
+                        0.5 * (lo + hi)
+                    } else {
+                        lo + (hi - lo) * (k as f64 + 0.5) / n as f64
+                    })
+                })
+                .collect();
+            combos = combos
+                .iter()
+                .flat_map(|c| {
+                    values.iter().map(move |&v| {
+                        let mut c = c.clone();
+                        c[j] = v;
+                        c
+                    })
+                })
+                .collect();
+            if combos.len() > 64 {
+                break;
+            }
+        }
+        combos
+    }
+
+    /// Hypotheses placed on the mask, best first.
+    fn covering(
+        &self,
+        frame: &TrackFrame<'_>,
+        rotations: &[UnitQuaternion],
+        joint_sets: &[Vec<f64>],
+    ) -> Vec<(GenPose, f64)> {
+        let Some(stats) = mask_stats(frame.target) else {
+            return vec![];
+        };
+        let hyps: Vec<(UnitQuaternion, Vec<f64>)> = rotations
+            .iter()
+            .flat_map(|r| joint_sets.iter().map(move |s| (*r, s.clone())))
+            .collect();
+        self.evals
+            .fetch_add(hyps.len() * 3, std::sync::atomic::Ordering::Relaxed);
+        let mut placed: Vec<(GenPose, f64)> = hyps
+            .par_iter()
+            .map(|(r, s)| place(self.model, frame, self.scale, *r, s, stats))
+            .collect();
+        placed.sort_by(|a, b| b.1.total_cmp(&a.1));
+        placed
+    }
+}
+
+fn transfer(pose: &ObjectPose, from: &TrackFrame<'_>, to: &TrackFrame<'_>) -> ObjectPose {
+    match (from.world_from_camera, to.world_from_camera) {
+        (Some(a), Some(b)) => agentstar_geom::pose::seed_from_reference(&b, &a, pose),
+        _ => *pose,
+    }
+}
+
+/// Constant-velocity extrapolation from two previous poses (in the later one's camera).
+fn extrapolate(prev2: &GenPose, prev: &GenPose, tree: &agentstar_geom::KinematicTree) -> GenPose {
+    let step = prev.pose.rotation * prev2.pose.rotation.inverse();
+    let rotation = step * prev.pose.rotation;
+    let translation = prev.pose.translation + (prev.pose.translation - prev2.pose.translation);
+    let mut states: Vec<f64> = prev
+        .states
+        .iter()
+        .zip(&prev2.states)
+        .map(|(a, b)| a + (a - b))
+        .collect();
+    tree.clamp_states(&mut states);
+    GenPose {
+        pose: ObjectPose::new(rotation, translation),
+        states,
+    }
+}
+
+/// Tracks every frame. `scale` is the shared object scale (from the pose file or known).
+pub fn track(
+    model: &ObjectModel,
+    scale: f64,
+    frames: &[TrackFrame<'_>],
+    cfg: &TrackConfig,
+) -> Result<TrackResult, TrackError> {
+    if frames.is_empty() {
+        return Err(TrackError::Invalid("no frames to track".into()));
+    }
+    if !(scale.is_finite() && scale > 0.0) {
+        return Err(TrackError::Invalid(format!(
+            "scale {scale} must be positive"
+        )));
+    }
+    let s = Searcher {
+        model,
+        scale,
+        cfg: cfg.clone(),
+        evals: Default::default(),
+    };
+    let mut log = Vec::new();
+    // The frame with the most visible mask.
+    let init = match cfg.init_frame {
+        Some(i) if i < frames.len() => i,
+        _ => (0..frames.len())
+            .max_by_key(|&i| {
+                let t = frames[i].target;
+                let vis = match t.keep() {
+                    Some(k) => t.mask().and(k).count(),
+                    None => t.mask().count(),
+                };
+                (vis, std::cmp::Reverse(i))
+            })
+            .unwrap_or(0),
+    };
+    let rotations = haar_rotations(cfg.rotations, cfg.seed);
+    let joint_sets = s.joint_grid();
+    let hyps = s.covering(&frames[init], &rotations, &joint_sets);
+    if hyps.is_empty() {
+        return Err(TrackError::Invalid(format!(
+            "frame {} has an empty object mask; cannot initialise",
+            frames[init].name
+        )));
+    }
+    let top: Vec<GenPose> = hyps.iter().take(6).map(|h| h.0.clone()).collect();
+    let refined: Vec<Result<(GenPose, f64), TrackError>> = top
+        .par_iter()
+        .enumerate()
+        .map(|(k, g)| {
+            s.refine(
+                &frames[init],
+                g,
+                25.0,
+                0.06,
+                0.15,
+                60.0,
+                cfg.local_evals,
+                cfg.seed + 100 * k as u64,
+            )
+        })
+        .collect();
+    let mut best: Option<(GenPose, f64)> = None;
+    for r in refined {
+        let r = r?;
+        if best.as_ref().is_none_or(|b| r.1 > b.1) {
+            best = Some(r);
+        }
+    }
+    let (g0, s0) =
+        best.ok_or_else(|| TrackError::Invalid("initialisation found nothing".into()))?;
+    log.push(format!(
+        "init {}: covering of {} hypotheses, best placed {:.3}, refined {:.4}",
+        frames[init].name,
+        hyps.len(),
+        hyps[0].1,
+        s0
+    ));
+    let n = frames.len();
+    let mut poses: Vec<Option<GenPose>> = vec![None; n];
+    let mut scores = vec![0.0; n];
+    poses[init] = Some(g0);
+    scores[init] = s0;
+    // Forward then backward from the initial frame.
+    let order: Vec<(usize, isize)> = ((init + 1)..n)
+        .map(|i| (i, -1))
+        .chain((0..init).rev().map(|i| (i, 1)))
+        .collect();
+    for (i, dir) in order {
+        let prev_i = (i as isize + dir) as usize;
+        let prev = poses[prev_i]
+            .clone()
+            .ok_or_else(|| TrackError::Invalid("propagation order".into()))?;
+        let mut seeds = vec![GenPose {
+            pose: transfer(&prev.pose, &frames[prev_i], &frames[i]),
+            states: prev.states.clone(),
+        }];
+        let prev2_i = prev_i as isize + dir;
+        if prev2_i >= 0 && (prev2_i as usize) < n {
+            if let Some(p2) = &poses[prev2_i as usize] {
+                let p2t = GenPose {
+                    pose: transfer(
+                        &transfer(&p2.pose, &frames[prev2_i as usize], &frames[prev_i]),
+                        &frames[prev_i],
+                        &frames[i],
+                    ),
+                    states: p2.states.clone(),
+                };
+                let prevt = seeds[0].clone();
+                seeds.push(extrapolate(&p2t, &prevt, &model.tree));
+            }
+        }
+        let results: Vec<Result<(GenPose, f64), TrackError>> = seeds
+            .par_iter()
+            .enumerate()
+            .map(|(k, g)| {
+                s.refine(
+                    &frames[i],
+                    g,
+                    30.0,
+                    0.08,
+                    0.15,
+                    40.0,
+                    cfg.local_evals,
+                    cfg.seed + 7919 * i as u64 + k as u64,
+                )
+            })
+            .collect();
+        let mut best: Option<(GenPose, f64)> = None;
+        for r in results {
+            let r = r?;
+            if best.as_ref().is_none_or(|b| r.1 > b.1) {
+                best = Some(r);
+            }
+        }
+        let (mut g, mut sc) =
+            best.ok_or_else(|| TrackError::Invalid("search found nothing".into()))?;
+        let mut how = "local";
+        if sc < cfg.drop_threshold || sc < scores[prev_i] - cfg.drop_margin {
+            // Wide search: flips of the best, and a covering of rotations around the seed.
+            let pivot = model.pivot(&g.states);
+            let mut rots: Vec<UnitQuaternion> = ['x', 'y', 'z']
+                .iter()
+                .filter_map(|&a| flip(a))
+                .map(|f| apply_object_rotation(&g.pose, scale, &pivot, &f).rotation)
+                .collect();
+            for q in haar_rotations(cfg.rotations / 2, cfg.seed + i as u64) {
+                let cand = q * seeds[0].pose.rotation;
+                if angle_deg(&(cand * seeds[0].pose.rotation.inverse())) <= 120.0 {
+                    rots.push(cand);
+                }
+            }
+            let mut joint_sets = s.joint_grid();
+            joint_sets.push(g.states.clone());
+            let hyps = s.covering(&frames[i], &rots, &joint_sets);
+            let wide: Vec<Result<(GenPose, f64), TrackError>> = hyps
+                .iter()
+                .take(4)
+                .enumerate()
+                .map(|(k, h)| (k, h.0.clone()))
+                .collect::<Vec<_>>()
+                .par_iter()
+                .map(|(k, h)| {
+                    s.refine(
+                        &frames[i],
+                        h,
+                        25.0,
+                        0.06,
+                        0.15,
+                        60.0,
+                        cfg.local_evals,
+                        cfg.seed + 31 * i as u64 + *k as u64,
+                    )
+                })
+                .collect();
+            for r in wide {
+                let r = r?;
+                if r.1 > sc {
+                    (g, sc) = r;
+                    how = "wide";
+                }
+            }
+        }
+        log.push(format!(
+            "{} from {}: {how} search, IoU {sc:.4}",
+            frames[i].name, frames[prev_i].name
+        ));
+        poses[i] = Some(g);
+        scores[i] = sc;
+    }
+    let mut poses: Vec<GenPose> = poses
+        .into_iter()
+        .map(|p| p.ok_or_else(|| TrackError::Invalid("a frame was not tracked".into())))
+        .collect::<Result<_, _>>()?;
+    if cfg.consistency_pass && n >= 2 {
+        consistency(&s, frames, &mut poses, &mut scores, &mut log)?;
+    }
+    Ok(TrackResult {
+        poses,
+        scores,
+        init_frame: init,
+        log,
+        evaluations: s.evals.into_inner(),
+    })
+}
+
+/// Searches again every frame that is a temporal outlier or scores below a neighbour, from
+/// its neighbours: their poses carried through the cameras, extrapolated at constant
+/// velocity from either side, and their interpolation. Keeps whatever scores best.
+fn consistency(
+    s: &Searcher<'_>,
+    frames: &[TrackFrame<'_>],
+    poses: &mut [GenPose],
+    scores: &mut [f64],
+    log: &mut Vec<String>,
+) -> Result<(), TrackError> {
+    let n = frames.len();
+    let tree = &s.model.tree;
+    let carried = |poses: &[GenPose], from: usize, to: usize| GenPose {
+        pose: transfer(&poses[from].pose, &frames[from], &frames[to]),
+        states: poses[from].states.clone(),
+    };
+    let step = |poses: &[GenPose], a: usize, b: usize| {
+        angle_deg(&(poses[b].pose.rotation * carried(poses, a, b).pose.rotation.inverse()))
+    };
+    for round in 0..2 {
+        let mut steps: Vec<f64> = (1..n).map(|i| step(poses, i - 1, i)).collect();
+        steps.sort_by(f64::total_cmp);
+        let limit = (3.0 * steps.get(steps.len() / 2).copied().unwrap_or(0.0)).max(25.0);
+        let mut order: Vec<usize> = (0..n).collect();
+        order.sort_by(|&a, &b| scores[a].total_cmp(&scores[b]));
+        let mut changed = 0;
+        for i in order {
+            let neighbours: Vec<usize> = [i.checked_sub(1), (i + 1 < n).then_some(i + 1)]
+                .into_iter()
+                .flatten()
+                .collect();
+            let best_neighbour = neighbours
+                .iter()
+                .map(|&j| scores[j])
+                .fold(f64::NEG_INFINITY, f64::max);
+            let outlier = i >= 1
+                && i + 1 < n
+                && step(poses, i - 1, i) > limit
+                && step(poses, i, i + 1) > limit;
+            if !outlier && scores[i] >= best_neighbour - 0.001 {
+                continue;
+            }
+            let mut seeds: Vec<GenPose> =
+                neighbours.iter().map(|&j| carried(poses, j, i)).collect();
+            if i >= 2 {
+                seeds.push(extrapolate(
+                    &carried(poses, i - 2, i),
+                    &carried(poses, i - 1, i),
+                    tree,
+                ));
+            }
+            if i + 2 < n {
+                seeds.push(extrapolate(
+                    &carried(poses, i + 2, i),
+                    &carried(poses, i + 1, i),
+                    tree,
+                ));
+            }
+            if i >= 1 && i + 1 < n {
+                let (l, r) = (carried(poses, i - 1, i), carried(poses, i + 1, i));
+                let mut states: Vec<f64> = l
+                    .states
+                    .iter()
+                    .zip(&r.states)
+                    .map(|(a, b)| 0.5 * (a + b))
+                    .collect();
+                tree.clamp_states(&mut states);
+                seeds.push(GenPose {
+                    pose: ObjectPose::new(
+                        l.pose.rotation.slerp(&r.pose.rotation, 0.5),
+                        (l.pose.translation + r.pose.translation) * 0.5,
+                    ),
+                    states,
+                });
+            }
+            let results: Vec<Result<(GenPose, f64), TrackError>> = seeds
+                .par_iter()
+                .enumerate()
+                .map(|(k, g)| {
+                    s.refine(
+                        &frames[i],
+                        g,
+                        12.0,
+                        0.04,
+                        0.08,
+                        20.0,
+                        s.cfg.local_evals / 2,
+                        s.cfg.seed + 65537 * (i as u64 + 1) + 97 * round + k as u64,
+                    )
+                })
+                .collect();
+            for r in results {
+                let (g, sc) = r?;
+                if sc > scores[i] + 1e-4 {
+                    log.push(format!(
+                        "{}: searched again from its neighbours{}, IoU {:.4} → {sc:.4}",
+                        frames[i].name,
+                        if outlier { " (temporal outlier)" } else { "" },
+                        scores[i]
+                    ));
+                    poses[i] = g;
+                    scores[i] = sc;
+                    changed += 1;
+                }
+            }
+        }
+        if changed == 0 {
+            break;
+        }
+    }
+    Ok(())
+}

@@ -47,7 +47,13 @@ pub fn pivot_in_camera(pose: &ObjectPose, scale: f64, pivot: &Point3) -> Vector3
 }
 
 /// Applies a camera-frame order to a pose.
-pub fn apply_camera_order(pose: &ObjectPose, scale: f64, pivot: &Point3, camera: &PinholeCamera, order: &CameraOrder) -> ObjectPose {
+pub fn apply_camera_order(
+    pose: &ObjectPose,
+    scale: f64,
+    pivot: &Point3,
+    camera: &PinholeCamera,
+    order: &CameraOrder,
+) -> ObjectPose {
     let c = pivot_in_camera(pose, scale, pivot);
     let depth_z = c.z;
     let dr = camera_rotation(order);
@@ -58,7 +64,10 @@ pub fn apply_camera_order(pose: &ObjectPose, scale: f64, pivot: &Point3, camera:
     );
     // t' = t + (I − dR)·(s·R·c) + dT
     let src = pose.rotation * (pivot.coords * scale);
-    ObjectPose { rotation: dr * pose.rotation, translation: pose.translation + src - dr * src + dt }
+    ObjectPose {
+        rotation: dr * pose.rotation,
+        translation: pose.translation + src - dr * src + dt,
+    }
 }
 
 /// The rotation of a rotation vector given in degrees.
@@ -67,9 +76,17 @@ pub fn rotation_vector_deg(r: [f64; 3]) -> UnitQuaternion {
 }
 
 /// Right-multiplies an object-frame rotation about the canonical point `c`.
-pub fn apply_object_rotation(pose: &ObjectPose, scale: f64, c: &Point3, dr: &UnitQuaternion) -> ObjectPose {
+pub fn apply_object_rotation(
+    pose: &ObjectPose,
+    scale: f64,
+    c: &Point3,
+    dr: &UnitQuaternion,
+) -> ObjectPose {
     let t = pose.translation + pose.rotation * ((c.coords - dr * c.coords) * scale);
-    ObjectPose { rotation: pose.rotation * dr, translation: t }
+    ObjectPose {
+        rotation: pose.rotation * dr,
+        translation: t,
+    }
 }
 
 /// 180° about a canonical axis (`'x'`, `'y'`, `'z'`).
@@ -102,18 +119,74 @@ mod tests {
             (500.0 * x.x / x.z + 320.0, 400.0 * x.y / x.z + 240.0, x.z)
         };
         // +roll is clockwise on screen: a point to the right moves down.
-        let r = apply_camera_order(&pose, s, &c, &cam(), &CameraOrder { roll_deg: 10.0, ..Default::default() });
+        let r = apply_camera_order(
+            &pose,
+            s,
+            &c,
+            &cam(),
+            &CameraOrder {
+                roll_deg: 10.0,
+                ..Default::default()
+            },
+        );
         assert!(proj(&r, Vector3::x()).1 > 240.0);
         // +yaw brings the left edge closer; +pitch brings the top edge closer.
-        let y = apply_camera_order(&pose, s, &c, &cam(), &CameraOrder { yaw_deg: 10.0, ..Default::default() });
+        let y = apply_camera_order(
+            &pose,
+            s,
+            &c,
+            &cam(),
+            &CameraOrder {
+                yaw_deg: 10.0,
+                ..Default::default()
+            },
+        );
         assert!(proj(&y, -Vector3::x()).2 < 2.0 && proj(&y, Vector3::x()).2 > 2.0);
-        let p = apply_camera_order(&pose, s, &c, &cam(), &CameraOrder { pitch_deg: 10.0, ..Default::default() });
+        let p = apply_camera_order(
+            &pose,
+            s,
+            &c,
+            &cam(),
+            &CameraOrder {
+                pitch_deg: 10.0,
+                ..Default::default()
+            },
+        );
         assert!(proj(&p, -Vector3::y()).2 < 2.0);
         // dpx is a fraction of the width at the pivot's depth: 0.1·640 px = 64 px right.
-        let t = apply_camera_order(&pose, s, &c, &cam(), &CameraOrder { dpx: 0.1, dpy: -0.05, tz: 0.25, ..Default::default() });
-        assert!((t.translation - Vector3::new(0.1 * 640.0 / 500.0 * 2.0, -0.05 * 480.0 / 400.0 * 2.0, 0.5 + 2.0)).norm() < 1e-12);
-        let (u, v, _) = proj(&ObjectPose { translation: t.translation - Vector3::new(0.0, 0.0, 0.5), ..t }, Vector3::zeros());
-        assert!((u - 384.0).abs() < 1e-9 && (v - 216.0).abs() < 1e-9, "{u} {v}");
+        let t = apply_camera_order(
+            &pose,
+            s,
+            &c,
+            &cam(),
+            &CameraOrder {
+                dpx: 0.1,
+                dpy: -0.05,
+                tz: 0.25,
+                ..Default::default()
+            },
+        );
+        assert!(
+            (t.translation
+                - Vector3::new(
+                    0.1 * 640.0 / 500.0 * 2.0,
+                    -0.05 * 480.0 / 400.0 * 2.0,
+                    0.5 + 2.0
+                ))
+            .norm()
+                < 1e-12
+        );
+        let (u, v, _) = proj(
+            &ObjectPose {
+                translation: t.translation - Vector3::new(0.0, 0.0, 0.5),
+                ..t
+            },
+            Vector3::zeros(),
+        );
+        assert!(
+            (u - 384.0).abs() < 1e-9 && (v - 216.0).abs() < 1e-9,
+            "{u} {v}"
+        );
     }
 
     #[test]
@@ -122,11 +195,25 @@ mod tests {
         // C = (0.2, 0, 3). Roll 90° about +Z through C maps a canonical point p = 0 (camera
         // (0, 0, 3)) to C + Rz(90°)·(−0.2, 0, 0) = (0.2, −0.2, 3).
         let pose = ObjectPose::new(UnitQuaternion::identity(), Vector3::new(0.0, 0.0, 3.0));
-        let out = apply_camera_order(&pose, 2.0, &Point3::new(0.1, 0.0, 0.0), &cam(), &CameraOrder { roll_deg: 90.0, ..Default::default() });
+        let out = apply_camera_order(
+            &pose,
+            2.0,
+            &Point3::new(0.1, 0.0, 0.0),
+            &cam(),
+            &CameraOrder {
+                roll_deg: 90.0,
+                ..Default::default()
+            },
+        );
         let p = out.rotation * Vector3::zeros() * 2.0 + out.translation;
         assert!((p - Vector3::new(0.2, -0.2, 3.0)).norm() < 1e-12, "{p}");
         // The order composes pitch·yaw·roll: roll acts first.
-        let o = CameraOrder { roll_deg: 30.0, yaw_deg: 20.0, pitch_deg: 10.0, ..Default::default() };
+        let o = CameraOrder {
+            roll_deg: 30.0,
+            yaw_deg: 20.0,
+            pitch_deg: 10.0,
+            ..Default::default()
+        };
         let expect = UnitQuaternion::from_axis_angle(&Vector3::x_axis(), 10f64.to_radians())
             * UnitQuaternion::from_axis_angle(&-Vector3::y_axis(), 20f64.to_radians())
             * UnitQuaternion::from_axis_angle(&Vector3::z_axis(), 30f64.to_radians());
@@ -136,7 +223,10 @@ mod tests {
     #[test]
     fn object_rotation_and_flips_hand_computed() {
         // rz = +90 turns canonical +X toward +Y; about pivot c the pivot stays put.
-        let pose = ObjectPose::new(UnitQuaternion::from_axis_angle(&Vector3::x_axis(), 0.3), Vector3::new(0.1, 0.2, 2.0));
+        let pose = ObjectPose::new(
+            UnitQuaternion::from_axis_angle(&Vector3::x_axis(), 0.3),
+            Vector3::new(0.1, 0.2, 2.0),
+        );
         let c = Point3::new(0.0, 0.5, 0.0);
         let dr = rotation_vector_deg([0.0, 0.0, 90.0]);
         assert!((dr * Vector3::x() - Vector3::y()).norm() < 1e-12);
@@ -147,7 +237,10 @@ mod tests {
         // Two flips about the same axis are the identity.
         let f = flip('y').expect("axis");
         let twice = apply_object_rotation(&apply_object_rotation(&pose, 1.5, &c, &f), 1.5, &c, &f);
-        assert!(twice.rotation.angle_to(&pose.rotation) < 1e-12 && (twice.translation - pose.translation).norm() < 1e-12);
+        assert!(
+            twice.rotation.angle_to(&pose.rotation) < 1e-12
+                && (twice.translation - pose.translation).norm() < 1e-12
+        );
         assert!(flip('w').is_none());
     }
 
