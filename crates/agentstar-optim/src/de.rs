@@ -130,8 +130,8 @@ pub fn differential_evolution(
             .map(|i| seg * rng.uniform() + i as f64 * seg)
             .collect();
         rng.shuffle(&mut col);
-        for (i, v) in col.into_iter().enumerate() {
-            pop[i][d] = v;
+        for (member, v) in pop.iter_mut().zip(col) {
+            member[d] = v;
         }
     }
     if let Some(x0) = x0 {

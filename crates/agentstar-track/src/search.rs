@@ -83,13 +83,21 @@ pub struct RestartRecord {
     pub termination: &'static str,
 }
 
+/// A 2-DOF score field: `scores[i][j]` is the score at `(a[i], b[j])`, `None` where unscored.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ScoreField {
+    pub a: Vec<f64>,
+    pub b: Vec<f64>,
+    pub scores: Vec<Vec<Option<f64>>>,
+}
+
 #[derive(Debug, Clone, PartialEq)]
 pub struct SweepResult {
     pub ranked: Vec<Candidate>,
     pub restarts: Vec<RestartRecord>,
     pub n_evals: usize,
-    /// For grids over exactly two DOFs with ≥ 2 steps: `(a values, b values, best score per cell)`.
-    pub score_field: Option<(Vec<f64>, Vec<f64>, Vec<Vec<Option<f64>>>)>,
+    /// For grids over exactly two DOFs with ≥ 2 steps (first pass).
+    pub score_field: Option<ScoreField>,
 }
 
 fn rank(mut c: Vec<Candidate>, topk: usize) -> Vec<Candidate> {
@@ -199,7 +207,11 @@ pub fn sweep(
                     let ib = b.iter().position(|&v| v == p.x[1]).unwrap_or(0);
                     cells[ia][ib] = Some(-p.f);
                 }
-                (a, b, cells)
+                ScoreField {
+                    a,
+                    b,
+                    scores: cells,
+                }
             });
             let n_evals = pts.len();
             let mut best: Vec<&agentstar_optim::GridPoint> = pts.iter().collect();
