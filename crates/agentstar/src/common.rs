@@ -74,6 +74,23 @@ impl Session {
         render_full(&self.capture.frames[i].camera, &self.posed(i).instances)
     }
 
+    /// The score target (mask with hands excluded) and observed depth of frame `i`.
+    pub fn target(
+        &self,
+        i: usize,
+    ) -> Result<(ScoreTarget, Option<agentstar_render::DepthObservation>)> {
+        let target = ScoreTarget::new(self.capture.load_mask(i)?, self.capture.load_hand(i)?)?;
+        Ok((target, self.capture.load_depth(i)?))
+    }
+
+    /// The generalised pose of frame `i`.
+    pub fn gen_pose(&self, i: usize) -> agentstar_track::GenPose {
+        agentstar_track::GenPose {
+            pose: self.poses[i].pose,
+            states: self.poses[i].states.clone(),
+        }
+    }
+
     /// Scores frame `i`; `depth_weight` enters the combined score when the capture has depth.
     pub fn score(&self, i: usize, depth_weight: f64) -> Result<FrameScore> {
         let f = &self.capture.frames[i];

@@ -34,6 +34,27 @@ enum Command {
     Turntable(cmd::turntable::Args),
     /// Export the model: GLB (one node per part) or URDF with OBJ meshes.
     Export(cmd::export::Args),
+    /// Search camera-frame increments and joint states for one or more frames (differential evolution or grid).
+    Sweep(cmd::search::SweepArgs),
+    /// Score one explicit camera-frame order.
+    Apply(cmd::search::ApplyArgs),
+    /// Search object-frame rotations per frame (grid or presets such as z:flip, so3:N).
+    Osweep(cmd::search::OsweepArgs),
+    /// Score a set of object-frame rotations per frame (e.g. flips).
+    Oapply(cmd::search::OapplyArgs),
+    /// Apply one shared object-frame rotation to every frame (a model built the wrong way round).
+    #[command(name = "oapply-all")]
+    OapplyAll(cmd::search::OapplyAllArgs),
+    /// Commit a candidate to pose.json, list versions, restore one.
+    #[command(subcommand)]
+    Pose(cmd::pose::PoseCommand),
+    /// Temporal residuals: rotation, translation and radial velocity and acceleration, joints.
+    Temporal(cmd::temporal::Args),
+    /// The residual between two frames' poses.
+    #[command(name = "pose-diff")]
+    PoseDiff(cmd::temporal::DiffArgs),
+    /// Track every keyframe of a capture with a known model, no agent.
+    Track(cmd::track::Args),
 }
 
 fn main() -> ExitCode {
@@ -46,6 +67,15 @@ fn main() -> ExitCode {
         Command::Score(a) => cmd::score::run(a),
         Command::Turntable(a) => cmd::turntable::run(a),
         Command::Export(a) => cmd::export::run(a),
+        Command::Sweep(a) => cmd::search::run_sweep(a),
+        Command::Apply(a) => cmd::search::run_apply(a),
+        Command::Osweep(a) => cmd::search::run_osweep(a),
+        Command::Oapply(a) => cmd::search::run_oapply(a),
+        Command::OapplyAll(a) => cmd::search::run_oapply_all(a),
+        Command::Pose(c) => cmd::pose::run(c),
+        Command::Temporal(a) => cmd::temporal::run(a),
+        Command::PoseDiff(a) => cmd::temporal::run_diff(a),
+        Command::Track(a) => cmd::track::run(a),
     };
     match result {
         Ok(code) => code,

@@ -3,7 +3,11 @@
 pub mod check;
 pub mod example;
 pub mod export;
+pub mod pose;
 pub mod render;
 pub mod score;
+pub mod search;
+pub mod temporal;
+pub mod track;
 pub mod turntable;
 pub mod validate;

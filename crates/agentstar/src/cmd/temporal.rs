@@ -1,0 +1,349 @@
+//! `agentstar temporal` (velocities and accelerations per step, with a plot) and
+//! `agentstar pose-diff` (the residual between two frames).
+
+use crate::common::{print_json, select_frames, Session};
+use agentstar_data::images::save_png_rgb;
+use agentstar_render::text::{draw_text, fill_rect};
+use agentstar_track::temporal::{pair_diff, report, Row, Sample};
+use anyhow::{bail, Result};
+use image::{Rgb, RgbImage};
+use serde_json::json;
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+#[derive(clap::Args)]
+pub struct Args {
+    #[arg(long)]
+    capture: PathBuf,
+    #[arg(long)]
+    model: PathBuf,
+    #[arg(long)]
+    poses: PathBuf,
+    /// Rows: frames, names or `a..b` ranges (all rows by default).
+    #[arg(long)]
+    frames: Option<String>,
+    /// Columns: any of vel, accel and joint names (default all).
+    #[arg(long)]
+    columns: Option<String>,
+    /// Sort by |value| descending: vel.rot, vel.trans, vel.radial, accel.rot, accel.trans, accel.radial, <joint>.vel, <joint>.accel.
+    #[arg(long)]
+    sort_by: Option<String>,
+    /// Write a plot of the velocities over the sequence here (PNG).
+    #[arg(long)]
+    plot: Option<PathBuf>,
+    #[arg(long)]
+    json: bool,
+}
+
+#[derive(clap::Args)]
+pub struct DiffArgs {
+    #[arg(long)]
+    capture: PathBuf,
+    #[arg(long)]
+    model: PathBuf,
+    #[arg(long)]
+    poses: PathBuf,
+    #[arg(long)]
+    a: String,
+    #[arg(long)]
+    b: String,
+}
+
+fn samples(s: &Session) -> Vec<Sample> {
+    let cams = s.capture.frames.len() > 1
+        || s.capture
+            .frames
+            .iter()
+            .any(|f| f.world_from_camera != agentstar_geom::pose::Rigid::identity());
+    s.capture
+        .frames
+        .iter()
+        .zip(&s.poses)
+        .map(|(f, p)| Sample {
+            frame: f.name.clone(),
+            number: f.number,
+            pose: p.pose,
+            states: p.states.clone(),
+            world_from_camera: cams.then_some(f.world_from_camera),
+        })
+        .collect()
+}
+
+fn value(r: &Row, col: &str) -> Option<f64> {
+    match col {
+        "vel.rot" => r.vel_rot_deg,
+        "vel.trans" => r.vel_trans,
+        "vel.radial" => r.vel_radial,
+        "accel.rot" => r.acc_rot_deg,
+        "accel.trans" => r.acc_trans,
+        "accel.radial" => r.acc_radial,
+        other => {
+            let (j, what) = other.rsplit_once('.')?;
+            let c = r.joints.iter().find(|c| c.name == j)?;
+            match what {
+                "vel" => c.velocity,
+                "accel" => c.acceleration,
+                "state" => Some(c.state),
+                _ => None,
+            }
+        }
+    }
+}
+
+fn cell(v: Option<f64>) -> String {
+    v.map_or("-".into(), |x| format!("{x:.3}"))
+}
+
+pub fn run(a: Args) -> Result<ExitCode> {
+    let s = Session::open(&a.capture, &a.model, &a.poses)?;
+    let rep = report(&samples(&s), s.scale(), &s.model.model.tree);
+    let keep = select_frames(&s.capture, a.frames.as_deref())?;
+    let mut rows: Vec<&Row> = keep.iter().map(|&i| &rep.rows[i]).collect();
+    let joint_names: Vec<String> = s
+        .model
+        .model
+        .tree
+        .joints()
+        .iter()
+        .filter(|j| j.kind.has_state())
+        .map(|j| j.name.clone())
+        .collect();
+    let cols: Vec<String> = a
+        .columns
+        .as_deref()
+        .map(|c| c.split(',').map(|x| x.trim().to_string()).collect())
+        .unwrap_or_else(|| {
+            let mut v = vec!["vel".to_string(), "accel".to_string()];
+            v.extend(joint_names.clone());
+            v
+        });
+    for c in &cols {
+        if c != "vel" && c != "accel" && !joint_names.contains(c) {
+            bail!(
+                "unknown column `{c}`; columns are vel, accel and the joints ({})",
+                joint_names.join(", ")
+            );
+        }
+    }
+    if let Some(key) = &a.sort_by {
+        let valid = [
+            "vel.rot",
+            "vel.trans",
+            "vel.radial",
+            "accel.rot",
+            "accel.trans",
+            "accel.radial",
+        ];
+        if !valid.contains(&key.as_str())
+            && !joint_names
+                .iter()
+                .any(|j| key.starts_with(&format!("{j}.")))
+        {
+            bail!(
+                "cannot sort by `{key}`; use one of {} or <joint>.vel|accel|state",
+                valid.join(", ")
+            );
+        }
+        rows.sort_by(|x, y| match (value(x, key), value(y, key)) {
+            (Some(p), Some(q)) => q.abs().total_cmp(&p.abs()),
+            (Some(_), None) => std::cmp::Ordering::Less,
+            (None, Some(_)) => std::cmp::Ordering::Greater,
+            _ => std::cmp::Ordering::Equal,
+        });
+    }
+    if let Some(plot) = &a.plot {
+        save_png_rgb(&plot_velocities(&rep.rows), plot)?;
+    }
+    if a.json {
+        print_json(&json!({
+            "pose_frame": rep.pose_frame,
+            "units": {"rotation": "deg per step", "translation": "object units per step", "joints": "deg or canonical units per step"},
+            "warnings": rep.warnings,
+            "frames": rows.iter().map(|r| json!({
+                "frame": r.frame, "from": r.from, "frame_gap": r.gap,
+                "velocity": {"rotation_deg": r.vel_rot_deg, "translation_canon": r.vel_trans, "radial_canon": r.vel_radial},
+                "acceleration": {"rotation_deg": r.acc_rot_deg, "translation_canon": r.acc_trans, "radial_canon": r.acc_radial},
+                "joints": r.joints.iter().map(|c| (c.name.clone(), json!({"state": c.state, "velocity": c.velocity, "acceleration": c.acceleration}))).collect::<serde_json::Map<_, _>>(),
+            })).collect::<Vec<_>>(),
+        }))?;
+        return Ok(ExitCode::SUCCESS);
+    }
+    let mut head = format!("{:<26} {:>4}", "step", "gap");
+    if cols.iter().any(|c| c == "vel") {
+        head.push_str(&format!(
+            " {:>8} {:>8} {:>8}",
+            "v.rot", "v.trans", "v.radial"
+        ));
+    }
+    if cols.iter().any(|c| c == "accel") {
+        head.push_str(&format!(
+            " {:>8} {:>8} {:>8}",
+            "a.rot", "a.trans", "a.radial"
+        ));
+    }
+    for j in cols.iter().filter(|c| joint_names.contains(c)) {
+        head.push_str(&format!(
+            " {:>9} {:>8} {:>8}",
+            format!("{j}"),
+            "vel",
+            "accel"
+        ));
+    }
+    println!("{head}");
+    if a.sort_by.is_some() {
+        println!(
+            "(sorted by |{}|, not in temporal order)",
+            a.sort_by.as_deref().unwrap_or("")
+        );
+    }
+    for r in rows {
+        let step = match &r.from {
+            Some(f) => format!("{f}->{}", r.frame),
+            None => r.frame.clone(),
+        };
+        let mut line = format!(
+            "{:<26} {:>4}",
+            step,
+            r.gap.map_or("-".into(), |g| g.to_string())
+        );
+        if cols.iter().any(|c| c == "vel") {
+            line.push_str(&format!(
+                " {:>8} {:>8} {:>8}",
+                cell(r.vel_rot_deg),
+                cell(r.vel_trans),
+                cell(r.vel_radial)
+            ));
+        }
+        if cols.iter().any(|c| c == "accel") {
+            line.push_str(&format!(
+                " {:>8} {:>8} {:>8}",
+                cell(r.acc_rot_deg),
+                cell(r.acc_trans),
+                cell(r.acc_radial)
+            ));
+        }
+        for j in cols.iter().filter(|c| joint_names.contains(c)) {
+            if let Some(c) = r.joints.iter().find(|c| &c.name == j) {
+                line.push_str(&format!(
+                    " {:>9.3} {:>8} {:>8}",
+                    c.state,
+                    cell(c.velocity),
+                    cell(c.acceleration)
+                ));
+            }
+        }
+        println!("{line}");
+    }
+    println!(
+        "pose frame: {} (rotation in degrees, translation in object units, per step)",
+        rep.pose_frame
+    );
+    for w in &rep.warnings {
+        println!("warning: {w}");
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+/// Rotation and translation velocity over the sequence, the three largest rotation steps
+/// marked with their frame.
+fn plot_velocities(rows: &[Row]) -> RgbImage {
+    let (w, h, pad) = (900u32, 320u32, 40i64);
+    let mut img = RgbImage::from_pixel(w, h, Rgb([255, 255, 255]));
+    let n = rows.len().max(2);
+    let x_of = |i: usize| pad + (i as i64) * (w as i64 - 2 * pad) / (n as i64 - 1);
+    type Series<'a> = (&'a str, Rgb<u8>, Vec<Option<f64>>);
+    let series: [Series; 2] = [
+        (
+            "rotation deg/step",
+            Rgb([200, 40, 40]),
+            rows.iter().map(|r| r.vel_rot_deg).collect(),
+        ),
+        (
+            "translation x100 obj units/step",
+            Rgb([40, 90, 200]),
+            rows.iter()
+                .map(|r| r.vel_trans.map(|v| v * 100.0))
+                .collect(),
+        ),
+    ];
+    let max = series
+        .iter()
+        .flat_map(|s| s.2.iter().flatten())
+        .copied()
+        .fold(1e-9, f64::max);
+    let y_of = |v: f64| h as i64 - pad - ((v / max) * (h as i64 - 2 * pad) as f64) as i64;
+    fill_rect(
+        &mut img,
+        pad,
+        h as i64 - pad,
+        w - 2 * pad as u32,
+        1,
+        Rgb([0, 0, 0]),
+    );
+    for (si, (label, color, vals)) in series.iter().enumerate() {
+        let mut last: Option<(i64, i64)> = None;
+        for (i, v) in vals.iter().enumerate() {
+            let Some(v) = v else { continue };
+            let p = (x_of(i), y_of(*v));
+            if let Some(q) = last {
+                let steps = (p.0 - q.0).abs().max((p.1 - q.1).abs()).max(1);
+                for k in 0..=steps {
+                    let x = q.0 + (p.0 - q.0) * k / steps;
+                    let y = q.1 + (p.1 - q.1) * k / steps;
+                    fill_rect(&mut img, x - 1, y - 1, 2, 2, *color);
+                }
+            }
+            fill_rect(&mut img, p.0 - 2, p.1 - 2, 5, 5, *color);
+            last = Some(p);
+        }
+        draw_text(&mut img, pad + 340 * si as i64, 8, label, 1, *color);
+    }
+    let mut idx: Vec<usize> = (0..rows.len())
+        .filter(|&i| rows[i].vel_rot_deg.is_some())
+        .collect();
+    idx.sort_by(|&a, &b| {
+        rows[b]
+            .vel_rot_deg
+            .unwrap_or(0.0)
+            .total_cmp(&rows[a].vel_rot_deg.unwrap_or(0.0))
+    });
+    for &i in idx.iter().take(3) {
+        let v = rows[i].vel_rot_deg.unwrap_or(0.0);
+        draw_text(
+            &mut img,
+            x_of(i) - 20,
+            y_of(v) - 14,
+            &format!("{} {v:.0}", rows[i].frame.split('.').next().unwrap_or("")),
+            1,
+            Rgb([0, 0, 0]),
+        );
+    }
+    draw_text(
+        &mut img,
+        pad,
+        h as i64 - pad + 8,
+        &format!("max {max:.1}  ({} keyframes)", rows.len()),
+        1,
+        Rgb([0, 0, 0]),
+    );
+    img
+}
+
+pub fn run_diff(a: DiffArgs) -> Result<ExitCode> {
+    let s = Session::open(&a.capture, &a.model, &a.poses)?;
+    let ia = select_frames(&s.capture, Some(&a.a))?;
+    let ib = select_frames(&s.capture, Some(&a.b))?;
+    let (Some(&ia), Some(&ib)) = (ia.first(), ib.first()) else {
+        bail!("name one frame for --a and one for --b")
+    };
+    let sm = samples(&s);
+    let oriented = sm.iter().all(|x| x.world_from_camera.is_some());
+    let d = pair_diff(&sm[ia], &sm[ib], s.scale(), &s.model.model.tree, oriented);
+    print_json(&json!({
+        "from": sm[ia].frame, "to": sm[ib].frame, "pose_frame": if oriented { "oriented" } else { "camera" },
+        "rotation_deg": d.rotation_deg, "axis_body": d.axis_body,
+        "translation_canon": d.translation_canon, "translation_dist_canon": d.translation_dist_canon, "translation_dist": d.translation_dist,
+        "joints": d.joints.iter().map(|(k, v)| (k.clone(), json!(v))).collect::<serde_json::Map<_, _>>(),
+    }))?;
+    Ok(ExitCode::SUCCESS)
+}

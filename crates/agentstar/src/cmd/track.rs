@@ -1,0 +1,120 @@
+//! `agentstar track`: fit every keyframe's pose and joint states for a known model from the
+//! masks, with no agent, and write `pose.json`.
+
+use crate::cmd::score::{print_table, summarise};
+use crate::common::{open_capture, open_model, print_json, Session, PASS_IOU};
+use agentstar_data::posefile::{FramePose, PoseFile};
+use agentstar_render::ScoreTarget;
+use agentstar_track::tracker::{track, TrackConfig, TrackFrame};
+use anyhow::{anyhow, bail, Result};
+use serde_json::json;
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+#[derive(clap::Args)]
+pub struct Args {
+    /// The capture directory.
+    capture: PathBuf,
+    /// The model: scene script (.rhai), URDF or mesh.
+    #[arg(long)]
+    model: PathBuf,
+    /// The object's scale (`p_cam = s·R·p + t`); or take it from --scale-from.
+    #[arg(long)]
+    scale: Option<f64>,
+    /// A pose file whose scale to use.
+    #[arg(long)]
+    scale_from: Option<PathBuf>,
+    /// Where to write the tracked poses.
+    #[arg(long)]
+    out: PathBuf,
+    #[arg(long, default_value_t = 17)]
+    seed: u64,
+    /// Evaluations per local search.
+    #[arg(long, default_value_t = 2400)]
+    evals: usize,
+    /// Skip the final consistency pass (the "no temporal" ablation).
+    #[arg(long)]
+    no_temporal: bool,
+    #[arg(long)]
+    json: bool,
+}
+
+pub fn run(a: Args) -> Result<ExitCode> {
+    let capture = open_capture(&a.capture)?;
+    let model = open_model(&a.model)?;
+    let scale = match (a.scale, &a.scale_from) {
+        (Some(s), _) => s,
+        (None, Some(p)) => PoseFile::read(p)?.scale,
+        (None, None) => bail!("the tracker needs the object's scale: give --scale S (p_cam = s·R·p + t) or --scale-from pose.json"),
+    };
+    let targets: Vec<ScoreTarget> = (0..capture.frames.len())
+        .map(|i| {
+            Ok(ScoreTarget::new(
+                capture.load_mask(i)?,
+                capture.load_hand(i)?,
+            )?)
+        })
+        .collect::<Result<_>>()?;
+    let frames: Vec<TrackFrame> = capture
+        .frames
+        .iter()
+        .zip(&targets)
+        .map(|(f, t)| TrackFrame {
+            name: f.name.clone(),
+            camera: f.camera,
+            target: t,
+            world_from_camera: Some(f.world_from_camera),
+        })
+        .collect();
+    let cfg = TrackConfig {
+        seed: a.seed,
+        local_evals: a.evals,
+        consistency_pass: !a.no_temporal,
+        ..TrackConfig::default()
+    };
+    let t0 = std::time::Instant::now();
+    let r = track(&model.model, scale, &frames, &cfg)?;
+    let seconds = t0.elapsed().as_secs_f64();
+    for line in &r.log {
+        eprintln!("track: {line}");
+    }
+    let poses: Vec<FramePose> = r
+        .poses
+        .iter()
+        .map(|g| FramePose {
+            pose: g.pose,
+            states: g.states.clone(),
+            seeded: false,
+            moved: true,
+        })
+        .collect();
+    let mut pf = PoseFile::initial(
+        &capture,
+        &model.model.tree,
+        scale,
+        &poses[capture.ref_index].pose,
+    );
+    pf.set_frames(&capture, &model.model.tree, &poses);
+    pf.write(&a.out)?;
+    let s = Session::open(&a.capture, &a.model, &a.out)
+        .map_err(|e| anyhow!("re-reading the written poses: {e}"))?;
+    let scores: Vec<_> = (0..capture.frames.len())
+        .map(|i| s.score(i, 0.0))
+        .collect::<Result<_>>()?;
+    let summary = summarise(&scores, PASS_IOU);
+    if a.json {
+        print_json(
+            &json!({"poses": a.out, "seconds": seconds, "evaluations": r.evaluations, "init_frame": capture.frames[r.init_frame].name, "log": r.log, "frames": scores, "sequence": summary}),
+        )?;
+    } else {
+        println!(
+            "tracked {} frames in {seconds:.1} s ({} evaluations), initialised on {}; wrote {}",
+            capture.frames.len(),
+            r.evaluations,
+            capture.frames[r.init_frame].name,
+            a.out.display()
+        );
+        print_table(&scores, &summary);
+    }
+    Ok(ExitCode::SUCCESS)
+}
