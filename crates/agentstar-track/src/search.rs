@@ -37,6 +37,9 @@ pub struct SweepConfig {
     pub polish_evals: usize,
     /// How many ranked candidates to return (grid and candidate lists; DE returns one per restart).
     pub topk: usize,
+    /// DE convergence: stop when std(scores) ≤ tol · |mean(scores)| (SciPy's default 0.01;
+    /// fine passes near the optimum want far less, since every member already scores ~1).
+    pub tol: f64,
 }
 
 impl Default for SweepConfig {
@@ -51,6 +54,7 @@ impl Default for SweepConfig {
             recombination: 0.8,
             polish_evals: 0,
             topk: 10,
+            tol: 0.01,
         }
     }
 }
