@@ -426,3 +426,104 @@ mod tests {
             .any(|t| t.elevation_deg == -30.0 && t.azimuth_deg == 315.0));
     }
 }
+
+/// A 2-D score field as an image: one cell per grid point, dark (low) to bright (high), the
+/// best cell outlined, axis values and the score range written beside the grid.
+pub fn heat_map(
+    a_name: &str,
+    a: &[f64],
+    b_name: &str,
+    b: &[f64],
+    scores: &[Vec<Option<f64>>],
+) -> RgbImage {
+    let cell = (360 / a.len().max(b.len()).max(1)).clamp(12, 48) as u32;
+    let (left, top) = (80u32, 40u32);
+    let w = left + cell * b.len() as u32 + 20;
+    let h = top + cell * a.len() as u32 + 40;
+    let mut img = RgbImage::from_pixel(w.max(320), h, Rgb([255, 255, 255]));
+    let vals: Vec<f64> = scores.iter().flatten().flatten().copied().collect();
+    let lo = vals.iter().copied().fold(f64::INFINITY, f64::min);
+    let hi = vals.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+    let mut best = None;
+    for (i, row) in scores.iter().enumerate() {
+        for (j, v) in row.iter().enumerate() {
+            let c = match v {
+                Some(v) => {
+                    let t = if hi > lo {
+                        ((v - lo) / (hi - lo)) as f32
+                    } else {
+                        1.0
+                    };
+                    if best.is_none_or(|(_, _, bv)| *v > bv) {
+                        best = Some((i, j, *v));
+                    }
+                    Rgb([
+                        to_u8(0.1 + 0.9 * t),
+                        to_u8(0.15 + 0.75 * t * t),
+                        to_u8(0.35 * (1.0 - t)),
+                    ])
+                }
+                None => Rgb([200, 200, 200]),
+            };
+            fill_rect(
+                &mut img,
+                (left + j as u32 * cell) as i64,
+                (top + i as u32 * cell) as i64,
+                cell - 1,
+                cell - 1,
+                c,
+            );
+        }
+    }
+    if let Some((i, j, _)) = best {
+        let (x, y) = (
+            (left + j as u32 * cell) as i64,
+            (top + i as u32 * cell) as i64,
+        );
+        for k in 0..cell as i64 {
+            for (px, py) in [
+                (x + k, y),
+                (x + k, y + cell as i64 - 2),
+                (x, y + k),
+                (x + cell as i64 - 2, y + k),
+            ] {
+                if px >= 0 && py >= 0 && (px as u32) < img.width() && (py as u32) < img.height() {
+                    img.put_pixel(px as u32, py as u32, Rgb([0, 160, 255]));
+                }
+            }
+        }
+    }
+    draw_text(
+        &mut img,
+        4,
+        4,
+        &format!("rows {a_name}, columns {b_name}; score {lo:.4} .. {hi:.4}"),
+        1,
+        Rgb([0, 0, 0]),
+    );
+    for (i, v) in a.iter().enumerate() {
+        draw_text(
+            &mut img,
+            4,
+            (top + i as u32 * cell + cell / 2 - 4) as i64,
+            &format!("{v:.3}"),
+            1,
+            Rgb([0, 0, 0]),
+        );
+    }
+    for (j, v) in b
+        .iter()
+        .enumerate()
+        .step_by((64 / cell as usize).max(1) + 1)
+    {
+        draw_text(
+            &mut img,
+            (left + j as u32 * cell) as i64,
+            (top + a.len() as u32 * cell + 6) as i64,
+            &format!("{v:.3}"),
+            1,
+            Rgb([0, 0, 0]),
+        );
+    }
+    img
+}

@@ -453,6 +453,17 @@ pub fn run_sweep(a: SweepArgs) -> Result<ExitCode> {
         let mut notes = space.notes.clone();
         if let Some(f) = &r.score_field {
             notes.push(heat_map(f, &space, tree));
+            let img = agentstar_render::views::heat_map(
+                &space.ranges[0].dof.name(tree),
+                &f.a,
+                &space.ranges[1].dof.name(tree),
+                &f.b,
+                &f.scores,
+            );
+            let p = out_dir(&a.common.out)?
+                .join(format!("sweep_heatmap_{}.png", s.capture.frames[i].stem));
+            save_png_rgb(&img, &p)?;
+            notes.push(format!("heat map: {}", p.display()));
         }
         outputs.push(FrameOutput {
             frame: s.capture.frames[i].name.clone(),
