@@ -389,44 +389,6 @@ pub fn turntable_camera(size_px: u32, fov_x_deg: f64) -> PinholeCamera {
     PinholeCamera::with_fov(fov_x_deg, size_px, size_px)
 }
 
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn comparison_counts_every_category() {
-        let mask = BitMask::from_fn(10, 1, |x, _| x < 5);
-        let render = BitMask::from_fn(10, 1, |x, _| (3..8).contains(&x));
-        let hand = BitMask::from_fn(10, 1, |x, _| x >= 7);
-        let (img, n) = silhouette_comparison(&render, &mask, Some(&hand));
-        assert_eq!(
-            n,
-            ComparisonCounts {
-                both: 2,
-                render_only: 2,
-                mask_only: 3,
-                hand: 2,
-                render_in_hand: 1
-            }
-        );
-        assert_eq!(*img.get_pixel(0, 0), MASK_ONLY);
-        assert_eq!(*img.get_pixel(3, 0), BOTH);
-        assert_eq!(*img.get_pixel(7, 0), RENDER_IN_HAND);
-        let with = with_legend(&img, "frame 000000", &comparison_legend(true));
-        assert!(with.height() > img.height());
-    }
-
-    #[test]
-    fn sphere8_matches_the_reference_set() {
-        let v = sphere8();
-        assert_eq!(v.len(), 8);
-        assert_eq!(v.iter().filter(|t| t.elevation_deg == 20.0).count(), 4);
-        assert!(v
-            .iter()
-            .any(|t| t.elevation_deg == -30.0 && t.azimuth_deg == 315.0));
-    }
-}
-
 /// A 2-D score field as an image: one cell per grid point, dark (low) to bright (high), the
 /// best cell outlined, axis values and the score range written beside the grid.
 pub fn heat_map(
@@ -526,4 +488,42 @@ pub fn heat_map(
         );
     }
     img
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn comparison_counts_every_category() {
+        let mask = BitMask::from_fn(10, 1, |x, _| x < 5);
+        let render = BitMask::from_fn(10, 1, |x, _| (3..8).contains(&x));
+        let hand = BitMask::from_fn(10, 1, |x, _| x >= 7);
+        let (img, n) = silhouette_comparison(&render, &mask, Some(&hand));
+        assert_eq!(
+            n,
+            ComparisonCounts {
+                both: 2,
+                render_only: 2,
+                mask_only: 3,
+                hand: 2,
+                render_in_hand: 1
+            }
+        );
+        assert_eq!(*img.get_pixel(0, 0), MASK_ONLY);
+        assert_eq!(*img.get_pixel(3, 0), BOTH);
+        assert_eq!(*img.get_pixel(7, 0), RENDER_IN_HAND);
+        let with = with_legend(&img, "frame 000000", &comparison_legend(true));
+        assert!(with.height() > img.height());
+    }
+
+    #[test]
+    fn sphere8_matches_the_reference_set() {
+        let v = sphere8();
+        assert_eq!(v.len(), 8);
+        assert_eq!(v.iter().filter(|t| t.elevation_deg == 20.0).count(), 4);
+        assert!(v
+            .iter()
+            .any(|t| t.elevation_deg == -30.0 && t.azimuth_deg == 315.0));
+    }
 }
