@@ -100,40 +100,36 @@ pub fn write_arrays(
     f32_arrays: &[(&str, &[usize], &[f32])],
     i64_arrays: &[(&str, &[usize], &[i64])],
 ) -> Result<()> {
-    use npyz::WriterBuilder;
     let mut buf = std::io::Cursor::new(Vec::new());
     {
         let mut w = npyz::npz::NpzWriter::new(&mut buf);
-        let io = |e: std::io::Error| DataError::io(path, e);
-        let opts = || {
-            zip::write::FileOptions::default().compression_method(zip::CompressionMethod::Deflated)
-        };
         for (name, shape, data) in f32_arrays {
-            let shape: Vec<u64> = shape.iter().map(|&s| s as u64).collect();
-            let mut aw = w
-                .array::<f32>(name, opts())
-                .map_err(io)?
-                .default_dtype()
-                .shape(&shape)
-                .begin_nd()
-                .map_err(io)?;
-            aw.extend(data.iter().copied()).map_err(io)?;
-            aw.finish().map_err(io)?;
+            add_array(&mut w, name, shape, data).map_err(|e| DataError::io(path, e))?;
         }
         for (name, shape, data) in i64_arrays {
-            let shape: Vec<u64> = shape.iter().map(|&s| s as u64).collect();
-            let mut aw = w
-                .array::<i64>(name, opts())
-                .map_err(io)?
-                .default_dtype()
-                .shape(&shape)
-                .begin_nd()
-                .map_err(io)?;
-            aw.extend(data.iter().copied()).map_err(io)?;
-            aw.finish().map_err(io)?;
+            add_array(&mut w, name, shape, data).map_err(|e| DataError::io(path, e))?;
         }
     }
     crate::atomic::write_atomic(path, &buf.into_inner())
+}
+
+fn add_array<T: npyz::Serialize + npyz::AutoSerialize + Copy, W: std::io::Write + std::io::Seek>(
+    w: &mut npyz::npz::NpzWriter<W>,
+    name: &str,
+    shape: &[usize],
+    data: &[T],
+) -> std::io::Result<()> {
+    use npyz::WriterBuilder;
+    let shape: Vec<u64> = shape.iter().map(|&s| s as u64).collect();
+    let opts =
+        zip::write::FileOptions::default().compression_method(zip::CompressionMethod::Deflated);
+    let mut aw = w
+        .array::<T>(name, opts)?
+        .default_dtype()
+        .shape(&shape)
+        .begin_nd()?;
+    aw.extend(data.iter().copied())?;
+    aw.finish()
 }
 
 #[cfg(test)]

@@ -33,6 +33,26 @@ pub fn open_model(path: &Path) -> Result<LoadedModel> {
     Ok(m)
 }
 
+/// The three inputs of every command that works on a posed model.
+#[derive(clap::Args, Clone, Debug)]
+pub struct SessionArgs {
+    /// The capture directory (holding capture.json).
+    #[arg(long)]
+    pub capture: PathBuf,
+    /// The model: scene script (.rhai), URDF or mesh.
+    #[arg(long)]
+    pub model: PathBuf,
+    /// The pose file.
+    #[arg(long)]
+    pub poses: PathBuf,
+}
+
+impl SessionArgs {
+    pub fn open(&self) -> Result<Session> {
+        Session::open(&self.capture, &self.model, &self.poses)
+    }
+}
+
 /// Capture, model and resolved poses of a run.
 pub struct Session {
     pub capture: Capture,

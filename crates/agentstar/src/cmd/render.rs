@@ -1,6 +1,6 @@
 //! `agentstar render`: views of the posed model in chosen frames.
 
-use crate::common::{out_dir, print_json, select_frames, Session};
+use crate::common::{out_dir, print_json, select_frames, SessionArgs};
 use agentstar_data::images::{save_png_rgb, save_png_rgba};
 use agentstar_render::views::{
     comparison_legend, contact_sheet, id_color, overlay, part_id_view, shade,
@@ -16,15 +16,8 @@ pub const VIEWS: [&str; 5] = ["overlay", "compare", "ids", "shaded", "depth"];
 
 #[derive(clap::Args)]
 pub struct Args {
-    /// The capture directory.
-    #[arg(long)]
-    capture: PathBuf,
-    /// The model: scene script (.rhai), URDF or mesh.
-    #[arg(long)]
-    model: PathBuf,
-    /// The pose file.
-    #[arg(long)]
-    poses: PathBuf,
+    #[command(flatten)]
+    session: SessionArgs,
     /// Frames: `all` (default), names, stems, indices or `a..b` ranges, comma separated.
     #[arg(long)]
     frames: Option<String>,
@@ -56,7 +49,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
             bail!("unknown view `{v}`; views are {}", VIEWS.join(", "));
         }
     }
-    let s = Session::open(&a.capture, &a.model, &a.poses)?;
+    let s = a.session.open()?;
     let frames = select_frames(&s.capture, a.frames.as_deref())?;
     let dir = out_dir(&a.out)?;
     let colors: Vec<[f32; 3]> = s.model.model.parts.iter().map(|p| p.color).collect();

@@ -1,20 +1,15 @@
 //! `agentstar score`: per-frame and per-sequence scores of the posed model.
 
-use crate::common::{print_json, select_frames, FrameScore, Session, PASS_IOU};
+use crate::common::{print_json, select_frames, FrameScore, SessionArgs, PASS_IOU};
 use anyhow::Result;
 use rayon::prelude::*;
 use serde::Serialize;
-use std::path::PathBuf;
 use std::process::ExitCode;
 
 #[derive(clap::Args)]
 pub struct Args {
-    #[arg(long)]
-    capture: PathBuf,
-    #[arg(long)]
-    model: PathBuf,
-    #[arg(long)]
-    poses: PathBuf,
+    #[command(flatten)]
+    session: SessionArgs,
     /// Frames: `all` (default), names, stems or `a..b` ranges.
     #[arg(long)]
     frames: Option<String>,
@@ -64,7 +59,7 @@ pub fn summarise(scores: &[FrameScore], pass_iou: f64) -> SequenceScore {
 }
 
 pub fn run(a: Args) -> Result<ExitCode> {
-    let s = Session::open(&a.capture, &a.model, &a.poses)?;
+    let s = a.session.open()?;
     let frames = select_frames(&s.capture, a.frames.as_deref())?;
     let scores: Vec<FrameScore> = frames
         .par_iter()

@@ -4,7 +4,7 @@
 //! paste-ready blocks, and a candidate sheet (render over the frame and silhouette
 //! comparison per finalist, labelled with rank, score and the order).
 
-use crate::common::{out_dir, print_json, select_frames, Session};
+use crate::common::{out_dir, print_json, select_frames, Session, SessionArgs};
 use agentstar_data::images::save_png_rgb;
 use agentstar_data::posefile::pose_json;
 use agentstar_geom::{KinematicTree, Point3, UnitQuaternion};
@@ -25,12 +25,8 @@ use std::process::ExitCode;
 /// Flags shared by every verb.
 #[derive(clap::Args, Clone)]
 pub struct Common {
-    #[arg(long)]
-    capture: PathBuf,
-    #[arg(long)]
-    model: PathBuf,
-    #[arg(long)]
-    poses: PathBuf,
+    #[command(flatten)]
+    session: SessionArgs,
     /// Output directory for reports and sheets.
     #[arg(long)]
     out: PathBuf,
@@ -318,7 +314,7 @@ fn write_outputs(
             tree,
             &o.notes,
             &report_path,
-            &c.poses,
+            &c.session.poses,
         ));
         text.push('\n');
         frames_json.push(json!({
@@ -331,7 +327,7 @@ fn write_outputs(
         .filter_map(|o| o.rows.first().map(|r| r.score.gate))
         .collect();
     let report = json!({
-        "verb": verb, "capture": c.capture, "model": c.model, "poses": c.poses, "scale": s.scale(),
+        "verb": verb, "capture": c.session.capture, "model": c.session.model, "poses": c.session.poses, "scale": s.scale(),
         "depth_weight": c.depth_weight, "frames": frames_json,
         "mean_gate_iou": gates.iter().sum::<f64>() / gates.len().max(1) as f64,
         "min_gate_iou": gates.iter().copied().fold(f64::INFINITY, f64::min),
@@ -394,7 +390,7 @@ fn default_frame(s: &Session, spec: Option<&str>) -> Result<Vec<usize>> {
 }
 
 pub fn run_sweep(a: SweepArgs) -> Result<ExitCode> {
-    let s = Session::open(&a.common.capture, &a.common.model, &a.common.poses)?;
+    let s = a.common.session.open()?;
     let tree = &s.model.model.tree;
     let kind = match a.space.as_deref() {
         None => None,
@@ -521,7 +517,7 @@ fn parse_spec_values(order: &str, tree: &KinematicTree) -> Result<(SearchSpace, 
 }
 
 pub fn run_apply(a: ApplyArgs) -> Result<ExitCode> {
-    let s = Session::open(&a.common.capture, &a.common.model, &a.common.poses)?;
+    let s = a.common.session.open()?;
     let tree = &s.model.model.tree;
     let (space, x) = parse_spec_values(&a.order, tree)?;
     let frames = default_frame(&s, a.frame.as_deref())?;
@@ -628,7 +624,7 @@ fn opreset_candidates(spec: &str, seed: u64) -> Result<Vec<(String, [f64; 3])>> 
 }
 
 pub fn run_osweep(a: OsweepArgs) -> Result<ExitCode> {
-    let s = Session::open(&a.common.capture, &a.common.model, &a.common.poses)?;
+    let s = a.common.session.open()?;
     let tree = &s.model.model.tree;
     let frames = select_frames(&s.capture, a.frames.as_deref())?;
     let mut outputs = Vec::new();
@@ -737,7 +733,7 @@ fn parse_rotation(cand: &str) -> Result<UnitQuaternion> {
 }
 
 pub fn run_oapply(a: OapplyArgs) -> Result<ExitCode> {
-    let s = Session::open(&a.common.capture, &a.common.model, &a.common.poses)?;
+    let s = a.common.session.open()?;
     let set = rotation_set(&a.set)?;
     let frames = select_frames(&s.capture, a.frames.as_deref())?;
     let mut outputs = Vec::new();
@@ -785,7 +781,7 @@ pub fn run_oapply(a: OapplyArgs) -> Result<ExitCode> {
 }
 
 pub fn run_oapply_all(a: OapplyAllArgs) -> Result<ExitCode> {
-    let s = Session::open(&a.common.capture, &a.common.model, &a.common.poses)?;
+    let s = a.common.session.open()?;
     let q = parse_rotation(a.rotation.trim()).context("--rotation")?;
     let frames = select_frames(&s.capture, a.frames.as_deref())?;
     let mut outputs = Vec::new();

@@ -1,7 +1,7 @@
 //! `agentstar temporal` (velocities and accelerations per step, with a plot) and
 //! `agentstar pose-diff` (the residual between two frames).
 
-use crate::common::{print_json, select_frames, Session};
+use crate::common::{print_json, select_frames, Session, SessionArgs};
 use agentstar_data::images::save_png_rgb;
 use agentstar_render::text::{draw_text, fill_rect};
 use agentstar_track::temporal::{pair_diff, report, Row, Sample};
@@ -13,12 +13,8 @@ use std::process::ExitCode;
 
 #[derive(clap::Args)]
 pub struct Args {
-    #[arg(long)]
-    capture: PathBuf,
-    #[arg(long)]
-    model: PathBuf,
-    #[arg(long)]
-    poses: PathBuf,
+    #[command(flatten)]
+    session: SessionArgs,
     /// Rows: frames, names or `a..b` ranges (all rows by default).
     #[arg(long)]
     frames: Option<String>,
@@ -37,12 +33,8 @@ pub struct Args {
 
 #[derive(clap::Args)]
 pub struct DiffArgs {
-    #[arg(long)]
-    capture: PathBuf,
-    #[arg(long)]
-    model: PathBuf,
-    #[arg(long)]
-    poses: PathBuf,
+    #[command(flatten)]
+    session: SessionArgs,
     #[arg(long)]
     a: String,
     #[arg(long)]
@@ -95,7 +87,7 @@ fn cell(v: Option<f64>) -> String {
 }
 
 pub fn run(a: Args) -> Result<ExitCode> {
-    let s = Session::open(&a.capture, &a.model, &a.poses)?;
+    let s = a.session.open()?;
     let rep = report(&samples(&s), s.scale(), &s.model.model.tree);
     let keep = select_frames(&s.capture, a.frames.as_deref())?;
     let mut rows: Vec<&Row> = keep.iter().map(|&i| &rep.rows[i]).collect();
@@ -330,7 +322,7 @@ fn plot_velocities(rows: &[Row]) -> RgbImage {
 }
 
 pub fn run_diff(a: DiffArgs) -> Result<ExitCode> {
-    let s = Session::open(&a.capture, &a.model, &a.poses)?;
+    let s = a.session.open()?;
     let ia = select_frames(&s.capture, Some(&a.a))?;
     let ib = select_frames(&s.capture, Some(&a.b))?;
     let (Some(&ia), Some(&ib)) = (ia.first(), ib.first()) else {
