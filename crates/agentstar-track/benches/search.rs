@@ -139,6 +139,18 @@ fn tracking() {
         last = Some(r);
     }
     let r = last.expect("ran");
+    if std::env::var_os("AGENTSTAR_BENCH_VERBOSE").is_some() {
+        for (k, (g, e)) in gts.iter().zip(&r.poses).enumerate() {
+            eprintln!(
+                "frame {k}: {:.2}° rotation, IoU {:.4}",
+                g.pose.rotation.angle_to(&e.pose.rotation).to_degrees(),
+                r.scores[k]
+            );
+        }
+        for l in &r.log {
+            eprintln!("{l}");
+        }
+    }
     let rot = gts
         .iter()
         .zip(&r.poses)

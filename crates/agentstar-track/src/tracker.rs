@@ -616,7 +616,7 @@ fn consistency(
     let step = |poses: &[GenPose], a: usize, b: usize| {
         angle_deg(&(poses[b].pose.rotation * carried(poses, a, b).pose.rotation.inverse()))
     };
-    for round in 0..2 {
+    for round in 0..3 {
         let mut steps: Vec<f64> = (1..n).map(|i| step(poses, i - 1, i)).collect();
         steps.sort_by(f64::total_cmp);
         let limit = (3.0 * steps.get(steps.len() / 2).copied().unwrap_or(0.0)).max(25.0);
