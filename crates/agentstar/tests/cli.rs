@@ -400,3 +400,48 @@ fn pose_verbs_track_commit_and_diagnose() {
             && v["joints"]["hinge"].as_f64().expect("joint") > 5.0
     );
 }
+
+#[test]
+fn sweep_scores_explicit_candidates_exactly() {
+    let dir = tempfile::tempdir().expect("tmp");
+    let (cap, model, poses) = example(dir.path());
+    let out = dir.path().join("c").display().to_string();
+    let o = agentstar(&[
+        "sweep",
+        "--capture",
+        &cap,
+        "--model",
+        &model,
+        "--poses",
+        &poses,
+        "--frames",
+        "000005",
+        "--candidates",
+        "yaw:12|hinge:0|roll:0",
+        "--out",
+        &out,
+        "--json",
+    ]);
+    assert!(o.status.success(), "{}", text(&o));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("json");
+    let ranked = v["frames"][0]["ranked"].as_array().expect("ranked");
+    assert_eq!(ranked.len(), 3);
+    // The example's poses are exact, so the zero increment ranks first with IoU 1.
+    assert_eq!(ranked[0]["label"], "roll:0");
+    assert_eq!(ranked[0]["iou_visible"], 1.0);
+    let o = agentstar(&[
+        "sweep",
+        "--capture",
+        &cap,
+        "--model",
+        &model,
+        "--poses",
+        &poses,
+        "--candidates",
+        "rz:90",
+        "--out",
+        &out,
+    ]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(text(&o).contains("use osweep/oapply"), "{}", text(&o));
+}

@@ -79,6 +79,10 @@ pub struct SweepArgs {
     /// Apply this order before searching, so the window centres on the shifted pose.
     #[arg(long)]
     start_shift: Option<String>,
+    /// Score these orders exactly instead of searching: `yaw:10;hinge:40|yaw:-10;hinge:60`,
+    /// or `@FILE` with one order per line.
+    #[arg(long, conflicts_with_all = ["start_shift", "ranges"])]
+    candidates: Option<String>,
 }
 
 #[derive(clap::Args)]
@@ -399,6 +403,9 @@ pub fn run_sweep(a: SweepArgs) -> Result<ExitCode> {
         Some("both") => Some(SpaceKind::Both),
         Some(o) => bail!("unknown space `{o}`; use pose, joint or both"),
     };
+    if let Some(list) = &a.candidates {
+        return run_candidates(&a, &s, list);
+    }
     let space = build_space(a.ranges.as_deref(), kind, tree, Grammar::Camera)?;
     if space.is_empty() {
         bail!("the search space is empty (a rigid model has no joints to search); name pose ranges or use --space pose");
@@ -469,6 +476,68 @@ pub fn run_sweep(a: SweepArgs) -> Result<ExitCode> {
         });
     }
     write_outputs("sweep", &s, &a.common, &frames, outputs, json!({}))
+}
+
+/// `sweep --candidates`: every order scored exactly, ranked per frame.
+fn run_candidates(a: &SweepArgs, s: &Session, list: &str) -> Result<ExitCode> {
+    let tree = &s.model.model.tree;
+    let text = match list.strip_prefix('@') {
+        Some(path) => agentstar_data::read_text(Path::new(path))?,
+        None => list.replace('|', "\n"),
+    };
+    let orders: Vec<&str> = text
+        .lines()
+        .map(str::trim)
+        .filter(|l| !l.is_empty() && !l.starts_with('#'))
+        .collect();
+    if orders.is_empty() {
+        bail!("--candidates holds no order; write `yaw:10;hinge:40|yaw:-10` or @FILE with one order per line");
+    }
+    let parsed: Vec<(SearchSpace, Vec<f64>)> = orders
+        .iter()
+        .map(|o| parse_spec_values(o, tree))
+        .collect::<Result<_>>()?;
+    let frames = default_frame(s, a.frames.as_deref())?;
+    let mut outputs = Vec::new();
+    for &i in &frames {
+        let (target, depth) = s.target(i)?;
+        let p = problem_for(
+            s,
+            i,
+            &target,
+            depth.as_ref(),
+            a.common.depth_weight,
+            s.gen_pose(i),
+        );
+        let mut ev = p.evaluator();
+        let mut rows: Vec<Row> = parsed
+            .iter()
+            .zip(&orders)
+            .enumerate()
+            .map(|(k, ((space, x), order))| {
+                let pose = p.candidate(space, x);
+                let score = ev.score(&pose);
+                Row {
+                    rank: 0,
+                    label: order.to_string(),
+                    pose,
+                    score,
+                    extra: json!({"candidate": k}),
+                }
+            })
+            .collect();
+        rows.sort_by(|x, y| y.score.combined.total_cmp(&x.score.combined));
+        for (k, r) in rows.iter_mut().enumerate() {
+            r.rank = k;
+        }
+        outputs.push(FrameOutput {
+            frame: s.capture.frames[i].name.clone(),
+            rows,
+            extra: json!({"method": "candidates", "n": orders.len()}),
+            notes: vec![],
+        });
+    }
+    write_outputs("sweep", s, &a.common, &frames, outputs, json!({}))
 }
 
 /// An ASCII heat map of a 2-DOF score field.
