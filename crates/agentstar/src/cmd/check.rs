@@ -12,6 +12,7 @@ use std::process::ExitCode;
 pub struct Args {
     /// A scene script (.rhai), URDF or mesh file.
     model: PathBuf,
+    /// Print the result as JSON on stdout.
     #[arg(long)]
     json: bool,
 }

@@ -21,6 +21,7 @@ pub struct Args {
     /// Robot name in the URDF.
     #[arg(long, default_value = "object")]
     name: String,
+    /// Print the result as JSON on stdout.
     #[arg(long)]
     json: bool,
 }

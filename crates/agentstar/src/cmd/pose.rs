@@ -25,6 +25,7 @@ pub enum PoseCommand {
         /// Only these frames of the report (comma separated names); default every frame in it.
         #[arg(long)]
         frames: Option<String>,
+        /// Print the result as JSON on stdout.
         #[arg(long)]
         json: bool,
     },
@@ -32,6 +33,7 @@ pub enum PoseCommand {
     History {
         #[arg(long)]
         poses: PathBuf,
+        /// Print the result as JSON on stdout.
         #[arg(long)]
         json: bool,
     },

@@ -30,6 +30,7 @@ pub struct Args {
     /// Draw no outlines on the shaded render.
     #[arg(long)]
     no_outlines: bool,
+    /// Print the result as JSON on stdout.
     #[arg(long)]
     json: bool,
 }

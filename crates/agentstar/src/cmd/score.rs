@@ -19,6 +19,7 @@ pub struct Args {
     /// The gate on the visible-region IoU.
     #[arg(long, default_value_t = PASS_IOU)]
     pass_iou: f64,
+    /// Print the result as JSON on stdout.
     #[arg(long)]
     json: bool,
 }

@@ -36,6 +36,7 @@ pub struct Common {
     /// Finalists rendered on the candidate sheet.
     #[arg(long, default_value_t = 6)]
     sheet: usize,
+    /// Print the result as JSON on stdout.
     #[arg(long)]
     json: bool,
 }
@@ -59,18 +60,22 @@ pub struct SweepArgs {
     /// Grid steps for DOFs whose range gives none.
     #[arg(long, default_value_t = 5)]
     steps: usize,
-    /// Grid refinement passes and window shrink.
+    /// Grid refinement passes (each re-centres the windows on the best point).
     #[arg(long, default_value_t = 1)]
     refine: usize,
+    /// Factor applied to each window's half-span per refinement pass.
     #[arg(long, default_value_t = 0.5)]
     shrink: f64,
-    /// DE restarts (seeds seed + i), total evaluations, seed, Nelder–Mead polish evaluations.
+    /// Independent DE restarts (seeds seed + i), one winner each.
     #[arg(long, default_value_t = 6)]
     restarts: usize,
+    /// Objective evaluations over all restarts (split evenly).
     #[arg(long, default_value_t = 3600)]
     evals: usize,
+    /// Seed of the first restart.
     #[arg(long, default_value_t = 17)]
     seed: u64,
+    /// Nelder–Mead polish evaluations over all restarts (0 = none).
     #[arg(long, default_value_t = 0)]
     polish: usize,
     /// Ranked candidates kept (grid).
@@ -89,6 +94,7 @@ pub struct SweepArgs {
 pub struct ApplyArgs {
     #[command(flatten)]
     common: Common,
+    /// The frame (default: the reference frame).
     #[arg(long)]
     frame: Option<String>,
     /// One value per DOF: `pitch:17;dpx:0.05;hinge:70` (increments; joint states absolute).
@@ -100,6 +106,7 @@ pub struct ApplyArgs {
 pub struct OsweepArgs {
     #[command(flatten)]
     common: Common,
+    /// Frames: names, stems or `a..b` ranges, comma separated (default: all).
     #[arg(long)]
     frames: Option<String>,
     /// Grid ranges over rx, ry, rz (and joints): `rz:-180,180,9;rx:-15,15,3`.
@@ -108,12 +115,16 @@ pub struct OsweepArgs {
     /// Preset rotations: `z:flip`, `z:quarters`, `z:octants`, `z:full`, `z:0,90,180`, `z:large`, or `so3:N` (identity plus N uniform rotations).
     #[arg(long)]
     opreset: Option<String>,
+    /// Grid steps for axes whose range gives none.
     #[arg(long, default_value_t = 5)]
     steps: usize,
+    /// Grid refinement passes.
     #[arg(long, default_value_t = 1)]
     refine: usize,
+    /// Window shrink per refinement pass.
     #[arg(long, default_value_t = 0.5)]
     shrink: f64,
+    /// Ranked candidates kept per frame.
     #[arg(long, default_value_t = 10)]
     topk: usize,
 }
@@ -122,6 +133,7 @@ pub struct OsweepArgs {
 pub struct OapplyArgs {
     #[command(flatten)]
     common: Common,
+    /// Frames: names, stems or `a..b` ranges, comma separated (default: all).
     #[arg(long)]
     frames: Option<String>,
     /// Candidates separated by `|`, terms by `;`: `identity|flip:x|rz:90;rx:10`, or `flips`.

@@ -27,6 +27,7 @@ pub struct Args {
     /// Write a plot of the velocities over the sequence here (PNG).
     #[arg(long)]
     plot: Option<PathBuf>,
+    /// Print the result as JSON on stdout.
     #[arg(long)]
     json: bool,
 }
@@ -35,8 +36,10 @@ pub struct Args {
 pub struct DiffArgs {
     #[command(flatten)]
     session: SessionArgs,
+    /// The first frame.
     #[arg(long)]
     a: String,
+    /// The second frame.
     #[arg(long)]
     b: String,
 }

@@ -27,6 +27,7 @@ pub struct Args {
     /// Where to write the tracked poses.
     #[arg(long)]
     out: PathBuf,
+    /// Seed of every search.
     #[arg(long, default_value_t = 17)]
     seed: u64,
     /// Evaluations per local search.
@@ -35,6 +36,7 @@ pub struct Args {
     /// Skip the final consistency pass (the "no temporal" ablation).
     #[arg(long)]
     no_temporal: bool,
+    /// Print the result as JSON on stdout.
     #[arg(long)]
     json: bool,
 }

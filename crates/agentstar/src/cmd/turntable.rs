@@ -36,6 +36,7 @@ pub struct Args {
     /// Horizontal field of view in degrees.
     #[arg(long, default_value_t = 45.0)]
     fov: f64,
+    /// Print the result as JSON on stdout.
     #[arg(long)]
     json: bool,
 }

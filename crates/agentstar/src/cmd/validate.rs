@@ -12,6 +12,7 @@ pub struct Args {
     /// The capture directory (holding capture.json).
     capture: PathBuf,
     /// Print JSON instead of text.
+    /// Print the result as JSON on stdout.
     #[arg(long)]
     json: bool,
 }
