@@ -8,6 +8,7 @@
 pub mod atomic;
 pub mod capture;
 pub mod export;
+pub mod gt;
 pub mod images;
 pub mod meshio;
 pub mod npz;

@@ -8,6 +8,7 @@ pub mod articulation;
 pub mod chamfer;
 pub mod rigid;
 pub mod scale;
+pub mod sequence;
 
 pub use articulation::{axis_angle_error, axis_line_distance, state_error};
 pub use chamfer::{chamfer_distance, sample_surface};

@@ -55,6 +55,8 @@ enum Command {
     PoseDiff(cmd::temporal::DiffArgs),
     /// Track every keyframe of a capture with a known model, no agent.
     Track(cmd::track::Args),
+    /// The paper's metrics against the capture's ground truth: scale alignment, EPE, Chamfer, pose and articulation errors.
+    Eval(cmd::eval::Args),
 }
 
 fn main() -> ExitCode {
@@ -76,6 +78,7 @@ fn main() -> ExitCode {
         Command::Temporal(a) => cmd::temporal::run(a),
         Command::PoseDiff(a) => cmd::temporal::run_diff(a),
         Command::Track(a) => cmd::track::run(a),
+        Command::Eval(a) => cmd::eval::run(a),
     };
     match result {
         Ok(code) => code,

@@ -445,3 +445,78 @@ fn sweep_scores_explicit_candidates_exactly() {
     assert_eq!(o.status.code(), Some(2));
     assert!(text(&o).contains("use osweep/oapply"), "{}", text(&o));
 }
+
+#[test]
+fn eval_scores_ground_truth_as_zero_and_tracking_as_small() {
+    let dir = tempfile::tempdir().expect("tmp");
+    let (cap, model, poses) = example(dir.path());
+    let o = agentstar(&[
+        "eval",
+        "--capture",
+        &cap,
+        "--model",
+        &model,
+        "--poses",
+        &poses,
+        "--samples",
+        "3000",
+        "--json",
+    ]);
+    assert!(o.status.success(), "{}", text(&o));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("json");
+    for k in [
+        "epe_cm",
+        "chamfer_cm",
+        "rotation_mean_deg",
+        "translation_mean_cm",
+    ] {
+        assert!(v[k].as_f64().expect(k) < 1e-3, "{k}: {}", v[k]);
+    }
+    assert_eq!(v["joints"][0]["matched_by"], "child part name");
+    let tracked = dir.path().join("tracked.json").display().to_string();
+    let o = agentstar(&[
+        "track",
+        &cap,
+        "--model",
+        &model,
+        "--scale-from",
+        &poses,
+        "--out",
+        &tracked,
+        "--evals",
+        "1200",
+    ]);
+    assert!(o.status.success(), "{}", text(&o));
+    let o = agentstar(&[
+        "eval",
+        "--capture",
+        &cap,
+        "--model",
+        &model,
+        "--poses",
+        &tracked,
+        "--samples",
+        "3000",
+        "--json",
+    ]);
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("json");
+    assert!(
+        v["epe_cm"].as_f64().expect("epe") < 1.0
+            && v["rotation_mean_deg"].as_f64().expect("rot") < 2.0,
+        "{v}"
+    );
+    // A missing ground truth is named.
+    let o = agentstar(&[
+        "eval",
+        "--capture",
+        &cap,
+        "--model",
+        &model,
+        "--poses",
+        &tracked,
+        "--gt",
+        "/nonexistent/gt.json",
+    ]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(text(&o).contains("/nonexistent/gt.json"), "{}", text(&o));
+}
