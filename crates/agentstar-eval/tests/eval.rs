@@ -200,3 +200,94 @@ fn monocular_scale_is_aligned_and_joints_match_by_geometry() {
     assert!((r.joints[0].state_error.expect("state") - 10f64.to_radians()).abs() < 1e-9);
     assert!(r.cd_moving_cm.expect("cd") > r.cd_static_cm.expect("cd"));
 }
+
+/// Cross-checks the gauge-aligned errors of a noisy trajectory against the independent numpy
+/// implementation in `scripts/crosscheck_rigid.py`, where Python and numpy exist (skipped
+/// with a note otherwise, since CI machines need not have numpy).
+#[test]
+fn rigid_errors_match_an_independent_numpy_implementation() {
+    use agentstar_eval::rigid::gauge_aligned_errors;
+    use std::io::Write;
+    let has_numpy = std::process::Command::new("python3")
+        .args(["-c", "import numpy"])
+        .output()
+        .map(|o| o.status.success())
+        .unwrap_or(false);
+    if !has_numpy {
+        eprintln!("python3 with numpy not found: the numpy cross-check did not run");
+        return;
+    }
+    let f = frames();
+    let gt: Vec<ObjectPose> = f.iter().map(|x| x.0).collect();
+    let pred: Vec<ObjectPose> = gt
+        .iter()
+        .enumerate()
+        .map(|(k, g)| {
+            let noise =
+                UnitQuaternion::from_euler_angles(0.01 * k as f64, -0.02, 0.015 * (k as f64).sin());
+            let q = UnitQuaternion::from_axis_angle(&Vector3::y_axis(), 0.7);
+            ObjectPose::new(
+                noise * g.rotation * q,
+                (g.translation + Vector3::new(0.004 * k as f64, -0.003, 0.002)) / 1.7,
+            )
+        })
+        .collect();
+    let ours = gauge_aligned_errors(&gt, &pred, 0.4, 1.7).expect("errors");
+    let row = |p: &ObjectPose| {
+        let q = p.quaternion_wxyz();
+        vec![
+            q[0],
+            q[1],
+            q[2],
+            q[3],
+            p.translation.x,
+            p.translation.y,
+            p.translation.z,
+        ]
+    };
+    let input = serde_json::json!({"gt": gt.iter().map(row).collect::<Vec<_>>(), "pred": pred.iter().map(row).collect::<Vec<_>>(), "pred_scale": 0.4, "depth_scale": 1.7});
+    let script =
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scripts/crosscheck_rigid.py");
+    let mut child = std::process::Command::new("python3")
+        .arg(script)
+        .stdin(std::process::Stdio::piped())
+        .stdout(std::process::Stdio::piped())
+        .spawn()
+        .expect("python3");
+    child
+        .stdin
+        .take()
+        .expect("stdin")
+        .write_all(input.to_string().as_bytes())
+        .expect("write");
+    let out = child.wait_with_output().expect("run");
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let theirs: serde_json::Value = serde_json::from_slice(&out.stdout).expect("json");
+    for (k, (a, b)) in ours
+        .rotation_deg
+        .iter()
+        .zip(theirs["rotation_deg"].as_array().expect("rot"))
+        .enumerate()
+    {
+        assert!(
+            (a - b.as_f64().expect("f64")).abs() < 1e-6,
+            "frame {k}: rotation {a} vs {b}"
+        );
+    }
+    for (k, (a, b)) in ours
+        .translation_cm
+        .iter()
+        .zip(theirs["translation_cm"].as_array().expect("trans"))
+        .enumerate()
+    {
+        assert!(
+            (a - b.as_f64().expect("f64")).abs() < 1e-6,
+            "frame {k}: translation {a} vs {b}"
+        );
+    }
+    assert!(ours.rotation_mean_deg > 0.5, "the case is not trivial");
+}
