@@ -280,7 +280,6 @@ fn load_depth_npz(path: &Path, w: u32, h: u32) -> Result<DepthObservation> {
         ));
     }
     let (dh, dw) = (local.shape[0], local.shape[1]);
-    let n = dh * dw;
     let conf = get("conf");
     let keep = get("keep");
     for (name, a) in [("conf", conf), ("keep", keep)] {
@@ -311,7 +310,6 @@ fn load_depth_npz(path: &Path, w: u32, h: u32) -> Result<DepthObservation> {
             confidence.push(conf.map_or(1.0, |a| a.data[k] as f32));
         }
     }
-    let _ = n;
     Ok(DepthObservation {
         width: w,
         height: h,

@@ -57,19 +57,3 @@ pub fn save_png_gray(img: &GrayImage, path: &Path) -> Result<()> {
     let bytes = encode_png(|b| img.write_to(b, image::ImageFormat::Png), path)?;
     crate::atomic::write_atomic(path, &bytes)
 }
-
-pub fn save_png_gray16(
-    img: &image::ImageBuffer<image::Luma<u16>, Vec<u16>>,
-    path: &Path,
-) -> Result<()> {
-    let bytes = encode_png(|b| img.write_to(b, image::ImageFormat::Png), path)?;
-    crate::atomic::write_atomic(path, &bytes)
-}
-
-pub fn save_jpeg(img: &RgbImage, path: &Path, quality: u8) -> Result<()> {
-    let mut buf = Vec::new();
-    image::codecs::jpeg::JpegEncoder::new_with_quality(&mut buf, quality)
-        .encode_image(img)
-        .map_err(|e| DataError::invalid(path, format!("cannot encode JPEG: {e}")))?;
-    crate::atomic::write_atomic(path, &buf)
-}

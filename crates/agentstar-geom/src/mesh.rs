@@ -86,17 +86,6 @@ impl TriMesh {
         Aabb::from_points(self.positions.iter())
     }
 
-    /// Bounds of the vertices that triangles use (unused vertices are ignored).
-    pub fn used_bounds(&self) -> Aabb {
-        let mut b = Aabb::empty();
-        for t in &self.triangles {
-            for &i in t {
-                b.grow(&self.positions[i as usize]);
-            }
-        }
-        b
-    }
-
     /// Signed volume by the divergence theorem; meaningful for closed, outward meshes.
     pub fn volume(&self) -> f64 {
         let mut v = 0.0;
@@ -275,15 +264,6 @@ impl TriMesh {
             positions,
             triangles,
         }
-    }
-
-    /// Face normal of triangle `i` (unit, or zero for a degenerate triangle).
-    pub fn face_normal(&self, i: usize) -> Vector3 {
-        let [a, b, c] = self.triangle(i);
-        (b - a)
-            .cross(&(c - a))
-            .try_normalize(1e-300)
-            .unwrap_or_else(Vector3::zeros)
     }
 
     /// True when every coordinate is finite.

@@ -4,7 +4,7 @@
 use crate::kinematics::KinematicTree;
 use crate::mesh::{Aabb, TriMesh};
 use crate::pose::Rigid;
-use crate::{Point3, Vector3};
+use crate::Point3;
 use std::sync::Arc;
 
 #[derive(Debug, Clone, PartialEq)]
@@ -93,16 +93,6 @@ impl ObjectModel {
         self.posed_bounds(states).center()
     }
 
-    /// All parts posed at `states`, merged into one mesh (canonical frame).
-    pub fn posed_mesh(&self, states: &[f64]) -> TriMesh {
-        let transforms = self.tree.part_transforms(states);
-        let mut out = TriMesh::default();
-        for (part, t) in self.parts.iter().zip(&transforms) {
-            out.append(&transform_rigid(&part.mesh, t));
-        }
-        out
-    }
-
     /// Measures the canonical-frame convention at rest.
     pub fn canonical_report(&self) -> CanonicalReport {
         let b = self.posed_bounds(&self.tree.rest_states());
@@ -157,16 +147,12 @@ pub fn transform_rigid(mesh: &TriMesh, t: &Rigid) -> TriMesh {
     }
 }
 
-/// The unit direction of a vector or `None` for a zero vector.
-pub fn direction(v: &Vector3) -> Option<Vector3> {
-    v.try_normalize(1e-12)
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::kinematics::{JointDef, JointKind};
     use crate::primitives::cuboid;
+    use crate::Vector3;
 
     #[test]
     fn canonical_report_flags_drift() {

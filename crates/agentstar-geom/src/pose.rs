@@ -77,9 +77,6 @@ impl Similarity {
     pub fn transform_point(&self, p: &Point3) -> Point3 {
         Point3::from(self.rotation * (p.coords * self.scale) + self.translation)
     }
-    pub fn transform_vector(&self, v: &Vector3) -> Vector3 {
-        self.rotation * (v * self.scale)
-    }
     /// `self ∘ other`: apply `other` first.
     pub fn compose(&self, other: &Similarity) -> Similarity {
         Similarity {

@@ -28,6 +28,4 @@ pub enum RenderError {
         want_w: u32,
         want_h: u32,
     },
-    #[error("{0}")]
-    Invalid(String),
 }

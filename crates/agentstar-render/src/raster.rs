@@ -342,11 +342,6 @@ impl SilhouetteRenderer {
     pub fn mask(&self) -> &BitMask {
         &self.mask
     }
-
-    /// Rows that hold any set pixel after the last render (inclusive), if any.
-    pub fn dirty_rows(&self) -> Option<(u32, u32)> {
-        self.dirty
-    }
 }
 
 pub(crate) fn camera_inside_bounds(inst: &Instance<'_>) -> bool {

@@ -139,7 +139,9 @@ impl Evaluator<'_, '_> {
     pub fn score(&mut self, g: &GenPose) -> CandidateScore {
         let p = self.problem;
         let sim = g.pose.with_scale(p.scale);
-        if pivot_in_camera(&g.pose, p.scale, &p.model.pivot(&g.states)).z <= 0.0 {
+        // The frozen pivot, as in `combined`: the same test in both, and no pass over every
+        // vertex per candidate.
+        if pivot_in_camera(&g.pose, p.scale, &p.pivot).z <= 0.0 {
             return CandidateScore {
                 gate: 0.0,
                 iou_raw: 0.0,

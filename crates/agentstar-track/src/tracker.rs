@@ -391,6 +391,20 @@ fn extrapolate(prev2: &GenPose, prev: &GenPose, tree: &agentstar_geom::Kinematic
     }
 }
 
+/// The best-scoring result of parallel searches, or the first error.
+fn best_of(
+    results: Vec<Result<(GenPose, f64), TrackError>>,
+) -> Result<Option<(GenPose, f64)>, TrackError> {
+    let mut best: Option<(GenPose, f64)> = None;
+    for r in results {
+        let r = r?;
+        if best.as_ref().is_none_or(|b| r.1 > b.1) {
+            best = Some(r);
+        }
+    }
+    Ok(best)
+}
+
 /// Tracks every frame. `scale` is the shared object scale (from the pose file or known).
 pub fn track(
     model: &ObjectModel,
@@ -453,15 +467,8 @@ pub fn track(
             )
         })
         .collect();
-    let mut best: Option<(GenPose, f64)> = None;
-    for r in refined {
-        let r = r?;
-        if best.as_ref().is_none_or(|b| r.1 > b.1) {
-            best = Some(r);
-        }
-    }
-    let (g0, s0) =
-        best.ok_or_else(|| TrackError::Invalid("initialisation found nothing".into()))?;
+    let (g0, s0) = best_of(refined)?
+        .ok_or_else(|| TrackError::Invalid("initialisation found nothing".into()))?;
     log.push(format!(
         "init {}: covering of {} hypotheses, best placed {:.3}, refined {:.4}",
         frames[init].name,
@@ -519,15 +526,8 @@ pub fn track(
                 )
             })
             .collect();
-        let mut best: Option<(GenPose, f64)> = None;
-        for r in results {
-            let r = r?;
-            if best.as_ref().is_none_or(|b| r.1 > b.1) {
-                best = Some(r);
-            }
-        }
         let (mut g, mut sc) =
-            best.ok_or_else(|| TrackError::Invalid("search found nothing".into()))?;
+            best_of(results)?.ok_or_else(|| TrackError::Invalid("search found nothing".into()))?;
         let mut how = "local";
         if sc < cfg.drop_threshold || sc < scores[prev_i] - cfg.drop_margin {
             // Wide search: flips of the best, and a covering of rotations around the seed.
@@ -566,12 +566,9 @@ pub fn track(
                     )
                 })
                 .collect();
-            for r in wide {
-                let r = r?;
-                if r.1 > sc {
-                    (g, sc) = r;
-                    how = "wide";
-                }
+            if let Some(r) = best_of(wide)?.filter(|r| r.1 > sc) {
+                (g, sc) = r;
+                how = "wide";
             }
         }
         log.push(format!(
@@ -688,19 +685,16 @@ fn consistency(
                     )
                 })
                 .collect();
-            for r in results {
-                let (g, sc) = r?;
-                if sc > scores[i] + 1e-4 {
-                    log.push(format!(
-                        "{}: searched again from its neighbours{}, IoU {:.4} → {sc:.4}",
-                        frames[i].name,
-                        if outlier { " (temporal outlier)" } else { "" },
-                        scores[i]
-                    ));
-                    poses[i] = g;
-                    scores[i] = sc;
-                    changed += 1;
-                }
+            if let Some((g, sc)) = best_of(results)?.filter(|r| r.1 > scores[i] + 1e-4) {
+                log.push(format!(
+                    "{}: searched again from its neighbours{}, IoU {:.4} → {sc:.4}",
+                    frames[i].name,
+                    if outlier { " (temporal outlier)" } else { "" },
+                    scores[i]
+                ));
+                poses[i] = g;
+                scores[i] = sc;
+                changed += 1;
             }
         }
         if changed == 0 {

@@ -53,6 +53,9 @@ impl SessionArgs {
     }
 }
 
+/// One frame's observation: the score target (mask, hands excluded) and observed depth.
+pub type FrameInputs = (ScoreTarget, Option<agentstar_render::DepthObservation>);
+
 /// Capture, model and resolved poses of a run.
 pub struct Session {
     pub capture: Capture,
@@ -95,10 +98,7 @@ impl Session {
     }
 
     /// The score target (mask with hands excluded) and observed depth of frame `i`.
-    pub fn target(
-        &self,
-        i: usize,
-    ) -> Result<(ScoreTarget, Option<agentstar_render::DepthObservation>)> {
+    pub fn target(&self, i: usize) -> Result<FrameInputs> {
         let target = ScoreTarget::new(self.capture.load_mask(i)?, self.capture.load_hand(i)?)?;
         Ok((target, self.capture.load_depth(i)?))
     }

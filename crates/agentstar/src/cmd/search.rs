@@ -4,7 +4,7 @@
 //! paste-ready blocks, and a candidate sheet (render over the frame and silhouette
 //! comparison per finalist, labelled with rank, score and the order).
 
-use crate::common::{out_dir, print_json, select_frames, Session, SessionArgs};
+use crate::common::{out_dir, print_json, select_frames, FrameInputs, Session, SessionArgs};
 use agentstar_data::images::save_png_rgb;
 use agentstar_data::posefile::pose_json;
 use agentstar_geom::{KinematicTree, Point3, UnitQuaternion};
@@ -364,22 +364,22 @@ fn write_outputs(
     Ok(ExitCode::SUCCESS)
 }
 
+/// Frame `i`'s problem around `base`, scoring against `inputs` (from [`Session::target`]).
 fn problem_for<'a>(
     s: &'a Session,
     i: usize,
-    target: &'a agentstar_render::ScoreTarget,
-    depth: Option<&'a agentstar_render::DepthObservation>,
+    inputs: &'a FrameInputs,
     w: f64,
     base: GenPose,
 ) -> FrameProblem<'a> {
     let mut p = FrameProblem::new(
         &s.model.model,
         s.capture.frames[i].camera,
-        target,
+        &inputs.0,
         s.scale(),
         base,
     );
-    p.depth = depth;
+    p.depth = inputs.1.as_ref();
     p.depth_weight = w;
     p
 }
@@ -443,21 +443,14 @@ pub fn run_sweep(a: SweepArgs) -> Result<ExitCode> {
     let frames = default_frame(&s, a.frames.as_deref())?;
     let mut outputs = Vec::new();
     for &i in &frames {
-        let (target, depth) = s.target(i)?;
+        let inputs = s.target(i)?;
         let mut base = s.gen_pose(i);
         if let Some(shift) = &a.start_shift {
             let sp = parse_spec_values(shift, tree)?;
-            let p = problem_for(
-                &s,
-                i,
-                &target,
-                depth.as_ref(),
-                a.common.depth_weight,
-                base.clone(),
-            );
+            let p = problem_for(&s, i, &inputs, a.common.depth_weight, base.clone());
             base = p.candidate(&sp.0, &sp.1);
         }
-        let p = problem_for(&s, i, &target, depth.as_ref(), a.common.depth_weight, base);
+        let p = problem_for(&s, i, &inputs, a.common.depth_weight, base);
         let r = sweep(&p, &space, &cfg)?;
         let extra = json!({
             "method": a.strategy, "space": space_json(&space, tree), "n_evals": r.n_evals,
@@ -512,15 +505,8 @@ fn run_candidates(a: &SweepArgs, s: &Session, list: &str) -> Result<ExitCode> {
     let frames = default_frame(s, a.frames.as_deref())?;
     let mut outputs = Vec::new();
     for &i in &frames {
-        let (target, depth) = s.target(i)?;
-        let p = problem_for(
-            s,
-            i,
-            &target,
-            depth.as_ref(),
-            a.common.depth_weight,
-            s.gen_pose(i),
-        );
+        let inputs = s.target(i)?;
+        let p = problem_for(s, i, &inputs, a.common.depth_weight, s.gen_pose(i));
         let mut ev = p.evaluator();
         let mut rows: Vec<Row> = parsed
             .iter()
@@ -604,15 +590,8 @@ pub fn run_apply(a: ApplyArgs) -> Result<ExitCode> {
     let frames = default_frame(&s, a.frame.as_deref())?;
     let mut outputs = Vec::new();
     for &i in &frames {
-        let (target, depth) = s.target(i)?;
-        let p = problem_for(
-            &s,
-            i,
-            &target,
-            depth.as_ref(),
-            a.common.depth_weight,
-            s.gen_pose(i),
-        );
+        let inputs = s.target(i)?;
+        let p = problem_for(&s, i, &inputs, a.common.depth_weight, s.gen_pose(i));
         let r = sweep(
             &p,
             &space,
@@ -710,15 +689,8 @@ pub fn run_osweep(a: OsweepArgs) -> Result<ExitCode> {
     let frames = select_frames(&s.capture, a.frames.as_deref())?;
     let mut outputs = Vec::new();
     for &i in &frames {
-        let (target, depth) = s.target(i)?;
-        let p = problem_for(
-            &s,
-            i,
-            &target,
-            depth.as_ref(),
-            a.common.depth_weight,
-            s.gen_pose(i),
-        );
+        let inputs = s.target(i)?;
+        let p = problem_for(&s, i, &inputs, a.common.depth_weight, s.gen_pose(i));
         let (space, cfg) = if let Some(pre) = &a.opreset {
             let cands = opreset_candidates(pre, 0x5EED)?;
             let space = SearchSpace {
@@ -819,15 +791,8 @@ pub fn run_oapply(a: OapplyArgs) -> Result<ExitCode> {
     let frames = select_frames(&s.capture, a.frames.as_deref())?;
     let mut outputs = Vec::new();
     for &i in &frames {
-        let (target, depth) = s.target(i)?;
-        let p = problem_for(
-            &s,
-            i,
-            &target,
-            depth.as_ref(),
-            a.common.depth_weight,
-            s.gen_pose(i),
-        );
+        let inputs = s.target(i)?;
+        let p = problem_for(&s, i, &inputs, a.common.depth_weight, s.gen_pose(i));
         let mut ev = p.evaluator();
         let mut rows: Vec<Row> = set
             .iter()
@@ -867,15 +832,8 @@ pub fn run_oapply_all(a: OapplyAllArgs) -> Result<ExitCode> {
     let frames = select_frames(&s.capture, a.frames.as_deref())?;
     let mut outputs = Vec::new();
     for &i in &frames {
-        let (target, depth) = s.target(i)?;
-        let p = problem_for(
-            &s,
-            i,
-            &target,
-            depth.as_ref(),
-            a.common.depth_weight,
-            s.gen_pose(i),
-        );
+        let inputs = s.target(i)?;
+        let p = problem_for(&s, i, &inputs, a.common.depth_weight, s.gen_pose(i));
         // About the canonical origin: translation unchanged.
         let pose = apply_object_rotation(&p.base.pose, s.scale(), &Point3::origin(), &q);
         let g = GenPose {

@@ -45,11 +45,8 @@ pub struct DiffArgs {
 }
 
 fn samples(s: &Session) -> Vec<Sample> {
-    let cams = s.capture.frames.len() > 1
-        || s.capture
-            .frames
-            .iter()
-            .any(|f| f.world_from_camera != agentstar_geom::pose::Rigid::identity());
+    // Every capture has cameras (a shared one is the identity), so motion is always
+    // compensated by them.
     s.capture
         .frames
         .iter()
@@ -59,7 +56,7 @@ fn samples(s: &Session) -> Vec<Sample> {
             number: f.number,
             pose: p.pose,
             states: p.states.clone(),
-            world_from_camera: cams.then_some(f.world_from_camera),
+            world_from_camera: Some(f.world_from_camera),
         })
         .collect()
 }
