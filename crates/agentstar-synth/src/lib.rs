@@ -1,0 +1,484 @@
+//! Synthetic captures with ground truth, rendered by our renderer and fully seeded.
+//!
+//! An object of the library ([`objects`]) is built from its scene script, moved along a
+//! motion of one of three kinds ([`Motion`]), seen by a camera with its own trajectory, and
+//! rendered with per-part colours, a checker texture fixed to each part (so frames are
+//! informative to a model), shading, a textured background and rendered hand occluders
+//! ([`hand`]). Masks are exact visible-region masks, optionally with boundary noise of a
+//! segmenter; hand masks are the visible hand pixels; depth (planar, metres) is exact.
+//!
+//! No I/O: the caller writes the capture (`agentstar synth`) or uses it in memory
+//! (`agentstar bench`).
+
+pub mod hand;
+pub mod motion;
+pub mod noise;
+pub mod objects;
+
+pub use motion::Motion;
+pub use objects::{Family, ObjectSpec, Symmetry, LIBRARY};
+
+use agentstar_geom::pose::{ObjectPose, Rigid, Similarity};
+use agentstar_geom::{ObjectModel, PinholeCamera, Point3, TriMesh, UnitQuaternion, Vector3};
+use agentstar_optim::Rng;
+use agentstar_render::raster::Affine;
+use agentstar_render::{render_full, BitMask, Instance, PosedModel, NO_PART};
+use image::{Rgb, RgbImage};
+
+#[derive(Debug, thiserror::Error)]
+pub enum SynthError {
+    #[error("unknown object `{name}`; the library has: {known}")]
+    UnknownObject { name: String, known: String },
+    #[error("the scene script of `{object}` does not build: {message}")]
+    Scene { object: String, message: String },
+    #[error("invalid configuration: {0}")]
+    Config(String),
+}
+
+/// What to synthesise.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SynthConfig {
+    /// An object name of [`LIBRARY`].
+    pub object: String,
+    /// The motion; `None` takes the object's family default.
+    pub motion: Option<Motion>,
+    pub frames: usize,
+    pub width: u32,
+    pub height: u32,
+    pub seed: u64,
+    /// Rendered hand occluders (with their masks).
+    pub hands: bool,
+    /// Amplitude in pixels of segmenter-like noise on mask boundaries (0: exact masks).
+    pub mask_noise_px: f64,
+    /// Write depth; `None`: only for the static-object orbit (as iTACO has depth).
+    pub depth: Option<bool>,
+}
+
+impl Default for SynthConfig {
+    fn default() -> Self {
+        SynthConfig {
+            object: "box".into(),
+            motion: None,
+            frames: 12,
+            width: 320,
+            height: 240,
+            seed: 0,
+            hands: true,
+            mask_noise_px: 0.0,
+            depth: None,
+        }
+    }
+}
+
+/// One synthesised keyframe.
+#[derive(Debug, Clone)]
+pub struct SynthFrame {
+    /// File name, e.g. `000010.png`.
+    pub name: String,
+    pub frame_index: i64,
+    pub time_s: f64,
+    pub world_from_camera: Rigid,
+    /// Ground truth: object (canonical) to camera, without the scale.
+    pub camera_from_object: ObjectPose,
+    /// Ground-truth joint states (radians, canonical units).
+    pub states: Vec<f64>,
+    pub rgb: RgbImage,
+    /// The visible object (hands in front removed).
+    pub mask: BitMask,
+    /// The visible hand pixels, in frames where a hand was placed.
+    pub hand: Option<BitMask>,
+    /// Planar depth in metres of everything rendered (object and hands); NaN elsewhere.
+    pub depth_m: Option<Vec<f32>>,
+}
+
+/// A synthesised capture and everything needed to write it and its ground truth.
+#[derive(Debug, Clone)]
+pub struct SynthCapture {
+    pub object: &'static ObjectSpec,
+    pub motion: Motion,
+    pub seed: u64,
+    /// The scene script that built the model (the "known model" of tracking).
+    pub script: &'static str,
+    pub model: ObjectModel,
+    /// Metres per canonical unit.
+    pub scale: f64,
+    pub camera: PinholeCamera,
+    pub frames: Vec<SynthFrame>,
+    /// Rotations of the base part's frame that map the object onto itself (not the identity).
+    pub symmetries: Vec<UnitQuaternion>,
+}
+
+impl SynthCapture {
+    /// A short identifier: `object-motion-sSEED`.
+    pub fn id(&self) -> String {
+        format!("{}-{}-s{}", self.object.name, self.motion.as_str(), self.seed)
+    }
+
+    /// `camera_from_part` in metres for every part of frame `f` (part meshes scaled to metres
+    /// by [`SynthCapture::part_meshes_m`]).
+    pub fn part_poses(&self, f: usize) -> Vec<ObjectPose> {
+        let fr = &self.frames[f];
+        let cam = fr.camera_from_object.with_scale(self.scale);
+        self.model
+            .tree
+            .part_transforms(&fr.states)
+            .iter()
+            .map(|t| {
+                // `cam ∘ (R, t)` applied to `p` equals this rigid transform applied to the
+                // metre-scaled point `s·p`: the composed similarity without its scale.
+                let s = cam.compose(&Similarity::from_rigid(t));
+                ObjectPose::new(s.rotation, s.translation)
+            })
+            .collect()
+    }
+
+    /// Part meshes in metres, in their own (rest) frames.
+    pub fn part_meshes_m(&self) -> Vec<(String, TriMesh)> {
+        self.model
+            .parts
+            .iter()
+            .map(|p| {
+                (
+                    p.name.clone(),
+                    (*p.mesh).clone().transformed(
+                        &(agentstar_geom::Matrix3::identity() * self.scale),
+                        &Vector3::zeros(),
+                    ),
+                )
+            })
+            .collect()
+    }
+}
+
+/// Builds a library object's model from its script.
+pub fn build_object(spec: &ObjectSpec) -> Result<ObjectModel, SynthError> {
+    agentstar_scene::build_scene(
+        spec.script,
+        &agentstar_scene::NoMeshFiles,
+        &agentstar_scene::Limits::default(),
+    )
+    .map(|b| b.model)
+    .map_err(|e| SynthError::Scene {
+        object: spec.name.into(),
+        message: e.to_string(),
+    })
+}
+
+/// Synthesises a capture. Deterministic for a configuration.
+pub fn synthesize(cfg: &SynthConfig) -> Result<SynthCapture, SynthError> {
+    let spec = ObjectSpec::find(&cfg.object).ok_or_else(|| SynthError::UnknownObject {
+        name: cfg.object.clone(),
+        known: ObjectSpec::names().join(", "),
+    })?;
+    if cfg.frames < 2 || cfg.frames > 2000 {
+        return Err(SynthError::Config(format!(
+            "frames must be 2 to 2000, got {}",
+            cfg.frames
+        )));
+    }
+    if !(16..=4096).contains(&cfg.width) || !(16..=4096).contains(&cfg.height) {
+        return Err(SynthError::Config(format!(
+            "image size must be 16 to 4096 pixels a side, got {}×{}",
+            cfg.width, cfg.height
+        )));
+    }
+    if !(cfg.mask_noise_px.is_finite() && (0.0..=8.0).contains(&cfg.mask_noise_px)) {
+        return Err(SynthError::Config(format!(
+            "mask noise must be 0 to 8 pixels, got {}",
+            cfg.mask_noise_px
+        )));
+    }
+    let model = build_object(spec)?;
+    let motion = cfg.motion.unwrap_or(Motion::default_for(spec.family));
+    let depth = cfg.depth.unwrap_or(motion == Motion::StaticOrbit);
+    let (w, h) = (cfg.width, cfg.height);
+    let f = 0.95 * w.max(h) as f64;
+    let camera = PinholeCamera::new(f, f, 0.5 * w as f64, 0.5 * h as f64, w, h)
+        .map_err(|e| SynthError::Config(e.to_string()))?;
+    let scale = spec.size_m;
+    // Seeds of independent streams, so that adding a hand does not change the motion.
+    let mut motion_rng = Rng::new(cfg.seed.wrapping_mul(0x9E37_79B9).wrapping_add(1));
+    let mut hand_rng = Rng::new(cfg.seed.wrapping_mul(0x85EB_CA6B).wrapping_add(2));
+    let mut look_rng = Rng::new(cfg.seed.wrapping_mul(0xC2B2_AE35).wrapping_add(3));
+    let traj = motion::trajectory(
+        motion,
+        &model,
+        scale,
+        &camera,
+        cfg.frames,
+        &mut motion_rng,
+    );
+    let hand_mesh = hand::hand_mesh();
+    let hand_part = agentstar_geom::Part::new("hand", hand_mesh, hand::SKIN);
+    let hand_scale = (scale / 0.22).clamp(0.7, 1.3);
+    let background = Background::new(&mut look_rng, w, h);
+    let light = Vector3::new(-0.3 + 0.6 * look_rng.uniform(), -0.6, -1.0).normalize();
+    let colors: Vec<[f32; 3]> = model.parts.iter().map(|p| p.color).collect();
+    let radius = 0.5 * model.posed_bounds(&model.tree.rest_states()).extent().norm() * scale;
+    let hand_probability = match motion {
+        Motion::HandHeld => 0.85,
+        Motion::RigidSteps => 0.6,
+        Motion::StaticOrbit => 0.35,
+    };
+    let hand_phase = hand_rng.range(0.0, std::f64::consts::TAU);
+    let mut frames = Vec::with_capacity(cfg.frames);
+    for (k, step) in traj.into_iter().enumerate() {
+        let posed = PosedModel::new(
+            &model,
+            &step.states,
+            &step.camera_from_object.with_scale(scale),
+        );
+        let mut instances: Vec<Instance<'_>> = posed.instances.clone();
+        let n_parts = instances.len() as u16;
+        // Hands: one (sometimes two) gripping the object from the front.
+        let mut hand_count = 0;
+        if cfg.hands && hand_rng.uniform() < hand_probability {
+            hand_count = if motion == Motion::HandHeld && hand_rng.uniform() < 0.4 {
+                2
+            } else {
+                1
+            };
+        }
+        let centre = step.camera_from_object.with_scale(scale).transform_point(
+            &model.posed_bounds(&step.states).center(),
+        );
+        for i in 0..hand_count {
+            let phi = hand_phase
+                + 0.35 * k as f64
+                + std::f64::consts::PI * i as f64
+                + hand_rng.range(-0.2, 0.2);
+            let pose = hand::grip_pose(&centre, radius, phi, hand_scale);
+            instances.push(Instance {
+                mesh: &hand_part.mesh,
+                bounds: hand_part.bounds,
+                camera_from_mesh: Affine::from_similarity(&pose),
+                edges: hand_part.edges.as_deref().map(|e| e.as_slice()),
+                part_id: n_parts + i as u16,
+            });
+        }
+        let buffers = render_full(&camera, &instances);
+        let mut mask =
+            BitMask::from_fn(w, h, |x, y| buffers.part[(y * w + x) as usize] < n_parts);
+        let mut hand_mask = (hand_count > 0).then(|| {
+            BitMask::from_fn(w, h, |x, y| {
+                let p = buffers.part[(y * w + x) as usize];
+                p != NO_PART && p >= n_parts
+            })
+        });
+        if cfg.mask_noise_px > 0.0 {
+            let seed = cfg.seed ^ (k as u64).wrapping_mul(0x2545_F491_4F6C_DD1D);
+            mask = noise::jitter_boundary(&mask, cfg.mask_noise_px, seed);
+            hand_mask = hand_mask.map(|m| noise::jitter_boundary(&m, cfg.mask_noise_px, seed + 1));
+        }
+        // Colour: textured, shaded parts and hands over the background.
+        let object_from_parts = model.tree.part_transforms(&step.states);
+        let part_from_camera: Vec<Similarity> = object_from_parts
+            .iter()
+            .map(|t| {
+                step.camera_from_object
+                    .with_scale(scale)
+                    .compose(&Similarity::from_rigid(t))
+                    .inverse()
+            })
+            .collect();
+        let mut rgb = RgbImage::new(w, h);
+        for y in 0..h {
+            for x in 0..w {
+                let i = (y * w + x) as usize;
+                let p = buffers.part[i];
+                let grain = 0.03 * (noise::hash01(x, y, cfg.seed as u32 ^ k as u32) - 0.5);
+                let c = if p == NO_PART {
+                    background.at(x, y)
+                } else {
+                    let n = buffers.normal[i];
+                    let lambert = (-(n[0] as f64 * light.x
+                        + n[1] as f64 * light.y
+                        + n[2] as f64 * light.z))
+                        .max(0.0);
+                    let shading = 0.3 + 0.7 * lambert;
+                    if p < n_parts {
+                        let z = buffers.depth[i] as f64;
+                        let q = Point3::from(camera.ray_direction(x as f64 + 0.5, y as f64 + 0.5) * z);
+                        let local = part_from_camera[p as usize].transform_point(&q);
+                        let t = checker(&local);
+                        let base = colors[p as usize];
+                        [
+                            base[0] as f64 * shading * t,
+                            base[1] as f64 * shading * t,
+                            base[2] as f64 * shading * t,
+                        ]
+                    } else {
+                        let s = hand::SKIN;
+                        [
+                            s[0] as f64 * shading,
+                            s[1] as f64 * shading,
+                            s[2] as f64 * shading,
+                        ]
+                    }
+                };
+                rgb.put_pixel(
+                    x,
+                    y,
+                    Rgb([to_u8(c[0] + grain), to_u8(c[1] + grain), to_u8(c[2] + grain)]),
+                );
+            }
+        }
+        let depth_m = depth.then(|| {
+            buffers
+                .depth
+                .iter()
+                .map(|&z| if z.is_finite() { z } else { f32::NAN })
+                .collect()
+        });
+        let frame_index = 5 * k as i64;
+        frames.push(SynthFrame {
+            name: format!("{frame_index:06}.png"),
+            frame_index,
+            time_s: frame_index as f64 / 30.0,
+            world_from_camera: step.world_from_camera,
+            camera_from_object: step.camera_from_object,
+            states: step.states,
+            rgb,
+            mask,
+            hand: hand_mask,
+            depth_m,
+        });
+    }
+    let symmetries = match spec.symmetry {
+        Symmetry::None => vec![],
+        Symmetry::HalfTurnZ => vec![UnitQuaternion::from_axis_angle(
+            &Vector3::z_axis(),
+            std::f64::consts::PI,
+        )],
+        Symmetry::ContinuousZ => (1..12)
+            .map(|i| {
+                UnitQuaternion::from_axis_angle(&Vector3::z_axis(), (30.0 * i as f64).to_radians())
+            })
+            .collect(),
+    };
+    Ok(SynthCapture {
+        object: spec,
+        motion,
+        seed: cfg.seed,
+        script: spec.script,
+        model,
+        scale,
+        camera,
+        frames,
+        symmetries,
+    })
+}
+
+fn to_u8(v: f64) -> u8 {
+    (v.clamp(0.0, 1.0) * 255.0 + 0.5) as u8
+}
+
+/// A checker fixed to the part (six squares per canonical unit): 1.0 or 0.78.
+fn checker(p: &Point3) -> f64 {
+    let k = (6.0 * p.x).floor() + (6.0 * p.y).floor() + (6.0 * p.z).floor();
+    if (k as i64).rem_euclid(2) == 0 {
+        1.0
+    } else {
+        0.78
+    }
+}
+
+/// A seeded background: a vertical gradient of a random hue with soft blobs and grain.
+struct Background {
+    top: [f64; 3],
+    bottom: [f64; 3],
+    blobs: Vec<(f64, f64, f64, f64)>,
+    seed: u32,
+    height: f64,
+}
+
+impl Background {
+    fn new(rng: &mut Rng, w: u32, h: u32) -> Background {
+        let mut colour = || {
+            let g = rng.range(0.35, 0.75);
+            [
+                g + rng.range(-0.08, 0.08),
+                g + rng.range(-0.08, 0.08),
+                g + rng.range(-0.08, 0.08),
+            ]
+        };
+        let (top, bottom) = (colour(), colour());
+        let blobs = (0..6)
+            .map(|_| {
+                (
+                    rng.range(0.0, w as f64),
+                    rng.range(0.0, h as f64),
+                    rng.range(0.08, 0.3) * w as f64,
+                    rng.range(-0.12, 0.12),
+                )
+            })
+            .collect();
+        Background {
+            top,
+            bottom,
+            blobs,
+            seed: rng.next_u64() as u32,
+            height: h as f64,
+        }
+    }
+
+    fn at(&self, x: u32, y: u32) -> [f64; 3] {
+        let t = y as f64 / self.height.max(1.0);
+        let mut c = [0.0; 3];
+        for (i, v) in c.iter_mut().enumerate() {
+            *v = self.top[i] * (1.0 - t) + self.bottom[i] * t;
+        }
+        let mut b = 0.0;
+        for &(bx, by, r, a) in &self.blobs {
+            let d2 = ((x as f64 - bx).powi(2) + (y as f64 - by).powi(2)) / (r * r);
+            b += a * (-d2).exp();
+        }
+        let coarse = 0.06 * (noise::hash01(x / 6, y / 6, self.seed) - 0.5);
+        c.map(|v| v + b + coarse)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn every_library_object_builds_in_its_canonical_frame() {
+        let mut problems = Vec::new();
+        for spec in LIBRARY {
+            let model = match build_object(spec) {
+                Ok(m) => m,
+                Err(e) => {
+                    problems.push(e.to_string());
+                    continue;
+                }
+            };
+            let r = model.canonical_report();
+            if !(0.8..=1.25).contains(&r.longest_side) {
+                problems.push(format!("{}: longest side {}", spec.name, r.longest_side));
+            }
+            if Vector3::from(r.center).norm() > 0.08 {
+                problems.push(format!("{}: centre {:?}", spec.name, r.center));
+            }
+            for p in &model.parts {
+                if !p.watertight {
+                    problems.push(format!("{}: part {} is not closed", spec.name, p.name));
+                }
+            }
+            if model.tree.joints().is_empty() != (spec.family == Family::Hot3d) {
+                problems.push(format!(
+                    "{}: HOT3D objects are rigid, the others articulated",
+                    spec.name
+                ));
+            }
+        }
+        assert!(problems.is_empty(), "{problems:#?}");
+    }
+
+    #[test]
+    fn checker_alternates_per_cell() {
+        assert_eq!(checker(&Point3::new(0.01, 0.01, 0.01)), 1.0);
+        assert_eq!(checker(&Point3::new(0.2, 0.01, 0.01)), 0.78);
+        assert_eq!(checker(&Point3::new(-0.01, 0.01, 0.01)), 0.78);
+    }
+}

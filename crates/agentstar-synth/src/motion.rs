@@ -1,0 +1,264 @@
+//! Object and camera trajectories of the three kinds of capture in the paper's datasets.
+//!
+//! Object motion is defined in a world frame and the camera has its own trajectory, so the
+//! object's pose in each camera is `camera_from_world · world_from_object` and the cameras
+//! written to the capture are the true ones (the tracker's camera compensation is tested).
+
+use agentstar_geom::camera::look_at;
+use agentstar_geom::pose::{ObjectPose, Rigid};
+use agentstar_geom::{ObjectModel, PinholeCamera, Point3, UnitQuaternion, Vector3};
+use agentstar_optim::Rng;
+use std::f64::consts::{PI, TAU};
+
+/// How the object and the camera move.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub enum Motion {
+    /// ARCTIC-like: held near an egocentric camera, rapid rotation (12° to 35° a
+    /// keyframe about a drifting axis), every joint sweeping its range.
+    HandHeld,
+    /// HOT3D-like: rigid motion with steps up to 180° between keyframes (most small, some
+    /// large), a wandering head camera.
+    RigidSteps,
+    /// iTACO-like: a static object, a camera orbiting it, one joint moving; with depth.
+    StaticOrbit,
+}
+
+impl Motion {
+    pub const ALL: [Motion; 3] = [Motion::HandHeld, Motion::RigidSteps, Motion::StaticOrbit];
+
+    pub fn as_str(&self) -> &'static str {
+        match self {
+            Motion::HandHeld => "handheld",
+            Motion::RigidSteps => "rigid-steps",
+            Motion::StaticOrbit => "static-orbit",
+        }
+    }
+    pub fn parse(s: &str) -> Option<Motion> {
+        Motion::ALL.into_iter().find(|m| m.as_str() == s)
+    }
+    /// The motion the object's dataset has.
+    pub fn default_for(family: crate::Family) -> Motion {
+        match family {
+            crate::Family::Arctic => Motion::HandHeld,
+            crate::Family::Hot3d => Motion::RigidSteps,
+            crate::Family::Itaco => Motion::StaticOrbit,
+        }
+    }
+}
+
+/// One keyframe of a trajectory.
+#[derive(Debug, Clone)]
+pub struct Step {
+    pub world_from_camera: Rigid,
+    pub camera_from_object: ObjectPose,
+    pub states: Vec<f64>,
+}
+
+fn random_axis(rng: &mut Rng) -> Vector3 {
+    loop {
+        let v = Vector3::new(rng.normal(), rng.normal(), rng.normal());
+        if v.norm() > 1e-3 {
+            return v.normalize();
+        }
+    }
+}
+
+/// Joint states sweeping each joint's limits (a cosine with a random number of cycles and
+/// phase); only `moving` joints move, the others keep a random fixed state.
+fn joint_states(model: &ObjectModel, n: usize, moving: &[bool], rng: &mut Rng) -> Vec<Vec<f64>> {
+    let joints = model.tree.joints();
+    let plans: Vec<(f64, f64, f64, f64, f64)> = joints
+        .iter()
+        .map(|j| {
+            let (lo, hi) = j.limit.unwrap_or(if j.kind.is_angular() {
+                (-180.0, 180.0)
+            } else {
+                (0.0, 0.3)
+            });
+            // Keep clear of the limits by 5% so that states are strictly inside.
+            let (lo, hi) = (lo + 0.05 * (hi - lo), hi - 0.05 * (hi - lo));
+            (
+                lo,
+                hi,
+                rng.range(0.6, 1.3),
+                rng.range(0.0, 0.35),
+                rng.range(0.0, 1.0),
+            )
+        })
+        .collect();
+    (0..n)
+        .map(|k| {
+            let t = k as f64 / (n - 1).max(1) as f64;
+            joints
+                .iter()
+                .zip(&plans)
+                .enumerate()
+                .map(|(j, (jd, &(lo, hi, cycles, phase, fixed)))| {
+                    let u = if moving.get(j).copied().unwrap_or(false) {
+                        0.5 - 0.5 * (TAU * (cycles * t + phase)).cos()
+                    } else {
+                        fixed
+                    };
+                    jd.to_internal(lo + (hi - lo) * u)
+                })
+                .collect()
+        })
+        .collect()
+}
+
+/// The distance at which the object's bounding sphere spans `fraction` of the image height.
+fn viewing_distance(model: &ObjectModel, scale: f64, camera: &PinholeCamera, fraction: f64) -> f64 {
+    let radius = 0.5 * model.posed_bounds(&model.tree.rest_states()).extent().norm() * scale;
+    camera.fy * radius / (0.5 * fraction * camera.height.min(camera.width) as f64)
+}
+
+/// The trajectory of `n` keyframes.
+pub fn trajectory(
+    motion: Motion,
+    model: &ObjectModel,
+    scale: f64,
+    camera: &PinholeCamera,
+    n: usize,
+    rng: &mut Rng,
+) -> Vec<Step> {
+    let n_joints = model.tree.joints().len();
+    match motion {
+        Motion::HandHeld | Motion::RigidSteps => {
+            let hand_held = motion == Motion::HandHeld;
+            let d = viewing_distance(model, scale, camera, if hand_held { 0.6 } else { 0.5 });
+            let moving = vec![hand_held; n_joints];
+            let states = joint_states(model, n, &moving, rng);
+            // Start upright, tilted toward the camera, at a random heading.
+            let start = UnitQuaternion::from_axis_angle(&Vector3::y_axis(), rng.range(-PI, PI))
+                * UnitQuaternion::from_axis_angle(
+                    &Vector3::x_axis(),
+                    rng.range(100.0, 125.0).to_radians(),
+                );
+            let mut rotation = start;
+            let mut axis = random_axis(rng);
+            let drift = (rng.range(0.0, TAU), rng.range(0.0, TAU));
+            let mut steps = Vec::with_capacity(n);
+            for (k, st) in states.into_iter().enumerate() {
+                if k > 0 {
+                    axis = (axis + 0.6 * random_axis(rng)).normalize();
+                    let angle_deg = if hand_held {
+                        rng.range(12.0, 35.0)
+                    } else if rng.uniform() < 0.3 {
+                        rng.range(40.0, 180.0)
+                    } else {
+                        rng.range(3.0, 30.0)
+                    };
+                    rotation = UnitQuaternion::from_axis_angle(
+                        &agentstar_geom::nalgebra::Unit::new_normalize(axis),
+                        angle_deg.to_radians(),
+                    ) * rotation;
+                }
+                let t = k as f64 / (n - 1).max(1) as f64;
+                let centre = Point3::new(
+                    0.12 * d * (TAU * 0.7 * t + drift.0).sin(),
+                    0.08 * d * (TAU * 0.9 * t + drift.1).sin(),
+                    d * (1.0 + 0.1 * (TAU * 0.5 * t + drift.0).sin()),
+                );
+                // The head moves a little and looks near the object; world up is −Y.
+                let eye = Point3::new(
+                    0.04 * d * rng.range(-1.0, 1.0),
+                    0.04 * d * rng.range(-1.0, 1.0),
+                    0.03 * d * rng.range(-1.0, 1.0),
+                );
+                let aim = centre + Vector3::new(rng.normal(), rng.normal(), 0.0) * 0.03 * d;
+                let camera_from_world = look_at(&eye, &aim, &-Vector3::y());
+                // The object rotates about its bounding-box centre.
+                let pivot = model.posed_bounds(&st).center().coords * scale;
+                let world_from_object =
+                    ObjectPose::new(rotation, centre.coords - rotation * pivot);
+                steps.push(Step {
+                    world_from_camera: camera_from_world.inverse(),
+                    camera_from_object: compose(&camera_from_world, &world_from_object),
+                    states: st,
+                });
+            }
+            steps
+        }
+        Motion::StaticOrbit => {
+            // One joint moves (the first with a state); the object stands upright at the world
+            // origin (world +Z up) and the camera orbits it at a fixed elevation.
+            let mover = model
+                .tree
+                .joints()
+                .iter()
+                .position(|j| j.kind.has_state());
+            let moving: Vec<bool> = (0..n_joints).map(|j| Some(j) == mover).collect();
+            let states = joint_states(model, n, &moving, rng);
+            let d = viewing_distance(model, scale, camera, 0.62);
+            let elevation = rng.range(15.0, 35.0).to_radians();
+            let azimuth0 = rng.range(-110.0, -70.0).to_radians();
+            let sweep = rng.range(60.0, 110.0).to_radians() * if rng.uniform() < 0.5 { 1.0 } else { -1.0 };
+            let world_from_object = ObjectPose::identity();
+            (0..n)
+                .zip(states)
+                .map(|(k, st)| {
+                    let t = k as f64 / (n - 1).max(1) as f64;
+                    let az = azimuth0 + sweep * t;
+                    let r = d * (1.0 + 0.05 * (TAU * t).sin());
+                    let eye = Point3::new(
+                        r * elevation.cos() * az.cos(),
+                        r * elevation.cos() * az.sin(),
+                        r * elevation.sin(),
+                    );
+                    let camera_from_world = look_at(&eye, &Point3::origin(), &Vector3::z());
+                    Step {
+                        world_from_camera: camera_from_world.inverse(),
+                        camera_from_object: compose(&camera_from_world, &world_from_object),
+                        states: st,
+                    }
+                })
+                .collect()
+        }
+    }
+}
+
+fn compose(camera_from_world: &Rigid, world_from_object: &ObjectPose) -> ObjectPose {
+    let c = camera_from_world * world_from_object.to_rigid();
+    ObjectPose::new(c.rotation, c.translation.vector)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::{build_object, ObjectSpec};
+
+    fn step_angle_deg(a: &Step, b: &Step) -> f64 {
+        // Rotation of the object in the world between two keyframes.
+        let wa = a.world_from_camera.rotation * a.camera_from_object.rotation;
+        let wb = b.world_from_camera.rotation * b.camera_from_object.rotation;
+        (wb * wa.inverse()).angle().to_degrees()
+    }
+
+    #[test]
+    fn motions_have_the_promised_steps_and_keep_the_object_in_front() {
+        let spec = ObjectSpec::find("laptop").expect("laptop");
+        let model = build_object(spec).expect("builds");
+        let cam = PinholeCamera::new(300.0, 300.0, 160.0, 120.0, 320, 240).expect("camera");
+        for motion in Motion::ALL {
+            let mut rng = Rng::new(5);
+            let steps = trajectory(motion, &model, spec.size_m, &cam, 30, &mut rng);
+            assert_eq!(steps.len(), 30);
+            let angles: Vec<f64> = steps.windows(2).map(|w| step_angle_deg(&w[0], &w[1])).collect();
+            let max = angles.iter().cloned().fold(0.0, f64::max);
+            match motion {
+                Motion::HandHeld => assert!(
+                    angles.iter().all(|&a| (11.9..=35.1).contains(&a)),
+                    "{angles:?}"
+                ),
+                Motion::RigidSteps => assert!(max > 40.0 && max <= 180.0, "{angles:?}"),
+                Motion::StaticOrbit => assert!(max < 1e-9, "the object is static: {angles:?}"),
+            }
+            for s in &steps {
+                assert!(s.camera_from_object.translation.z > 0.2, "{motion:?}");
+                let lim = model.tree.joints()[0].limit.expect("limit");
+                let deg = s.states[0].to_degrees();
+                assert!(deg >= lim.0 && deg <= lim.1, "{deg} within {lim:?}");
+            }
+        }
+    }
+}

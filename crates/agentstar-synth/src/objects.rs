@@ -1,0 +1,253 @@
+//! The object library: procedural scene scripts modelled on the paper's datasets. ARCTIC-like
+//! hand-held articulated objects, HOT3D-like rigid objects (some rotationally symmetric) and
+//! iTACO-like furniture. Each script follows the scene conventions (+Z up, centred, longest
+//! side about 1, rest state 0) and carries its size in metres.
+
+/// Which of the paper's datasets an object and its default motion imitate.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub enum Family {
+    /// Hand-held articulated objects (ARCTIC): 3-D tracking and geometry.
+    Arctic,
+    /// Rigid hand-held objects (HOT3D): pose tracking.
+    Hot3d,
+    /// Articulated furniture seen by a moving camera (iTACO): articulation.
+    Itaco,
+}
+
+impl Family {
+    pub fn as_str(&self) -> &'static str {
+        match self {
+            Family::Arctic => "arctic",
+            Family::Hot3d => "hot3d",
+            Family::Itaco => "itaco",
+        }
+    }
+    pub fn parse(s: &str) -> Option<Family> {
+        [Family::Arctic, Family::Hot3d, Family::Itaco]
+            .into_iter()
+            .find(|f| f.as_str() == s)
+    }
+}
+
+/// A rotational symmetry of an object's canonical frame.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Symmetry {
+    /// None known.
+    None,
+    /// Any rotation about canonical +Z (listed in `gt.json` as `samples` rotations).
+    ContinuousZ,
+    /// A half turn about canonical +Z.
+    HalfTurnZ,
+}
+
+/// One object of the library.
+#[derive(Debug, Clone, Copy)]
+pub struct ObjectSpec {
+    pub name: &'static str,
+    pub family: Family,
+    /// Size in metres of one canonical unit (the object's longest side).
+    pub size_m: f64,
+    pub symmetry: Symmetry,
+    pub script: &'static str,
+}
+
+impl ObjectSpec {
+    /// Looks an object up by name.
+    pub fn find(name: &str) -> Option<&'static ObjectSpec> {
+        LIBRARY.iter().find(|o| o.name == name)
+    }
+    /// The names of every object, in library order.
+    pub fn names() -> Vec<&'static str> {
+        LIBRARY.iter().map(|o| o.name).collect()
+    }
+}
+
+/// Every object, grouped by family.
+pub static LIBRARY: &[ObjectSpec] = &[
+    // ── ARCTIC-like: hand-held, articulated ──
+    ObjectSpec {
+        name: "box",
+        family: Family::Arctic,
+        size_m: 0.24,
+        symmetry: Symmetry::None,
+        script: r##"// A box with a hinged lid.
+let body = box(1.0, 0.7, 0.48, 0.02) - box(0.92, 0.62, 0.5).translate(0, 0, 0.06);
+part("body", body.translate(0, 0, -0.04).color("#c8553d"));
+part("lid", box(1.0, 0.7, 0.06, 0.01).translate(0, 0, 0.23).color("#f2d0a4"));
+joint(#{ name: "lid_hinge", type: "revolute", child: "lid", origin: [0, 0.35, 0.2], axis: [-1, 0, 0], limit: [0, 110] });
+"##,
+    },
+    ObjectSpec {
+        name: "laptop",
+        family: Family::Arctic,
+        size_m: 0.3,
+        symmetry: Symmetry::None,
+        script: r##"// A laptop: a base with a keyboard well and a screen hinged at the back.
+let base = box(1.0, 0.7, 0.05, 0.01) - box(0.8, 0.35, 0.03).translate(0, 0.08, 0.03);
+part("base", base.translate(0, 0, -0.025).color("#5c6f7b"));
+part("screen", box(1.0, 0.7, 0.03, 0.008).translate(0, 0, 0.016).color("#22313a"));
+joint(#{ name: "screen_hinge", type: "revolute", child: "screen", origin: [0, 0.35, 0.0], axis: [-1, 0, 0], limit: [0, 150] });
+"##,
+    },
+    ObjectSpec {
+        name: "notebook",
+        family: Family::Arctic,
+        size_m: 0.24,
+        symmetry: Symmetry::None,
+        script: r##"// A notebook: pages on the back cover, a front cover hinged along the spine.
+let back = box(1.0, 0.74, 0.02).translate(0, 0, -0.025) + box(0.95, 0.7, 0.04).translate(0.02, 0, 0.0);
+part("back", back.color("#2a9d8f"));
+part("cover", box(1.0, 0.74, 0.015).translate(0, 0, 0.028).color("#e9c46a"));
+joint(#{ name: "spine", type: "revolute", child: "cover", origin: [-0.5, 0, 0.02], axis: [0, -1, 0], limit: [0, 170] });
+"##,
+    },
+    ObjectSpec {
+        name: "ketchup",
+        family: Family::Arctic,
+        size_m: 0.2,
+        symmetry: Symmetry::None,
+        script: r##"// A ketchup bottle with a flip-top cap.
+let body = lathe([[0, -0.5], [0.2, -0.5], [0.22, -0.46], [0.22, 0.18], [0.13, 0.33], [0.09, 0.36], [0, 0.36]]);
+let neck = cylinder(0.09, 0.08).translate(0, 0, 0.39);
+part("bottle", (body + neck).color("#b22222"));
+part("cap", (cylinder(0.09, 0.05).translate(0, 0, 0.455) + box(0.06, 0.05, 0.03).translate(0, -0.1, 0.455)).color("#f5f5f0"));
+joint(#{ name: "cap_hinge", type: "revolute", child: "cap", origin: [0, 0.09, 0.43], axis: [-1, 0, 0], limit: [0, 160] });
+"##,
+    },
+    ObjectSpec {
+        name: "phone",
+        family: Family::Arctic,
+        size_m: 0.11,
+        symmetry: Symmetry::None,
+        script: r##"// A flip phone: a keypad half and a screen half hinged at one end.
+part("keypad", (box(0.46, 1.0, 0.09, 0.02) + box(0.3, 0.5, 0.02).translate(0, -0.15, 0.045)).translate(0, 0, -0.045).color("#3d405b"));
+part("flip", box(0.46, 1.0, 0.07, 0.02).translate(0, 0, 0.045).color("#81b29a"));
+joint(#{ name: "flip_hinge", type: "revolute", child: "flip", origin: [0, 0.5, 0.01], axis: [-1, 0, 0], limit: [0, 165] });
+"##,
+    },
+    ObjectSpec {
+        name: "waffleiron",
+        family: Family::Arctic,
+        size_m: 0.28,
+        symmetry: Symmetry::None,
+        script: r##"// A waffle iron: round plates with handles, the top one hinged at the back.
+part("base", (cylinder(0.4, 0.16).translate(0, 0.08, -0.08) + box(0.14, 0.26, 0.06).translate(0, -0.37, -0.1)).color("#4a4e69"));
+part("top", (cylinder(0.4, 0.12).translate(0, 0.08, 0.06) + box(0.14, 0.26, 0.05).translate(0, -0.37, 0.05)).color("#9a8c98"));
+joint(#{ name: "top_hinge", type: "revolute", child: "top", origin: [0, 0.48, 0.0], axis: [-1, 0, 0], limit: [0, 100] });
+"##,
+    },
+    ObjectSpec {
+        name: "scissors",
+        family: Family::Arctic,
+        size_m: 0.2,
+        symmetry: Symmetry::None,
+        script: r##"// Scissors: two blades with ring handles turning about a pivot screw.
+let blade = box(0.62, 0.08, 0.02).translate(0.19, 0.0, 0) + torus(0.1, 0.028).translate(-0.3, -0.09, 0) + box(0.2, 0.05, 0.02).translate(-0.12, -0.05, 0);
+part("lower", blade.translate(0, 0, -0.011).color("#e76f51"));
+part("upper", blade.mirror("y").translate(0, 0, 0.011).color("#264653"));
+joint(#{ name: "pivot", type: "revolute", child: "upper", origin: [0, 0, 0], axis: [0, 0, -1], limit: [0, 45] });
+"##,
+    },
+    // ── HOT3D-like: rigid ──
+    ObjectSpec {
+        name: "mug",
+        family: Family::Hot3d,
+        size_m: 0.12,
+        symmetry: Symmetry::None,
+        script: r##"// A mug with a handle.
+let handle = box(0.22, 0.08, 0.07).translate(0.4, 0, 0.22) + box(0.22, 0.08, 0.07).translate(0.4, 0, -0.22) + box(0.07, 0.08, 0.51).translate(0.475, 0, 0);
+let cup = cylinder(0.32, 0.8) - cylinder(0.28, 0.8).translate(0, 0, 0.06);
+part("mug", (cup + handle).translate(-0.095, 0, 0).color("#f4a261"));
+"##,
+    },
+    ObjectSpec {
+        name: "bottle",
+        family: Family::Hot3d,
+        size_m: 0.22,
+        symmetry: Symmetry::ContinuousZ,
+        script: r##"// A water bottle (symmetric about its axis).
+part("bottle", lathe([[0, -0.5], [0.17, -0.5], [0.18, -0.48], [0.18, 0.15], [0.07, 0.32], [0.06, 0.42], [0.065, 0.5], [0, 0.5]], 40).color("#4ea8de"));
+"##,
+    },
+    ObjectSpec {
+        name: "can",
+        family: Family::Hot3d,
+        size_m: 0.12,
+        symmetry: Symmetry::ContinuousZ,
+        script: r##"// A drinks can (symmetric about its axis).
+part("can", lathe([[0, -0.5], [0.26, -0.5], [0.3, -0.44], [0.3, 0.4], [0.24, 0.5], [0, 0.5]], 40).color("#c1121f"));
+"##,
+    },
+    ObjectSpec {
+        name: "keyboard",
+        family: Family::Hot3d,
+        size_m: 0.42,
+        symmetry: Symmetry::None,
+        script: r##"// A keyboard: a flat case, a key field and a number pad.
+let shell = box(1.0, 0.34, 0.05, 0.01);
+let keys = box(0.66, 0.24, 0.03).translate(-0.12, -0.02, 0.035) + box(0.2, 0.24, 0.03).translate(0.36, -0.02, 0.035);
+part("keyboard", (shell + keys).translate(0, 0, -0.02).color("#adb5bd"));
+"##,
+    },
+    ObjectSpec {
+        name: "cellphone",
+        family: Family::Hot3d,
+        size_m: 0.15,
+        symmetry: Symmetry::None,
+        script: r##"// A smartphone with a camera bump.
+part("phone", (box(0.48, 1.0, 0.08, 0.03) + box(0.16, 0.2, 0.04, 0.01).translate(0.1, 0.34, -0.05)).color("#343a40"));
+"##,
+    },
+    ObjectSpec {
+        name: "spray",
+        family: Family::Hot3d,
+        size_m: 0.24,
+        symmetry: Symmetry::None,
+        script: r##"// A spray bottle: a round body, a trigger head with a nozzle.
+let body = lathe([[0, -0.5], [0.2, -0.5], [0.2, 0.2], [0.08, 0.33], [0, 0.33]], 32);
+let head = box(0.14, 0.34, 0.16).translate(0, -0.08, 0.38);
+let nozzle = box(0.07, 0.1, 0.07).translate(0, -0.28, 0.41);
+part("spray", (body + (head + nozzle)).translate(0, 0.04, 0.02).color("#90be6d"));
+"##,
+    },
+    // ── iTACO-like: furniture ──
+    ObjectSpec {
+        name: "cabinet",
+        family: Family::Itaco,
+        size_m: 0.8,
+        symmetry: Symmetry::None,
+        script: r##"// A cabinet: a door on the upper compartment, a drawer in the lower one.
+let shell = box(0.8, 0.5, 1.0) - box(0.72, 0.48, 0.44).translate(0, -0.05, 0.23) - box(0.72, 0.48, 0.42).translate(0, -0.05, -0.24);
+part("body", shell.color("#bc6c25"));
+part("door", (box(0.72, 0.02, 0.44).translate(0, -0.26, 0.23) + box(0.03, 0.04, 0.12).translate(0.3, -0.285, 0.23)).color("#dda15e"));
+part("drawer", (box(0.7, 0.46, 0.4).translate(0, -0.03, -0.24) + box(0.16, 0.04, 0.03).translate(0, -0.27, -0.2)).color("#fefae0"));
+joint(#{ name: "door_hinge", type: "revolute", child: "door", origin: [-0.36, -0.26, 0.23], axis: [0, 0, -1], limit: [0, 110] });
+joint(#{ name: "drawer_slide", type: "prismatic", child: "drawer", axis: [0, -1, 0], limit: [0, 0.38] });
+"##,
+    },
+    ObjectSpec {
+        name: "microwave",
+        family: Family::Itaco,
+        size_m: 0.5,
+        symmetry: Symmetry::None,
+        script: r##"// A microwave: a cavity on the left, a control panel, a door hinged on its left edge.
+let shell = box(1.0, 0.6, 0.56) - box(0.62, 0.56, 0.44).translate(-0.15, -0.05, 0);
+part("body", (shell + box(0.2, 0.02, 0.3).translate(0.33, -0.305, 0.05)).color("#e5e5e5"));
+part("door", (box(0.66, 0.03, 0.5).translate(-0.15, -0.315, 0) + box(0.03, 0.04, 0.3).translate(0.12, -0.34, 0)).color("#2b2d42"));
+joint(#{ name: "door_hinge", type: "revolute", child: "door", origin: [-0.48, -0.315, 0], axis: [0, 0, -1], limit: [0, 120] });
+"##,
+    },
+    ObjectSpec {
+        name: "oven",
+        family: Family::Itaco,
+        size_m: 0.7,
+        symmetry: Symmetry::None,
+        script: r##"// An oven: a cavity, knobs on the front panel, a door hinged along its bottom edge.
+let shell = box(0.9, 0.8, 0.9) - box(0.74, 0.7, 0.55).translate(0, -0.1, -0.06);
+let knobs = cylinder(0.04, 0.04).rotate_x(90).translate(-0.25, -0.415, 0.35) + cylinder(0.04, 0.04).rotate_x(90).translate(0.25, -0.415, 0.35);
+part("body", (shell + knobs).color("#6c757d"));
+part("door", (box(0.78, 0.04, 0.6).translate(0, -0.42, -0.06) + box(0.5, 0.04, 0.04).translate(0, -0.455, 0.18)).color("#212529"));
+joint(#{ name: "door_hinge", type: "revolute", child: "door", origin: [0, -0.42, -0.36], axis: [1, 0, 0], limit: [0, 90] });
+"##,
+    },
+];
