@@ -138,3 +138,123 @@ impl GroundTruth {
         ObjectPose::from_wxyz(p.quaternion, p.translation).ok()
     }
 }
+
+/// Ground truth of an object model moved through frames: each part's mesh scaled to metres
+/// in its rest frame, each part's pose per frame (`camera_from_object` with the scale,
+/// composed with the part's forward kinematics, scale divided out), and the joints with
+/// axis and origin in the parent part's frame (the parent joint's moving part, or the base
+/// part), states in radians or metres. Mesh paths are `gt_meshes/<part>.obj`.
+pub fn model_ground_truth(
+    model: &agentstar_geom::ObjectModel,
+    scale: f64,
+    frames: &[(String, ObjectPose, Vec<f64>)],
+    symmetries: &[agentstar_geom::UnitQuaternion],
+) -> (GtFile, BTreeMap<String, TriMesh>) {
+    use agentstar_geom::pose::Similarity;
+    let mut parts = BTreeMap::new();
+    let mut meshes = BTreeMap::new();
+    for p in &model.parts {
+        let m = (*p.mesh).clone().transformed(
+            &(agentstar_geom::Matrix3::identity() * scale),
+            &agentstar_geom::Vector3::zeros(),
+        );
+        parts.insert(
+            p.name.clone(),
+            GtPartFile {
+                mesh: format!("gt_meshes/{}.obj", p.name),
+            },
+        );
+        meshes.insert(p.name.clone(), m);
+    }
+    let tree = &model.tree;
+    let base = (0..model.parts.len())
+        .find(|&i| tree.part_joint(i).is_none())
+        .unwrap_or(0);
+    let mut gt_frames = BTreeMap::new();
+    for (name, pose, states) in frames {
+        let cam = pose.with_scale(scale);
+        let mut f = GtFrame::default();
+        for (p, a) in model.parts.iter().zip(tree.part_transforms(states)) {
+            let full = cam.compose(&Similarity::from_rigid(&a));
+            f.parts.insert(
+                p.name.clone(),
+                GtPose {
+                    quaternion: agentstar_geom::pose::quat_to_wxyz(&full.rotation),
+                    translation: full.translation.into(),
+                },
+            );
+        }
+        gt_frames.insert(name.clone(), f);
+    }
+    let joints = tree
+        .joints()
+        .iter()
+        .enumerate()
+        .filter(|(_, j)| j.kind.has_state() && !j.child.is_empty())
+        .map(|(k, j)| {
+            // The parent part: one moved by the parent joint, or the base part.
+            let parent = j
+                .parent
+                .as_deref()
+                .and_then(|pj| tree.joint_index(pj))
+                .and_then(|pj| (0..model.parts.len()).find(|&i| tree.part_joint(i) == Some(pj)))
+                .unwrap_or(base);
+            GtJoint {
+                name: j.name.clone(),
+                kind: j.kind.as_str().into(),
+                parent: model.parts[parent].name.clone(),
+                child: j.child[0].clone(),
+                axis: j.axis.normalize().into(),
+                origin: (j.origin * scale).into(),
+                states: frames
+                    .iter()
+                    .map(|(n, _, s)| {
+                        let v = if j.kind.is_angular() {
+                            s[k]
+                        } else {
+                            s[k] * scale
+                        };
+                        (n.clone(), v)
+                    })
+                    .collect(),
+            }
+        })
+        .collect();
+    let file = GtFile {
+        format: FORMAT.into(),
+        units: "m".into(),
+        base_part: model.parts[base].name.clone(),
+        parts,
+        frames: gt_frames,
+        joints,
+        symmetries: symmetries
+            .iter()
+            .map(agentstar_geom::pose::quat_to_wxyz)
+            .collect(),
+    };
+    (file, meshes)
+}
+
+impl GroundTruth {
+    /// Ground truth held in memory (as if loaded from `path`, which names it in messages).
+    pub fn from_parts(path: &Path, file: GtFile, meshes: BTreeMap<String, TriMesh>) -> Self {
+        GroundTruth {
+            path: path.to_path_buf(),
+            file,
+            meshes,
+        }
+    }
+
+    /// Writes `gt.json` and its meshes into `dir`, atomically file by file.
+    pub fn write(&self, dir: &Path) -> Result<()> {
+        for (name, p) in &self.file.parts {
+            if let Some(m) = self.meshes.get(name) {
+                crate::atomic::write_atomic(
+                    &dir.join(&p.mesh),
+                    crate::meshio::obj_text(m, name).as_bytes(),
+                )?;
+            }
+        }
+        crate::atomic::write_json(&dir.join("gt.json"), &self.file)
+    }
+}

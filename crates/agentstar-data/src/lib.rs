@@ -7,6 +7,7 @@
 
 pub mod atomic;
 pub mod capture;
+pub mod capture_writer;
 pub mod export;
 pub mod gt;
 pub mod images;

@@ -111,7 +111,12 @@ pub struct SynthCapture {
 impl SynthCapture {
     /// A short identifier: `object-motion-sSEED`.
     pub fn id(&self) -> String {
-        format!("{}-{}-s{}", self.object.name, self.motion.as_str(), self.seed)
+        format!(
+            "{}-{}-s{}",
+            self.object.name,
+            self.motion.as_str(),
+            self.seed
+        )
     }
 
     /// `camera_from_part` in metres for every part of frame `f` (part meshes scaled to metres
@@ -200,21 +205,19 @@ pub fn synthesize(cfg: &SynthConfig) -> Result<SynthCapture, SynthError> {
     let mut motion_rng = Rng::new(cfg.seed.wrapping_mul(0x9E37_79B9).wrapping_add(1));
     let mut hand_rng = Rng::new(cfg.seed.wrapping_mul(0x85EB_CA6B).wrapping_add(2));
     let mut look_rng = Rng::new(cfg.seed.wrapping_mul(0xC2B2_AE35).wrapping_add(3));
-    let traj = motion::trajectory(
-        motion,
-        &model,
-        scale,
-        &camera,
-        cfg.frames,
-        &mut motion_rng,
-    );
+    let traj = motion::trajectory(motion, &model, scale, &camera, cfg.frames, &mut motion_rng);
     let hand_mesh = hand::hand_mesh();
     let hand_part = agentstar_geom::Part::new("hand", hand_mesh, hand::SKIN);
-    let hand_scale = (scale / 0.22).clamp(0.7, 1.3);
+    let hand_scale = (scale / 0.3).clamp(0.5, 1.0);
     let background = Background::new(&mut look_rng, w, h);
     let light = Vector3::new(-0.3 + 0.6 * look_rng.uniform(), -0.6, -1.0).normalize();
     let colors: Vec<[f32; 3]> = model.parts.iter().map(|p| p.color).collect();
-    let radius = 0.5 * model.posed_bounds(&model.tree.rest_states()).extent().norm() * scale;
+    let radius = 0.5
+        * model
+            .posed_bounds(&model.tree.rest_states())
+            .extent()
+            .norm()
+        * scale;
     let hand_probability = match motion {
         Motion::HandHeld => 0.85,
         Motion::RigidSteps => 0.6,
@@ -239,9 +242,10 @@ pub fn synthesize(cfg: &SynthConfig) -> Result<SynthCapture, SynthError> {
                 1
             };
         }
-        let centre = step.camera_from_object.with_scale(scale).transform_point(
-            &model.posed_bounds(&step.states).center(),
-        );
+        let centre = step
+            .camera_from_object
+            .with_scale(scale)
+            .transform_point(&model.posed_bounds(&step.states).center());
         for i in 0..hand_count {
             let phi = hand_phase
                 + 0.35 * k as f64
@@ -257,8 +261,7 @@ pub fn synthesize(cfg: &SynthConfig) -> Result<SynthCapture, SynthError> {
             });
         }
         let buffers = render_full(&camera, &instances);
-        let mut mask =
-            BitMask::from_fn(w, h, |x, y| buffers.part[(y * w + x) as usize] < n_parts);
+        let mut mask = BitMask::from_fn(w, h, |x, y| buffers.part[(y * w + x) as usize] < n_parts);
         let mut hand_mask = (hand_count > 0).then(|| {
             BitMask::from_fn(w, h, |x, y| {
                 let p = buffers.part[(y * w + x) as usize];
@@ -291,35 +294,39 @@ pub fn synthesize(cfg: &SynthConfig) -> Result<SynthCapture, SynthError> {
                     background.at(x, y)
                 } else {
                     let n = buffers.normal[i];
-                    let lambert = (-(n[0] as f64 * light.x
-                        + n[1] as f64 * light.y
-                        + n[2] as f64 * light.z))
-                        .max(0.0);
+                    let lambert =
+                        (-(n[0] as f64 * light.x + n[1] as f64 * light.y + n[2] as f64 * light.z))
+                            .max(0.0);
                     let shading = 0.3 + 0.7 * lambert;
                     if p < n_parts {
                         let z = buffers.depth[i] as f64;
-                        let q = Point3::from(camera.ray_direction(x as f64 + 0.5, y as f64 + 0.5) * z);
+                        let q =
+                            Point3::from(camera.ray_direction(x as f64 + 0.5, y as f64 + 0.5) * z);
                         let local = part_from_camera[p as usize].transform_point(&q);
                         let t = checker(&local);
                         let base = colors[p as usize];
-                        [
+                        srgb([
                             base[0] as f64 * shading * t,
                             base[1] as f64 * shading * t,
                             base[2] as f64 * shading * t,
-                        ]
+                        ])
                     } else {
                         let s = hand::SKIN;
-                        [
+                        srgb([
                             s[0] as f64 * shading,
                             s[1] as f64 * shading,
                             s[2] as f64 * shading,
-                        ]
+                        ])
                     }
                 };
                 rgb.put_pixel(
                     x,
                     y,
-                    Rgb([to_u8(c[0] + grain), to_u8(c[1] + grain), to_u8(c[2] + grain)]),
+                    Rgb([
+                        to_u8(c[0] + grain),
+                        to_u8(c[1] + grain),
+                        to_u8(c[2] + grain),
+                    ]),
                 );
             }
         }
@@ -367,6 +374,11 @@ pub fn synthesize(cfg: &SynthConfig) -> Result<SynthCapture, SynthError> {
         frames,
         symmetries,
     })
+}
+
+/// Linear RGB to display values (gamma 2.2).
+fn srgb(c: [f64; 3]) -> [f64; 3] {
+    c.map(|v| v.max(0.0).powf(1.0 / 2.2))
 }
 
 fn to_u8(v: f64) -> u8 {

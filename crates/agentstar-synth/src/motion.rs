@@ -108,7 +108,12 @@ fn joint_states(model: &ObjectModel, n: usize, moving: &[bool], rng: &mut Rng) -
 
 /// The distance at which the object's bounding sphere spans `fraction` of the image height.
 fn viewing_distance(model: &ObjectModel, scale: f64, camera: &PinholeCamera, fraction: f64) -> f64 {
-    let radius = 0.5 * model.posed_bounds(&model.tree.rest_states()).extent().norm() * scale;
+    let radius = 0.5
+        * model
+            .posed_bounds(&model.tree.rest_states())
+            .extent()
+            .norm()
+        * scale;
     camera.fy * radius / (0.5 * fraction * camera.height.min(camera.width) as f64)
 }
 
@@ -169,8 +174,7 @@ pub fn trajectory(
                 let camera_from_world = look_at(&eye, &aim, &-Vector3::y());
                 // The object rotates about its bounding-box centre.
                 let pivot = model.posed_bounds(&st).center().coords * scale;
-                let world_from_object =
-                    ObjectPose::new(rotation, centre.coords - rotation * pivot);
+                let world_from_object = ObjectPose::new(rotation, centre.coords - rotation * pivot);
                 steps.push(Step {
                     world_from_camera: camera_from_world.inverse(),
                     camera_from_object: compose(&camera_from_world, &world_from_object),
@@ -182,17 +186,14 @@ pub fn trajectory(
         Motion::StaticOrbit => {
             // One joint moves (the first with a state); the object stands upright at the world
             // origin (world +Z up) and the camera orbits it at a fixed elevation.
-            let mover = model
-                .tree
-                .joints()
-                .iter()
-                .position(|j| j.kind.has_state());
+            let mover = model.tree.joints().iter().position(|j| j.kind.has_state());
             let moving: Vec<bool> = (0..n_joints).map(|j| Some(j) == mover).collect();
             let states = joint_states(model, n, &moving, rng);
             let d = viewing_distance(model, scale, camera, 0.62);
             let elevation = rng.range(15.0, 35.0).to_radians();
             let azimuth0 = rng.range(-110.0, -70.0).to_radians();
-            let sweep = rng.range(60.0, 110.0).to_radians() * if rng.uniform() < 0.5 { 1.0 } else { -1.0 };
+            let sweep =
+                rng.range(60.0, 110.0).to_radians() * if rng.uniform() < 0.5 { 1.0 } else { -1.0 };
             let world_from_object = ObjectPose::identity();
             (0..n)
                 .zip(states)
@@ -243,7 +244,10 @@ mod tests {
             let mut rng = Rng::new(5);
             let steps = trajectory(motion, &model, spec.size_m, &cam, 30, &mut rng);
             assert_eq!(steps.len(), 30);
-            let angles: Vec<f64> = steps.windows(2).map(|w| step_angle_deg(&w[0], &w[1])).collect();
+            let angles: Vec<f64> = steps
+                .windows(2)
+                .map(|w| step_angle_deg(&w[0], &w[1]))
+                .collect();
             let max = angles.iter().cloned().fold(0.0, f64::max);
             match motion {
                 Motion::HandHeld => assert!(

@@ -19,11 +19,7 @@ fn value_noise(x: f64, y: f64, cell: f64, seed: u32) -> f64 {
     let (fx, fy) = (gx - ix, gy - iy);
     let s = |t: f64| t * t * (3.0 - 2.0 * t);
     let v = |dx: f64, dy: f64| {
-        2.0 * hash01(
-            (ix + dx + 4096.0) as u32,
-            (iy + dy + 4096.0) as u32,
-            seed,
-        ) - 1.0
+        2.0 * hash01((ix + dx + 4096.0) as u32, (iy + dy + 4096.0) as u32, seed) - 1.0
     };
     let (sx, sy) = (s(fx), s(fy));
     let top = v(0.0, 0.0) * (1.0 - sx) + v(1.0, 0.0) * sx;
@@ -72,7 +68,10 @@ mod tests {
 
     fn disc(w: u32, h: u32, r: f64) -> BitMask {
         BitMask::from_fn(w, h, |x, y| {
-            let (dx, dy) = (x as f64 + 0.5 - w as f64 / 2.0, y as f64 + 0.5 - h as f64 / 2.0);
+            let (dx, dy) = (
+                x as f64 + 0.5 - w as f64 / 2.0,
+                y as f64 + 0.5 - h as f64 / 2.0,
+            );
             dx * dx + dy * dy <= r * r
         })
     }
@@ -83,14 +82,18 @@ mod tests {
         let a = jitter_boundary(&m, 2.0, 9);
         let b = jitter_boundary(&m, 2.0, 9);
         assert_eq!(a, b, "same seed, same mask");
-        assert_ne!(a, jitter_boundary(&m, 2.0, 10), "another seed moves the boundary");
+        assert_ne!(
+            a,
+            jitter_boundary(&m, 2.0, 10),
+            "another seed moves the boundary"
+        );
         let mut changed = 0;
         for y in 0..96 {
             for x in 0..96 {
                 if a.get(x, y) != m.get(x, y) {
                     changed += 1;
-                    let d = ((x as f64 + 0.5 - 48.0).powi(2) + (y as f64 + 0.5 - 48.0).powi(2))
-                        .sqrt();
+                    let d =
+                        ((x as f64 + 0.5 - 48.0).powi(2) + (y as f64 + 0.5 - 48.0).powi(2)).sqrt();
                     assert!((d - 30.0).abs() <= 3.5, "pixel {x},{y} at radius {d}");
                 }
             }

@@ -57,6 +57,8 @@ enum Command {
     Track(cmd::track::Args),
     /// The paper's metrics against the capture's ground truth: scale alignment, EPE, Chamfer, pose and articulation errors.
     Eval(cmd::eval::Args),
+    /// Write a seeded synthetic capture with ground truth (objects modelled on ARCTIC, HOT3D, iTACO).
+    Synth(cmd::synth::Args),
 }
 
 fn main() -> ExitCode {
@@ -79,6 +81,7 @@ fn main() -> ExitCode {
         Command::PoseDiff(a) => cmd::temporal::run_diff(a),
         Command::Track(a) => cmd::track::run(a),
         Command::Eval(a) => cmd::eval::run(a),
+        Command::Synth(a) => cmd::synth::run(a),
     };
     match result {
         Ok(code) => code,

@@ -283,85 +283,12 @@ fn write_ground_truth(
     names: &[String],
     gt: &[FramePose],
 ) -> Result<()> {
-    use agentstar_data::gt::{GtFile, GtFrame, GtJoint, GtPartFile, GtPose, FORMAT};
-    use std::collections::BTreeMap;
-    let mut parts = BTreeMap::new();
-    for p in &model.parts {
-        let m = (*p.mesh).clone().transformed(
-            &(agentstar_geom::Matrix3::identity() * scale),
-            &Vector3::zeros(),
-        );
-        let rel = format!("gt_meshes/{}.obj", p.name);
-        agentstar_data::atomic::write_atomic(
-            &cap_dir.join(&rel),
-            agentstar_data::meshio::obj_text(&m, &p.name).as_bytes(),
-        )?;
-        parts.insert(p.name.clone(), GtPartFile { mesh: rel });
-    }
-    let mut frames = BTreeMap::new();
-    for (name, g) in names.iter().zip(gt) {
-        let cam = g.pose.with_scale(scale);
-        let mut f = GtFrame::default();
-        for (p, a) in model
-            .parts
-            .iter()
-            .zip(model.tree.part_transforms(&g.states))
-        {
-            let full = cam.compose(&agentstar_geom::pose::Similarity::from_rigid(&a));
-            f.parts.insert(
-                p.name.clone(),
-                GtPose {
-                    quaternion: [
-                        full.rotation.w,
-                        full.rotation.i,
-                        full.rotation.j,
-                        full.rotation.k,
-                    ],
-                    translation: full.translation.into(),
-                },
-            );
-        }
-        frames.insert(name.clone(), f);
-    }
-    let joints = model
-        .tree
-        .joints()
+    use agentstar_data::gt::{model_ground_truth, GroundTruth};
+    let frames: Vec<_> = names
         .iter()
-        .enumerate()
-        .map(|(k, j)| GtJoint {
-            name: j.name.clone(),
-            kind: j.kind.as_str().into(),
-            parent: model.parts[0].name.clone(),
-            child: j.child[0].clone(),
-            axis: j.axis.normalize().into(),
-            origin: (j.origin * scale).into(),
-            states: names
-                .iter()
-                .zip(gt)
-                .map(|(n, g)| {
-                    (
-                        n.clone(),
-                        if j.kind.is_angular() {
-                            g.states[k]
-                        } else {
-                            g.states[k] * scale
-                        },
-                    )
-                })
-                .collect(),
-        })
+        .zip(gt)
+        .map(|(n, g)| (n.clone(), g.pose, g.states.clone()))
         .collect();
-    let file = GtFile {
-        format: FORMAT.into(),
-        units: "m".into(),
-        base_part: model.parts[0].name.clone(),
-        parts,
-        frames,
-        joints,
-        symmetries: vec![],
-    };
-    Ok(agentstar_data::atomic::write_json(
-        &cap_dir.join("gt.json"),
-        &file,
-    )?)
+    let (file, meshes) = model_ground_truth(model, scale, &frames, &[]);
+    Ok(GroundTruth::from_parts(&cap_dir.join("gt.json"), file, meshes).write(cap_dir)?)
 }

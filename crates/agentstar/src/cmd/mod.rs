@@ -8,6 +8,7 @@ pub mod pose;
 pub mod render;
 pub mod score;
 pub mod search;
+pub mod synth;
 pub mod temporal;
 pub mod track;
 pub mod turntable;

@@ -1,0 +1,234 @@
+//! `agentstar synth OUT`: a seeded synthetic capture with ground truth, rendered by our
+//! renderer, from the object library and one of three motions; `--list` shows the library.
+
+use crate::common::print_json;
+use agentstar_data::capture_writer::{write_capture, CaptureInfo, FrameOut};
+use agentstar_data::gt::{model_ground_truth, GroundTruth};
+use agentstar_data::posefile::{FramePose, PoseFile};
+use agentstar_synth::{synthesize, Motion, ObjectSpec, SynthCapture, SynthConfig, LIBRARY};
+use anyhow::{anyhow, bail, Context, Result};
+use serde_json::json;
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+
+#[derive(clap::Args)]
+#[command(
+    after_help = "Example:\n  agentstar synth /tmp/laptop --object laptop --frames 16 --seed 3\n  agentstar track /tmp/laptop --model /tmp/laptop/model/scene.rhai --scale-from /tmp/laptop/model/pose.json --out /tmp/laptop-run/pose.json"
+)]
+pub struct Args {
+    /// Directory to write the capture into (must not exist or be empty).
+    #[arg(required_unless_present = "list")]
+    out: Option<PathBuf>,
+    /// Object of the library (see --list).
+    #[arg(long, default_value = "box")]
+    object: String,
+    /// Motion: handheld, rigid-steps or static-orbit (default: the object's dataset's).
+    #[arg(long)]
+    motion: Option<String>,
+    /// Number of keyframes.
+    #[arg(long, default_value_t = 12)]
+    frames: usize,
+    /// Image size WxH.
+    #[arg(long, default_value = "320x240")]
+    size: String,
+    /// Seed of every random choice.
+    #[arg(long, default_value_t = 0)]
+    seed: u64,
+    /// No hand occluders.
+    #[arg(long)]
+    no_hands: bool,
+    /// Segmenter-like noise on mask boundaries, in pixels (0 to 8).
+    #[arg(long, default_value_t = 0.0)]
+    mask_noise: f64,
+    /// Write depth (default: only for the static-object orbit).
+    #[arg(long, overrides_with = "no_depth")]
+    depth: bool,
+    /// Write no depth.
+    #[arg(long)]
+    no_depth: bool,
+    /// List the object library and the motions, then exit.
+    #[arg(long)]
+    list: bool,
+    /// Print the result as JSON on stdout.
+    #[arg(long)]
+    json: bool,
+}
+
+/// Parses `WxH`.
+pub fn parse_size(s: &str) -> Result<(u32, u32)> {
+    let (w, h) = s
+        .split_once(['x', 'X', '×'])
+        .ok_or_else(|| anyhow!("--size `{s}`: expected WxH, e.g. 320x240"))?;
+    Ok((
+        w.trim()
+            .parse()
+            .with_context(|| format!("--size `{s}`: width"))?,
+        h.trim()
+            .parse()
+            .with_context(|| format!("--size `{s}`: height"))?,
+    ))
+}
+
+pub fn parse_motion(s: &str) -> Result<Motion> {
+    Motion::parse(s).ok_or_else(|| {
+        anyhow!(
+            "unknown motion `{s}`; choose one of {}",
+            Motion::ALL.map(|m| m.as_str()).join(", ")
+        )
+    })
+}
+
+/// Writes a synthetic capture to `dir`: the capture, `gt.json` with its meshes, and the known
+/// model with its true poses under `model/` (`scene.rhai`, `pose.json`).
+pub fn write_synth(dir: &Path, s: &SynthCapture) -> Result<()> {
+    let frames: Vec<FrameOut<'_>> = s
+        .frames
+        .iter()
+        .map(|f| FrameOut {
+            name: &f.name,
+            frame_index: Some(f.frame_index),
+            time_s: Some(f.time_s),
+            camera: &s.camera,
+            world_from_camera: &f.world_from_camera,
+            rgb: &f.rgb,
+            mask: &f.mask,
+            hand: f.hand.as_ref(),
+            depth_m: f.depth_m.as_deref(),
+        })
+        .collect();
+    let info = CaptureInfo {
+        dataset: Some(format!("agentstar-synth/{}", s.object.family.as_str())),
+        source: Some(json!({
+            "producer": "agentstar synth", "object": s.object.name, "motion": s.motion.as_str(),
+            "seed": s.seed, "scale_m": s.scale,
+        })),
+    };
+    write_capture(dir, &frames, &info, |root| {
+        let truth: Vec<_> = s
+            .frames
+            .iter()
+            .map(|f| (f.name.clone(), f.camera_from_object, f.states.clone()))
+            .collect();
+        let (file, meshes) = model_ground_truth(&s.model, s.scale, &truth, &s.symmetries);
+        GroundTruth::from_parts(&root.join("gt.json"), file, meshes).write(root)?;
+        let model_dir = root.join("model");
+        agentstar_data::atomic::write_atomic(&model_dir.join("scene.rhai"), s.script.as_bytes())?;
+        let capture = crate::common::open_capture(root)
+            .map_err(|e| agentstar_data::DataError::invalid(root, e.to_string()))?;
+        let poses: Vec<FramePose> = s
+            .frames
+            .iter()
+            .map(|f| FramePose {
+                pose: f.camera_from_object,
+                states: f.states.clone(),
+                seeded: false,
+                moved: true,
+            })
+            .collect();
+        let mut pf = PoseFile::initial(&capture, &s.model.tree, s.scale, &poses[0].pose);
+        pf.set_frames(&capture, &s.model.tree, &poses);
+        pf.write(&model_dir.join("pose.json"))?;
+        Ok(())
+    })
+    .map_err(|e| anyhow!(e.to_string()))
+}
+
+/// A one-line description of a synthetic capture.
+pub fn describe(s: &SynthCapture) -> String {
+    let hands = s.frames.iter().filter(|f| f.hand.is_some()).count();
+    format!(
+        "{} ({}, {}): {} frames {}×{}, {} joint(s), hands in {hands}, depth {}",
+        s.object.name,
+        s.object.family.as_str(),
+        s.motion.as_str(),
+        s.frames.len(),
+        s.camera.width,
+        s.camera.height,
+        s.model.tree.joints().len(),
+        if s.frames.iter().any(|f| f.depth_m.is_some()) {
+            "yes"
+        } else {
+            "no"
+        }
+    )
+}
+
+pub fn run(a: Args) -> Result<ExitCode> {
+    if a.list {
+        let rows: Vec<_> = LIBRARY
+            .iter()
+            .map(|o| {
+                json!({"object": o.name, "family": o.family.as_str(), "size_m": o.size_m,
+                       "default_motion": Motion::default_for(o.family).as_str(),
+                       "symmetry": format!("{:?}", o.symmetry),
+                       "description": o.script.lines().next().unwrap_or("").trim_start_matches("// ")})
+            })
+            .collect();
+        if a.json {
+            print_json(&json!({"objects": rows, "motions": Motion::ALL.map(|m| m.as_str())}))?;
+        } else {
+            println!(
+                "| object | family | size (m) | default motion | what |\n|---|---|---|---|---|"
+            );
+            for r in &rows {
+                println!(
+                    "| {} | {} | {} | {} | {} |",
+                    r["object"].as_str().unwrap_or(""),
+                    r["family"].as_str().unwrap_or(""),
+                    r["size_m"],
+                    r["default_motion"].as_str().unwrap_or(""),
+                    r["description"].as_str().unwrap_or("")
+                );
+            }
+            println!("motions: {}", Motion::ALL.map(|m| m.as_str()).join(", "));
+        }
+        return Ok(ExitCode::SUCCESS);
+    }
+    let Some(out) = a.out else {
+        bail!("give the output directory (or --list)")
+    };
+    if ObjectSpec::find(&a.object).is_none() {
+        bail!(
+            "unknown object `{}`; the library has: {}",
+            a.object,
+            ObjectSpec::names().join(", ")
+        );
+    }
+    let (width, height) = parse_size(&a.size)?;
+    let cfg = SynthConfig {
+        object: a.object.clone(),
+        motion: a.motion.as_deref().map(parse_motion).transpose()?,
+        frames: a.frames,
+        width,
+        height,
+        seed: a.seed,
+        hands: !a.no_hands,
+        mask_noise_px: a.mask_noise,
+        depth: if a.depth {
+            Some(true)
+        } else if a.no_depth {
+            Some(false)
+        } else {
+            None
+        },
+    };
+    let s = synthesize(&cfg)?;
+    write_synth(&out, &s)?;
+    if a.json {
+        print_json(&json!({
+            "capture": out, "object": s.object.name, "family": s.object.family.as_str(),
+            "motion": s.motion.as_str(), "frames": s.frames.len(), "seed": s.seed,
+            "scale_m": s.scale, "model": out.join("model/scene.rhai"), "poses": out.join("model/pose.json"),
+            "gt": out.join("gt.json"),
+        }))?;
+    } else {
+        println!("wrote {}: {}", out.display(), describe(&s));
+        println!(
+            "  ground truth: {}; known model and true poses: {}, {}",
+            out.join("gt.json").display(),
+            out.join("model/scene.rhai").display(),
+            out.join("model/pose.json").display()
+        );
+    }
+    Ok(ExitCode::SUCCESS)
+}
