@@ -116,8 +116,8 @@ impl Grid {
     }
 }
 
-fn mean_nn(from: &[Point3], to: &Grid) -> f64 {
-    from.iter().map(|p| to.nearest(p)).sum::<f64>() / from.len() as f64
+fn mean_nn(from: &[Point3], to: &Grid, f: impl Fn(f64) -> f64) -> f64 {
+    from.iter().map(|p| f(to.nearest(p))).sum::<f64>() / from.len() as f64
 }
 
 /// Symmetric Chamfer distance; `None` when either set is empty.
@@ -126,7 +126,24 @@ pub fn chamfer_distance(a: &[Point3], b: &[Point3]) -> Option<f64> {
         return None;
     }
     let (ta, tb) = (Grid::new(a), Grid::new(b));
-    Some(0.5 * (mean_nn(a, &tb) + mean_nn(b, &ta)))
+    Some(0.5 * (mean_nn(a, &tb, |d| d) + mean_nn(b, &ta, |d| d)))
+}
+
+/// Both kinds of Chamfer distance from one nearest-neighbour pass: the symmetric mean
+/// distance (as [`chamfer_distance`]) and the squared form of the iTACO table,
+/// `mean_a d(a, B)² + mean_b d(b, A)²` (units squared, the two directions summed).
+pub fn chamfer_both(a: &[Point3], b: &[Point3]) -> Option<(f64, f64)> {
+    if a.is_empty() || b.is_empty() {
+        return None;
+    }
+    let (ta, tb) = (Grid::new(a), Grid::new(b));
+    let da: Vec<f64> = a.iter().map(|p| tb.nearest(p)).collect();
+    let db: Vec<f64> = b.iter().map(|p| ta.nearest(p)).collect();
+    let mean = |v: &[f64], f: fn(f64) -> f64| v.iter().map(|&d| f(d)).sum::<f64>() / v.len() as f64;
+    Some((
+        0.5 * (mean(&da, |d| d) + mean(&db, |d| d)),
+        mean(&da, |d| d * d) + mean(&db, |d| d * d),
+    ))
 }
 
 #[cfg(test)]
@@ -176,5 +193,18 @@ mod tests {
         };
         let want = 0.5 * (brute(&a, &b) + brute(&b, &a));
         assert!((chamfer_distance(&a, &b).expect("cd") - want).abs() < 1e-12);
+        let brute_sq = |x: &[Point3], y: &[Point3]| {
+            x.iter()
+                .map(|p| {
+                    y.iter()
+                        .map(|q| (p - q).norm_squared())
+                        .fold(f64::INFINITY, f64::min)
+                })
+                .sum::<f64>()
+                / x.len() as f64
+        };
+        let (cd, cd_sq) = chamfer_both(&a, &b).expect("both");
+        assert!((cd - want).abs() < 1e-12);
+        assert!((cd_sq - (brute_sq(&a, &b) + brute_sq(&b, &a))).abs() < 1e-12);
     }
 }

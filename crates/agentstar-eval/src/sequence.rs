@@ -7,7 +7,7 @@
 //! parts' centroid lies nearest the ground-truth child part's centroid in the first keyframe.
 
 use crate::articulation::{axis_angle_error, axis_line_distance, state_error};
-use crate::chamfer::{chamfer_distance, sample_surface};
+use crate::chamfer::{chamfer_both, sample_surface};
 use crate::rigid::{gauge_aligned_errors, GaugeErrors};
 use crate::scale::median_log_depth_scale;
 use agentstar_geom::model::transform_rigid;
@@ -86,6 +86,11 @@ pub struct SequenceMetrics {
     pub chamfer_cm: Option<f64>,
     pub cd_moving_cm: Option<f64>,
     pub cd_static_cm: Option<f64>,
+    /// The iTACO table's squared Chamfer (m²: mean squared distances, both directions
+    /// summed) on the whole object, the moving parts and the static part.
+    pub cd_sq_whole_m2: Option<f64>,
+    pub cd_sq_moving_m2: Option<f64>,
+    pub cd_sq_static_m2: Option<f64>,
     pub rigid: Option<GaugeErrors>,
     pub joints: Vec<JointMetrics>,
 }
@@ -207,7 +212,7 @@ pub fn evaluate(
         };
         let seed = cfg.seed + f as u64;
         let cd = |a: &TriMesh, b: &TriMesh| {
-            chamfer_distance(
+            chamfer_both(
                 &sample_surface(a, cfg.samples, seed),
                 &sample_surface(b, cfg.samples, seed),
             )
@@ -230,8 +235,13 @@ pub fn evaluate(
             }
         }
     }
-    let mean_cm =
-        |v: &[f64]| (!v.is_empty()).then(|| 100.0 * v.iter().sum::<f64>() / v.len() as f64);
+    let mean_of = |v: &[(f64, f64)], sq: bool, unit: f64| {
+        (!v.is_empty()).then(|| {
+            unit * v.iter().map(|p| if sq { p.1 } else { p.0 }).sum::<f64>() / v.len() as f64
+        })
+    };
+    let mean_cm = |v: &[(f64, f64)]| mean_of(v, false, 100.0);
+    let mean_m2 = |v: &[(f64, f64)]| mean_of(v, true, 1.0);
 
     // EPE: query pixels of the first keyframe carried by their parts.
     let (mut epe, mut epe_points) = (None, 0);
@@ -411,6 +421,9 @@ pub fn evaluate(
         chamfer_cm: mean_cm(&cd_w),
         cd_moving_cm: mean_cm(&cd_m),
         cd_static_cm: mean_cm(&cd_s),
+        cd_sq_whole_m2: mean_m2(&cd_w),
+        cd_sq_moving_m2: mean_m2(&cd_m),
+        cd_sq_static_m2: mean_m2(&cd_s),
         rigid,
         joints,
     }

@@ -20,6 +20,8 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Command {
+    /// The main job on a built-in capture: synthesise it, track it with the known model, evaluate, print the table.
+    Demo(cmd::demo::Args),
     /// Write a built-in articulated example (capture, scene, poses) and run render, score, turntable and export on it.
     Example(cmd::example::Args),
     /// Check a capture/v1 directory and report every problem at once.
@@ -59,6 +61,8 @@ enum Command {
     Eval(cmd::eval::Args),
     /// Write a seeded synthetic capture with ground truth (objects modelled on ARCTIC, HOT3D, iTACO).
     Synth(cmd::synth::Args),
+    /// Track a synthetic suite (and the agent-free ablations), evaluate, print the paper's tables with wall times.
+    Bench(cmd::bench::Args),
 }
 
 fn main() -> ExitCode {
@@ -82,6 +86,8 @@ fn main() -> ExitCode {
         Command::Track(a) => cmd::track::run(a),
         Command::Eval(a) => cmd::eval::run(a),
         Command::Synth(a) => cmd::synth::run(a),
+        Command::Bench(a) => cmd::bench::run(a),
+        Command::Demo(a) => cmd::demo::run(a),
     };
     match result {
         Ok(code) => code,

@@ -1,6 +1,8 @@
 //! One module per subcommand.
 
+pub mod bench;
 pub mod check;
+pub mod demo;
 pub mod eval;
 pub mod example;
 pub mod export;

@@ -1,0 +1,288 @@
+//! One sequence tracked by one method and evaluated with the paper's metrics.
+
+use crate::gt::gt_sequence;
+use crate::BenchError;
+use agentstar_data::gt::{model_ground_truth, GroundTruth};
+use agentstar_eval::sequence::{evaluate, EvalConfig, GtSequence, PredSequence, SequenceMetrics};
+use agentstar_render::ScoreTarget;
+use agentstar_synth::SynthCapture;
+use agentstar_track::tracker::{track, track_independent, TrackConfig, TrackFrame};
+use agentstar_track::GenPose;
+use serde::{Deserialize, Serialize};
+use std::time::Instant;
+
+/// How the poses are found.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize, Deserialize)]
+pub enum Method {
+    /// The automatic tracker with its temporal consistency pass.
+    #[serde(rename = "tracker")]
+    Tracker,
+    /// The tracker without the consistency pass (the paper's "no temporal").
+    #[serde(rename = "no-temporal")]
+    NoTemporal,
+    /// Per-frame differential evolution over the whole pose space from an uninformed start,
+    /// with the known model (the paper's "GT mesh + VLM-free opt.").
+    #[serde(rename = "vlm-free")]
+    VlmFree,
+}
+
+impl Method {
+    pub const ALL: [Method; 3] = [Method::Tracker, Method::NoTemporal, Method::VlmFree];
+    pub fn as_str(&self) -> &'static str {
+        match self {
+            Method::Tracker => "tracker",
+            Method::NoTemporal => "no-temporal",
+            Method::VlmFree => "vlm-free",
+        }
+    }
+    pub fn parse(s: &str) -> Option<Method> {
+        Method::ALL.into_iter().find(|m| m.as_str() == s)
+    }
+}
+
+#[derive(Debug, Clone, PartialEq)]
+pub struct RunConfig {
+    pub seed: u64,
+    /// Evaluations of each local search of the tracker.
+    pub local_evals: usize,
+    /// Evaluations of the VLM-free baseline's global search, per frame.
+    pub vlm_free_evals: usize,
+    /// Surface samples per mesh for Chamfer distances.
+    pub samples: usize,
+}
+
+impl Default for RunConfig {
+    fn default() -> Self {
+        RunConfig {
+            seed: 17,
+            local_evals: 2400,
+            vlm_free_evals: 8000,
+            samples: 10_000,
+        }
+    }
+}
+
+/// Articulation errors of one ground-truth joint.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct JointResult {
+    pub gt_joint: String,
+    pub pred_joint: Option<String>,
+    pub revolute: bool,
+    pub axis_rad: Option<f64>,
+    /// Axis line distance in metres (revolute only).
+    pub position_m: Option<f64>,
+    /// Radians (revolute) or metres (prismatic).
+    pub state: Option<f64>,
+}
+
+/// Everything measured on one sequence with one method.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct SequenceResult {
+    pub id: String,
+    pub object: String,
+    pub family: String,
+    pub motion: String,
+    /// The method's name (`tracker`, `no-temporal`, `vlm-free`) or a label for a user's runs.
+    pub method: String,
+    pub frames: usize,
+    /// Wall time of the tracking (not the synthesis or the evaluation), seconds.
+    pub seconds: f64,
+    pub evaluations: usize,
+    pub iou_mean: f64,
+    pub iou_min: f64,
+    pub scale_alignment: f64,
+    pub epe_cm: Option<f64>,
+    pub chamfer_cm: Option<f64>,
+    pub rotation_mean_deg: Option<f64>,
+    pub rotation_median_deg: Option<f64>,
+    pub translation_mean_cm: Option<f64>,
+    pub translation_median_cm: Option<f64>,
+    pub cd_w_m2: Option<f64>,
+    pub cd_m_m2: Option<f64>,
+    pub cd_s_m2: Option<f64>,
+    pub joints: Vec<JointResult>,
+}
+
+/// What a result is about, beside its metrics.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RunInfo {
+    pub id: String,
+    pub object: String,
+    pub family: String,
+    pub motion: String,
+    pub method: String,
+    pub seconds: f64,
+    pub evaluations: usize,
+}
+
+impl SequenceResult {
+    /// A result from a sequence's metrics and per-frame gate IoUs.
+    pub fn from_metrics(
+        info: RunInfo,
+        iou: &[f64],
+        m: &SequenceMetrics,
+        seq: &GtSequence,
+    ) -> SequenceResult {
+        let rigid = m.rigid.as_ref();
+        let joints = m
+            .joints
+            .iter()
+            .zip(&seq.joints)
+            .map(|(j, g)| JointResult {
+                gt_joint: j.gt_joint.clone(),
+                pred_joint: j.pred_joint.clone(),
+                revolute: g.revolute,
+                axis_rad: j.axis_angle_rad,
+                position_m: j.axis_distance_m,
+                state: j.state_error,
+            })
+            .collect();
+        SequenceResult {
+            id: info.id,
+            object: info.object,
+            family: info.family,
+            motion: info.motion,
+            method: info.method,
+            frames: m.frames,
+            seconds: info.seconds,
+            evaluations: info.evaluations,
+            iou_mean: iou.iter().sum::<f64>() / iou.len().max(1) as f64,
+            iou_min: iou.iter().cloned().fold(f64::INFINITY, f64::min),
+            scale_alignment: m.scale_alignment,
+            epe_cm: m.epe_cm,
+            chamfer_cm: m.chamfer_cm,
+            rotation_mean_deg: rigid.map(|r| r.rotation_mean_deg),
+            rotation_median_deg: rigid.map(|r| r.rotation_median_deg),
+            translation_mean_cm: rigid.map(|r| r.translation_mean_cm),
+            translation_median_cm: rigid.map(|r| r.translation_median_cm),
+            cd_w_m2: m.cd_sq_whole_m2,
+            cd_m_m2: m.cd_sq_moving_m2,
+            cd_s_m2: m.cd_sq_static_m2,
+            joints,
+        }
+    }
+
+    /// A named figure, for tolerances and tables.
+    pub fn metric(&self, name: &str) -> Option<f64> {
+        let joint_mean = |f: fn(&JointResult) -> Option<f64>| {
+            let v: Vec<f64> = self.joints.iter().filter_map(f).collect();
+            (!v.is_empty()).then(|| v.iter().sum::<f64>() / v.len() as f64)
+        };
+        match name {
+            "iou_mean" => Some(self.iou_mean),
+            "iou_min" => Some(self.iou_min),
+            "epe_cm" => self.epe_cm,
+            "chamfer_cm" => self.chamfer_cm,
+            "rotation_mean_deg" => self.rotation_mean_deg,
+            "rotation_median_deg" => self.rotation_median_deg,
+            "translation_mean_cm" => self.translation_mean_cm,
+            "translation_median_cm" => self.translation_median_cm,
+            "cd_w_m2" => self.cd_w_m2,
+            "cd_m_m2" => self.cd_m_m2,
+            "cd_s_m2" => self.cd_s_m2,
+            "joint_axis_rad" => joint_mean(|j| j.axis_rad),
+            "joint_state" => joint_mean(|j| j.state),
+            _ => None,
+        }
+    }
+}
+
+/// Tracks a synthetic capture with `method` (the known model and scale, as the paper's
+/// agent-free variants) and evaluates the result against its ground truth.
+pub fn run_sequence(
+    capture: &SynthCapture,
+    method: Method,
+    cfg: &RunConfig,
+) -> Result<(SequenceResult, Vec<GenPose>), BenchError> {
+    let id = capture.id();
+    let targets: Vec<ScoreTarget> = capture
+        .frames
+        .iter()
+        .map(|f| ScoreTarget::new(f.mask.clone(), f.hand.clone()))
+        .collect::<Result<_, _>>()
+        .map_err(|e| BenchError::Invalid(format!("{id}: {e}")))?;
+    let frames: Vec<TrackFrame<'_>> = capture
+        .frames
+        .iter()
+        .zip(&targets)
+        .map(|(f, t)| TrackFrame {
+            name: f.name.clone(),
+            camera: capture.camera,
+            target: t,
+            world_from_camera: Some(f.world_from_camera),
+        })
+        .collect();
+    let tcfg = TrackConfig {
+        seed: cfg.seed,
+        local_evals: cfg.local_evals,
+        consistency_pass: method == Method::Tracker,
+        ..TrackConfig::default()
+    };
+    let t0 = Instant::now();
+    let tracked = match method {
+        Method::Tracker | Method::NoTemporal => {
+            track(&capture.model, capture.scale, &frames, &tcfg)
+        }
+        Method::VlmFree => track_independent(
+            &capture.model,
+            capture.scale,
+            &frames,
+            &tcfg,
+            cfg.vlm_free_evals,
+        ),
+    }
+    .map_err(|source| BenchError::Track {
+        id: id.clone(),
+        source,
+    })?;
+    let seconds = t0.elapsed().as_secs_f64();
+
+    let truth: Vec<_> = capture
+        .frames
+        .iter()
+        .map(|f| (f.name.clone(), f.camera_from_object, f.states.clone()))
+        .collect();
+    let (file, meshes) =
+        model_ground_truth(&capture.model, capture.scale, &truth, &capture.symmetries);
+    let gt = GroundTruth::from_parts(
+        std::path::Path::new(&format!("synthetic:{id}/gt.json")),
+        file,
+        meshes,
+    );
+    let names: Vec<String> = capture.frames.iter().map(|f| f.name.clone()).collect();
+    let seq = gt_sequence(&gt, &names)?;
+    let pred = PredSequence {
+        model: &capture.model,
+        scale: capture.scale,
+        poses: tracked
+            .poses
+            .iter()
+            .map(|g| (g.pose, g.states.clone()))
+            .collect(),
+    };
+    let cams = vec![capture.camera; capture.frames.len()];
+    let m = evaluate(
+        &seq,
+        &pred,
+        &cams,
+        &EvalConfig {
+            samples: cfg.samples,
+            ..EvalConfig::default()
+        },
+    );
+    let result = SequenceResult::from_metrics(
+        RunInfo {
+            id,
+            object: capture.object.name.into(),
+            family: capture.object.family.as_str().into(),
+            motion: capture.motion.as_str().into(),
+            method: method.as_str().into(),
+            seconds,
+            evaluations: tracked.evaluations,
+        },
+        &tracked.scores,
+        &m,
+        &seq,
+    );
+    Ok((result, tracked.poses))
+}

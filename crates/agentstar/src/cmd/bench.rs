@@ -1,0 +1,226 @@
+//! `agentstar bench`: run the automatic tracker (and the paper's agent-free ablations) over a
+//! synthetic suite, evaluate with the paper's metrics, print the tables with wall time per
+//! sequence; check or record accuracy tolerances.
+
+use crate::cmd::synth::write_synth;
+use crate::common::print_json;
+use agentstar_bench::suite::SUITES;
+use agentstar_bench::table::tables;
+use agentstar_bench::tolerance::{check, record, ToleranceFile};
+use agentstar_bench::{run_sequence, suite, Method, RunConfig, SequenceResult};
+use agentstar_data::posefile::{FramePose, PoseFile};
+use anyhow::{anyhow, bail, Context, Result};
+use serde_json::json;
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+#[derive(clap::Args)]
+#[command(
+    after_help = "Examples:\n  agentstar bench --suite quick --methods tracker --check bench/quick.json\n  agentstar bench --suite full --results bench/full.md --out /tmp/bench-runs"
+)]
+pub struct Args {
+    /// The suite: quick (CI) or full.
+    #[arg(long, default_value = "quick")]
+    suite: String,
+    /// Methods, comma separated: tracker, no-temporal, vlm-free.
+    #[arg(long, default_value = "tracker,no-temporal,vlm-free")]
+    methods: String,
+    /// Only these objects of the suite (comma separated).
+    #[arg(long)]
+    only: Option<String>,
+    /// Write every capture and every method's pose.json under this directory.
+    #[arg(long)]
+    out: Option<PathBuf>,
+    /// Add a row per sequence to the metric tables.
+    #[arg(long)]
+    per_sequence: bool,
+    /// Fail (exit 1) when a figure breaks the tolerances in this file.
+    #[arg(long)]
+    check: Option<PathBuf>,
+    /// Record tolerances from this run into this file.
+    #[arg(long)]
+    record: Option<PathBuf>,
+    /// Write the tables (Markdown, with date and machine) and the results (same name, .json).
+    #[arg(long)]
+    results: Option<PathBuf>,
+    /// Evaluations per local search of the tracker.
+    #[arg(long, default_value_t = 2400)]
+    evals: usize,
+    /// Seed of the trackers' searches.
+    #[arg(long, default_value_t = 17)]
+    seed: u64,
+    /// Print the results as JSON on stdout.
+    #[arg(long)]
+    json: bool,
+}
+
+/// A line about this machine for recorded results.
+pub fn machine() -> String {
+    let cpu = std::fs::read_to_string("/proc/cpuinfo")
+        .ok()
+        .and_then(|s| {
+            s.lines()
+                .find(|l| l.starts_with("model name"))
+                .and_then(|l| l.split_once(':'))
+                .map(|(_, v)| v.trim().to_string())
+        })
+        .unwrap_or_else(|| "unknown CPU".into());
+    let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
+    format!(
+        "{cpu}, {threads} threads, {} {}",
+        std::env::consts::OS,
+        std::env::consts::ARCH
+    )
+}
+
+fn today() -> String {
+    std::process::Command::new("date")
+        .arg("+%Y-%m-%d")
+        .output()
+        .ok()
+        .and_then(|o| String::from_utf8(o.stdout).ok())
+        .map(|s| s.trim().to_string())
+        .filter(|s| !s.is_empty())
+        .unwrap_or_else(|| "unknown date".into())
+}
+
+pub fn run(a: Args) -> Result<ExitCode> {
+    let mut specs = suite(&a.suite).ok_or_else(|| {
+        anyhow!(
+            "unknown suite `{}`; choose one of {}",
+            a.suite,
+            SUITES.join(", ")
+        )
+    })?;
+    if let Some(only) = &a.only {
+        let keep: Vec<&str> = only.split(',').map(str::trim).collect();
+        specs.retain(|s| keep.contains(&s.synth.object.as_str()));
+        if specs.is_empty() {
+            bail!(
+                "--only {only}: no sequence of the {} suite has those objects",
+                a.suite
+            );
+        }
+    }
+    let methods: Vec<Method> = a
+        .methods
+        .split(',')
+        .map(str::trim)
+        .filter(|s| !s.is_empty())
+        .map(|s| {
+            Method::parse(s).ok_or_else(|| {
+                anyhow!(
+                    "unknown method `{s}`; choose from {}",
+                    Method::ALL.map(|m| m.as_str()).join(", ")
+                )
+            })
+        })
+        .collect::<Result<_>>()?;
+    if methods.is_empty() {
+        bail!("--methods is empty");
+    }
+    let tolerances: Option<ToleranceFile> = match &a.check {
+        Some(p) => Some(
+            serde_json::from_str(&agentstar_data::read_text(p)?)
+                .with_context(|| format!("{}: not a tolerance file", p.display()))?,
+        ),
+        None => None,
+    };
+    let cfg = RunConfig {
+        seed: a.seed,
+        local_evals: a.evals,
+        ..RunConfig::default()
+    };
+    let mut results: Vec<SequenceResult> = Vec::new();
+    let total = specs.len() * methods.len();
+    for spec in &specs {
+        let capture = agentstar_synth::synthesize(&spec.synth)?;
+        let id = capture.id();
+        if let Some(out) = &a.out {
+            write_synth(&out.join(&id).join("capture"), &capture)
+                .with_context(|| format!("writing {id}"))?;
+        }
+        for &method in &methods {
+            eprintln!(
+                "bench [{}/{total}] {id} with {} …",
+                results.len() + 1,
+                method.as_str()
+            );
+            let (r, poses) = run_sequence(&capture, method, &cfg)?;
+            eprintln!(
+                "bench   {:.1} s, IoU mean {:.4}, EPE {} cm, rot. median {} °",
+                r.seconds,
+                r.iou_mean,
+                r.epe_cm.map_or("–".into(), |v| format!("{v:.2}")),
+                r.rotation_median_deg
+                    .map_or("–".into(), |v| format!("{v:.2}"))
+            );
+            if let Some(out) = &a.out {
+                let cap_dir = out.join(&id).join("capture");
+                let cap = crate::common::open_capture(&cap_dir)?;
+                let fp: Vec<FramePose> = poses
+                    .iter()
+                    .map(|g| FramePose {
+                        pose: g.pose,
+                        states: g.states.clone(),
+                        seeded: false,
+                        moved: true,
+                    })
+                    .collect();
+                let mut pf =
+                    PoseFile::initial(&cap, &capture.model.tree, capture.scale, &fp[0].pose);
+                pf.set_frames(&cap, &capture.model.tree, &fp);
+                pf.write(&out.join(&id).join(method.as_str()).join("pose.json"))?;
+            }
+            results.push(r);
+        }
+    }
+    let md = tables(&results, a.per_sequence);
+    let header = format!(
+        "## agentstar bench: {} suite, {} sequence(s), methods {}\n\nRecorded {} on {}.\n\n",
+        a.suite,
+        specs.len(),
+        methods
+            .iter()
+            .map(|m| m.as_str())
+            .collect::<Vec<_>>()
+            .join(", "),
+        today(),
+        machine()
+    );
+    if let Some(p) = &a.results {
+        agentstar_data::atomic::write_atomic(p, format!("{header}{md}").as_bytes())?;
+        agentstar_data::atomic::write_json(
+            &p.with_extension("json"),
+            &json!({"suite": a.suite, "date": today(), "machine": machine(), "results": results}),
+        )?;
+    }
+    if let Some(p) = &a.record {
+        let file = record(&results, &a.suite, &format!("{} on {}", today(), machine()));
+        agentstar_data::atomic::write_json(p, &file)?;
+        eprintln!("bench: recorded tolerances in {}", p.display());
+    }
+    if a.json {
+        print_json(&json!({"suite": a.suite, "results": results}))?;
+    } else {
+        print!("{header}{md}");
+    }
+    if let Some(t) = &tolerances {
+        let violations = check(&results, t);
+        if !violations.is_empty() {
+            eprintln!(
+                "bench: {} figure(s) regressed past the tolerances of {}:",
+                violations.len(),
+                a.check
+                    .as_ref()
+                    .map_or(String::new(), |p| p.display().to_string())
+            );
+            for v in &violations {
+                eprintln!("  {v}");
+            }
+            return Ok(ExitCode::from(1));
+        }
+        eprintln!("bench: every figure within the recorded tolerances");
+    }
+    Ok(ExitCode::SUCCESS)
+}
