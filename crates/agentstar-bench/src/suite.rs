@@ -40,7 +40,7 @@ impl SequenceSpec {
 pub fn suite(name: &str) -> Option<Vec<SequenceSpec>> {
     match name {
         "quick" => Some(vec![
-            SequenceSpec::new("box", None, 8, (240, 180), 1),
+            SequenceSpec::new("box", None, 8, (240, 180), 2),
             SequenceSpec::new("mug", None, 8, (240, 180), 2),
             SequenceSpec::new("microwave", None, 8, (240, 180), 3),
         ]),

@@ -19,6 +19,15 @@ fn fmt(v: Option<f64>, digits: usize) -> String {
 }
 
 /// Method labels in order of first appearance.
+/// Four decimals, or three significant digits for small figures (squared Chamfer in m²).
+fn sig(x: f64) -> String {
+    if x != 0.0 && x.abs() < 0.01 {
+        format!("{x:.2e}")
+    } else {
+        format!("{x:.4}")
+    }
+}
+
 fn methods(results: &[SequenceResult]) -> Vec<&str> {
     let mut m: Vec<&str> = Vec::new();
     for r in results {
@@ -167,7 +176,7 @@ pub fn tables(results: &[SequenceResult], per_sequence: bool) -> String {
             for &m in &ms {
                 let v: Vec<f64> = of(results, Some("itaco"), m).flat_map(|r| get(r)).collect();
                 let cell = match (mean(&v), std_dev(&v)) {
-                    (Some(a), Some(s)) => format!("{a:.4} ± {s:.4}"),
+                    (Some(a), Some(s)) => format!("{} ± {}", sig(a), sig(s)),
                     _ => "–".into(),
                 };
                 let _ = write!(out, " {cell} |");

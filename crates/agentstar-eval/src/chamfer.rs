@@ -40,72 +40,130 @@ pub fn sample_surface(mesh: &TriMesh, n: usize, seed: u64) -> Vec<Point3> {
         .collect()
 }
 
-/// Exact nearest-neighbour queries over a uniform grid (cells of about two points each),
-/// searching rings of cells outward until no closer point can exist. Kd-tree crates were
-/// tried; the one we looked at panics when many samples share a coordinate, which every
-/// flat face produces.
+/// Exact nearest-neighbour queries over a uniform grid (cells sized for surface samples,
+/// about two points a cell), searching shells of cells outward, clipped to the grid, until
+/// no closer point can exist. Cells are stored densely (start offsets into one index
+/// array). Kd-tree crates were tried; the one we looked at panics when many samples share a
+/// coordinate, which every flat face produces.
 struct Grid {
     origin: Point3,
     cell: f64,
     dims: [i64; 3],
-    cells: std::collections::HashMap<(i64, i64, i64), Vec<u32>>,
+    /// `starts[c]..starts[c + 1]` indexes `order` for cell `c`.
+    starts: Vec<u32>,
+    order: Vec<u32>,
     points: Vec<Point3>,
 }
+
+/// The most cells a grid may have.
+const MAX_CELLS: f64 = 4.0e6;
 
 impl Grid {
     fn new(points: &[Point3]) -> Grid {
         let b = agentstar_geom::Aabb::from_points(points.iter());
         let ext = b.extent();
-        let volume = ext.x.max(1e-9) * ext.y.max(1e-9) * ext.z.max(1e-9);
-        let cell = (2.0 * volume / points.len().max(1) as f64)
-            .cbrt()
-            .max(ext.max() / 256.0)
-            .max(1e-9);
-        let dims = [
-            (ext.x / cell) as i64 + 1,
-            (ext.y / cell) as i64 + 1,
-            (ext.z / cell) as i64 + 1,
-        ];
+        let n = points.len().max(1) as f64;
+        // Samples lie on surfaces: size cells by the bounding box's surface area.
+        let area = 2.0 * (ext.x * ext.y + ext.y * ext.z + ext.z * ext.x);
+        let mut cell = (2.0 * area / n).sqrt().max(ext.max() / 512.0).max(1e-9);
+        let dims_for = |cell: f64| {
+            [
+                (ext.x / cell) as i64 + 1,
+                (ext.y / cell) as i64 + 1,
+                (ext.z / cell) as i64 + 1,
+            ]
+        };
+        let mut dims = dims_for(cell);
+        while (dims[0] * dims[1] * dims[2]) as f64 > MAX_CELLS {
+            cell *= 1.5;
+            dims = dims_for(cell);
+        }
         let mut g = Grid {
             origin: b.min,
             cell,
             dims,
-            cells: Default::default(),
+            starts: vec![],
+            order: vec![],
             points: points.to_vec(),
         };
-        for (i, p) in points.iter().enumerate() {
-            let k = g.key(p);
-            g.cells.entry(k).or_default().push(i as u32);
+        let ncells = (dims[0] * dims[1] * dims[2]) as usize;
+        let keys: Vec<usize> = points.iter().map(|p| g.index(g.key(p))).collect();
+        let mut counts = vec![0u32; ncells + 1];
+        for &k in &keys {
+            counts[k + 1] += 1;
         }
+        for i in 0..ncells {
+            counts[i + 1] += counts[i];
+        }
+        let mut fill = counts.clone();
+        let mut order = vec![0u32; points.len()];
+        for (i, &k) in keys.iter().enumerate() {
+            order[fill[k] as usize] = i as u32;
+            fill[k] += 1;
+        }
+        g.starts = counts;
+        g.order = order;
         g
     }
-    fn key(&self, p: &Point3) -> (i64, i64, i64) {
+    fn key(&self, p: &Point3) -> [i64; 3] {
         let f = |v: f64, o: f64, d: i64| (((v - o) / self.cell).floor() as i64).clamp(0, d - 1);
-        (
+        [
             f(p.x, self.origin.x, self.dims[0]),
             f(p.y, self.origin.y, self.dims[1]),
             f(p.z, self.origin.z, self.dims[2]),
-        )
+        ]
+    }
+    fn index(&self, k: [i64; 3]) -> usize {
+        ((k[2] * self.dims[1] + k[1]) * self.dims[0] + k[0]) as usize
+    }
+    fn visit(&self, k: [i64; 3], q: &Point3, best: &mut f64) {
+        let c = self.index(k);
+        for &i in &self.order[self.starts[c] as usize..self.starts[c + 1] as usize] {
+            *best = best.min((self.points[i as usize] - q).norm());
+        }
     }
     fn nearest(&self, q: &Point3) -> f64 {
+        if self.points.is_empty() {
+            return f64::INFINITY;
+        }
         let c = self.key(q);
+        // Per axis, how far the query lies outside its (clamped) cell. A point of shell r is
+        // at least (r − 1) cells away along some axis j, and at least o_k along every other
+        // axis, so its distance is at least √(Σ o_k² + max(0, ((r − 1)·cell)² − max_k o_k²)).
+        let lo = |k: usize| self.origin[k] + c[k] as f64 * self.cell;
+        let o: Vec<f64> = (0..3)
+            .map(|k| {
+                let (a, b) = (lo(k), lo(k) + self.cell);
+                (a - q[k]).max(q[k] - b).max(0.0)
+            })
+            .collect();
+        let outside_sq: f64 = o.iter().map(|v| v * v).sum();
+        let o_max_sq = o.iter().fold(0.0f64, |m, v| m.max(v * v));
+        let bound = |r: i64| {
+            let ring = ((r - 1).max(0) as f64 * self.cell).powi(2);
+            (outside_sq + (ring - o_max_sq).max(0.0)).sqrt()
+        };
         let mut best = f64::INFINITY;
         let max_r = self.dims.iter().copied().max().unwrap_or(1);
+        let range = |k: usize, r: i64| ((-r).max(-c[k]), r.min(self.dims[k] - 1 - c[k]));
         for r in 0..=max_r {
-            // Points in ring r are at least (r − 1)·cell away (the query may sit anywhere in its cell,
-            // or outside the grid, which only adds distance).
-            if r >= 1 && ((r - 1) as f64 * self.cell) > best {
+            if r >= 1 && bound(r) > best {
                 break;
             }
-            for dx in -r..=r {
-                for dy in -r..=r {
-                    for dz in -r..=r {
-                        if dx.abs().max(dy.abs()).max(dz.abs()) != r {
-                            continue;
+            let (x0, x1) = range(0, r);
+            let (y0, y1) = range(1, r);
+            let (z0, z1) = range(2, r);
+            for dx in x0..=x1 {
+                for dy in y0..=y1 {
+                    if dx.abs() == r || dy.abs() == r {
+                        for dz in z0..=z1 {
+                            self.visit([c[0] + dx, c[1] + dy, c[2] + dz], q, &mut best);
                         }
-                        if let Some(list) = self.cells.get(&(c.0 + dx, c.1 + dy, c.2 + dz)) {
-                            for &i in list {
-                                best = best.min((self.points[i as usize] - q).norm());
+                    } else {
+                        // Inside the shell's x–y square only its two z faces (r > 0 here).
+                        for dz in [-r, r] {
+                            if dz >= z0 && dz <= z1 {
+                                self.visit([c[0] + dx, c[1] + dy, c[2] + dz], q, &mut best);
                             }
                         }
                     }
@@ -203,6 +261,11 @@ mod tests {
                 .sum::<f64>()
                 / x.len() as f64
         };
+        // Far apart and flat: shells clipped to a thin grid still find the exact neighbour.
+        let flat = sample_surface(&cuboid(0.9, 0.6, 0.002).expect("flat"), 500, 4);
+        let far: Vec<Point3> = a.iter().map(|p| p + Vector3::new(1.5, -0.7, 0.9)).collect();
+        let want_far = 0.5 * (brute(&flat, &far) + brute(&far, &flat));
+        assert!((chamfer_distance(&flat, &far).expect("cd") - want_far).abs() < 1e-12);
         let (cd, cd_sq) = chamfer_both(&a, &b).expect("both");
         assert!((cd - want).abs() < 1e-12);
         assert!((cd_sq - (brute_sq(&a, &b) + brute_sq(&b, &a))).abs() < 1e-12);

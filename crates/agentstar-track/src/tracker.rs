@@ -138,7 +138,11 @@ fn place(
     for _ in 0..2 {
         let pose = problem_pose(z, centre);
         let inst = agentstar_render::PosedModel::new(model, states, &pose.with_scale(scale));
-        let sil = r.render(cam, &inst.instances);
+        // Only the render outside the hands can match the visible mask.
+        let sil = match frame.target.keep() {
+            Some(k) => r.render(cam, &inst.instances).and(k),
+            None => r.render(cam, &inst.instances).clone(),
+        };
         let rendered = sil.count() as f64;
         if rendered < 1.0 {
             break;
@@ -391,6 +395,29 @@ fn extrapolate(prev2: &GenPose, prev: &GenPose, tree: &agentstar_geom::Kinematic
     }
 }
 
+/// The best hypotheses, at most `n`, each at least `min_angle_deg` in rotation (or as far
+/// in a joint state) from those taken before it, so that refinements start in different
+/// basins rather than around one near-duplicate.
+fn diverse(hyps: &[(GenPose, f64)], n: usize, min_angle_deg: f64) -> Vec<GenPose> {
+    let mut out: Vec<GenPose> = Vec::with_capacity(n);
+    for (g, _) in hyps {
+        if out.len() >= n {
+            break;
+        }
+        let far = out.iter().all(|o| {
+            angle_deg(&(g.pose.rotation * o.pose.rotation.inverse())) >= min_angle_deg
+                || g.states
+                    .iter()
+                    .zip(&o.states)
+                    .any(|(a, b)| (a - b).abs().to_degrees() >= min_angle_deg)
+        });
+        if far {
+            out.push(g.clone());
+        }
+    }
+    out
+}
+
 /// The best-scoring result of parallel searches, or the first error.
 fn best_of(
     results: Vec<Result<(GenPose, f64), TrackError>>,
@@ -430,14 +457,16 @@ pub fn track(
     // The frame with the most visible mask.
     let init = match cfg.init_frame {
         Some(i) if i < frames.len() => i,
+        // The most visible mask, discounted by how much of the object the hands may hide.
         _ => (0..frames.len())
             .max_by_key(|&i| {
                 let t = frames[i].target;
-                let vis = match t.keep() {
-                    Some(k) => t.mask().and(k).count(),
-                    None => t.mask().count(),
+                let (vis, hidden) = match t.keep() {
+                    Some(k) => (t.mask().and(k).count(), k.not().count()),
+                    None => (t.mask().count(), 0),
                 };
-                (vis, std::cmp::Reverse(i))
+                let score = vis as f64 * vis as f64 / (vis + hidden).max(1) as f64;
+                ((score * 16.0) as u64, std::cmp::Reverse(i))
             })
             .unwrap_or(0),
     };
@@ -450,7 +479,7 @@ pub fn track(
             frames[init].name
         )));
     }
-    let top: Vec<GenPose> = hyps.iter().take(6).map(|h| h.0.clone()).collect();
+    let top = diverse(&hyps, 8, 30.0);
     let refined: Vec<Result<(GenPose, f64), TrackError>> = top
         .par_iter()
         .enumerate()

@@ -1,0 +1,173 @@
+//! Synthetic captures: seeded, consistent with their ground truth (masks are the visible
+//! model, hands occlude, depth is the rendered depth), and bad configurations are refused.
+
+use agentstar_render::{render_full, PosedModel, SilhouetteRenderer};
+use agentstar_synth::{synthesize, Motion, SynthConfig, SynthError, LIBRARY};
+
+fn cfg(object: &str, motion: Option<Motion>, seed: u64) -> SynthConfig {
+    SynthConfig {
+        object: object.into(),
+        motion,
+        frames: 5,
+        width: 160,
+        height: 120,
+        seed,
+        ..SynthConfig::default()
+    }
+}
+
+#[test]
+fn same_seed_same_capture_other_seed_other_capture() {
+    let a = synthesize(&cfg("laptop", None, 4)).expect("a");
+    let b = synthesize(&cfg("laptop", None, 4)).expect("b");
+    let c = synthesize(&cfg("laptop", None, 5)).expect("c");
+    for (fa, fb) in a.frames.iter().zip(&b.frames) {
+        assert_eq!(fa.rgb, fb.rgb);
+        assert_eq!(fa.mask, fb.mask);
+        assert_eq!(fa.hand, fb.hand);
+        assert_eq!(fa.camera_from_object, fb.camera_from_object);
+    }
+    assert_ne!(
+        a.frames[1].camera_from_object,
+        c.frames[1].camera_from_object
+    );
+    assert_eq!(a.id(), "laptop-handheld-s4");
+}
+
+#[test]
+fn masks_are_the_visible_ground_truth_and_hands_only_occlude() {
+    for (object, motion) in [
+        ("box", Motion::HandHeld),
+        ("mug", Motion::RigidSteps),
+        ("cabinet", Motion::StaticOrbit),
+    ] {
+        let s = synthesize(&SynthConfig {
+            frames: 8,
+            ..cfg(object, Some(motion), 11)
+        })
+        .expect("synth");
+        let mut r = SilhouetteRenderer::new(160, 120);
+        let mut hands = 0;
+        for f in &s.frames {
+            let posed = PosedModel::new(
+                &s.model,
+                &f.states,
+                &f.camera_from_object.with_scale(s.scale),
+            );
+            let full = r.render(&s.camera, &posed.instances).clone();
+            // Every mask pixel is the object; every hidden object pixel is under a hand.
+            assert_eq!(f.mask.and_not(&full).count(), 0, "{object} {}", f.name);
+            let hidden = full.and_not(&f.mask);
+            match &f.hand {
+                Some(h) => {
+                    hands += 1;
+                    assert_eq!(hidden.and_not(h).count(), 0, "{object} {}", f.name);
+                    assert_eq!(h.and(&f.mask).count(), 0, "hand and object are disjoint");
+                }
+                None => assert_eq!(
+                    hidden.count(),
+                    0,
+                    "{object} {}: no hand, no occlusion",
+                    f.name
+                ),
+            }
+            assert!(
+                f.mask.count() > 200,
+                "{object} {}: the object is in view",
+                f.name
+            );
+            if let Some(depth) = &f.depth_m {
+                let b = render_full(&s.camera, &posed.instances);
+                for (k, &z) in depth.iter().enumerate() {
+                    let (x, y) = (k as u32 % 160, k as u32 / 160);
+                    if f.mask.get(x, y) {
+                        assert!((z - b.depth[k]).abs() < 1e-5, "depth at {x},{y}");
+                    }
+                }
+            }
+        }
+        assert!(hands > 0, "{object}: some frames have hands");
+        assert_eq!(
+            s.frames.iter().any(|f| f.depth_m.is_some()),
+            motion == Motion::StaticOrbit,
+            "depth by default only for the orbit"
+        );
+    }
+}
+
+#[test]
+fn static_orbit_moves_the_camera_not_the_object() {
+    let s = synthesize(&cfg("oven", None, 2)).expect("oven");
+    assert_eq!(s.motion, Motion::StaticOrbit);
+    let world =
+        |f: &agentstar_synth::SynthFrame| f.world_from_camera * f.camera_from_object.to_rigid();
+    let w0 = world(&s.frames[0]);
+    for f in &s.frames[1..] {
+        let w = world(f);
+        assert!((w.translation.vector - w0.translation.vector).norm() < 1e-9);
+        assert!(w.rotation.angle_to(&w0.rotation) < 1e-9);
+        assert!(
+            f.world_from_camera.translation.vector
+                != s.frames[0].world_from_camera.translation.vector
+        );
+    }
+    // Exactly one joint moves.
+    let moving = (0..s.model.tree.joints().len())
+        .filter(|&j| {
+            s.frames
+                .iter()
+                .any(|f| (f.states[j] - s.frames[0].states[j]).abs() > 1e-9)
+        })
+        .count();
+    assert_eq!(moving, 1);
+}
+
+#[test]
+fn every_object_synthesises_with_its_default_motion() {
+    for o in LIBRARY {
+        let s = synthesize(&SynthConfig {
+            frames: 2,
+            width: 96,
+            height: 72,
+            ..cfg(o.name, None, 1)
+        })
+        .unwrap_or_else(|e| panic!("{}: {e}", o.name));
+        assert_eq!(s.motion, Motion::default_for(o.family));
+        assert!(s.frames.iter().all(|f| f.mask.count() > 0), "{}", o.name);
+    }
+}
+
+#[test]
+fn bad_configurations_are_refused_with_a_reason() {
+    let e = synthesize(&cfg("teapot", None, 0)).expect_err("unknown");
+    assert!(matches!(e, SynthError::UnknownObject { .. }));
+    assert!(e.to_string().contains("laptop"), "{e}");
+    let e = synthesize(&SynthConfig {
+        frames: 1,
+        ..cfg("box", None, 0)
+    })
+    .expect_err("one frame");
+    assert!(e.to_string().contains("frames"), "{e}");
+    let e = synthesize(&SynthConfig {
+        mask_noise_px: f64::NAN,
+        ..cfg("box", None, 0)
+    })
+    .expect_err("nan noise");
+    assert!(e.to_string().contains("mask noise"), "{e}");
+}
+
+#[test]
+fn mask_noise_moves_boundaries_only() {
+    let clean = synthesize(&cfg("box", None, 3)).expect("clean");
+    let noisy = synthesize(&SynthConfig {
+        mask_noise_px: 2.0,
+        ..cfg("box", None, 3)
+    })
+    .expect("noisy");
+    for (a, b) in clean.frames.iter().zip(&noisy.frames) {
+        assert_eq!(a.rgb, b.rgb, "noise touches masks, not images");
+        let changed = a.mask.and_not(&b.mask).count() + b.mask.and_not(&a.mask).count();
+        assert!(changed > 0);
+        assert!((changed as f64) < 0.5 * a.mask.count() as f64);
+    }
+}
