@@ -20,23 +20,29 @@ def rot(q):
     ])
 
 
-def main():
-    d = json.load(sys.stdin)
-    gt = [(rot(p[:4]), np.array(p[4:])) for p in d["gt"]]
-    pr = [(rot(p[:4]), np.array(p[4:])) for p in d["pred"]]
-    s, k = d["pred_scale"], d["depth_scale"] * d["pred_scale"]
+def gauge_errors(gt_rows, pred_rows, pred_scale, depth_scale):
+    """Per-frame rotation (degrees) and translation (cm) errors after one gauge."""
+    gt = [(rot(p[:4]), np.array(p[4:])) for p in gt_rows]
+    pr = [(rot(p[:4]), np.array(p[4:])) for p in pred_rows]
+    s, k = pred_scale, depth_scale * pred_scale
     m = sum(rp.T @ rg for (rg, _), (rp, _) in zip(gt, pr))
     u, _, vt = np.linalg.svd(m)
     g = u @ np.diag([1, 1, np.sign(np.linalg.det(u @ vt))]) @ vt
     # Least squares for the offset c: stack k R_i c = t_gt_i - s_hat t_i.
     a = np.vstack([k * rp for (_, _), (rp, _) in zip(gt, pr)])
-    b = np.concatenate([tg - d["depth_scale"] * tp for (_, tg), (_, tp) in zip(gt, pr)])
+    b = np.concatenate([tg - depth_scale * tp for (_, tg), (_, tp) in zip(gt, pr)])
     c, *_ = np.linalg.lstsq(a, b, rcond=None)
     rot_err, trans_err = [], []
     for (rg, tg), (rp, tp) in zip(gt, pr):
         rel = rg.T @ (rp @ g)
         rot_err.append(float(np.degrees(np.arccos(np.clip((np.trace(rel) - 1) / 2, -1, 1)))))
-        trans_err.append(float(np.linalg.norm(tg - (k * rp @ c + d["depth_scale"] * tp)) * 100))
+        trans_err.append(float(np.linalg.norm(tg - (k * rp @ c + depth_scale * tp)) * 100))
+    return rot_err, trans_err
+
+
+def main():
+    d = json.load(sys.stdin)
+    rot_err, trans_err = gauge_errors(d["gt"], d["pred"], d["pred_scale"], d["depth_scale"])
     json.dump({"rotation_deg": rot_err, "translation_cm": trans_err}, sys.stdout)
 
 

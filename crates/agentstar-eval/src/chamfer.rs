@@ -40,141 +40,127 @@ pub fn sample_surface(mesh: &TriMesh, n: usize, seed: u64) -> Vec<Point3> {
         .collect()
 }
 
-/// Exact nearest-neighbour queries over a uniform grid (cells sized for surface samples,
-/// about two points a cell), searching shells of cells outward, clipped to the grid, until
-/// no closer point can exist. Cells are stored densely (start offsets into one index
-/// array). Kd-tree crates were tried; the one we looked at panics when many samples share a
-/// coordinate, which every flat face produces.
-struct Grid {
-    origin: Point3,
-    cell: f64,
-    dims: [i64; 3],
-    /// `starts[c]..starts[c + 1]` indexes `order` for cell `c`.
-    starts: Vec<u32>,
-    order: Vec<u32>,
+/// Exact nearest-neighbour queries with a k-d tree: median splits on the widest axis down to
+/// leaves of at most 16 points, searched near side first with pruning by the splitting
+/// plane. Splits are by position in the sorted order, not by value, so repeated coordinates
+/// (every flat face gives many) cost nothing. Query time does not grow with the distance
+/// between the two clouds, which a uniform grid's shell search did.
+struct KdTree {
     points: Vec<Point3>,
+    order: Vec<u32>,
+    nodes: Vec<Node>,
 }
 
-/// The most cells a grid may have.
-const MAX_CELLS: f64 = 4.0e6;
+#[derive(Debug, Clone, Copy)]
+enum Node {
+    Leaf {
+        start: u32,
+        end: u32,
+    },
+    Split {
+        axis: u8,
+        value: f64,
+        left: u32,
+        right: u32,
+    },
+}
 
-impl Grid {
-    fn new(points: &[Point3]) -> Grid {
-        let b = agentstar_geom::Aabb::from_points(points.iter());
-        let ext = b.extent();
-        let n = points.len().max(1) as f64;
-        // Samples lie on surfaces: size cells by the bounding box's surface area.
-        let area = 2.0 * (ext.x * ext.y + ext.y * ext.z + ext.z * ext.x);
-        let mut cell = (2.0 * area / n).sqrt().max(ext.max() / 512.0).max(1e-9);
-        let dims_for = |cell: f64| {
-            [
-                (ext.x / cell) as i64 + 1,
-                (ext.y / cell) as i64 + 1,
-                (ext.z / cell) as i64 + 1,
-            ]
-        };
-        let mut dims = dims_for(cell);
-        while (dims[0] * dims[1] * dims[2]) as f64 > MAX_CELLS {
-            cell *= 1.5;
-            dims = dims_for(cell);
-        }
-        let mut g = Grid {
-            origin: b.min,
-            cell,
-            dims,
-            starts: vec![],
-            order: vec![],
+const LEAF: usize = 16;
+
+impl KdTree {
+    fn new(points: &[Point3]) -> KdTree {
+        let mut g = KdTree {
             points: points.to_vec(),
+            order: (0..points.len() as u32).collect(),
+            nodes: Vec::with_capacity(2 * points.len() / LEAF + 1),
         };
-        let ncells = (dims[0] * dims[1] * dims[2]) as usize;
-        let keys: Vec<usize> = points.iter().map(|p| g.index(g.key(p))).collect();
-        let mut counts = vec![0u32; ncells + 1];
-        for &k in &keys {
-            counts[k + 1] += 1;
+        if !points.is_empty() {
+            g.build(0, points.len());
         }
-        for i in 0..ncells {
-            counts[i + 1] += counts[i];
-        }
-        let mut fill = counts.clone();
-        let mut order = vec![0u32; points.len()];
-        for (i, &k) in keys.iter().enumerate() {
-            order[fill[k] as usize] = i as u32;
-            fill[k] += 1;
-        }
-        g.starts = counts;
-        g.order = order;
         g
     }
-    fn key(&self, p: &Point3) -> [i64; 3] {
-        let f = |v: f64, o: f64, d: i64| (((v - o) / self.cell).floor() as i64).clamp(0, d - 1);
-        [
-            f(p.x, self.origin.x, self.dims[0]),
-            f(p.y, self.origin.y, self.dims[1]),
-            f(p.z, self.origin.z, self.dims[2]),
-        ]
-    }
-    fn index(&self, k: [i64; 3]) -> usize {
-        ((k[2] * self.dims[1] + k[1]) * self.dims[0] + k[0]) as usize
-    }
-    fn visit(&self, k: [i64; 3], q: &Point3, best: &mut f64) {
-        let c = self.index(k);
-        for &i in &self.order[self.starts[c] as usize..self.starts[c + 1] as usize] {
-            *best = best.min((self.points[i as usize] - q).norm());
+
+    /// Builds the subtree over `order[start..end]`; returns its node index.
+    fn build(&mut self, start: usize, end: usize) -> u32 {
+        let id = self.nodes.len() as u32;
+        if end - start <= LEAF {
+            self.nodes.push(Node::Leaf {
+                start: start as u32,
+                end: end as u32,
+            });
+            return id;
         }
-    }
-    fn nearest(&self, q: &Point3) -> f64 {
-        if self.points.is_empty() {
-            return f64::INFINITY;
-        }
-        let c = self.key(q);
-        // Per axis, how far the query lies outside its (clamped) cell. A point of shell r is
-        // at least (r − 1) cells away along some axis j, and at least o_k along every other
-        // axis, so its distance is at least √(Σ o_k² + max(0, ((r − 1)·cell)² − max_k o_k²)).
-        let lo = |k: usize| self.origin[k] + c[k] as f64 * self.cell;
-        let o: Vec<f64> = (0..3)
-            .map(|k| {
-                let (a, b) = (lo(k), lo(k) + self.cell);
-                (a - q[k]).max(q[k] - b).max(0.0)
-            })
-            .collect();
-        let outside_sq: f64 = o.iter().map(|v| v * v).sum();
-        let o_max_sq = o.iter().fold(0.0f64, |m, v| m.max(v * v));
-        let bound = |r: i64| {
-            let ring = ((r - 1).max(0) as f64 * self.cell).powi(2);
-            (outside_sq + (ring - o_max_sq).max(0.0)).sqrt()
+        let b = agentstar_geom::Aabb::from_points(
+            self.order[start..end]
+                .iter()
+                .map(|&i| &self.points[i as usize]),
+        );
+        let e = b.extent();
+        let axis = if e.x >= e.y && e.x >= e.z {
+            0
+        } else if e.y >= e.z {
+            1
+        } else {
+            2
         };
-        let mut best = f64::INFINITY;
-        let max_r = self.dims.iter().copied().max().unwrap_or(1);
-        let range = |k: usize, r: i64| ((-r).max(-c[k]), r.min(self.dims[k] - 1 - c[k]));
-        for r in 0..=max_r {
-            if r >= 1 && bound(r) > best {
-                break;
+        let mid = (start + end) / 2;
+        let points = &self.points;
+        self.order[start..end].select_nth_unstable_by(mid - start, |&a, &b| {
+            points[a as usize][axis].total_cmp(&points[b as usize][axis])
+        });
+        let value = self.points[self.order[mid] as usize][axis];
+        self.nodes.push(Node::Leaf { start: 0, end: 0 });
+        let left = self.build(start, mid);
+        let right = self.build(mid, end);
+        self.nodes[id as usize] = Node::Split {
+            axis: axis as u8,
+            value,
+            left,
+            right,
+        };
+        id
+    }
+
+    fn nearest(&self, q: &Point3) -> f64 {
+        let mut best_sq = f64::INFINITY;
+        if self.nodes.is_empty() {
+            return best_sq;
+        }
+        // (node, squared lower bound of its distance)
+        let mut stack: Vec<(u32, f64)> = vec![(0, 0.0)];
+        while let Some((n, bound)) = stack.pop() {
+            if bound >= best_sq {
+                continue;
             }
-            let (x0, x1) = range(0, r);
-            let (y0, y1) = range(1, r);
-            let (z0, z1) = range(2, r);
-            for dx in x0..=x1 {
-                for dy in y0..=y1 {
-                    if dx.abs() == r || dy.abs() == r {
-                        for dz in z0..=z1 {
-                            self.visit([c[0] + dx, c[1] + dy, c[2] + dz], q, &mut best);
-                        }
-                    } else {
-                        // Inside the shell's x–y square only its two z faces (r > 0 here).
-                        for dz in [-r, r] {
-                            if dz >= z0 && dz <= z1 {
-                                self.visit([c[0] + dx, c[1] + dy, c[2] + dz], q, &mut best);
-                            }
-                        }
+            match self.nodes[n as usize] {
+                Node::Leaf { start, end } => {
+                    for &i in &self.order[start as usize..end as usize] {
+                        best_sq = best_sq.min((self.points[i as usize] - q).norm_squared());
                     }
+                }
+                Node::Split {
+                    axis,
+                    value,
+                    left,
+                    right,
+                } => {
+                    let d = q[axis as usize] - value;
+                    let (near, far) = if d < 0.0 {
+                        (left, right)
+                    } else {
+                        (right, left)
+                    };
+                    // Far first on the stack, so the near side is searched first.
+                    stack.push((far, bound.max(d * d)));
+                    stack.push((near, bound));
                 }
             }
         }
-        best
+        best_sq.sqrt()
     }
 }
 
-fn mean_nn(from: &[Point3], to: &Grid, f: impl Fn(f64) -> f64) -> f64 {
+fn mean_nn(from: &[Point3], to: &KdTree, f: impl Fn(f64) -> f64) -> f64 {
     from.iter().map(|p| f(to.nearest(p))).sum::<f64>() / from.len() as f64
 }
 
@@ -183,7 +169,7 @@ pub fn chamfer_distance(a: &[Point3], b: &[Point3]) -> Option<f64> {
     if a.is_empty() || b.is_empty() {
         return None;
     }
-    let (ta, tb) = (Grid::new(a), Grid::new(b));
+    let (ta, tb) = (KdTree::new(a), KdTree::new(b));
     Some(0.5 * (mean_nn(a, &tb, |d| d) + mean_nn(b, &ta, |d| d)))
 }
 
@@ -194,7 +180,7 @@ pub fn chamfer_both(a: &[Point3], b: &[Point3]) -> Option<(f64, f64)> {
     if a.is_empty() || b.is_empty() {
         return None;
     }
-    let (ta, tb) = (Grid::new(a), Grid::new(b));
+    let (ta, tb) = (KdTree::new(a), KdTree::new(b));
     let da: Vec<f64> = a.iter().map(|p| tb.nearest(p)).collect();
     let db: Vec<f64> = b.iter().map(|p| ta.nearest(p)).collect();
     let mean = |v: &[f64], f: fn(f64) -> f64| v.iter().map(|&d| f(d)).sum::<f64>() / v.len() as f64;
@@ -261,7 +247,7 @@ mod tests {
                 .sum::<f64>()
                 / x.len() as f64
         };
-        // Far apart and flat: shells clipped to a thin grid still find the exact neighbour.
+        // Far apart and flat: the search is exact whatever the distance between the clouds.
         let flat = sample_surface(&cuboid(0.9, 0.6, 0.002).expect("flat"), 500, 4);
         let far: Vec<Point3> = a.iter().map(|p| p + Vector3::new(1.5, -0.7, 0.9)).collect();
         let want_far = 0.5 * (brute(&flat, &far) + brute(&far, &flat));

@@ -1,21 +1,42 @@
-//! `agentstar eval`: the paper's metrics for a run against a capture's ground truth.
+//! `agentstar eval`: the paper's metrics for a run against a capture's ground truth; with
+//! `--batch`, many runs at once and the paper's tables.
 
-use crate::common::{print_json, SessionArgs};
+use crate::common::{print_json, Session, SessionArgs};
+use agentstar_bench::gt::gt_sequence;
+use agentstar_bench::table::{result_table, tables};
+use agentstar_bench::{RunInfo, SequenceResult};
 use agentstar_data::gt::GroundTruth;
-use agentstar_eval::sequence::{evaluate, EvalConfig, GtJoint, GtSequence, PredSequence};
-use agentstar_geom::Vector3;
-use anyhow::{anyhow, Result};
+use agentstar_eval::sequence::{evaluate, EvalConfig, PredSequence, SequenceMetrics};
+use anyhow::{bail, Context, Result};
+use serde::Deserialize;
 use serde_json::json;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 #[derive(clap::Args)]
+#[command(
+    after_help = "Examples:\n  agentstar eval --capture cap --model run/scene.rhai --poses run/pose.json\n  agentstar eval --batch runs.json --per-sequence   # runs.json: [{\"capture\": …, \"model\": …, \"poses\": …, \"label\": \"ours\", \"family\": \"arctic\"}]"
+)]
 pub struct Args {
-    #[command(flatten)]
-    session: SessionArgs,
+    /// The capture directory (holding capture.json).
+    #[arg(long, required_unless_present = "batch")]
+    capture: Option<PathBuf>,
+    /// The model: scene script (.rhai), URDF or mesh.
+    #[arg(long, required_unless_present = "batch")]
+    model: Option<PathBuf>,
+    /// The pose file.
+    #[arg(long, required_unless_present = "batch")]
+    poses: Option<PathBuf>,
     /// The ground truth (default: CAPTURE/gt.json).
     #[arg(long)]
     gt: Option<PathBuf>,
+    /// A JSON list of runs to evaluate together (capture, model, poses; optional gt, label,
+    /// family: arctic, hot3d or itaco); prints the paper's tables.
+    #[arg(long, conflicts_with_all = ["capture", "model", "poses", "gt"])]
+    batch: Option<PathBuf>,
+    /// With --batch: a row per sequence in the tables.
+    #[arg(long)]
+    per_sequence: bool,
     /// Surface samples per mesh for Chamfer distances.
     #[arg(long, default_value_t = 10_000)]
     samples: usize,
@@ -24,71 +45,28 @@ pub struct Args {
     json: bool,
 }
 
-/// The ground truth of a capture's frames, in the evaluator's form.
-pub fn gt_sequence(gt: &GroundTruth, frames: &[String]) -> Result<GtSequence> {
-    let names: Vec<String> = gt.meshes.keys().cloned().collect();
-    let index = |n: &str| {
-        names
-            .iter()
-            .position(|x| x == n)
-            .ok_or_else(|| anyhow!("{}: unknown part `{n}`", gt.path.display()))
-    };
-    let mut poses = Vec::with_capacity(frames.len());
-    for f in frames {
-        let mut row = Vec::with_capacity(names.len());
-        for n in &names {
-            row.push(gt.pose(f, n).ok_or_else(|| {
-                anyhow!(
-                    "{}: frame `{f}` has no pose for part `{n}`",
-                    gt.path.display()
-                )
-            })?);
-        }
-        poses.push(row);
-    }
-    let joints = gt
-        .file
-        .joints
-        .iter()
-        .map(|j| {
-            let states = frames
-                .iter()
-                .map(|f| {
-                    j.states.get(f).copied().ok_or_else(|| {
-                        anyhow!(
-                            "{}: joint `{}` has no state for frame `{f}`",
-                            gt.path.display(),
-                            j.name
-                        )
-                    })
-                })
-                .collect::<Result<Vec<f64>>>()?;
-            Ok(GtJoint {
-                name: j.name.clone(),
-                revolute: j.kind != "prismatic",
-                parent: index(&j.parent)?,
-                child: index(&j.child)?,
-                axis: Vector3::from(j.axis),
-                origin: Vector3::from(j.origin),
-                states,
-            })
-        })
-        .collect::<Result<Vec<_>>>()?;
-    Ok(GtSequence {
-        base_part: index(&gt.file.base_part)?,
-        meshes: gt.meshes.values().cloned().collect(),
-        part_names: names,
-        poses,
-        joints,
-    })
+/// One entry of a `--batch` file.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct BatchEntry {
+    capture: PathBuf,
+    model: PathBuf,
+    poses: PathBuf,
+    #[serde(default)]
+    gt: Option<PathBuf>,
+    #[serde(default)]
+    label: Option<String>,
+    #[serde(default)]
+    family: Option<String>,
 }
 
-pub fn run(a: Args) -> Result<ExitCode> {
-    let s = a.session.open()?;
-    let gt_path =
-        a.gt.clone()
-            .unwrap_or_else(|| a.session.capture.join("gt.json"));
-    let gt = GroundTruth::load(&gt_path)?;
+/// The metrics of one run, and the ground truth's joints for the table rows.
+fn evaluate_run(
+    s: &Session,
+    gt_path: &Path,
+    samples: usize,
+) -> Result<(SequenceMetrics, agentstar_eval::sequence::GtSequence)> {
+    let gt = GroundTruth::load(gt_path)?;
     let frames: Vec<String> = s.capture.frames.iter().map(|f| f.name.clone()).collect();
     let seq = gt_sequence(&gt, &frames)?;
     let pred = PredSequence {
@@ -102,59 +80,150 @@ pub fn run(a: Args) -> Result<ExitCode> {
         &pred,
         &cams,
         &EvalConfig {
-            samples: a.samples,
+            samples,
             ..EvalConfig::default()
         },
     );
-    let rigid = m.rigid.as_ref();
-    let out = json!({
-        "capture": a.session.capture, "poses": a.session.poses, "gt": gt_path, "frames": m.frames,
-        "scale_alignment": m.scale_alignment,
-        "epe_cm": m.epe_cm, "epe_points": m.epe_points,
-        "chamfer_cm": m.chamfer_cm, "cd_moving_cm": m.cd_moving_cm, "cd_static_cm": m.cd_static_cm,
-        "rotation_mean_deg": rigid.map(|r| r.rotation_mean_deg), "rotation_median_deg": rigid.map(|r| r.rotation_median_deg),
-        "translation_mean_cm": rigid.map(|r| r.translation_mean_cm), "translation_median_cm": rigid.map(|r| r.translation_median_cm),
-        "joints": m.joints.iter().map(|j| json!({"gt_joint": j.gt_joint, "pred_joint": j.pred_joint, "matched_by": j.matched_by,
-            "axis_angle_rad": j.axis_angle_rad, "axis_distance_m": j.axis_distance_m, "state_error": j.state_error})).collect::<Vec<_>>(),
-    });
+    Ok((m, seq))
+}
+
+/// The dataset family of a capture: given, or read from `capture.json`'s `dataset`.
+fn family_of(s: &Session, given: Option<&str>) -> Result<String> {
+    if let Some(f) = given {
+        if !["arctic", "hot3d", "itaco"].contains(&f) {
+            bail!("family `{f}` must be arctic, hot3d or itaco");
+        }
+        return Ok(f.to_string());
+    }
+    let d = s
+        .capture
+        .manifest
+        .dataset
+        .as_deref()
+        .unwrap_or("")
+        .to_lowercase();
+    Ok(["arctic", "hot3d", "itaco"]
+        .into_iter()
+        .find(|f| d.contains(f))
+        .unwrap_or("other")
+        .to_string())
+}
+
+fn result_of(
+    s: &Session,
+    capture: &Path,
+    gt_path: &Path,
+    label: &str,
+    family: Option<&str>,
+    samples: usize,
+) -> Result<(SequenceResult, SequenceMetrics)> {
+    let (m, seq) = evaluate_run(s, gt_path, samples)?;
+    let iou: Vec<f64> = (0..s.capture.frames.len())
+        .map(|i| s.score(i, 0.0).map(|f| f.gate()))
+        .collect::<Result<_>>()?;
+    let id = capture
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_else(|| capture.display().to_string());
+    let r = SequenceResult::from_metrics(
+        RunInfo {
+            id,
+            object: s
+                .model
+                .model
+                .parts
+                .first()
+                .map_or(String::new(), |p| p.name.clone()),
+            family: family_of(s, family)?,
+            motion: String::new(),
+            method: label.to_string(),
+            seconds: 0.0,
+            evaluations: 0,
+        },
+        &iou,
+        &m,
+        &seq,
+    );
+    Ok((r, m))
+}
+
+fn run_batch(a: &Args, path: &Path) -> Result<ExitCode> {
+    let entries: Vec<BatchEntry> = serde_json::from_str(&agentstar_data::read_text(path)?)
+        .with_context(|| {
+            format!(
+                "{}: expected a list of {{capture, model, poses[, gt, label, family]}}",
+                path.display()
+            )
+        })?;
+    if entries.is_empty() {
+        bail!("{}: the batch lists no runs", path.display());
+    }
+    let base = path.parent().unwrap_or(Path::new("."));
+    let mut results = Vec::with_capacity(entries.len());
+    for (i, e) in entries.iter().enumerate() {
+        let (capture, model, poses) = (
+            base.join(&e.capture),
+            base.join(&e.model),
+            base.join(&e.poses),
+        );
+        let s = Session::open(&capture, &model, &poses)
+            .with_context(|| format!("{}: run {}", path.display(), i + 1))?;
+        let gt =
+            e.gt.as_ref()
+                .map_or_else(|| capture.join("gt.json"), |g| base.join(g));
+        eprintln!("eval [{}/{}] {}", i + 1, entries.len(), capture.display());
+        results.push(
+            result_of(
+                &s,
+                &capture,
+                &gt,
+                e.label.as_deref().unwrap_or("run"),
+                e.family.as_deref(),
+                a.samples,
+            )
+            .with_context(|| format!("{}: run {}", path.display(), i + 1))?
+            .0,
+        );
+    }
     if a.json {
-        print_json(&out)?;
+        print_json(&json!({"results": results}))?;
+    } else {
+        print!("{}", tables(&results, a.per_sequence));
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+pub fn run(a: Args) -> Result<ExitCode> {
+    if let Some(b) = a.batch.clone() {
+        return run_batch(&a, &b);
+    }
+    let (Some(capture), Some(model), Some(poses)) = (&a.capture, &a.model, &a.poses) else {
+        bail!("give --capture, --model and --poses, or --batch FILE");
+    };
+    let session = SessionArgs {
+        capture: capture.clone(),
+        model: model.clone(),
+        poses: poses.clone(),
+    };
+    let s = session.open()?;
+    let gt_path = a.gt.clone().unwrap_or_else(|| capture.join("gt.json"));
+    let (r, m) = result_of(&s, capture, &gt_path, "run", None, a.samples)?;
+    if a.json {
+        let rigid = m.rigid.as_ref();
+        print_json(&json!({
+            "capture": capture, "poses": poses, "gt": gt_path, "frames": m.frames,
+            "scale_alignment": m.scale_alignment,
+            "epe_cm": m.epe_cm, "epe_points": m.epe_points,
+            "chamfer_cm": m.chamfer_cm, "cd_moving_cm": m.cd_moving_cm, "cd_static_cm": m.cd_static_cm,
+            "cd_w_m2": m.cd_sq_whole_m2, "cd_m_m2": m.cd_sq_moving_m2, "cd_s_m2": m.cd_sq_static_m2,
+            "rotation_mean_deg": rigid.map(|r| r.rotation_mean_deg), "rotation_median_deg": rigid.map(|r| r.rotation_median_deg),
+            "translation_mean_cm": rigid.map(|r| r.translation_mean_cm), "translation_median_cm": rigid.map(|r| r.translation_median_cm),
+            "iou_mean": r.iou_mean, "iou_min": r.iou_min,
+            "joints": m.joints.iter().map(|j| json!({"gt_joint": j.gt_joint, "pred_joint": j.pred_joint, "matched_by": j.matched_by,
+                "axis_angle_rad": j.axis_angle_rad, "axis_distance_m": j.axis_distance_m, "state_error": j.state_error})).collect::<Vec<_>>(),
+        }))?;
         return Ok(ExitCode::SUCCESS);
     }
-    let f = |v: Option<f64>| v.map_or("n/a".to_string(), |x| format!("{x:.3}"));
-    println!("| metric | value |\n|---|---|");
-    println!("| frames | {} |", m.frames);
-    println!("| scale alignment ŝ | {:.4} |", m.scale_alignment);
-    println!("| 3D EPE (cm, {} points) | {} |", m.epe_points, f(m.epe_cm));
-    println!("| Chamfer (cm) | {} |", f(m.chamfer_cm));
-    println!(
-        "| rotation error mean / median (°) | {} / {} |",
-        f(rigid.map(|r| r.rotation_mean_deg)),
-        f(rigid.map(|r| r.rotation_median_deg))
-    );
-    println!(
-        "| translation error mean / median (cm) | {} / {} |",
-        f(rigid.map(|r| r.translation_mean_cm)),
-        f(rigid.map(|r| r.translation_median_cm))
-    );
-    if !m.joints.is_empty() {
-        println!(
-            "| CD-w / CD-m / CD-s (cm) | {} / {} / {} |",
-            f(m.chamfer_cm),
-            f(m.cd_moving_cm),
-            f(m.cd_static_cm)
-        );
-    }
-    for j in &m.joints {
-        println!(
-            "| joint {} ↔ {} ({}) | axis {} rad, line {} m, state {} |",
-            j.gt_joint,
-            j.pred_joint.as_deref().unwrap_or("-"),
-            j.matched_by,
-            f(j.axis_angle_rad),
-            f(j.axis_distance_m),
-            f(j.state_error)
-        );
-    }
+    print!("{}", result_table(&r));
     Ok(ExitCode::SUCCESS)
 }
