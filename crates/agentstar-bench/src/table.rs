@@ -174,7 +174,7 @@ pub fn tables(results: &[SequenceResult], per_sequence: bool) -> String {
         for (group, metric, get) in &rows {
             let _ = write!(out, "| {group} | {metric} |");
             for &m in &ms {
-                let v: Vec<f64> = of(results, Some("itaco"), m).flat_map(|r| get(r)).collect();
+                let v: Vec<f64> = of(results, Some("itaco"), m).flat_map(get).collect();
                 let cell = match (mean(&v), std_dev(&v)) {
                     (Some(a), Some(s)) => format!("{} ± {}", sig(a), sig(s)),
                     _ => "–".into(),

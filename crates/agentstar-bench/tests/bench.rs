@@ -290,7 +290,7 @@ fn a_full_sequence_matches_an_independent_numpy_implementation() {
                "triangles": m.triangles})
     };
     let mut depth_pairs = Vec::new();
-    for f in 0..n {
+    for (f, (pose, states)) in poses.iter().enumerate() {
         let gi: Vec<Instance<'_>> = seq
             .meshes
             .iter()
@@ -307,12 +307,7 @@ fn a_full_sequence_matches_an_independent_numpy_implementation() {
         let g = render_full(&capture.camera, &gi);
         let p = render_full(
             &capture.camera,
-            &PosedModel::new(
-                &capture.model,
-                &poses[f].1,
-                &poses[f].0.with_scale(pred_scale),
-            )
-            .instances,
+            &PosedModel::new(&capture.model, states, &pose.with_scale(pred_scale)).instances,
         );
         for (a, b) in g.depth.iter().zip(&p.depth) {
             if a.is_finite() && b.is_finite() && *a > 0.0 && *b > 0.0 {

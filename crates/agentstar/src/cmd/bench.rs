@@ -16,7 +16,7 @@ use std::process::ExitCode;
 
 #[derive(clap::Args)]
 #[command(
-    after_help = "Examples:\n  agentstar bench --suite quick --methods tracker --check bench/quick.json\n  agentstar bench --suite full --results bench/full.md --out /tmp/bench-runs"
+    after_help = "Examples:\n  agentstar bench --suite quick --check bench/quick-tolerances.json\n  agentstar bench --suite full --results bench/full.md --out /tmp/bench-runs"
 )]
 pub struct Args {
     /// The suite: quick (CI) or full.
@@ -118,6 +118,15 @@ pub fn run(a: Args) -> Result<ExitCode> {
         .collect::<Result<_>>()?;
     if methods.is_empty() {
         bail!("--methods is empty");
+    }
+    if let (Some(r), Some(t)) = (&a.results, &a.record) {
+        if r.with_extension("json") == *t {
+            bail!(
+                "--results {} writes {} too; record the tolerances elsewhere",
+                r.display(),
+                t.display()
+            );
+        }
     }
     let tolerances: Option<ToleranceFile> = match &a.check {
         Some(p) => Some(
