@@ -84,7 +84,12 @@ fn ground_truth_of_the_true_poses_scores_zero() {
     );
     assert!((m.scale_alignment - 1.0).abs() < 1e-6);
     assert!(m.epe_cm.expect("epe") < 1e-6);
-    assert!(m.cd_sq_whole_m2.expect("cd") < 1e-12);
+    // Only the sampling floor of two independent sample sets of the same surfaces.
+    assert!(
+        m.cd_sq_whole_m2.expect("cd") < 1e-3,
+        "{:?}",
+        m.cd_sq_whole_m2
+    );
     for j in &m.joints {
         assert!(j.axis_angle_rad.expect("axis") < 1e-6, "{j:?}");
         assert!(j.state_error.expect("state") < 1e-9, "{j:?}");

@@ -464,14 +464,15 @@ fn eval_scores_ground_truth_as_zero_and_tracking_as_small() {
     ]);
     assert!(o.status.success(), "{}", text(&o));
     let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("json");
-    for k in [
-        "epe_cm",
-        "chamfer_cm",
-        "rotation_mean_deg",
-        "translation_mean_cm",
-    ] {
+    for k in ["epe_cm", "rotation_mean_deg", "translation_mean_cm"] {
         assert!(v[k].as_f64().expect(k) < 1e-3, "{k}: {}", v[k]);
     }
+    // Independent samples of the same surfaces: the sampling floor only.
+    assert!(
+        v["chamfer_cm"].as_f64().expect("cd") < 1.0,
+        "{}",
+        v["chamfer_cm"]
+    );
     assert_eq!(v["joints"][0]["matched_by"], "child part name");
     let tracked = dir.path().join("tracked.json").display().to_string();
     let o = agentstar(&[
@@ -633,13 +634,7 @@ fn synth_writes_a_valid_capture_whose_truth_scores_perfectly() {
 fn demo_tracks_and_evaluates_the_built_in_capture() {
     let dir = tempfile::tempdir().expect("tmp");
     let out = dir.path().join("demo");
-    let o = agentstar(&[
-        "demo",
-        out.to_str().expect("utf8"),
-        "--frames",
-        "5",
-        "--json",
-    ]);
+    let o = agentstar(&["demo", out.to_str().expect("utf8"), "--json"]);
     assert!(o.status.success(), "{}", text(&o));
     let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("json");
     assert!(v["result"]["epe_cm"].as_f64().expect("epe") < 1.0, "{v}");
