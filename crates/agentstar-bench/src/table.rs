@@ -265,12 +265,9 @@ pub fn result_table(r: &SequenceResult) -> String {
     if !r.joints.is_empty() {
         row(
             "CD-w / CD-m / CD-s (m²)",
-            format!(
-                "{} / {} / {}",
-                fmt(r.cd_w_m2, 6),
-                fmt(r.cd_m_m2, 6),
-                fmt(r.cd_s_m2, 6)
-            ),
+            [r.cd_w_m2, r.cd_m_m2, r.cd_s_m2]
+                .map(|v| v.map_or("–".into(), sig))
+                .join(" / "),
         );
     }
     for j in &r.joints {

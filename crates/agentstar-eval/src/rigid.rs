@@ -165,6 +165,28 @@ mod tests {
         assert!((e.translation_cm[1] - 0.25).abs() < 1e-9);
     }
 
+    #[test]
+    fn a_symmetry_flip_is_not_quotiented_per_frame() {
+        // A can is symmetric about its axis, but a prediction that turns half way about it in
+        // one frame changes every point's trajectory: that frame scores 180°, the others 0.
+        let gt = trajectory();
+        let mut pred = gt.clone();
+        pred[3].rotation *=
+            UnitQuaternion::from_axis_angle(&Vector3::z_axis(), std::f64::consts::PI);
+        let e = gauge_aligned_errors(&gt, &pred, 1.0, 1.0).expect("errors");
+        assert!(
+            (e.rotation_deg[3] - 180.0).abs() < 1e-6,
+            "{:?}",
+            e.rotation_deg
+        );
+        for (k, r) in e.rotation_deg.iter().enumerate() {
+            if k != 3 {
+                assert!(*r < 1e-6, "frame {k}: {r}");
+            }
+        }
+        assert!(e.translation_cm.iter().all(|t| *t < 1e-9));
+    }
+
     proptest! {
         // Any similarity of the prediction's canonical frame (and any monocular scale) leaves
         // the gauge-aligned errors unchanged.

@@ -19,7 +19,7 @@ pub use motion::Motion;
 pub use objects::{Family, ObjectSpec, Symmetry, LIBRARY};
 
 use agentstar_geom::pose::{ObjectPose, Rigid, Similarity};
-use agentstar_geom::{ObjectModel, PinholeCamera, Point3, TriMesh, UnitQuaternion, Vector3};
+use agentstar_geom::{ObjectModel, PinholeCamera, Point3, UnitQuaternion, Vector3};
 use agentstar_optim::Rng;
 use agentstar_render::raster::Affine;
 use agentstar_render::{render_full, BitMask, Instance, PosedModel, NO_PART};
@@ -97,8 +97,7 @@ pub struct SynthCapture {
     pub object: &'static ObjectSpec,
     pub motion: Motion,
     pub seed: u64,
-    /// The scene script that built the model (the "known model" of tracking).
-    pub script: &'static str,
+    /// Built from `object.script` (the "known model" of tracking).
     pub model: ObjectModel,
     /// Metres per canonical unit.
     pub scale: f64,
@@ -117,41 +116,6 @@ impl SynthCapture {
             self.motion.as_str(),
             self.seed
         )
-    }
-
-    /// `camera_from_part` in metres for every part of frame `f` (part meshes scaled to metres
-    /// by [`SynthCapture::part_meshes_m`]).
-    pub fn part_poses(&self, f: usize) -> Vec<ObjectPose> {
-        let fr = &self.frames[f];
-        let cam = fr.camera_from_object.with_scale(self.scale);
-        self.model
-            .tree
-            .part_transforms(&fr.states)
-            .iter()
-            .map(|t| {
-                // `cam ∘ (R, t)` applied to `p` equals this rigid transform applied to the
-                // metre-scaled point `s·p`: the composed similarity without its scale.
-                let s = cam.compose(&Similarity::from_rigid(t));
-                ObjectPose::new(s.rotation, s.translation)
-            })
-            .collect()
-    }
-
-    /// Part meshes in metres, in their own (rest) frames.
-    pub fn part_meshes_m(&self) -> Vec<(String, TriMesh)> {
-        self.model
-            .parts
-            .iter()
-            .map(|p| {
-                (
-                    p.name.clone(),
-                    (*p.mesh).clone().transformed(
-                        &(agentstar_geom::Matrix3::identity() * self.scale),
-                        &Vector3::zeros(),
-                    ),
-                )
-            })
-            .collect()
     }
 }
 
@@ -367,7 +331,6 @@ pub fn synthesize(cfg: &SynthConfig) -> Result<SynthCapture, SynthError> {
         object: spec,
         motion,
         seed: cfg.seed,
-        script: spec.script,
         model,
         scale,
         camera,

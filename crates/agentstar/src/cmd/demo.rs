@@ -70,7 +70,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
     let (r, poses) = run_sequence(&capture, Method::Tracker, &RunConfig::default())?;
     let run_dir = out.join("run");
     let scene = run_dir.join("scene.rhai");
-    agentstar_data::atomic::write_atomic(&scene, capture.script.as_bytes())?;
+    agentstar_data::atomic::write_atomic(&scene, capture.object.script.as_bytes())?;
     let cap = crate::common::open_capture(&cap_dir)?;
     let fp: Vec<FramePose> = poses
         .iter()

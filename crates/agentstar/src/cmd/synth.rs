@@ -112,7 +112,10 @@ pub fn write_synth(dir: &Path, s: &SynthCapture) -> Result<()> {
         let (file, meshes) = model_ground_truth(&s.model, s.scale, &truth, &s.symmetries);
         GroundTruth::from_parts(&root.join("gt.json"), file, meshes).write(root)?;
         let model_dir = root.join("model");
-        agentstar_data::atomic::write_atomic(&model_dir.join("scene.rhai"), s.script.as_bytes())?;
+        agentstar_data::atomic::write_atomic(
+            &model_dir.join("scene.rhai"),
+            s.object.script.as_bytes(),
+        )?;
         let capture = crate::common::open_capture(root)
             .map_err(|e| agentstar_data::DataError::invalid(root, e.to_string()))?;
         let poses: Vec<FramePose> = s
