@@ -248,7 +248,30 @@ struct Searcher<'m> {
     evals: std::sync::atomic::AtomicUsize,
 }
 
-impl Searcher<'_> {
+impl<'m> Searcher<'m> {
+    /// Checks the inputs every tracker shares.
+    fn new(
+        model: &'m ObjectModel,
+        scale: f64,
+        frames: &[TrackFrame<'_>],
+        cfg: &TrackConfig,
+    ) -> Result<Self, TrackError> {
+        if frames.is_empty() {
+            return Err(TrackError::Invalid("no frames to track".into()));
+        }
+        if !(scale.is_finite() && scale > 0.0) {
+            return Err(TrackError::Invalid(format!(
+                "scale {scale} must be positive"
+            )));
+        }
+        Ok(Searcher {
+            model,
+            scale,
+            cfg: cfg.clone(),
+            evals: Default::default(),
+        })
+    }
+
     /// DE around `base` in a box, then passes in shrinking boxes re-centred on the best so
     /// far (each re-based, so its pivot follows), the last with a Nelder–Mead polish.
     #[allow(clippy::too_many_arguments)]
@@ -439,20 +462,7 @@ pub fn track(
     frames: &[TrackFrame<'_>],
     cfg: &TrackConfig,
 ) -> Result<TrackResult, TrackError> {
-    if frames.is_empty() {
-        return Err(TrackError::Invalid("no frames to track".into()));
-    }
-    if !(scale.is_finite() && scale > 0.0) {
-        return Err(TrackError::Invalid(format!(
-            "scale {scale} must be positive"
-        )));
-    }
-    let s = Searcher {
-        model,
-        scale,
-        cfg: cfg.clone(),
-        evals: Default::default(),
-    };
+    let s = Searcher::new(model, scale, frames, cfg)?;
     let mut log = Vec::new();
     // The frame with the most visible mask.
     let init = match cfg.init_frame {
@@ -745,20 +755,7 @@ pub fn track_independent(
     cfg: &TrackConfig,
     evals_per_frame: usize,
 ) -> Result<TrackResult, TrackError> {
-    if frames.is_empty() {
-        return Err(TrackError::Invalid("no frames to track".into()));
-    }
-    if !(scale.is_finite() && scale > 0.0) {
-        return Err(TrackError::Invalid(format!(
-            "scale {scale} must be positive"
-        )));
-    }
-    let s = Searcher {
-        model,
-        scale,
-        cfg: cfg.clone(),
-        evals: Default::default(),
-    };
+    let s = Searcher::new(model, scale, frames, cfg)?;
     let rest = model.tree.rest_states();
     let mut poses = Vec::with_capacity(frames.len());
     let mut scores = Vec::with_capacity(frames.len());

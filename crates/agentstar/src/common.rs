@@ -208,6 +208,32 @@ fn find_frame(capture: &Capture, tok: &str) -> Result<usize> {
     bail!("unknown frame `{tok}`; frames are {shown} (use names, stems, `a..b` ranges or `all`)")
 }
 
+/// Writes tracked generalised poses, one per frame of `capture` in order, as a pose file.
+pub fn write_tracked_poses(
+    capture: &Capture,
+    tree: &agentstar_geom::KinematicTree,
+    scale: f64,
+    poses: &[agentstar_track::GenPose],
+    path: &Path,
+) -> Result<()> {
+    let frames: Vec<FramePose> = poses
+        .iter()
+        .map(|g| FramePose {
+            pose: g.pose,
+            states: g.states.clone(),
+            seeded: false,
+            moved: true,
+        })
+        .collect();
+    let reference = frames
+        .get(capture.ref_index)
+        .ok_or_else(|| anyhow!("no pose for the reference frame"))?;
+    let mut pf = PoseFile::initial(capture, tree, scale, &reference.pose);
+    pf.set_frames(capture, tree, &frames);
+    pf.write(path)?;
+    Ok(())
+}
+
 /// Prints JSON to stdout.
 pub fn print_json<T: Serialize>(value: &T) -> Result<()> {
     println!(

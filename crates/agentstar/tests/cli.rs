@@ -655,57 +655,37 @@ fn demo_tracks_and_evaluates_the_built_in_capture() {
 fn bench_checks_tolerances_and_fails_on_regression() {
     let dir = tempfile::tempdir().expect("tmp");
     let tol = dir.path().join("tol.json");
-    let o = agentstar(&[
-        "bench",
-        "--suite",
-        "quick",
-        "--only",
-        "microwave",
-        "--methods",
-        "tracker",
-        "--record",
-        tol.to_str().expect("utf8"),
-        "--evals",
-        "600",
-    ]);
+    let tol_s = tol.to_str().expect("utf8");
+    let bench = |verb: &str| {
+        agentstar(&[
+            "bench",
+            "--suite",
+            "quick",
+            "--only",
+            "microwave",
+            "--methods",
+            "tracker",
+            verb,
+            tol_s,
+            "--evals",
+            "600",
+        ])
+    };
+    let o = bench("--record");
     assert!(o.status.success(), "{}", text(&o));
     let t = String::from_utf8_lossy(&o.stdout);
     assert!(
         t.contains("iTACO-like") && t.contains("microwave-static-orbit-s3"),
         "{t}"
     );
-    let o = agentstar(&[
-        "bench",
-        "--suite",
-        "quick",
-        "--only",
-        "microwave",
-        "--methods",
-        "tracker",
-        "--check",
-        tol.to_str().expect("utf8"),
-        "--evals",
-        "600",
-    ]);
+    let o = bench("--check");
     assert!(o.status.success(), "{}", text(&o));
     // Tighten a bound below what the tracker reaches: the check fails and says which.
     let mut v: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&tol).expect("read")).expect("json");
     v["entries"][0]["max"]["epe_cm"] = serde_json::json!(0.0);
     std::fs::write(&tol, v.to_string()).expect("write");
-    let o = agentstar(&[
-        "bench",
-        "--suite",
-        "quick",
-        "--only",
-        "microwave",
-        "--methods",
-        "tracker",
-        "--check",
-        tol.to_str().expect("utf8"),
-        "--evals",
-        "600",
-    ]);
+    let o = bench("--check");
     assert_eq!(o.status.code(), Some(1), "{}", text(&o));
     assert!(text(&o).contains("epe_cm"), "{}", text(&o));
     let o = agentstar(&["bench", "--suite", "nightly"]);

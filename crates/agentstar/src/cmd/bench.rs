@@ -3,12 +3,11 @@
 //! sequence; check or record accuracy tolerances.
 
 use crate::cmd::synth::write_synth;
-use crate::common::print_json;
+use crate::common::{print_json, write_tracked_poses};
 use agentstar_bench::suite::SUITES;
 use agentstar_bench::table::tables;
 use agentstar_bench::tolerance::{check, record, ToleranceFile};
 use agentstar_bench::{run_sequence, suite, Method, RunConfig, SequenceResult};
-use agentstar_data::posefile::{FramePose, PoseFile};
 use anyhow::{anyhow, bail, Context, Result};
 use serde_json::json;
 use std::path::PathBuf;
@@ -167,19 +166,13 @@ pub fn run(a: Args) -> Result<ExitCode> {
             if let Some(out) = &a.out {
                 let cap_dir = out.join(&id).join("capture");
                 let cap = crate::common::open_capture(&cap_dir)?;
-                let fp: Vec<FramePose> = poses
-                    .iter()
-                    .map(|g| FramePose {
-                        pose: g.pose,
-                        states: g.states.clone(),
-                        seeded: false,
-                        moved: true,
-                    })
-                    .collect();
-                let mut pf =
-                    PoseFile::initial(&cap, &capture.model.tree, capture.scale, &fp[0].pose);
-                pf.set_frames(&cap, &capture.model.tree, &fp);
-                pf.write(&out.join(&id).join(method.as_str()).join("pose.json"))?;
+                write_tracked_poses(
+                    &cap,
+                    &capture.model.tree,
+                    capture.scale,
+                    &poses,
+                    &out.join(&id).join(method.as_str()).join("pose.json"),
+                )?;
             }
             results.push(r);
         }

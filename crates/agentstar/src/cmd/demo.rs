@@ -3,10 +3,9 @@
 //! it with the known model, evaluates against the ground truth and prints the table.
 
 use crate::cmd::synth::{describe, write_synth};
-use crate::common::print_json;
+use crate::common::{print_json, write_tracked_poses};
 use agentstar_bench::table::result_table;
 use agentstar_bench::{run_sequence, Method, RunConfig};
-use agentstar_data::posefile::{FramePose, PoseFile};
 use agentstar_synth::{synthesize, SynthConfig};
 use anyhow::{bail, Context, Result};
 use serde_json::json;
@@ -71,20 +70,9 @@ pub fn run(a: Args) -> Result<ExitCode> {
     let run_dir = out.join("run");
     let scene = run_dir.join("scene.rhai");
     agentstar_data::atomic::write_atomic(&scene, capture.object.script.as_bytes())?;
-    let cap = crate::common::open_capture(&cap_dir)?;
-    let fp: Vec<FramePose> = poses
-        .iter()
-        .map(|g| FramePose {
-            pose: g.pose,
-            states: g.states.clone(),
-            seeded: false,
-            moved: true,
-        })
-        .collect();
-    let mut pf = PoseFile::initial(&cap, &capture.model.tree, capture.scale, &fp[0].pose);
-    pf.set_frames(&cap, &capture.model.tree, &fp);
     let pose_path = run_dir.join("pose.json");
-    pf.write(&pose_path)?;
+    let cap = crate::common::open_capture(&cap_dir)?;
+    write_tracked_poses(&cap, &capture.model.tree, capture.scale, &poses, &pose_path)?;
     let total = t0.elapsed().as_secs_f64();
     if a.json {
         print_json(

@@ -2,8 +2,8 @@
 //! masks, with no agent, and write `pose.json`.
 
 use crate::cmd::score::{print_table, summarise};
-use crate::common::{open_capture, open_model, print_json, Session, PASS_IOU};
-use agentstar_data::posefile::{FramePose, PoseFile};
+use crate::common::{open_capture, open_model, print_json, write_tracked_poses, Session, PASS_IOU};
+use agentstar_data::posefile::PoseFile;
 use agentstar_render::ScoreTarget;
 use agentstar_track::tracker::{track, TrackConfig, TrackFrame};
 use anyhow::{anyhow, bail, Result};
@@ -80,24 +80,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
     for line in &r.log {
         eprintln!("track: {line}");
     }
-    let poses: Vec<FramePose> = r
-        .poses
-        .iter()
-        .map(|g| FramePose {
-            pose: g.pose,
-            states: g.states.clone(),
-            seeded: false,
-            moved: true,
-        })
-        .collect();
-    let mut pf = PoseFile::initial(
-        &capture,
-        &model.model.tree,
-        scale,
-        &poses[capture.ref_index].pose,
-    );
-    pf.set_frames(&capture, &model.model.tree, &poses);
-    pf.write(&a.out)?;
+    write_tracked_poses(&capture, &model.model.tree, scale, &r.poses, &a.out)?;
     let s = Session::open(&a.capture, &a.model, &a.out)
         .map_err(|e| anyhow!("re-reading the written poses: {e}"))?;
     let scores: Vec<_> = (0..capture.frames.len())
