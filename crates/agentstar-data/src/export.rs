@@ -56,7 +56,12 @@ pub fn glb_bytes(model: &ObjectModel) -> Vec<u8> {
         "accessors": accessors, "bufferViews": views,
         "buffers": [{"byteLength": bin.len()}],
     });
-    let mut json_bytes = serde_json::to_vec(&doc).unwrap_or_default();
+    glb_container(&doc, bin)
+}
+
+/// The binary glTF container: header, JSON chunk, BIN chunk, each padded to four bytes.
+pub(crate) fn glb_container(doc: &serde_json::Value, mut bin: Vec<u8>) -> Vec<u8> {
+    let mut json_bytes = serde_json::to_vec(doc).unwrap_or_default();
     while !json_bytes.len().is_multiple_of(4) {
         json_bytes.push(b' ');
     }

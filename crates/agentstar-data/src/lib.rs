@@ -5,6 +5,7 @@
 //! [`atomic::write_atomic`] (temporary file, then rename), so a failure never leaves a
 //! half-written file behind. Bad input is reported with the file and what is wrong.
 
+pub mod animation;
 pub mod atomic;
 pub mod capture;
 pub mod capture_writer;

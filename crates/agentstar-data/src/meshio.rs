@@ -304,6 +304,7 @@ pub fn parse_glb(bytes: &[u8]) -> Result<Vec<(String, TriMesh)>, String> {
                         continue;
                     };
                     let base = mesh.positions.len() as u32;
+                    let first_triangle = mesh.triangles.len();
                     let pts: Vec<Point3> = positions
                         .map(|p| {
                             world.transform_point(&Point3::new(
@@ -329,7 +330,7 @@ pub fn parse_glb(bytes: &[u8]) -> Result<Vec<(String, TriMesh)>, String> {
                         ),
                     }
                     if world.fixed_view::<3, 3>(0, 0).determinant() < 0.0 {
-                        for t in mesh.triangles.iter_mut().skip((base as usize) / 3) {
+                        for t in mesh.triangles.iter_mut().skip(first_triangle) {
                             t.swap(1, 2);
                         }
                     }

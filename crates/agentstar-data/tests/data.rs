@@ -496,3 +496,82 @@ fn depth_files_read_back_and_missing_ones_are_reported() {
     assert!(d1.depth[0].is_nan());
     assert!((d1.depth[1] - 1.2).abs() < 1e-6);
 }
+
+/// A drawer cabinet with a door on a chain: exercises revolute, prismatic and chained parts.
+const CHAIN_SCENE: &str = r#"
+part("cabinet", box(0.6, 0.5, 0.8) - box(0.5, 0.5, 0.3).translate(0, -0.06, 0.15));
+part("drawer", box(0.48, 0.44, 0.28).translate(0, -0.03, 0.15));
+part("knob", cylinder(0.03, 0.04).rotate_x(90).translate(0, -0.27, 0.15));
+part("door", box(0.5, 0.02, 0.3).translate(0, -0.26, -0.2));
+joint(#{ name: "slide", type: "prismatic", child: "drawer", axis: [0, -1, 0], limit: [0, 0.4] });
+joint(#{ name: "twist", type: "continuous", child: "knob", parent: "slide", origin: [0, -0.27, 0.15], axis: [0, -1, 0] });
+joint(#{ name: "door_hinge", type: "revolute", child: "door", origin: [-0.25, -0.26, -0.2], axis: [0, 0, -1], limit: [0, 120] });
+"#;
+
+#[test]
+fn the_animated_glb_round_trips_poses_and_joints() {
+    use agentstar_data::animation::{animated_glb_bytes, read_animated_glb, AnimFrame};
+    use agentstar_geom::pose::Similarity;
+    let model = agentstar_scene::build_scene(
+        CHAIN_SCENE,
+        &agentstar_scene::NoMeshFiles,
+        &agentstar_scene::Limits::default(),
+    )
+    .expect("scene")
+    .model;
+    let frames: Vec<AnimFrame> = (0..6)
+        .map(|k| {
+            let t = k as f64;
+            AnimFrame {
+                name: format!("{:06}.png", 5 * k),
+                time_s: t / 6.0,
+                world_from_object: Similarity {
+                    scale: 0.7,
+                    rotation: UnitQuaternion::from_euler_angles(0.3 * t, -0.2 * t, 1.0 + 0.1 * t),
+                    translation: Vector3::new(0.1 * t, -0.05, 1.5 + 0.02 * t),
+                },
+                states: vec![0.05 * t, 0.4 * t, (15.0 * t).to_radians()],
+            }
+        })
+        .collect();
+    let bytes = animated_glb_bytes(&model, &frames).expect("glb");
+    let read = read_animated_glb(&bytes, Path::new("mem.glb")).expect("reads back and validates");
+    assert_eq!(read.frames.len(), 6);
+    assert_eq!(read.frames[3], "000015.png");
+    for (k, f) in frames.iter().enumerate() {
+        let w = &read.world_from_object[k];
+        assert!((w.scale - 0.7).abs() < 1e-6);
+        assert!(
+            w.rotation.angle_to(&f.world_from_object.rotation) < 1e-5,
+            "frame {k}"
+        );
+        assert!((w.translation - f.world_from_object.translation).norm() < 1e-5);
+        let fk = model.tree.part_transforms(&f.states);
+        for (i, p) in model.parts.iter().enumerate() {
+            let got = &read.parts[&p.name][k];
+            assert!(
+                got.rotation.angle_to(&fk[i].rotation) < 1e-5,
+                "{} frame {k}",
+                p.name
+            );
+            assert!((got.translation.vector - fk[i].translation.vector).norm() < 1e-5);
+        }
+    }
+    // Joint states come back exactly, in interface units.
+    assert!((read.joint_states["door_hinge"][4] - 60.0).abs() < 1e-9);
+    assert!((read.joint_states["slide"][2] - 0.1).abs() < 1e-12);
+    // The rest of the file is an ordinary GLB: every part is a mesh node.
+    let parts = parse_glb(&bytes).expect("meshes");
+    assert_eq!(parts.len(), 1, "one root node holding the parts");
+    // Times must increase, poses must be finite.
+    let mut bad = frames.clone();
+    bad[2].time_s = bad[1].time_s;
+    assert!(animated_glb_bytes(&model, &bad)
+        .expect_err("times")
+        .contains("increase"));
+    let mut bad = frames.clone();
+    bad[1].world_from_object.translation.x = f64::NAN;
+    assert!(animated_glb_bytes(&model, &bad)
+        .expect_err("nan")
+        .contains("000005.png"));
+}

@@ -692,3 +692,57 @@ fn bench_checks_tolerances_and_fails_on_regression() {
     assert_eq!(o.status.code(), Some(2));
     assert!(text(&o).contains("quick, full"), "{}", text(&o));
 }
+
+#[test]
+fn motion_exports_are_valid_gltf_and_posed_meshes() {
+    let dir = tempfile::tempdir().expect("tmp");
+    let (cap, model, poses) = example(dir.path());
+    let glb = dir.path().join("tracked.glb");
+    let rest = dir.path().join("rest.glb");
+    let posed = dir.path().join("posed");
+    let o = agentstar(&[
+        "export",
+        "--model",
+        &model,
+        "--glb",
+        rest.to_str().expect("utf8"),
+        "--capture",
+        &cap,
+        "--poses",
+        &poses,
+        "--animated-glb",
+        glb.to_str().expect("utf8"),
+        "--posed-meshes",
+        posed.to_str().expect("utf8"),
+    ]);
+    assert!(o.status.success(), "{}", text(&o));
+    assert_eq!(std::fs::read_dir(&posed).expect("posed").count(), 6);
+    // The animation reads back to the poses it was made from.
+    let read =
+        agentstar_data::animation::read_animated_glb(&std::fs::read(&glb).expect("glb"), &glb)
+            .expect("read");
+    assert_eq!(read.frames.len(), 6);
+    assert!(read.joint_states["hinge"]
+        .iter()
+        .all(|v| (0.0..=120.0).contains(v)));
+    // The Khronos validator, where npm could install it (`.ci/run` does).
+    let scripts = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scripts");
+    if !scripts.join("node_modules/gltf-validator").is_dir() {
+        eprintln!(
+            "gltf-validator not installed (cd scripts && npm install): validator check skipped"
+        );
+        return;
+    }
+    let o = Command::new("node")
+        .arg(scripts.join("validate_gltf.js"))
+        .args([&glb, &rest])
+        .output()
+        .expect("node");
+    assert!(o.status.success(), "{}", text(&o));
+    let report = String::from_utf8_lossy(&o.stdout);
+    assert_eq!(
+        report.matches("\"errors\":0,\"warnings\":0").count(),
+        2,
+        "{report}"
+    );
+}
