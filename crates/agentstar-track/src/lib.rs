@@ -9,6 +9,7 @@ pub mod search;
 pub mod space;
 pub mod temporal;
 pub mod tracker;
+pub mod tracks;
 pub mod update;
 
 pub use objective::{CandidateScore, FrameProblem};
