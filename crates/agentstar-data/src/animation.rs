@@ -92,7 +92,7 @@ pub fn animated_glb_bytes(
         return Err("no keyframes to animate".into());
     }
     for w in frames.windows(2) {
-        if !(w[1].time_s > w[0].time_s) {
+        if w[1].time_s.partial_cmp(&w[0].time_s) != Some(std::cmp::Ordering::Greater) {
             return Err(format!(
                 "keyframe times must increase: {} at {} s, then {} at {} s",
                 w[0].name, w[0].time_s, w[1].name, w[1].time_s
