@@ -575,3 +575,198 @@ fn the_animated_glb_round_trips_poses_and_joints() {
         .expect_err("nan")
         .contains("000005.png"));
 }
+
+/// Writes a small BOP scene: a 60 × 40 × 30 mm box (object 3) and a second object
+/// (object 7) partly in front of it, seen by a moving camera in three images, with masks,
+/// 16-bit depth and models_info symmetries.
+fn write_bop_scene(
+    root: &Path,
+) -> (
+    Vec<agentstar_geom::pose::ObjectPose>,
+    agentstar_geom::PinholeCamera,
+) {
+    use agentstar_geom::pose::ObjectPose;
+    use agentstar_render::raster::Affine;
+    use agentstar_render::{render_full, Instance};
+    let scene = root.join("scene");
+    let models = root.join("models");
+    std::fs::create_dir_all(scene.join("rgb")).expect("mkdir");
+    std::fs::create_dir_all(scene.join("mask_visib")).expect("mkdir");
+    std::fs::create_dir_all(scene.join("depth")).expect("mkdir");
+    std::fs::create_dir_all(&models).expect("mkdir");
+    let mm = agentstar_geom::primitives::cuboid(60.0, 40.0, 30.0).expect("box");
+    let mut ply = format!(
+        "ply\nformat ascii 1.0\nelement vertex {}\nproperty float x\nproperty float y\nproperty float z\nelement face {}\nproperty list uchar int vertex_indices\nend_header\n",
+        mm.positions.len(),
+        mm.triangles.len()
+    );
+    for p in &mm.positions {
+        ply.push_str(&format!("{} {} {}\n", p.x, p.y, p.z));
+    }
+    for t in &mm.triangles {
+        ply.push_str(&format!("3 {} {} {}\n", t[0], t[1], t[2]));
+    }
+    std::fs::write(models.join("obj_000003.ply"), ply).expect("ply");
+    std::fs::write(
+        models.join("models_info.json"),
+        r#"{"3": {"diameter": 78.1, "symmetries_discrete": [[-1, 0, 0, 0, 0, -1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1]]}}"#,
+    )
+    .expect("info");
+    let cam = agentstar_geom::PinholeCamera::new(300.0, 300.0, 80.0, 60.0, 160, 120).expect("cam");
+    let m_box = mm.transformed(
+        &(agentstar_geom::Matrix3::identity() * 0.001),
+        &Vector3::zeros(),
+    );
+    let blocker = agentstar_geom::primitives::cuboid(0.02, 0.02, 0.02).expect("blocker");
+    let mut poses = vec![];
+    let (mut gt, mut cams) = (serde_json::Map::new(), serde_json::Map::new());
+    for id in [0u32, 2, 4] {
+        let k = id as f64;
+        let pose = ObjectPose::new(
+            UnitQuaternion::from_euler_angles(0.4 + 0.1 * k, -0.3, 0.2 * k),
+            Vector3::new(0.005 * k, -0.004, 0.4),
+        );
+        let other = ObjectPose::new(UnitQuaternion::identity(), Vector3::new(0.02, 0.01, 0.3));
+        let inst = |m: &'static agentstar_geom::TriMesh, p: &ObjectPose, id: u16| Instance {
+            mesh: m,
+            bounds: m.bounds(),
+            camera_from_mesh: Affine::from_similarity(&p.with_scale(1.0)),
+            edges: None,
+            part_id: id,
+        };
+        let m_box: &'static agentstar_geom::TriMesh = Box::leak(Box::new(m_box.clone()));
+        let b: &'static agentstar_geom::TriMesh = Box::leak(Box::new(blocker.clone()));
+        let buf = render_full(&cam, &[inst(m_box, &pose, 0), inst(b, &other, 1)]);
+        let stem = format!("{id:06}");
+        let rgb = RgbImage::from_fn(160, 120, |x, y| {
+            image::Rgb([
+                (x % 256) as u8,
+                (y % 256) as u8,
+                if buf.covered(x, y) { 200 } else { 40 },
+            ])
+        });
+        rgb.save(scene.join("rgb").join(format!("{stem}.png")))
+            .expect("rgb");
+        for (i, part) in [0u16, 1].iter().enumerate() {
+            let m = GrayImage::from_fn(160, 120, |x, y| {
+                Luma([if buf.part[(y * 160 + x) as usize] == *part {
+                    255
+                } else {
+                    0
+                }])
+            });
+            m.save(scene.join("mask_visib").join(format!("{stem}_{i:06}.png")))
+                .expect("mask");
+        }
+        let depth = image::ImageBuffer::<Luma<u16>, Vec<u16>>::from_fn(160, 120, |x, y| {
+            let z = buf.depth[(y * 160 + x) as usize];
+            Luma([if z.is_finite() {
+                (z * 10_000.0) as u16
+            } else {
+                0
+            }])
+        });
+        depth
+            .save(scene.join("depth").join(format!("{stem}.png")))
+            .expect("depth");
+        let r = pose.rotation.to_rotation_matrix();
+        let rm: Vec<f64> = (0..3)
+            .flat_map(|i| (0..3).map(move |j| r[(i, j)]))
+            .collect();
+        gt.insert(
+            id.to_string(),
+            serde_json::json!([
+                {"cam_R_m2c": rm, "cam_t_m2c": [pose.translation.x * 1000.0, pose.translation.y * 1000.0, pose.translation.z * 1000.0], "obj_id": 3},
+                {"cam_R_m2c": [1, 0, 0, 0, 1, 0, 0, 0, 1], "cam_t_m2c": [20, 10, 300], "obj_id": 7}
+            ]),
+        );
+        cams.insert(
+            id.to_string(),
+            serde_json::json!({"cam_K": [300, 0, 80, 0, 300, 60, 0, 0, 1], "depth_scale": 0.1,
+                               "cam_R_w2c": [1, 0, 0, 0, 1, 0, 0, 0, 1], "cam_t_w2c": [-10.0 * k, 0, 0]}),
+        );
+        poses.push(pose);
+    }
+    std::fs::write(
+        scene.join("scene_gt.json"),
+        serde_json::Value::Object(gt).to_string(),
+    )
+    .expect("gt");
+    std::fs::write(
+        scene.join("scene_camera.json"),
+        serde_json::Value::Object(cams).to_string(),
+    )
+    .expect("cam");
+    (poses, cam)
+}
+
+#[test]
+fn a_bop_scene_imports_with_metres_occluders_depth_and_ground_truth() {
+    use agentstar_data::bop::{import_bop, BopImport};
+    use agentstar_data::gt::GroundTruth;
+    let dir = tempfile::tempdir().expect("tmp");
+    let (poses, cam) = write_bop_scene(dir.path());
+    let out = dir.path().join("cap");
+    let cfg = BopImport {
+        scene: dir.path().join("scene"),
+        models: dir.path().join("models"),
+        obj_id: 3,
+        every: 1,
+        depth: true,
+    };
+    assert_eq!(import_bop(&cfg, &out).expect("import"), 3);
+    let capture = Capture::open(&out).expect("valid capture");
+    assert_eq!(capture.frames.len(), 3);
+    assert_eq!(capture.frames[1].name, "000002.png");
+    // The camera trajectory in metres: camera k sits 10·k mm along +X.
+    assert!((capture.frames[2].world_from_camera.translation.vector.x - 0.04).abs() < 1e-9);
+    // The other object is a don't-care occluder; depth is in metres.
+    let hand = capture.load_hand(0).expect("read").expect("occluder mask");
+    assert!(hand.count() > 0);
+    let depth = capture.load_depth(0).expect("read").expect("depth");
+    let mask = capture.load_mask(0).expect("mask");
+    let (x, y) = (0..160u32)
+        .flat_map(|x| (0..120u32).map(move |y| (x, y)))
+        .find(|&(x, y)| mask.get(x, y))
+        .expect("object pixel");
+    let z = depth.depth[(y * 160 + x) as usize];
+    assert!((z - 0.39).abs() < 0.03, "depth {z} m");
+    // gt.json: the model in metres, poses in metres, the discrete symmetry.
+    let gt = GroundTruth::load(&out.join("gt.json")).expect("gt");
+    let ext = gt.meshes["object"].bounds().extent();
+    assert!(
+        (ext.x - 0.06).abs() < 1e-6 && (ext.z - 0.03).abs() < 1e-6,
+        "{ext:?}"
+    );
+    let p = gt.pose("000004.png", "object").expect("pose");
+    assert!((p.translation - poses[2].translation).norm() < 1e-9);
+    assert!(p.rotation.angle_to(&poses[2].rotation) < 1e-6);
+    assert_eq!(gt.file.symmetries.len(), 1);
+    assert!(
+        gt.file.symmetries[0][3].abs() > 0.999,
+        "a half turn about Z"
+    );
+    // Rendering the ground truth gives back the visible mask outside the occluder.
+    let inst = agentstar_render::Instance {
+        mesh: &gt.meshes["object"],
+        bounds: gt.meshes["object"].bounds(),
+        camera_from_mesh: agentstar_render::raster::Affine::from_similarity(&p.with_scale(1.0)),
+        edges: None,
+        part_id: 0,
+    };
+    let sil = agentstar_render::render_full(&cam, &[inst]).silhouette();
+    let m2 = capture.load_mask(2).expect("mask");
+    let h2 = capture.load_hand(2).expect("hand").expect("occluder");
+    assert_eq!(sil.and_not(&h2).count(), m2.count());
+    // Bad input is named.
+    let e = import_bop(
+        &BopImport {
+            obj_id: 9,
+            ..cfg.clone()
+        },
+        &dir.path().join("x"),
+    )
+    .expect_err("absent");
+    assert!(e.to_string().contains("obj_000009.ply"), "{e}");
+    assert!(!dir.path().join("x").exists());
+}

@@ -61,6 +61,9 @@ enum Command {
     Eval(cmd::eval::Args),
     /// Write a seeded synthetic capture with ground truth (objects modelled on ARCTIC, HOT3D, iTACO).
     Synth(cmd::synth::Args),
+    /// Make captures from other sources (BOP scenes).
+    #[command(subcommand)]
+    Capture(cmd::capture::CaptureCommand),
     /// Track a synthetic suite (and the agent-free ablations), evaluate, print the paper's tables with wall times.
     Bench(cmd::bench::Args),
 }
@@ -87,6 +90,7 @@ fn main() -> ExitCode {
         Command::Eval(a) => cmd::eval::run(a),
         Command::Synth(a) => cmd::synth::run(a),
         Command::Bench(a) => cmd::bench::run(a),
+        Command::Capture(c) => cmd::capture::run(c),
         Command::Demo(a) => cmd::demo::run(a),
     };
     match result {

@@ -1,0 +1,306 @@
+//! Importing one object of a BOP scene (`scene_gt.json`, `scene_camera.json`, `rgb/` or
+//! `gray/`, `mask_visib/`, optional `depth/`, models in millimetres) as a `capture/v1`
+//! directory with its `gt.json`. HOT3D clips converted to BOP load the same way.
+//!
+//! Decisions: the object is the first instance with `obj_id` in each image (images without
+//! it are skipped); the visible masks of the other instances become don't-care occluder
+//! masks (`mask_hand/`), as hands are; millimetres become metres; `cam_R_w2c`/`cam_t_w2c`
+//! give the camera trajectory when present, else the camera is static; depth PNGs keep their
+//! values converted to metres with each image's `depth_scale` (written as point maps); discrete and
+//! continuous symmetries of `models_info.json` become `gt.json` symmetries (continuous ones
+//! sampled every 30°).
+
+use crate::capture_writer::{write_capture, CaptureInfo, FrameOut};
+use crate::gt::{GroundTruth, GtFile, GtFrame, GtPartFile, GtPose, FORMAT};
+use crate::images::{load_mask, load_rgb};
+use crate::meshio::load_mesh;
+use crate::{read_text, DataError, Result};
+use agentstar_geom::pose::{quat_to_wxyz, Rigid};
+use agentstar_geom::{Matrix3, PinholeCamera, UnitQuaternion, Vector3};
+use serde::Deserialize;
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+#[derive(Debug, Deserialize)]
+struct GtEntry {
+    #[serde(rename = "cam_R_m2c")]
+    cam_r_m2c: [f64; 9],
+    cam_t_m2c: [f64; 3],
+    obj_id: u32,
+}
+
+#[derive(Debug, Deserialize)]
+struct CamEntry {
+    #[serde(rename = "cam_K")]
+    cam_k: [f64; 9],
+    #[serde(default)]
+    depth_scale: Option<f64>,
+    #[serde(default, rename = "cam_R_w2c")]
+    cam_r_w2c: Option<[f64; 9]>,
+    #[serde(default)]
+    cam_t_w2c: Option<[f64; 3]>,
+}
+
+/// What to import.
+#[derive(Debug, Clone)]
+pub struct BopImport {
+    /// The scene directory (holding `scene_gt.json`).
+    pub scene: PathBuf,
+    /// The models directory (holding `obj_XXXXXX.ply`, optionally `models_info.json`).
+    pub models: PathBuf,
+    pub obj_id: u32,
+    /// Keep every n-th image holding the object.
+    pub every: usize,
+    pub depth: bool,
+}
+
+fn rotation(r: &[f64; 9], path: &Path, what: &str) -> Result<UnitQuaternion> {
+    let m = Matrix3::from_row_slice(r);
+    let err = (m.transpose() * m - Matrix3::identity()).abs().max();
+    if !(err < 1e-3 && (m.determinant() - 1.0).abs() < 1e-3) {
+        return Err(DataError::invalid(
+            path,
+            format!(
+                "{what} is not a rotation (‖RᵀR − I‖ = {err:.2e}, det {:.4})",
+                m.determinant()
+            ),
+        ));
+    }
+    Ok(UnitQuaternion::from_matrix(&m))
+}
+
+fn symmetries(models: &Path, obj_id: u32) -> Result<Vec<[f64; 4]>> {
+    let info = models.join("models_info.json");
+    if !info.is_file() {
+        return Ok(vec![]);
+    }
+    let v: serde_json::Value = serde_json::from_str(&read_text(&info)?)
+        .map_err(|e| DataError::invalid(&info, format!("invalid JSON: {e}")))?;
+    let o = &v[obj_id.to_string()];
+    let mut out = vec![];
+    if let Some(list) = o["symmetries_discrete"].as_array() {
+        for m in list {
+            let vals: Vec<f64> = m
+                .as_array()
+                .map(|a| a.iter().filter_map(|x| x.as_f64()).collect())
+                .unwrap_or_default();
+            if vals.len() == 16 {
+                let r = [
+                    vals[0], vals[1], vals[2], vals[4], vals[5], vals[6], vals[8], vals[9],
+                    vals[10],
+                ];
+                out.push(quat_to_wxyz(&rotation(&r, &info, "a discrete symmetry")?));
+            }
+        }
+    }
+    if let Some(list) = o["symmetries_continuous"].as_array() {
+        for s in list {
+            let axis: Vec<f64> = s["axis"]
+                .as_array()
+                .map(|a| a.iter().filter_map(|x| x.as_f64()).collect())
+                .unwrap_or_default();
+            if axis.len() == 3 {
+                let a = agentstar_geom::nalgebra::Unit::new_normalize(Vector3::new(
+                    axis[0], axis[1], axis[2],
+                ));
+                for k in 1..12 {
+                    let q = UnitQuaternion::from_axis_angle(&a, (30.0 * k as f64).to_radians());
+                    out.push(quat_to_wxyz(&q));
+                }
+            }
+        }
+    }
+    Ok(out)
+}
+
+/// Imports one object of a BOP scene into `out` (a new directory). Returns the number of
+/// frames written.
+pub fn import_bop(cfg: &BopImport, out: &Path) -> Result<usize> {
+    let gt_path = cfg.scene.join("scene_gt.json");
+    let cam_path = cfg.scene.join("scene_camera.json");
+    let scene_gt: BTreeMap<String, Vec<GtEntry>> = serde_json::from_str(&read_text(&gt_path)?)
+        .map_err(|e| DataError::invalid(&gt_path, format!("invalid scene_gt: {e}")))?;
+    let scene_cam: BTreeMap<String, CamEntry> = serde_json::from_str(&read_text(&cam_path)?)
+        .map_err(|e| DataError::invalid(&cam_path, format!("invalid scene_camera: {e}")))?;
+    let mut ids: Vec<u64> = scene_gt
+        .keys()
+        .map(|k| {
+            k.parse::<u64>().map_err(|_| {
+                DataError::invalid(&gt_path, format!("image id `{k}` is not an integer"))
+            })
+        })
+        .collect::<Result<_>>()?;
+    ids.sort_unstable();
+    let model_path = cfg.models.join(format!("obj_{:06}.ply", cfg.obj_id));
+    let mesh_mm = load_mesh(&model_path)?;
+    let mesh_m = mesh_mm.transformed(&(Matrix3::identity() * 0.001), &Vector3::zeros());
+    struct Row {
+        name: String,
+        id: u64,
+        camera: PinholeCamera,
+        c2w: Rigid,
+        rgb: image::RgbImage,
+        mask: agentstar_render::BitMask,
+        occluders: Option<agentstar_render::BitMask>,
+        depth: Option<Vec<f32>>,
+        pose: (UnitQuaternion, Vector3),
+    }
+    let mut rows: Vec<Row> = vec![];
+    let mut kept = 0usize;
+    for id in ids {
+        let key = id.to_string();
+        let entries = &scene_gt[&key];
+        let Some(gi) = entries.iter().position(|e| e.obj_id == cfg.obj_id) else {
+            continue;
+        };
+        kept += 1;
+        if !(kept - 1).is_multiple_of(cfg.every.max(1)) {
+            continue;
+        }
+        let cam = scene_cam
+            .get(&key)
+            .ok_or_else(|| DataError::invalid(&cam_path, format!("image {id} has no camera")))?;
+        let stem = format!("{id:06}");
+        let rgb_path = ["rgb", "gray"]
+            .iter()
+            .flat_map(|d| {
+                ["png", "jpg", "tif"].map(|e| cfg.scene.join(d).join(format!("{stem}.{e}")))
+            })
+            .find(|p| p.is_file())
+            .ok_or_else(|| {
+                DataError::invalid(&cfg.scene, format!("image {id}: no rgb/{stem}.png or .jpg"))
+            })?;
+        let rgb = load_rgb(&rgb_path)?;
+        let (w, h) = rgb.dimensions();
+        let k = &cam.cam_k;
+        let camera = PinholeCamera::new(k[0], k[4], k[2], k[5], w, h)
+            .map_err(|e| DataError::invalid(&cam_path, format!("image {id}: {e}")))?;
+        let c2w = match (&cam.cam_r_w2c, &cam.cam_t_w2c) {
+            (Some(r), Some(t)) => {
+                let q = rotation(r, &cam_path, &format!("image {id}: cam_R_w2c"))?;
+                Rigid::from_parts(
+                    agentstar_geom::nalgebra::Translation3::from(
+                        Vector3::new(t[0], t[1], t[2]) * 0.001,
+                    ),
+                    q,
+                )
+                .inverse()
+            }
+            _ => Rigid::identity(),
+        };
+        let mask_path = |i: usize| {
+            cfg.scene
+                .join("mask_visib")
+                .join(format!("{stem}_{i:06}.png"))
+        };
+        let mask = load_mask(&mask_path(gi))?;
+        let mut occluders: Option<agentstar_render::BitMask> = None;
+        for (i, _) in entries.iter().enumerate().filter(|(i, _)| *i != gi) {
+            let p = mask_path(i);
+            if p.is_file() {
+                let m = load_mask(&p)?;
+                occluders = Some(match occluders {
+                    Some(o) => o.or(&m),
+                    None => m,
+                });
+            }
+        }
+        let depth = if cfg.depth {
+            let p = cfg.scene.join("depth").join(format!("{stem}.png"));
+            let img = image::open(&p)
+                .map_err(|e| DataError::invalid(&p, format!("cannot read depth: {e}")))?
+                .to_luma16();
+            let s = cam.depth_scale.unwrap_or(1.0) * 0.001;
+            Some(
+                img.pixels()
+                    .map(|p| {
+                        if p[0] == 0 {
+                            f32::NAN
+                        } else {
+                            (p[0] as f64 * s) as f32
+                        }
+                    })
+                    .collect(),
+            )
+        } else {
+            None
+        };
+        let e = &entries[gi];
+        let q = rotation(&e.cam_r_m2c, &gt_path, &format!("image {id}: cam_R_m2c"))?;
+        let t = Vector3::new(e.cam_t_m2c[0], e.cam_t_m2c[1], e.cam_t_m2c[2]) * 0.001;
+        rows.push(Row {
+            name: format!("{stem}.png"),
+            id,
+            camera,
+            c2w,
+            rgb,
+            mask,
+            occluders,
+            depth,
+            pose: (q, t),
+        });
+    }
+    if rows.is_empty() {
+        return Err(DataError::invalid(
+            &gt_path,
+            format!("no image holds object {}", cfg.obj_id),
+        ));
+    }
+    let frames: Vec<FrameOut<'_>> = rows
+        .iter()
+        .map(|r| FrameOut {
+            name: &r.name,
+            frame_index: Some(r.id as i64),
+            time_s: None,
+            camera: &r.camera,
+            world_from_camera: &r.c2w,
+            rgb: &r.rgb,
+            mask: &r.mask,
+            hand: r.occluders.as_ref(),
+            depth_m: r.depth.as_deref(),
+        })
+        .collect();
+    let info = CaptureInfo {
+        dataset: Some("bop".into()),
+        source: Some(serde_json::json!({"producer": "agentstar capture from-bop",
+            "scene": cfg.scene, "obj_id": cfg.obj_id, "every": cfg.every})),
+    };
+    let symmetries = symmetries(&cfg.models, cfg.obj_id)?;
+    write_capture(out, &frames, &info, |root| {
+        let part = "object".to_string();
+        let file = GtFile {
+            format: FORMAT.into(),
+            units: "m".into(),
+            base_part: part.clone(),
+            parts: BTreeMap::from([(
+                part.clone(),
+                GtPartFile {
+                    mesh: "gt_meshes/object.obj".into(),
+                },
+            )]),
+            frames: rows
+                .iter()
+                .map(|r| {
+                    let mut f = GtFrame::default();
+                    f.parts.insert(
+                        part.clone(),
+                        GtPose {
+                            quaternion: quat_to_wxyz(&r.pose.0),
+                            translation: r.pose.1.into(),
+                        },
+                    );
+                    (r.name.clone(), f)
+                })
+                .collect(),
+            joints: vec![],
+            symmetries: symmetries.clone(),
+        };
+        GroundTruth::from_parts(
+            &root.join("gt.json"),
+            file,
+            BTreeMap::from([(part.clone(), mesh_m.clone())]),
+        )
+        .write(root)
+    })?;
+    Ok(rows.len())
+}
