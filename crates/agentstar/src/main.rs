@@ -61,6 +61,14 @@ enum Command {
     Eval(cmd::eval::Args),
     /// Write a seeded synthetic capture with ground truth (objects modelled on ARCTIC, HOT3D, iTACO).
     Synth(cmd::synth::Args),
+    /// Print a shell completion script (bash, zsh, fish, powershell, elvish) on stdout.
+    #[command(
+        after_help = "Example:\n  agentstar completions bash > ~/.local/share/bash-completion/completions/agentstar"
+    )]
+    Completions {
+        /// The shell.
+        shell: clap_complete::Shell,
+    },
     /// Make captures from other sources (BOP scenes).
     #[command(subcommand)]
     Capture(cmd::capture::CaptureCommand),
@@ -91,6 +99,16 @@ fn main() -> ExitCode {
         Command::Synth(a) => cmd::synth::run(a),
         Command::Bench(a) => cmd::bench::run(a),
         Command::Capture(c) => cmd::capture::run(c),
+        Command::Completions { shell } => {
+            use clap::CommandFactory;
+            clap_complete::generate(
+                shell,
+                &mut Cli::command(),
+                "agentstar",
+                &mut std::io::stdout(),
+            );
+            Ok(ExitCode::SUCCESS)
+        }
         Command::Demo(a) => cmd::demo::run(a),
     };
     match result {

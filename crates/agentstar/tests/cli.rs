@@ -833,3 +833,17 @@ fn point_tracks_land_in_the_masks_and_bop_results_carry_the_poses() {
         );
     }
 }
+
+#[test]
+fn completions_cover_every_subcommand() {
+    let o = agentstar(&["completions", "bash"]);
+    assert!(o.status.success(), "{}", text(&o));
+    let script = String::from_utf8_lossy(&o.stdout);
+    for sub in [
+        "demo", "synth", "bench", "eval", "track", "export", "from-bop",
+    ] {
+        assert!(script.contains(sub), "bash completion lacks {sub}");
+    }
+    let o = agentstar(&["completions", "tcsh"]);
+    assert_eq!(o.status.code(), Some(2));
+}
