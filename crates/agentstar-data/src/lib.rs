@@ -26,10 +26,12 @@ use std::path::{Path, PathBuf};
 pub enum DataError {
     #[error("{path}: {message}")]
     Invalid { path: PathBuf, message: String },
-    #[error("{path}: {source}")]
+    /// The message already holds the I/O error, so it is not also reported as a source
+    /// (which would print it twice in an error chain).
+    #[error("{path}: {error}")]
     Io {
         path: PathBuf,
-        source: std::io::Error,
+        error: std::io::Error,
     },
     #[error("{0}")]
     Scene(#[from] agentstar_scene::SceneError),
@@ -42,10 +44,10 @@ impl DataError {
             message: message.into(),
         }
     }
-    pub fn io(path: impl AsRef<Path>, source: std::io::Error) -> Self {
+    pub fn io(path: impl AsRef<Path>, error: std::io::Error) -> Self {
         DataError::Io {
             path: path.as_ref().to_path_buf(),
-            source,
+            error,
         }
     }
 }
