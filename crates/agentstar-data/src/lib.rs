@@ -8,6 +8,7 @@
 pub mod animation;
 pub mod atomic;
 pub mod bop;
+pub mod cameras;
 pub mod capture;
 pub mod capture_writer;
 pub mod export;
@@ -18,6 +19,7 @@ pub mod npz;
 pub mod posefile;
 pub mod scenefile;
 pub mod urdf;
+pub mod video;
 
 use std::path::{Path, PathBuf};
 

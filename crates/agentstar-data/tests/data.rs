@@ -770,3 +770,159 @@ fn a_bop_scene_imports_with_metres_occluders_depth_and_ground_truth() {
     assert!(e.to_string().contains("obj_000009.ply"), "{e}");
     assert!(!dir.path().join("x").exists());
 }
+
+/// Frames and masks in folders (segmenter-style names), and the same three cameras written
+/// as COLMAP text, COLMAP binary and nerfstudio: each import gives back the cameras.
+#[test]
+fn frames_with_colmap_binary_text_and_nerfstudio_cameras_import() {
+    use agentstar_data::video::{import_video, CameraSource, VideoImport};
+    use agentstar_geom::pose::Rigid;
+    let dir = tempfile::tempdir().expect("tmp");
+    let (frames, masks) = (dir.path().join("frames"), dir.path().join("masks"));
+    std::fs::create_dir_all(&frames).expect("mkdir");
+    std::fs::create_dir_all(&masks).expect("mkdir");
+    let (w, h) = (64u32, 48u32);
+    let mut truth: Vec<Rigid> = vec![];
+    for i in 0..3u32 {
+        RgbImage::from_pixel(w, h, image::Rgb([10 * i as u8, 90, 160]))
+            .save(frames.join(format!("img_{i}.jpg")))
+            .expect("frame");
+        GrayImage::from_fn(w, h, |x, y| {
+            Luma([if x > 20 + i && y > 10 { 255 } else { 0 }])
+        })
+        .save(masks.join(format!("img_{i}_mask.png")))
+        .expect("mask");
+        truth.push(Rigid::from_parts(
+            agentstar_geom::nalgebra::Translation3::new(0.1 * i as f64, -0.2, 0.05),
+            UnitQuaternion::from_euler_angles(0.1 * i as f64, 0.3, -0.2),
+        ));
+    }
+    // COLMAP stores camera_from_world for a 128 × 96 camera (frames are half that size).
+    let (colmap_txt, colmap_bin) = (dir.path().join("txt"), dir.path().join("bin"));
+    std::fs::create_dir_all(&colmap_txt).expect("mkdir");
+    std::fs::create_dir_all(&colmap_bin).expect("mkdir");
+    std::fs::write(
+        colmap_txt.join("cameras.txt"),
+        "# Camera list\n1 PINHOLE 128 96 100 110 64 48\n",
+    )
+    .expect("cameras");
+    let mut images = String::from("# Image list\n");
+    let mut bin_images: Vec<u8> = 3u64.to_le_bytes().to_vec();
+    for (i, c2w) in truth.iter().enumerate() {
+        let cfw = c2w.inverse();
+        let q = cfw.rotation;
+        let t = cfw.translation.vector;
+        images.push_str(&format!(
+            "{} {} {} {} {} {} {} {} 1 img_{i}.jpg\n\n",
+            i + 1,
+            q.w,
+            q.i,
+            q.j,
+            q.k,
+            t.x,
+            t.y,
+            t.z
+        ));
+        bin_images.extend((i as i32 + 1).to_le_bytes());
+        for v in [q.w, q.i, q.j, q.k, t.x, t.y, t.z] {
+            bin_images.extend(v.to_le_bytes());
+        }
+        bin_images.extend(1i32.to_le_bytes());
+        bin_images.extend(format!("img_{i}.jpg\0").bytes());
+        bin_images.extend(1u64.to_le_bytes());
+        bin_images.extend([0u8; 24]);
+    }
+    std::fs::write(colmap_txt.join("images.txt"), images).expect("images");
+    let mut bin_cams: Vec<u8> = 1u64.to_le_bytes().to_vec();
+    bin_cams.extend(1i32.to_le_bytes());
+    bin_cams.extend(1i32.to_le_bytes()); // PINHOLE
+    bin_cams.extend(128u64.to_le_bytes());
+    bin_cams.extend(96u64.to_le_bytes());
+    for v in [100.0f64, 110.0, 64.0, 48.0] {
+        bin_cams.extend(v.to_le_bytes());
+    }
+    std::fs::write(colmap_bin.join("cameras.bin"), bin_cams).expect("cameras.bin");
+    std::fs::write(colmap_bin.join("images.bin"), bin_images).expect("images.bin");
+    // nerfstudio: world_from_camera in OpenGL axes.
+    let ns = dir.path().join("transforms.json");
+    let flip = agentstar_geom::Matrix4::from_diagonal(&agentstar_geom::nalgebra::Vector4::new(
+        1.0, -1.0, -1.0, 1.0,
+    ));
+    let ns_frames: Vec<_> = truth
+        .iter()
+        .enumerate()
+        .map(|(i, c2w)| {
+            let m = c2w.to_homogeneous() * flip;
+            serde_json::json!({"file_path": format!("images/img_{i}.jpg"),
+                "transform_matrix": (0..4).map(|r| (0..4).map(|c| m[(r, c)]).collect::<Vec<_>>()).collect::<Vec<_>>()})
+        })
+        .collect();
+    std::fs::write(
+        &ns,
+        serde_json::json!({"fl_x": 100.0, "fl_y": 110.0, "cx": 64.0, "cy": 48.0, "w": 128, "h": 96, "frames": ns_frames}).to_string(),
+    )
+    .expect("ns");
+    for (label, cameras) in [
+        ("txt", CameraSource::Colmap(colmap_txt.clone())),
+        ("bin", CameraSource::Colmap(colmap_bin.clone())),
+        ("ns", CameraSource::Nerfstudio(ns.clone())),
+    ] {
+        let out = dir.path().join(format!("cap_{label}"));
+        let n = import_video(
+            &VideoImport {
+                input: frames.clone(),
+                masks: masks.clone(),
+                hands: None,
+                every: 1,
+                max_frames: None,
+                cameras,
+                fps: Some(10.0),
+            },
+            &out,
+        )
+        .unwrap_or_else(|e| panic!("{label}: {e}"));
+        assert_eq!(n, 3);
+        let cap = Capture::open(&out).expect("valid");
+        for (i, f) in cap.frames.iter().enumerate() {
+            let c = &f.world_from_camera;
+            assert!(
+                (c.translation.vector - truth[i].translation.vector).norm() < 1e-6,
+                "{label} {i}"
+            );
+            assert!(
+                c.rotation.angle_to(&truth[i].rotation) < 1e-6,
+                "{label} {i}"
+            );
+            // Intrinsics rescaled to the 64 × 48 frames.
+            assert!((f.camera.fx - 50.0).abs() < 1e-6 && (f.camera.fy - 55.0).abs() < 1e-6);
+            assert!((f.camera.cx - 32.0).abs() < 1e-6 && (f.camera.cy - 24.0).abs() < 1e-6);
+        }
+        assert_eq!(
+            cap.load_mask(2).expect("mask").count(),
+            (64 - 23) * (48 - 11)
+        );
+        assert!((cap.frames[2].time_s.expect("time") - 0.2).abs() < 1e-12);
+    }
+    // A static camera by field of view; a missing mask and a truncated model are named.
+    let out = dir.path().join("cap_fov");
+    let cfg = VideoImport {
+        input: frames.clone(),
+        masks: masks.clone(),
+        hands: None,
+        every: 2,
+        max_frames: None,
+        cameras: CameraSource::Fov(60.0),
+        fps: None,
+    };
+    assert_eq!(import_video(&cfg, &out).expect("fov"), 2);
+    std::fs::remove_file(masks.join("img_2_mask.png")).expect("rm");
+    let e = import_video(&cfg, &dir.path().join("x")).expect_err("missing mask");
+    assert!(e.to_string().contains("img_2"), "{e}");
+    let bytes = std::fs::read(colmap_bin.join("images.bin")).expect("read");
+    std::fs::write(colmap_bin.join("images.bin"), &bytes[..bytes.len() - 30]).expect("truncate");
+    let e = agentstar_data::cameras::read_colmap(&colmap_bin).expect_err("truncated");
+    assert!(
+        e.to_string().contains("images.bin") && e.to_string().contains("truncated"),
+        "{e}"
+    );
+}
