@@ -119,3 +119,31 @@ fn main() -> ExitCode {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::Cli;
+    use clap::CommandFactory;
+
+    /// Every subcommand's help ends with an example.
+    #[test]
+    fn every_command_has_an_example() {
+        fn walk(c: &clap::Command, path: &str, missing: &mut Vec<String>) {
+            for sub in c.get_subcommands() {
+                let p = format!("{path} {}", sub.get_name());
+                if sub.has_subcommands() {
+                    walk(sub, &p, missing);
+                } else if !sub
+                    .get_after_help()
+                    .is_some_and(|h| h.to_string().contains("Example"))
+                {
+                    missing.push(p);
+                }
+            }
+        }
+        let mut missing = vec![];
+        walk(&Cli::command(), "agentstar", &mut missing);
+        missing.retain(|m| m != "agentstar help");
+        assert!(missing.is_empty(), "no example in: {missing:?}");
+    }
+}

@@ -9,6 +9,7 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 #[derive(clap::Args)]
+#[command(after_help = "Example:\n  agentstar check run/scene.rhai")]
 pub struct Args {
     /// A scene script (.rhai), URDF or mesh file.
     model: PathBuf,

@@ -33,6 +33,7 @@ joint(#{ name: "hinge", type: "revolute", child: "lid", origin: [0, 0.31, 0.07],
 "##;
 
 #[derive(clap::Args)]
+#[command(after_help = "Example:\n  agentstar example /tmp/agentstar-example")]
 pub struct Args {
     /// Directory to write the example into (capture/, run/, out/).
     out: PathBuf,

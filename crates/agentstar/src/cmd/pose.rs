@@ -13,6 +13,9 @@ use std::process::ExitCode;
 #[derive(clap::Subcommand)]
 pub enum PoseCommand {
     /// Apply a ranked candidate of a report (sweep, apply, osweep, oapply, oapply-all) to pose.json.
+    #[command(
+        after_help = "Example:\n  agentstar pose commit --poses run/pose.json --report report.json --rank 0"
+    )]
     Commit {
         #[arg(long)]
         poses: PathBuf,
@@ -30,6 +33,7 @@ pub enum PoseCommand {
         json: bool,
     },
     /// List the committed versions of pose.json.
+    #[command(after_help = "Example:\n  agentstar pose history --poses run/pose.json")]
     History {
         #[arg(long)]
         poses: PathBuf,
@@ -38,6 +42,7 @@ pub enum PoseCommand {
         json: bool,
     },
     /// Restore an earlier version (recorded as a new version).
+    #[command(after_help = "Example:\n  agentstar pose restore --poses run/pose.json --version 3")]
     Restore {
         #[arg(long)]
         poses: PathBuf,

@@ -15,6 +15,9 @@ use std::process::ExitCode;
 pub const VIEWS: [&str; 5] = ["overlay", "compare", "ids", "shaded", "depth"];
 
 #[derive(clap::Args)]
+#[command(
+    after_help = "Example:\n  agentstar render --capture cap --model run/scene.rhai --poses run/pose.json --out views --views overlay,compare --frames 000000..000020"
+)]
 pub struct Args {
     #[command(flatten)]
     session: SessionArgs,

@@ -7,6 +7,9 @@ use serde::Serialize;
 use std::process::ExitCode;
 
 #[derive(clap::Args)]
+#[command(
+    after_help = "Example:\n  agentstar score --capture cap --model run/scene.rhai --poses run/pose.json --json"
+)]
 pub struct Args {
     #[command(flatten)]
     session: SessionArgs,

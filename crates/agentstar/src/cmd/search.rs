@@ -42,6 +42,9 @@ pub struct Common {
 }
 
 #[derive(clap::Args)]
+#[command(
+    after_help = "Example:\n  agentstar sweep --capture cap --model run/scene.rhai --poses run/pose.json --out reports --frames 000010 --ranges 'yaw:-20,20;hinge:20,60'"
+)]
 pub struct SweepArgs {
     #[command(flatten)]
     common: Common,
@@ -91,6 +94,9 @@ pub struct SweepArgs {
 }
 
 #[derive(clap::Args)]
+#[command(
+    after_help = "Example:\n  agentstar apply --capture cap --model run/scene.rhai --poses run/pose.json --out reports --frame 000010 --order 'pitch:17;dpx:0.05;hinge:70'"
+)]
 pub struct ApplyArgs {
     #[command(flatten)]
     common: Common,
@@ -103,6 +109,9 @@ pub struct ApplyArgs {
 }
 
 #[derive(clap::Args)]
+#[command(
+    after_help = "Example:\n  agentstar osweep --capture cap --model run/scene.rhai --poses run/pose.json --out reports --frames 000010 --opreset z:flip"
+)]
 pub struct OsweepArgs {
     #[command(flatten)]
     common: Common,
@@ -130,6 +139,9 @@ pub struct OsweepArgs {
 }
 
 #[derive(clap::Args)]
+#[command(
+    after_help = "Example:\n  agentstar oapply --capture cap --model run/scene.rhai --poses run/pose.json --out reports --frames 000010 --set flips"
+)]
 pub struct OapplyArgs {
     #[command(flatten)]
     common: Common,
@@ -142,6 +154,9 @@ pub struct OapplyArgs {
 }
 
 #[derive(clap::Args)]
+#[command(
+    after_help = "Example:\n  agentstar oapply-all --capture cap --model run/scene.rhai --poses run/pose.json --out reports --rotation 'flip:x'"
+)]
 pub struct OapplyAllArgs {
     #[command(flatten)]
     common: Common,

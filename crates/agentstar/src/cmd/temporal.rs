@@ -12,6 +12,9 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 #[derive(clap::Args)]
+#[command(
+    after_help = "Example:\n  agentstar temporal --capture cap --model run/scene.rhai --poses run/pose.json --plot temporal.png"
+)]
 pub struct Args {
     #[command(flatten)]
     session: SessionArgs,
@@ -33,6 +36,9 @@ pub struct Args {
 }
 
 #[derive(clap::Args)]
+#[command(
+    after_help = "Example:\n  agentstar pose-diff --capture cap --model run/scene.rhai --poses run/pose.json --a 000010.png --b 000015.png"
+)]
 pub struct DiffArgs {
     #[command(flatten)]
     session: SessionArgs,

@@ -12,6 +12,9 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 #[derive(clap::Args)]
+#[command(
+    after_help = "Example:\n  agentstar track cap --model run/scene.rhai --scale 0.24 --out run/pose.json"
+)]
 pub struct Args {
     /// The capture directory.
     capture: PathBuf,

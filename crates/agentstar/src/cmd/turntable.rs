@@ -17,6 +17,9 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 #[derive(clap::Args)]
+#[command(
+    after_help = "Example:\n  agentstar turntable --model run/scene.rhai --capture cap --poses run/pose.json --out turntables"
+)]
 pub struct Args {
     /// The model: scene script (.rhai), URDF or mesh.
     #[arg(long)]

@@ -8,6 +8,7 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 #[derive(clap::Args)]
+#[command(after_help = "Example:\n  agentstar validate cap")]
 pub struct Args {
     /// The capture directory (holding capture.json).
     capture: PathBuf,
