@@ -12,7 +12,7 @@ pub mod suite;
 pub mod table;
 pub mod tolerance;
 
-pub use run::{run_sequence, Method, RunConfig, RunInfo, SequenceResult};
+pub use run::{run_sequence, run_sequence_observed, Method, RunConfig, RunInfo, SequenceResult};
 pub use suite::{suite, SequenceSpec};
 
 #[derive(Debug, thiserror::Error)]

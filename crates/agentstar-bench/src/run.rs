@@ -6,7 +6,7 @@ use agentstar_data::gt::{model_ground_truth, GroundTruth};
 use agentstar_eval::sequence::{evaluate, EvalConfig, GtSequence, PredSequence, SequenceMetrics};
 use agentstar_render::ScoreTarget;
 use agentstar_synth::SynthCapture;
-use agentstar_track::tracker::{track, track_independent, TrackConfig, TrackFrame};
+use agentstar_track::tracker::{track_independent, track_observed, TrackConfig, TrackFrame};
 use agentstar_track::GenPose;
 use serde::{Deserialize, Serialize};
 use std::time::Instant;
@@ -194,6 +194,16 @@ pub fn run_sequence(
     method: Method,
     cfg: &RunConfig,
 ) -> Result<(SequenceResult, Vec<GenPose>), BenchError> {
+    run_sequence_observed(capture, method, cfg, &|_| {})
+}
+
+/// [`run_sequence`], handing each line of the tracker's log to `observe` as it is written.
+pub fn run_sequence_observed(
+    capture: &SynthCapture,
+    method: Method,
+    cfg: &RunConfig,
+    observe: &(dyn Fn(&str) + Sync),
+) -> Result<(SequenceResult, Vec<GenPose>), BenchError> {
     let id = capture.id();
     let targets: Vec<ScoreTarget> = capture
         .frames
@@ -221,7 +231,7 @@ pub fn run_sequence(
     let t0 = Instant::now();
     let tracked = match method {
         Method::Tracker | Method::NoTemporal => {
-            track(&capture.model, capture.scale, &frames, &tcfg)
+            track_observed(&capture.model, capture.scale, &frames, &tcfg, observe)
         }
         Method::VlmFree => track_independent(
             &capture.model,
@@ -229,6 +239,7 @@ pub fn run_sequence(
             &frames,
             &tcfg,
             cfg.vlm_free_evals,
+            observe,
         ),
     }
     .map_err(|source| BenchError::Track {

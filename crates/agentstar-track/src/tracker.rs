@@ -455,6 +455,19 @@ fn best_of(
     Ok(best)
 }
 
+/// What the tracker did, line by line, also handed to an observer as it happens (progress).
+struct Log<'o> {
+    lines: Vec<String>,
+    observe: &'o (dyn Fn(&str) + Sync),
+}
+
+impl Log<'_> {
+    fn push(&mut self, line: String) {
+        (self.observe)(&line);
+        self.lines.push(line);
+    }
+}
+
 /// Tracks every frame. `scale` is the shared object scale (from the pose file or known).
 pub fn track(
     model: &ObjectModel,
@@ -462,8 +475,23 @@ pub fn track(
     frames: &[TrackFrame<'_>],
     cfg: &TrackConfig,
 ) -> Result<TrackResult, TrackError> {
+    track_observed(model, scale, frames, cfg, &|_| {})
+}
+
+/// [`track`], calling `observe` with each line of the log as the tracker writes it (one per
+/// frame tracked, one per frame searched again).
+pub fn track_observed(
+    model: &ObjectModel,
+    scale: f64,
+    frames: &[TrackFrame<'_>],
+    cfg: &TrackConfig,
+    observe: &(dyn Fn(&str) + Sync),
+) -> Result<TrackResult, TrackError> {
     let s = Searcher::new(model, scale, frames, cfg)?;
-    let mut log = Vec::new();
+    let mut log = Log {
+        lines: Vec::new(),
+        observe,
+    };
     // The frame with the most visible mask.
     let init = match cfg.init_frame {
         Some(i) if i < frames.len() => i,
@@ -628,7 +656,7 @@ pub fn track(
         poses,
         scores,
         init_frame: init,
-        log,
+        log: log.lines,
         evaluations: s.evals.into_inner(),
     })
 }
@@ -641,7 +669,7 @@ fn consistency(
     frames: &[TrackFrame<'_>],
     poses: &mut [GenPose],
     scores: &mut [f64],
-    log: &mut Vec<String>,
+    log: &mut Log<'_>,
 ) -> Result<(), TrackError> {
     let n = frames.len();
     let tree = &s.model.tree;
@@ -747,19 +775,24 @@ fn consistency(
 /// evolution over the whole pose space (every rotation, the joints' full ranges, ±10% of the
 /// image around the mask, ±30% in depth) from an uninformed start (identity rotation, joints
 /// at rest, placed on the mask by centroid and area), then the tracker's local refinement of
-/// the winner. No neighbour, no temporal pass. `evals_per_frame` bounds the global search.
+/// the winner. No neighbour, no temporal pass. `evals_per_frame` bounds the global search;
+/// `observe` receives each frame's log line as it is written.
 pub fn track_independent(
     model: &ObjectModel,
     scale: f64,
     frames: &[TrackFrame<'_>],
     cfg: &TrackConfig,
     evals_per_frame: usize,
+    observe: &(dyn Fn(&str) + Sync),
 ) -> Result<TrackResult, TrackError> {
     let s = Searcher::new(model, scale, frames, cfg)?;
     let rest = model.tree.rest_states();
     let mut poses = Vec::with_capacity(frames.len());
     let mut scores = Vec::with_capacity(frames.len());
-    let mut log = Vec::new();
+    let mut log = Log {
+        lines: Vec::new(),
+        observe,
+    };
     for (i, frame) in frames.iter().enumerate() {
         let Some(stats) = mask_stats(frame.target) else {
             return Err(TrackError::Invalid(format!(
@@ -850,7 +883,7 @@ pub fn track_independent(
         poses,
         scores,
         init_frame: 0,
-        log,
+        log: log.lines,
         evaluations: s.evals.into_inner(),
     })
 }

@@ -250,3 +250,19 @@ pub fn out_dir(dir: &Path) -> Result<PathBuf> {
 
 /// The gate every keyframe must reach.
 pub const PASS_IOU: f64 = 0.98;
+
+/// A progress bar on stderr (drawn only when stderr is a terminal, so logs and pipes stay
+/// clean) for `len` steps of `what`.
+pub fn progress(len: usize, what: &str) -> indicatif::ProgressBar {
+    let bar = indicatif::ProgressBar::with_draw_target(
+        Some(len as u64),
+        indicatif::ProgressDrawTarget::stderr(),
+    );
+    if let Ok(style) = indicatif::ProgressStyle::with_template(
+        "{prefix} [{bar:30}] {pos}/{len} {elapsed_precise} {msg}",
+    ) {
+        bar.set_style(style.progress_chars("=> "));
+    }
+    bar.set_prefix(what.to_string());
+    bar
+}

@@ -7,7 +7,7 @@ use crate::common::{print_json, write_tracked_poses};
 use agentstar_bench::suite::SUITES;
 use agentstar_bench::table::tables;
 use agentstar_bench::tolerance::{check, record, ToleranceFile};
-use agentstar_bench::{run_sequence, suite, Method, RunConfig, SequenceResult};
+use agentstar_bench::{run_sequence_observed, suite, Method, RunConfig, SequenceResult};
 use anyhow::{anyhow, bail, Context, Result};
 use serde_json::json;
 use std::path::PathBuf;
@@ -141,6 +141,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
     };
     let mut results: Vec<SequenceResult> = Vec::new();
     let total = specs.len() * methods.len();
+    let bar = crate::common::progress(total, "bench");
     for spec in &specs {
         let capture = agentstar_synth::synthesize(&spec.synth)?;
         let id = capture.id();
@@ -149,20 +150,28 @@ pub fn run(a: Args) -> Result<ExitCode> {
                 .with_context(|| format!("writing {id}"))?;
         }
         for &method in &methods {
-            eprintln!(
-                "bench [{}/{total}] {id} with {} …",
-                results.len() + 1,
-                method.as_str()
-            );
-            let (r, poses) = run_sequence(&capture, method, &cfg)?;
-            eprintln!(
-                "bench   {:.1} s, IoU mean {:.4}, EPE {} cm, rot. median {} °",
-                r.seconds,
-                r.iou_mean,
-                r.epe_cm.map_or("–".into(), |v| format!("{v:.2}")),
-                r.rotation_median_deg
-                    .map_or("–".into(), |v| format!("{v:.2}"))
-            );
+            bar.suspend(|| {
+                eprintln!(
+                    "bench [{}/{total}] {id} with {} …",
+                    results.len() + 1,
+                    method.as_str()
+                )
+            });
+            bar.set_message(format!("{id} ({})", method.as_str()));
+            let (r, poses) = run_sequence_observed(&capture, method, &cfg, &|line: &str| {
+                bar.set_message(format!("{id}: {line}"))
+            })?;
+            bar.inc(1);
+            bar.suspend(|| {
+                eprintln!(
+                    "bench   {:.1} s, IoU mean {:.4}, EPE {} cm, rot. median {} °",
+                    r.seconds,
+                    r.iou_mean,
+                    r.epe_cm.map_or("–".into(), |v| format!("{v:.2}")),
+                    r.rotation_median_deg
+                        .map_or("–".into(), |v| format!("{v:.2}"))
+                )
+            });
             if let Some(out) = &a.out {
                 let cap_dir = out.join(&id).join("capture");
                 let cap = crate::common::open_capture(&cap_dir)?;
@@ -177,6 +186,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
             results.push(r);
         }
     }
+    bar.finish_and_clear();
     let md = tables(&results, a.per_sequence);
     let header = format!(
         "## agentstar bench: {} suite, {} sequence(s), methods {}\n\nRecorded {} on {}.\n\n",

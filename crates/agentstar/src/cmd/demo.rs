@@ -5,7 +5,7 @@
 use crate::cmd::synth::{describe, write_synth};
 use crate::common::{print_json, write_tracked_poses};
 use agentstar_bench::table::result_table;
-use agentstar_bench::{run_sequence, Method, RunConfig};
+use agentstar_bench::{run_sequence_observed, Method, RunConfig};
 use agentstar_synth::{synthesize, SynthConfig};
 use anyhow::{bail, Context, Result};
 use serde_json::json;
@@ -66,7 +66,19 @@ pub fn run(a: Args) -> Result<ExitCode> {
     write_synth(&cap_dir, &capture)?;
     eprintln!("demo: synthesised {}", describe(&capture));
     eprintln!("demo: tracking with the known model …");
-    let (r, poses) = run_sequence(&capture, Method::Tracker, &RunConfig::default())?;
+    let bar = crate::common::progress(capture.frames.len(), "track");
+    let (r, poses) = run_sequence_observed(
+        &capture,
+        Method::Tracker,
+        &RunConfig::default(),
+        &|line: &str| {
+            if bar.position() < bar.length().unwrap_or(0) {
+                bar.inc(1);
+            }
+            bar.set_message(line.to_string());
+        },
+    )?;
+    bar.finish_and_clear();
     let run_dir = out.join("run");
     let scene = run_dir.join("scene.rhai");
     agentstar_data::atomic::write_atomic(&scene, capture.object.script.as_bytes())?;

@@ -160,6 +160,7 @@ fn run_batch(a: &Args, path: &Path) -> Result<ExitCode> {
     }
     let base = path.parent().unwrap_or(Path::new("."));
     let mut results = Vec::with_capacity(entries.len());
+    let bar = crate::common::progress(entries.len(), "eval");
     for (i, e) in entries.iter().enumerate() {
         let (capture, model, poses) = (
             base.join(&e.capture),
@@ -171,7 +172,7 @@ fn run_batch(a: &Args, path: &Path) -> Result<ExitCode> {
         let gt =
             e.gt.as_ref()
                 .map_or_else(|| capture.join("gt.json"), |g| base.join(g));
-        eprintln!("eval [{}/{}] {}", i + 1, entries.len(), capture.display());
+        bar.suspend(|| eprintln!("eval [{}/{}] {}", i + 1, entries.len(), capture.display()));
         results.push(
             result_of(
                 &s,

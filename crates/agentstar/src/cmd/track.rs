@@ -5,7 +5,7 @@ use crate::cmd::score::{print_table, summarise};
 use crate::common::{open_capture, open_model, print_json, write_tracked_poses, Session, PASS_IOU};
 use agentstar_data::posefile::PoseFile;
 use agentstar_render::ScoreTarget;
-use agentstar_track::tracker::{track, TrackConfig, TrackFrame};
+use agentstar_track::tracker::{track_observed, TrackConfig, TrackFrame};
 use anyhow::{anyhow, bail, Result};
 use serde_json::json;
 use std::path::PathBuf;
@@ -78,11 +78,15 @@ pub fn run(a: Args) -> Result<ExitCode> {
         ..TrackConfig::default()
     };
     let t0 = std::time::Instant::now();
-    let r = track(&model.model, scale, &frames, &cfg)?;
+    let bar = crate::common::progress(frames.len(), "track");
+    let r = track_observed(&model.model, scale, &frames, &cfg, &|line: &str| {
+        if bar.position() < bar.length().unwrap_or(0) {
+            bar.inc(1);
+        }
+        bar.suspend(|| eprintln!("track: {line}"));
+    })?;
+    bar.finish_and_clear();
     let seconds = t0.elapsed().as_secs_f64();
-    for line in &r.log {
-        eprintln!("track: {line}");
-    }
     write_tracked_poses(&capture, &model.model.tree, scale, &r.poses, &a.out)?;
     let s = Session::open(&a.capture, &a.model, &a.out)
         .map_err(|e| anyhow!("re-reading the written poses: {e}"))?;
