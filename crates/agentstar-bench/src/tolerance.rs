@@ -80,31 +80,19 @@ pub fn check(results: &[SequenceResult], file: &ToleranceFile) -> Vec<String> {
             ));
             continue;
         };
-        for (name, bound) in &t.max {
-            match r.metric(name) {
-                Some(v) if v <= *bound => {}
-                Some(v) => out.push(format!(
-                    "{} ({}): {name} = {v:.4} exceeds its bound {bound:.4}",
-                    t.id, t.method
-                )),
-                None => out.push(format!(
-                    "{} ({}): {name} was not computed (bound {bound:.4})",
-                    t.id, t.method
-                )),
-            }
-        }
-        for (name, bound) in &t.min {
-            match r.metric(name) {
-                Some(v) if v >= *bound => {}
-                Some(v) => out.push(format!(
-                    "{} ({}): {name} = {v:.4} is under its bound {bound:.4}",
-                    t.id, t.method
-                )),
-                None => out.push(format!(
-                    "{} ({}): {name} was not computed (bound {bound:.4})",
-                    t.id, t.method
-                )),
-            }
+        let bounds = t.max.iter().map(|(n, b)| (n, b, true));
+        for (name, bound, upper) in bounds.chain(t.min.iter().map(|(n, b)| (n, b, false))) {
+            let broken = match r.metric(name) {
+                Some(v) if upper && v > *bound => {
+                    format!("{name} = {v:.4} exceeds its bound {bound:.4}")
+                }
+                Some(v) if !upper && v < *bound => {
+                    format!("{name} = {v:.4} is under its bound {bound:.4}")
+                }
+                Some(_) => continue,
+                None => format!("{name} was not computed (bound {bound:.4})"),
+            };
+            out.push(format!("{} ({}): {broken}", t.id, t.method));
         }
     }
     out

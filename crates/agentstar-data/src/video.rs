@@ -146,10 +146,11 @@ pub fn import_video(cfg: &VideoImport, out: &Path) -> Result<usize> {
         Some(h) => images_in(h)?,
         None => vec![],
     };
+    // A camera set read from a file, or the static source itself.
     let cams: Option<CameraSet> = match &cfg.cameras {
         CameraSource::Colmap(d) => Some(read_colmap(d)?),
         CameraSource::Nerfstudio(p) => Some(read_nerfstudio(p)?),
-        _ => None,
+        CameraSource::Static(_) | CameraSource::Fov(_) => None,
     };
     struct Row {
         name: String,
@@ -193,14 +194,8 @@ pub fn import_video(cfg: &VideoImport, out: &Path) -> Result<usize> {
             Some(p) if cfg.hands.is_some() => Some(load_mask(p)?),
             _ => None,
         };
-        let (camera, c2w) = match (&cfg.cameras, &cams) {
-            (CameraSource::Static(k), _) => (
-                PinholeCamera::new(k[0], k[1], k[2], k[3], w, h)
-                    .map_err(|e| DataError::invalid(path, e.to_string()))?,
-                Rigid::identity(),
-            ),
-            (CameraSource::Fov(deg), _) => (PinholeCamera::with_fov(*deg, w, h), Rigid::identity()),
-            (_, Some(set)) => {
+        let (camera, c2w) = match (&cams, &cfg.cameras) {
+            (Some(set), _) => {
                 let c = set.by_stem.get(&s).ok_or_else(|| {
                     DataError::invalid(path, format!("the camera source has no image named {s}.*"))
                 })?;
@@ -211,7 +206,17 @@ pub fn import_video(cfg: &VideoImport, out: &Path) -> Result<usize> {
                     c.world_from_camera,
                 )
             }
-            (_, None) => unreachable_source(path)?,
+            (None, CameraSource::Fov(deg)) => {
+                (PinholeCamera::with_fov(*deg, w, h), Rigid::identity())
+            }
+            (None, CameraSource::Static(k)) => (
+                PinholeCamera::new(k[0], k[1], k[2], k[3], w, h)
+                    .map_err(|e| DataError::invalid(path, e.to_string()))?,
+                Rigid::identity(),
+            ),
+            (None, CameraSource::Colmap(_) | CameraSource::Nerfstudio(_)) => {
+                return Err(DataError::invalid(path, "no camera source was read"))
+            }
         };
         rows.push(Row {
             name: format!("{index:06}.png"),
@@ -252,8 +257,4 @@ pub fn import_video(cfg: &VideoImport, out: &Path) -> Result<usize> {
     };
     write_capture(out, &frames, &info, |_| Ok(()))?;
     Ok(rows.len())
-}
-
-fn unreachable_source(path: &Path) -> Result<(PinholeCamera, Rigid)> {
-    Err(DataError::invalid(path, "no camera source was read"))
 }

@@ -317,10 +317,6 @@ pub fn synthesize(cfg: &SynthConfig) -> Result<SynthCapture, SynthError> {
     }
     let symmetries = match spec.symmetry {
         Symmetry::None => vec![],
-        Symmetry::HalfTurnZ => vec![UnitQuaternion::from_axis_angle(
-            &Vector3::z_axis(),
-            std::f64::consts::PI,
-        )],
         Symmetry::ContinuousZ => (1..12)
             .map(|i| {
                 UnitQuaternion::from_axis_angle(&Vector3::z_axis(), (30.0 * i as f64).to_radians())

@@ -22,11 +22,6 @@ impl Family {
             Family::Itaco => "itaco",
         }
     }
-    pub fn parse(s: &str) -> Option<Family> {
-        [Family::Arctic, Family::Hot3d, Family::Itaco]
-            .into_iter()
-            .find(|f| f.as_str() == s)
-    }
 }
 
 /// A rotational symmetry of an object's canonical frame.
@@ -34,10 +29,8 @@ impl Family {
 pub enum Symmetry {
     /// None known.
     None,
-    /// Any rotation about canonical +Z (listed in `gt.json` as `samples` rotations).
+    /// Any rotation about canonical +Z (listed in `gt.json` as rotations every 30°).
     ContinuousZ,
-    /// A half turn about canonical +Z.
-    HalfTurnZ,
 }
 
 /// One object of the library.

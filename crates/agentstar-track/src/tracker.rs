@@ -333,6 +333,26 @@ impl<'m> Searcher<'m> {
         Ok((best, best_score))
     }
 
+    /// The narrow refinement around a pose that is already close (12°, 4% of the image,
+    /// 8% in depth, 20° of joint), with half the local budget.
+    fn polish(
+        &self,
+        frame: &TrackFrame<'_>,
+        base: &GenPose,
+        seed: u64,
+    ) -> Result<(GenPose, f64), TrackError> {
+        self.refine(
+            frame,
+            base,
+            12.0,
+            0.04,
+            0.08,
+            20.0,
+            self.cfg.local_evals / 2,
+            seed,
+        )
+    }
+
     fn joint_grid(&self) -> Vec<Vec<f64>> {
         let tree = &self.model.tree;
         let mut combos: Vec<Vec<f64>> = vec![tree.rest_states()];
@@ -740,14 +760,9 @@ fn consistency(
                 .par_iter()
                 .enumerate()
                 .map(|(k, g)| {
-                    s.refine(
+                    s.polish(
                         &frames[i],
                         g,
-                        12.0,
-                        0.04,
-                        0.08,
-                        20.0,
-                        s.cfg.local_evals / 2,
                         s.cfg.seed + 65537 * (i as u64 + 1) + 97 * round + k as u64,
                     )
                 })
@@ -857,16 +872,7 @@ pub fn track_independent(
             .into_iter()
             .next()
             .ok_or_else(|| TrackError::Invalid("empty search".into()))?;
-        let (g, sc) = s.refine(
-            frame,
-            &top.pose,
-            12.0,
-            0.04,
-            0.08,
-            20.0,
-            cfg.local_evals / 2,
-            cfg.seed + 104_729 * (i as u64 + 1),
-        )?;
+        let (g, sc) = s.polish(frame, &top.pose, cfg.seed + 104_729 * (i as u64 + 1))?;
         let (g, sc) = if sc >= top.score.combined {
             (g, sc)
         } else {

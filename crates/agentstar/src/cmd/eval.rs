@@ -112,6 +112,7 @@ fn family_of(s: &Session, given: Option<&str>) -> Result<String> {
 fn result_of(
     s: &Session,
     capture: &Path,
+    model: &Path,
     gt_path: &Path,
     label: &str,
     family: Option<&str>,
@@ -128,12 +129,10 @@ fn result_of(
     let r = SequenceResult::from_metrics(
         RunInfo {
             id,
-            object: s
-                .model
-                .model
-                .parts
-                .first()
-                .map_or(String::new(), |p| p.name.clone()),
+            // The model file names the object (a scene's first part is only a part).
+            object: model
+                .file_stem()
+                .map_or(String::new(), |n| n.to_string_lossy().into_owned()),
             family: family_of(s, family)?,
             motion: String::new(),
             method: label.to_string(),
@@ -177,6 +176,7 @@ fn run_batch(a: &Args, path: &Path) -> Result<ExitCode> {
             result_of(
                 &s,
                 &capture,
+                &model,
                 &gt,
                 e.label.as_deref().unwrap_or("run"),
                 e.family.as_deref(),
@@ -208,7 +208,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
     };
     let s = session.open()?;
     let gt_path = a.gt.clone().unwrap_or_else(|| capture.join("gt.json"));
-    let (r, m) = result_of(&s, capture, &gt_path, "run", None, a.samples)?;
+    let (r, m) = result_of(&s, capture, model, &gt_path, "run", None, a.samples)?;
     if a.json {
         let rigid = m.rigid.as_ref();
         print_json(&json!({
