@@ -10,9 +10,9 @@
 //! continuous symmetries of `models_info.json` become `gt.json` symmetries (continuous ones
 //! sampled every 30°).
 
-use crate::capture_writer::{write_capture, CaptureInfo, FrameOut};
-use crate::gt::{GroundTruth, GtFile, GtFrame, GtPartFile, GtPose, FORMAT};
+use crate::capture_writer::CaptureInfo;
 use crate::images::{load_mask, load_rgb};
+use crate::import_common::{write_rows, GtModel, Row};
 use crate::meshio::load_mesh;
 use crate::{read_text, DataError, Result};
 use agentstar_geom::pose::{quat_to_wxyz, Rigid};
@@ -134,17 +134,6 @@ pub fn import_bop(cfg: &BopImport, out: &Path) -> Result<usize> {
     let model_path = cfg.models.join(format!("obj_{:06}.ply", cfg.obj_id));
     let mesh_mm = load_mesh(&model_path)?;
     let mesh_m = mesh_mm.transformed(&(Matrix3::identity() * 0.001), &Vector3::zeros());
-    struct Row {
-        name: String,
-        id: u64,
-        camera: PinholeCamera,
-        c2w: Rigid,
-        rgb: image::RgbImage,
-        mask: agentstar_render::BitMask,
-        occluders: Option<agentstar_render::BitMask>,
-        depth: Option<Vec<f32>>,
-        pose: (UnitQuaternion, Vector3),
-    }
     let mut rows: Vec<Row> = vec![];
     let mut kept = 0usize;
     for id in ids {
@@ -230,14 +219,16 @@ pub fn import_bop(cfg: &BopImport, out: &Path) -> Result<usize> {
         let t = Vector3::new(e.cam_t_m2c[0], e.cam_t_m2c[1], e.cam_t_m2c[2]) * 0.001;
         rows.push(Row {
             name: format!("{stem}.png"),
-            id,
+            frame_index: Some(id as i64),
+            time_s: None,
             camera,
-            c2w,
+            world_from_camera: c2w,
             rgb,
             mask,
-            occluders,
-            depth,
-            pose: (q, t),
+            hand: occluders,
+            depth_m: depth,
+            parts: BTreeMap::from([("object".to_string(), Rigid::from_parts(t.into(), q))]),
+            states: BTreeMap::new(),
         });
     }
     if rows.is_empty() {
@@ -246,61 +237,17 @@ pub fn import_bop(cfg: &BopImport, out: &Path) -> Result<usize> {
             format!("no image holds object {}", cfg.obj_id),
         ));
     }
-    let frames: Vec<FrameOut<'_>> = rows
-        .iter()
-        .map(|r| FrameOut {
-            name: &r.name,
-            frame_index: Some(r.id as i64),
-            time_s: None,
-            camera: &r.camera,
-            world_from_camera: &r.c2w,
-            rgb: &r.rgb,
-            mask: &r.mask,
-            hand: r.occluders.as_ref(),
-            depth_m: r.depth.as_deref(),
-        })
-        .collect();
     let info = CaptureInfo {
         dataset: Some("bop".into()),
         source: Some(serde_json::json!({"producer": "agentstar capture from-bop",
             "scene": cfg.scene, "obj_id": cfg.obj_id, "every": cfg.every})),
     };
-    let symmetries = symmetries(&cfg.models, cfg.obj_id)?;
-    write_capture(out, &frames, &info, |root| {
-        let part = "object".to_string();
-        let file = GtFile {
-            format: FORMAT.into(),
-            units: "m".into(),
-            base_part: part.clone(),
-            parts: BTreeMap::from([(
-                part.clone(),
-                GtPartFile {
-                    mesh: "gt_meshes/object.obj".into(),
-                },
-            )]),
-            frames: rows
-                .iter()
-                .map(|r| {
-                    let mut f = GtFrame::default();
-                    f.parts.insert(
-                        part.clone(),
-                        GtPose {
-                            quaternion: quat_to_wxyz(&r.pose.0),
-                            translation: r.pose.1.into(),
-                        },
-                    );
-                    (r.name.clone(), f)
-                })
-                .collect(),
-            joints: vec![],
-            symmetries: symmetries.clone(),
-        };
-        GroundTruth::from_parts(
-            &root.join("gt.json"),
-            file,
-            BTreeMap::from([(part.clone(), mesh_m.clone())]),
-        )
-        .write(root)
-    })?;
+    let model = GtModel {
+        base_part: "object".into(),
+        meshes: BTreeMap::from([("object".to_string(), mesh_m)]),
+        joints: vec![],
+        symmetries: symmetries(&cfg.models, cfg.obj_id)?,
+    };
+    write_rows(out, &rows, &info, &model)?;
     Ok(rows.len())
 }

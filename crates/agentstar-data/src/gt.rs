@@ -258,3 +258,27 @@ impl GroundTruth {
         crate::atomic::write_json(&dir.join("gt.json"), &self.file)
     }
 }
+
+/// The silhouette of ground-truth parts: each mesh with its `camera_from_part` pose. Used by
+/// importers whose datasets ship no masks (the mask is then the whole object, hands not cut
+/// out).
+pub fn render_parts_mask(
+    camera: &agentstar_geom::PinholeCamera,
+    parts: &[(&TriMesh, agentstar_geom::pose::Rigid)],
+) -> agentstar_render::BitMask {
+    use agentstar_geom::pose::Similarity;
+    use agentstar_render::{Affine, Instance, SilhouetteRenderer};
+    let instances: Vec<Instance<'_>> = parts
+        .iter()
+        .enumerate()
+        .map(|(i, (mesh, camera_from_part))| Instance {
+            mesh,
+            bounds: mesh.bounds(),
+            camera_from_mesh: Affine::from_similarity(&Similarity::from_rigid(camera_from_part)),
+            edges: None,
+            part_id: i as u16,
+        })
+        .collect();
+    let mut r = SilhouetteRenderer::new(camera.width, camera.height);
+    r.render(camera, &instances).clone()
+}

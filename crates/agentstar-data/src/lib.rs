@@ -6,6 +6,7 @@
 //! half-written file behind. Bad input is reported with the file and what is wrong.
 
 pub mod animation;
+pub mod arctic;
 pub mod atomic;
 pub mod bop;
 pub mod cameras;
@@ -13,7 +14,9 @@ pub mod capture;
 pub mod capture_writer;
 pub mod export;
 pub mod gt;
+pub mod hot3d;
 pub mod images;
+mod import_common;
 pub mod meshio;
 pub mod npz;
 pub mod posefile;

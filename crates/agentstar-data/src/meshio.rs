@@ -275,19 +275,29 @@ pub fn parse_ply(bytes: &[u8]) -> Result<TriMesh, String> {
 /// Reads a binary glTF: one mesh per root node (its subtree merged), named after the node,
 /// converted to the canonical Z-up frame. Sorted as in the file.
 pub fn parse_glb(bytes: &[u8]) -> Result<Vec<(String, TriMesh)>, String> {
+    let y_up_to_z_up = Matrix4::new(
+        1.0, 0.0, 0.0, 0.0, 0.0, 0.0, -1.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0,
+    );
+    parse_glb_from(bytes, y_up_to_z_up)
+}
+
+/// Reads a binary glTF as [`parse_glb`] does but keeps the file's own coordinates (no Y-up
+/// to Z-up turn): for datasets whose poses refer to the model as stored (HOT3D).
+pub fn parse_glb_file_frame(bytes: &[u8]) -> Result<Vec<(String, TriMesh)>, String> {
+    parse_glb_from(bytes, Matrix4::identity())
+}
+
+fn parse_glb_from(bytes: &[u8], root_from_file: Matrix4) -> Result<Vec<(String, TriMesh)>, String> {
     let gltf = gltf::Gltf::from_slice(bytes).map_err(|e| format!("not a valid GLB file: {e}"))?;
     let blob = gltf.blob.as_deref();
     let scene = gltf
         .default_scene()
         .or_else(|| gltf.scenes().next())
         .ok_or("the GLB file has no scene")?;
-    let y_up_to_z_up = Matrix4::new(
-        1.0, 0.0, 0.0, 0.0, 0.0, 0.0, -1.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0,
-    );
     let mut parts = Vec::new();
     for (i, root) in scene.nodes().enumerate() {
         let mut mesh = TriMesh::default();
-        let mut stack = vec![(root.clone(), y_up_to_z_up)];
+        let mut stack = vec![(root.clone(), root_from_file)];
         while let Some((node, parent)) = stack.pop() {
             let local = Matrix4::from_fn(|r, c| node.transform().matrix()[c][r] as f64);
             let world = parent * local;

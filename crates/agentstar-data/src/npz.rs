@@ -28,70 +28,82 @@ pub fn read_arrays(path: &Path, names: &[&str]) -> Result<Vec<(String, Array)>> 
                 ))
             }
         };
-        let shape: Vec<usize> = file.shape().iter().map(|&s| s as usize).collect();
-        let dtype = file.dtype();
-        let descr = dtype.descr();
-        let bad =
-            |e: std::io::Error| DataError::invalid(path, format!("array `{name}` ({descr}): {e}"));
-        let data: Vec<f64> = match descr
-            .trim_matches('\'')
-            .trim_start_matches(['<', '>', '|', '='])
-        {
-            "f8" => file.into_vec::<f64>().map_err(bad)?,
-            "f4" => file
-                .into_vec::<f32>()
-                .map_err(bad)?
-                .into_iter()
-                .map(f64::from)
-                .collect(),
-            "i8" => file
-                .into_vec::<i64>()
-                .map_err(bad)?
-                .into_iter()
-                .map(|v| v as f64)
-                .collect(),
-            "i4" => file
-                .into_vec::<i32>()
-                .map_err(bad)?
-                .into_iter()
-                .map(f64::from)
-                .collect(),
-            "u8" => file
-                .into_vec::<u64>()
-                .map_err(bad)?
-                .into_iter()
-                .map(|v| v as f64)
-                .collect(),
-            "u4" => file
-                .into_vec::<u32>()
-                .map_err(bad)?
-                .into_iter()
-                .map(f64::from)
-                .collect(),
-            "u1" => file
-                .into_vec::<u8>()
-                .map_err(bad)?
-                .into_iter()
-                .map(f64::from)
-                .collect(),
-            "b1" => file
-                .into_vec::<bool>()
-                .map_err(bad)?
-                .into_iter()
-                .map(|b| if b { 1.0 } else { 0.0 })
-                .collect(),
-            other => {
-                return Err(DataError::invalid(
-                    path,
-                    format!(
-                    "array `{name}` has unsupported dtype `{other}` (expected float or integer)"
-                ),
-                ))
-            }
-        };
-        out.push((name.to_string(), Array { shape, data }));
+        out.push((name.to_string(), to_array(file, path, name)?));
     }
     Ok(out)
+}
+
+/// Reads a single-array `.npy` file.
+pub fn read_npy(path: &Path) -> Result<Array> {
+    let bytes = crate::read_bytes(path)?;
+    let file = npyz::NpyFile::new(&bytes[..])
+        .map_err(|e| DataError::invalid(path, format!("not a readable .npy file: {e}")))?;
+    to_array(file, path, "array")
+}
+
+fn to_array<R: std::io::Read>(file: npyz::NpyFile<R>, path: &Path, name: &str) -> Result<Array> {
+    let shape: Vec<usize> = file.shape().iter().map(|&s| s as usize).collect();
+    let dtype = file.dtype();
+    let descr = dtype.descr();
+    let bad =
+        |e: std::io::Error| DataError::invalid(path, format!("array `{name}` ({descr}): {e}"));
+    let data: Vec<f64> = match descr
+        .trim_matches('\'')
+        .trim_start_matches(['<', '>', '|', '='])
+    {
+        "f8" => file.into_vec::<f64>().map_err(bad)?,
+        "f4" => file
+            .into_vec::<f32>()
+            .map_err(bad)?
+            .into_iter()
+            .map(f64::from)
+            .collect(),
+        "i8" => file
+            .into_vec::<i64>()
+            .map_err(bad)?
+            .into_iter()
+            .map(|v| v as f64)
+            .collect(),
+        "i4" => file
+            .into_vec::<i32>()
+            .map_err(bad)?
+            .into_iter()
+            .map(f64::from)
+            .collect(),
+        "u8" => file
+            .into_vec::<u64>()
+            .map_err(bad)?
+            .into_iter()
+            .map(|v| v as f64)
+            .collect(),
+        "u4" => file
+            .into_vec::<u32>()
+            .map_err(bad)?
+            .into_iter()
+            .map(f64::from)
+            .collect(),
+        "u1" => file
+            .into_vec::<u8>()
+            .map_err(bad)?
+            .into_iter()
+            .map(f64::from)
+            .collect(),
+        "b1" => file
+            .into_vec::<bool>()
+            .map_err(bad)?
+            .into_iter()
+            .map(|b| if b { 1.0 } else { 0.0 })
+            .collect(),
+        other => {
+            return Err(DataError::invalid(
+                path,
+                format!(
+                    "array `{name}` has unsupported dtype `{other}` (expected float or integer)"
+                ),
+            ))
+        }
+    };
+    Ok(Array { shape, data })
 }
 
 /// Writes `f32` arrays (cameras and point maps) and `i64` arrays into a new archive, atomically.

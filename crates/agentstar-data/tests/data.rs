@@ -926,3 +926,318 @@ fn frames_with_colmap_binary_text_and_nerfstudio_cameras_import() {
         "{e}"
     );
 }
+
+/// Centroid of a mask, in pixels.
+fn mask_centroid(m: &agentstar_render::BitMask) -> (f64, f64) {
+    let (mut sx, mut sy, mut n) = (0.0, 0.0, 0.0);
+    for y in 0..m.height() {
+        for x in 0..m.width() {
+            if m.get(x, y) {
+                sx += x as f64 + 0.5;
+                sy += y as f64 + 0.5;
+                n += 1.0;
+            }
+        }
+    }
+    assert!(n > 0.0, "empty mask");
+    (sx / n, sy / n)
+}
+
+fn rigid(axis: [f64; 3], angle_deg: f64, t: [f64; 3]) -> agentstar_geom::pose::Rigid {
+    agentstar_geom::pose::Rigid::from_parts(
+        Vector3::new(t[0], t[1], t[2]).into(),
+        UnitQuaternion::from_axis_angle(
+            &nalgebra::Unit::new_normalize(Vector3::new(axis[0], axis[1], axis[2])),
+            angle_deg.to_radians(),
+        ),
+    )
+}
+
+fn csv_row(uid: &str, t: u64, p: &agentstar_geom::pose::Rigid) -> String {
+    let q = p.rotation;
+    let v = p.translation.vector;
+    // Columns in an order other than the documented one: found by name.
+    format!(
+        "{},{},{},{},{},{},{},{},{}\n",
+        t, uid, q.w, q.i, q.j, q.k, v.x, v.y, v.z
+    )
+}
+
+#[test]
+fn a_hot3d_sequence_imports_with_headset_cameras_and_nearest_poses() {
+    use agentstar_data::hot3d::{import_hot3d, Hot3dImport};
+    let dir = tempfile::tempdir().expect("tmp");
+    let root = dir.path();
+    let seq = root.join("seq");
+    let models = root.join("object_models");
+    let frames = root.join("frames");
+    for d in [&seq, &models, &frames] {
+        std::fs::create_dir_all(d).expect("mkdir");
+    }
+    // A 12 × 6 × 4 cm box written as the object library's GLB.
+    std::fs::write(
+        root.join("s.rhai"),
+        "part(\"body\", box(0.12, 0.06, 0.04));",
+    )
+    .expect("w");
+    let model = load_scene_script(&root.join("s.rhai"), &Default::default())
+        .expect("model")
+        .model;
+    std::fs::write(models.join("1234.glb"), glb_bytes(&model)).expect("glb");
+    let header =
+        "timestamp[ns],object_uid,q_wo_w,q_wo_x,q_wo_y,q_wo_z,t_wo_x[m],t_wo_y[m],t_wo_z[m]\n";
+    let device_from_camera = rigid([0.0, 1.0, 0.0], 5.0, [0.01, -0.02, 0.0]);
+    let (mut objects, mut headset) = (header.to_string(), header.to_string());
+    let mut truth = vec![];
+    for k in 0..4u64 {
+        let t = 1_000_000_000 + k * 33_333_333;
+        let world_from_object = rigid(
+            [0.2, 1.0, 0.1],
+            20.0 * k as f64,
+            [0.05 * k as f64, 0.0, 0.6],
+        );
+        let world_from_device = rigid([1.0, 0.0, 0.0], 3.0 * k as f64, [0.0, 0.01 * k as f64, 0.0]);
+        objects += &csv_row("1234", t, &world_from_object);
+        objects += &csv_row("999", t, &rigid([0.0, 0.0, 1.0], 0.0, [9.0, 9.0, 9.0]));
+        // Headset poses 2 ms off the frame times: the nearest is taken.
+        headset += &csv_row("headset", t + 2_000_000, &world_from_device);
+        image::RgbImage::new(64, 48)
+            .save(frames.join(format!("{t}.png")))
+            .expect("frame");
+        truth.push((
+            t,
+            (world_from_device * device_from_camera).inverse() * world_from_object,
+        ));
+    }
+    std::fs::write(seq.join("dynamic_objects.csv"), &objects).expect("w");
+    std::fs::write(seq.join("headset_trajectory.csv"), &headset).expect("w");
+    // A frame with no pose near it is skipped and counted.
+    image::RgbImage::new(64, 48)
+        .save(frames.join("5000000000.png"))
+        .expect("frame");
+    let cfg = Hot3dImport {
+        sequence: seq.clone(),
+        models: models.clone(),
+        object_uid: "1234".into(),
+        frames: frames.clone(),
+        masks: None,
+        hands: None,
+        intrinsics: [60.0, 60.0, 32.0, 24.0],
+        device_from_camera,
+        max_dt_ns: 5_000_000,
+        every: 1,
+    };
+    let out = root.join("cap");
+    let summary = import_hot3d(&cfg, &out).expect("import");
+    assert_eq!(
+        (summary.frames, summary.skipped, summary.rendered_masks),
+        (4, 1, true)
+    );
+    assert!(
+        Capture::validate(&out).is_empty(),
+        "{:?}",
+        Capture::validate(&out)
+    );
+    let cap = Capture::open(&out).expect("capture");
+    let gt = agentstar_data::gt::GroundTruth::load(&out.join("gt.json")).expect("gt");
+    let mesh = &gt.meshes["object"];
+    let centre = mesh.bounds().center();
+    for (t, camera_from_object) in &truth {
+        let frame = format!("{t}.png");
+        let p = gt.pose(&frame, "object").expect("pose");
+        let got = p.to_rigid();
+        assert!((got.translation.vector - camera_from_object.translation.vector).norm() < 1e-9);
+        assert!(got.rotation.angle_to(&camera_from_object.rotation) < 1e-9);
+        // The rendered mask sits where the box centre projects.
+        let c = camera_from_object * centre;
+        let (u, v) = (60.0 * c.x / c.z + 32.0, 60.0 * c.y / c.z + 24.0);
+        let i = cap
+            .frames
+            .iter()
+            .position(|f| f.name == frame)
+            .expect("frame");
+        let (mx, my) = mask_centroid(&cap.load_mask(i).expect("mask"));
+        assert!(
+            (mx - u).abs() < 1.5 && (my - v).abs() < 1.5,
+            "{mx},{my} vs {u},{v}"
+        );
+    }
+    // A CSV without a column names it.
+    std::fs::write(
+        seq.join("dynamic_objects.csv"),
+        "object_uid,timestamp[ns]\n1,2\n",
+    )
+    .expect("w");
+    let err = import_hot3d(&cfg, &root.join("cap2"))
+        .expect_err("bad csv")
+        .to_string();
+    assert!(
+        err.contains("dynamic_objects.csv") && err.contains("t_wo_x[m]"),
+        "{err}"
+    );
+    assert!(!root.join("cap2").exists());
+}
+
+/// A `.npy` file (little-endian f8, C order).
+fn write_npy(path: &Path, shape: [usize; 2], data: &[f64]) {
+    let mut header = format!(
+        "{{'descr': '<f8', 'fortran_order': False, 'shape': ({}, {}), }}",
+        shape[0], shape[1]
+    );
+    while (10 + header.len() + 1) % 64 != 0 {
+        header.push(' ');
+    }
+    header.push('\n');
+    let mut bytes = b"\x93NUMPY\x01\x00".to_vec();
+    bytes.extend((header.len() as u16).to_le_bytes());
+    bytes.extend(header.as_bytes());
+    for v in data {
+        bytes.extend(v.to_le_bytes());
+    }
+    std::fs::write(path, bytes).expect("npy");
+}
+
+#[test]
+fn an_arctic_sequence_imports_two_parts_and_the_articulation() {
+    use agentstar_data::arctic::{import_arctic, ArcticImport};
+    let dir = tempfile::tempdir().expect("tmp");
+    let root = dir.path().join("arctic");
+    let tpl = root.join("meta/object_vtemplates/box");
+    let raw = root.join("raw_seqs/s01");
+    let images = root.join("images/s01/box_grab_01/3");
+    for d in [&tpl, &raw, &images] {
+        std::fs::create_dir_all(d).expect("mkdir");
+    }
+    // Template in millimetres: a bottom box (z 0..40) and a lid (z 40..50), with texture
+    // coordinates so that a reader merging v/vt pairs would reorder the vertices.
+    let bottom = agentstar_geom::primitives::cuboid(100.0, 80.0, 40.0).expect("box");
+    let lid = agentstar_geom::primitives::cuboid(100.0, 80.0, 10.0).expect("box");
+    let mut obj = String::new();
+    let mut labels = vec![];
+    for (mesh, dz, label) in [(&lid, 45.0, 0), (&bottom, 20.0, 1)] {
+        for p in &mesh.positions {
+            obj += &format!("v {} {} {}\n", p.x, p.y, p.z + dz);
+            labels.push(label);
+        }
+    }
+    obj += "vt 0 0\nvt 1 0\nvt 1 1\n";
+    let nl = lid.positions.len() as u32;
+    for (mesh, base) in [(&lid, 0), (&bottom, nl)] {
+        for t in &mesh.triangles {
+            obj += &format!(
+                "f {}/1 {}/2 {}/3\n",
+                t[0] + base + 1,
+                t[1] + base + 1,
+                t[2] + base + 1
+            );
+        }
+    }
+    std::fs::write(tpl.join("mesh.obj"), obj).expect("w");
+    std::fs::write(
+        tpl.join("parts.json"),
+        serde_json::to_string(&labels).expect("j"),
+    )
+    .expect("w");
+    // Camera 3 of subject s01 (index 2 of world2cam), full images 128 × 96, shown at 64 × 48.
+    let w2c = [
+        [1.0, 0.0, 0.0, 0.0],
+        [0.0, -1.0, 0.0, 0.0],
+        [0.0, 0.0, -1.0, 1.0],
+        [0.0, 0.0, 0.0, 1.0],
+    ];
+    let k = [[120.0, 0.0, 64.0], [0.0, 120.0, 48.0], [0.0, 0.0, 1.0]];
+    let misc = serde_json::json!({"s01": {
+        "world2cam": [w2c, w2c, w2c, w2c, w2c, w2c, w2c, w2c],
+        "intris_mat": [k, k, k, k, k, k, k, k],
+        "image_size": [[0, 0], [128, 96], [128, 96], [128, 96], [128, 96], [128, 96], [128, 96], [128, 96], [128, 96]],
+        "ioi_offset": 2}});
+    std::fs::write(root.join("meta/misc.json"), misc.to_string()).expect("w");
+    let rows: Vec<[f64; 7]> = (0..6)
+        .map(|i| {
+            let f = i as f64;
+            [0.3 * f, 0.1 * f, -0.2, 0.05 * f, 10.0 * f, -5.0, 20.0 * f]
+        })
+        .collect();
+    write_npy(
+        &raw.join("box_grab_01.object.npy"),
+        [rows.len(), 7],
+        &rows.concat(),
+    );
+    // Images 00002..00007 hold rows 0..5 (offset 2); 00001 falls before the array.
+    for n in 1..=7 {
+        image::RgbImage::new(64, 48)
+            .save(images.join(format!("{n:05}.jpg")))
+            .expect("img");
+    }
+    let cfg = ArcticImport {
+        root: root.clone(),
+        subject: "s01".into(),
+        sequence: "box_grab_01".into(),
+        camera: 3,
+        images: None,
+        masks: None,
+        hands: None,
+        offset: None,
+        every: 1,
+        max_frames: None,
+    };
+    let out = dir.path().join("cap");
+    assert_eq!(import_arctic(&cfg, &out).expect("import"), 6);
+    assert!(
+        Capture::validate(&out).is_empty(),
+        "{:?}",
+        Capture::validate(&out)
+    );
+    let cap = Capture::open(&out).expect("capture");
+    let gt = agentstar_data::gt::GroundTruth::load(&out.join("gt.json")).expect("gt");
+    assert_eq!(gt.file.base_part, "bottom");
+    let joint = &gt.file.joints[0];
+    assert_eq!(
+        (joint.parent.as_str(), joint.child.as_str()),
+        ("bottom", "top")
+    );
+    assert_eq!(gt.meshes["top"].triangles.len(), lid.triangles.len());
+    for n in 2..=7usize {
+        let row = rows[n - 2];
+        let frame = format!("{n:05}.png");
+        assert!((joint.states[&frame] - row[0]).abs() < 1e-12);
+        // ARCTIC's own posing, written out by hand: lid corner (mm) turned about −Z by the
+        // articulation, then the axis-angle and translation, then world2cam.
+        let corner = Vector3::new(50.0, 40.0, 50.0) * 0.001;
+        let (sa, ca) = (row[0].sin(), row[0].cos());
+        let arti = nalgebra::Matrix3::new(ca, sa, 0.0, -sa, ca, 0.0, 0.0, 0.0, 1.0);
+        let global = nalgebra::Rotation3::from_scaled_axis(Vector3::new(row[1], row[2], row[3]));
+        let world = global * (arti * corner) + Vector3::new(row[4], row[5], row[6]) * 0.001;
+        let cam = Vector3::new(world.x, -world.y, -world.z + 1.0);
+        let top = gt.pose(&frame, "top").expect("top").to_rigid();
+        let got = top * Point3::from(corner);
+        assert!((got.coords - cam).norm() < 1e-9, "{frame}: {got} vs {cam}");
+        // Intrinsics rescaled to the 64 × 48 images; the mask is where the object projects.
+        let i = cap
+            .frames
+            .iter()
+            .position(|f| f.name == frame)
+            .expect("frame");
+        let cam_i = &cap.frames[i].camera;
+        assert!((cam_i.fx - 60.0).abs() < 1e-9 && (cam_i.cx - 32.0).abs() < 1e-9);
+        let centre = top * Point3::new(0.0, 0.0, 0.03);
+        let (u, v) = (
+            60.0 * centre.x / centre.z + 32.0,
+            60.0 * centre.y / centre.z + 24.0,
+        );
+        let (mx, my) = mask_centroid(&cap.load_mask(i).expect("mask"));
+        assert!(
+            (mx - u).abs() < 2.0 && (my - v).abs() < 2.0,
+            "{mx},{my} vs {u},{v}"
+        );
+    }
+    // A mislabelled template is named.
+    std::fs::write(tpl.join("parts.json"), "[0, 1]").expect("w");
+    let err = import_arctic(&cfg, &dir.path().join("cap2"))
+        .expect_err("bad")
+        .to_string();
+    assert!(
+        err.contains("parts.json") && err.contains("2 labels"),
+        "{err}"
+    );
+}

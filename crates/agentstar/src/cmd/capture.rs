@@ -20,6 +20,101 @@ pub enum CaptureCommand {
         after_help = "Example:\n  agentstar capture from-bop ycbv/test/000048 --models ycbv/models --obj-id 1 --out cap48 --every 5"
     )]
     FromBop(FromBopArgs),
+    /// One object of a HOT3D sequence in its CSV layout (dynamic_objects.csv,
+    /// headset_trajectory.csv, object GLBs) with frames exported from the recording.
+    #[command(
+        after_help = "Frames are undistorted (pinhole) images named by their timestamp in nanoseconds; masks are\nrendered from the ground truth when --masks is not given.\n\nExample:\n  agentstar capture from-hot3d P0001_10a27bf7 --models object_models --object-uid 194930206998778 \\\n    --frames rgb_undistorted/ --intrinsics 610,610,703.5,703.5 --out cap_mug"
+    )]
+    FromHot3d(FromHot3dArgs),
+    /// An ARCTIC sequence from one allocentric camera (object arrays, two-part templates,
+    /// misc.json cameras) with gt.json.
+    #[command(
+        after_help = "Example:\n  agentstar capture from-arctic arctic_data/data --subject s01 --sequence box_grab_01 --camera 1 --every 10 --out cap_box"
+    )]
+    FromArctic(FromArcticArgs),
+}
+
+#[derive(clap::Args)]
+pub struct FromHot3dArgs {
+    /// The sequence directory (dynamic_objects.csv, headset_trajectory.csv).
+    sequence: PathBuf,
+    /// The object library directory holding {object_uid}.glb.
+    #[arg(long)]
+    models: PathBuf,
+    /// The object to import.
+    #[arg(long)]
+    object_uid: String,
+    /// Undistorted frames named {timestamp_ns}.png or .jpg.
+    #[arg(long)]
+    frames: PathBuf,
+    /// Pinhole intrinsics of the frames: fx,fy,cx,cy (pixels).
+    #[arg(long, value_delimiter = ',', num_args = 4, required = true)]
+    intrinsics: Vec<f64>,
+    /// T_device_camera as qw,qx,qy,qz,tx,ty,tz (metres); identity when not given.
+    #[arg(
+        long,
+        value_delimiter = ',',
+        num_args = 7,
+        allow_negative_numbers = true
+    )]
+    device_from_camera: Option<Vec<f64>>,
+    /// Object masks matched by stem; rendered from the ground truth when absent.
+    #[arg(long)]
+    masks: Option<PathBuf>,
+    /// Hand masks matched by stem.
+    #[arg(long)]
+    hands: Option<PathBuf>,
+    /// Largest time difference between a frame and a pose, in milliseconds.
+    #[arg(long, default_value_t = 5.0)]
+    max_dt_ms: f64,
+    /// Keep every N-th frame.
+    #[arg(long, default_value_t = 1)]
+    every: usize,
+    /// Where to write the capture (a new directory).
+    #[arg(long)]
+    out: PathBuf,
+    /// Print the result as JSON on stdout.
+    #[arg(long)]
+    json: bool,
+}
+
+#[derive(clap::Args)]
+pub struct FromArcticArgs {
+    /// The ARCTIC data root (meta/, raw_seqs/, images/).
+    root: PathBuf,
+    /// The subject, e.g. s01.
+    #[arg(long)]
+    subject: String,
+    /// The sequence, e.g. box_grab_01 (the object is the part before the first `_`).
+    #[arg(long)]
+    sequence: String,
+    /// Allocentric camera 1-8.
+    #[arg(long, default_value_t = 1)]
+    camera: u32,
+    /// The image folder (default: images/SUBJECT/SEQUENCE/CAMERA under the root).
+    #[arg(long)]
+    images: Option<PathBuf>,
+    /// Object masks matched by stem; rendered from the ground truth when absent.
+    #[arg(long)]
+    masks: Option<PathBuf>,
+    /// Hand masks matched by stem.
+    #[arg(long)]
+    hands: Option<PathBuf>,
+    /// Image number minus object-array row (default: ioi_offset of misc.json).
+    #[arg(long, allow_negative_numbers = true)]
+    offset: Option<i64>,
+    /// Keep every N-th image.
+    #[arg(long, default_value_t = 1)]
+    every: usize,
+    /// At most this many frames.
+    #[arg(long)]
+    max_frames: Option<usize>,
+    /// Where to write the capture (a new directory).
+    #[arg(long)]
+    out: PathBuf,
+    /// Print the result as JSON on stdout.
+    #[arg(long)]
+    json: bool,
 }
 
 #[derive(clap::Args)]
@@ -147,6 +242,95 @@ pub fn run(c: CaptureCommand) -> Result<ExitCode> {
                     a.out.display(),
                     a.obj_id,
                     a.scene.display()
+                );
+            }
+            Ok(ExitCode::SUCCESS)
+        }
+        CaptureCommand::FromHot3d(a) => {
+            use agentstar_data::hot3d::{import_hot3d, Hot3dImport};
+            use agentstar_geom::pose::{quat_from_wxyz, Rigid};
+            let device_from_camera = match &a.device_from_camera {
+                None => Rigid::identity(),
+                Some(v) => Rigid::from_parts(
+                    agentstar_geom::Vector3::new(v[4], v[5], v[6]).into(),
+                    quat_from_wxyz([v[0], v[1], v[2], v[3]])
+                        .map_err(|e| anyhow::anyhow!("--device-from-camera: {e}"))?,
+                ),
+            };
+            if !(a.max_dt_ms.is_finite() && a.max_dt_ms >= 0.0) {
+                anyhow::bail!(
+                    "--max-dt-ms {}: a time in milliseconds, 0 or more",
+                    a.max_dt_ms
+                );
+            }
+            let s = import_hot3d(
+                &Hot3dImport {
+                    sequence: a.sequence.clone(),
+                    models: a.models.clone(),
+                    object_uid: a.object_uid.clone(),
+                    frames: a.frames.clone(),
+                    masks: a.masks.clone(),
+                    hands: a.hands.clone(),
+                    intrinsics: [
+                        a.intrinsics[0],
+                        a.intrinsics[1],
+                        a.intrinsics[2],
+                        a.intrinsics[3],
+                    ],
+                    device_from_camera,
+                    max_dt_ns: (a.max_dt_ms * 1e6).round() as u64,
+                    every: a.every,
+                },
+                &a.out,
+            )?;
+            if a.json {
+                print_json(
+                    &json!({"capture": a.out, "frames": s.frames, "skipped": s.skipped,
+                    "rendered_masks": s.rendered_masks, "gt": a.out.join("gt.json")}),
+                )?;
+            } else {
+                println!(
+                    "wrote {} ({} frames of object {}, {} frames without a pose skipped{}; with gt.json)",
+                    a.out.display(),
+                    s.frames,
+                    a.object_uid,
+                    s.skipped,
+                    if s.rendered_masks { ", masks rendered from the ground truth" } else { "" }
+                );
+            }
+            Ok(ExitCode::SUCCESS)
+        }
+        CaptureCommand::FromArctic(a) => {
+            use agentstar_data::arctic::{import_arctic, ArcticImport};
+            let n = import_arctic(
+                &ArcticImport {
+                    root: a.root.clone(),
+                    subject: a.subject.clone(),
+                    sequence: a.sequence.clone(),
+                    camera: a.camera,
+                    images: a.images.clone(),
+                    masks: a.masks.clone(),
+                    hands: a.hands.clone(),
+                    offset: a.offset,
+                    every: a.every,
+                    max_frames: a.max_frames,
+                },
+                &a.out,
+            )?;
+            if a.json {
+                print_json(&json!({"capture": a.out, "frames": n, "gt": a.out.join("gt.json")}))?;
+            } else {
+                println!(
+                    "wrote {} ({n} frames of {}/{} from camera {}, with gt.json{})",
+                    a.out.display(),
+                    a.subject,
+                    a.sequence,
+                    a.camera,
+                    if a.masks.is_none() {
+                        "; masks rendered from the ground truth"
+                    } else {
+                        ""
+                    }
                 );
             }
             Ok(ExitCode::SUCCESS)
