@@ -16,6 +16,7 @@ pub mod export;
 pub mod gt;
 pub mod hot3d;
 pub mod images;
+pub mod ledger;
 mod import_common;
 pub mod meshio;
 pub mod npz;

@@ -69,9 +69,11 @@ enum Command {
         /// The shell.
         shell: clap_complete::Shell,
     },
-    /// Make captures from other sources (BOP scenes).
+    /// Make captures from other sources: a video or frames, BOP scenes, HOT3D and ARCTIC sequences.
     #[command(subcommand)]
     Capture(cmd::capture::CaptureCommand),
+    /// One self-contained HTML page of a run: keyframes with overlays, a 3-D view, plots, the agent's steps.
+    Report(cmd::report::Args),
     /// Track a synthetic suite (and the agent-free ablations), evaluate, print the paper's tables with wall times.
     Bench(cmd::bench::Args),
 }
@@ -110,6 +112,7 @@ fn main() -> ExitCode {
             Ok(ExitCode::SUCCESS)
         }
         Command::Demo(a) => cmd::demo::run(a),
+        Command::Report(a) => cmd::report::run(a),
     };
     match result {
         Ok(code) => code,

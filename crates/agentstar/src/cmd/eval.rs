@@ -61,7 +61,7 @@ struct BatchEntry {
 }
 
 /// The metrics of one run, and the ground truth's joints for the table rows.
-fn evaluate_run(
+pub(crate) fn evaluate_run(
     s: &Session,
     gt_path: &Path,
     samples: usize,

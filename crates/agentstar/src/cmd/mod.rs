@@ -9,6 +9,7 @@ pub mod example;
 pub mod export;
 pub mod pose;
 pub mod render;
+pub mod report;
 pub mod score;
 pub mod search;
 pub mod synth;

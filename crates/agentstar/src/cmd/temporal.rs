@@ -50,7 +50,7 @@ pub struct DiffArgs {
     b: String,
 }
 
-fn samples(s: &Session) -> Vec<Sample> {
+pub(crate) fn samples(s: &Session) -> Vec<Sample> {
     // Every capture has cameras (a shared one is the identity), so motion is always
     // compensated by them.
     s.capture
