@@ -64,11 +64,7 @@ pub fn read(path: &Path) -> Result<(Vec<LedgerEntry>, Vec<String>)> {
         }
         match serde_json::from_str::<LedgerEntry>(line) {
             Ok(e) => entries.push(e),
-            Err(e) => notes.push(format!(
-                "{}: line {} skipped ({e})",
-                path.display(),
-                i + 1
-            )),
+            Err(e) => notes.push(format!("{}: line {} skipped ({e})", path.display(), i + 1)),
         }
     }
     Ok((entries, notes))

@@ -381,7 +381,9 @@ pub fn render_html(r: &Report) -> String {
         ));
     }
     if !r.viewer.joint_names.is_empty() {
-        let palette = ["#8e44ad", "#d35400", "#2c3e50", "#27ae60", "#c0392b", "#2980b9"];
+        let palette = [
+            "#8e44ad", "#d35400", "#2c3e50", "#27ae60", "#c0392b", "#2980b9",
+        ];
         let series: Vec<Series> = r
             .viewer
             .joint_names
@@ -524,8 +526,14 @@ mod tests {
 
     #[test]
     fn escaping_covers_markup_and_quotes() {
-        assert_eq!(esc(r#"<a href="x">'&'</a>"#), "&lt;a href=&quot;x&quot;&gt;&#39;&amp;&#39;&lt;/a&gt;");
-        assert_eq!(script_json(&json!({"s": "</script>"})), r#"{"s":"<\/script>"}"#);
+        assert_eq!(
+            esc(r#"<a href="x">'&'</a>"#),
+            "&lt;a href=&quot;x&quot;&gt;&#39;&amp;&#39;&lt;/a&gt;"
+        );
+        assert_eq!(
+            script_json(&json!({"s": "</script>"})),
+            r#"{"s":"<\/script>"}"#
+        );
     }
 
     #[test]

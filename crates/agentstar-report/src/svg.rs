@@ -109,7 +109,11 @@ pub fn line_chart(
         yl = esc(y_label)
     );
     // X labels: as many as fit without overlapping.
-    let longest = x_labels.iter().map(|l| l.chars().count()).max().unwrap_or(1) as f64;
+    let longest = x_labels
+        .iter()
+        .map(|l| l.chars().count())
+        .max()
+        .unwrap_or(1) as f64;
     let fit = ((plot_w / (6.5 * longest + 10.0)).floor() as usize).max(1);
     let every = n.div_ceil(fit).max(1);
     for (i, l) in x_labels.iter().enumerate() {

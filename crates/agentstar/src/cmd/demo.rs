@@ -84,8 +84,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
     )?;
     bar.finish_and_clear();
     let run_dir = out.join("run");
-    std::fs::create_dir_all(&run_dir)
-        .with_context(|| format!("creating {}", run_dir.display()))?;
+    std::fs::create_dir_all(&run_dir).with_context(|| format!("creating {}", run_dir.display()))?;
     let scene = run_dir.join("scene.rhai");
     agentstar_data::atomic::write_atomic(&scene, capture.object.script.as_bytes())?;
     let pose_path = run_dir.join("pose.json");
@@ -173,7 +172,16 @@ fn write_demo_ledger(
         scene_version: Some(1),
         pose_version: None,
     };
-    append(&path, &entry(1, 0.0, "system", "synth", format!("synthesised {described}")))?;
+    append(
+        &path,
+        &entry(
+            1,
+            0.0,
+            "system",
+            "synth",
+            format!("synthesised {described}"),
+        ),
+    )?;
     let mut n = 1;
     for (t, line) in steps {
         n += 1;
@@ -205,13 +213,23 @@ fn write_overlay_sheet(s: &crate::common::Session, path: &std::path::Path) -> Re
     let colors: Vec<[f32; 3]> = s.model.model.parts.iter().map(|p| p.color).collect();
     let mut tiles = vec![];
     for (i, f) in s.capture.frames.iter().enumerate() {
-        let shaded = shade(&s.render_buffers(i), &colors, ShadeOptions { outlines: true });
-        tiles.push((f.name.clone(), overlay(&s.capture.load_frame(i)?, &shaded, 0.6)));
+        let shaded = shade(
+            &s.render_buffers(i),
+            &colors,
+            ShadeOptions { outlines: true },
+        );
+        tiles.push((
+            f.name.clone(),
+            overlay(&s.capture.load_frame(i)?, &shaded, 0.6),
+        ));
     }
     if let Some(dir) = path.parent() {
         std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
     }
     let cols = (tiles.len() as f64).sqrt().ceil() as usize;
-    agentstar_data::images::save_png_rgb(&contact_sheet(&tiles, cols.max(1), "tracked model over the keyframes"), path)?;
+    agentstar_data::images::save_png_rgb(
+        &contact_sheet(&tiles, cols.max(1), "tracked model over the keyframes"),
+        path,
+    )?;
     Ok(())
 }

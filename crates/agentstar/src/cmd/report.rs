@@ -129,7 +129,11 @@ pub fn build_report(
         .map(|i| -> Result<FrameEntry> {
             let f = &s.capture.frames[i];
             let img = s.capture.load_frame(i)?;
-            let shaded = shade(&s.render_buffers(i), &colors, ShadeOptions { outlines: true });
+            let shaded = shade(
+                &s.render_buffers(i),
+                &colors,
+                ShadeOptions { outlines: true },
+            );
             let over = overlay(&img, &shaded, 0.6);
             let score = s.score(i, 0.0)?;
             Ok(FrameEntry {
@@ -159,7 +163,13 @@ pub fn build_report(
                 .mesh
                 .positions
                 .iter()
-                .flat_map(|v| [(v.x * scale) as f32, (v.y * scale) as f32, (v.z * scale) as f32])
+                .flat_map(|v| {
+                    [
+                        (v.x * scale) as f32,
+                        (v.y * scale) as f32,
+                        (v.z * scale) as f32,
+                    ]
+                })
                 .collect(),
             triangles: p.mesh.triangles.iter().flatten().copied().collect(),
         })
@@ -204,8 +214,7 @@ pub fn build_report(
         })
         .collect();
     // Temporal report.
-    let rep =
-        agentstar_track::temporal::report(&crate::cmd::temporal::samples(s), scale, tree);
+    let rep = agentstar_track::temporal::report(&crate::cmd::temporal::samples(s), scale, tree);
     let rows = rep.rows.iter().skip(1);
     let temporal = (n > 1).then(|| Temporal {
         pose_frame: rep.pose_frame.to_string(),
@@ -257,7 +266,10 @@ pub fn build_report(
     if let Some(gt) = gt {
         let (m, _) = crate::cmd::eval::evaluate_run(s, gt, 20_000)?;
         metrics.push(("ground truth".into(), gt.display().to_string()));
-        metrics.push(("scale alignment".into(), format!("{:.4}", m.scale_alignment)));
+        metrics.push((
+            "scale alignment".into(),
+            format!("{:.4}", m.scale_alignment),
+        ));
         if let Some(v) = m.epe_cm {
             metrics.push(("EPE".into(), format!("{v:.2} cm")));
         }
@@ -311,7 +323,11 @@ pub fn build_report(
                         .ok()
                         .and_then(|img| jpeg(&downscale(&img, 240.min(max_width))).ok());
                     if img.is_none() {
-                        notes.push(format!("step {}: image {} could not be read", e.step, p.display()));
+                        notes.push(format!(
+                            "step {}: image {} could not be read",
+                            e.step,
+                            p.display()
+                        ));
                     }
                     (rel.clone(), img)
                 })
@@ -407,15 +423,21 @@ pub fn run(a: Args) -> Result<ExitCode> {
     });
     let bytes = write_report(&s, &model, &a.run, gt.as_deref(), &out, a.max_width, title)?;
     if a.json {
-        print_json(&json!({"report": out, "bytes": bytes, "frames": s.capture.frames.len(),
-            "ground_truth": gt}))?;
+        print_json(
+            &json!({"report": out, "bytes": bytes, "frames": s.capture.frames.len(),
+            "ground_truth": gt}),
+        )?;
     } else {
         println!(
             "wrote {} ({:.1} MB, {} keyframes{}); open it in a browser, it works offline",
             out.display(),
             bytes as f64 / 1e6,
             s.capture.frames.len(),
-            if gt.is_some() { ", with metrics against the ground truth" } else { "" }
+            if gt.is_some() {
+                ", with metrics against the ground truth"
+            } else {
+                ""
+            }
         );
     }
     Ok(ExitCode::SUCCESS)
