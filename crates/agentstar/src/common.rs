@@ -264,5 +264,5 @@ pub fn progress(len: usize, what: &str) -> indicatif::ProgressBar {
         bar.set_style(style.progress_chars("=> "));
     }
     bar.set_prefix(what.to_string());
-    bar
+    bar.with_finish(indicatif::ProgressFinish::AndClear)
 }

@@ -998,3 +998,107 @@ fn the_demo_report_is_self_contained_and_renders_in_headless_chromium() {
         colours.len()
     );
 }
+
+/// The README's walk-through, with a frame folder in place of the video (no ffmpeg here):
+/// a segmenter's masks, a static camera, a model, tracking, the report.
+#[test]
+fn the_readme_walk_through_goes_from_frames_and_masks_to_a_report() {
+    let dir = tempfile::tempdir().expect("tmp");
+    let p = |n: &str| dir.path().join(n);
+    let s = |path: &Path| path.to_str().expect("utf8").to_string();
+    // A phone-like clip: frames, plus masks as a segmenter writes them (other names).
+    let o = agentstar(&[
+        "synth",
+        &s(&p("clip")),
+        "--object",
+        "box",
+        "--frames",
+        "10",
+        "--seed",
+        "7",
+    ]);
+    assert!(o.status.success(), "{}", text(&o));
+    let clip = agentstar_data::capture::Capture::open(&p("clip")).expect("clip");
+    for (sub, suffix) in [
+        ("frames", ""),
+        ("mask_object", "_mask"),
+        ("mask_hand", "_hand"),
+    ] {
+        let to = p(&format!("seg_{sub}"));
+        std::fs::create_dir_all(&to).expect("mkdir");
+        for f in &clip.frames {
+            let from = p("clip").join(sub).join(format!("{}.png", f.stem));
+            if from.is_file() {
+                std::fs::copy(&from, to.join(format!("img{}{suffix}.png", f.number)))
+                    .expect("copy");
+            }
+        }
+    }
+    let c = &clip.frames[0].camera;
+    let k = format!("{},{},{},{}", c.fx, c.fy, c.cx, c.cy);
+    // 1. The capture.
+    let o = agentstar(&[
+        "capture",
+        "from-video",
+        &s(&p("seg_frames")),
+        "--masks",
+        &s(&p("seg_mask_object")),
+        "--hands",
+        &s(&p("seg_mask_hand")),
+        "--intrinsics",
+        &k,
+        "--out",
+        &s(&p("cap")),
+    ]);
+    assert!(o.status.success(), "{}", text(&o));
+    assert!(agentstar(&["validate", &s(&p("cap"))]).status.success());
+    // 2. A model (here the known one) in the run directory.
+    std::fs::create_dir_all(p("run")).expect("mkdir");
+    std::fs::copy(p("clip/model/scene.rhai"), p("run/scene.rhai")).expect("copy");
+    assert!(agentstar(&["check", &s(&p("run/scene.rhai"))])
+        .status
+        .success());
+    // 3. Tracking.
+    let o = agentstar(&[
+        "track",
+        &s(&p("cap")),
+        "--model",
+        &s(&p("run/scene.rhai")),
+        "--scale-from",
+        &s(&p("clip/model/pose.json")),
+        "--out",
+        &s(&p("run/pose.json")),
+    ]);
+    assert!(o.status.success(), "{}", text(&o));
+    // 4. The report.
+    let o = agentstar(&[
+        "report",
+        &s(&p("run")),
+        "--capture",
+        &s(&p("cap")),
+        "--json",
+    ]);
+    assert!(o.status.success(), "{}", text(&o));
+    let html = std::fs::read_to_string(p("run/report.html")).expect("report");
+    assert_eq!(html.matches("<figure id=\"frame-").count(), 10);
+    let mean: f64 = html
+        .split("IoU visible</td><td>mean ")
+        .nth(1)
+        .and_then(|r| r.split(',').next())
+        .and_then(|v| v.parse().ok())
+        .expect("mean IoU in the summary");
+    assert!(mean > 0.95, "tracked mean IoU {mean}");
+    // 5. The motion for a simulator.
+    let o = agentstar(&[
+        "export",
+        "--model",
+        &s(&p("run/scene.rhai")),
+        "--capture",
+        &s(&p("cap")),
+        "--poses",
+        &s(&p("run/pose.json")),
+        "--animated-glb",
+        &s(&p("run/motion.glb")),
+    ]);
+    assert!(o.status.success(), "{}", text(&o));
+}

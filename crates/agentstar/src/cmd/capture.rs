@@ -48,7 +48,12 @@ pub struct FromHot3dArgs {
     #[arg(long)]
     frames: PathBuf,
     /// Pinhole intrinsics of the frames: fx,fy,cx,cy (pixels).
-    #[arg(long, value_delimiter = ',', num_args = 4, required = true)]
+    #[arg(
+        long,
+        value_delimiter = ',',
+        required = true,
+        allow_negative_numbers = true
+    )]
     intrinsics: Vec<f64>,
     /// T_device_camera as qw,qx,qy,qz,tx,ty,tz (metres); identity when not given.
     #[arg(
@@ -146,7 +151,12 @@ pub struct FromVideoArgs {
     #[arg(long, group = "cameras")]
     fov: Option<f64>,
     /// A static camera with these intrinsics: fx,fy,cx,cy (pixels of the frames).
-    #[arg(long, group = "cameras", value_delimiter = ',', num_args = 4)]
+    #[arg(
+        long,
+        group = "cameras",
+        value_delimiter = ',',
+        allow_negative_numbers = true
+    )]
     intrinsics: Option<Vec<f64>>,
     /// Where to write the capture (a new directory).
     #[arg(long)]
@@ -180,6 +190,14 @@ pub struct FromBopArgs {
     json: bool,
 }
 
+/// Four finite numbers fx,fy,cx,cy.
+fn four(v: &[f64], flag: &str) -> Result<[f64; 4]> {
+    match v {
+        [fx, fy, cx, cy] if v.iter().all(|x| x.is_finite()) => Ok([*fx, *fy, *cx, *cy]),
+        _ => anyhow::bail!("{flag} takes 4 finite numbers fx,fy,cx,cy (pixels); got {v:?}"),
+    }
+}
+
 pub fn run(c: CaptureCommand) -> Result<ExitCode> {
     match c {
         CaptureCommand::FromVideo(a) => {
@@ -188,7 +206,7 @@ pub fn run(c: CaptureCommand) -> Result<ExitCode> {
                 (Some(d), ..) => CameraSource::Colmap(d.clone()),
                 (_, Some(p), ..) => CameraSource::Nerfstudio(p.clone()),
                 (_, _, Some(f), _) => CameraSource::Fov(f),
-                (_, _, _, Some(k)) => CameraSource::Static([k[0], k[1], k[2], k[3]]),
+                (_, _, _, Some(k)) => CameraSource::Static(four(k, "--intrinsics")?),
                 _ => anyhow::bail!(
                     "give the cameras: --colmap DIR, --nerfstudio transforms.json, --fov DEG or --intrinsics fx,fy,cx,cy"
                 ),
@@ -249,8 +267,12 @@ pub fn run(c: CaptureCommand) -> Result<ExitCode> {
         CaptureCommand::FromHot3d(a) => {
             use agentstar_data::hot3d::{import_hot3d, Hot3dImport};
             use agentstar_geom::pose::{quat_from_wxyz, Rigid};
+            let intrinsics = four(&a.intrinsics, "--intrinsics")?;
             let device_from_camera = match &a.device_from_camera {
                 None => Rigid::identity(),
+                Some(v) if v.len() != 7 || v.iter().any(|x| !x.is_finite()) => anyhow::bail!(
+                    "--device-from-camera takes 7 finite numbers qw,qx,qy,qz,tx,ty,tz; got {v:?}"
+                ),
                 Some(v) => Rigid::from_parts(
                     agentstar_geom::Vector3::new(v[4], v[5], v[6]).into(),
                     quat_from_wxyz([v[0], v[1], v[2], v[3]])
@@ -271,12 +293,7 @@ pub fn run(c: CaptureCommand) -> Result<ExitCode> {
                     frames: a.frames.clone(),
                     masks: a.masks.clone(),
                     hands: a.hands.clone(),
-                    intrinsics: [
-                        a.intrinsics[0],
-                        a.intrinsics[1],
-                        a.intrinsics[2],
-                        a.intrinsics[3],
-                    ],
+                    intrinsics,
                     device_from_camera,
                     max_dt_ns: (a.max_dt_ms * 1e6).round() as u64,
                     every: a.every,

@@ -61,9 +61,11 @@ pub fn run(a: Args) -> Result<ExitCode> {
     let opts = ShadeOptions {
         outlines: !a.no_outlines,
     };
+    let bar = crate::common::progress(frames.len(), "render");
     let results: Vec<Result<FrameViews>> = frames
         .par_iter()
         .map(|&i| {
+            bar.inc(1);
             let f = &s.capture.frames[i];
             let buffers = s.render_buffers(i);
             let shaded = shade(&buffers, &colors, opts);

@@ -124,9 +124,11 @@ pub fn build_report(
     let scale = s.scale();
     let colors: Vec<[f32; 3]> = model.parts.iter().map(|p| p.color).collect();
     let n = s.capture.frames.len();
+    let bar = crate::common::progress(n, "report");
     let frames: Vec<FrameEntry> = (0..n)
         .into_par_iter()
         .map(|i| -> Result<FrameEntry> {
+            bar.inc(1);
             let f = &s.capture.frames[i];
             let img = s.capture.load_frame(i)?;
             let shaded = shade(

@@ -4,7 +4,9 @@
 //! paste-ready blocks, and a candidate sheet (render over the frame and silhouette
 //! comparison per finalist, labelled with rank, score and the order).
 
-use crate::common::{out_dir, print_json, select_frames, FrameInputs, Session, SessionArgs};
+use crate::common::{
+    out_dir, print_json, progress, select_frames, FrameInputs, Session, SessionArgs,
+};
 use agentstar_data::images::save_png_rgb;
 use agentstar_data::posefile::pose_json;
 use agentstar_geom::{KinematicTree, Point3, UnitQuaternion};
@@ -457,7 +459,7 @@ pub fn run_sweep(a: SweepArgs) -> Result<ExitCode> {
     };
     let frames = default_frame(&s, a.frames.as_deref())?;
     let mut outputs = Vec::new();
-    for &i in &frames {
+    for &i in progress(frames.len(), "sweep").wrap_iter(frames.iter()) {
         let inputs = s.target(i)?;
         let mut base = s.gen_pose(i);
         if let Some(shift) = &a.start_shift {
@@ -519,7 +521,7 @@ fn run_candidates(a: &SweepArgs, s: &Session, list: &str) -> Result<ExitCode> {
         .collect::<Result<_>>()?;
     let frames = default_frame(s, a.frames.as_deref())?;
     let mut outputs = Vec::new();
-    for &i in &frames {
+    for &i in progress(frames.len(), "sweep").wrap_iter(frames.iter()) {
         let inputs = s.target(i)?;
         let p = problem_for(s, i, &inputs, a.common.depth_weight, s.gen_pose(i));
         let mut ev = p.evaluator();
@@ -604,7 +606,7 @@ pub fn run_apply(a: ApplyArgs) -> Result<ExitCode> {
     let (space, x) = parse_spec_values(&a.order, tree)?;
     let frames = default_frame(&s, a.frame.as_deref())?;
     let mut outputs = Vec::new();
-    for &i in &frames {
+    for &i in progress(frames.len(), "apply").wrap_iter(frames.iter()) {
         let inputs = s.target(i)?;
         let p = problem_for(&s, i, &inputs, a.common.depth_weight, s.gen_pose(i));
         let r = sweep(
@@ -703,7 +705,7 @@ pub fn run_osweep(a: OsweepArgs) -> Result<ExitCode> {
     let tree = &s.model.model.tree;
     let frames = select_frames(&s.capture, a.frames.as_deref())?;
     let mut outputs = Vec::new();
-    for &i in &frames {
+    for &i in progress(frames.len(), "osweep").wrap_iter(frames.iter()) {
         let inputs = s.target(i)?;
         let p = problem_for(&s, i, &inputs, a.common.depth_weight, s.gen_pose(i));
         let (space, cfg) = if let Some(pre) = &a.opreset {
@@ -805,7 +807,7 @@ pub fn run_oapply(a: OapplyArgs) -> Result<ExitCode> {
     let set = rotation_set(&a.set)?;
     let frames = select_frames(&s.capture, a.frames.as_deref())?;
     let mut outputs = Vec::new();
-    for &i in &frames {
+    for &i in progress(frames.len(), "oapply").wrap_iter(frames.iter()) {
         let inputs = s.target(i)?;
         let p = problem_for(&s, i, &inputs, a.common.depth_weight, s.gen_pose(i));
         let mut ev = p.evaluator();
@@ -846,7 +848,7 @@ pub fn run_oapply_all(a: OapplyAllArgs) -> Result<ExitCode> {
     let q = parse_rotation(a.rotation.trim()).context("--rotation")?;
     let frames = select_frames(&s.capture, a.frames.as_deref())?;
     let mut outputs = Vec::new();
-    for &i in &frames {
+    for &i in progress(frames.len(), "oapply-all").wrap_iter(frames.iter()) {
         let inputs = s.target(i)?;
         let p = problem_for(&s, i, &inputs, a.common.depth_weight, s.gen_pose(i));
         // About the canonical origin: translation unchanged.
