@@ -1152,7 +1152,6 @@ fn a_video_file_imports_through_ffmpeg_frame_for_frame() {
             p("masks").join(format!("sam_out_{}.png", 10 + k)),
         )
         .expect("copy");
-        let _ = f;
     }
     let ff = std::process::Command::new("ffmpeg")
         .args(["-v", "error", "-nostdin", "-framerate", "5", "-i"])
