@@ -72,6 +72,12 @@ enum Command {
     /// Make captures from other sources: a video or frames, BOP scenes, HOT3D and ARCTIC sequences.
     #[command(subcommand)]
     Capture(cmd::capture::CaptureCommand),
+    /// Make a run directory for an agent: a starting scene, pose.json, TASK.md, NOTES.md and a ledger.
+    Init(cmd::agent::InitArgs),
+    /// Run an agent on a run: the built-in loop with a model behind an API, or Claude Code / Codex over MCP.
+    Run(cmd::agent::RunArgs),
+    /// Serve the tools of a run over the Model Context Protocol (stdio) for coding agents.
+    Mcp(cmd::mcp::Args),
     /// One self-contained HTML page of a run: keyframes with overlays, a 3-D view, plots, the agent's steps.
     Report(cmd::report::Args),
     /// Track a synthetic suite (and the agent-free ablations), evaluate, print the paper's tables with wall times.
@@ -113,6 +119,9 @@ fn main() -> ExitCode {
         }
         Command::Demo(a) => cmd::demo::run(a),
         Command::Report(a) => cmd::report::run(a),
+        Command::Init(a) => cmd::agent::run_init(a),
+        Command::Run(a) => cmd::agent::run_run(a),
+        Command::Mcp(a) => cmd::mcp::run(a),
     };
     match result {
         Ok(code) => code,

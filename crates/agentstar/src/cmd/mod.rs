@@ -1,5 +1,6 @@
 //! One module per subcommand.
 
+pub mod agent;
 pub mod bench;
 pub mod capture;
 pub mod check;
@@ -7,6 +8,7 @@ pub mod demo;
 pub mod eval;
 pub mod example;
 pub mod export;
+pub mod mcp;
 pub mod pose;
 pub mod render;
 pub mod report;

@@ -10,27 +10,9 @@ use agentstar_report::{
 use anyhow::{anyhow, bail, Context, Result};
 use image::RgbImage;
 use rayon::prelude::*;
-use serde::{Deserialize, Serialize};
 use serde_json::json;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
-
-/// `run.json` in a run directory: where its inputs are (relative to the run directory).
-#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
-pub struct RunFile {
-    pub capture: PathBuf,
-    #[serde(default = "default_model")]
-    pub model: PathBuf,
-    #[serde(default = "default_poses")]
-    pub poses: PathBuf,
-}
-
-fn default_model() -> PathBuf {
-    "scene.rhai".into()
-}
-fn default_poses() -> PathBuf {
-    "pose.json".into()
-}
 
 #[derive(clap::Args)]
 #[command(
@@ -66,22 +48,6 @@ pub struct Args {
     /// Print the result as JSON on stdout.
     #[arg(long)]
     json: bool,
-}
-
-/// Reads `RUN/run.json` (paths resolved against the run directory), if present.
-pub fn read_run_file(run: &Path) -> Result<Option<RunFile>> {
-    let p = run.join("run.json");
-    if !p.is_file() {
-        return Ok(None);
-    }
-    let mut rf: RunFile = serde_json::from_str(&agentstar_data::read_text(&p)?)
-        .with_context(|| format!("{}: not a run file", p.display()))?;
-    for path in [&mut rf.capture, &mut rf.model, &mut rf.poses] {
-        if path.is_relative() {
-            *path = run.join(&*path);
-        }
-    }
-    Ok(Some(rf))
 }
 
 fn downscale(img: &RgbImage, max_width: u32) -> RgbImage {
@@ -386,7 +352,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
     if a.max_width < 64 {
         bail!("--max-width {}: at least 64 pixels", a.max_width);
     }
-    let rf = read_run_file(&a.run)?;
+    let rf = agentstar_agent::run::RunFile::read(&a.run)?;
     let capture = a
         .capture
         .clone()
@@ -401,12 +367,12 @@ pub fn run(a: Args) -> Result<ExitCode> {
         .model
         .clone()
         .or_else(|| rf.as_ref().map(|r| r.model.clone()))
-        .unwrap_or_else(|| a.run.join(default_model()));
+        .unwrap_or_else(|| a.run.join("scene.rhai"));
     let poses = a
         .poses
         .clone()
         .or_else(|| rf.as_ref().map(|r| r.poses.clone()))
-        .unwrap_or_else(|| a.run.join(default_poses()));
+        .unwrap_or_else(|| a.run.join("pose.json"));
     let s = Session::open(&capture, &model, &poses)?;
     let gt = match (&a.gt, a.no_gt) {
         (_, true) => None,

@@ -1,0 +1,285 @@
+//! A run directory: what the agent works on and everything it did.
+//!
+//! ```text
+//! RUN/
+//!   run.json        where the capture is; the model and pose file names
+//!   TASK.md         the task document the agent reads
+//!   NOTES.md        the agent's memory across contexts (appended by the `notes` tool)
+//!   scene.rhai      the current model
+//!   pose.json       the current poses (versions under .agentstar/history/, kept by `pose commit`)
+//!   ledger.jsonl    one line per step
+//!   images/         what each step produced, under step_NNNN_tool/
+//!   .agentstar/scenes/NNNN.rhai   every scene version
+//! ```
+
+use crate::{AgentError, Result};
+use agentstar_data::ledger::{self, LedgerEntry};
+use serde::{Deserialize, Serialize};
+use std::path::{Path, PathBuf};
+
+/// `run.json`: where a run's inputs are. Relative paths are relative to the run directory.
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+pub struct RunFile {
+    pub capture: PathBuf,
+    #[serde(default = "default_model")]
+    pub model: PathBuf,
+    #[serde(default = "default_poses")]
+    pub poses: PathBuf,
+}
+
+fn default_model() -> PathBuf {
+    "scene.rhai".into()
+}
+fn default_poses() -> PathBuf {
+    "pose.json".into()
+}
+
+impl RunFile {
+    /// Reads `RUN/run.json` with its paths resolved against the run directory.
+    pub fn read(run: &Path) -> Result<Option<RunFile>> {
+        let p = run.join("run.json");
+        if !p.is_file() {
+            return Ok(None);
+        }
+        let mut rf: RunFile = serde_json::from_str(&agentstar_data::read_text(&p)?)
+            .map_err(|e| AgentError::Invalid(format!("{}: not a run file: {e}", p.display())))?;
+        for path in [&mut rf.capture, &mut rf.model, &mut rf.poses] {
+            if path.is_relative() {
+                *path = run.join(&*path);
+            }
+        }
+        Ok(Some(rf))
+    }
+}
+
+/// The starting scene of a new run: one box, to be replaced.
+pub const STARTING_SCENE: &str = r##"// The model of the object, as code: replace this box (see TASK.md for the API).
+part("body", box(1.0, 0.6, 0.4).color("#b05a3c"));
+"##;
+
+/// A run directory opened for work.
+#[derive(Debug, Clone)]
+pub struct RunDir {
+    pub dir: PathBuf,
+    pub capture: PathBuf,
+    pub scene: PathBuf,
+    pub poses: PathBuf,
+}
+
+/// Where a run stands, read back from its ledger (to resume).
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct RunState {
+    pub steps: u64,
+    /// Seconds the earlier sessions took.
+    pub elapsed_s: f64,
+    pub scene_version: u64,
+    pub finished: bool,
+    /// Ledger lines that could not be read (a cut last line after a crash).
+    pub notes: Vec<String>,
+    /// The last entries, for a summary to the model on resume.
+    pub recent: Vec<LedgerEntry>,
+}
+
+impl RunDir {
+    /// Opens an existing run (it must hold `run.json`).
+    pub fn open(dir: &Path) -> Result<RunDir> {
+        let rf = RunFile::read(dir)?.ok_or_else(|| {
+            AgentError::Invalid(format!(
+                "{}: not a run directory (no run.json); make one with `agentstar init {} --capture CAPTURE`",
+                dir.display(),
+                dir.display()
+            ))
+        })?;
+        Ok(RunDir {
+            dir: dir.to_path_buf(),
+            capture: rf.capture,
+            scene: rf.model,
+            poses: rf.poses,
+        })
+    }
+
+    pub fn ledger_path(&self) -> PathBuf {
+        self.dir.join("ledger.jsonl")
+    }
+    pub fn notes_path(&self) -> PathBuf {
+        self.dir.join("NOTES.md")
+    }
+    pub fn task_path(&self) -> PathBuf {
+        self.dir.join("TASK.md")
+    }
+    pub fn scene_versions(&self) -> PathBuf {
+        self.dir.join(".agentstar").join("scenes")
+    }
+    /// The output directory of step `step` of `tool`.
+    pub fn step_dir(&self, step: u64, tool: &str) -> PathBuf {
+        self.dir
+            .join("images")
+            .join(format!("step_{step:04}_{tool}"))
+    }
+
+    /// Saves the current scene as version `n` (`.agentstar/scenes/NNNN.rhai`).
+    pub fn save_scene_version(&self, n: u64) -> Result<PathBuf> {
+        let dir = self.scene_versions();
+        std::fs::create_dir_all(&dir).map_err(|e| agentstar_data::DataError::io(&dir, e))?;
+        let p = dir.join(format!("{n:04}.rhai"));
+        let text = agentstar_data::read_text(&self.scene)?;
+        agentstar_data::atomic::write_atomic(&p, text.as_bytes())?;
+        Ok(p)
+    }
+
+    /// The scene versions saved so far, in order.
+    pub fn list_scene_versions(&self) -> Vec<u64> {
+        let mut v: Vec<u64> = std::fs::read_dir(self.scene_versions())
+            .into_iter()
+            .flatten()
+            .filter_map(|e| e.ok())
+            .filter_map(|e| {
+                let name = e.file_name().to_string_lossy().into_owned();
+                name.strip_suffix(".rhai")?.parse().ok()
+            })
+            .collect();
+        v.sort_unstable();
+        v
+    }
+
+    /// Reads the ledger back: steps taken, time spent, scene version, whether it finished.
+    pub fn state(&self) -> Result<RunState> {
+        let p = self.ledger_path();
+        if !p.is_file() {
+            return Ok(RunState::default());
+        }
+        let (entries, notes) = ledger::read(&p)?;
+        let mut s = RunState {
+            notes,
+            ..RunState::default()
+        };
+        for e in &entries {
+            s.steps = s.steps.max(e.step);
+            s.elapsed_s = s.elapsed_s.max(e.time_s);
+            if let Some(v) = e.scene_version {
+                s.scene_version = s.scene_version.max(v);
+            }
+            if e.tool == "finish" && e.scores.get("passed").copied() == Some(1.0) {
+                s.finished = true;
+            }
+        }
+        s.recent = entries.iter().rev().take(12).rev().cloned().collect();
+        Ok(s)
+    }
+
+    /// Appends a ledger entry.
+    pub fn record(&self, e: &LedgerEntry) -> Result<()> {
+        Ok(ledger::append(&self.ledger_path(), e)?)
+    }
+}
+
+/// Makes a new run directory for `capture`: `run.json`, the starting scene (or `scene`'s
+/// text), an initial `pose.json` (the object 0.5 m before the reference camera at scale
+/// `scale`), `TASK.md`, `NOTES.md` and an empty ledger. Fails when `dir` exists and is not
+/// empty. Everything is written into a temporary sibling renamed into place.
+pub fn init_run(dir: &Path, capture: &Path, scene: Option<&str>, scale: f64) -> Result<RunDir> {
+    if dir.exists()
+        && std::fs::read_dir(dir)
+            .map_err(|e| agentstar_data::DataError::io(dir, e))?
+            .next()
+            .is_some()
+    {
+        return Err(AgentError::Invalid(format!(
+            "{}: exists and is not empty; choose a new run directory",
+            dir.display()
+        )));
+    }
+    if !(scale.is_finite() && scale > 0.0) {
+        return Err(AgentError::Invalid(format!(
+            "scale {scale}: metres per model unit, a positive number"
+        )));
+    }
+    let cap = agentstar_data::capture::Capture::open(capture).map_err(|problems| {
+        AgentError::Invalid(format!(
+            "{}: not a valid capture ({} problem(s); run `agentstar validate {}`): {}",
+            capture.display(),
+            problems.len(),
+            capture.display(),
+            problems
+                .iter()
+                .take(3)
+                .map(|p| format!("{}: {}", p.path.display(), p.message))
+                .collect::<Vec<_>>()
+                .join("; ")
+        ))
+    })?;
+    let parent = dir
+        .parent()
+        .filter(|p| !p.as_os_str().is_empty())
+        .unwrap_or(Path::new("."));
+    std::fs::create_dir_all(parent).map_err(|e| agentstar_data::DataError::io(parent, e))?;
+    let tmp = tempfile::Builder::new()
+        .prefix(".agentstar-init-")
+        .tempdir_in(parent)
+        .map_err(|e| agentstar_data::DataError::io(parent, e))?;
+    let root = tmp.path();
+    let capture_abs = capture
+        .canonicalize()
+        .map_err(|e| agentstar_data::DataError::io(capture, e))?;
+    let rf = RunFile {
+        capture: capture_abs,
+        model: default_model(),
+        poses: default_poses(),
+    };
+    let write = |name: &str, bytes: &[u8]| -> Result<()> {
+        Ok(agentstar_data::atomic::write_atomic(
+            &root.join(name),
+            bytes,
+        )?)
+    };
+    write(
+        "run.json",
+        serde_json::to_string_pretty(&rf)
+            .map_err(|e| AgentError::Invalid(e.to_string()))?
+            .as_bytes(),
+    )?;
+    let script = scene.unwrap_or(STARTING_SCENE);
+    write("scene.rhai", script.as_bytes())?;
+    let model = agentstar_data::scenefile::load_model(&root.join("scene.rhai"))?;
+    // The object half a metre before the reference camera, unrotated.
+    let reference = agentstar_geom::pose::ObjectPose::new(
+        agentstar_geom::UnitQuaternion::identity(),
+        agentstar_geom::Vector3::new(0.0, 0.0, 0.5),
+    );
+    let mut pf =
+        agentstar_data::posefile::PoseFile::initial(&cap, &model.model.tree, scale, &reference);
+    pf.parts = Some(model.model.part_names());
+    pf.write(&root.join("pose.json"))?;
+    write("TASK.md", crate::task::task_document().as_bytes())?;
+    write(
+        "NOTES.md",
+        b"# Notes\n\nWhat I learned about this capture and model (kept across contexts).\n",
+    )?;
+    write("ledger.jsonl", b"")?;
+    let versions = root.join(".agentstar").join("scenes");
+    std::fs::create_dir_all(&versions).map_err(|e| agentstar_data::DataError::io(&versions, e))?;
+    write(".agentstar/scenes/0001.rhai", script.as_bytes())?;
+    let kept = tmp.keep();
+    if dir.exists() {
+        std::fs::remove_dir(dir).map_err(|e| agentstar_data::DataError::io(dir, e))?;
+    }
+    std::fs::rename(&kept, dir).map_err(|e| agentstar_data::DataError::io(dir, e))?;
+    let run = RunDir::open(dir)?;
+    run.record(&LedgerEntry {
+        step: 0,
+        time_s: 0.0,
+        kind: "system".into(),
+        tool: "init".into(),
+        args: serde_json::json!({"capture": capture, "scale": scale}),
+        summary: format!(
+            "run made for {} ({} keyframes)",
+            capture.display(),
+            cap.frames.len()
+        ),
+        scores: Default::default(),
+        images: vec![],
+        scene_version: Some(1),
+        pose_version: None,
+    })?;
+    Ok(run)
+}
