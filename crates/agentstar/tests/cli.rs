@@ -1852,3 +1852,72 @@ fn pose_sub_agents_work_their_windows_in_parallel_and_report_back() {
         .collect();
     assert_eq!(agents.len(), 2, "{ledger}");
 }
+
+#[test]
+fn external_agents_get_their_configuration_and_keys_stay_out_of_the_run() {
+    let dir = tempfile::tempdir().expect("tmp");
+    let p = |n: &str| dir.path().join(n);
+    let s = |path: &Path| path.to_str().expect("utf8").to_string();
+    let o = agentstar(&[
+        "synth",
+        &s(&p("cap")),
+        "--object",
+        "box",
+        "--frames",
+        "2",
+        "--size",
+        "160x120",
+        "--seed",
+        "7",
+    ]);
+    assert!(o.status.success(), "{}", text(&o));
+    let o = agentstar(&["init", &s(&p("run")), "--capture", &s(&p("cap"))]);
+    assert!(o.status.success(), "{}", text(&o));
+    // The configuration snippets name this executable and the run.
+    let o = agentstar(&["mcp", &s(&p("run")), "--print-config", "claude"]);
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("json");
+    assert_eq!(v["mcpServers"]["agentstar"]["args"][0], "mcp");
+    let o = agentstar(&["mcp", &s(&p("run")), "--print-config", "codex"]);
+    assert!(String::from_utf8_lossy(&o.stdout).starts_with("[mcp_servers.agentstar]"));
+    // Without the agent installed: the configuration is written and the message says what
+    // to install (PATH holds nothing here).
+    let o = std::process::Command::new(env!("CARGO_BIN_EXE_agentstar"))
+        .args(["run", &s(&p("run")), "--agent", "claude"])
+        .env("PATH", dir.path())
+        .output()
+        .expect("run");
+    assert_eq!(o.status.code(), Some(2), "{}", text(&o));
+    assert!(
+        text(&o).contains("npm install -g @anthropic-ai/claude-code"),
+        "{}",
+        text(&o)
+    );
+    assert!(p("run/.mcp.json").is_file() && p("run/CLAUDE.md").is_file());
+    // A key given in the environment is used but never written into the run.
+    let model = mock_model(vec![tool_call("a", "score", serde_json::json!({}))]);
+    let o = std::process::Command::new(env!("CARGO_BIN_EXE_agentstar"))
+        .args([
+            "run",
+            &s(&p("run")),
+            "--model",
+            "local:mock",
+            "--base-url",
+            &model.url,
+            "--retries",
+            "0",
+        ])
+        .env("AGENTSTAR_API_KEY", "sk-secret-0123456789")
+        .output()
+        .expect("run");
+    assert_eq!(o.status.code(), Some(4), "{}", text(&o));
+    for entry in std::fs::read_dir(p("run")).expect("dir").flatten() {
+        if entry.path().is_file() {
+            let content = std::fs::read(entry.path()).expect("read");
+            assert!(
+                !String::from_utf8_lossy(&content).contains("sk-secret-0123456789"),
+                "the key was written into {}",
+                entry.path().display()
+            );
+        }
+    }
+}
