@@ -8,8 +8,11 @@ use std::io::{BufRead, BufReader, Read, Write};
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
+/// Every request the server saw: path and body.
+type Seen = Arc<Mutex<Vec<(String, Value)>>>;
+
 /// (status, body, delay ms) per request, in order; every request body is kept.
-fn server(script: Vec<(u16, Value, u64)>) -> (String, Arc<Mutex<Vec<(String, Value)>>>) {
+fn server(script: Vec<(u16, Value, u64)>) -> (String, Seen) {
     let listener = std::net::TcpListener::bind("127.0.0.1:0").expect("bind");
     let url = format!("http://{}", listener.local_addr().expect("addr"));
     let seen = Arc::new(Mutex::new(vec![]));
@@ -157,8 +160,8 @@ fn the_critic_returns_checked_json_and_rejects_prose() {
         (200, openai_text("The lid looks wrong."), 0),
     ]);
     let cfg = config(Protocol::OpenAi, &url);
-    let out =
-        agentstar_agent::critic::criticise(&cfg, "000010.png", &[png.clone()]).expect("critic");
+    let out = agentstar_agent::critic::criticise(&cfg, "000010.png", std::slice::from_ref(&png))
+        .expect("critic");
     let v: Value = serde_json::from_str(&out).expect("json");
     assert_eq!(v["discrepancies"][0]["tag"], "joint_state");
     let sent = seen.lock().expect("lock")[0].1.to_string();
