@@ -17,6 +17,15 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::Instant;
 
+/// Tools that write `pose.json` (read-modify-write), run one at a time across sub-agents.
+const WRITES_POSES: [&str; 5] = [
+    "pose_commit",
+    "pose_restore",
+    "track",
+    "scene_write",
+    "scene_restore",
+];
+
 /// Budgets and context limits.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Budget {
@@ -368,8 +377,8 @@ pub fn run_agent(
         nudges = 0;
         let mut finished = false;
         for call in &reply.calls {
-            let (out, kind) = if call.name == "delegate_pose" && orchestrator {
-                (delegate(session, toolbox, call), Kind::Pose)
+            let out = if call.name == "delegate_pose" && orchestrator {
+                delegate(session, toolbox, call)
             } else {
                 let kind = tools
                     .iter()
@@ -381,7 +390,8 @@ pub fn run_agent(
                     call.name,
                     brief_args(&call.arguments)
                 ));
-                let out = if kind == Kind::Pose {
+                // Only the tools that write pose.json are serialised (searches run in parallel).
+                let out = if WRITES_POSES.contains(&call.name.as_str()) {
                     let _guard = session.commit_lock.lock();
                     toolbox.call(&call.name, &call.arguments, step)
                 } else {
@@ -400,9 +410,8 @@ pub fn run_agent(
                     },
                     &out,
                 )?;
-                (out, kind)
+                out
             };
-            let _ = kind;
             finished |= out.finished;
             messages.push(tool_message(call, &out, session.budget.max_tool_text));
         }
