@@ -290,7 +290,9 @@ fn anthropic_body(
     json!({
         "model": cfg.model,
         "max_tokens": cfg.max_reply_tokens,
-        "system": system,
+        // The system prompt (the task document and notes) is the same from call to call:
+        // marked for the server's prompt cache.
+        "system": [{"type": "text", "text": system, "cache_control": {"type": "ephemeral"}}],
         "messages": out,
         "tools": tools.iter().map(|t| json!({"name": t.name, "description": t.description,
             "input_schema": t.schema})).collect::<Vec<_>>(),

@@ -15,6 +15,7 @@ pub fn reconcile(scene: &Path, poses: &Path) -> Result<Vec<String>> {
     let mut changes = vec![];
     let mut added = std::collections::BTreeSet::new();
     let mut removed = std::collections::BTreeSet::new();
+    let mut clamped: std::collections::BTreeMap<String, usize> = Default::default();
     for entry in pf.frames.values_mut() {
         entry.joints.retain(|name, _| {
             let keep = rest.contains_key(name);
@@ -27,6 +28,15 @@ pub fn reconcile(scene: &Path, poses: &Path) -> Result<Vec<String>> {
             if !entry.joints.contains_key(name) {
                 entry.joints.insert(name.clone(), *v);
                 added.insert(name.clone());
+            }
+        }
+        // States outside a changed limit are brought to its nearest end.
+        for j in tree.joints() {
+            if let (Some((lo, hi)), Some(v)) = (j.limit, entry.joints.get_mut(&j.name)) {
+                if *v < lo || *v > hi {
+                    *v = v.clamp(lo, hi);
+                    *clamped.entry(j.name.clone()).or_default() += 1;
+                }
             }
         }
     }
@@ -42,8 +52,47 @@ pub fn reconcile(scene: &Path, poses: &Path) -> Result<Vec<String>> {
             removed.into_iter().collect::<Vec<_>>().join(", ")
         ));
     }
+    for (name, n) in &clamped {
+        changes.push(format!("{name} brought into its limit in {n} frame(s)"));
+    }
     pf.joint_defs = tree.joints().iter().map(joint_json).collect();
     pf.parts = Some(model.part_names());
     pf.write(poses)?;
     Ok(changes)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_new_scene_adds_drops_and_clamps_joints_in_every_frame() {
+        let dir = tempfile::tempdir().expect("tmp");
+        let scene = dir.path().join("scene.rhai");
+        let poses = dir.path().join("pose.json");
+        std::fs::write(&scene, "part(\"base\", box(1, 1, 0.2));\npart(\"lid\", box(1, 1, 0.05).translate(0, 0, 0.2));\npart(\"door\", box(0.1, 1, 0.5).translate(0.6, 0, 0));\njoint(#{ name: \"hinge\", type: \"revolute\", child: \"lid\", origin: [0, 0.5, 0.1], axis: [1, 0, 0], limit: [0, 60] });\njoint(#{ name: \"swing\", type: \"revolute\", child: \"door\", origin: [0.6, 0.5, 0], axis: [0, 0, 1], limit: [0, 90] });").expect("w");
+        let pf = serde_json::json!({
+            "frame_convention": "camera_opencv", "canonical": "+Z up", "scale": 0.2,
+            "reference_frame": "a.png", "joint_defs": [],
+            "frames": {
+                "a.png": {"object_pose": {"quaternion": [1, 0, 0, 0], "translation": [0, 0, 1]}, "joints": {"hinge": 100.0, "old": 3.0}},
+                "b.png": {"joints": {"hinge": 30.0}}
+            }
+        });
+        std::fs::write(&poses, pf.to_string()).expect("w");
+        let changes = reconcile(&scene, &poses).expect("reconcile");
+        assert_eq!(
+            changes,
+            [
+                "joints added at rest: swing",
+                "joints removed: old",
+                "hinge brought into its limit in 1 frame(s)"
+            ]
+        );
+        let back = PoseFile::read(&poses).expect("read");
+        assert_eq!(back.frames["a.png"].joints["hinge"], 60.0);
+        assert_eq!(back.frames["b.png"].joints["hinge"], 30.0);
+        assert_eq!(back.frames["b.png"].joints["swing"], 0.0);
+        assert_eq!(back.joint_defs.len(), 2);
+    }
 }

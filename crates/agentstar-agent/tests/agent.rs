@@ -136,7 +136,8 @@ fn anthropic_messages_round_trip_with_images_and_tool_calls() {
     );
     let (path, body) = seen.lock().expect("lock")[0].clone();
     assert_eq!(path, "/v1/messages");
-    assert_eq!(body["system"], "the task");
+    assert_eq!(body["system"][0]["text"], "the task");
+    assert_eq!(body["system"][0]["cache_control"]["type"], "ephemeral");
     assert_eq!(
         body["messages"][0]["content"][1]["source"]["media_type"],
         "image/png"

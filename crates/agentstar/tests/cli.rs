@@ -1710,7 +1710,16 @@ fn the_mcp_server_lists_its_tools_as_snapshotted_and_returns_images() {
         "name": "render", "arguments": {"frames": "000000", "views": "compare"},
         "_meta": {"progressToken": "p1"}}}),
     );
-    let (call, _) = c.response(3);
+    let (call, notes) = c.response(3);
+    // The client asked for progress: the call reports at least its start.
+    assert!(
+        notes.iter().any(|n| n["method"] == "notifications/progress"
+            && n["params"]["progressToken"] == "p1"
+            && n["params"]["message"]
+                .as_str()
+                .is_some_and(|m| m.starts_with("render"))),
+        "{notes:?}"
+    );
     let content = call["result"]["content"]
         .as_array()
         .expect("content")

@@ -83,9 +83,20 @@ impl ServerHandler for Server {
         let step = self.step.fetch_add(1, Ordering::SeqCst) + 1;
         let toolbox = self.toolbox.clone();
         let (a, n) = (args.clone(), name.clone());
+        // Long tools report progress while they run (when the client asked for it): once
+        // at the start, then every second.
+        let token = context.meta.get_progress_token();
+        if let Some(token) = &token {
+            let _ = context
+                .peer
+                .notify_progress(
+                    ProgressNotificationParam::new(token.clone(), 0.0)
+                        .with_message(format!("{name}: started")),
+                )
+                .await;
+        }
         let work = tokio::task::spawn_blocking(move || toolbox.call(&n, &a, step));
-        // Long tools report progress while they run (when the client asked for it).
-        let ticker = context.meta.get_progress_token().map(|token| {
+        let ticker = token.map(|token| {
             let peer = context.peer.clone();
             let name = name.clone();
             tokio::spawn(async move {
