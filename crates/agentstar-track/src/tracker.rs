@@ -353,6 +353,54 @@ impl<'m> Searcher<'m> {
         )
     }
 
+    /// The wide search after a drop: the 180° flips of the best pose so far, and a covering
+    /// of rotations within 120° of the seed with the joint grid, placed on the mask; the
+    /// best four refined.
+    fn wide(
+        &self,
+        frame: &TrackFrame<'_>,
+        best: &GenPose,
+        seed_pose: &GenPose,
+        (rotation_seed, seed): (u64, u64),
+    ) -> Result<Option<(GenPose, f64)>, TrackError> {
+        let pivot = self.model.pivot(&best.states);
+        let mut rots: Vec<UnitQuaternion> = ['x', 'y', 'z']
+            .iter()
+            .filter_map(|&a| flip(a))
+            .map(|f| apply_object_rotation(&best.pose, self.scale, &pivot, &f).rotation)
+            .collect();
+        for q in haar_rotations(self.cfg.rotations / 2, rotation_seed) {
+            let cand = q * seed_pose.pose.rotation;
+            if angle_deg(&(cand * seed_pose.pose.rotation.inverse())) <= 120.0 {
+                rots.push(cand);
+            }
+        }
+        let mut joint_sets = self.joint_grid();
+        joint_sets.push(best.states.clone());
+        let hyps = self.covering(frame, &rots, &joint_sets);
+        let wide: Vec<Result<(GenPose, f64), TrackError>> = hyps
+            .iter()
+            .take(4)
+            .enumerate()
+            .map(|(k, h)| (k, h.0.clone()))
+            .collect::<Vec<_>>()
+            .par_iter()
+            .map(|(k, h)| {
+                self.refine(
+                    frame,
+                    h,
+                    25.0,
+                    0.06,
+                    0.15,
+                    60.0,
+                    self.cfg.local_evals,
+                    seed + *k as u64,
+                )
+            })
+            .collect();
+        best_of(wide)
+    }
+
     fn joint_grid(&self) -> Vec<Vec<f64>> {
         let tree = &self.model.tree;
         let mut combos: Vec<Vec<f64>> = vec![tree.rest_states()];
@@ -617,43 +665,15 @@ pub fn track_observed(
             best_of(results)?.ok_or_else(|| TrackError::Invalid("search found nothing".into()))?;
         let mut how = "local";
         if sc < cfg.drop_threshold || sc < scores[prev_i] - cfg.drop_margin {
-            // Wide search: flips of the best, and a covering of rotations around the seed.
-            let pivot = model.pivot(&g.states);
-            let mut rots: Vec<UnitQuaternion> = ['x', 'y', 'z']
-                .iter()
-                .filter_map(|&a| flip(a))
-                .map(|f| apply_object_rotation(&g.pose, scale, &pivot, &f).rotation)
-                .collect();
-            for q in haar_rotations(cfg.rotations / 2, cfg.seed + i as u64) {
-                let cand = q * seeds[0].pose.rotation;
-                if angle_deg(&(cand * seeds[0].pose.rotation.inverse())) <= 120.0 {
-                    rots.push(cand);
-                }
-            }
-            let mut joint_sets = s.joint_grid();
-            joint_sets.push(g.states.clone());
-            let hyps = s.covering(&frames[i], &rots, &joint_sets);
-            let wide: Vec<Result<(GenPose, f64), TrackError>> = hyps
-                .iter()
-                .take(4)
-                .enumerate()
-                .map(|(k, h)| (k, h.0.clone()))
-                .collect::<Vec<_>>()
-                .par_iter()
-                .map(|(k, h)| {
-                    s.refine(
-                        &frames[i],
-                        h,
-                        25.0,
-                        0.06,
-                        0.15,
-                        60.0,
-                        cfg.local_evals,
-                        cfg.seed + 31 * i as u64 + *k as u64,
-                    )
-                })
-                .collect();
-            if let Some(r) = best_of(wide)?.filter(|r| r.1 > sc) {
+            if let Some(r) = s
+                .wide(
+                    &frames[i],
+                    &g,
+                    &seeds[0],
+                    (cfg.seed + i as u64, cfg.seed + 31 * i as u64),
+                )?
+                .filter(|r| r.1 > sc)
+            {
                 (g, sc) = r;
                 how = "wide";
             }
@@ -681,6 +701,10 @@ pub fn track_observed(
     })
 }
 
+/// How much better a neighbour must score for the consistency pass to search from it with
+/// the tracking step's window rather than the narrow polish.
+const FAR_MARGIN: f64 = 0.02;
+
 /// Searches again every frame that is a temporal outlier or scores below a neighbour, from
 /// its neighbours: their poses carried through the cameras, extrapolated at constant
 /// velocity from either side, and their interpolation. Keeps whatever scores best.
@@ -700,7 +724,8 @@ fn consistency(
     let step = |poses: &[GenPose], a: usize, b: usize| {
         angle_deg(&(poses[b].pose.rotation * carried(poses, a, b).pose.rotation.inverse()))
     };
-    for round in 0..3 {
+    // Enough rounds for a good pose to travel the whole sequence one frame per round.
+    for round in 0..(n as u64).max(3) {
         let mut steps: Vec<f64> = (1..n).map(|i| step(poses, i - 1, i)).collect();
         steps.sort_by(f64::total_cmp);
         let limit = (3.0 * steps.get(steps.len() / 2).copied().unwrap_or(0.0)).max(25.0);
@@ -756,6 +781,9 @@ fn consistency(
                     states,
                 });
             }
+            // A neighbour clearly better than this frame may be a whole inter-frame step
+            // away (the frame sits in a wrong basin): search its carried pose with the
+            // tracking step's window, not the narrow polish.
             let results: Vec<Result<(GenPose, f64), TrackError>> = seeds
                 .par_iter()
                 .enumerate()
@@ -767,7 +795,26 @@ fn consistency(
                     )
                 })
                 .collect();
-            if let Some((g, sc)) = best_of(results)?.filter(|r| r.1 > scores[i] + 1e-4) {
+            let mut found = best_of(results)?;
+            // A neighbour clearly better than this frame, and the narrow search from it not
+            // reaching it: this frame sits in a wrong basin a whole step away. The wide
+            // search around the better neighbour's carried pose.
+            if best_neighbour
+                > found.as_ref().map_or(scores[i], |r| r.1.max(scores[i])) + FAR_MARGIN
+            {
+                let j = neighbours
+                    .iter()
+                    .copied()
+                    .max_by(|&a, &b| scores[a].total_cmp(&scores[b]))
+                    .unwrap_or(i);
+                let from = carried(poses, j, i);
+                let seed = s.cfg.seed + 65537 * (i as u64 + 1) + 97 * round + 50;
+                let wide = s.wide(&frames[i], &from, &from, (seed, seed))?;
+                if let Some(w) = wide.filter(|w| found.as_ref().is_none_or(|f| w.1 > f.1)) {
+                    found = Some(w);
+                }
+            }
+            if let Some((g, sc)) = found.filter(|r| r.1 > scores[i] + 1e-4) {
                 log.push(format!(
                     "{}: searched again from its neighbours{}, IoU {:.4} → {sc:.4}",
                     frames[i].name,
