@@ -1478,26 +1478,41 @@ fn the_agent_loop_builds_tracks_and_passes_the_gates_against_a_mock_model() {
     assert!(html.contains("scene_write") && html.contains("the scene was not changed"));
 }
 
-#[test]
-fn a_failing_model_stops_cleanly_and_the_run_resumes_within_its_budget() {
-    let dir = tempfile::tempdir().expect("tmp");
-    let p = |n: &str| dir.path().join(n);
+/// A small synthetic capture `DIR/cap` (the hand-held box, 160×120) and a run `DIR/run` on
+/// it, started from the known scene at its scale or from the default box.
+fn small_run(dir: &Path, frames: usize, known_scene: bool) {
     let s = |path: &Path| path.to_str().expect("utf8").to_string();
+    let (cap, run) = (dir.join("cap"), dir.join("run"));
+    let n = frames.to_string();
     let o = agentstar(&[
         "synth",
-        &s(&p("cap")),
+        &s(&cap),
         "--object",
         "box",
         "--frames",
-        "3",
+        &n,
         "--size",
         "160x120",
         "--seed",
         "7",
     ]);
     assert!(o.status.success(), "{}", text(&o));
-    let o = agentstar(&["init", &s(&p("run")), "--capture", &s(&p("cap"))]);
+    let scene = s(&cap.join("model/scene.rhai"));
+    let mut args = vec!["init".to_string(), s(&run), "--capture".into(), s(&cap)];
+    if known_scene {
+        args.extend(["--scene".into(), scene, "--scale".into(), "0.24".into()]);
+    }
+    let args: Vec<&str> = args.iter().map(String::as_str).collect();
+    let o = agentstar(&args);
     assert!(o.status.success(), "{}", text(&o));
+}
+
+#[test]
+fn a_failing_model_stops_cleanly_and_the_run_resumes_within_its_budget() {
+    let dir = tempfile::tempdir().expect("tmp");
+    let p = |n: &str| dir.path().join(n);
+    let s = |path: &Path| path.to_str().expect("utf8").to_string();
+    small_run(dir.path(), 3, false);
     let poses_before = std::fs::read(p("run/pose.json")).expect("poses");
     let malformed = || {
         Act::Json(
@@ -1655,31 +1670,7 @@ impl Drop for McpClient {
 fn the_mcp_server_lists_its_tools_as_snapshotted_and_returns_images() {
     let dir = tempfile::tempdir().expect("tmp");
     let p = |n: &str| dir.path().join(n);
-    let s = |path: &Path| path.to_str().expect("utf8").to_string();
-    let o = agentstar(&[
-        "synth",
-        &s(&p("cap")),
-        "--object",
-        "box",
-        "--frames",
-        "3",
-        "--size",
-        "160x120",
-        "--seed",
-        "7",
-    ]);
-    assert!(o.status.success(), "{}", text(&o));
-    let o = agentstar(&[
-        "init",
-        &s(&p("run")),
-        "--capture",
-        &s(&p("cap")),
-        "--scene",
-        &s(&p("cap/model/scene.rhai")),
-        "--scale",
-        "0.24",
-    ]);
-    assert!(o.status.success(), "{}", text(&o));
+    small_run(dir.path(), 3, true);
     let mut c = McpClient::start(&p("run"));
     c.send(serde_json::json!({"jsonrpc": "2.0", "id": 1, "method": "initialize", "params": {
         "protocolVersion": "2025-06-18", "capabilities": {}, "clientInfo": {"name": "test", "version": "0"}}}));
@@ -1756,30 +1747,7 @@ fn pose_sub_agents_work_their_windows_in_parallel_and_report_back() {
     let dir = tempfile::tempdir().expect("tmp");
     let p = |n: &str| dir.path().join(n);
     let s = |path: &Path| path.to_str().expect("utf8").to_string();
-    let o = agentstar(&[
-        "synth",
-        &s(&p("cap")),
-        "--object",
-        "box",
-        "--frames",
-        "4",
-        "--size",
-        "160x120",
-        "--seed",
-        "7",
-    ]);
-    assert!(o.status.success(), "{}", text(&o));
-    let o = agentstar(&[
-        "init",
-        &s(&p("run")),
-        "--capture",
-        &s(&p("cap")),
-        "--scene",
-        &s(&p("cap/model/scene.rhai")),
-        "--scale",
-        "0.24",
-    ]);
-    assert!(o.status.success(), "{}", text(&o));
+    small_run(dir.path(), 4, true);
     let finish = || {
         tool_call(
             "w",
@@ -1867,21 +1835,7 @@ fn external_agents_get_their_configuration_and_keys_stay_out_of_the_run() {
     let dir = tempfile::tempdir().expect("tmp");
     let p = |n: &str| dir.path().join(n);
     let s = |path: &Path| path.to_str().expect("utf8").to_string();
-    let o = agentstar(&[
-        "synth",
-        &s(&p("cap")),
-        "--object",
-        "box",
-        "--frames",
-        "2",
-        "--size",
-        "160x120",
-        "--seed",
-        "7",
-    ]);
-    assert!(o.status.success(), "{}", text(&o));
-    let o = agentstar(&["init", &s(&p("run")), "--capture", &s(&p("cap"))]);
-    assert!(o.status.success(), "{}", text(&o));
+    small_run(dir.path(), 2, false);
     // The configuration snippets name this executable and the run.
     let o = agentstar(&["mcp", &s(&p("run")), "--print-config", "claude"]);
     let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("json");
