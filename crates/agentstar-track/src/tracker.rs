@@ -724,7 +724,8 @@ fn consistency(
     let step = |poses: &[GenPose], a: usize, b: usize| {
         angle_deg(&(poses[b].pose.rotation * carried(poses, a, b).pose.rotation.inverse()))
     };
-    // Enough rounds for a good pose to travel the whole sequence one frame per round.
+    // Three rounds of narrow searches, and more (up to one per frame, so a good pose can
+    // travel the whole sequence) while wide searches from better neighbours still move poses.
     for round in 0..(n as u64).max(3) {
         let mut steps: Vec<f64> = (1..n).map(|i| step(poses, i - 1, i)).collect();
         steps.sort_by(f64::total_cmp);
@@ -732,6 +733,7 @@ fn consistency(
         let mut order: Vec<usize> = (0..n).collect();
         order.sort_by(|&a, &b| scores[a].total_cmp(&scores[b]));
         let mut changed = 0;
+        let mut changed_wide = 0;
         for i in order {
             let neighbours: Vec<usize> = [i.checked_sub(1), (i + 1 < n).then_some(i + 1)]
                 .into_iter()
@@ -796,6 +798,7 @@ fn consistency(
                 })
                 .collect();
             let mut found = best_of(results)?;
+            let mut wide_won = false;
             // A neighbour clearly better than this frame, and the narrow search from it not
             // reaching it: this frame sits in a wrong basin a whole step away. The wide
             // search around the better neighbour's carried pose.
@@ -812,6 +815,7 @@ fn consistency(
                 let wide = s.wide(&frames[i], &from, &from, (seed, seed))?;
                 if let Some(w) = wide.filter(|w| found.as_ref().is_none_or(|f| w.1 > f.1)) {
                     found = Some(w);
+                    wide_won = true;
                 }
             }
             if let Some((g, sc)) = found.filter(|r| r.1 > scores[i] + 1e-4) {
@@ -824,9 +828,10 @@ fn consistency(
                 poses[i] = g;
                 scores[i] = sc;
                 changed += 1;
+                changed_wide += usize::from(wide_won);
             }
         }
-        if changed == 0 {
+        if changed == 0 || (round >= 2 && changed_wide == 0) {
             break;
         }
     }
