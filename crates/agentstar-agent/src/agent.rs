@@ -493,6 +493,9 @@ fn window_frames(
     Ok(out)
 }
 
+/// A window's index, how its agent ended, and its keyframes' final visible IoU.
+type WindowResult = (usize, Result<Outcome>, Vec<(String, f64)>);
+
 /// `delegate_pose`: one sub-agent per window, in parallel; returns their outcomes.
 fn delegate(session: &Session, toolbox: &Toolbox, call: &ToolCall) -> ToolOutput {
     let windows: Vec<String> = call.arguments["windows"]
@@ -539,7 +542,7 @@ fn delegate(session: &Session, toolbox: &Toolbox, call: &ToolCall) -> ToolOutput
             }
         }
     }
-    let results: Vec<(usize, Result<Outcome>, String)> = std::thread::scope(|scope| {
+    let results: Vec<WindowResult> = std::thread::scope(|scope| {
         let handles: Vec<_> = resolved
             .iter()
             .enumerate()
@@ -553,8 +556,11 @@ fn delegate(session: &Session, toolbox: &Toolbox, call: &ToolCall) -> ToolOutput
                     let label = format!("window {} ({name})", k + 1);
                     let r = run_agent(session, &tb, Some(&brief), &label);
                     // The window's final scores.
-                    let score = tb.call("score", &json!({"frames": frames.join(",")}), 0);
-                    (k, r, score.text)
+                    let ious = tb
+                        .ious(Some(&frames.join(",")))
+                        .map(|r| r.0)
+                        .unwrap_or_default();
+                    (k, r, ious)
                 })
             })
             .collect();
@@ -566,18 +572,9 @@ fn delegate(session: &Session, toolbox: &Toolbox, call: &ToolCall) -> ToolOutput
             Ok(o) => format!("{:?} after {} step(s)", o.stop, o.steps),
             Err(e) => format!("failed: {e}"),
         };
-        let v = crate::tools::score_json(&score);
-        let ious: Vec<String> = v["frames"]
-            .as_array()
-            .into_iter()
-            .flatten()
-            .map(|r| {
-                format!(
-                    "{} {:.4}",
-                    r["frame"].as_str().unwrap_or("?"),
-                    r["iou_visible"].as_f64().unwrap_or(0.0)
-                )
-            })
+        let ious: Vec<String> = score
+            .iter()
+            .map(|(frame, iou)| format!("{frame} {iou:.4}"))
             .collect();
         text.push_str(&format!(
             "window {} ({}): {how}; IoU: {}\n",

@@ -261,13 +261,6 @@ fn first_line_of(s: &str) -> &str {
     s.lines().next().unwrap_or("")
 }
 
-/// The JSON of a `score` tool result (after its summary line).
-pub fn score_json(text: &str) -> Value {
-    text.split_once('\n')
-        .and_then(|(_, json)| serde_json::from_str(json).ok())
-        .unwrap_or(Value::Null)
-}
-
 /// PNG files under `dir`, sheets first, then by name.
 fn pngs(dir: &Path) -> Vec<PathBuf> {
     let mut v: Vec<PathBuf> = std::fs::read_dir(dir)
@@ -306,6 +299,35 @@ impl Toolbox {
             "--poses".into(),
             self.run.poses.display().to_string(),
         ]
+    }
+
+    /// Each keyframe's visible IoU (0 where no mask pixel is visible), in capture order, and
+    /// `agentstar score`'s JSON.
+    pub fn ious(&self, frames: Option<&str>) -> Result<(Vec<(String, f64)>, String)> {
+        let mut a: Vec<String> = ["score".to_string()]
+            .into_iter()
+            .chain(self.session_args())
+            .collect();
+        if let Some(f) = frames {
+            a.extend(["--frames".into(), f.into()]);
+        }
+        a.push("--json".into());
+        let (_, stdout, stderr) = self.exec(&a)?;
+        // `score` exits 1 when a frame is under the gate; its JSON is the result.
+        let v: Value = serde_json::from_str(&stdout)
+            .map_err(|_| AgentError::Tool(stderr.trim().to_string()))?;
+        let rows = v["frames"]
+            .as_array()
+            .into_iter()
+            .flatten()
+            .map(|r| {
+                (
+                    r["frame"].as_str().unwrap_or("").to_string(),
+                    r["iou_visible"].as_f64().unwrap_or(0.0),
+                )
+            })
+            .collect();
+        Ok((rows, stdout))
     }
 
     /// Runs the executable; returns (success, stdout, stderr).
@@ -464,31 +486,17 @@ impl Toolbox {
                 Ok(o)
             }
             "score" => {
-                let a: Vec<String> = ["score".to_string()]
-                    .into_iter()
-                    .chain(self.session_args())
-                    .chain(opt("frames", "--frames"))
-                    .chain(["--json".to_string()])
-                    .collect();
-                let (_, stdout, stderr) = self.exec(&a)?;
-                // `score` exits 1 when a frame is under the gate; its JSON is the result.
-                let v: Value = serde_json::from_str(&stdout)
-                    .map_err(|_| AgentError::Tool(stderr.trim().to_string()))?;
+                let (ious, stdout) = self.ious(arg_str(args, "frames"))?;
                 let mut o = ToolOutput::default();
-                let rows = v["frames"].as_array().cloned().unwrap_or_default();
-                let ious: Vec<f64> = rows
-                    .iter()
-                    .map(|r| r["iou_visible"].as_f64().unwrap_or(0.0))
-                    .collect();
-                let below: Vec<&str> = rows
-                    .iter()
-                    .filter(|r| r["iou_visible"].as_f64().unwrap_or(0.0) < GATE_IOU)
-                    .filter_map(|r| r["frame"].as_str())
-                    .collect();
                 let mut head = format!("score: {} keyframe(s)", ious.len());
                 if !ious.is_empty() {
-                    let min = ious.iter().copied().fold(1.0, f64::min);
-                    let mean = ious.iter().sum::<f64>() / ious.len() as f64;
+                    let min = ious.iter().map(|r| r.1).fold(1.0, f64::min);
+                    let mean = ious.iter().map(|r| r.1).sum::<f64>() / ious.len() as f64;
+                    let below: Vec<&str> = ious
+                        .iter()
+                        .filter(|r| r.1 < GATE_IOU)
+                        .map(|r| r.0.as_str())
+                        .collect();
                     o.scores.insert("iou_min".into(), min);
                     o.scores.insert("iou_mean".into(), mean);
                     head.push_str(&format!(
@@ -889,20 +897,24 @@ impl Toolbox {
                     .collect()
             })
             .unwrap_or_default();
-        let score = self.call_inner("score", &json!({}), 0)?;
         let mut missing = vec![];
-        let v = score_json(&score.text);
-        let mut below = vec![];
-        for r in v["frames"].as_array().into_iter().flatten() {
-            let name = r["frame"].as_str().unwrap_or("").to_string();
-            let iou = r["iou_visible"].as_f64().unwrap_or(0.0);
-            if iou < GATE_IOU && !unreachable.contains_key(&name) {
-                below.push(format!("{name} ({iou:.4})"));
+        let mut scores = BTreeMap::new();
+        let below: Vec<String> = match self.ious(None) {
+            Ok((ious, _)) => ious
+                .into_iter()
+                .inspect(|(_, iou)| {
+                    let min = scores.entry("iou_min".to_string()).or_insert(1.0f64);
+                    *min = min.min(*iou);
+                })
+                .filter(|(name, iou)| *iou < GATE_IOU && !unreachable.contains_key(name))
+                .map(|(name, iou)| format!("{name} ({iou:.4})"))
+                .collect(),
+            Err(e) => {
+                missing.push(format!("the poses could not be scored: {e}"));
+                vec![]
             }
-        }
-        if score.is_error {
-            missing.push(format!("the poses could not be scored: {}", score.text));
-        } else if !below.is_empty() {
+        };
+        if !below.is_empty() {
             missing.push(format!(
                 "keyframes under the {GATE_IOU} gate without a reason: {}",
                 below.join(", ")
@@ -945,7 +957,7 @@ impl Toolbox {
                 format!("Not finished:\n- {}", missing.join("\n- "))
             },
             finished: passed,
-            scores: score.scores.clone(),
+            scores,
             ..Default::default()
         };
         o.scores

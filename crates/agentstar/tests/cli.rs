@@ -999,25 +999,15 @@ fn the_demo_report_is_self_contained_and_renders_in_headless_chromium() {
     );
 }
 
-/// The README's walk-through, with a frame folder in place of the video (no ffmpeg here):
-/// a segmenter's masks, a static camera, a model, tracking, the report.
+/// The README's walk-through, with a frame folder in place of the video (the video path has
+/// its own test): a segmenter's masks, a static camera, a model, tracking, the report.
 #[test]
 fn the_readme_walk_through_goes_from_frames_and_masks_to_a_report() {
     let dir = tempfile::tempdir().expect("tmp");
     let p = |n: &str| dir.path().join(n);
     let s = |path: &Path| path.to_str().expect("utf8").to_string();
     // A phone-like clip: frames, plus masks as a segmenter writes them (other names).
-    let o = agentstar(&[
-        "synth",
-        &s(&p("clip")),
-        "--object",
-        "box",
-        "--frames",
-        "10",
-        "--seed",
-        "7",
-    ]);
-    assert!(o.status.success(), "{}", text(&o));
+    synth_box(&p("clip"), 10, false);
     let clip = agentstar_data::capture::Capture::open(&p("clip")).expect("clip");
     for (sub, suffix) in [
         ("frames", ""),
@@ -1343,17 +1333,7 @@ fn the_agent_loop_builds_tracks_and_passes_the_gates_against_a_mock_model() {
     let dir = tempfile::tempdir().expect("tmp");
     let p = |n: &str| dir.path().join(n);
     let s = |path: &Path| path.to_str().expect("utf8").to_string();
-    let o = agentstar(&[
-        "synth",
-        &s(&p("cap")),
-        "--object",
-        "box",
-        "--frames",
-        "10",
-        "--seed",
-        "7",
-    ]);
-    assert!(o.status.success(), "{}", text(&o));
+    synth_box(&p("cap"), 10, false);
     let o = agentstar(&[
         "init",
         &s(&p("run")),
@@ -1478,25 +1458,33 @@ fn the_agent_loop_builds_tracks_and_passes_the_gates_against_a_mock_model() {
     assert!(html.contains("scene_write") && html.contains("the scene was not changed"));
 }
 
+/// The hand-held box with hands, seed 7 (the demo's clip), `frames` keyframes, at 160×120
+/// when `small` (else 320×240), written to `out`.
+fn synth_box(out: &Path, frames: usize, small: bool) {
+    let n = frames.to_string();
+    let mut args = vec![
+        "synth",
+        out.to_str().expect("utf8"),
+        "--object",
+        "box",
+        "--frames",
+        &n,
+        "--seed",
+        "7",
+    ];
+    if small {
+        args.extend(["--size", "160x120"]);
+    }
+    let o = agentstar(&args);
+    assert!(o.status.success(), "{}", text(&o));
+}
+
 /// A small synthetic capture `DIR/cap` (the hand-held box, 160×120) and a run `DIR/run` on
 /// it, started from the known scene at its scale or from the default box.
 fn small_run(dir: &Path, frames: usize, known_scene: bool) {
     let s = |path: &Path| path.to_str().expect("utf8").to_string();
     let (cap, run) = (dir.join("cap"), dir.join("run"));
-    let n = frames.to_string();
-    let o = agentstar(&[
-        "synth",
-        &s(&cap),
-        "--object",
-        "box",
-        "--frames",
-        &n,
-        "--size",
-        "160x120",
-        "--seed",
-        "7",
-    ]);
-    assert!(o.status.success(), "{}", text(&o));
+    synth_box(&cap, frames, true);
     let scene = s(&cap.join("model/scene.rhai"));
     let mut args = vec!["init".to_string(), s(&run), "--capture".into(), s(&cap)];
     if known_scene {
