@@ -4,27 +4,20 @@
 //!
 //! Pose sub-agents: the orchestrator may call `delegate_pose` with keyframe windows and a
 //! brief; each window gets its own agent (own context, tools limited to its keyframes),
-//! run in parallel; pose commits are serialised so no window's commit overwrites another's.
+//! run in parallel; writing tools are serialised inside the toolbox (shared with the MCP
+//! server), so no window's commit overwrites another's.
 //! The orchestrator then owns the seams (temporal report, flip checks).
 
 use crate::llm::{complete, LlmError, Message, ModelConfig, Part, ToolCall};
 use crate::run::RunDir;
-use crate::tools::{catalogue, Kind, ToolOutput, ToolSpec, Toolbox};
+use crate::tools::{
+    catalogue, parse_args, schema_of, DelegateArgs, Kind, ToolOutput, ToolSpec, Toolbox,
+};
 use crate::Result;
 use agentstar_data::ledger::LedgerEntry;
 use serde_json::{json, Value};
 use std::sync::atomic::{AtomicU64, Ordering};
-use std::sync::{Arc, Mutex};
 use std::time::Instant;
-
-/// Tools that write `pose.json` (read-modify-write), run one at a time across sub-agents.
-const WRITES_POSES: [&str; 5] = [
-    "pose_commit",
-    "pose_restore",
-    "track",
-    "scene_write",
-    "scene_restore",
-];
 
 /// Budgets and context limits.
 #[derive(Debug, Clone, PartialEq)]
@@ -85,7 +78,6 @@ pub struct Session {
     start: Instant,
     /// Seconds of earlier sessions, for the ledger's times.
     offset_s: f64,
-    commit_lock: Arc<Mutex<()>>,
     /// Writes progress lines (stderr in the binary).
     pub progress: Box<dyn Fn(&str) + Send + Sync>,
 }
@@ -102,7 +94,6 @@ impl Session {
             output_tokens: AtomicU64::new(0),
             start: Instant::now(),
             offset_s,
-            commit_lock: Arc::new(Mutex::new(())),
             progress: Box::new(|line| eprintln!("{line}")),
         }
     }
@@ -217,7 +208,9 @@ pub fn record_step(run: &RunDir, r: StepRecord<'_>, out: &ToolOutput) -> Result<
             })
             .collect(),
         scene_version: out.scene_version,
-        pose_version: out.pose_changed.then_some(step),
+        pose_version: out
+            .pose_version
+            .or_else(|| out.pose_changed.then_some(step)),
     };
     run.record(&e)?;
     Ok(e)
@@ -272,10 +265,7 @@ fn offered(orchestrator: bool) -> Vec<ToolSpec> {
             name: "delegate_pose",
             kind: Kind::Pose,
             description: "Once the shape is settled, split the keyframes into windows and give each to a pose sub-agent that works in parallel with its own context (sweeps, flips and commits on its keyframes only). The brief says which basin the poses are in and which flips to check. Returns each window's final scores and summary; you then own the seams (temporal report, flip checks).",
-            schema: json!({"type": "object", "properties": {
-                "windows": {"type": "array", "items": {"type": "string"}, "description": "Each window's keyframes, e.g. `000000..000020`."},
-                "brief": {"type": "string"}
-            }, "required": ["windows", "brief"], "additionalProperties": false}),
+            schema: schema_of::<DelegateArgs>(),
         });
     }
     v
@@ -390,13 +380,8 @@ pub fn run_agent(
                     call.name,
                     brief_args(&call.arguments)
                 ));
-                // Only the tools that write pose.json are serialised (searches run in parallel).
-                let out = if WRITES_POSES.contains(&call.name.as_str()) {
-                    let _guard = session.commit_lock.lock();
-                    toolbox.call(&call.name, &call.arguments, step)
-                } else {
-                    toolbox.call(&call.name, &call.arguments, step)
-                };
+                // The toolbox serialises the writers; searches run in parallel.
+                let out = toolbox.call(&call.name, &call.arguments, step);
                 session.steps_this_session.fetch_add(1, Ordering::SeqCst);
                 record_step(
                     &toolbox.run,
@@ -462,84 +447,38 @@ fn tool_message(call: &ToolCall, out: &ToolOutput, max_text: usize) -> Message {
     }
 }
 
-/// Resolves a window spec (`a..b` of stems, or names/stems comma separated) to frame names.
-fn window_frames(
-    frames: &[(String, String)],
-    spec: &str,
-) -> std::result::Result<Vec<String>, String> {
-    let stem_of = |n: &str| n.split('.').next().unwrap_or(n).to_string();
-    let mut out = vec![];
-    for term in spec.split(',').map(str::trim).filter(|t| !t.is_empty()) {
-        if let Some((a, b)) = term.split_once("..") {
-            let (ia, ib) = (
-                frames.iter().position(|(n, s)| s == a || n == a),
-                frames.iter().position(|(n, s)| s == b || n == b),
-            );
-            match (ia, ib) {
-                (Some(i), Some(j)) if i <= j => {
-                    out.extend(frames[i..=j].iter().map(|(n, _)| n.clone()))
-                }
-                _ => return Err(format!("window `{term}`: unknown or reversed keyframes")),
-            }
-        } else if let Some((n, _)) = frames
-            .iter()
-            .find(|(n, s)| n == term || *s == stem_of(term))
-        {
-            out.push(n.clone());
-        } else {
-            return Err(format!("window `{term}`: no such keyframe"));
-        }
-    }
-    Ok(out)
-}
-
 /// A window's index, how its agent ended, and its keyframes' final visible IoU.
 type WindowResult = (usize, Result<Outcome>, Vec<(String, f64)>);
 
 /// `delegate_pose`: one sub-agent per window, in parallel; returns their outcomes.
 fn delegate(session: &Session, toolbox: &Toolbox, call: &ToolCall) -> ToolOutput {
-    let windows: Vec<String> = call.arguments["windows"]
-        .as_array()
-        .map(|a| {
-            a.iter()
-                .filter_map(|w| w.as_str().map(str::to_string))
-                .collect()
-        })
-        .unwrap_or_default();
-    let brief = call.arguments["brief"].as_str().unwrap_or("").to_string();
-    if windows.is_empty() {
-        return ToolOutput {
-            text: "delegate_pose needs `windows` (e.g. [\"000000..000020\", \"000025..000045\"]) and a `brief`".into(),
-            is_error: true,
-            ..Default::default()
-        };
-    }
-    let cap = match agentstar_data::capture::Capture::open(&toolbox.run.capture) {
-        Ok(c) => c,
-        Err(p) => {
-            return ToolOutput {
-                text: format!("the capture cannot be opened: {} problem(s)", p.len()),
-                is_error: true,
-                ..Default::default()
-            }
+    let refuse = |text: String| ToolOutput {
+        text,
+        is_error: true,
+        ..Default::default()
+    };
+    let args: DelegateArgs = match parse_args("delegate_pose", &call.arguments) {
+        Ok(a) => a,
+        Err(e) => {
+            return refuse(format!(
+                "{e} (e.g. {{\"windows\": [\"000000..000020\", \"000025..000045\"], \"brief\": \"…\"}})"
+            ))
         }
     };
-    let frames: Vec<(String, String)> = cap
-        .frames
-        .iter()
-        .map(|f| (f.name.clone(), f.stem.clone()))
-        .collect();
+    if let Err(e) = crate::tools::check_bounds(
+        "delegate_pose",
+        &schema_of::<DelegateArgs>(),
+        &call.arguments,
+    ) {
+        return refuse(e);
+    }
+    let (windows, brief) = (args.windows, args.brief);
+    // The one frame grammar: names, stems, numbers and `a..b` ranges.
     let mut resolved = vec![];
     for w in &windows {
-        match window_frames(&frames, w) {
+        match toolbox.frame_names(Some(w)) {
             Ok(f) => resolved.push(f),
-            Err(e) => {
-                return ToolOutput {
-                    text: e,
-                    is_error: true,
-                    ..Default::default()
-                };
-            }
+            Err(e) => return refuse(format!("window `{w}`: {e}")),
         }
     }
     let results: Vec<WindowResult> = std::thread::scope(|scope| {
@@ -550,16 +489,11 @@ fn delegate(session: &Session, toolbox: &Toolbox, call: &ToolCall) -> ToolOutput
                 let brief = brief.clone();
                 let name = windows[k].clone();
                 scope.spawn(move || {
-                    let mut tb = Toolbox::new(toolbox.exe.clone(), toolbox.run.clone());
-                    tb.window = Some(frames.clone());
-                    tb.timeout_s = toolbox.timeout_s;
+                    let tb = toolbox.for_window(frames.clone());
                     let label = format!("window {} ({name})", k + 1);
                     let r = run_agent(session, &tb, Some(&brief), &label);
                     // The window's final scores.
-                    let ious = tb
-                        .ious(Some(&frames.join(",")))
-                        .map(|r| r.0)
-                        .unwrap_or_default();
+                    let ious = tb.ious(Some(&frames.join(","))).unwrap_or_default();
                     (k, r, ious)
                 })
             })
@@ -629,22 +563,5 @@ mod tests {
         assert!(
             matches!(&m[2], Message::ToolResult { parts, .. } if matches!(parts[0], Part::Image { .. }))
         );
-    }
-
-    #[test]
-    fn windows_resolve_ranges_names_and_stems() {
-        let f: Vec<(String, String)> = (0..5)
-            .map(|i| (format!("{:06}.png", i * 5), format!("{:06}", i * 5)))
-            .collect();
-        assert_eq!(
-            window_frames(&f, "000005..000015").expect("range"),
-            ["000005.png", "000010.png", "000015.png"]
-        );
-        assert_eq!(
-            window_frames(&f, "000020, 000000.png").expect("list"),
-            ["000020.png", "000000.png"]
-        );
-        assert!(window_frames(&f, "000015..000005").is_err());
-        assert!(window_frames(&f, "000003").is_err());
     }
 }

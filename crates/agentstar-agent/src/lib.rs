@@ -1,5 +1,6 @@
 //! The agent harness: a run directory and its ledger (`run`), the task document (`task`),
-//! the tool catalogue and its execution (`tools`), keeping `pose.json` in step with the
+//! the tool registry and its execution (`tools`), the typed reports commands write and
+//! tools read (`reports`), pose file versions under one lock (`history`), keeping `pose.json` in step with the
 //! scene (`poses`), model clients for OpenAI-compatible servers and Anthropic (`llm`), and
 //! the agent loop with pose sub-agents (`agent`). The critic is a model call made through
 //! `llm` (`critic`).
@@ -9,8 +10,10 @@
 
 pub mod agent;
 pub mod critic;
+pub mod history;
 pub mod llm;
 pub mod poses;
+pub mod reports;
 pub mod run;
 pub mod task;
 pub mod tools;

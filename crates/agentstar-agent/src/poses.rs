@@ -2,15 +2,22 @@
 //! added start at rest in every frame, joints it removed are dropped, and the joint
 //! definitions and part names are the new scene's.
 
+use crate::history::PoseHistory;
 use crate::Result;
 use agentstar_data::posefile::{joint_json, PoseFile};
 use std::path::Path;
 
-/// Updates the pose file at `poses` to the model at `scene`; returns what changed.
-pub fn reconcile(scene: &Path, poses: &Path) -> Result<Vec<String>> {
+/// Updates the pose file at `poses` to the model at `scene` (under the pose file's lock,
+/// recorded in its history as `command` when anything changed); returns what changed and
+/// the version recorded.
+pub fn reconcile(scene: &Path, poses: &Path, command: &str) -> Result<(Vec<String>, Option<u64>)> {
     let model = agentstar_data::scenefile::load_model(scene)?.model;
+    PoseHistory::new(poses).update_if_changed(command, |pf| Ok(reconcile_file(&model, pf)))
+}
+
+/// Brings `pf` in step with `model`; returns what changed.
+fn reconcile_file(model: &agentstar_geom::ObjectModel, pf: &mut PoseFile) -> Vec<String> {
     let tree = &model.tree;
-    let mut pf = PoseFile::read(poses)?;
     let rest = tree.states_to_interface(&tree.rest_states());
     let mut changes = vec![];
     let mut added = std::collections::BTreeSet::new();
@@ -57,8 +64,7 @@ pub fn reconcile(scene: &Path, poses: &Path) -> Result<Vec<String>> {
     }
     pf.joint_defs = tree.joints().iter().map(joint_json).collect();
     pf.parts = Some(model.part_names());
-    pf.write(poses)?;
-    Ok(changes)
+    changes
 }
 
 #[cfg(test)]
@@ -80,7 +86,9 @@ mod tests {
             }
         });
         std::fs::write(&poses, pf.to_string()).expect("w");
-        let changes = reconcile(&scene, &poses).expect("reconcile");
+        let (changes, version) = reconcile(&scene, &poses, "test").expect("reconcile");
+        // The file as it was is version 0, the reconciled one version 1.
+        assert_eq!(version, Some(1));
         assert_eq!(
             changes,
             [
@@ -94,5 +102,10 @@ mod tests {
         assert_eq!(back.frames["b.png"].joints["hinge"], 30.0);
         assert_eq!(back.frames["b.png"].joints["swing"], 0.0);
         assert_eq!(back.joint_defs.len(), 2);
+        // Nothing to change: nothing written, no version.
+        assert_eq!(
+            reconcile(&scene, &poses, "again").expect("again"),
+            (vec![], None)
+        );
     }
 }

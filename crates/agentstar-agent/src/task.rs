@@ -1,8 +1,8 @@
 //! The task document the agent reads (`TASK.md`), and the short instructions an MCP client
 //! shows its model.
 
-/// The gate on every keyframe's visible-region IoU.
-pub const GATE_IOU: f64 = 0.98;
+/// The gate on every keyframe's visible-region IoU (defined once, in `reports`).
+pub use crate::reports::GATE_IOU;
 
 const TASK: &str = r#"# Your task
 

@@ -1,18 +1,40 @@
-//! The tool catalogue shared by the MCP server and the built-in loop: names, descriptions
-//! that teach each tool, JSON schemas, and their execution.
+//! The tool registry shared by the MCP server and the built-in loop: one type per tool
+//! (name, kind, what it writes, its argument struct, its handler), and the toolbox that runs
+//! them on one run directory.
+//!
+//! A tool's JSON Schema is generated from its argument struct (`schemars`), and a call's
+//! arguments are checked against it (types, required and unknown fields by `serde`; bounds
+//! and lengths by [`check_bounds`]) before anything runs. The catalogue, the MCP
+//! `tools/list` and the built-in loop's tool list are views of [`registry`].
 //!
 //! Every tool that renders or searches runs the `agentstar` executable as a child process
 //! with `--json` (so a broken scene script or a crash in one tool never takes the harness
-//! down, and the scene sandbox is the one every command uses); the tool's files land in
-//! `RUN/images/step_NNNN_tool/`, and PNGs there come back as images.
+//! down, and the scene sandbox is the one every command uses) through one runner,
+//! [`Toolbox::exec`]; the tool's files land in `RUN/images/step_NNNN_tool/`, and PNGs there
+//! come back as images. The reports the children print are read into their types
+//! ([`crate::reports`]).
+//!
+//! Tools that write (`pose.json`, the scene, the notes) run one at a time per run, whoever
+//! calls them (MCP requests served concurrently, pose sub-agents in parallel); searches and
+//! diagnostics run in parallel. Pose files change only through [`PoseHistory`], which
+//! also serialises against `agentstar pose commit` run from a shell.
 
+use crate::history::PoseHistory;
+use crate::reports::{
+    CommitReport, HistoryRow, ScoreReport, SearchReport, SearchVerb, TrackReport, GATE_IOU,
+};
 use crate::run::RunDir;
-use crate::task::{task_document, GATE_IOU};
+use crate::task::task_document;
 use crate::{AgentError, Result};
-use serde_json::{json, Value};
+use agentstar_data::posefile::PoseFile;
+use schemars::JsonSchema;
+use serde::de::DeserializeOwned;
+use serde::Deserialize;
+use serde_json::Value;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::process::Command;
+use std::sync::{Arc, Mutex};
 
 /// What kind of step a tool is (the ledger's `kind`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -34,7 +56,19 @@ impl Kind {
     }
 }
 
-/// One tool as offered to a model.
+/// What a tool changes in the run (writers run one at a time).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Writes {
+    Nothing,
+    /// `pose.json` (and its history).
+    Poses,
+    /// `scene.rhai`, its versions, and `pose.json`'s joints.
+    Scene,
+    /// `NOTES.md`.
+    Notes,
+}
+
+/// One tool as offered to a model (a view of a [`ToolDef`]).
 #[derive(Debug, Clone, PartialEq)]
 pub struct ToolSpec {
     pub name: &'static str,
@@ -44,170 +78,685 @@ pub struct ToolSpec {
     pub schema: Value,
 }
 
-fn obj(props: Value, required: &[&str]) -> Value {
-    json!({"type": "object", "properties": props, "required": required, "additionalProperties": false})
+/// Longest scene script `scene_write` takes, characters.
+pub const MAX_SCRIPT_CHARS: usize = 256 * 1024;
+/// Longest single note, characters.
+pub const MAX_NOTE_CHARS: usize = 4000;
+/// Largest `NOTES.md` the `notes` tool appends to (it is in every model request).
+pub const MAX_NOTES_BYTES: usize = 64 * 1024;
+
+const FRAMES: &str = "Keyframes: `all`, names (`000010.png`), stems (`000010`), frame numbers, or ranges `a..b`, comma separated.";
+
+/// One tool: its name, kind, what it writes, its arguments and its handler.
+pub trait Tool {
+    const NAME: &'static str;
+    const KIND: Kind;
+    const WRITES: Writes;
+    const DESCRIPTION: &'static str;
+    /// The arguments; its schema is the tool's input schema.
+    type Args: DeserializeOwned + JsonSchema;
+    fn run(tb: &Toolbox, args: Self::Args, step: u64) -> Result<ToolOutput>;
 }
 
-const FRAMES: &str = "Keyframes: `all`, names (`000010.png`), stems (`000010`), indices, or ranges `a..b` of stems, comma separated.";
+/// A registry entry: a [`Tool`] with its type erased.
+#[derive(Clone, Copy)]
+pub struct ToolDef {
+    pub name: &'static str,
+    pub kind: Kind,
+    pub writes: Writes,
+    pub description: &'static str,
+    schema: fn() -> Value,
+    call: fn(&Toolbox, &Value, u64) -> Result<ToolOutput>,
+}
+
+impl std::fmt::Debug for ToolDef {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("ToolDef").field("name", &self.name).finish()
+    }
+}
+
+impl ToolDef {
+    pub const fn of<T: Tool>() -> ToolDef {
+        ToolDef {
+            name: T::NAME,
+            kind: T::KIND,
+            writes: T::WRITES,
+            description: T::DESCRIPTION,
+            schema: schema_of::<T::Args>,
+            call: call_typed::<T>,
+        }
+    }
+
+    /// The generated JSON Schema of the arguments.
+    pub fn schema(&self) -> Value {
+        (self.schema)()
+    }
+
+    pub fn spec(&self) -> ToolSpec {
+        ToolSpec {
+            name: self.name,
+            kind: self.kind,
+            description: self.description,
+            schema: self.schema(),
+        }
+    }
+
+    /// Parses `args` against the schema (without running the tool).
+    pub fn check_args(&self, args: &Value) -> std::result::Result<(), String> {
+        check_bounds(self.name, &self.schema(), args)
+    }
+}
+
+/// The JSON Schema of `A`, self-contained (no `$schema`, no references), options not
+/// nullable.
+pub fn schema_of<A: JsonSchema>() -> Value {
+    let generator = schemars::generate::SchemaSettings::draft2020_12()
+        .with(|s| {
+            s.meta_schema = None;
+            s.inline_subschemas = true;
+        })
+        .into_generator();
+    let mut v = generator.into_root_schema_for::<A>().to_value();
+    if let Some(o) = v.as_object_mut() {
+        // The struct's own doc comment is for people reading the code.
+        o.remove("title");
+        o.remove("description");
+        let props = o
+            .entry("properties")
+            .or_insert_with(|| Value::Object(Default::default()));
+        // An optional argument is left out, not sent as null: say so in its schema.
+        if let Some(props) = props.as_object_mut() {
+            for p in props.values_mut() {
+                drop_null(p);
+            }
+        }
+    }
+    v
+}
+
+/// Removes `null` from a property's types (`["string", "null"]` → `"string"`, an
+/// `anyOf` with a null branch → the other branch).
+fn drop_null(p: &mut Value) {
+    let Some(o) = p.as_object_mut() else { return };
+    if let Some(Value::Array(types)) = o.get_mut("type") {
+        types.retain(|t| t != "null");
+        if types.len() == 1 {
+            let t = types[0].clone();
+            o.insert("type".into(), t);
+        }
+    }
+    if let Some(Value::Array(values)) = o.get_mut("enum") {
+        values.retain(|v| !v.is_null());
+    }
+    if let Some(Value::Array(branches)) = o.get("anyOf").cloned().as_ref() {
+        let rest: Vec<&Value> = branches.iter().filter(|b| b["type"] != "null").collect();
+        if let [only] = rest.as_slice() {
+            o.remove("anyOf");
+            if let Some(inner) = only.as_object() {
+                for (k, v) in inner {
+                    o.entry(k.clone()).or_insert_with(|| v.clone());
+                }
+            }
+        }
+    }
+}
+
+/// Deserialises a tool's arguments (missing = `{}`); the error names the tool.
+pub fn parse_args<A: DeserializeOwned>(tool: &str, args: &Value) -> Result<A> {
+    let v = match args {
+        Value::Null => Value::Object(Default::default()),
+        Value::Object(_) => args.clone(),
+        other => {
+            return Err(AgentError::Tool(format!(
+                "{tool}: the arguments must be an object, not {other}"
+            )))
+        }
+    };
+    serde_json::from_value(v).map_err(|e| AgentError::Tool(format!("{tool}: bad arguments: {e}")))
+}
+
+/// The bounds of a schema that `serde` does not check: `minimum`, `maximum`,
+/// `exclusiveMinimum`, `minLength`, `maxLength` of each property given.
+pub fn check_bounds(tool: &str, schema: &Value, args: &Value) -> std::result::Result<(), String> {
+    let (Some(props), Some(given)) = (
+        schema.get("properties").and_then(Value::as_object),
+        args.as_object(),
+    ) else {
+        return Ok(());
+    };
+    let num = |s: &Value, k: &str| s.get(k).and_then(Value::as_f64);
+    for (key, value) in given {
+        let Some(s) = props.get(key) else { continue };
+        if let Some(x) = value.as_f64() {
+            if let Some(min) = num(s, "minimum").filter(|m| x < *m) {
+                return Err(format!(
+                    "{tool}: `{key}` is {value}, under its minimum {min}"
+                ));
+            }
+            if let Some(max) = num(s, "maximum").filter(|m| x > *m) {
+                return Err(format!(
+                    "{tool}: `{key}` is {value}, over its maximum {max}"
+                ));
+            }
+            if let Some(min) = num(s, "exclusiveMinimum").filter(|m| x <= *m) {
+                return Err(format!("{tool}: `{key}` is {value}; it must be over {min}"));
+            }
+            if !x.is_finite() {
+                return Err(format!("{tool}: `{key}` must be finite"));
+            }
+        }
+        if let Some(text) = value.as_str() {
+            let n = text.chars().count();
+            if let Some(min) = num(s, "minLength").filter(|m| (n as f64) < *m) {
+                return Err(format!(
+                    "{tool}: `{key}` must have at least {min} character(s)"
+                ));
+            }
+            if let Some(max) = num(s, "maxLength").filter(|m| (n as f64) > *m) {
+                return Err(format!(
+                    "{tool}: `{key}` has {n} characters, over its limit of {max}"
+                ));
+            }
+        }
+    }
+    Ok(())
+}
+
+fn call_typed<T: Tool>(tb: &Toolbox, args: &Value, step: u64) -> Result<ToolOutput> {
+    let a: T::Args = parse_args(T::NAME, args)?;
+    check_bounds(T::NAME, &schema_of::<T::Args>(), args).map_err(AgentError::Tool)?;
+    T::run(tb, a, step)
+}
+
+macro_rules! tool {
+    ($(#[$doc:meta])* $ty:ident, $name:literal, $kind:ident, $writes:ident, $args:ty, $desc:expr,
+     |$tb:ident, $a:pat_param, $step:pat_param| $body:expr) => {
+        $(#[$doc])*
+        pub struct $ty;
+        impl Tool for $ty {
+            const NAME: &'static str = $name;
+            const KIND: Kind = Kind::$kind;
+            const WRITES: Writes = Writes::$writes;
+            const DESCRIPTION: &'static str = $desc;
+            type Args = $args;
+            fn run($tb: &Toolbox, $a: $args, $step: u64) -> Result<ToolOutput> {
+                $body
+            }
+        }
+    };
+}
+
+/// No arguments.
+#[derive(Debug, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct NoArgs {}
+
+#[derive(Debug, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct SceneWriteArgs {
+    /// The whole scene script (Rhai).
+    #[schemars(length(min = 1, max = 262144))]
+    pub script: String,
+}
+
+#[derive(Debug, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct VersionArgs {
+    #[schemars(range(min = 1))]
+    pub version: u64,
+}
+
+#[derive(Debug, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct RenderArgs {
+    #[schemars(description = FRAMES)]
+    pub frames: Option<String>,
+    /// Comma separated: overlay, compare, ids, shaded. Default overlay,compare.
+    pub views: Option<String>,
+}
+
+#[derive(Debug, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct FramesArgs {
+    #[schemars(description = FRAMES)]
+    pub frames: Option<String>,
+}
+
+#[derive(Debug, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct TrackArgs {
+    /// Metres per model unit (default: the scale in pose.json).
+    #[schemars(extend("exclusiveMinimum" = 0))]
+    pub scale: Option<f64>,
+}
+
+/// A sweep's search strategy.
+#[derive(Debug, Clone, Copy, Deserialize, JsonSchema)]
+#[serde(rename_all = "lowercase")]
+pub enum Strategy {
+    De,
+    Grid,
+}
+
+#[derive(Debug, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct SweepArgs {
+    #[schemars(description = FRAMES, length(min = 1))]
+    pub frames: String,
+    /// DOF:min,max terms separated by `;` (roll, yaw, pitch in degrees; dpx, dpy, tz fractions; joints by name).
+    #[schemars(length(min = 1))]
+    pub ranges: String,
+    pub strategy: Option<Strategy>,
+    /// Evaluations over all restarts (default 3600).
+    #[schemars(range(min = 50, max = 50000))]
+    pub evals: Option<u64>,
+}
+
+#[derive(Debug, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct ApplyArgs {
+    /// One keyframe (name, stem or number).
+    #[schemars(length(min = 1))]
+    pub frame: String,
+    /// One value per DOF: `yaw:15;hinge:40` (increments; joint states absolute).
+    #[schemars(length(min = 1))]
+    pub order: String,
+}
+
+#[derive(Debug, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct OsweepArgs {
+    #[schemars(description = FRAMES)]
+    pub frames: Option<String>,
+    /// A preset: `z:flip`, `z:quarters`, `z:octants`, `so3:24`.
+    pub opreset: Option<String>,
+    /// Grid ranges over rx, ry, rz: `rz:-180,180,9;rx:-15,15,3`.
+    pub ranges: Option<String>,
+}
+
+#[derive(Debug, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct OapplyArgs {
+    #[schemars(description = FRAMES)]
+    pub frames: Option<String>,
+    /// `flips`, or candidates separated by `|`, terms by `;`: `identity|flip:x|rz:90;rx:10`.
+    pub set: Option<String>,
+}
+
+#[derive(Debug, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct OapplyAllArgs {
+    /// One rotation: `rz:90;rx:10` (rotation vector, degrees) or `flip:x|y|z`.
+    #[schemars(length(min = 1))]
+    pub rotation: String,
+    #[schemars(description = FRAMES)]
+    pub frames: Option<String>,
+}
+
+#[derive(Debug, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct PoseCommitArgs {
+    /// The report a search returned (inside the run directory).
+    #[schemars(length(min = 1))]
+    pub report: String,
+    /// The candidate's rank (0 = best).
+    #[schemars(range(min = 0))]
+    pub rank: Option<u64>,
+    /// Only these frames of the report (same grammar as `frames`).
+    pub frames: Option<String>,
+}
+
+#[derive(Debug, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct TemporalArgs {
+    /// e.g. vel.rot, accel.rot, vel.trans, <joint>.vel
+    pub sort_by: Option<String>,
+}
+
+#[derive(Debug, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct PoseDiffArgs {
+    #[schemars(length(min = 1))]
+    pub a: String,
+    #[schemars(length(min = 1))]
+    pub b: String,
+}
+
+#[derive(Debug, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct CriticArgs {
+    /// One keyframe.
+    #[schemars(length(min = 1))]
+    pub frame: String,
+}
+
+#[derive(Debug, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct NotesArgs {
+    #[schemars(length(min = 1, max = 4000))]
+    pub text: String,
+}
+
+#[derive(Debug, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct FinishArgs {
+    /// Keyframe name → why it cannot reach the gate.
+    pub unreachable: Option<BTreeMap<String, String>>,
+    #[schemars(length(max = 4000))]
+    pub summary: Option<String>,
+}
+
+/// The arguments of the built-in loop's `delegate_pose` (run by the loop, not the toolbox).
+#[derive(Debug, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct DelegateArgs {
+    /// Each window's keyframes, e.g. `000000..000020`.
+    #[schemars(length(min = 1))]
+    pub windows: Vec<String>,
+    #[schemars(length(min = 1))]
+    pub brief: String,
+}
+
+fn flag(value: &Option<String>, name: &str) -> Vec<String> {
+    value
+        .as_deref()
+        .map(str::trim)
+        .filter(|v| !v.is_empty())
+        .map(|v| vec![name.to_string(), v.to_string()])
+        .unwrap_or_default()
+}
+
+tool!(Task, "task", Note, Nothing, NoArgs,
+    "Return TASK.md: the goal, the conventions, how to work, how to read the images, the gates before finishing, and the whole scene API with a worked example. Read it first.",
+    |_tb, _a, _step| Ok(ToolOutput::text(task_document())));
+
+tool!(SceneRead, "scene_read", Diagnostic, Nothing, NoArgs,
+    "Return the current scene.rhai and its check: parts, joints, the canonical frame (bounding box, centre) and warnings.",
+    |tb, _a, _step| tb.scene_read());
+
+tool!(SceneWrite, "scene_write", Shape, Scene, SceneWriteArgs,
+    "Replace scene.rhai with a whole new script (a shape step). The script is built in the sandbox first: on an error you get the message with its line and nothing changes. On success a new scene version is saved and pose.json gains new joints at rest (removed joints are dropped). Check the shape with `turntable` afterwards.",
+    |tb, a, step| tb.scene_write(&a.script, step));
+
+tool!(
+    SceneRestore,
+    "scene_restore",
+    Shape,
+    Scene,
+    VersionArgs,
+    "Make an earlier scene version current again (versions are listed by scene_read).",
+    |tb, a, step| {
+        let p = tb
+            .run
+            .scene_versions()
+            .join(format!("{:04}.rhai", a.version));
+        let script = agentstar_data::read_text(&p).map_err(|_| {
+            AgentError::Tool(format!(
+                "there is no scene version {}; the versions are {:?}",
+                a.version,
+                tb.run.list_scene_versions()
+            ))
+        })?;
+        tb.scene_write(&script, step)
+    }
+);
+
+tool!(Render, "render", Diagnostic, Nothing, RenderArgs,
+    "Render the posed model into keyframes: `overlay` (shaded model over the frame) and `compare` (green agree, red mask not covered, blue model outside the mask, grey hand). Also returns a contact sheet of the overlays.",
+    |tb, a, step| {
+        let views = a.views.clone().filter(|v| !v.trim().is_empty()).unwrap_or_else(|| "overlay,compare".into());
+        let (mut o, _, _) = tb.cli(
+            &["render"],
+            step,
+            Render::NAME,
+            [flag(&a.frames, "--frames"), vec!["--views".into(), views]].concat(),
+        )?;
+        o.images.truncate(8);
+        Ok(o)
+    });
+
+tool!(Score, "score", Diagnostic, Nothing, FramesArgs,
+    "Per keyframe: visible IoU (hands excluded; the gate is 0.98), raw IoU, pixel counts, depth error when the capture has depth. Lists the keyframes under the gate.",
+    |tb, a, _step| {
+        let report = tb.score_report(a.frames.as_deref())?;
+        let mut o = ToolOutput::default();
+        let mut head = format!("score: {} keyframe(s)", report.frames.len());
+        if !report.frames.is_empty() {
+            let gates: Vec<f64> = report.frames.iter().map(|f| f.gate()).collect();
+            let min = gates.iter().copied().fold(1.0, f64::min);
+            let mean = gates.iter().sum::<f64>() / gates.len() as f64;
+            let below: Vec<&str> = report
+                .frames
+                .iter()
+                .filter(|f| f.gate() < GATE_IOU)
+                .map(|f| f.frame.as_str())
+                .collect();
+            o.scores.insert("iou_min".into(), min);
+            o.scores.insert("iou_mean".into(), mean);
+            head.push_str(&format!(
+                ", visible IoU mean {mean:.4}, min {min:.4}; under the gate: {}",
+                if below.is_empty() { "none".to_string() } else { below.join(", ") }
+            ));
+        }
+        o.text = format!("{head}\n{}", to_pretty(&report));
+        o.structured = serde_json::to_value(&report).ok();
+        Ok(o)
+    });
+
+tool!(Turntable, "turntable", Diagnostic, Nothing, NoArgs,
+    "Eight views around the model, once per distinct joint state in pose.json: the 3-D shape check after every shape step (parts floating, intersecting or missing from the back).",
+    |tb, _a, step| {
+        let (mut o, _, stdout) = tb.cli(&["turntable"], step, Turntable::NAME, vec![])?;
+        if o.is_error {
+            return Ok(o);
+        }
+        o.images.truncate(6);
+        o.text = format!("turntable: {} view sheet(s)\n{stdout}", o.images.len());
+        Ok(o)
+    });
+
+tool!(Track, "track", Pose, Poses, TrackArgs,
+    "Run the automatic tracker over every keyframe with the current model and scale (a pose step for all keyframes; the previous pose.json is kept as a version). Use it once the shape is right, then fix the frames it gets wrong with sweeps and flips.",
+    |tb, a, step| tb.track(&a, step));
+
+tool!(Sweep, "sweep", Pose, Nothing, SweepArgs,
+    "Search a bounded region around the current pose of each given keyframe by silhouette IoU (differential evolution, 6 seeded restarts) and return the ranked candidates with a candidate sheet. Ranges are camera-frame increments and absolute joint states, e.g. `yaw:-30,30;pitch:-20,20;tz:-0.1,0.1;lid_hinge:0,90`. Commit a candidate with pose_commit (the result names its report).",
+    |tb, a, step| {
+        let extra = [
+            vec!["--frames".into(), a.frames.clone()],
+            vec!["--ranges".into(), a.ranges.clone()],
+            a.strategy
+                .map(|s| vec!["--strategy".into(), match s { Strategy::De => "de", Strategy::Grid => "grid" }.into()])
+                .unwrap_or_default(),
+            a.evals.map(|e| vec!["--evals".into(), e.to_string()]).unwrap_or_default(),
+        ]
+        .concat();
+        tb.search(SearchVerb::Sweep, Some(&a.frames), extra, step)
+    });
+
+tool!(Apply, "apply", Pose, Nothing, ApplyArgs,
+    "Score one explicit order on one keyframe, e.g. `yaw:15;hinge:40`, and return it as a candidate (to compare with a sweep's).",
+    |tb, a, step| {
+        let extra = vec!["--frame".into(), a.frame.clone(), "--order".into(), a.order.clone()];
+        tb.search(SearchVerb::Apply, Some(&a.frame), extra, step)
+    });
+
+tool!(Osweep, "osweep", Pose, Nothing, OsweepArgs,
+    "Search object-frame rotations per keyframe: a preset (`z:flip`, `z:quarters`, `z:octants`, `so3:24`) or grid ranges (`rz:-180,180,9;rx:-15,15,3`). For objects that look alike from several sides.",
+    |tb, a, step| {
+        let extra = [flag(&a.frames, "--frames"), flag(&a.opreset, "--opreset"), flag(&a.ranges, "--ranges")].concat();
+        tb.search(SearchVerb::Osweep, a.frames.as_deref(), extra, step)
+    });
+
+tool!(Oapply, "oapply", Pose, Nothing, OapplyArgs,
+    "Score a set of object-frame rotations on each keyframe, default `flips` (identity and the 180° flips about x, y, z). The flip check for near-symmetric objects: a flipped pose can score as well as the right one, so look at the sheet.",
+    |tb, a, step| {
+        let extra = [flag(&a.frames, "--frames"), flag(&a.set, "--set")].concat();
+        tb.search(SearchVerb::Oapply, a.frames.as_deref(), extra, step)
+    });
+
+tool!(OapplyAll, "oapply_all", Pose, Nothing, OapplyAllArgs,
+    "Apply one object-frame rotation to every keyframe (`rz:90` or `flip:x`): for a model built the wrong way round.",
+    |tb, a, step| {
+        let extra = [vec!["--rotation".into(), a.rotation.clone()], flag(&a.frames, "--frames")].concat();
+        tb.search(SearchVerb::OapplyAll, a.frames.as_deref(), extra, step)
+    });
+
+tool!(PoseCommit, "pose_commit", Pose, Poses, PoseCommitArgs,
+    "Commit a candidate of a search report to pose.json (atomically; the previous pose.json becomes a version). `report` is the path a search returned.",
+    |tb, a, _step| tb.pose_commit(&a));
+
+tool!(
+    PoseHistoryTool,
+    "pose_history",
+    Diagnostic,
+    Nothing,
+    NoArgs,
+    "List the committed pose versions with the command that made each.",
+    |tb, _a, _step| {
+        let rows: Vec<HistoryRow> = PoseHistory::new(&tb.run.poses).rows()?;
+        let mut text = if rows.is_empty() {
+            "no committed pose versions yet\n".to_string()
+        } else {
+            String::new()
+        };
+        for r in &rows {
+            text.push_str(&format!("{:>4}  {}\n", r.version, r.command));
+        }
+        Ok(ToolOutput {
+            text,
+            structured: Some(serde_json::json!({ "versions": rows })),
+            ..Default::default()
+        })
+    }
+);
+
+tool!(
+    PoseRestore,
+    "pose_restore",
+    Pose,
+    Poses,
+    VersionArgs,
+    "Make an earlier pose version current again.",
+    |tb, a, _step| {
+        if tb.window.is_some() {
+            return Ok(ToolOutput::error(
+                "a pose sub-agent cannot restore the whole pose file",
+            ));
+        }
+        let v = PoseHistory::new(&tb.run.poses).restore(a.version)?;
+        Ok(ToolOutput {
+            text: format!(
+                "restored version {} of pose.json (recorded as version {v})",
+                a.version
+            ),
+            pose_changed: true,
+            pose_version: Some(v),
+            ..Default::default()
+        })
+    }
+);
+
+tool!(Temporal, "temporal", Diagnostic, Nothing, TemporalArgs,
+    "The temporal report: rotation, translation and radial velocity and acceleration from keyframe to keyframe (camera motion removed), joint velocities, and a plot. Large steps are either real or wrong poses (often flips): confirm them in the frames or fix them.",
+    |tb, a, step| {
+        let out = tb.run.step_dir(step, Temporal::NAME);
+        std::fs::create_dir_all(&out).map_err(|e| agentstar_data::DataError::io(&out, e))?;
+        let plot = out.join("temporal.png");
+        let mut args: Vec<String> = vec!["temporal".into()];
+        args.extend(tb.session_args());
+        args.extend(["--plot".into(), plot.display().to_string()]);
+        args.extend(flag(&a.sort_by, "--sort-by"));
+        let (ok, stdout, stderr) = tb.exec(&args)?;
+        if !ok {
+            return Ok(ToolOutput::error(stderr.trim().to_string()));
+        }
+        Ok(ToolOutput { text: stdout, images: pngs(&out), ..Default::default() })
+    });
+
+tool!(
+    PoseDiff,
+    "pose_diff",
+    Diagnostic,
+    Nothing,
+    PoseDiffArgs,
+    "The residual between two keyframes' poses (rotation in degrees, translation, joint changes).",
+    |tb, a, _step| {
+        let mut args: Vec<String> = vec!["pose-diff".into()];
+        args.extend(tb.session_args());
+        args.extend(["--a".into(), a.a.clone(), "--b".into(), a.b.clone()]);
+        let (ok, stdout, stderr) = tb.exec(&args)?;
+        Ok(if ok {
+            ToolOutput::text(stdout)
+        } else {
+            ToolOutput::error(stderr.trim().to_string())
+        })
+    }
+);
+
+tool!(Critic, "critic", Diagnostic, Nothing, CriticArgs,
+    "Ask a separate model to criticise one keyframe: it sees the frame, the overlay and the turntable and returns realism and identity scores and discrepancies tagged shape, pose, joint state or joint definition, with a severity and a direction of change. Skipped with a note when no critic model is configured.",
+    |tb, a, step| tb.critic(&a.frame, step));
+
+tool!(Notes, "notes", Note, Notes, NotesArgs,
+    "Append to NOTES.md, your memory across contexts (what the object is, which parts move, what you ruled out).",
+    |tb, a, step| {
+        let p = tb.run.notes_path();
+        let mut all = agentstar_data::read_text(&p).unwrap_or_default();
+        let line = format!("\n- (step {step}) {}\n", a.text.trim());
+        if all.len() + line.len() > MAX_NOTES_BYTES {
+            return Ok(ToolOutput::error(format!(
+                "NOTES.md is full ({} of {MAX_NOTES_BYTES} bytes): it is in every request, so keep notes short; nothing was added",
+                all.len()
+            )));
+        }
+        all.push_str(&line);
+        agentstar_data::atomic::write_atomic(&p, all.as_bytes())?;
+        Ok(ToolOutput::text("noted"))
+    });
+
+tool!(Finish, "finish", Diagnostic, Nothing, FinishArgs,
+    "Check the gates and end the run when they hold: every keyframe's visible IoU ≥ 0.98 or a reason for it in `unreachable`; a turntable after the last shape change; a temporal report after the last pose change. Returns what is missing otherwise.",
+    |tb, a, _step| tb.finish(&a));
 
 /// Every tool, in the order offered.
+pub static REGISTRY: [ToolDef; 21] = [
+    ToolDef::of::<Task>(),
+    ToolDef::of::<SceneRead>(),
+    ToolDef::of::<SceneWrite>(),
+    ToolDef::of::<SceneRestore>(),
+    ToolDef::of::<Render>(),
+    ToolDef::of::<Score>(),
+    ToolDef::of::<Turntable>(),
+    ToolDef::of::<Track>(),
+    ToolDef::of::<Sweep>(),
+    ToolDef::of::<Apply>(),
+    ToolDef::of::<Osweep>(),
+    ToolDef::of::<Oapply>(),
+    ToolDef::of::<OapplyAll>(),
+    ToolDef::of::<PoseCommit>(),
+    ToolDef::of::<PoseHistoryTool>(),
+    ToolDef::of::<PoseRestore>(),
+    ToolDef::of::<Temporal>(),
+    ToolDef::of::<PoseDiff>(),
+    ToolDef::of::<Critic>(),
+    ToolDef::of::<Notes>(),
+    ToolDef::of::<Finish>(),
+];
+
+/// The registry: every tool, in the order offered.
+pub fn registry() -> &'static [ToolDef] {
+    &REGISTRY
+}
+
+/// The tool called `name`.
+pub fn find(name: &str) -> Option<&'static ToolDef> {
+    registry().iter().find(|t| t.name == name)
+}
+
+/// The catalogue as offered to a model: a view of the registry.
 pub fn catalogue() -> Vec<ToolSpec> {
-    vec![
-        ToolSpec {
-            name: "task",
-            kind: Kind::Note,
-            description: "Return TASK.md: the goal, the conventions, how to work, how to read the images, the gates before finishing, and the whole scene API with a worked example. Read it first.",
-            schema: obj(json!({}), &[]),
-        },
-        ToolSpec {
-            name: "scene_read",
-            kind: Kind::Diagnostic,
-            description: "Return the current scene.rhai and its check: parts, joints, the canonical frame (bounding box, centre) and warnings.",
-            schema: obj(json!({}), &[]),
-        },
-        ToolSpec {
-            name: "scene_write",
-            kind: Kind::Shape,
-            description: "Replace scene.rhai with a whole new script (a shape step). The script is built in the sandbox first: on an error you get the message with its line and nothing changes. On success a new scene version is saved and pose.json gains new joints at rest (removed joints are dropped). Check the shape with `turntable` afterwards.",
-            schema: obj(json!({"script": {"type": "string", "description": "The whole scene script (Rhai)."}}), &["script"]),
-        },
-        ToolSpec {
-            name: "scene_restore",
-            kind: Kind::Shape,
-            description: "Make an earlier scene version current again (versions are listed by scene_read).",
-            schema: obj(json!({"version": {"type": "integer", "minimum": 1}}), &["version"]),
-        },
-        ToolSpec {
-            name: "render",
-            kind: Kind::Diagnostic,
-            description: "Render the posed model into keyframes: `overlay` (shaded model over the frame) and `compare` (green agree, red mask not covered, blue model outside the mask, grey hand). Also returns a contact sheet of the overlays.",
-            schema: obj(json!({
-                "frames": {"type": "string", "description": FRAMES},
-                "views": {"type": "string", "description": "Comma separated: overlay, compare, ids, shaded. Default overlay,compare."}
-            }), &[]),
-        },
-        ToolSpec {
-            name: "score",
-            kind: Kind::Diagnostic,
-            description: "Per keyframe: visible IoU (hands excluded; the gate is 0.98), raw IoU, pixel counts, depth error when the capture has depth. Lists the keyframes under the gate.",
-            schema: obj(json!({"frames": {"type": "string", "description": FRAMES}}), &[]),
-        },
-        ToolSpec {
-            name: "turntable",
-            kind: Kind::Diagnostic,
-            description: "Eight views around the model, once per distinct joint state in pose.json: the 3-D shape check after every shape step (parts floating, intersecting or missing from the back).",
-            schema: obj(json!({}), &[]),
-        },
-        ToolSpec {
-            name: "track",
-            kind: Kind::Pose,
-            description: "Run the automatic tracker over every keyframe with the current model and scale (a pose step for all keyframes; the previous pose.json is kept as a version). Use it once the shape is right, then fix the frames it gets wrong with sweeps and flips.",
-            schema: obj(json!({"scale": {"type": "number", "exclusiveMinimum": 0, "description": "Metres per model unit (default: the scale in pose.json)."}}), &[]),
-        },
-        ToolSpec {
-            name: "sweep",
-            kind: Kind::Pose,
-            description: "Search a bounded region around the current pose of each given keyframe by silhouette IoU (differential evolution, 6 seeded restarts) and return the ranked candidates with a candidate sheet. Ranges are camera-frame increments and absolute joint states, e.g. `yaw:-30,30;pitch:-20,20;tz:-0.1,0.1;lid_hinge:0,90`. Commit a candidate with pose_commit (the result names its report).",
-            schema: obj(json!({
-                "frames": {"type": "string", "description": FRAMES},
-                "ranges": {"type": "string", "description": "DOF:min,max terms separated by `;` (roll, yaw, pitch in degrees; dpx, dpy, tz fractions; joints by name)."},
-                "strategy": {"type": "string", "enum": ["de", "grid"]},
-                "evals": {"type": "integer", "minimum": 50, "maximum": 50000, "description": "Evaluations over all restarts (default 3600)."}
-            }), &["frames", "ranges"]),
-        },
-        ToolSpec {
-            name: "apply",
-            kind: Kind::Pose,
-            description: "Score one explicit order on one keyframe, e.g. `yaw:15;hinge:40`, and return it as a candidate (to compare with a sweep's).",
-            schema: obj(json!({
-                "frame": {"type": "string"},
-                "order": {"type": "string"}
-            }), &["frame", "order"]),
-        },
-        ToolSpec {
-            name: "osweep",
-            kind: Kind::Pose,
-            description: "Search object-frame rotations per keyframe: a preset (`z:flip`, `z:quarters`, `z:octants`, `so3:24`) or grid ranges (`rz:-180,180,9;rx:-15,15,3`). For objects that look alike from several sides.",
-            schema: obj(json!({
-                "frames": {"type": "string", "description": FRAMES},
-                "opreset": {"type": "string"},
-                "ranges": {"type": "string"}
-            }), &[]),
-        },
-        ToolSpec {
-            name: "oapply",
-            kind: Kind::Pose,
-            description: "Score a set of object-frame rotations on each keyframe, default `flips` (identity and the 180° flips about x, y, z). The flip check for near-symmetric objects: a flipped pose can score as well as the right one, so look at the sheet.",
-            schema: obj(json!({
-                "frames": {"type": "string", "description": FRAMES},
-                "set": {"type": "string", "description": "`flips`, or candidates separated by `|`, terms by `;`: `identity|flip:x|rz:90;rx:10`."}
-            }), &[]),
-        },
-        ToolSpec {
-            name: "oapply_all",
-            kind: Kind::Pose,
-            description: "Apply one object-frame rotation to every keyframe (`rz:90` or `flip:x`): for a model built the wrong way round.",
-            schema: obj(json!({
-                "rotation": {"type": "string"},
-                "frames": {"type": "string", "description": FRAMES}
-            }), &["rotation"]),
-        },
-        ToolSpec {
-            name: "pose_commit",
-            kind: Kind::Pose,
-            description: "Commit a candidate of a search report to pose.json (atomically; the previous pose.json becomes a version). `report` is the path a search returned.",
-            schema: obj(json!({
-                "report": {"type": "string"},
-                "rank": {"type": "integer", "minimum": 0},
-                "frames": {"type": "string", "description": "Only these frames of the report (comma separated names)."}
-            }), &["report"]),
-        },
-        ToolSpec {
-            name: "pose_history",
-            kind: Kind::Diagnostic,
-            description: "List the committed pose versions with the command that made each.",
-            schema: obj(json!({}), &[]),
-        },
-        ToolSpec {
-            name: "pose_restore",
-            kind: Kind::Pose,
-            description: "Make an earlier pose version current again.",
-            schema: obj(json!({"version": {"type": "integer", "minimum": 1}}), &["version"]),
-        },
-        ToolSpec {
-            name: "temporal",
-            kind: Kind::Diagnostic,
-            description: "The temporal report: rotation, translation and radial velocity and acceleration from keyframe to keyframe (camera motion removed), joint velocities, and a plot. Large steps are either real or wrong poses (often flips): confirm them in the frames or fix them.",
-            schema: obj(json!({"sort_by": {"type": "string", "description": "e.g. vel.rot, accel.rot, vel.trans, <joint>.vel"}}), &[]),
-        },
-        ToolSpec {
-            name: "pose_diff",
-            kind: Kind::Diagnostic,
-            description: "The residual between two keyframes' poses (rotation in degrees, translation, joint changes).",
-            schema: obj(json!({"a": {"type": "string"}, "b": {"type": "string"}}), &["a", "b"]),
-        },
-        ToolSpec {
-            name: "critic",
-            kind: Kind::Diagnostic,
-            description: "Ask a separate model to criticise one keyframe: it sees the frame, the overlay and the turntable and returns realism and identity scores and discrepancies tagged shape, pose, joint state or joint definition, with a severity and a direction of change. Skipped with a note when no critic model is configured.",
-            schema: obj(json!({"frame": {"type": "string"}}), &["frame"]),
-        },
-        ToolSpec {
-            name: "notes",
-            kind: Kind::Note,
-            description: "Append to NOTES.md, your memory across contexts (what the object is, which parts move, what you ruled out).",
-            schema: obj(json!({"text": {"type": "string"}}), &["text"]),
-        },
-        ToolSpec {
-            name: "finish",
-            kind: Kind::Diagnostic,
-            description: "Check the gates and end the run when they hold: every keyframe's visible IoU ≥ 0.98 or a reason for it in `unreachable`; a turntable after the last shape change; a temporal report after the last pose change. Returns what is missing otherwise.",
-            schema: obj(json!({
-                "unreachable": {"type": "object", "additionalProperties": {"type": "string"}, "description": "Keyframe name → why it cannot reach the gate."},
-                "summary": {"type": "string"}
-            }), &[]),
-        },
-    ]
+    registry().iter().map(ToolDef::spec).collect()
 }
 
 /// What a tool returned.
@@ -219,21 +768,35 @@ pub struct ToolOutput {
     pub is_error: bool,
     /// Scores for the ledger (e.g. `iou_min`).
     pub scores: BTreeMap<String, f64>,
-    /// Set when the tool changed the scene (the new version) or committed poses.
+    /// Set when the tool changed the scene (the new version).
     pub scene_version: Option<u64>,
     pub pose_changed: bool,
+    /// The pose history version the tool recorded, when it changed `pose.json`.
+    pub pose_version: Option<u64>,
     /// `finish` passed.
     pub finished: bool,
+    /// The tool's typed report as JSON (MCP `structuredContent`).
+    pub structured: Option<Value>,
 }
 
 impl ToolOutput {
-    fn error(text: impl Into<String>) -> Self {
+    pub fn error(text: impl Into<String>) -> Self {
         ToolOutput {
             text: text.into(),
             is_error: true,
             ..Default::default()
         }
     }
+    fn text(text: impl Into<String>) -> Self {
+        ToolOutput {
+            text: text.into(),
+            ..Default::default()
+        }
+    }
+}
+
+fn to_pretty<T: serde::Serialize>(v: &T) -> String {
+    serde_json::to_string_pretty(v).unwrap_or_default()
 }
 
 /// A critic: asked about one keyframe with its images, returns JSON text.
@@ -249,12 +812,8 @@ pub struct Toolbox {
     pub window: Option<Vec<String>>,
     /// Longest a child command may run.
     pub timeout_s: u64,
-}
-
-fn arg_str<'a>(args: &'a Value, key: &str) -> Option<&'a str> {
-    args.get(key)
-        .and_then(Value::as_str)
-        .filter(|s| !s.trim().is_empty())
+    /// Held by every writing tool; shared by the toolboxes of one run.
+    writer: Arc<Mutex<()>>,
 }
 
 fn first_line_of(s: &str) -> &str {
@@ -279,6 +838,15 @@ fn pngs(dir: &Path) -> Vec<PathBuf> {
     v
 }
 
+/// The frames of `spec` outside `window` (names), after resolving the spec to names.
+fn outside_window(window: &[String], names: &[String]) -> Vec<String> {
+    names
+        .iter()
+        .filter(|n| !window.contains(n))
+        .cloned()
+        .collect()
+}
+
 impl Toolbox {
     pub fn new(exe: PathBuf, run: RunDir) -> Self {
         Toolbox {
@@ -287,10 +855,23 @@ impl Toolbox {
             critic: None,
             window: None,
             timeout_s: 900,
+            writer: Arc::new(Mutex::new(())),
         }
     }
 
-    fn session_args(&self) -> Vec<String> {
+    /// A toolbox for a pose sub-agent: the same run and writer lock, limited to `frames`.
+    pub fn for_window(&self, frames: Vec<String>) -> Toolbox {
+        Toolbox {
+            exe: self.exe.clone(),
+            run: self.run.clone(),
+            critic: None,
+            window: Some(frames),
+            timeout_s: self.timeout_s,
+            writer: self.writer.clone(),
+        }
+    }
+
+    pub fn session_args(&self) -> Vec<String> {
         vec![
             "--capture".into(),
             self.run.capture.display().to_string(),
@@ -301,37 +882,58 @@ impl Toolbox {
         ]
     }
 
-    /// Each keyframe's visible IoU (0 where no mask pixel is visible), in capture order, and
-    /// `agentstar score`'s JSON.
-    pub fn ious(&self, frames: Option<&str>) -> Result<(Vec<(String, f64)>, String)> {
-        let mut a: Vec<String> = ["score".to_string()]
+    /// Opens the run's capture.
+    pub fn capture(&self) -> Result<agentstar_data::capture::Capture> {
+        agentstar_data::capture::Capture::open(&self.run.capture).map_err(|problems| {
+            AgentError::Tool(format!(
+                "the capture {} cannot be opened: {}",
+                self.run.capture.display(),
+                problems
+                    .iter()
+                    .map(|p| p.to_string())
+                    .collect::<Vec<_>>()
+                    .join("; ")
+            ))
+        })
+    }
+
+    /// Resolves `spec` with the frame grammar to frame names.
+    pub fn frame_names(&self, spec: Option<&str>) -> Result<Vec<String>> {
+        let cap = self.capture()?;
+        Ok(cap
+            .select(spec)?
             .into_iter()
-            .chain(self.session_args())
-            .collect();
-        if let Some(f) = frames {
-            a.extend(["--frames".into(), f.into()]);
-        }
+            .map(|i| cap.frames[i].name.clone())
+            .collect())
+    }
+
+    /// `agentstar score --json` for `frames`, as its report.
+    pub fn score_report(&self, frames: Option<&str>) -> Result<ScoreReport> {
+        let mut a: Vec<String> = vec!["score".into()];
+        a.extend(self.session_args());
+        a.extend(flag(&frames.map(str::to_string), "--frames"));
         a.push("--json".into());
         let (_, stdout, stderr) = self.exec(&a)?;
         // `score` exits 1 when a frame is under the gate; its JSON is the result.
-        let v: Value = serde_json::from_str(&stdout)
-            .map_err(|_| AgentError::Tool(stderr.trim().to_string()))?;
-        let rows = v["frames"]
-            .as_array()
-            .into_iter()
-            .flatten()
-            .map(|r| {
-                (
-                    r["frame"].as_str().unwrap_or("").to_string(),
-                    r["iou_visible"].as_f64().unwrap_or(0.0),
-                )
-            })
-            .collect();
-        Ok((rows, stdout))
+        serde_json::from_str(&stdout).map_err(|_| AgentError::Tool(stderr.trim().to_string()))
     }
 
-    /// Runs the executable; returns (success, stdout, stderr).
-    fn exec(&self, args: &[String]) -> Result<(bool, String, String)> {
+    /// Each keyframe's visible IoU (0 where no mask pixel is visible), in capture order.
+    pub fn ious(&self, frames: Option<&str>) -> Result<Vec<(String, f64)>> {
+        Ok(self
+            .score_report(frames)?
+            .frames
+            .into_iter()
+            .map(|f| {
+                let g = f.gate();
+                (f.frame, g)
+            })
+            .collect())
+    }
+
+    /// Runs the executable (the one runner of every child tool); returns (success,
+    /// stdout, stderr). A child that runs past `timeout_s` is killed.
+    pub fn exec(&self, args: &[String]) -> Result<(bool, String, String)> {
         let mut child = Command::new(&self.exe)
             .args(args)
             .stdin(std::process::Stdio::null())
@@ -378,46 +980,94 @@ impl Toolbox {
         Ok((status.success(), stdout, stderr))
     }
 
-    /// Frames outside this toolbox's window are refused for pose changes.
+    /// Frames outside this toolbox's window are refused for pose changes; the spec uses
+    /// the one frame grammar.
     fn check_window(&self, frames: Option<&str>) -> std::result::Result<(), String> {
         let Some(window) = &self.window else {
             return Ok(());
         };
-        let Some(frames) = frames else {
+        let Some(frames) = frames.filter(|f| !f.trim().is_empty()) else {
             return Err(format!(
                 "name the frames: this agent may change only {}",
                 window.join(", ")
             ));
         };
-        for f in frames.split(',').map(str::trim).filter(|f| !f.is_empty()) {
-            let ok = window
-                .iter()
-                .any(|w| w == f || w.split('.').next() == Some(f));
-            if !ok {
-                return Err(format!(
-                    "frame `{f}` is outside this agent's window ({})",
-                    window.join(", ")
-                ));
-            }
+        let names = self.frame_names(Some(frames)).map_err(|e| e.to_string())?;
+        let outside = outside_window(window, &names);
+        if outside.is_empty() {
+            Ok(())
+        } else {
+            Err(format!(
+                "frame(s) {} are outside this agent's window ({})",
+                outside.join(", "),
+                window.join(", ")
+            ))
         }
-        Ok(())
     }
 
-    /// Calls tool `name` with `args` as step `step`.
+    /// `path` (relative to the run directory) if it lies inside the run directory or the
+    /// capture, resolved; an error naming both otherwise.
+    pub fn confine(&self, path: &str) -> std::result::Result<PathBuf, String> {
+        let p = PathBuf::from(path);
+        let canon = |q: &Path| q.canonicalize().ok();
+        // Relative to the run directory, or (as the tools print them for a run opened by
+        // a relative path) to the working directory.
+        let resolved = if p.is_relative() {
+            canon(&self.run.dir.join(&p)).or_else(|| canon(&p))
+        } else {
+            canon(&p)
+        }
+        .ok_or_else(|| format!("`{path}`: no such file"))?;
+        let roots: Vec<PathBuf> = [&self.run.dir, &self.run.capture]
+            .into_iter()
+            .filter_map(|r| canon(r))
+            .collect();
+        if roots.iter().any(|r| resolved.starts_with(r)) {
+            Ok(resolved)
+        } else {
+            Err(format!(
+                "`{path}` is outside the run directory ({}) and the capture; tools read only files there",
+                self.run.dir.display()
+            ))
+        }
+    }
+
+    /// Calls tool `name` with `args` as step `step`; writers run one at a time.
     pub fn call(&self, name: &str, args: &Value, step: u64) -> ToolOutput {
-        match self.call_inner(name, args, step) {
+        let Some(def) = find(name) else {
+            return ToolOutput::error(format!(
+                "there is no tool `{name}`; the tools are {}",
+                registry()
+                    .iter()
+                    .map(|t| t.name)
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            ));
+        };
+        let run = || match (def.call)(self, args, step) {
             Ok(o) => o,
             Err(e) => ToolOutput::error(e.to_string()),
+        };
+        if def.writes == Writes::Nothing {
+            run()
+        } else {
+            // A poisoned lock only means another writer panicked; the files are whole.
+            let _guard = self
+                .writer
+                .lock()
+                .unwrap_or_else(std::sync::PoisonError::into_inner);
+            run()
         }
     }
 
+    /// Runs `verb` with the session's inputs and `--out` the step's directory.
     fn cli(
         &self,
         verb: &[&str],
         step: u64,
         tool: &str,
         extra: Vec<String>,
-    ) -> Result<(ToolOutput, PathBuf)> {
+    ) -> Result<(ToolOutput, PathBuf, String)> {
         let out = self.run.step_dir(step, tool);
         let mut a: Vec<String> = verb.iter().map(|s| s.to_string()).collect();
         a.extend(self.session_args());
@@ -427,7 +1077,7 @@ impl Toolbox {
         a.push("--json".into());
         let (ok, stdout, stderr) = self.exec(&a)?;
         if !ok {
-            return Ok((ToolOutput::error(stderr.trim().to_string()), out));
+            return Ok((ToolOutput::error(stderr.trim().to_string()), out, stdout));
         }
         let images = pngs(&out);
         Ok((
@@ -441,369 +1091,187 @@ impl Toolbox {
                 ..Default::default()
             },
             out,
+            stdout,
         ))
     }
 
-    fn call_inner(&self, name: &str, args: &Value, step: u64) -> Result<ToolOutput> {
-        let opt = |k: &str, flag: &str| -> Vec<String> {
-            arg_str(args, k)
-                .map(|v| vec![flag.to_string(), v.to_string()])
-                .unwrap_or_default()
+    /// A search verb: its report read back as a [`SearchReport`], its text table as the
+    /// result, its sheets as images.
+    fn search(
+        &self,
+        verb: SearchVerb,
+        frames: Option<&str>,
+        extra: Vec<String>,
+        step: u64,
+    ) -> Result<ToolOutput> {
+        if let Err(e) = self.check_window(frames) {
+            return Ok(ToolOutput::error(e));
+        }
+        let (o, out, _) = self.cli(&[verb.command()], step, verb.stem(), extra)?;
+        if o.is_error {
+            return Ok(o);
+        }
+        let path = verb.report_path(&out);
+        let report = SearchReport::read(&path)?;
+        let txt = agentstar_data::read_text(&verb.text_path(&out))?;
+        let mut images = o.images;
+        images.truncate(6);
+        let mut scores = BTreeMap::new();
+        if let Some(min) = report.min_gate_iou {
+            scores.insert("best_iou_min".into(), min);
+        }
+        Ok(ToolOutput {
+            text: format!("{}\nreport: {}\n", txt.trim(), path.display()),
+            images,
+            scores,
+            structured: serde_json::to_value(&report).ok(),
+            ..Default::default()
+        })
+    }
+
+    fn pose_commit(&self, a: &PoseCommitArgs) -> Result<ToolOutput> {
+        if self.window.is_some() {
+            let frames = a.frames.as_deref().filter(|f| !f.trim().is_empty());
+            if let Err(e) = self.check_window(frames) {
+                return Ok(ToolOutput::error(e));
+            }
+        }
+        let report = match self.confine(&a.report) {
+            Ok(p) => p,
+            Err(e) => return Ok(ToolOutput::error(format!("pose_commit: {e}"))),
         };
-        match name {
-            "task" => Ok(ToolOutput {
-                text: task_document(),
+        let mut args = vec![
+            "pose".to_string(),
+            "commit".into(),
+            "--poses".into(),
+            self.run.poses.display().to_string(),
+            "--report".into(),
+            report.display().to_string(),
+            "--rank".into(),
+            a.rank.unwrap_or(0).to_string(),
+            "--json".into(),
+        ];
+        args.extend(flag(&a.frames, "--frames"));
+        let (ok, stdout, stderr) = self.exec(&args)?;
+        if !ok {
+            return Ok(ToolOutput::error(stderr.trim().to_string()));
+        }
+        let r: CommitReport = serde_json::from_str(&stdout).map_err(|e| {
+            AgentError::Tool(format!(
+                "pose commit printed no commit report ({e}): {stdout}"
+            ))
+        })?;
+        Ok(ToolOutput {
+            text: format!(
+                "committed rank {} of {} frame(s) ({}) to pose.json as version {}",
+                a.rank.unwrap_or(0),
+                r.committed.len(),
+                r.committed.join(", "),
+                r.version
+            ),
+            pose_changed: true,
+            pose_version: Some(r.version),
+            structured: serde_json::to_value(&r).ok(),
+            ..Default::default()
+        })
+    }
+
+    fn track(&self, a: &TrackArgs, step: u64) -> Result<ToolOutput> {
+        if self.window.is_some() {
+            return Ok(ToolOutput::error(
+                "track changes every keyframe; a pose sub-agent works on its window with sweeps and flips",
+            ));
+        }
+        let out = self.run.step_dir(step, Track::NAME);
+        std::fs::create_dir_all(&out).map_err(|e| agentstar_data::DataError::io(&out, e))?;
+        let before = out.join("pose_before.json");
+        std::fs::copy(&self.run.poses, &before)
+            .map_err(|e| agentstar_data::DataError::io(&before, e))?;
+        let tracked = out.join("pose.json");
+        let mut args = vec![
+            "track".to_string(),
+            self.run.capture.display().to_string(),
+            "--model".into(),
+            self.run.scene.display().to_string(),
+            "--out".into(),
+            tracked.display().to_string(),
+            "--json".into(),
+        ];
+        match a.scale {
+            Some(s) => args.extend(["--scale".into(), s.to_string()]),
+            None => args.extend(["--scale-from".into(), self.run.poses.display().to_string()]),
+        }
+        let (ok, stdout, stderr) = self.exec(&args)?;
+        if !ok {
+            return Ok(ToolOutput::error(stderr.trim().to_string()));
+        }
+        let report: TrackReport = serde_json::from_str(&stdout)
+            .map_err(|e| AgentError::Tool(format!("track printed no track report ({e})")))?;
+        let pf = PoseFile::read(&tracked)?;
+        let version =
+            PoseHistory::new(&self.run.poses).replace(pf, &format!("track (step {step})"))?;
+        let mut scores = BTreeMap::new();
+        scores.insert("iou_min".into(), report.sequence.min_iou_visible);
+        scores.insert("iou_mean".into(), report.sequence.mean_iou_visible);
+        Ok(ToolOutput {
+            text: format!(
+                "{}\npose.json is version {version}; the previous poses are kept in {}.",
+                stdout.trim(),
+                before.display()
+            ),
+            pose_changed: true,
+            pose_version: Some(version),
+            scores,
+            structured: serde_json::to_value(&report).ok(),
+            ..Default::default()
+        })
+    }
+
+    fn critic(&self, frame: &str, step: u64) -> Result<ToolOutput> {
+        let Some(critic) = &self.critic else {
+            return Ok(ToolOutput::text(
+                "critic skipped: no critic model is configured (agentstar run --critic PROVIDER:MODEL, or AGENTSTAR_CRITIC for the MCP server)",
+            ));
+        };
+        let names = self.frame_names(Some(frame))?;
+        let [name] = names.as_slice() else {
+            return Ok(ToolOutput::error(format!(
+                "critic: `{frame}` names {} frames; name one",
+                names.len()
+            )));
+        };
+        let (r, _, _) = self.cli(
+            &["render"],
+            step,
+            Critic::NAME,
+            vec![
+                "--frames".into(),
+                name.clone(),
+                "--views".into(),
+                "overlay,compare".into(),
+            ],
+        )?;
+        if r.is_error {
+            return Ok(r);
+        }
+        let tt = self.call(Turntable::NAME, &Value::Null, step);
+        let mut images: Vec<PathBuf> = r
+            .images
+            .into_iter()
+            .filter(|p| !p.to_string_lossy().contains("sheet"))
+            .collect();
+        images.extend(tt.images.into_iter().take(1));
+        let frame_img = self.run.capture.join("frames").join(name);
+        if frame_img.is_file() {
+            images.insert(0, frame_img);
+        }
+        match critic(name, &images) {
+            Ok(text) => Ok(ToolOutput {
+                text,
+                images,
                 ..Default::default()
             }),
-            "scene_read" => self.scene_read(),
-            "scene_write" => {
-                let script = arg_str(args, "script")
-                    .ok_or_else(|| AgentError::Tool("scene_write needs `script`".into()))?;
-                self.scene_write(script)
-            }
-            "scene_restore" => {
-                let v = args.get("version").and_then(Value::as_u64).ok_or_else(|| {
-                    AgentError::Tool("scene_restore needs an integer `version`".into())
-                })?;
-                let p = self.run.scene_versions().join(format!("{v:04}.rhai"));
-                let script = agentstar_data::read_text(&p)
-                    .map_err(|_| AgentError::Tool(format!("there is no scene version {v}")))?;
-                self.scene_write(&script)
-            }
-            "render" => {
-                let views = arg_str(args, "views").unwrap_or("overlay,compare");
-                let (mut o, _) = self.cli(
-                    &["render"],
-                    step,
-                    name,
-                    [
-                        opt("frames", "--frames"),
-                        vec!["--views".into(), views.into()],
-                    ]
-                    .concat(),
-                )?;
-                o.images.truncate(8);
-                Ok(o)
-            }
-            "score" => {
-                let (ious, stdout) = self.ious(arg_str(args, "frames"))?;
-                let mut o = ToolOutput::default();
-                let mut head = format!("score: {} keyframe(s)", ious.len());
-                if !ious.is_empty() {
-                    let min = ious.iter().map(|r| r.1).fold(1.0, f64::min);
-                    let mean = ious.iter().map(|r| r.1).sum::<f64>() / ious.len() as f64;
-                    let below: Vec<&str> = ious
-                        .iter()
-                        .filter(|r| r.1 < GATE_IOU)
-                        .map(|r| r.0.as_str())
-                        .collect();
-                    o.scores.insert("iou_min".into(), min);
-                    o.scores.insert("iou_mean".into(), mean);
-                    head.push_str(&format!(
-                        ", visible IoU mean {mean:.4}, min {min:.4}; under the gate: {}",
-                        if below.is_empty() {
-                            "none".to_string()
-                        } else {
-                            below.join(", ")
-                        }
-                    ));
-                }
-                o.text = format!("{head}\n{stdout}");
-                Ok(o)
-            }
-            "turntable" => {
-                let out = self.run.step_dir(step, name);
-                let a = vec![
-                    "turntable".to_string(),
-                    "--model".into(),
-                    self.run.scene.display().to_string(),
-                    "--capture".into(),
-                    self.run.capture.display().to_string(),
-                    "--poses".into(),
-                    self.run.poses.display().to_string(),
-                    "--out".into(),
-                    out.display().to_string(),
-                    "--json".into(),
-                ];
-                let (ok, stdout, stderr) = self.exec(&a)?;
-                if !ok {
-                    return Ok(ToolOutput::error(stderr.trim().to_string()));
-                }
-                let mut images = pngs(&out);
-                images.truncate(6);
-                Ok(ToolOutput {
-                    text: format!("turntable: {} view sheet(s)\n{stdout}", images.len()),
-                    images,
-                    ..Default::default()
-                })
-            }
-            "track" => {
-                if self.window.is_some() {
-                    return Ok(ToolOutput::error(
-                        "track changes every keyframe; a pose sub-agent works on its window with sweeps and flips",
-                    ));
-                }
-                let out = self.run.step_dir(step, name);
-                std::fs::create_dir_all(&out)
-                    .map_err(|e| agentstar_data::DataError::io(&out, e))?;
-                let before = out.join("pose_before.json");
-                std::fs::copy(&self.run.poses, &before)
-                    .map_err(|e| agentstar_data::DataError::io(&before, e))?;
-                let tracked = out.join("pose.json");
-                let mut a = vec![
-                    "track".to_string(),
-                    self.run.capture.display().to_string(),
-                    "--model".into(),
-                    self.run.scene.display().to_string(),
-                    "--out".into(),
-                    tracked.display().to_string(),
-                    "--json".into(),
-                ];
-                match args.get("scale").and_then(Value::as_f64) {
-                    Some(s) => a.extend(["--scale".into(), s.to_string()]),
-                    None => a.extend(["--scale-from".into(), self.run.poses.display().to_string()]),
-                }
-                let (ok, stdout, stderr) = self.exec(&a)?;
-                if !ok {
-                    return Ok(ToolOutput::error(stderr.trim().to_string()));
-                }
-                let bytes = std::fs::read(&tracked)
-                    .map_err(|e| agentstar_data::DataError::io(&tracked, e))?;
-                agentstar_data::atomic::write_atomic(&self.run.poses, &bytes)?;
-                Ok(ToolOutput {
-                    text: format!(
-                        "{}\nThe previous poses are kept in {}.",
-                        stdout.trim(),
-                        before.display()
-                    ),
-                    pose_changed: true,
-                    ..Default::default()
-                })
-            }
-            "sweep" | "osweep" | "oapply" | "oapply_all" | "apply" => {
-                let frames = if name == "apply" {
-                    arg_str(args, "frame")
-                } else {
-                    arg_str(args, "frames")
-                };
-                if let Err(e) = self.check_window(frames) {
-                    return Ok(ToolOutput::error(e));
-                }
-                let verb = name.replace('_', "-");
-                let extra: Vec<String> = match name {
-                    "sweep" => [
-                        opt("frames", "--frames"),
-                        opt("ranges", "--ranges"),
-                        opt("strategy", "--strategy"),
-                        args.get("evals")
-                            .and_then(Value::as_u64)
-                            .map(|e| vec!["--evals".into(), e.to_string()])
-                            .unwrap_or_default(),
-                    ]
-                    .concat(),
-                    "apply" => [opt("frame", "--frame"), opt("order", "--order")].concat(),
-                    "osweep" => [
-                        opt("frames", "--frames"),
-                        opt("opreset", "--opreset"),
-                        opt("ranges", "--ranges"),
-                    ]
-                    .concat(),
-                    "oapply" => [opt("frames", "--frames"), opt("set", "--set")].concat(),
-                    _ => [opt("rotation", "--rotation"), opt("frames", "--frames")].concat(),
-                };
-                let (o, out) = self.cli(&[verb.as_str()], step, name, extra)?;
-                if o.is_error {
-                    return Ok(o);
-                }
-                let report = out.join(format!("{verb}.json"));
-                let txt =
-                    agentstar_data::read_text(&out.join(format!("{verb}.txt"))).unwrap_or_default();
-                let mut images = o.images;
-                images.truncate(6);
-                Ok(ToolOutput {
-                    text: format!("{}\nreport: {}\n", txt.trim(), report.display()),
-                    images,
-                    ..Default::default()
-                })
-            }
-            "pose_commit" => {
-                let report = arg_str(args, "report")
-                    .ok_or_else(|| AgentError::Tool("pose_commit needs `report`".into()))?;
-                if self.window.is_some() {
-                    if let Err(e) = self.check_window(arg_str(args, "frames")) {
-                        return Ok(ToolOutput::error(e));
-                    }
-                }
-                let report = {
-                    let p = PathBuf::from(report);
-                    if p.is_relative() {
-                        self.run.dir.join(p)
-                    } else {
-                        p
-                    }
-                };
-                let mut a = vec![
-                    "pose".to_string(),
-                    "commit".into(),
-                    "--poses".into(),
-                    self.run.poses.display().to_string(),
-                    "--report".into(),
-                    report.display().to_string(),
-                    "--rank".into(),
-                    args.get("rank")
-                        .and_then(Value::as_u64)
-                        .unwrap_or(0)
-                        .to_string(),
-                    "--json".into(),
-                ];
-                a.extend(opt("frames", "--frames"));
-                let (ok, stdout, stderr) = self.exec(&a)?;
-                if !ok {
-                    return Ok(ToolOutput::error(stderr.trim().to_string()));
-                }
-                Ok(ToolOutput {
-                    text: format!("committed to pose.json\n{stdout}"),
-                    pose_changed: true,
-                    ..Default::default()
-                })
-            }
-            "pose_history" | "pose_restore" => {
-                let mut a = vec![
-                    "pose".to_string(),
-                    if name == "pose_history" {
-                        "history"
-                    } else {
-                        "restore"
-                    }
-                    .into(),
-                    "--poses".into(),
-                    self.run.poses.display().to_string(),
-                ];
-                if name == "pose_restore" {
-                    if self.window.is_some() {
-                        return Ok(ToolOutput::error(
-                            "a pose sub-agent cannot restore the whole pose file",
-                        ));
-                    }
-                    let v = args.get("version").and_then(Value::as_u64).ok_or_else(|| {
-                        AgentError::Tool("pose_restore needs an integer `version`".into())
-                    })?;
-                    a.extend(["--version".into(), v.to_string()]);
-                } else {
-                    a.push("--json".into());
-                }
-                let (ok, stdout, stderr) = self.exec(&a)?;
-                if !ok {
-                    return Ok(ToolOutput::error(stderr.trim().to_string()));
-                }
-                Ok(ToolOutput {
-                    text: stdout,
-                    pose_changed: name == "pose_restore",
-                    ..Default::default()
-                })
-            }
-            "temporal" => {
-                let out = self.run.step_dir(step, name);
-                std::fs::create_dir_all(&out)
-                    .map_err(|e| agentstar_data::DataError::io(&out, e))?;
-                let plot = out.join("temporal.png");
-                let mut a: Vec<String> = ["temporal".to_string()]
-                    .into_iter()
-                    .chain(self.session_args())
-                    .collect();
-                a.extend(["--plot".into(), plot.display().to_string()]);
-                a.extend(opt("sort_by", "--sort-by"));
-                let (ok, stdout, stderr) = self.exec(&a)?;
-                if !ok {
-                    return Ok(ToolOutput::error(stderr.trim().to_string()));
-                }
-                Ok(ToolOutput {
-                    text: stdout,
-                    images: pngs(&out),
-                    ..Default::default()
-                })
-            }
-            "pose_diff" => {
-                let mut a: Vec<String> = ["pose-diff".to_string()]
-                    .into_iter()
-                    .chain(self.session_args())
-                    .collect();
-                a.extend(opt("a", "--a"));
-                a.extend(opt("b", "--b"));
-                let (ok, stdout, stderr) = self.exec(&a)?;
-                Ok(if ok {
-                    ToolOutput {
-                        text: stdout,
-                        ..Default::default()
-                    }
-                } else {
-                    ToolOutput::error(stderr.trim().to_string())
-                })
-            }
-            "critic" => {
-                let frame = arg_str(args, "frame")
-                    .ok_or_else(|| AgentError::Tool("critic needs `frame`".into()))?;
-                let Some(critic) = &self.critic else {
-                    return Ok(ToolOutput {
-                        text: "critic skipped: no critic model is configured (agentstar run --critic PROVIDER:MODEL, or AGENTSTAR_CRITIC for the MCP server)".into(),
-                        ..Default::default()
-                    });
-                };
-                let (r, _) = self.cli(
-                    &["render"],
-                    step,
-                    name,
-                    vec![
-                        "--frames".into(),
-                        frame.into(),
-                        "--views".into(),
-                        "overlay,compare".into(),
-                    ],
-                )?;
-                if r.is_error {
-                    return Ok(r);
-                }
-                let tt = self.call_inner("turntable", &json!({}), step)?;
-                let mut images: Vec<PathBuf> = r
-                    .images
-                    .into_iter()
-                    .filter(|p| !p.to_string_lossy().contains("sheet"))
-                    .collect();
-                images.extend(tt.images.into_iter().take(1));
-                let frame_img = self.run.capture.join("frames").join(frame);
-                if frame_img.is_file() {
-                    images.insert(0, frame_img);
-                }
-                match critic(frame, &images) {
-                    Ok(text) => Ok(ToolOutput {
-                        text,
-                        images,
-                        ..Default::default()
-                    }),
-                    Err(e) => Ok(ToolOutput::error(format!("the critic failed: {e}"))),
-                }
-            }
-            "notes" => {
-                let text = arg_str(args, "text")
-                    .ok_or_else(|| AgentError::Tool("notes needs `text`".into()))?;
-                let p = self.run.notes_path();
-                let mut all = agentstar_data::read_text(&p).unwrap_or_default();
-                all.push_str(&format!("\n- (step {step}) {}\n", text.trim()));
-                agentstar_data::atomic::write_atomic(&p, all.as_bytes())?;
-                Ok(ToolOutput {
-                    text: "noted".into(),
-                    ..Default::default()
-                })
-            }
-            "finish" => self.finish(args),
-            other => Ok(ToolOutput::error(format!(
-                "there is no tool `{other}`; the tools are {}",
-                catalogue()
-                    .iter()
-                    .map(|t| t.name)
-                    .collect::<Vec<_>>()
-                    .join(", ")
-            ))),
+            Err(e) => Ok(ToolOutput::error(format!("the critic failed: {e}"))),
         }
     }
 
@@ -814,46 +1282,63 @@ impl Toolbox {
             self.run.scene.display().to_string(),
             "--json".into(),
         ])?;
-        Ok(ToolOutput {
-            text: format!(
-                "scene.rhai (versions saved: {:?}):\n```rhai\n{}\n```\ncheck:\n{}{}",
-                self.run.list_scene_versions(),
-                script.trim_end(),
-                check.trim(),
-                stderr.trim()
-            ),
-            ..Default::default()
-        })
+        Ok(ToolOutput::text(format!(
+            "scene.rhai (versions saved: {:?}):\n```rhai\n{}\n```\ncheck:\n{}{}",
+            self.run.list_scene_versions(),
+            script.trim_end(),
+            check.trim(),
+            stderr.trim()
+        )))
     }
 
-    fn scene_write(&self, script: &str) -> Result<ToolOutput> {
+    /// Checks `script` in the sandbox from a candidate file of its own (beside the scene,
+    /// so it reaches the same mesh files), then makes it the scene and a new version.
+    /// Runs under the writer lock.
+    fn scene_write(&self, script: &str, step: u64) -> Result<ToolOutput> {
         if self.window.is_some() {
             return Ok(ToolOutput::error(
                 "a pose sub-agent cannot change the shape",
             ));
         }
-        // The candidate sits beside the scene so that it reaches the same mesh files.
-        let candidate = self.run.dir.join(".scene_candidate.rhai");
-        agentstar_data::atomic::write_atomic(&candidate, script.as_bytes())?;
-        let (ok, check, stderr) = self.exec(&[
-            "check".into(),
-            candidate.display().to_string(),
-            "--json".into(),
-        ])?;
+        let dir = self
+            .run
+            .scene
+            .parent()
+            .filter(|d| !d.as_os_str().is_empty())
+            .unwrap_or(Path::new("."));
+        let mut candidate = tempfile::Builder::new()
+            .prefix(".scene_candidate-")
+            .suffix(".rhai")
+            .tempfile_in(dir)
+            .map_err(|e| agentstar_data::DataError::io(dir, e))?;
+        std::io::Write::write_all(&mut candidate, script.as_bytes())
+            .and_then(|_| candidate.as_file().sync_all())
+            .map_err(|e| agentstar_data::DataError::io(candidate.path(), e))?;
+        let shown = candidate.path().display().to_string();
+        let (ok, check, stderr) = self.exec(&["check".into(), shown.clone(), "--json".into()])?;
         if !ok {
-            let _ = std::fs::remove_file(&candidate);
             return Ok(ToolOutput::error(format!(
                 "the scene was not changed: {}",
-                stderr
-                    .trim()
-                    .replace(&candidate.display().to_string(), "scene.rhai")
+                stderr.trim().replace(&shown, "scene.rhai")
             )));
         }
-        std::fs::rename(&candidate, &self.run.scene)
-            .map_err(|e| agentstar_data::DataError::io(&self.run.scene, e))?;
+        #[cfg(unix)]
+        {
+            use std::os::unix::fs::PermissionsExt;
+            let _ = candidate
+                .as_file()
+                .set_permissions(std::fs::Permissions::from_mode(0o644));
+        }
+        candidate
+            .persist(&self.run.scene)
+            .map_err(|e| agentstar_data::DataError::io(&self.run.scene, e.error))?;
         let version = self.run.list_scene_versions().last().copied().unwrap_or(0) + 1;
         self.run.save_scene_version(version)?;
-        let joints = crate::poses::reconcile(&self.run.scene, &self.run.poses)?;
+        let (joints, pose_version) = crate::poses::reconcile(
+            &self.run.scene,
+            &self.run.poses,
+            &format!("scene version {version} (step {step}): joints reconciled"),
+        )?;
         Ok(ToolOutput {
             text: format!(
                 "scene version {version} saved.{}\ncheck:\n{}",
@@ -865,22 +1350,25 @@ impl Toolbox {
                 check.trim()
             ),
             scene_version: Some(version),
+            pose_changed: pose_version.is_some(),
+            pose_version,
             ..Default::default()
         })
     }
 
     /// The gates: IoU (or reasons), a turntable after the last shape change, a temporal
     /// report after the last pose change (both read from the ledger).
-    fn finish(&self, args: &Value) -> Result<ToolOutput> {
+    fn finish(&self, args: &FinishArgs) -> Result<ToolOutput> {
+        let summary = args.summary.as_deref().unwrap_or("");
         if let Some(window) = &self.window {
             // A pose sub-agent ends its window; the orchestrator owns the gates.
-            let score = self.call_inner("score", &json!({"frames": window.join(",")}), 0)?;
+            let score = self.call(
+                Score::NAME,
+                &serde_json::json!({"frames": window.join(",")}),
+                0,
+            );
             let mut o = ToolOutput {
-                text: format!(
-                    "window done. {}\n{}",
-                    first_line_of(&score.text),
-                    arg_str(args, "summary").unwrap_or("")
-                ),
+                text: format!("window done. {}\n{summary}", first_line_of(&score.text)),
                 finished: true,
                 scores: score.scores,
                 ..Default::default()
@@ -888,19 +1376,11 @@ impl Toolbox {
             o.scores.insert("window".into(), 1.0);
             return Ok(o);
         }
-        let unreachable: BTreeMap<String, String> = args
-            .get("unreachable")
-            .and_then(Value::as_object)
-            .map(|m| {
-                m.iter()
-                    .filter_map(|(k, v)| Some((k.clone(), v.as_str()?.to_string())))
-                    .collect()
-            })
-            .unwrap_or_default();
+        let unreachable = args.unreachable.clone().unwrap_or_default();
         let mut missing = vec![];
         let mut scores = BTreeMap::new();
         let below: Vec<String> = match self.ious(None) {
-            Ok((ious, _)) => ious
+            Ok(ious) => ious
                 .into_iter()
                 .inspect(|(_, iou)| {
                     let min = scores.entry("iou_min".to_string()).or_insert(1.0f64);
@@ -969,6 +1449,7 @@ impl Toolbox {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use serde_json::json;
 
     fn toolbox(window: Option<&[&str]>) -> Toolbox {
         let run = RunDir {
@@ -977,19 +1458,22 @@ mod tests {
             scene: "run/scene.rhai".into(),
             poses: "run/pose.json".into(),
         };
-        let mut t = Toolbox::new("agentstar".into(), run);
-        t.window = window.map(|w| w.iter().map(|s| s.to_string()).collect());
-        t
+        let t = Toolbox::new("agentstar".into(), run);
+        match window {
+            Some(w) => t.for_window(w.iter().map(|s| s.to_string()).collect()),
+            None => t,
+        }
     }
 
     #[test]
     fn a_sub_agent_may_change_only_its_window() {
+        let w = ["000000.png".to_string(), "000005.png".to_string()];
+        assert!(outside_window(&w, &["000000.png".into()]).is_empty());
+        assert_eq!(
+            outside_window(&w, &["000005.png".into(), "000010.png".into()]),
+            ["000010.png"]
+        );
         let t = toolbox(Some(&["000000.png", "000005.png"]));
-        assert!(t.check_window(Some("000000.png,000005")).is_ok());
-        assert!(t
-            .check_window(Some("000010"))
-            .expect_err("outside")
-            .contains("outside"));
         assert!(t.check_window(None).is_err());
         // Shape changes, whole-file restores and the tracker are refused outright.
         for (tool, args) in [
@@ -999,7 +1483,6 @@ mod tests {
             ),
             ("pose_restore", json!({"version": 1})),
             ("track", json!({})),
-            ("sweep", json!({"frames": "000010", "ranges": "yaw:-5,5"})),
         ] {
             let o = t.call(tool, &args, 1);
             assert!(o.is_error, "{tool}: {}", o.text);
@@ -1008,7 +1491,7 @@ mod tests {
     }
 
     #[test]
-    fn every_tool_has_an_object_schema_and_unknown_tools_are_named() {
+    fn every_tool_has_a_generated_object_schema_and_unknown_tools_are_named() {
         let all = catalogue();
         let mut names: Vec<&str> = all.iter().map(|t| t.name).collect();
         names.sort_unstable();
@@ -1016,13 +1499,107 @@ mod tests {
         assert_eq!(names.len(), all.len(), "duplicate tool names");
         for t in &all {
             assert_eq!(t.schema["type"], "object", "{}", t.name);
+            assert_eq!(t.schema["additionalProperties"], false, "{}", t.name);
+            assert!(t.schema.get("$schema").is_none() && t.schema.get("$defs").is_none());
             assert!(
                 t.description.len() > 40,
                 "{} needs a description that teaches it",
                 t.name
             );
         }
+        let sweep = find("sweep").expect("sweep").schema();
+        assert_eq!(sweep["required"], json!(["frames", "ranges"]));
+        assert_eq!(sweep["properties"]["evals"]["minimum"], 50);
+        assert_eq!(
+            sweep["properties"]["strategy"]["enum"],
+            json!(["de", "grid"])
+        );
         let o = toolbox(None).call("fly", &json!({}), 1);
         assert!(o.is_error && o.text.contains("sweep"));
+    }
+
+    #[test]
+    fn arguments_are_checked_against_the_schema_before_anything_runs() {
+        let t = toolbox(None);
+        for (tool, args, says) in [
+            ("score", json!({"frames": 12345}), "invalid type"),
+            ("score", json!({"frames": ["nope.png"]}), "invalid type"),
+            ("score", json!({"frame": "000000"}), "unknown field"),
+            ("score", json!("all"), "must be an object"),
+            (
+                "sweep",
+                json!({"frames": "000000"}),
+                "missing field `ranges`",
+            ),
+            (
+                "sweep",
+                json!({"frames": "0", "ranges": "yaw:-1,1", "evals": 10}),
+                "under its minimum 50",
+            ),
+            (
+                "sweep",
+                json!({"frames": "0", "ranges": "yaw:-1,1", "strategy": "anneal"}),
+                "unknown variant",
+            ),
+            ("track", json!({"scale": 0}), "must be over 0"),
+            ("track", json!({"scale": -2.5}), "must be over 0"),
+            ("pose_restore", json!({"version": 0}), "under its minimum 1"),
+            (
+                "sweep",
+                json!({"frames": "", "ranges": "yaw:-1,1"}),
+                "at least 1",
+            ),
+            (
+                "notes",
+                json!({"text": "x".repeat(MAX_NOTE_CHARS + 1)}),
+                "over its limit",
+            ),
+        ] {
+            let o = t.call(tool, &args, 1);
+            assert!(o.is_error, "{tool} {args}: {}", o.text);
+            assert!(o.text.contains(says), "{tool} {args}: {}", o.text);
+            assert!(o.text.starts_with(tool), "{}", o.text);
+        }
+        // The schema's limits are the constants the tools use.
+        let scene = find("scene_write").expect("tool").schema();
+        assert_eq!(
+            scene["properties"]["script"]["maxLength"],
+            json!(MAX_SCRIPT_CHARS)
+        );
+        let notes = find("notes").expect("tool").schema();
+        assert_eq!(
+            notes["properties"]["text"]["maxLength"],
+            json!(MAX_NOTE_CHARS)
+        );
+    }
+
+    #[test]
+    fn paths_outside_the_run_and_the_capture_are_refused() {
+        let dir = tempfile::tempdir().expect("tmp");
+        let run_dir = dir.path().join("run");
+        let cap = dir.path().join("cap");
+        std::fs::create_dir_all(run_dir.join("images")).expect("mkdir");
+        std::fs::create_dir_all(&cap).expect("mkdir");
+        std::fs::write(run_dir.join("images/r.json"), "{}").expect("w");
+        std::fs::write(dir.path().join("secret.json"), "{}").expect("w");
+        let t = Toolbox::new(
+            "agentstar".into(),
+            RunDir {
+                dir: run_dir.clone(),
+                capture: cap,
+                scene: run_dir.join("scene.rhai"),
+                poses: run_dir.join("pose.json"),
+            },
+        );
+        assert!(t.confine("images/r.json").is_ok());
+        assert!(t
+            .confine(&run_dir.join("images/r.json").display().to_string())
+            .is_ok());
+        for bad in ["/etc/passwd", "../secret.json", "images/../../secret.json"] {
+            let e = t.confine(bad).expect_err(bad);
+            assert!(e.contains("outside the run directory"), "{bad}: {e}");
+        }
+        let o = t.call("pose_commit", &json!({"report": "/etc/passwd"}), 1);
+        assert!(o.is_error && o.text.contains("outside"), "{}", o.text);
     }
 }

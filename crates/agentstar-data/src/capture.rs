@@ -145,6 +145,59 @@ impl Capture {
             .position(|f| f.name == name || f.stem == name || f.stem == stem_of(name))
     }
 
+    /// The one frame grammar (`--frames`, the tools' `frames`, a sub-agent's window): `all`
+    /// (or nothing), names (`000010.png`), stems (`000010`) or frame numbers, and inclusive
+    /// ranges `a..b` of any of those, comma separated. Returns capture indices in temporal
+    /// order without repeats; an unknown frame is an error that lists the frames.
+    pub fn select(&self, spec: Option<&str>) -> Result<Vec<usize>, DataError> {
+        let Some(spec) = spec.map(str::trim).filter(|s| !s.is_empty() && *s != "all") else {
+            return Ok((0..self.frames.len()).collect());
+        };
+        let mut out = Vec::new();
+        for tok in spec.split(',').map(str::trim).filter(|t| !t.is_empty()) {
+            if let Some((a, b)) = tok.split_once("..") {
+                let (ia, ib) = (self.find_frame(a.trim())?, self.find_frame(b.trim())?);
+                out.extend(ia.min(ib)..=ia.max(ib));
+            } else {
+                out.push(self.find_frame(tok)?);
+            }
+        }
+        if out.is_empty() {
+            return Err(DataError::invalid(
+                Self::manifest_path(&self.dir),
+                format!("`{spec}` names no frame (use names, stems, `a..b` ranges or `all`)"),
+            ));
+        }
+        out.sort_unstable();
+        out.dedup();
+        Ok(out)
+    }
+
+    fn find_frame(&self, tok: &str) -> Result<usize, DataError> {
+        if let Some(i) = self.frame_index(tok) {
+            return Ok(i);
+        }
+        if let Ok(n) = tok.parse::<u64>() {
+            if let Some(i) = self.frames.iter().position(|f| f.number == n) {
+                return Ok(i);
+            }
+        }
+        let names: Vec<&str> = self.frames.iter().map(|f| f.name.as_str()).collect();
+        let shown = if names.len() > 8 {
+            format!(
+                "{} … {}",
+                names[..4].join(", "),
+                names[names.len() - 2..].join(", ")
+            )
+        } else {
+            names.join(", ")
+        };
+        Err(DataError::invalid(
+            Self::manifest_path(&self.dir),
+            format!("unknown frame `{tok}`; frames are {shown} (use names, stems, `a..b` ranges or `all`)"),
+        ))
+    }
+
     pub fn load_frame(&self, i: usize) -> Result<image::RgbImage> {
         load_rgb(&self.frame_path(i))
     }

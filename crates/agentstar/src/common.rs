@@ -1,6 +1,7 @@
 //! Shared wiring of the subcommands: loading a capture, a model and poses; frame selection;
 //! rendering one frame; printing results.
 
+pub use agentstar_agent::reports::FrameScore;
 use agentstar_data::capture::Capture;
 use agentstar_data::posefile::{FramePose, PoseFile};
 use agentstar_data::scenefile::{load_model, LoadedModel};
@@ -8,7 +9,7 @@ use agentstar_render::score::{combined_score, depth_score, DepthScore};
 use agentstar_render::{
     render_full, IouScore, PosedModel, RenderBuffers, ScoreTarget, SilhouetteRenderer,
 };
-use anyhow::{anyhow, bail, Context, Result};
+use anyhow::{anyhow, Context, Result};
 use serde::Serialize;
 use std::path::{Path, PathBuf};
 
@@ -80,6 +81,22 @@ impl Session {
         })
     }
 
+    /// A session on what a command already holds (the tracker's result), without reading
+    /// the files again.
+    pub fn from_memory(
+        capture: Capture,
+        model: LoadedModel,
+        pose_file: PoseFile,
+        poses: Vec<FramePose>,
+    ) -> Session {
+        Session {
+            capture,
+            model,
+            pose_file,
+            poses,
+        }
+    }
+
     pub fn scale(&self) -> f64 {
         self.pose_file.scale
     }
@@ -124,98 +141,41 @@ impl Session {
             None => None,
         };
         let combined = combined_score(s.gate(), depth.as_ref(), depth_weight);
-        Ok(FrameScore::new(&f.name, &s, depth, combined))
+        Ok(frame_score(&f.name, &s, depth, combined))
     }
 }
 
-/// One frame's score, as printed and written.
-#[derive(Debug, Clone, Serialize)]
-pub struct FrameScore {
-    pub frame: String,
-    pub iou_visible: Option<f64>,
-    pub iou_raw: f64,
-    pub render_px: u64,
-    pub mask_px: u64,
-    pub hand_px: u64,
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub depth_mae: Option<f64>,
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub depth_mae_canon: Option<f64>,
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub depth_bias: Option<f64>,
-    pub combined: f64,
-}
-
-impl FrameScore {
-    fn new(frame: &str, s: &IouScore, d: Option<DepthScore>, combined: f64) -> Self {
-        FrameScore {
-            frame: frame.to_string(),
-            iou_visible: s.iou_visible,
-            iou_raw: s.iou_raw,
-            render_px: s.render_px,
-            mask_px: s.mask_px,
-            hand_px: s.hand_px,
-            depth_mae: d.map(|d| d.mae),
-            depth_mae_canon: d.map(|d| d.mae_canon),
-            depth_bias: d.map(|d| d.bias),
-            combined,
-        }
-    }
-    pub fn gate(&self) -> f64 {
-        self.iou_visible.unwrap_or(0.0)
+/// One frame's score from the renderer's scores (the report type is shared with the tools).
+pub fn frame_score(frame: &str, s: &IouScore, d: Option<DepthScore>, combined: f64) -> FrameScore {
+    FrameScore {
+        frame: frame.to_string(),
+        iou_visible: s.iou_visible,
+        iou_raw: s.iou_raw,
+        render_px: s.render_px,
+        mask_px: s.mask_px,
+        hand_px: s.hand_px,
+        depth_mae: d.map(|d| d.mae),
+        depth_mae_canon: d.map(|d| d.mae_canon),
+        depth_bias: d.map(|d| d.bias),
+        combined,
     }
 }
 
-/// Parses `--frames`: `all`, names, stems or indices, comma separated, and inclusive ranges
-/// `a..b` of stems. Returns capture indices in temporal order.
+/// Parses `--frames` with the one frame grammar ([`Capture::select`]). Returns capture
+/// indices in temporal order.
 pub fn select_frames(capture: &Capture, spec: Option<&str>) -> Result<Vec<usize>> {
-    let Some(spec) = spec.map(str::trim).filter(|s| !s.is_empty() && *s != "all") else {
-        return Ok((0..capture.frames.len()).collect());
-    };
-    let mut out = Vec::new();
-    for tok in spec.split(',').map(str::trim).filter(|t| !t.is_empty()) {
-        if let Some((a, b)) = tok.split_once("..") {
-            let (ia, ib) = (find_frame(capture, a)?, find_frame(capture, b)?);
-            out.extend(ia.min(ib)..=ia.max(ib));
-        } else {
-            out.push(find_frame(capture, tok)?);
-        }
-    }
-    out.sort_unstable();
-    out.dedup();
-    Ok(out)
+    Ok(capture.select(spec)?)
 }
 
-fn find_frame(capture: &Capture, tok: &str) -> Result<usize> {
-    if let Some(i) = capture.frame_index(tok) {
-        return Ok(i);
-    }
-    if let Ok(n) = tok.parse::<u64>() {
-        if let Some(i) = capture.frames.iter().position(|f| f.number == n) {
-            return Ok(i);
-        }
-    }
-    let names: Vec<&str> = capture.frames.iter().map(|f| f.name.as_str()).collect();
-    let shown = if names.len() > 8 {
-        format!(
-            "{} … {}",
-            names[..4].join(", "),
-            names[names.len() - 2..].join(", ")
-        )
-    } else {
-        names.join(", ")
-    };
-    bail!("unknown frame `{tok}`; frames are {shown} (use names, stems, `a..b` ranges or `all`)")
-}
-
-/// Writes tracked generalised poses, one per frame of `capture` in order, as a pose file.
+/// Writes tracked generalised poses, one per frame of `capture` in order, as a pose file;
+/// returns the file and the poses as written.
 pub fn write_tracked_poses(
     capture: &Capture,
     tree: &agentstar_geom::KinematicTree,
     scale: f64,
     poses: &[agentstar_track::GenPose],
     path: &Path,
-) -> Result<()> {
+) -> Result<(PoseFile, Vec<FramePose>)> {
     let frames: Vec<FramePose> = poses
         .iter()
         .map(|g| FramePose {
@@ -231,7 +191,7 @@ pub fn write_tracked_poses(
     let mut pf = PoseFile::initial(capture, tree, scale, &reference.pose);
     pf.set_frames(capture, tree, &frames);
     pf.write(path)?;
-    Ok(())
+    Ok((pf, frames))
 }
 
 /// Prints JSON to stdout.
@@ -248,8 +208,8 @@ pub fn out_dir(dir: &Path) -> Result<PathBuf> {
     Ok(dir.to_path_buf())
 }
 
-/// The gate every keyframe must reach.
-pub const PASS_IOU: f64 = 0.98;
+/// The gate every keyframe must reach (defined once, with the reports).
+pub use agentstar_agent::reports::GATE_IOU as PASS_IOU;
 
 /// A progress bar on stderr (drawn only when stderr is a terminal, so logs and pipes stay
 /// clean) for `len` steps of `what`.

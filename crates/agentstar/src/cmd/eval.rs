@@ -2,6 +2,7 @@
 //! `--batch`, many runs at once and the paper's tables.
 
 use crate::common::{print_json, Session, SessionArgs};
+use agentstar_agent::reports::{EvalBatchReport, EvalJoint, EvalReport};
 use agentstar_bench::gt::gt_sequence;
 use agentstar_bench::table::{result_table, tables};
 use agentstar_bench::{RunInfo, SequenceResult};
@@ -9,7 +10,6 @@ use agentstar_data::gt::GroundTruth;
 use agentstar_eval::sequence::{evaluate, EvalConfig, PredSequence, SequenceMetrics};
 use anyhow::{bail, Context, Result};
 use serde::Deserialize;
-use serde_json::json;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
@@ -109,15 +109,18 @@ fn family_of(s: &Session, given: Option<&str>) -> Result<String> {
         .to_string())
 }
 
+/// One run evaluated: its table row and its report.
+#[allow(clippy::too_many_arguments)]
 fn result_of(
     s: &Session,
     capture: &Path,
     model: &Path,
+    poses: &Path,
     gt_path: &Path,
     label: &str,
     family: Option<&str>,
     samples: usize,
-) -> Result<(SequenceResult, SequenceMetrics)> {
+) -> Result<(SequenceResult, EvalReport)> {
     let (m, seq) = evaluate_run(s, gt_path, samples)?;
     let iou: Vec<f64> = (0..s.capture.frames.len())
         .map(|i| s.score(i, 0.0).map(|f| f.gate()))
@@ -126,6 +129,7 @@ fn result_of(
         .file_name()
         .map(|n| n.to_string_lossy().into_owned())
         .unwrap_or_else(|| capture.display().to_string());
+    let family = family_of(s, family)?;
     let r = SequenceResult::from_metrics(
         RunInfo {
             id,
@@ -133,7 +137,7 @@ fn result_of(
             object: model
                 .file_stem()
                 .map_or(String::new(), |n| n.to_string_lossy().into_owned()),
-            family: family_of(s, family)?,
+            family: family.clone(),
             motion: String::new(),
             method: label.to_string(),
             seconds: 0.0,
@@ -143,7 +147,8 @@ fn result_of(
         &m,
         &seq,
     );
-    Ok((r, m))
+    let report = eval_report(label, &family, capture, poses, gt_path, &m, &r);
+    Ok((r, report))
 }
 
 fn run_batch(a: &Args, path: &Path) -> Result<ExitCode> {
@@ -159,6 +164,7 @@ fn run_batch(a: &Args, path: &Path) -> Result<ExitCode> {
     }
     let base = path.parent().unwrap_or(Path::new("."));
     let mut results = Vec::with_capacity(entries.len());
+    let mut reports = Vec::with_capacity(entries.len());
     let bar = crate::common::progress(entries.len(), "eval");
     for (i, e) in entries.iter().enumerate() {
         let (capture, model, poses) = (
@@ -172,22 +178,22 @@ fn run_batch(a: &Args, path: &Path) -> Result<ExitCode> {
             e.gt.as_ref()
                 .map_or_else(|| capture.join("gt.json"), |g| base.join(g));
         bar.suspend(|| eprintln!("eval [{}/{}] {}", i + 1, entries.len(), capture.display()));
-        results.push(
-            result_of(
-                &s,
-                &capture,
-                &model,
-                &gt,
-                e.label.as_deref().unwrap_or("run"),
-                e.family.as_deref(),
-                a.samples,
-            )
-            .with_context(|| format!("{}: run {}", path.display(), i + 1))?
-            .0,
-        );
+        let (r, report) = result_of(
+            &s,
+            &capture,
+            &model,
+            &poses,
+            &gt,
+            e.label.as_deref().unwrap_or("run"),
+            e.family.as_deref(),
+            a.samples,
+        )
+        .with_context(|| format!("{}: run {}", path.display(), i + 1))?;
+        results.push(r);
+        reports.push(report);
     }
     if a.json {
-        print_json(&json!({"results": results}))?;
+        print_json(&EvalBatchReport { results: reports })?;
     } else {
         print!("{}", tables(&results, a.per_sequence));
     }
@@ -208,23 +214,59 @@ pub fn run(a: Args) -> Result<ExitCode> {
     };
     let s = session.open()?;
     let gt_path = a.gt.clone().unwrap_or_else(|| capture.join("gt.json"));
-    let (r, m) = result_of(&s, capture, model, &gt_path, "run", None, a.samples)?;
+    let (r, report) = result_of(&s, capture, model, poses, &gt_path, "run", None, a.samples)?;
     if a.json {
-        let rigid = m.rigid.as_ref();
-        print_json(&json!({
-            "capture": capture, "poses": poses, "gt": gt_path, "frames": m.frames,
-            "scale_alignment": m.scale_alignment,
-            "epe_cm": m.epe_cm, "epe_points": m.epe_points,
-            "chamfer_cm": m.chamfer_cm, "cd_moving_cm": m.cd_moving_cm, "cd_static_cm": m.cd_static_cm,
-            "cd_w_m2": m.cd_sq_whole_m2, "cd_m_m2": m.cd_sq_moving_m2, "cd_s_m2": m.cd_sq_static_m2,
-            "rotation_mean_deg": rigid.map(|r| r.rotation_mean_deg), "rotation_median_deg": rigid.map(|r| r.rotation_median_deg),
-            "translation_mean_cm": rigid.map(|r| r.translation_mean_cm), "translation_median_cm": rigid.map(|r| r.translation_median_cm),
-            "iou_mean": r.iou_mean, "iou_min": r.iou_min,
-            "joints": m.joints.iter().map(|j| json!({"gt_joint": j.gt_joint, "pred_joint": j.pred_joint, "matched_by": j.matched_by,
-                "axis_angle_rad": j.axis_angle_rad, "axis_distance_m": j.axis_distance_m, "state_error": j.state_error})).collect::<Vec<_>>(),
-        }))?;
+        print_json(&report)?;
         return Ok(ExitCode::SUCCESS);
     }
     print!("{}", result_table(&r));
     Ok(ExitCode::SUCCESS)
+}
+
+/// The report of one evaluated run (what `eval --json` prints).
+pub(crate) fn eval_report(
+    label: &str,
+    family: &str,
+    capture: &Path,
+    poses: &Path,
+    gt: &Path,
+    m: &SequenceMetrics,
+    r: &SequenceResult,
+) -> EvalReport {
+    let rigid = m.rigid.as_ref();
+    EvalReport {
+        label: label.to_string(),
+        family: family.to_string(),
+        capture: capture.to_path_buf(),
+        poses: poses.to_path_buf(),
+        gt: gt.to_path_buf(),
+        frames: m.frames,
+        scale_alignment: m.scale_alignment,
+        epe_cm: m.epe_cm,
+        epe_points: m.epe_points,
+        chamfer_cm: m.chamfer_cm,
+        cd_moving_cm: m.cd_moving_cm,
+        cd_static_cm: m.cd_static_cm,
+        cd_w_m2: m.cd_sq_whole_m2,
+        cd_m_m2: m.cd_sq_moving_m2,
+        cd_s_m2: m.cd_sq_static_m2,
+        rotation_mean_deg: rigid.map(|r| r.rotation_mean_deg),
+        rotation_median_deg: rigid.map(|r| r.rotation_median_deg),
+        translation_mean_cm: rigid.map(|r| r.translation_mean_cm),
+        translation_median_cm: rigid.map(|r| r.translation_median_cm),
+        iou_mean: r.iou_mean,
+        iou_min: r.iou_min,
+        joints: m
+            .joints
+            .iter()
+            .map(|j| EvalJoint {
+                gt_joint: j.gt_joint.clone(),
+                pred_joint: j.pred_joint.clone(),
+                matched_by: j.matched_by.to_string(),
+                axis_angle_rad: j.axis_angle_rad,
+                axis_distance_m: j.axis_distance_m,
+                state_error: j.state_error,
+            })
+            .collect(),
+    }
 }

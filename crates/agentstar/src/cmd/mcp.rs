@@ -1,12 +1,18 @@
 //! `agentstar mcp RUN`: the tool catalogue over the Model Context Protocol (stdio), for
 //! coding agents (Claude Code, Codex, …). Every call is a step in the run's ledger, so the
-//! report's timeline shows what the agent did. Images come back inline and as file paths.
+//! report's timeline shows what the agent did. Images come back inline and as file paths;
+//! a tool's typed report comes back as `structuredContent`.
+//!
+//! Every request is answered: stdin is read through a bounded front ([`bounded_stdio`]) that
+//! answers a line over [`MAX_REQUEST_BYTES`] or a line that is not JSON with a JSON-RPC
+//! error instead of dropping it; arguments are checked against the tool's generated schema
+//! before it runs (a tool error the model can read).
 
 use crate::cmd::agent::{mcp_config_json, mcp_config_toml};
 use agentstar_agent::agent::{record_step, StepRecord};
 use agentstar_agent::run::RunDir;
 use agentstar_agent::task::MCP_INSTRUCTIONS;
-use agentstar_agent::tools::{catalogue, Toolbox};
+use agentstar_agent::tools::{catalogue, find, Toolbox};
 use anyhow::{bail, Context, Result};
 use base64::Engine;
 use rmcp::model::{
@@ -75,10 +81,19 @@ impl ServerHandler for Server {
         context: RequestContext<RoleServer>,
     ) -> Result<CallToolResponse, ErrorData> {
         let name = request.name.to_string();
-        let spec = catalogue()
-            .into_iter()
-            .find(|t| t.name == name)
-            .ok_or_else(|| ErrorData::invalid_params(format!("there is no tool `{name}`"), None))?;
+        let spec = find(&name).ok_or_else(|| {
+            ErrorData::invalid_params(
+                format!(
+                    "there is no tool `{name}`; the tools are {}",
+                    catalogue()
+                        .iter()
+                        .map(|t| t.name)
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                ),
+                None,
+            )
+        })?;
         let args = serde_json::Value::Object(request.arguments.unwrap_or_default());
         let step = self.step.fetch_add(1, Ordering::SeqCst) + 1;
         let toolbox = self.toolbox.clone();
@@ -149,12 +164,13 @@ impl ServerHandler for Server {
                 ));
             }
         }
-        Ok(if out.is_error {
+        let mut result = if out.is_error {
             CallToolResult::error(content)
         } else {
             CallToolResult::success(content)
-        }
-        .into())
+        };
+        result.structured_content = out.structured.clone();
+        Ok(result.into())
     }
 }
 
@@ -201,11 +217,217 @@ pub fn run(a: Args) -> Result<ExitCode> {
         .context("starting the async runtime")?;
     rt.block_on(async move {
         let service = server
-            .serve(rmcp::transport::stdio())
+            .serve(bounded_stdio())
             .await
             .context("starting the MCP server on stdio")?;
         service.waiting().await.context("serving MCP")?;
         anyhow::Ok(())
     })?;
     Ok(ExitCode::SUCCESS)
+}
+
+/// The largest request line the server reads (a whole scene script is at most
+/// `MAX_SCRIPT_CHARS`, far under it).
+pub const MAX_REQUEST_BYTES: usize = 4 * 1024 * 1024;
+
+/// The `id` of a request line, read from its first bytes without parsing all of it (for
+/// answering a line too long to parse).
+fn scan_id(head: &[u8]) -> serde_json::Value {
+    let text = String::from_utf8_lossy(head);
+    let Some(at) = text.find("\"id\"") else {
+        return serde_json::Value::Null;
+    };
+    let rest = text[at + 4..].trim_start();
+    let Some(rest) = rest.strip_prefix(':') else {
+        return serde_json::Value::Null;
+    };
+    let rest = rest.trim_start();
+    // A number or a string, whichever the token is.
+    let mut de = serde_json::Deserializer::from_str(rest).into_iter::<serde_json::Value>();
+    match de.next() {
+        Some(Ok(v @ (serde_json::Value::Number(_) | serde_json::Value::String(_)))) => v,
+        _ => serde_json::Value::Null,
+    }
+}
+
+fn error_line(id: serde_json::Value, code: i64, message: String) -> Vec<u8> {
+    let mut line = serde_json::to_vec(&serde_json::json!({
+        "jsonrpc": "2.0", "id": id, "error": {"code": code, "message": message}
+    }))
+    .unwrap_or_default();
+    line.push(b'\n');
+    line
+}
+
+/// What the front does with one line of stdin.
+#[derive(Debug, PartialEq)]
+enum Front {
+    /// Pass it to the MCP service.
+    Forward,
+    /// Answer it with this error line.
+    Answer(Vec<u8>),
+    /// Blank: nothing.
+    Skip,
+}
+
+fn judge(line: &[u8]) -> Front {
+    let body = line.strip_suffix(b"\n").unwrap_or(line);
+    let body = body.strip_suffix(b"\r").unwrap_or(body);
+    if body.iter().all(u8::is_ascii_whitespace) {
+        return Front::Skip;
+    }
+    match serde_json::from_slice::<serde_json::Value>(body) {
+        Ok(_) => Front::Forward,
+        Err(e) => Front::Answer(error_line(
+            serde_json::Value::Null,
+            -32700,
+            format!("parse error: the request is not JSON ({e})"),
+        )),
+    }
+}
+
+/// Stdin and stdout for the MCP service, with a front that bounds each request line and
+/// answers what the service would drop (over-long lines, lines that are not JSON). Both
+/// directions go through pipes so that the front's answers and the service's never
+/// interleave within a line.
+fn bounded_stdio() -> (tokio::io::DuplexStream, tokio::io::DuplexStream) {
+    use tokio::io::{AsyncBufReadExt, AsyncWriteExt};
+    let (service_in, mut feed) = tokio::io::duplex(1 << 20);
+    let (service_out, drain) = tokio::io::duplex(1 << 20);
+    let (answers, mut answered) = tokio::sync::mpsc::unbounded_channel::<Vec<u8>>();
+    tokio::spawn(async move {
+        let mut stdin = tokio::io::BufReader::new(tokio::io::stdin());
+        let mut line: Vec<u8> = Vec::new();
+        let mut head: Vec<u8> = Vec::new();
+        let mut oversized = false;
+        loop {
+            let chunk = match stdin.fill_buf().await {
+                Ok([]) => break,
+                Ok(c) => c,
+                Err(e) => {
+                    eprintln!("agentstar mcp: reading stdin: {e}");
+                    break;
+                }
+            };
+            let newline = chunk.iter().position(|b| *b == b'\n');
+            let take = newline.map_or(chunk.len(), |i| i + 1);
+            if oversized {
+                if head.len() < 4096 {
+                    let n = (4096 - head.len()).min(take);
+                    head.extend_from_slice(&chunk[..n]);
+                }
+            } else if line.len() + take > MAX_REQUEST_BYTES {
+                oversized = true;
+                head = std::mem::take(&mut line);
+                head.truncate(4096);
+                let n = (4096 - head.len()).min(take);
+                head.extend_from_slice(&chunk[..n]);
+            } else {
+                line.extend_from_slice(&chunk[..take]);
+            }
+            stdin.consume(take);
+            if newline.is_none() {
+                continue;
+            }
+            if oversized {
+                let _ = answers.send(error_line(
+                    scan_id(&head),
+                    -32600,
+                    format!("the request is over {MAX_REQUEST_BYTES} bytes and was not read"),
+                ));
+                oversized = false;
+                head.clear();
+                continue;
+            }
+            match judge(&line) {
+                Front::Forward => {
+                    if feed.write_all(&line).await.is_err() {
+                        break;
+                    }
+                }
+                Front::Answer(a) => {
+                    let _ = answers.send(a);
+                }
+                Front::Skip => {}
+            }
+            line.clear();
+        }
+        // End of input: the service sees it and stops.
+        let _ = feed.shutdown().await;
+    });
+    tokio::spawn(async move {
+        let mut stdout = tokio::io::stdout();
+        let mut from_service = tokio::io::BufReader::new(drain);
+        let mut buf: Vec<u8> = Vec::new();
+        let mut service_open = true;
+        loop {
+            tokio::select! {
+                // Cancel safe: a partial line stays in `buf` for the next round.
+                r = from_service.read_until(b'\n', &mut buf), if service_open => {
+                    match r {
+                        Ok(0) | Err(_) => service_open = false,
+                        Ok(_) => {
+                            if buf.ends_with(b"\n") {
+                                if stdout.write_all(&buf).await.is_err() || stdout.flush().await.is_err() {
+                                    return;
+                                }
+                                buf.clear();
+                            }
+                        }
+                    }
+                }
+                a = answered.recv() => {
+                    match a {
+                        Some(a) => {
+                            if stdout.write_all(&a).await.is_err() || stdout.flush().await.is_err() {
+                                return;
+                            }
+                        }
+                        None if !service_open => break,
+                        None => {
+                            // The front is done; keep draining the service.
+                            while let Ok(n) = from_service.read_until(b'\n', &mut buf).await {
+                                if n == 0 {
+                                    break;
+                                }
+                                if stdout.write_all(&buf).await.is_err() {
+                                    return;
+                                }
+                                buf.clear();
+                                let _ = stdout.flush().await;
+                            }
+                            break;
+                        }
+                    }
+                }
+            }
+        }
+        let _ = stdout.flush().await;
+    });
+    (service_in, service_out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_front_answers_what_the_service_would_drop() {
+        assert_eq!(judge(b"{\"jsonrpc\": \"2.0\"}\n"), Front::Forward);
+        assert_eq!(judge(b"  \r\n"), Front::Skip);
+        let Front::Answer(a) = judge(b"{\"jsonrpc\": \n") else {
+            panic!("not answered")
+        };
+        let v: serde_json::Value = serde_json::from_slice(&a).expect("json");
+        assert_eq!(v["error"]["code"], -32700);
+        assert_eq!(
+            scan_id(b"{\"jsonrpc\":\"2.0\", \"id\" : 17, \"params\": {\"x\": \"aaaa"),
+            17
+        );
+        assert_eq!(scan_id(b"{\"id\":\"req-3\",\"method\""), "req-3");
+        assert_eq!(
+            scan_id(b"{\"method\": \"tools/call\""),
+            serde_json::Value::Null
+        );
+    }
 }

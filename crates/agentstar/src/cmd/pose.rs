@@ -1,13 +1,15 @@
 //! `agentstar pose commit | history | restore`: apply a chosen candidate from a verb's report
 //! to `pose.json` atomically; every committed version is kept with the command that made
-//! it, and any earlier version can be restored.
+//! it, and any earlier version can be restored. Every change holds the pose file's lock
+//! (`agentstar_agent::history`), so concurrent commits from shells and agents all land.
 
 use crate::common::print_json;
+use agentstar_agent::history::PoseHistory;
+use agentstar_agent::reports::{CommitReport, SearchReport};
+use agentstar_agent::AgentError;
 use agentstar_data::posefile::{FrameEntry, PoseFile, PoseJson};
-use anyhow::{anyhow, bail, Context, Result};
-use serde_json::{json, Value};
-use std::collections::BTreeMap;
-use std::path::{Path, PathBuf};
+use anyhow::{anyhow, Result};
+use std::path::PathBuf;
 use std::process::ExitCode;
 
 #[derive(clap::Subcommand)]
@@ -47,60 +49,8 @@ pub enum PoseCommand {
         #[arg(long)]
         poses: PathBuf,
         #[arg(long)]
-        version: usize,
+        version: u64,
     },
-}
-
-fn history_dir(poses: &Path) -> PathBuf {
-    let dir = poses
-        .parent()
-        .filter(|p| !p.as_os_str().is_empty())
-        .unwrap_or(Path::new("."));
-    let stem = poses.file_stem().and_then(|s| s.to_str()).unwrap_or("pose");
-    dir.join(".agentstar").join("history").join(stem)
-}
-
-fn versions(poses: &Path) -> Result<Vec<(usize, PathBuf)>> {
-    let dir = history_dir(poses);
-    let mut v = Vec::new();
-    if let Ok(rd) = std::fs::read_dir(&dir) {
-        for e in rd.flatten() {
-            let name = e.file_name().to_string_lossy().to_string();
-            if let Some(n) = name
-                .strip_suffix(".json")
-                .and_then(|s| s.parse::<usize>().ok())
-            {
-                v.push((n, e.path()));
-            }
-        }
-    }
-    v.sort();
-    Ok(v)
-}
-
-/// Records `pf` as the next version, with the command that made it.
-fn record(poses: &Path, pf: &PoseFile, command: &str) -> Result<usize> {
-    let next = versions(poses)?.last().map_or(0, |(n, _)| n + 1);
-    let time_s = std::time::SystemTime::now()
-        .duration_since(std::time::UNIX_EPOCH)
-        .map(|d| d.as_secs())
-        .unwrap_or(0);
-    let entry = json!({"version": next, "time_unix_s": time_s, "command": command, "pose": pf});
-    agentstar_data::atomic::write_json(
-        &history_dir(poses).join(format!("{next:06}.json")),
-        &entry,
-    )?;
-    Ok(next)
-}
-
-fn pose_from(v: &Value, what: &str) -> Result<(PoseJson, BTreeMap<String, f64>)> {
-    let p: PoseJson = serde_json::from_value(
-        json!({"quaternion": v["pose"]["quaternion"], "translation": v["pose"]["translation"]}),
-    )
-    .with_context(|| format!("{what}: no pose"))?;
-    let joints: BTreeMap<String, f64> =
-        serde_json::from_value(v["joints"].clone()).unwrap_or_default();
-    Ok((p, joints))
 }
 
 pub fn run(cmd: PoseCommand) -> Result<ExitCode> {
@@ -112,64 +62,33 @@ pub fn run(cmd: PoseCommand) -> Result<ExitCode> {
             frames,
             json: as_json,
         } => {
-            let mut pf = PoseFile::read(&poses)?;
-            let text = agentstar_data::read_text(&report)?;
-            let rep: Value = serde_json::from_str(&text)
-                .map_err(|e| anyhow!("{}: not a report: {e}", report.display()))?;
-            if let Some(scale) = rep["scale"].as_f64() {
-                if (scale - pf.scale).abs() > 1e-9 * pf.scale {
-                    bail!("{}: the report was made at scale {scale} but {} has scale {}; run the verb again", report.display(), poses.display(), pf.scale);
-                }
-            }
-            let wanted: Option<Vec<String>> =
-                frames.map(|f| f.split(',').map(|s| s.trim().to_string()).collect());
-            if history_dir(&poses).read_dir().is_err() {
-                record(&poses, &pf, "initial version (before the first commit)")?;
-            }
-            let mut committed = Vec::new();
-            for fr in rep["frames"]
-                .as_array()
-                .ok_or_else(|| anyhow!("{}: no `frames` in the report", report.display()))?
-            {
-                let name = fr["frame"].as_str().unwrap_or_default().to_string();
-                if wanted.as_ref().is_some_and(|w| {
-                    !w.iter()
-                        .any(|x| *x == name || name.starts_with(&format!("{x}.")))
-                }) {
-                    continue;
-                }
-                let ranked = fr["ranked"]
-                    .as_array()
-                    .ok_or_else(|| anyhow!("frame {name}: no ranked candidates"))?;
-                let cand = ranked
-                    .iter()
-                    .find(|c| c["rank"].as_u64() == Some(rank as u64))
-                    .ok_or_else(|| {
-                        anyhow!(
-                            "frame {name}: no candidate of rank {rank} (ranks 0..{})",
-                            ranked.len().saturating_sub(1)
-                        )
-                    })?;
-                let (p, joints) = pose_from(cand, &name)?;
-                let e: &mut FrameEntry = pf.frames.entry(name.clone()).or_default();
-                e.object_pose = Some(PoseJson {
-                    scale: Some(pf.scale),
-                    ..p
-                });
-                if !joints.is_empty() {
-                    e.joints = joints;
-                }
-                e.moved = true;
-                committed.push(name);
-            }
-            if committed.is_empty() {
-                bail!("nothing to commit: the report has no matching frames");
-            }
-            pf.write(&poses)?;
+            let rep = SearchReport::read(&report)?;
+            let capture = crate::common::open_capture(&rep.capture).ok();
+            // The frames wanted, with the frame grammar when the report's capture opens.
+            let wanted: Option<Vec<String>> = match (&frames, &capture) {
+                (None, _) => None,
+                (Some(spec), Some(cap)) => Some(
+                    cap.select(Some(spec))?
+                        .into_iter()
+                        .map(|i| cap.frames[i].name.clone())
+                        .collect(),
+                ),
+                (Some(spec), None) => Some(spec.split(',').map(|s| s.trim().to_string()).collect()),
+            };
             let cmdline = std::env::args().collect::<Vec<_>>().join(" ");
-            let v = record(&poses, &pf, &cmdline)?;
+            let history = PoseHistory::new(&poses);
+            let (committed, v) = history
+                .update(&cmdline, |pf| {
+                    commit(pf, &rep, rank, wanted.as_deref())
+                        .map_err(|e| AgentError::Invalid(format!("{}: {e}", report.display())))
+                })
+                .map_err(|e| anyhow!("{e}"))?;
             if as_json {
-                print_json(&json!({"committed": committed, "version": v, "poses": poses}))?;
+                print_json(&CommitReport {
+                    committed,
+                    version: v,
+                    poses,
+                })?;
             } else {
                 println!(
                     "committed rank {rank} for {} frame(s) ({}) into {} as version {v}",
@@ -184,44 +103,20 @@ pub fn run(cmd: PoseCommand) -> Result<ExitCode> {
             poses,
             json: as_json,
         } => {
-            let list = versions(&poses)?;
-            let mut rows = Vec::new();
-            for (n, p) in &list {
-                let v: Value = serde_json::from_str(&agentstar_data::read_text(p)?)?;
-                rows.push(
-                    json!({"version": n, "time_unix_s": v["time_unix_s"], "command": v["command"]}),
-                );
-            }
+            let rows = PoseHistory::new(&poses).rows()?;
             if as_json {
                 print_json(&rows)?;
             } else if rows.is_empty() {
                 println!("no committed versions of {} yet", poses.display());
             } else {
                 for r in rows {
-                    println!(
-                        "{:>4}  {}  {}",
-                        r["version"],
-                        r["time_unix_s"],
-                        r["command"].as_str().unwrap_or("")
-                    );
+                    println!("{:>4}  {}  {}", r.version, r.time_unix_s, r.command);
                 }
             }
             Ok(ExitCode::SUCCESS)
         }
         PoseCommand::Restore { poses, version } => {
-            let list = versions(&poses)?;
-            let (_, path) = list.iter().find(|(n, _)| *n == version).ok_or_else(|| {
-                anyhow!(
-                    "no version {version} of {}; versions are {:?}",
-                    poses.display(),
-                    list.iter().map(|(n, _)| *n).collect::<Vec<_>>()
-                )
-            })?;
-            let v: Value = serde_json::from_str(&agentstar_data::read_text(path)?)?;
-            let pf: PoseFile = serde_json::from_value(v["pose"].clone())
-                .map_err(|e| anyhow!("{}: {e}", path.display()))?;
-            pf.write(&poses)?;
-            let n = record(&poses, &pf, &format!("restore version {version}"))?;
+            let n = PoseHistory::new(&poses).restore(version)?;
             println!(
                 "restored version {version} of {} (recorded as version {n})",
                 poses.display()
@@ -229,4 +124,49 @@ pub fn run(cmd: PoseCommand) -> Result<ExitCode> {
             Ok(ExitCode::SUCCESS)
         }
     }
+}
+
+/// Writes rank `rank` of each wanted frame of `rep` into `pf`; returns the frames.
+fn commit(
+    pf: &mut PoseFile,
+    rep: &SearchReport,
+    rank: usize,
+    wanted: Option<&[String]>,
+) -> std::result::Result<Vec<String>, String> {
+    if (rep.scale - pf.scale).abs() > 1e-9 * pf.scale {
+        return Err(format!(
+            "the report was made at scale {} but the pose file has scale {}; run the {} again",
+            rep.scale,
+            pf.scale,
+            rep.verb.command()
+        ));
+    }
+    let mut committed = Vec::new();
+    for fr in &rep.frames {
+        if wanted.is_some_and(|w| !w.contains(&fr.frame)) {
+            continue;
+        }
+        let cand = fr.ranked.iter().find(|c| c.rank == rank).ok_or_else(|| {
+            format!(
+                "frame {}: no candidate of rank {rank} (ranks 0..{})",
+                fr.frame,
+                fr.ranked.len().saturating_sub(1)
+            )
+        })?;
+        let e: &mut FrameEntry = pf.frames.entry(fr.frame.clone()).or_default();
+        e.object_pose = Some(PoseJson {
+            quaternion: cand.pose.quaternion,
+            translation: cand.pose.translation,
+            scale: Some(pf.scale),
+        });
+        if !cand.joints.is_empty() {
+            e.joints = cand.joints.clone();
+        }
+        e.moved = true;
+        committed.push(fr.frame.clone());
+    }
+    if committed.is_empty() {
+        return Err("nothing to commit: the report has no matching frames".into());
+    }
+    Ok(committed)
 }

@@ -1,9 +1,9 @@
 //! `agentstar score`: per-frame and per-sequence scores of the posed model.
 
 use crate::common::{print_json, select_frames, FrameScore, SessionArgs, PASS_IOU};
+use agentstar_agent::reports::{ScoreReport, SequenceScore};
 use anyhow::Result;
 use rayon::prelude::*;
-use serde::Serialize;
 use std::process::ExitCode;
 
 #[derive(clap::Args)]
@@ -27,39 +27,9 @@ pub struct Args {
     json: bool,
 }
 
-/// The sequence summary.
-#[derive(Debug, Serialize)]
-pub struct SequenceScore {
-    pub frames: usize,
-    pub mean_iou_visible: f64,
-    pub median_iou_visible: f64,
-    pub min_iou_visible: f64,
-    pub worst_frame: String,
-    pub pass_iou: f64,
-    /// Frames under the gate, worst first.
-    pub below_gate: Vec<String>,
-}
-
+/// The sequence summary of `scores` against `pass_iou`.
 pub fn summarise(scores: &[FrameScore], pass_iou: f64) -> SequenceScore {
-    let mut gates: Vec<f64> = scores.iter().map(FrameScore::gate).collect();
-    gates.sort_by(|a, b| a.total_cmp(b));
-    let n = gates.len().max(1);
-    let worst = scores.iter().min_by(|a, b| a.gate().total_cmp(&b.gate()));
-    let mut below: Vec<&FrameScore> = scores.iter().filter(|s| s.gate() < pass_iou).collect();
-    below.sort_by(|a, b| a.gate().total_cmp(&b.gate()).then(a.frame.cmp(&b.frame)));
-    SequenceScore {
-        frames: scores.len(),
-        mean_iou_visible: gates.iter().sum::<f64>() / n as f64,
-        median_iou_visible: if gates.is_empty() {
-            0.0
-        } else {
-            gates[gates.len() / 2]
-        },
-        min_iou_visible: gates.first().copied().unwrap_or(0.0),
-        worst_frame: worst.map(|w| w.frame.clone()).unwrap_or_default(),
-        pass_iou,
-        below_gate: below.iter().map(|s| s.frame.clone()).collect(),
-    }
+    SequenceScore::of(scores, pass_iou)
 }
 
 pub fn run(a: Args) -> Result<ExitCode> {
@@ -71,7 +41,10 @@ pub fn run(a: Args) -> Result<ExitCode> {
         .collect::<Result<_>>()?;
     let summary = summarise(&scores, a.pass_iou);
     if a.json {
-        print_json(&serde_json::json!({"frames": scores, "sequence": summary}))?;
+        print_json(&ScoreReport {
+            frames: scores,
+            sequence: summary.clone(),
+        })?;
     } else {
         print_table(&scores, &summary);
     }

@@ -3,11 +3,11 @@
 
 use crate::cmd::score::{print_table, summarise};
 use crate::common::{open_capture, open_model, print_json, write_tracked_poses, Session, PASS_IOU};
+use agentstar_agent::reports::TrackReport;
 use agentstar_data::posefile::PoseFile;
 use agentstar_render::ScoreTarget;
 use agentstar_track::tracker::{track_observed, TrackConfig, TrackFrame};
-use anyhow::{anyhow, bail, Result};
-use serde_json::json;
+use anyhow::{bail, Result};
 use std::path::PathBuf;
 use std::process::ExitCode;
 
@@ -87,17 +87,25 @@ pub fn run(a: Args) -> Result<ExitCode> {
     })?;
     bar.finish_and_clear();
     let seconds = t0.elapsed().as_secs_f64();
-    write_tracked_poses(&capture, &model.model.tree, scale, &r.poses, &a.out)?;
-    let s = Session::open(&a.capture, &a.model, &a.out)
-        .map_err(|e| anyhow!("re-reading the written poses: {e}"))?;
+    let (pose_file, written) =
+        write_tracked_poses(&capture, &model.model.tree, scale, &r.poses, &a.out)?;
+    // Scored from what is in memory: the poses as written, not read back.
+    let s = Session::from_memory(capture, model, pose_file, written);
+    let capture = &s.capture;
     let scores: Vec<_> = (0..capture.frames.len())
         .map(|i| s.score(i, 0.0))
         .collect::<Result<_>>()?;
     let summary = summarise(&scores, PASS_IOU);
     if a.json {
-        print_json(
-            &json!({"poses": a.out, "seconds": seconds, "evaluations": r.evaluations, "init_frame": capture.frames[r.init_frame].name, "log": r.log, "frames": scores, "sequence": summary}),
-        )?;
+        print_json(&TrackReport {
+            poses: a.out.clone(),
+            seconds,
+            evaluations: r.evaluations,
+            init_frame: capture.frames[r.init_frame].name.clone(),
+            log: r.log.clone(),
+            frames: scores,
+            sequence: summary,
+        })?;
     } else {
         println!(
             "tracked {} frames in {seconds:.1} s ({} evaluations), initialised on {}; wrote {}",

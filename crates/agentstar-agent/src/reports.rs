@@ -1,0 +1,363 @@
+//! The reports the commands write (`--json` on stdout, report files beside their images)
+//! and the tools read back: one serde type per report, so a writer and its readers cannot
+//! drift apart (a field renamed on one side is a compile error or a clear parse error, not
+//! a silently missing value).
+//!
+//! Free-form diagnostics that nothing reads back (a search's restarts, score fields) stay
+//! [`serde_json::Value`] inside the typed reports.
+
+use agentstar_data::posefile::PoseFile;
+use serde::{Deserialize, Serialize};
+use serde_json::Value;
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+/// The gate every keyframe's visible IoU must reach (the `finish` gate, `score`'s default
+/// `--pass-iou`, `track`'s summary).
+pub const GATE_IOU: f64 = 0.98;
+
+/// The pose-search verbs. Each owns its command name and its file names, so the tool that
+/// runs a verb and the command that writes its report agree by construction.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum SearchVerb {
+    Sweep,
+    Apply,
+    Osweep,
+    Oapply,
+    OapplyAll,
+}
+
+impl SearchVerb {
+    pub const ALL: [SearchVerb; 5] = [
+        SearchVerb::Sweep,
+        SearchVerb::Apply,
+        SearchVerb::Osweep,
+        SearchVerb::Oapply,
+        SearchVerb::OapplyAll,
+    ];
+
+    /// The subcommand (`agentstar oapply-all`).
+    pub fn command(self) -> &'static str {
+        match self {
+            SearchVerb::Sweep => "sweep",
+            SearchVerb::Apply => "apply",
+            SearchVerb::Osweep => "osweep",
+            SearchVerb::Oapply => "oapply",
+            SearchVerb::OapplyAll => "oapply-all",
+        }
+    }
+
+    /// The stem of its files and its name in reports and tools (`oapply_all`).
+    pub fn stem(self) -> &'static str {
+        match self {
+            SearchVerb::Sweep => "sweep",
+            SearchVerb::Apply => "apply",
+            SearchVerb::Osweep => "osweep",
+            SearchVerb::Oapply => "oapply",
+            SearchVerb::OapplyAll => "oapply_all",
+        }
+    }
+
+    /// The JSON report in the verb's output directory.
+    pub fn report_path(self, dir: &Path) -> PathBuf {
+        dir.join(format!("{}.json", self.stem()))
+    }
+
+    /// The text table with paste-ready blocks.
+    pub fn text_path(self, dir: &Path) -> PathBuf {
+        dir.join(format!("{}.txt", self.stem()))
+    }
+
+    /// The candidate sheet of the frame with stem `frame_stem`.
+    pub fn sheet_path(self, dir: &Path, frame_stem: &str) -> PathBuf {
+        dir.join(format!("{}_sheet_{frame_stem}.png", self.stem()))
+    }
+}
+
+/// A candidate's pose as written in reports (scalar-first quaternion, camera frame).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CandidatePose {
+    pub quaternion: [f64; 4],
+    pub translation: [f64; 3],
+    pub scale: f64,
+}
+
+/// One ranked candidate of a search.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Candidate {
+    pub rank: usize,
+    /// The order that produced it (`yaw:12;hinge:40`, `flip:x`).
+    pub label: String,
+    pub pose: CandidatePose,
+    /// Joint states in interface units (degrees, metres).
+    pub joints: BTreeMap<String, f64>,
+    pub iou_visible: Option<f64>,
+    pub iou_raw: f64,
+    pub gate: f64,
+    pub depth_canon: Option<f64>,
+    pub combined: f64,
+    /// Search diagnostics (restart, seed, pass, raw vector).
+    pub extra: Value,
+}
+
+/// One frame of a search report.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SearchFrame {
+    pub frame: String,
+    pub sheet: PathBuf,
+    pub notes: Vec<String>,
+    /// How the frame was searched (method, space, restarts, score field).
+    pub search: Value,
+    pub ranked: Vec<Candidate>,
+}
+
+/// What `sweep`, `apply`, `osweep`, `oapply` and `oapply-all` write (`VERB.json`, and on
+/// stdout with `--json`); what `pose commit` reads.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SearchReport {
+    pub verb: SearchVerb,
+    pub capture: PathBuf,
+    pub model: PathBuf,
+    pub poses: PathBuf,
+    pub scale: f64,
+    pub depth_weight: f64,
+    pub frames: Vec<SearchFrame>,
+    pub mean_gate_iou: f64,
+    /// `None` when the report holds no frame.
+    pub min_gate_iou: Option<f64>,
+    /// Verb-wide details (`oapply-all`'s shared rotation).
+    pub details: Value,
+    pub command: String,
+}
+
+impl SearchReport {
+    /// Reads a report file, naming the file in every error.
+    pub fn read(path: &Path) -> crate::Result<SearchReport> {
+        let text = agentstar_data::read_text(path)?;
+        serde_json::from_str(&text).map_err(|e| {
+            crate::AgentError::Data(agentstar_data::DataError::invalid(
+                path,
+                format!("not a search report (sweep, apply, osweep, oapply, oapply-all): {e}"),
+            ))
+        })
+    }
+}
+
+/// One frame's score, as printed and written by `score`, `track` and the tools.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct FrameScore {
+    pub frame: String,
+    /// IoU over the visible region (hands excluded); `None` when no mask pixel is visible.
+    pub iou_visible: Option<f64>,
+    pub iou_raw: f64,
+    pub render_px: u64,
+    pub mask_px: u64,
+    pub hand_px: u64,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub depth_mae: Option<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub depth_mae_canon: Option<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub depth_bias: Option<f64>,
+    pub combined: f64,
+}
+
+impl FrameScore {
+    /// The score a gate compares: the visible IoU, 0 where nothing is visible.
+    pub fn gate(&self) -> f64 {
+        self.iou_visible.unwrap_or(0.0)
+    }
+}
+
+/// A sequence's summary of frame scores.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SequenceScore {
+    pub frames: usize,
+    pub mean_iou_visible: f64,
+    pub median_iou_visible: f64,
+    pub min_iou_visible: f64,
+    pub worst_frame: String,
+    pub pass_iou: f64,
+    /// Frames under the gate, worst first.
+    pub below_gate: Vec<String>,
+}
+
+impl SequenceScore {
+    /// Summarises `scores` against the gate `pass_iou`.
+    pub fn of(scores: &[FrameScore], pass_iou: f64) -> SequenceScore {
+        let mut gates: Vec<f64> = scores.iter().map(FrameScore::gate).collect();
+        gates.sort_by(|a, b| a.total_cmp(b));
+        let n = gates.len().max(1);
+        let worst = scores.iter().min_by(|a, b| a.gate().total_cmp(&b.gate()));
+        let mut below: Vec<&FrameScore> = scores.iter().filter(|s| s.gate() < pass_iou).collect();
+        below.sort_by(|a, b| a.gate().total_cmp(&b.gate()).then(a.frame.cmp(&b.frame)));
+        SequenceScore {
+            frames: scores.len(),
+            mean_iou_visible: gates.iter().sum::<f64>() / n as f64,
+            median_iou_visible: if gates.is_empty() {
+                0.0
+            } else {
+                gates[gates.len() / 2]
+            },
+            min_iou_visible: gates.first().copied().unwrap_or(0.0),
+            worst_frame: worst.map(|w| w.frame.clone()).unwrap_or_default(),
+            pass_iou,
+            below_gate: below.iter().map(|s| s.frame.clone()).collect(),
+        }
+    }
+}
+
+/// What `score --json` prints.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ScoreReport {
+    pub frames: Vec<FrameScore>,
+    pub sequence: SequenceScore,
+}
+
+/// What `track --json` prints.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TrackReport {
+    /// The pose file written.
+    pub poses: PathBuf,
+    pub seconds: f64,
+    pub evaluations: usize,
+    pub init_frame: String,
+    /// What the tracker did, frame by frame.
+    pub log: Vec<String>,
+    pub frames: Vec<FrameScore>,
+    pub sequence: SequenceScore,
+}
+
+/// One joint's articulation errors in an [`EvalReport`].
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct EvalJoint {
+    pub gt_joint: String,
+    pub pred_joint: Option<String>,
+    pub matched_by: String,
+    pub axis_angle_rad: Option<f64>,
+    pub axis_distance_m: Option<f64>,
+    pub state_error: Option<f64>,
+}
+
+/// What `eval --json` prints for one run, and each of `eval --batch --json`'s `results`
+/// (one function writes both).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct EvalReport {
+    /// The run's label (`run` unless a batch names it).
+    pub label: String,
+    /// The dataset family (arctic, hot3d, itaco or other).
+    pub family: String,
+    pub capture: PathBuf,
+    pub poses: PathBuf,
+    pub gt: PathBuf,
+    pub frames: usize,
+    pub scale_alignment: f64,
+    pub epe_cm: Option<f64>,
+    pub epe_points: usize,
+    pub chamfer_cm: Option<f64>,
+    pub cd_moving_cm: Option<f64>,
+    pub cd_static_cm: Option<f64>,
+    pub cd_w_m2: Option<f64>,
+    pub cd_m_m2: Option<f64>,
+    pub cd_s_m2: Option<f64>,
+    pub rotation_mean_deg: Option<f64>,
+    pub rotation_median_deg: Option<f64>,
+    pub translation_mean_cm: Option<f64>,
+    pub translation_median_cm: Option<f64>,
+    pub iou_mean: f64,
+    pub iou_min: f64,
+    pub joints: Vec<EvalJoint>,
+}
+
+/// What `eval --batch --json` prints.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct EvalBatchReport {
+    pub results: Vec<EvalReport>,
+}
+
+/// One committed version of a pose file (`.agentstar/history/STEM/NNNNNN.json`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct HistoryEntry {
+    pub version: u64,
+    pub time_unix_s: u64,
+    /// The command (or tool) that made it.
+    pub command: String,
+    pub pose: PoseFile,
+}
+
+/// One row of `pose history --json`.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct HistoryRow {
+    pub version: u64,
+    pub time_unix_s: u64,
+    pub command: String,
+}
+
+/// What `pose commit --json` prints.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CommitReport {
+    pub committed: Vec<String>,
+    pub version: u64,
+    pub poses: PathBuf,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn every_verb_names_its_command_and_files_consistently() {
+        for v in SearchVerb::ALL {
+            // The report's `verb` field is the file stem; the command differs only in `-`.
+            let tag = serde_json::to_value(v).expect("ser");
+            assert_eq!(tag, v.stem());
+            assert_eq!(v.command().replace('-', "_"), v.stem());
+            let back: SearchVerb = serde_json::from_value(tag).expect("de");
+            assert_eq!(back, v);
+        }
+        assert_eq!(
+            SearchVerb::OapplyAll.report_path(Path::new("out")),
+            Path::new("out/oapply_all.json")
+        );
+        assert_eq!(SearchVerb::OapplyAll.command(), "oapply-all");
+    }
+
+    #[test]
+    fn the_summary_lists_frames_under_the_gate_worst_first() {
+        let f = |name: &str, iou: Option<f64>| FrameScore {
+            frame: name.into(),
+            iou_visible: iou,
+            iou_raw: iou.unwrap_or(0.0),
+            render_px: 1,
+            mask_px: 1,
+            hand_px: 0,
+            depth_mae: None,
+            depth_mae_canon: None,
+            depth_bias: None,
+            combined: iou.unwrap_or(0.0),
+        };
+        let s = SequenceScore::of(
+            &[f("a", Some(0.99)), f("b", Some(0.5)), f("c", None)],
+            GATE_IOU,
+        );
+        assert_eq!(s.below_gate, ["c", "b"]);
+        assert_eq!(s.worst_frame, "c");
+        assert_eq!(s.min_iou_visible, 0.0);
+        assert_eq!(s.median_iou_visible, 0.5);
+    }
+}

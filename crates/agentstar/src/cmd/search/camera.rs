@@ -1,0 +1,290 @@
+//! `sweep` and `apply`: camera-frame increments about the pivot and joint states, searched
+//! (differential evolution or grids, or explicit candidate lists) or scored as given.
+
+use super::*;
+
+#[derive(clap::Args)]
+#[command(
+    after_help = "Example:\n  agentstar sweep --capture cap --model run/scene.rhai --poses run/pose.json --out reports --frames 000010 --ranges 'yaw:-20,20;hinge:20,60'"
+)]
+pub struct SweepArgs {
+    #[command(flatten)]
+    common: Common,
+    /// Frames to search, each for its own winner (default: the reference frame).
+    #[arg(long)]
+    frames: Option<String>,
+    /// pose | joint | both (inferred from --ranges when omitted; pose when both are omitted).
+    #[arg(long)]
+    space: Option<String>,
+    /// Ranges, e.g. `yaw:-20,20;pitch:standard_topcloser;hinge:20,60` (see the grammar in the error text).
+    #[arg(long)]
+    ranges: Option<String>,
+    /// de | grid
+    #[arg(long, default_value = "de")]
+    strategy: String,
+    /// Grid steps for DOFs whose range gives none.
+    #[arg(long, default_value_t = 5)]
+    steps: usize,
+    /// Grid refinement passes (each re-centres the windows on the best point).
+    #[arg(long, default_value_t = 1)]
+    refine: usize,
+    /// Factor applied to each window's half-span per refinement pass.
+    #[arg(long, default_value_t = 0.5)]
+    shrink: f64,
+    /// Independent DE restarts (seeds seed + i), one winner each.
+    #[arg(long, default_value_t = 6)]
+    restarts: usize,
+    /// Objective evaluations over all restarts (split evenly).
+    #[arg(long, default_value_t = 3600)]
+    evals: usize,
+    /// Seed of the first restart.
+    #[arg(long, default_value_t = 17)]
+    seed: u64,
+    /// Nelder–Mead polish evaluations over all restarts (0 = none).
+    #[arg(long, default_value_t = 0)]
+    polish: usize,
+    /// Ranked candidates kept (grid).
+    #[arg(long, default_value_t = 10)]
+    topk: usize,
+    /// Apply this order before searching, so the window centres on the shifted pose.
+    #[arg(long)]
+    start_shift: Option<String>,
+    /// Score these orders exactly instead of searching: `yaw:10;hinge:40|yaw:-10;hinge:60`,
+    /// or `@FILE` with one order per line.
+    #[arg(long, conflicts_with_all = ["start_shift", "ranges"])]
+    candidates: Option<String>,
+}
+
+#[derive(clap::Args)]
+#[command(
+    after_help = "Example:\n  agentstar apply --capture cap --model run/scene.rhai --poses run/pose.json --out reports --frame 000010 --order 'pitch:17;dpx:0.05;hinge:70'"
+)]
+pub struct ApplyArgs {
+    #[command(flatten)]
+    common: Common,
+    /// The frame (default: the reference frame).
+    #[arg(long)]
+    frame: Option<String>,
+    /// One value per DOF: `pitch:17;dpx:0.05;hinge:70` (increments; joint states absolute).
+    #[arg(long)]
+    order: String,
+}
+
+pub fn run_sweep(a: SweepArgs) -> Result<ExitCode> {
+    let s = a.common.session.open()?;
+    let tree = &s.model.model.tree;
+    let kind = match a.space.as_deref() {
+        None => None,
+        Some("pose") => Some(SpaceKind::Pose),
+        Some("joint") => Some(SpaceKind::Joint),
+        Some("both") => Some(SpaceKind::Both),
+        Some(o) => bail!("unknown space `{o}`; use pose, joint or both"),
+    };
+    if let Some(list) = &a.candidates {
+        return run_candidates(&a, &s, list);
+    }
+    let space = build_space(a.ranges.as_deref(), kind, tree, Grammar::Camera)?;
+    if space.is_empty() {
+        bail!("the search space is empty (a rigid model has no joints to search); name pose ranges or use --space pose");
+    }
+    let strategy = match a.strategy.as_str() {
+        "de" => Strategy::De,
+        "grid" => Strategy::Grid {
+            default_steps: a.steps,
+            refine: a.refine,
+            shrink: a.shrink,
+        },
+        o => bail!("unknown strategy `{o}`; use de or grid"),
+    };
+    let cfg = SweepConfig {
+        strategy,
+        restarts: a.restarts,
+        total_evals: a.evals,
+        seed: a.seed,
+        polish_evals: a.polish,
+        topk: a.topk,
+        ..SweepConfig::default()
+    };
+    let frames = default_frame(&s, a.frames.as_deref())?;
+    let mut outputs = Vec::new();
+    for &i in progress(frames.len(), "sweep").wrap_iter(frames.iter()) {
+        let inputs = s.target(i)?;
+        let mut base = s.gen_pose(i);
+        if let Some(shift) = &a.start_shift {
+            let sp = parse_spec_values(shift, tree)?;
+            let p = problem_for(&s, i, &inputs, a.common.depth_weight, base.clone());
+            base = p.candidate(&sp.0, &sp.1);
+        }
+        let p = problem_for(&s, i, &inputs, a.common.depth_weight, base);
+        let r = sweep(&p, &space, &cfg)?;
+        let extra = json!({
+            "method": a.strategy, "space": space_json(&space, tree), "n_evals": r.n_evals,
+            "pivot": {"canonical": <[f64; 3]>::from(p.pivot.coords), "depth_z": agentstar_track::update::pivot_in_camera(&p.base.pose, s.scale(), &p.pivot).z},
+            "restarts": r.restarts.iter().map(|x| json!({"restart": x.restart, "seed": x.seed, "budget": x.budget, "population_size": x.population_size, "generations": x.generations, "nfev": x.nfev, "polish_nfev": x.polish_nfev, "best": x.best, "termination": x.termination, "generation_best": x.generation_best})).collect::<Vec<_>>(),
+            "score_field": r.score_field.as_ref().map(|f| json!({"dofs": [space.ranges[0].dof.name(tree), space.ranges[1].dof.name(tree)], "a_values": f.a, "b_values": f.b, "scores": f.scores})),
+        });
+        let mut notes = space.notes.clone();
+        if let Some(f) = &r.score_field {
+            notes.push(heat_map(f, &space, tree));
+            let img = agentstar_render::views::heat_map(
+                &space.ranges[0].dof.name(tree),
+                &f.a,
+                &space.ranges[1].dof.name(tree),
+                &f.b,
+                &f.scores,
+            );
+            let p = out_dir(&a.common.out)?
+                .join(format!("sweep_heatmap_{}.png", s.capture.frames[i].stem));
+            save_png_rgb(&img, &p)?;
+            notes.push(format!("heat map: {}", p.display()));
+        }
+        outputs.push(FrameOutput {
+            frame: s.capture.frames[i].name.clone(),
+            rows: rows_from(r, &space, tree),
+            extra,
+            notes,
+        });
+    }
+    write_outputs(
+        SearchVerb::Sweep,
+        &s,
+        &a.common,
+        &frames,
+        outputs,
+        json!({}),
+    )
+}
+
+/// `sweep --candidates`: every order scored exactly, ranked per frame.
+fn run_candidates(a: &SweepArgs, s: &Session, list: &str) -> Result<ExitCode> {
+    let tree = &s.model.model.tree;
+    let text = match list.strip_prefix('@') {
+        Some(path) => agentstar_data::read_text(Path::new(path))?,
+        None => list.replace('|', "\n"),
+    };
+    let orders: Vec<&str> = text
+        .lines()
+        .map(str::trim)
+        .filter(|l| !l.is_empty() && !l.starts_with('#'))
+        .collect();
+    if orders.is_empty() {
+        bail!("--candidates holds no order; write `yaw:10;hinge:40|yaw:-10` or @FILE with one order per line");
+    }
+    let parsed: Vec<(SearchSpace, Vec<f64>)> = orders
+        .iter()
+        .map(|o| parse_spec_values(o, tree))
+        .collect::<Result<_>>()?;
+    let frames = default_frame(s, a.frames.as_deref())?;
+    let mut outputs = Vec::new();
+    for &i in progress(frames.len(), "sweep").wrap_iter(frames.iter()) {
+        let inputs = s.target(i)?;
+        let p = problem_for(s, i, &inputs, a.common.depth_weight, s.gen_pose(i));
+        let mut ev = p.evaluator();
+        let mut rows: Vec<Row> = parsed
+            .iter()
+            .zip(&orders)
+            .enumerate()
+            .map(|(k, ((space, x), order))| {
+                let pose = p.candidate(space, x);
+                let score = ev.score(&pose);
+                Row {
+                    rank: 0,
+                    label: order.to_string(),
+                    pose,
+                    score,
+                    extra: json!({"candidate": k}),
+                }
+            })
+            .collect();
+        rows.sort_by(|x, y| y.score.combined.total_cmp(&x.score.combined));
+        for (k, r) in rows.iter_mut().enumerate() {
+            r.rank = k;
+        }
+        outputs.push(FrameOutput {
+            frame: s.capture.frames[i].name.clone(),
+            rows,
+            extra: json!({"method": "candidates", "n": orders.len()}),
+            notes: vec![],
+        });
+    }
+    write_outputs(SearchVerb::Sweep, s, &a.common, &frames, outputs, json!({}))
+}
+
+/// An ASCII heat map of a 2-DOF score field.
+fn heat_map(
+    f: &agentstar_track::search::ScoreField,
+    space: &SearchSpace,
+    tree: &KinematicTree,
+) -> String {
+    let mut t = format!(
+        "score field: rows {} , columns {}\n{:>9}",
+        space.ranges[0].dof.name(tree),
+        space.ranges[1].dof.name(tree),
+        ""
+    );
+    for b in &f.b {
+        t.push_str(&format!(" {:>7}", fmt6(*b)));
+    }
+    for (ia, a) in f.a.iter().enumerate() {
+        t.push_str(&format!("\n{:>9}", fmt6(*a)));
+        for v in &f.scores[ia] {
+            t.push_str(&format!(
+                " {:>7}",
+                v.map_or("-".into(), |x| format!("{x:.4}"))
+            ));
+        }
+    }
+    t
+}
+
+/// Parses `dof:value;…` into a one-point space and its vector.
+fn parse_spec_values(order: &str, tree: &KinematicTree) -> Result<(SearchSpace, Vec<f64>)> {
+    let spec: Vec<String> = order
+        .split(';')
+        .map(str::trim)
+        .filter(|t| !t.is_empty())
+        .map(|t| {
+            let (k, v) = t.split_once(':').ok_or_else(|| {
+                anyhow!("`{t}`: expected `dof:value`, e.g. `pitch:17;dpx:0.05;hinge:70`")
+            })?;
+            Ok(format!("{k}:{v},{v}"))
+        })
+        .collect::<Result<_>>()?;
+    let space = parse_spec(&spec.join(";"), tree, Grammar::Camera)?;
+    let x = space.ranges.iter().map(|r| r.lo).collect();
+    Ok((space, x))
+}
+
+pub fn run_apply(a: ApplyArgs) -> Result<ExitCode> {
+    let s = a.common.session.open()?;
+    let tree = &s.model.model.tree;
+    let (space, x) = parse_spec_values(&a.order, tree)?;
+    let frames = default_frame(&s, a.frame.as_deref())?;
+    let mut outputs = Vec::new();
+    for &i in progress(frames.len(), "apply").wrap_iter(frames.iter()) {
+        let inputs = s.target(i)?;
+        let p = problem_for(&s, i, &inputs, a.common.depth_weight, s.gen_pose(i));
+        let r = sweep(
+            &p,
+            &space,
+            &SweepConfig {
+                strategy: Strategy::Candidates(vec![x.clone()]),
+                ..SweepConfig::default()
+            },
+        )?;
+        outputs.push(FrameOutput {
+            frame: s.capture.frames[i].name.clone(),
+            rows: rows_from(r, &space, tree),
+            extra: json!({"method": "apply", "order": a.order}),
+            notes: space.notes.clone(),
+        });
+    }
+    write_outputs(
+        SearchVerb::Apply,
+        &s,
+        &a.common,
+        &frames,
+        outputs,
+        json!({}),
+    )
+}

@@ -1,0 +1,332 @@
+//! The pose verbs: `sweep` and `apply` (camera-frame increments about the pivot, in
+//! `camera.rs`), `osweep` and `oapply` (object-frame rotations per frame) and `oapply-all`
+//! (one shared object-frame rotation for every frame, in `object.rs`). Each writes a typed
+//! report ([`SearchReport`]), a text table with paste-ready blocks, and a candidate sheet
+//! (render over the frame and silhouette comparison per finalist, labelled with rank,
+//! score and the order); this module holds what they share.
+
+use crate::common::{
+    out_dir, print_json, progress, select_frames, FrameInputs, Session, SessionArgs,
+};
+use agentstar_agent::reports::{Candidate, CandidatePose, SearchFrame, SearchReport, SearchVerb};
+use agentstar_data::images::save_png_rgb;
+use agentstar_data::posefile::pose_json;
+use agentstar_geom::{KinematicTree, Point3, UnitQuaternion};
+use agentstar_render::views::{contact_sheet, overlay, shade, silhouette_comparison, ShadeOptions};
+use agentstar_render::{render_full, PosedModel};
+use agentstar_track::objective::{CandidateScore, FrameProblem};
+use agentstar_track::search::{sweep, Strategy, SweepConfig, SweepResult};
+use agentstar_track::space::{
+    build_space, parse_spec, Dof, DofRange, Grammar, SearchSpace, SpaceKind,
+};
+use agentstar_track::update::{apply_object_rotation, flip, rotation_vector_deg, GenPose};
+use anyhow::{anyhow, bail, Context, Result};
+use image::RgbImage;
+use serde_json::{json, Value};
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+
+mod camera;
+mod object;
+
+pub use camera::{run_apply, run_sweep, ApplyArgs, SweepArgs};
+pub use object::{run_oapply, run_oapply_all, run_osweep, OapplyAllArgs, OapplyArgs, OsweepArgs};
+
+/// Flags shared by every verb.
+#[derive(clap::Args, Clone)]
+pub struct Common {
+    #[command(flatten)]
+    session: SessionArgs,
+    /// Output directory for reports and sheets.
+    #[arg(long)]
+    out: PathBuf,
+    /// Weight of the depth term in the combined score (used when the capture has depth).
+    #[arg(long, default_value_t = 0.0)]
+    depth_weight: f64,
+    /// Finalists rendered on the candidate sheet.
+    #[arg(long, default_value_t = 6)]
+    sheet: usize,
+    /// Print the result as JSON on stdout.
+    #[arg(long)]
+    json: bool,
+}
+
+/// One ranked candidate for the report.
+struct Row {
+    rank: usize,
+    label: String,
+    pose: GenPose,
+    score: CandidateScore,
+    extra: Value,
+}
+
+fn order_string(space: &SearchSpace, x: &[f64], tree: &KinematicTree) -> String {
+    space
+        .ranges
+        .iter()
+        .zip(x)
+        .map(|(r, v)| format!("{}:{}", r.dof.name(tree), fmt6(*v)))
+        .collect::<Vec<_>>()
+        .join(";")
+}
+
+fn fmt6(v: f64) -> String {
+    let s = format!("{v:.6}");
+    let s = s.trim_end_matches('0').trim_end_matches('.');
+    if s == "-0" {
+        "0".into()
+    } else {
+        s.to_string()
+    }
+}
+
+fn candidate(r: &Row, scale: f64, tree: &KinematicTree) -> Candidate {
+    let p = pose_json(&r.pose.pose, Some(scale));
+    Candidate {
+        rank: r.rank,
+        label: r.label.clone(),
+        pose: CandidatePose {
+            quaternion: p.quaternion,
+            translation: p.translation,
+            scale,
+        },
+        joints: tree.states_to_interface(&r.pose.states),
+        iou_visible: r.score.iou_visible,
+        iou_raw: r.score.iou_raw,
+        gate: r.score.gate,
+        depth_canon: r.score.depth_canon,
+        combined: r.score.combined,
+        extra: r.extra.clone(),
+    }
+}
+
+fn space_json(space: &SearchSpace, tree: &KinematicTree) -> Value {
+    json!(space
+        .ranges
+        .iter()
+        .map(|r| json!({"dof": r.dof.name(tree), "lower": r.lo, "upper": r.hi, "steps": r.steps}))
+        .collect::<Vec<_>>())
+}
+
+/// The candidate sheet of one frame: per finalist, the render over the frame and the
+/// silhouette comparison, labelled with rank, score and order.
+fn candidate_sheet(
+    s: &Session,
+    i: usize,
+    rows: &[Row],
+    limit: usize,
+    title: &str,
+) -> Result<RgbImage> {
+    let frame = s.capture.load_frame(i)?;
+    let (target, _) = s.target(i)?;
+    let cam = s.capture.frames[i].camera;
+    let colors: Vec<[f32; 3]> = s.model.model.parts.iter().map(|p| p.color).collect();
+    let mut tiles = Vec::new();
+    for r in rows.iter().take(limit.max(1)) {
+        let buffers = render_full(
+            &cam,
+            &PosedModel::new(
+                &s.model.model,
+                &r.pose.states,
+                &r.pose.pose.with_scale(s.scale()),
+            )
+            .instances,
+        );
+        let over = overlay(
+            &frame,
+            &shade(&buffers, &colors, ShadeOptions::default()),
+            0.6,
+        );
+        let hand = target.keep().map(|k| k.not());
+        let (cmp, _) = silhouette_comparison(&buffers.silhouette(), target.mask(), hand.as_ref());
+        tiles.push((
+            format!("#{} IoU {:.4} {}", r.rank, r.score.gate, r.label),
+            over,
+        ));
+        tiles.push((format!("#{} compare", r.rank), cmp));
+    }
+    Ok(contact_sheet(&tiles, 2, title))
+}
+
+#[allow(clippy::too_many_arguments)]
+fn text_report(
+    verb: &str,
+    frame: &str,
+    rows: &[Row],
+    scale: f64,
+    tree: &KinematicTree,
+    notes: &[String],
+    report_path: &Path,
+    poses: &Path,
+) -> String {
+    let mut t = format!(
+        "{verb} {frame}\n{:<5} {:>8} {:>8} {:>8} {:>9}  order\n",
+        "rank", "combined", "iou_vis", "iou_raw", "dp_canon"
+    );
+    for r in rows {
+        t.push_str(&format!(
+            "{:<5} {:>8.4} {:>8} {:>8.4} {:>9}  {}\n",
+            r.rank,
+            r.score.combined,
+            r.score
+                .iou_visible
+                .map_or("n/a".into(), |v| format!("{v:.4}")),
+            r.score.iou_raw,
+            r.score
+                .depth_canon
+                .map_or("-".into(), |v| format!("{v:.4}")),
+            r.label
+        ));
+    }
+    for n in notes {
+        t.push_str(&format!("note: {n}\n"));
+    }
+    if let Some(b) = rows.first() {
+        let p = pose_json(&b.pose.pose, None);
+        let q: Vec<String> = p.quaternion.iter().map(|v| fmt6(*v)).collect();
+        let tr: Vec<String> = p.translation.iter().map(|v| fmt6(*v)).collect();
+        let joints: Vec<String> = tree
+            .states_to_interface(&b.pose.states)
+            .iter()
+            .map(|(k, v)| format!("\"{k}\": {}", fmt6(*v)))
+            .collect();
+        t.push_str(&format!(
+            "\nBEST — paste into pose.json frames[\"{frame}\"]:\n\"object_pose\": {{\"quaternion\": [{}], \"translation\": [{}], \"scale\": {}}},\n\"joints\": {{{}}}\n",
+            q.join(", "),
+            tr.join(", "),
+            fmt6(scale),
+            joints.join(", ")
+        ));
+        t.push_str(&format!("\nor commit it: agentstar pose commit --poses {} --report {} --rank 0 --frames {frame}\n", poses.display(), report_path.display()));
+    }
+    t
+}
+
+struct FrameOutput {
+    frame: String,
+    rows: Vec<Row>,
+    extra: Value,
+    notes: Vec<String>,
+}
+
+fn write_outputs(
+    verb: SearchVerb,
+    s: &Session,
+    c: &Common,
+    frames: &[usize],
+    outputs: Vec<FrameOutput>,
+    details: Value,
+) -> Result<ExitCode> {
+    let dir = out_dir(&c.out)?;
+    let tree = &s.model.model.tree;
+    let report_path = verb.report_path(&dir);
+    let mut text = String::new();
+    let mut report_frames = Vec::new();
+    for (o, &i) in outputs.iter().zip(frames) {
+        let sheet = verb.sheet_path(&dir, &s.capture.frames[i].stem);
+        save_png_rgb(
+            &candidate_sheet(
+                s,
+                i,
+                &o.rows,
+                c.sheet,
+                &format!("{} {}", verb.stem(), o.frame),
+            )?,
+            &sheet,
+        )?;
+        text.push_str(&text_report(
+            verb.stem(),
+            &o.frame,
+            &o.rows,
+            s.scale(),
+            tree,
+            &o.notes,
+            &report_path,
+            &c.session.poses,
+        ));
+        text.push('\n');
+        report_frames.push(SearchFrame {
+            frame: o.frame.clone(),
+            sheet,
+            notes: o.notes.clone(),
+            search: o.extra.clone(),
+            ranked: o
+                .rows
+                .iter()
+                .map(|r| candidate(r, s.scale(), tree))
+                .collect(),
+        });
+    }
+    let gates: Vec<f64> = outputs
+        .iter()
+        .filter_map(|o| o.rows.first().map(|r| r.score.gate))
+        .collect();
+    let report = SearchReport {
+        verb,
+        capture: c.session.capture.clone(),
+        model: c.session.model.clone(),
+        poses: c.session.poses.clone(),
+        scale: s.scale(),
+        depth_weight: c.depth_weight,
+        frames: report_frames,
+        mean_gate_iou: gates.iter().sum::<f64>() / gates.len().max(1) as f64,
+        min_gate_iou: gates.iter().copied().reduce(f64::min),
+        details,
+        command: std::env::args().collect::<Vec<_>>().join(" "),
+    };
+    agentstar_data::atomic::write_json(&report_path, &report)?;
+    agentstar_data::atomic::write_atomic(&verb.text_path(&dir), text.as_bytes())?;
+    if c.json {
+        print_json(&report)?;
+    } else {
+        print!("{text}");
+        println!(
+            "report: {} (and {}.txt, {}_sheet_*.png)",
+            report_path.display(),
+            verb.stem(),
+            verb.stem()
+        );
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+/// Frame `i`'s problem around `base`, scoring against `inputs` (from [`Session::target`]).
+fn problem_for<'a>(
+    s: &'a Session,
+    i: usize,
+    inputs: &'a FrameInputs,
+    w: f64,
+    base: GenPose,
+) -> FrameProblem<'a> {
+    let mut p = FrameProblem::new(
+        &s.model.model,
+        s.capture.frames[i].camera,
+        &inputs.0,
+        s.scale(),
+        base,
+    );
+    p.depth = inputs.1.as_ref();
+    p.depth_weight = w;
+    p
+}
+
+fn rows_from(result: SweepResult, space: &SearchSpace, tree: &KinematicTree) -> Vec<Row> {
+    result
+        .ranked
+        .into_iter()
+        .map(|c| Row {
+            rank: c.rank,
+            label: order_string(space, &c.x, tree),
+            extra: json!({"restart": c.restart, "seed": c.seed, "pass": c.pass, "x": c.x}),
+            pose: c.pose,
+            score: c.score,
+        })
+        .collect()
+}
+
+fn default_frame(s: &Session, spec: Option<&str>) -> Result<Vec<usize>> {
+    match spec {
+        None => Ok(vec![s.capture.ref_index]),
+        Some(sp) => select_frames(&s.capture, Some(sp)),
+    }
+}

@@ -1,0 +1,333 @@
+//! `osweep`, `oapply` and `oapply-all`: object-frame rotations per frame (presets, grids,
+//! rotation sets) and one shared rotation for every frame, with their grammars.
+
+use super::*;
+
+#[derive(clap::Args)]
+#[command(
+    after_help = "Example:\n  agentstar osweep --capture cap --model run/scene.rhai --poses run/pose.json --out reports --frames 000010 --opreset z:flip"
+)]
+pub struct OsweepArgs {
+    #[command(flatten)]
+    common: Common,
+    /// Frames: names, stems or `a..b` ranges, comma separated (default: all).
+    #[arg(long)]
+    frames: Option<String>,
+    /// Grid ranges over rx, ry, rz (and joints): `rz:-180,180,9;rx:-15,15,3`.
+    #[arg(long)]
+    ranges: Option<String>,
+    /// Preset rotations: `z:flip`, `z:quarters`, `z:octants`, `z:full`, `z:0,90,180`, `z:large`, or `so3:N` (identity plus N uniform rotations).
+    #[arg(long)]
+    opreset: Option<String>,
+    /// Grid steps for axes whose range gives none.
+    #[arg(long, default_value_t = 5)]
+    steps: usize,
+    /// Grid refinement passes.
+    #[arg(long, default_value_t = 1)]
+    refine: usize,
+    /// Window shrink per refinement pass.
+    #[arg(long, default_value_t = 0.5)]
+    shrink: f64,
+    /// Ranked candidates kept per frame.
+    #[arg(long, default_value_t = 10)]
+    topk: usize,
+}
+
+#[derive(clap::Args)]
+#[command(
+    after_help = "Example:\n  agentstar oapply --capture cap --model run/scene.rhai --poses run/pose.json --out reports --frames 000010 --set flips"
+)]
+pub struct OapplyArgs {
+    #[command(flatten)]
+    common: Common,
+    /// Frames: names, stems or `a..b` ranges, comma separated (default: all).
+    #[arg(long)]
+    frames: Option<String>,
+    /// Candidates separated by `|`, terms by `;`: `identity|flip:x|rz:90;rx:10`, or `flips`.
+    #[arg(long, default_value = "flips")]
+    set: String,
+}
+
+#[derive(clap::Args)]
+#[command(
+    after_help = "Example:\n  agentstar oapply-all --capture cap --model run/scene.rhai --poses run/pose.json --out reports --rotation 'flip:x'"
+)]
+pub struct OapplyAllArgs {
+    #[command(flatten)]
+    common: Common,
+    /// Frames to rotate (default: all).
+    #[arg(long)]
+    frames: Option<String>,
+    /// One rotation: `rz:90;rx:10` (rotation vector, degrees) or `flip:x|y|z`.
+    #[arg(long)]
+    rotation: String,
+}
+
+/// Rotation-vector candidates from an object preset.
+fn opreset_candidates(spec: &str, seed: u64) -> Result<Vec<(String, [f64; 3])>> {
+    let spec = spec.trim();
+    if let Some(n) = spec.strip_prefix("so3:") {
+        let n: usize = n
+            .trim()
+            .parse()
+            .map_err(|_| anyhow!("`{spec}`: so3:N needs a whole number N"))?;
+        let mut rng = agentstar_optim::Rng::new(seed);
+        let mut v = vec![("identity".to_string(), [0.0; 3])];
+        for k in 0..n {
+            let q = UnitQuaternion::from_quaternion(agentstar_geom::nalgebra::Quaternion::new(
+                rng.normal(),
+                rng.normal(),
+                rng.normal(),
+                rng.normal(),
+            ));
+            let r = q.scaled_axis().map(f64::to_degrees);
+            v.push((format!("so3#{k}"), [r.x, r.y, r.z]));
+        }
+        return Ok(v);
+    }
+    let mut per_axis: Vec<(usize, Vec<f64>)> = Vec::new();
+    for term in spec.split(';').map(str::trim).filter(|t| !t.is_empty()) {
+        let (axis, val) = term.split_once(':').ok_or_else(|| anyhow!("`{term}`: expected `axis:preset`, e.g. `z:flip`, `z:quarters`, `z:0,90,180`, `so3:24`"))?;
+        let ax = match axis.trim() {
+            "x" | "rx" => 0,
+            "y" | "ry" => 1,
+            "z" | "rz" => 2,
+            o => bail!("`{term}`: axis `{o}` must be x, y or z"),
+        };
+        let values: Vec<f64> = match val.trim() {
+            "flip" => vec![0.0, 180.0],
+            "quarters" => vec![0.0, 90.0, 180.0, 270.0],
+            "octants" => (0..8).map(|k| 45.0 * k as f64).collect(),
+            "full" => (0..12).map(|k| -180.0 + 30.0 * k as f64).collect(),
+            p if agentstar_track::space::preset_half_span(p).is_some() => {
+                let h = agentstar_track::space::preset_half_span(p).unwrap_or(15.0);
+                vec![-h, -h / 2.0, 0.0, h / 2.0, h]
+            }
+            list => list
+                .split(',')
+                .map(|t| {
+                    t.trim()
+                        .parse::<f64>()
+                        .map_err(|_| anyhow!("`{term}`: `{t}` is not an angle"))
+                })
+                .collect::<Result<_>>()?,
+        };
+        per_axis.push((ax, values));
+    }
+    let mut out: Vec<(String, [f64; 3])> = vec![(String::new(), [0.0; 3])];
+    for (ax, values) in per_axis {
+        out = out
+            .into_iter()
+            .flat_map(|(l, r)| {
+                values.iter().map(move |&v| {
+                    let mut r2 = r;
+                    r2[ax] = v;
+                    (format!("{l}{}{:+04}", ["rx", "ry", "rz"][ax], v as i64), r2)
+                })
+            })
+            .collect();
+    }
+    for o in &mut out {
+        if o.1 == [0.0; 3] {
+            o.0 = "identity".into();
+        }
+    }
+    out.dedup_by(|a, b| a.1 == b.1);
+    Ok(out)
+}
+
+pub fn run_osweep(a: OsweepArgs) -> Result<ExitCode> {
+    let s = a.common.session.open()?;
+    let tree = &s.model.model.tree;
+    let frames = select_frames(&s.capture, a.frames.as_deref())?;
+    let mut outputs = Vec::new();
+    for &i in progress(frames.len(), "osweep").wrap_iter(frames.iter()) {
+        let inputs = s.target(i)?;
+        let p = problem_for(&s, i, &inputs, a.common.depth_weight, s.gen_pose(i));
+        let (space, cfg) = if let Some(pre) = &a.opreset {
+            let cands = opreset_candidates(pre, 0x5EED)?;
+            let space = SearchSpace {
+                ranges: [Dof::Rx, Dof::Ry, Dof::Rz]
+                    .into_iter()
+                    .map(|d| DofRange {
+                        dof: d,
+                        lo: -360.0,
+                        hi: 360.0,
+                        steps: None,
+                    })
+                    .collect(),
+                notes: vec![],
+            };
+            (
+                space,
+                SweepConfig {
+                    strategy: Strategy::Candidates(cands.iter().map(|c| c.1.to_vec()).collect()),
+                    topk: a.topk,
+                    ..SweepConfig::default()
+                },
+            )
+        } else {
+            let space = build_space(a.ranges.as_deref(), None, tree, Grammar::Object)?;
+            (
+                space,
+                SweepConfig {
+                    strategy: Strategy::Grid {
+                        default_steps: a.steps,
+                        refine: a.refine,
+                        shrink: a.shrink,
+                    },
+                    topk: a.topk,
+                    ..SweepConfig::default()
+                },
+            )
+        };
+        let r = sweep(&p, &space, &cfg)?;
+        outputs.push(FrameOutput {
+            frame: s.capture.frames[i].name.clone(),
+            rows: rows_from(r, &space, tree),
+            extra: json!({"method": "osweep", "space": space_json(&space, tree)}),
+            notes: space.notes.clone(),
+        });
+    }
+    write_outputs(
+        SearchVerb::Osweep,
+        &s,
+        &a.common,
+        &frames,
+        outputs,
+        json!({}),
+    )
+}
+
+/// Parses a candidate set: `identity|flip:x|rz:90;rx:10`, `flips`.
+fn rotation_set(spec: &str) -> Result<Vec<(String, UnitQuaternion)>> {
+    let expanded = spec.replace("flips", "identity|flip:x|flip:y|flip:z");
+    let mut out: Vec<(String, UnitQuaternion)> = Vec::new();
+    for cand in expanded.split('|').map(str::trim).filter(|c| !c.is_empty()) {
+        let q = parse_rotation(cand)?;
+        if !out.iter().any(|(_, o)| o.angle_to(&q) < 1e-9) {
+            out.push((cand.to_string(), q));
+        }
+    }
+    if out.is_empty() {
+        bail!("the candidate set is empty; e.g. `identity|flip:x|rz:90`");
+    }
+    Ok(out)
+}
+
+fn parse_rotation(cand: &str) -> Result<UnitQuaternion> {
+    if cand == "identity" {
+        return Ok(UnitQuaternion::identity());
+    }
+    if let Some(ax) = cand.strip_prefix("flip:") {
+        let c = ax.trim().chars().next().unwrap_or(' ');
+        return flip(c).ok_or_else(|| anyhow!("`{cand}`: flip axis must be x, y or z"));
+    }
+    let mut r = [0.0; 3];
+    for term in cand.split(';').map(str::trim).filter(|t| !t.is_empty()) {
+        let (k, v) = term.split_once(':').ok_or_else(|| {
+            anyhow!("`{term}`: expected `rx:deg`, `ry:deg`, `rz:deg`, `flip:x` or `identity`")
+        })?;
+        let idx = match k.trim() {
+            "rx" => 0,
+            "ry" => 1,
+            "rz" => 2,
+            o if ["roll", "yaw", "pitch", "dpx", "dpy", "tz"].contains(&o) => {
+                bail!("`{o}` is a camera-frame increment; use sweep/apply for it")
+            }
+            o => bail!("`{o}` is not an object-frame axis (rx, ry, rz)"),
+        };
+        r[idx] = v
+            .trim()
+            .parse::<f64>()
+            .map_err(|_| anyhow!("`{term}`: `{v}` is not an angle"))?;
+    }
+    Ok(rotation_vector_deg(r))
+}
+
+pub fn run_oapply(a: OapplyArgs) -> Result<ExitCode> {
+    let s = a.common.session.open()?;
+    let set = rotation_set(&a.set)?;
+    let frames = select_frames(&s.capture, a.frames.as_deref())?;
+    let mut outputs = Vec::new();
+    for &i in progress(frames.len(), "oapply").wrap_iter(frames.iter()) {
+        let inputs = s.target(i)?;
+        let p = problem_for(&s, i, &inputs, a.common.depth_weight, s.gen_pose(i));
+        let mut ev = p.evaluator();
+        let mut rows: Vec<Row> = set
+            .iter()
+            .map(|(label, q)| {
+                let pose = apply_object_rotation(&p.base.pose, s.scale(), &p.pivot, q);
+                let g = GenPose {
+                    pose,
+                    states: p.base.states.clone(),
+                };
+                let score = ev.score(&g);
+                Row {
+                    rank: 0,
+                    label: label.clone(),
+                    pose: g,
+                    score,
+                    extra: json!({}),
+                }
+            })
+            .collect();
+        rows.sort_by(|x, y| y.score.combined.total_cmp(&x.score.combined));
+        for (k, r) in rows.iter_mut().enumerate() {
+            r.rank = k;
+        }
+        outputs.push(FrameOutput {
+            frame: s.capture.frames[i].name.clone(),
+            rows,
+            extra: json!({"method": "oapply", "set": a.set}),
+            notes: vec![],
+        });
+    }
+    write_outputs(
+        SearchVerb::Oapply,
+        &s,
+        &a.common,
+        &frames,
+        outputs,
+        json!({}),
+    )
+}
+
+pub fn run_oapply_all(a: OapplyAllArgs) -> Result<ExitCode> {
+    let s = a.common.session.open()?;
+    let q = parse_rotation(a.rotation.trim()).context("--rotation")?;
+    let frames = select_frames(&s.capture, a.frames.as_deref())?;
+    let mut outputs = Vec::new();
+    for &i in progress(frames.len(), "oapply-all").wrap_iter(frames.iter()) {
+        let inputs = s.target(i)?;
+        let p = problem_for(&s, i, &inputs, a.common.depth_weight, s.gen_pose(i));
+        // About the canonical origin: translation unchanged.
+        let pose = apply_object_rotation(&p.base.pose, s.scale(), &Point3::origin(), &q);
+        let g = GenPose {
+            pose,
+            states: p.base.states.clone(),
+        };
+        let score = p.evaluator().score(&g);
+        outputs.push(FrameOutput {
+            frame: s.capture.frames[i].name.clone(),
+            rows: vec![Row {
+                rank: 0,
+                label: a.rotation.clone(),
+                pose: g,
+                score,
+                extra: json!({}),
+            }],
+            extra: json!({"method": "oapply_all"}),
+            notes: vec![],
+        });
+    }
+    let r = q.scaled_axis().map(f64::to_degrees);
+    write_outputs(
+        SearchVerb::OapplyAll,
+        &s,
+        &a.common,
+        &frames,
+        outputs,
+        json!({"shared_rotation": {"rx": r.x, "ry": r.y, "rz": r.z, "quaternion": [q.w, q.i, q.j, q.k]}}),
+    )
+}

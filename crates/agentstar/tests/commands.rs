@@ -1,0 +1,229 @@
+//! Every subcommand on the built-in example, bad input giving a clear message and a
+//! non-zero exit without writing half a file, and shell completions.
+
+mod support;
+
+use support::{agentstar, example, text};
+
+#[test]
+fn example_and_every_subcommand_on_it() {
+    let dir = tempfile::tempdir().expect("tmp");
+    let (cap, model, poses) = example(dir.path());
+    let o = agentstar(&["validate", &cap, "--json"]);
+    assert!(o.status.success(), "{}", text(&o));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("json");
+    assert_eq!(v["valid"], true);
+    assert_eq!(v["frames"], 6);
+
+    let o = agentstar(&[
+        "score",
+        "--capture",
+        &cap,
+        "--model",
+        &model,
+        "--poses",
+        &poses,
+        "--json",
+    ]);
+    assert!(o.status.success(), "{}", text(&o));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("json");
+    assert_eq!(v["sequence"]["min_iou_visible"], 1.0);
+    assert_eq!(v["frames"].as_array().expect("frames").len(), 6);
+
+    let out = dir.path().join("views");
+    let o = agentstar(&[
+        "render",
+        "--capture",
+        &cap,
+        "--model",
+        &model,
+        "--poses",
+        &poses,
+        "--frames",
+        "000000..000010",
+        "--views",
+        "overlay,compare,ids,shaded,depth",
+        "--out",
+        out.to_str().expect("utf8"),
+        "--json",
+    ]);
+    assert!(o.status.success(), "{}", text(&o));
+    for f in [
+        "overlay_000005.png",
+        "compare_000010.png",
+        "ids_000000.png",
+        "shaded_000005.png",
+        "depth_000010.npy",
+        "sheet_overlay.png",
+    ] {
+        assert!(out.join(f).is_file(), "missing {f}");
+    }
+    assert!(
+        !out.join("overlay_000015.png").exists(),
+        "frame selection ignored"
+    );
+
+    let tt = dir.path().join("tt");
+    let o = agentstar(&[
+        "turntable",
+        "--model",
+        &model,
+        "--capture",
+        &cap,
+        "--poses",
+        &poses,
+        "--out",
+        tt.to_str().expect("utf8"),
+        "--size",
+        "96",
+        "--json",
+    ]);
+    assert!(o.status.success(), "{}", text(&o));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("json");
+    // Every frame of the example has its own lid angle: one turntable per state.
+    assert_eq!(v["states"].as_array().expect("states").len(), 6);
+    assert!(tt.join("turntable_000000_az000_el+20.png").is_file());
+
+    let glb = dir.path().join("object.glb");
+    let o = agentstar(&[
+        "export",
+        "--model",
+        &model,
+        "--glb",
+        glb.to_str().expect("utf8"),
+        "--urdf",
+        dir.path().join("urdf").to_str().expect("utf8"),
+    ]);
+    assert!(o.status.success(), "{}", text(&o));
+    let o = agentstar(&["check", glb.to_str().expect("utf8"), "--json"]);
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("json");
+    assert_eq!(v["parts"].as_array().expect("parts").len(), 2);
+    let o = agentstar(&[
+        "check",
+        dir.path().join("urdf/object.urdf").to_str().expect("utf8"),
+    ]);
+    assert!(o.status.success(), "{}", text(&o));
+    assert!(text(&o).contains("joint hinge"), "{}", text(&o));
+}
+
+#[test]
+fn bad_input_fails_clearly() {
+    let dir = tempfile::tempdir().expect("tmp");
+    let (cap, model, poses) = example(dir.path());
+
+    // A broken capture: every problem listed, exit 1.
+    std::fs::remove_file(dir.path().join("capture/mask_object/000005.png")).expect("rm");
+    let o = agentstar(&["validate", &cap]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(
+        text(&o).contains("missing object mask for frame `000005.png`"),
+        "{}",
+        text(&o)
+    );
+    let o = agentstar(&[
+        "score",
+        "--capture",
+        &cap,
+        "--model",
+        &model,
+        "--poses",
+        &poses,
+    ]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(text(&o).contains("problem"), "{}", text(&o));
+    std::fs::copy(
+        dir.path().join("capture/mask_object/000000.png"),
+        dir.path().join("capture/mask_object/000005.png"),
+    )
+    .expect("restore");
+
+    // A broken scene script: position, suggestion, exit 2.
+    let bad_scene = dir.path().join("run/bad.rhai");
+    std::fs::write(&bad_scene, "part(\"a\", cilinder(0.5, 1));").expect("w");
+    let o = agentstar(&["check", bad_scene.to_str().expect("utf8")]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(
+        text(&o).contains("did you mean `cylinder`") && text(&o).contains("1:11"),
+        "{}",
+        text(&o)
+    );
+
+    // A NaN pose.
+    let bad_pose = dir.path().join("run/bad_pose.json");
+    let p = std::fs::read_to_string(&poses).expect("r").replacen(
+        "\"translation\": [",
+        "\"translation\": [NaN, ",
+        1,
+    );
+    std::fs::write(&bad_pose, p).expect("w");
+    let o = agentstar(&[
+        "score",
+        "--capture",
+        &cap,
+        "--model",
+        &model,
+        "--poses",
+        bad_pose.to_str().expect("utf8"),
+    ]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(text(&o).contains("bad_pose.json"), "{}", text(&o));
+
+    // Unknown frames and views are named with what is valid.
+    let o = agentstar(&[
+        "render",
+        "--capture",
+        &cap,
+        "--model",
+        &model,
+        "--poses",
+        &poses,
+        "--frames",
+        "999999",
+        "--out",
+        dir.path().join("v").to_str().expect("utf8"),
+    ]);
+    assert!(text(&o).contains("unknown frame `999999`"), "{}", text(&o));
+    let o = agentstar(&[
+        "render",
+        "--capture",
+        &cap,
+        "--model",
+        &model,
+        "--poses",
+        &poses,
+        "--views",
+        "xray",
+        "--out",
+        dir.path().join("v").to_str().expect("utf8"),
+    ]);
+    assert!(
+        text(&o).contains("unknown view `xray`; views are overlay"),
+        "{}",
+        text(&o)
+    );
+
+    // A failing export leaves no partial file behind.
+    let o = agentstar(&[
+        "export",
+        "--model",
+        bad_scene.to_str().expect("utf8"),
+        "--glb",
+        dir.path().join("x.glb").to_str().expect("utf8"),
+    ]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(!dir.path().join("x.glb").exists());
+}
+
+#[test]
+fn completions_cover_every_subcommand() {
+    let o = agentstar(&["completions", "bash"]);
+    assert!(o.status.success(), "{}", text(&o));
+    let script = String::from_utf8_lossy(&o.stdout);
+    for sub in [
+        "demo", "synth", "bench", "eval", "track", "export", "from-bop",
+    ] {
+        assert!(script.contains(sub), "bash completion lacks {sub}");
+    }
+    let o = agentstar(&["completions", "tcsh"]);
+    assert_eq!(o.status.code(), Some(2));
+}

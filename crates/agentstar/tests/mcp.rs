@@ -1,0 +1,430 @@
+//! The MCP server as a client sees it, against the real binary over stdio: every tool with
+//! arguments built from its generated schema and its result parsed into its report type;
+//! overlapping writers over MCP and through the CLI; requests that are too large, not JSON,
+//! or outside the run.
+
+mod support;
+
+use agentstar_agent::reports::{
+    CommitReport, HistoryEntry, HistoryRow, ScoreReport, SearchReport, SearchVerb, TrackReport,
+};
+use serde_json::{json, Value};
+use std::collections::{BTreeMap, BTreeSet};
+use std::path::Path;
+use support::{agentstar, ledger, ledger_tools, s, small_run, text, McpClient};
+
+/// A valid value for each argument a test call gives, by tool and property. The report
+/// path of `pose_commit` is filled in from the sweep's result.
+fn sample(tool: &str, prop: &str, scene: &str) -> Option<Value> {
+    Some(match (tool, prop) {
+        ("scene_write", "script") => json!(scene),
+        (_, "version") => json!(1),
+        (_, "frames") => json!("000000"),
+        ("render", "views") => json!("compare"),
+        ("sweep", "ranges") => json!("yaw:-3,3"),
+        ("sweep", "evals") => json!(120),
+        ("sweep", "strategy") => json!("de"),
+        ("apply", "frame") | ("critic", "frame") => json!("000000"),
+        ("apply", "order") => json!("yaw:1"),
+        ("osweep", "opreset") => json!("z:flip"),
+        ("oapply", "set") => json!("flips"),
+        ("oapply_all", "rotation") => json!("flip:z"),
+        ("pose_commit", "rank") => json!(0),
+        ("pose_diff", "a") => json!("000000"),
+        ("pose_diff", "b") => json!("000005"),
+        ("notes", "text") => json!("the box's lid is on top"),
+        ("temporal", "sort_by") => json!("vel.rot"),
+        ("finish", "summary") => json!("checking the gates"),
+        _ => return None,
+    })
+}
+
+#[test]
+fn every_tool_runs_over_stdio_with_schema_arguments_and_typed_results() {
+    let dir = tempfile::tempdir().expect("tmp");
+    let run = dir.path().join("run");
+    small_run(dir.path(), 3, true);
+    let scene = std::fs::read_to_string(run.join("scene.rhai")).expect("scene");
+    let (mut c, init) = McpClient::initialised(&run);
+    assert_eq!(init["result"]["serverInfo"]["name"], "agentstar", "{init}");
+    c.send(json!({"jsonrpc": "2.0", "id": 2, "method": "tools/list"}));
+    let (list, _) = c.response(2);
+    let tools = list["result"]["tools"].as_array().expect("tools").clone();
+    // The surface is the registry's, and the snapshot is generated from it.
+    let surface = json!({"instructions": init["result"]["instructions"], "tools": tools});
+    support::assert_snapshot(
+        "mcp_surface.json",
+        &(serde_json::to_string_pretty(&surface).expect("json") + "\n"),
+    );
+    let names: Vec<&str> = tools
+        .iter()
+        .map(|t| t["name"].as_str().expect("name"))
+        .collect();
+    let registry: Vec<&str> = agentstar_agent::tools::registry()
+        .iter()
+        .map(|t| t.name)
+        .collect();
+    assert_eq!(names, registry);
+    let mut id = 10;
+    let mut report: Option<String> = None;
+    let mut called = vec![];
+    for t in &tools {
+        let name = t["name"].as_str().expect("name");
+        let schema = &t["inputSchema"];
+        // Arguments from the schema: every property we have a value for; every required
+        // one must have one.
+        let mut args = serde_json::Map::new();
+        for (prop, _) in schema["properties"].as_object().expect("properties") {
+            if name == "pose_commit" && prop == "report" {
+                args.insert(
+                    prop.clone(),
+                    json!(report.clone().expect("a sweep ran first")),
+                );
+            } else if let Some(v) = sample(name, prop, &scene) {
+                args.insert(prop.clone(), v);
+            }
+        }
+        for r in schema["required"].as_array().into_iter().flatten() {
+            let r = r.as_str().expect("name");
+            assert!(args.contains_key(r), "{name}: no test value for `{r}`");
+        }
+        id += 1;
+        c.call(id, name, Value::Object(args.clone()));
+        let (resp, _) = c.response(id);
+        let result = &resp["result"];
+        assert_eq!(result["isError"], false, "{name} {args:?}: {resp}");
+        let body = McpClient::text_of(&resp);
+        let structured = result.get("structuredContent").cloned();
+        match name {
+            "score" => {
+                let r: ScoreReport =
+                    serde_json::from_value(structured.expect("score report")).expect("score");
+                assert_eq!(r.frames.len(), 1);
+                assert_eq!(r.frames[0].frame, "000000.png");
+            }
+            "track" => {
+                let r: TrackReport =
+                    serde_json::from_value(structured.expect("track report")).expect("track");
+                assert_eq!(r.frames.len(), 3);
+                // Three keyframes far apart at 160×120: the tracker gets near, not to the gate.
+                assert!(r.sequence.min_iou_visible > 0.8, "{r:?}");
+            }
+            "sweep" | "apply" | "osweep" | "oapply" | "oapply_all" => {
+                let r: SearchReport =
+                    serde_json::from_value(structured.expect("search report")).expect("search");
+                assert_eq!(r.verb.stem(), name);
+                assert_eq!(r.frames.len(), 1, "{name}");
+                assert!(!r.frames[0].ranked.is_empty());
+                // The file the result names is the same report.
+                let path = body
+                    .lines()
+                    .find_map(|l| l.strip_prefix("report: "))
+                    .expect("the report's path");
+                let file = SearchReport::read(Path::new(path)).expect("report file");
+                assert_eq!(file, r);
+                assert!(
+                    !body.starts_with('\n') && body.contains("rank"),
+                    "{name}: {body}"
+                );
+                if r.verb == SearchVerb::Sweep {
+                    report = Some(path.to_string());
+                }
+            }
+            "pose_commit" => {
+                let r: CommitReport =
+                    serde_json::from_value(structured.expect("commit report")).expect("commit");
+                assert_eq!(r.committed, ["000000.png"]);
+            }
+            "pose_history" => {
+                let rows: Vec<HistoryRow> =
+                    serde_json::from_value(structured.expect("history")["versions"].clone())
+                        .expect("rows");
+                // The first version, then the tracker's, then the commit's, numbered in order.
+                let versions: Vec<u64> = rows.iter().map(|r| r.version).collect();
+                assert_eq!(versions, (0..rows.len() as u64).collect::<Vec<_>>());
+                let n = rows.len();
+                assert!(n >= 3, "{rows:?}");
+                assert!(rows[n - 2].command.starts_with("track"), "{rows:?}");
+                assert!(rows[n - 1].command.contains("pose commit"), "{rows:?}");
+            }
+            "render" | "turntable" => {
+                assert!(
+                    result["content"]
+                        .as_array()
+                        .expect("content")
+                        .iter()
+                        .any(|b| b["type"] == "image"),
+                    "{name} returns images"
+                );
+            }
+            "critic" => assert!(body.contains("critic skipped"), "{body}"),
+            "finish" => assert!(body.starts_with("Not finished"), "{body}"),
+            _ => assert!(!body.trim().is_empty(), "{name} says nothing"),
+        }
+        called.push(name.to_string());
+    }
+    // Every call is a step, in order.
+    let mut expected = vec!["init".to_string()];
+    expected.extend(called);
+    assert_eq!(ledger_tools(&run), expected);
+}
+
+#[test]
+fn overlapping_writers_over_mcp_and_the_cli_lose_nothing() {
+    let dir = tempfile::tempdir().expect("tmp");
+    let run = dir.path().join("run");
+    small_run(dir.path(), 3, true);
+    let (cap, model, poses) = (
+        dir.path().join("cap"),
+        run.join("scene.rhai"),
+        run.join("pose.json"),
+    );
+    // One flip report inside the run to commit from both sides.
+    let reports = run.join("reports");
+    let o = agentstar(&[
+        "oapply",
+        "--capture",
+        &s(&cap),
+        "--model",
+        &s(&model),
+        "--poses",
+        &s(&poses),
+        "--out",
+        &s(&reports),
+        "--frames",
+        "000000..000010",
+        "--set",
+        "identity|flip:z",
+    ]);
+    assert!(o.status.success(), "{}", text(&o));
+    let report = reports.join("oapply.json");
+    let scene = std::fs::read_to_string(&model).expect("scene");
+    let (mut c, _) = McpClient::initialised(&run);
+    // Overlapping requests: three scene writes, three commits, the tracker.
+    let mut ids = vec![];
+    for k in 0..3u64 {
+        c.call(
+            100 + k,
+            "scene_write",
+            json!({"script": format!("// v{k}\n{scene}")}),
+        );
+        c.call(
+            200 + k,
+            "pose_commit",
+            json!({"report": s(&report), "rank": k % 2}),
+        );
+        ids.extend([100 + k, 200 + k]);
+    }
+    c.call(300, "track", json!({}));
+    ids.push(300);
+    // And three commits from shells at the same time.
+    let cli: Vec<CommitReport> = std::thread::scope(|sc| {
+        let hs: Vec<_> = (0..3)
+            .map(|k| {
+                let (report, poses) = (s(&report), s(&poses));
+                sc.spawn(move || {
+                    let rank = (k % 2).to_string();
+                    let o = agentstar(&[
+                        "pose", "commit", "--poses", &poses, "--report", &report, "--rank", &rank,
+                        "--json",
+                    ]);
+                    assert!(o.status.success(), "{}", text(&o));
+                    serde_json::from_slice::<CommitReport>(&o.stdout).expect("commit report")
+                })
+            })
+            .collect();
+        hs.into_iter().map(|h| h.join().expect("join")).collect()
+    });
+    let got = c.responses(&ids);
+    for (id, r) in &got {
+        assert_eq!(r["result"]["isError"], false, "{id}: {r}");
+    }
+    // The scene: three versions, each holding the script its call sent, and scene.rhai
+    // is the highest.
+    let entries = ledger(&run);
+    let scene_versions: BTreeMap<u64, String> = entries
+        .iter()
+        .filter(|e| e["tool"] == "scene_write")
+        .map(|e| {
+            (
+                e["scene_version"].as_u64().expect("scene version"),
+                e["args"]["script"].as_str().expect("script").to_string(),
+            )
+        })
+        .collect();
+    // `init` saved version 1; the three writes got the next three, one each.
+    assert_eq!(
+        scene_versions.keys().copied().collect::<Vec<_>>(),
+        [2, 3, 4]
+    );
+    for (v, script) in &scene_versions {
+        let file = run.join(format!(".agentstar/scenes/{v:04}.rhai"));
+        assert_eq!(&std::fs::read_to_string(file).expect("version"), script);
+    }
+    assert_eq!(
+        &std::fs::read_to_string(&model).expect("scene"),
+        &scene_versions[&4]
+    );
+    assert!(
+        std::fs::read_dir(&run)
+            .expect("run")
+            .flatten()
+            .all(|e| !e.file_name().to_string_lossy().contains("candidate")),
+        "no candidate file is left"
+    );
+    // The poses: every version any writer reported is in the history once, the history
+    // has no other (besides the first), and pose.json is its last version.
+    let mut reported: Vec<u64> = entries
+        .iter()
+        .filter_map(|e| e["pose_version"].as_u64().filter(|_| e["tool"] != "init"))
+        .collect();
+    reported.extend(cli.iter().map(|r| r.version));
+    reported.sort_unstable();
+    let history_dir = run.join(".agentstar/history/pose");
+    let mut kept: Vec<u64> = std::fs::read_dir(&history_dir)
+        .expect("history")
+        .flatten()
+        .filter_map(|e| e.file_name().to_str()?.strip_suffix(".json")?.parse().ok())
+        .collect();
+    kept.sort_unstable();
+    assert_eq!(kept[0], 0);
+    assert_eq!(
+        kept[1..],
+        reported[..],
+        "history {kept:?}, reported {reported:?}"
+    );
+    assert_eq!(
+        reported.iter().collect::<BTreeSet<_>>().len(),
+        reported.len(),
+        "a version was given twice: {reported:?}"
+    );
+    assert!(
+        reported.len() >= 7,
+        "3 + 3 commits and the tracker: {reported:?}"
+    );
+    let last: HistoryEntry = serde_json::from_str(
+        &std::fs::read_to_string(history_dir.join(format!("{:06}.json", kept[kept.len() - 1])))
+            .expect("last"),
+    )
+    .expect("entry");
+    let now: agentstar_data::posefile::PoseFile =
+        agentstar_data::posefile::PoseFile::read(&poses).expect("poses");
+    assert_eq!(last.pose, now);
+}
+
+#[test]
+fn every_request_is_answered_and_paths_stay_in_the_run() {
+    let dir = tempfile::tempdir().expect("tmp");
+    let run = dir.path().join("run");
+    small_run(dir.path(), 2, true);
+    let (mut c, _) = McpClient::initialised(&run);
+    // 20 MB in one request: an error naming the limit, for its id.
+    let big = format!(
+        "{{\"jsonrpc\": \"2.0\", \"id\": 7, \"method\": \"tools/call\", \"params\": {{\"name\": \"notes\", \"arguments\": {{\"text\": \"{}\"}}}}}}",
+        "x".repeat(20 << 20)
+    );
+    c.send_raw(big.as_bytes());
+    let (r, _) = c.response(7);
+    assert_eq!(r["error"]["code"], -32600, "{r}");
+    assert!(r["error"]["message"]
+        .as_str()
+        .expect("message")
+        .contains("bytes"));
+    // Not JSON: a parse error.
+    c.send_raw(b"{\"jsonrpc\": \"2.0\", \"id\": 8, ");
+    let v = c.next();
+    assert_eq!(v["error"]["code"], -32700, "{v}");
+    // The server still serves; a long note is refused, a short one kept.
+    c.call(9, "notes", json!({"text": "y".repeat(5000)}));
+    let (r, _) = c.response(9);
+    assert_eq!(r["result"]["isError"], true, "{r}");
+    assert!(McpClient::text_of(&r).contains("over its limit"), "{r}");
+    let notes = std::fs::read_to_string(run.join("NOTES.md")).expect("notes");
+    assert!(!notes.contains("yyyy"));
+    // Arguments of the wrong type or naming unknown frames are errors, not "every frame".
+    for (id, args) in [
+        (10, json!({"frames": 12345})),
+        (11, json!({"frames": ["nope.png"]})),
+        (12, json!({"frames": "nope.png"})),
+    ] {
+        c.call(id, "score", args.clone());
+        let (r, _) = c.response(id);
+        assert_eq!(r["result"]["isError"], true, "{args}: {r}");
+    }
+    // Paths outside the run directory and the capture are not opened.
+    for (id, path) in [(20, "/etc/passwd"), (21, "../../../etc/passwd")] {
+        c.call(id, "pose_commit", json!({"report": path}));
+        let (r, _) = c.response(id);
+        assert_eq!(r["result"]["isError"], true, "{r}");
+        assert!(McpClient::text_of(&r).contains("outside the run"), "{r}");
+    }
+}
+
+#[test]
+fn the_mcp_server_returns_images_progress_and_readable_errors() {
+    let dir = tempfile::tempdir().expect("tmp");
+    let p = |n: &str| dir.path().join(n);
+    small_run(dir.path(), 3, true);
+    let mut c = McpClient::start(&p("run"));
+    c.send(serde_json::json!({"jsonrpc": "2.0", "id": 1, "method": "initialize", "params": {
+        "protocolVersion": "2025-06-18", "capabilities": {}, "clientInfo": {"name": "test", "version": "0"}}}));
+    let (init, _) = c.response(1);
+    assert_eq!(init["result"]["serverInfo"]["name"], "agentstar", "{init}");
+    c.send(serde_json::json!({"jsonrpc": "2.0", "method": "notifications/initialized"}));
+    c.send(serde_json::json!({"jsonrpc": "2.0", "id": 2, "method": "tools/list"}));
+    let (list, _) = c.response(2);
+    // The whole surface: instructions, names, descriptions, schemas.
+    let surface = serde_json::json!({
+        "instructions": init["result"]["instructions"],
+        "tools": list["result"]["tools"],
+    });
+    support::assert_snapshot(
+        "mcp_surface.json",
+        &(serde_json::to_string_pretty(&surface).expect("json") + "\n"),
+    );
+    // A tool that returns an image, inline and as a file.
+    c.send(
+        serde_json::json!({"jsonrpc": "2.0", "id": 3, "method": "tools/call", "params": {
+        "name": "render", "arguments": {"frames": "000000", "views": "compare"},
+        "_meta": {"progressToken": "p1"}}}),
+    );
+    let (call, notes) = c.response(3);
+    // The client asked for progress: the call reports at least its start.
+    assert!(
+        notes.iter().any(|n| n["method"] == "notifications/progress"
+            && n["params"]["progressToken"] == "p1"
+            && n["params"]["message"]
+                .as_str()
+                .is_some_and(|m| m.starts_with("render"))),
+        "{notes:?}"
+    );
+    let content = call["result"]["content"]
+        .as_array()
+        .expect("content")
+        .clone();
+    assert_eq!(call["result"]["isError"], false, "{call}");
+    let image = content
+        .iter()
+        .find(|b| b["type"] == "image")
+        .expect("an image block");
+    assert_eq!(image["mimeType"], "image/png");
+    use base64::Engine;
+    let png = base64::engine::general_purpose::STANDARD
+        .decode(image["data"].as_str().expect("data"))
+        .expect("base64");
+    assert_eq!(&png[..4], b"\x89PNG");
+    let listed = content[0]["text"].as_str().expect("text");
+    let path = listed
+        .lines()
+        .find_map(|l| l.strip_prefix("- "))
+        .expect("image paths in the text");
+    assert!(Path::new(path).is_file(), "{path}");
+    // A bad call is a tool error the model can read, not a protocol failure; both are steps.
+    c.send(
+        serde_json::json!({"jsonrpc": "2.0", "id": 4, "method": "tools/call", "params": {
+        "name": "scene_write", "arguments": {"script": "part(\"x\", sphere("}}}),
+    );
+    let (bad, _) = c.response(4);
+    assert_eq!(bad["result"]["isError"], true, "{bad}");
+    assert_eq!(ledger_tools(&p("run")), ["init", "render", "scene_write"]);
+}

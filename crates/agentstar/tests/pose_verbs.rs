@@ -1,0 +1,215 @@
+//! The pose verbs end to end: tracking, sweeps, flips, commits, the history, diagnostics,
+//! and explicit candidates scored exactly.
+
+mod support;
+
+use support::{agentstar, example, text};
+
+#[test]
+fn pose_verbs_track_commit_and_diagnose() {
+    let dir = tempfile::tempdir().expect("tmp");
+    let (cap, model, poses) = example(dir.path());
+    let tracked = dir.path().join("tracked.json");
+    let o = agentstar(&[
+        "track",
+        &cap,
+        "--model",
+        &model,
+        "--scale-from",
+        &poses,
+        "--out",
+        tracked.to_str().expect("utf8"),
+        "--evals",
+        "1200",
+        "--json",
+    ]);
+    assert!(o.status.success(), "{}", text(&o));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("json");
+    assert!(
+        v["sequence"]["min_iou_visible"].as_f64().expect("min") >= 0.98,
+        "{}",
+        v["sequence"]
+    );
+    let tracked = tracked.to_str().expect("utf8").to_string();
+    let common = |verb: &str, out: &str| -> Vec<String> {
+        vec![
+            verb.into(),
+            "--capture".into(),
+            cap.clone(),
+            "--model".into(),
+            model.clone(),
+            "--poses".into(),
+            tracked.clone(),
+            "--out".into(),
+            dir.path().join(out).display().to_string(),
+        ]
+    };
+
+    // A flip panel: every frame ranks identity first, every candidate is on the sheet.
+    let mut args = common("oapply", "oapply");
+    args.extend(["--frames".into(), "000000,000005".into(), "--json".into()]);
+    let o = agentstar(&args.iter().map(String::as_str).collect::<Vec<_>>());
+    assert!(o.status.success(), "{}", text(&o));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("json");
+    for f in v["frames"].as_array().expect("frames") {
+        assert_eq!(f["ranked"].as_array().expect("ranked").len(), 4);
+        assert_eq!(f["ranked"][0]["label"], "identity");
+    }
+
+    // Apply a bad order, commit it, see it in the history, restore the original.
+    let mut args = common("apply", "apply");
+    args.extend([
+        "--frame".into(),
+        "000005".into(),
+        "--order".into(),
+        "yaw:25;hinge:5".into(),
+    ]);
+    let o = agentstar(&args.iter().map(String::as_str).collect::<Vec<_>>());
+    assert!(o.status.success(), "{}", text(&o));
+    assert!(
+        text(&o).contains("BEST — paste into pose.json frames[\"000005.png\"]"),
+        "{}",
+        text(&o)
+    );
+    let report = dir.path().join("apply/apply.json").display().to_string();
+    let o = agentstar(&["pose", "commit", "--poses", &tracked, "--report", &report]);
+    assert!(o.status.success(), "{}", text(&o));
+    let o = agentstar(&[
+        "score",
+        "--capture",
+        &cap,
+        "--model",
+        &model,
+        "--poses",
+        &tracked,
+        "--frames",
+        "000005",
+        "--json",
+    ]);
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("json");
+    assert!(v["frames"][0]["iou_visible"].as_f64().expect("iou") < 0.95);
+    let o = agentstar(&["pose", "history", "--poses", &tracked, "--json"]);
+    let h: serde_json::Value = serde_json::from_slice(&o.stdout).expect("json");
+    assert_eq!(h.as_array().expect("versions").len(), 2);
+    let o = agentstar(&["pose", "restore", "--poses", &tracked, "--version", "0"]);
+    assert!(o.status.success(), "{}", text(&o));
+    let o = agentstar(&[
+        "score",
+        "--capture",
+        &cap,
+        "--model",
+        &model,
+        "--poses",
+        &tracked,
+        "--frames",
+        "000005",
+        "--json",
+    ]);
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("json");
+    assert!(v["frames"][0]["iou_visible"].as_f64().expect("iou") >= 0.98);
+
+    // A sweep with a bad range spec shows the grammar; a good one writes its three outputs.
+    let mut args = common("sweep", "sweep");
+    args.extend(["--ranges".into(), "yaw:-10".into()]);
+    let o = agentstar(&args.iter().map(String::as_str).collect::<Vec<_>>());
+    assert_eq!(o.status.code(), Some(2));
+    assert!(text(&o).contains("dof:lower,upper[,steps]"), "{}", text(&o));
+    let mut args = common("sweep", "sweep");
+    args.extend([
+        "--ranges".into(),
+        "yaw:-10,10,5;hinge:0,60,5".into(),
+        "--strategy".into(),
+        "grid".into(),
+    ]);
+    let o = agentstar(&args.iter().map(String::as_str).collect::<Vec<_>>());
+    assert!(o.status.success(), "{}", text(&o));
+    for f in [
+        "sweep.json",
+        "sweep.txt",
+        "sweep_sheet_000000.png",
+        "sweep_heatmap_000000.png",
+    ] {
+        assert!(dir.path().join("sweep").join(f).is_file(), "missing {f}");
+    }
+
+    // Temporal diagnostics and pose differences.
+    let o = agentstar(&[
+        "temporal",
+        "--capture",
+        &cap,
+        "--model",
+        &model,
+        "--poses",
+        &tracked,
+        "--json",
+        "--plot",
+        dir.path().join("t.png").to_str().expect("utf8"),
+    ]);
+    assert!(o.status.success(), "{}", text(&o));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("json");
+    assert_eq!(v["frames"].as_array().expect("rows").len(), 6);
+    assert!(dir.path().join("t.png").is_file());
+    let o = agentstar(&[
+        "pose-diff",
+        "--capture",
+        &cap,
+        "--model",
+        &model,
+        "--poses",
+        &tracked,
+        "--a",
+        "000000",
+        "--b",
+        "000005",
+    ]);
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("json");
+    assert!(
+        v["rotation_deg"].as_f64().expect("rot") > 1.0
+            && v["joints"]["hinge"].as_f64().expect("joint") > 5.0
+    );
+}
+
+#[test]
+fn sweep_scores_explicit_candidates_exactly() {
+    let dir = tempfile::tempdir().expect("tmp");
+    let (cap, model, poses) = example(dir.path());
+    let out = dir.path().join("c").display().to_string();
+    let o = agentstar(&[
+        "sweep",
+        "--capture",
+        &cap,
+        "--model",
+        &model,
+        "--poses",
+        &poses,
+        "--frames",
+        "000005",
+        "--candidates",
+        "yaw:12|hinge:0|roll:0",
+        "--out",
+        &out,
+        "--json",
+    ]);
+    assert!(o.status.success(), "{}", text(&o));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("json");
+    let ranked = v["frames"][0]["ranked"].as_array().expect("ranked");
+    assert_eq!(ranked.len(), 3);
+    // The example's poses are exact, so the zero increment ranks first with IoU 1.
+    assert_eq!(ranked[0]["label"], "roll:0");
+    assert_eq!(ranked[0]["iou_visible"], 1.0);
+    let o = agentstar(&[
+        "sweep",
+        "--capture",
+        &cap,
+        "--model",
+        &model,
+        "--poses",
+        &poses,
+        "--candidates",
+        "rz:90",
+        "--out",
+        &out,
+    ]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(text(&o).contains("use osweep/oapply"), "{}", text(&o));
+}

@@ -1,0 +1,252 @@
+//! The run report: self-contained, rendering in headless Chromium, and the README's
+//! walk-through from frames and masks to a report.
+
+mod support;
+
+use std::path::Path;
+use support::{agentstar, synth_box, text};
+
+/// A headless Chromium, where one is installed (`.ci/run` installs Debian's `chromium` and
+/// sets `AGENTSTAR_REQUIRE_CHROMIUM=1`, which turns its absence into a failure).
+fn chromium() -> Option<String> {
+    let found = ["chromium", "chromium-browser", "google-chrome"]
+        .into_iter()
+        .find(|b| {
+            std::process::Command::new(b)
+                .arg("--version")
+                .output()
+                .is_ok_and(|o| o.status.success())
+        })
+        .map(str::to_string);
+    if found.is_none() {
+        assert!(
+            std::env::var_os("AGENTSTAR_REQUIRE_CHROMIUM").is_none(),
+            "AGENTSTAR_REQUIRE_CHROMIUM is set but no chromium is installed"
+        );
+        eprintln!("chromium not installed (apt install chromium): the browser check is skipped");
+    }
+    found
+}
+
+/// Runs headless Chromium on a page with a time limit; returns stdout (through a file: the
+/// DOM dump is larger than a pipe holds).
+fn run_chromium(bin: &str, extra: &[&str], page: &Path) -> String {
+    let stdout_path = page.with_extension("stdout");
+    let stdout = std::fs::File::create(&stdout_path).expect("stdout file");
+    let mut child = std::process::Command::new(bin)
+        .args([
+            "--headless",
+            "--no-sandbox",
+            "--disable-gpu",
+            "--use-angle=swiftshader",
+            "--enable-unsafe-swiftshader",
+            "--disable-background-networking",
+            "--disable-extensions",
+            "--no-first-run",
+            "--virtual-time-budget=15000",
+            "--window-size=1300,1400",
+        ])
+        .args(extra)
+        .arg(format!("file://{}", page.display()))
+        .stdout(stdout)
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .expect("start chromium");
+    let start = std::time::Instant::now();
+    while child.try_wait().expect("wait").is_none() {
+        if start.elapsed().as_secs() > 120 {
+            let _ = child.kill();
+            panic!("chromium did not finish in 120 s");
+        }
+        std::thread::sleep(std::time::Duration::from_millis(100));
+    }
+    String::from_utf8_lossy(&std::fs::read(&stdout_path).expect("stdout")).into_owned()
+}
+
+fn body_attr(dom: &str, name: &str) -> Option<String> {
+    let body = &dom[dom.find("<body")?..];
+    let body = &body[..body.find('>')?];
+    let key = format!("{name}=\"");
+    let at = body.find(&key)? + key.len();
+    Some(body[at..at + body[at..].find('"')?].to_string())
+}
+
+#[test]
+fn the_demo_report_is_self_contained_and_renders_in_headless_chromium() {
+    let dir = tempfile::tempdir().expect("tmp");
+    let out = dir.path().join("demo");
+    let o = agentstar(&["demo", out.to_str().expect("utf8"), "--frames", "4"]);
+    assert!(o.status.success(), "{}", text(&o));
+    let run = out.join("run");
+    let page = run.join("report.html");
+    let html = std::fs::read_to_string(&page).expect("report");
+    // Offline: no external scripts, styles or images.
+    for external in ["src=\"http", "href=\"http", "<link", "@import", "url(http"] {
+        assert!(!html.contains(external), "the report references {external}");
+    }
+    assert_eq!(html.matches("<figure id=\"frame-").count(), 4);
+    assert!(html.contains("Agent steps") && html.contains("evaluated against the ground truth"));
+    assert!(html.contains("data:image/jpeg;base64,"));
+    // The report command itself, with a ledger whose last line a crash cut short.
+    let ledger = run.join("ledger.jsonl");
+    let mut l = std::fs::read_to_string(&ledger).expect("ledger");
+    l.push_str("{\"step\": 99, \"ti");
+    std::fs::write(&ledger, l).expect("write");
+    let page2 = dir.path().join("again.html");
+    let o = agentstar(&[
+        "report",
+        run.to_str().expect("utf8"),
+        "--out",
+        page2.to_str().expect("utf8"),
+        "--json",
+    ]);
+    assert!(o.status.success(), "{}", text(&o));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("json");
+    assert_eq!(v["frames"], 4);
+    assert!(
+        v["ground_truth"]
+            .as_str()
+            .is_some_and(|g| g.ends_with("gt.json")),
+        "{v}"
+    );
+    let html2 = std::fs::read_to_string(&page2).expect("report");
+    assert!(
+        html2.contains("line") && html2.contains("skipped"),
+        "the cut line is not noted"
+    );
+    // A directory without run.json needs --capture.
+    let bare = dir.path().join("bare");
+    std::fs::create_dir_all(&bare).expect("mkdir");
+    let o = agentstar(&["report", bare.to_str().expect("utf8")]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(text(&o).contains("--capture"), "{}", text(&o));
+    // In a browser: the viewer starts, both views show the model, no script errors.
+    let Some(bin) = chromium() else { return };
+    let dom = run_chromium(&bin, &["--dump-dom"], &page);
+    assert_eq!(
+        body_attr(&dom, "data-viewer").as_deref(),
+        Some("ready"),
+        "{:?}",
+        body_attr(&dom, "data-error-text")
+    );
+    assert_eq!(
+        body_attr(&dom, "data-errors").as_deref(),
+        Some("0"),
+        "{:?}",
+        body_attr(&dom, "data-error-text")
+    );
+    for view in ["data-cam-pixels", "data-orbit-pixels"] {
+        let px: u64 = body_attr(&dom, view)
+            .and_then(|v| v.parse().ok())
+            .expect(view);
+        assert!(px > 200, "{view} = {px}: the 3-D view is empty");
+    }
+    let shot = dir.path().join("shot.png");
+    let arg = format!("--screenshot={}", shot.display());
+    run_chromium(&bin, &[&arg], &page);
+    let img = image::open(&shot).expect("screenshot").to_rgb8();
+    assert_eq!(img.dimensions(), (1300, 1400));
+    let mut colours = std::collections::BTreeSet::new();
+    for p in img.pixels().step_by(7) {
+        colours.insert(p.0);
+    }
+    assert!(
+        colours.len() > 200,
+        "the screenshot is nearly blank ({} colours)",
+        colours.len()
+    );
+}
+
+/// The README's walk-through, with a frame folder in place of the video (the video path has
+/// its own test): a segmenter's masks, a static camera, a model, tracking, the report.
+#[test]
+fn the_readme_walk_through_goes_from_frames_and_masks_to_a_report() {
+    let dir = tempfile::tempdir().expect("tmp");
+    let p = |n: &str| dir.path().join(n);
+    let s = |path: &Path| path.to_str().expect("utf8").to_string();
+    // A phone-like clip: frames, plus masks as a segmenter writes them (other names).
+    synth_box(&p("clip"), 10, false);
+    let clip = agentstar_data::capture::Capture::open(&p("clip")).expect("clip");
+    for (sub, suffix) in [
+        ("frames", ""),
+        ("mask_object", "_mask"),
+        ("mask_hand", "_hand"),
+    ] {
+        let to = p(&format!("seg_{sub}"));
+        std::fs::create_dir_all(&to).expect("mkdir");
+        for f in &clip.frames {
+            let from = p("clip").join(sub).join(format!("{}.png", f.stem));
+            if from.is_file() {
+                std::fs::copy(&from, to.join(format!("img{}{suffix}.png", f.number)))
+                    .expect("copy");
+            }
+        }
+    }
+    let c = &clip.frames[0].camera;
+    let k = format!("{},{},{},{}", c.fx, c.fy, c.cx, c.cy);
+    // 1. The capture.
+    let o = agentstar(&[
+        "capture",
+        "from-video",
+        &s(&p("seg_frames")),
+        "--masks",
+        &s(&p("seg_mask_object")),
+        "--hands",
+        &s(&p("seg_mask_hand")),
+        "--intrinsics",
+        &k,
+        "--out",
+        &s(&p("cap")),
+    ]);
+    assert!(o.status.success(), "{}", text(&o));
+    assert!(agentstar(&["validate", &s(&p("cap"))]).status.success());
+    // 2. A model (here the known one) in the run directory.
+    std::fs::create_dir_all(p("run")).expect("mkdir");
+    std::fs::copy(p("clip/model/scene.rhai"), p("run/scene.rhai")).expect("copy");
+    assert!(agentstar(&["check", &s(&p("run/scene.rhai"))])
+        .status
+        .success());
+    // 3. Tracking.
+    let o = agentstar(&[
+        "track",
+        &s(&p("cap")),
+        "--model",
+        &s(&p("run/scene.rhai")),
+        "--scale-from",
+        &s(&p("clip/model/pose.json")),
+        "--out",
+        &s(&p("run/pose.json")),
+    ]);
+    assert!(o.status.success(), "{}", text(&o));
+    // 4. The report.
+    let o = agentstar(&[
+        "report",
+        &s(&p("run")),
+        "--capture",
+        &s(&p("cap")),
+        "--json",
+    ]);
+    assert!(o.status.success(), "{}", text(&o));
+    let html = std::fs::read_to_string(p("run/report.html")).expect("report");
+    assert_eq!(html.matches("<figure id=\"frame-").count(), 10);
+    let mean: f64 = html
+        .split("IoU visible</td><td>mean ")
+        .nth(1)
+        .and_then(|r| r.split(',').next())
+        .and_then(|v| v.parse().ok())
+        .expect("mean IoU in the summary");
+    assert!(mean > 0.95, "tracked mean IoU {mean}");
+    // 5. The motion for a simulator.
+    let o = agentstar(&[
+        "export",
+        "--model",
+        &s(&p("run/scene.rhai")),
+        "--capture",
+        &s(&p("cap")),
+        "--poses",
+        &s(&p("run/pose.json")),
+        "--animated-glb",
+        &s(&p("run/motion.glb")),
+    ]);
+    assert!(o.status.success(), "{}", text(&o));
+}

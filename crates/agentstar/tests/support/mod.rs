@@ -1,0 +1,215 @@
+//! Helpers shared by the binary's integration tests: running the executable, small
+//! synthetic captures and runs, an MCP client over stdio, and golden files.
+#![allow(dead_code)]
+
+use std::io::{BufRead, Write};
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+/// Runs `agentstar ARGS` to completion.
+pub fn agentstar(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_agentstar"))
+        .args(args)
+        .output()
+        .expect("run agentstar")
+}
+
+/// A command's stdout and stderr, for assertion messages.
+pub fn text(o: &Output) -> String {
+    format!(
+        "{}{}",
+        String::from_utf8_lossy(&o.stdout),
+        String::from_utf8_lossy(&o.stderr)
+    )
+}
+
+/// A path as a `&str` argument.
+pub fn s(path: &Path) -> String {
+    path.to_str().expect("utf8").to_string()
+}
+
+/// The built-in example (6 frames) in `dir`: its capture, model and poses.
+pub fn example(dir: &Path) -> (String, String, String) {
+    let o = agentstar(&["example", dir.to_str().expect("utf8"), "--frames", "6"]);
+    assert!(o.status.success(), "{}", text(&o));
+    let cap = dir.join("capture").display().to_string();
+    let model = dir.join("run/scene.rhai").display().to_string();
+    let poses = dir.join("run/pose.json").display().to_string();
+    (cap, model, poses)
+}
+
+/// The hand-held box with hands, seed 7 (the demo's clip), `frames` keyframes, at 160×120
+/// when `small` (else 320×240), written to `out`.
+pub fn synth_box(out: &Path, frames: usize, small: bool) {
+    let n = frames.to_string();
+    let mut args = vec![
+        "synth",
+        out.to_str().expect("utf8"),
+        "--object",
+        "box",
+        "--frames",
+        &n,
+        "--seed",
+        "7",
+    ];
+    if small {
+        args.extend(["--size", "160x120"]);
+    }
+    let o = agentstar(&args);
+    assert!(o.status.success(), "{}", text(&o));
+}
+
+/// A small synthetic capture `DIR/cap` (the hand-held box, 160×120) and a run `DIR/run` on
+/// it, started from the known scene at its scale or from the default box.
+pub fn small_run(dir: &Path, frames: usize, known_scene: bool) {
+    let (cap, run) = (dir.join("cap"), dir.join("run"));
+    synth_box(&cap, frames, true);
+    let scene = s(&cap.join("model/scene.rhai"));
+    let mut args = vec!["init".to_string(), s(&run), "--capture".into(), s(&cap)];
+    if known_scene {
+        args.extend(["--scene".into(), scene, "--scale".into(), "0.24".into()]);
+    }
+    let args: Vec<&str> = args.iter().map(String::as_str).collect();
+    let o = agentstar(&args);
+    assert!(o.status.success(), "{}", text(&o));
+}
+
+/// The ledger's entries.
+pub fn ledger(run: &Path) -> Vec<serde_json::Value> {
+    std::fs::read_to_string(run.join("ledger.jsonl"))
+        .expect("ledger")
+        .lines()
+        .map(|l| serde_json::from_str(l).expect("ledger line"))
+        .collect()
+}
+
+/// The tools of the ledger's entries, in order.
+pub fn ledger_tools(run: &Path) -> Vec<String> {
+    ledger(run)
+        .iter()
+        .map(|v| v["tool"].as_str().expect("tool").to_string())
+        .collect()
+}
+
+/// Set to update every golden file and snapshot from what the code produces now (the
+/// renderer's golden images use the same variable).
+pub const UPDATE_ENV: &str = "AGENTSTAR_BLESS";
+
+/// Compares `now` with the golden file `tests/snapshots/NAME` (written when
+/// `AGENTSTAR_BLESS` is set, the one variable that rewrites every golden file).
+pub fn assert_snapshot(name: &str, now: &str) {
+    let path: PathBuf = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("tests/snapshots")
+        .join(name);
+    if std::env::var_os(UPDATE_ENV).is_some() {
+        std::fs::write(&path, now).expect("write snapshot");
+    }
+    let committed = std::fs::read_to_string(&path)
+        .unwrap_or_else(|_| panic!("tests/snapshots/{name} ({UPDATE_ENV}=1 writes it)"));
+    assert_eq!(
+        now, committed,
+        "tests/snapshots/{name} changed: review it, then {UPDATE_ENV}=1"
+    );
+}
+
+/// A minimal MCP client over the child's stdio: JSON-RPC lines.
+pub struct McpClient {
+    child: std::process::Child,
+    stdin: Option<std::process::ChildStdin>,
+    lines: std::io::Lines<std::io::BufReader<std::process::ChildStdout>>,
+}
+
+impl McpClient {
+    pub fn start(run: &Path) -> McpClient {
+        let mut child = Command::new(env!("CARGO_BIN_EXE_agentstar"))
+            .args(["mcp", run.to_str().expect("utf8")])
+            .stdin(std::process::Stdio::piped())
+            .stdout(std::process::Stdio::piped())
+            .stderr(std::process::Stdio::null())
+            .spawn()
+            .expect("start mcp");
+        let stdin = child.stdin.take().expect("stdin");
+        let lines = std::io::BufReader::new(child.stdout.take().expect("stdout")).lines();
+        McpClient {
+            child,
+            stdin: Some(stdin),
+            lines,
+        }
+    }
+
+    /// Starts a server on `run` and initialises the session; returns the initialize result.
+    pub fn initialised(run: &Path) -> (McpClient, serde_json::Value) {
+        let mut c = McpClient::start(run);
+        c.send(serde_json::json!({"jsonrpc": "2.0", "id": 1, "method": "initialize", "params": {
+            "protocolVersion": "2025-06-18", "capabilities": {}, "clientInfo": {"name": "test", "version": "0"}}}));
+        let (init, _) = c.response(1);
+        c.send(serde_json::json!({"jsonrpc": "2.0", "method": "notifications/initialized"}));
+        (c, init)
+    }
+
+    pub fn send(&mut self, v: serde_json::Value) {
+        self.send_raw(v.to_string().as_bytes());
+    }
+
+    /// Writes `bytes` and a newline as one request line.
+    pub fn send_raw(&mut self, bytes: &[u8]) {
+        let stdin = self.stdin.as_mut().expect("stdin open");
+        stdin.write_all(bytes).expect("write");
+        stdin.write_all(b"\n").expect("write");
+        stdin.flush().expect("flush");
+    }
+
+    /// Sends `tools/call` of `name` with `args` as request `id` (without waiting).
+    pub fn call(&mut self, id: u64, name: &str, args: serde_json::Value) {
+        self.send(
+            serde_json::json!({"jsonrpc": "2.0", "id": id, "method": "tools/call",
+            "params": {"name": name, "arguments": args}}),
+        );
+    }
+
+    /// The next message.
+    pub fn next(&mut self) -> serde_json::Value {
+        let line = self.lines.next().expect("the server closed").expect("line");
+        serde_json::from_str(&line).expect("json")
+    }
+
+    /// The response to request `id` (notifications before it are returned too).
+    pub fn response(&mut self, id: u64) -> (serde_json::Value, Vec<serde_json::Value>) {
+        let mut notes = vec![];
+        loop {
+            let v = self.next();
+            if v["id"] == id {
+                return (v, notes);
+            }
+            notes.push(v);
+        }
+    }
+
+    /// Responses to every id in `ids`, in any order, keyed by id.
+    pub fn responses(&mut self, ids: &[u64]) -> std::collections::BTreeMap<u64, serde_json::Value> {
+        let mut got = std::collections::BTreeMap::new();
+        while got.len() < ids.len() {
+            let v = self.next();
+            if let Some(id) = v["id"].as_u64().filter(|id| ids.contains(id)) {
+                got.insert(id, v);
+            }
+        }
+        got
+    }
+
+    /// The text of a tool result's first content block.
+    pub fn text_of(result: &serde_json::Value) -> String {
+        result["result"]["content"][0]["text"]
+            .as_str()
+            .unwrap_or_default()
+            .to_string()
+    }
+}
+
+impl Drop for McpClient {
+    fn drop(&mut self) {
+        drop(self.stdin.take());
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
