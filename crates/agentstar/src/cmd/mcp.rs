@@ -216,11 +216,14 @@ pub fn run(a: Args) -> Result<ExitCode> {
         .build()
         .context("starting the async runtime")?;
     rt.block_on(async move {
+        let (input, output, writer) = bounded_stdio();
         let service = server
-            .serve(bounded_stdio())
+            .serve((input, output))
             .await
             .context("starting the MCP server on stdio")?;
         service.waiting().await.context("serving MCP")?;
+        // The service's last answers are still in the pipe: write them out before leaving.
+        let _ = tokio::time::timeout(std::time::Duration::from_secs(10), writer).await;
         anyhow::Ok(())
     })?;
     Ok(ExitCode::SUCCESS)
@@ -290,7 +293,11 @@ fn judge(line: &[u8]) -> Front {
 /// answers what the service would drop (over-long lines, lines that are not JSON). Both
 /// directions go through pipes so that the front's answers and the service's never
 /// interleave within a line.
-fn bounded_stdio() -> (tokio::io::DuplexStream, tokio::io::DuplexStream) {
+fn bounded_stdio() -> (
+    tokio::io::DuplexStream,
+    tokio::io::DuplexStream,
+    tokio::task::JoinHandle<()>,
+) {
     use tokio::io::{AsyncBufReadExt, AsyncWriteExt};
     let (service_in, mut feed) = tokio::io::duplex(1 << 20);
     let (service_out, drain) = tokio::io::duplex(1 << 20);
@@ -355,7 +362,7 @@ fn bounded_stdio() -> (tokio::io::DuplexStream, tokio::io::DuplexStream) {
         // End of input: the service sees it and stops.
         let _ = feed.shutdown().await;
     });
-    tokio::spawn(async move {
+    let writer = tokio::spawn(async move {
         let mut stdout = tokio::io::stdout();
         let mut from_service = tokio::io::BufReader::new(drain);
         let mut buf: Vec<u8> = Vec::new();
@@ -404,7 +411,7 @@ fn bounded_stdio() -> (tokio::io::DuplexStream, tokio::io::DuplexStream) {
         }
         let _ = stdout.flush().await;
     });
-    (service_in, service_out)
+    (service_in, service_out, writer)
 }
 
 #[cfg(test)]
