@@ -4,6 +4,8 @@ use crate::gt::gt_sequence;
 use crate::BenchError;
 use agentstar_data::gt::{model_ground_truth, GroundTruth};
 use agentstar_eval::sequence::{evaluate, EvalConfig, GtSequence, PredSequence, SequenceMetrics};
+use agentstar_geom::pose::ObjectPose;
+use agentstar_geom::UnitQuaternion;
 use agentstar_render::ScoreTarget;
 use agentstar_synth::SynthCapture;
 use agentstar_track::tracker::{track_independent, track_observed, TrackConfig, TrackFrame};
@@ -101,6 +103,38 @@ pub struct SequenceResult {
     pub cd_m_m2: Option<f64>,
     pub cd_s_m2: Option<f64>,
     pub joints: Vec<JointResult>,
+    /// The errors reduced by the object's listed symmetries (HOT3D/BOP): per frame, the
+    /// ground truth is replaced by its symmetric equivalent nearest the prediction. `None`
+    /// when the object lists no symmetry (then the reduced errors are the raw ones).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub symmetry_reduced: Option<ReducedErrors>,
+    /// How hard the capture is: object rotation between keyframes and hand coverage.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub capture_stats: Option<CaptureStats>,
+}
+
+/// Errors after symmetry reduction.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ReducedErrors {
+    /// The symmetries considered (rotations of the base part's frame, identity excluded).
+    pub symmetries: usize,
+    pub epe_cm: Option<f64>,
+    pub rotation_mean_deg: Option<f64>,
+    pub rotation_median_deg: Option<f64>,
+    pub translation_mean_cm: Option<f64>,
+    pub translation_median_cm: Option<f64>,
+}
+
+/// Figures of a synthetic capture's difficulty.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct CaptureStats {
+    /// Object rotation in the world between consecutive keyframes, degrees.
+    pub step_mean_deg: f64,
+    pub step_max_deg: f64,
+    /// The largest fraction of the object's silhouette hidden by hands in a keyframe.
+    pub hand_coverage_max: f64,
+    pub width: u32,
+    pub height: u32,
 }
 
 /// What a result is about, beside its metrics.
@@ -159,6 +193,8 @@ impl SequenceResult {
             cd_m_m2: m.cd_sq_moving_m2,
             cd_s_m2: m.cd_sq_static_m2,
             joints,
+            symmetry_reduced: None,
+            capture_stats: None,
         }
     }
 
@@ -182,6 +218,18 @@ impl SequenceResult {
             "cd_s_m2" => self.cd_s_m2,
             "joint_axis_rad" => joint_mean(|j| j.axis_rad),
             "joint_state" => joint_mean(|j| j.state),
+            "sym_epe_cm" => self
+                .symmetry_reduced
+                .as_ref()
+                .map_or(self.epe_cm, |r| r.epe_cm),
+            "sym_rotation_mean_deg" => self
+                .symmetry_reduced
+                .as_ref()
+                .map_or(self.rotation_mean_deg, |r| r.rotation_mean_deg),
+            "sym_rotation_median_deg" => self
+                .symmetry_reduced
+                .as_ref()
+                .map_or(self.rotation_median_deg, |r| r.rotation_median_deg),
             _ => None,
         }
     }
@@ -253,15 +301,6 @@ pub fn run_sequence_observed(
         .iter()
         .map(|f| (f.name.clone(), f.camera_from_object, f.states.clone()))
         .collect();
-    let (file, meshes) =
-        model_ground_truth(&capture.model, capture.scale, &truth, &capture.symmetries);
-    let gt = GroundTruth::from_parts(
-        std::path::Path::new(&format!("synthetic:{id}/gt.json")),
-        file,
-        meshes,
-    );
-    let names: Vec<String> = capture.frames.iter().map(|f| f.name.clone()).collect();
-    let seq = gt_sequence(&gt, &names)?;
     let pred = PredSequence {
         model: &capture.model,
         scale: capture.scale,
@@ -271,16 +310,21 @@ pub fn run_sequence_observed(
             .map(|g| (g.pose, g.states.clone()))
             .collect(),
     };
-    let cams = vec![capture.camera; capture.frames.len()];
-    let m = evaluate(
-        &seq,
-        &pred,
-        &cams,
-        &EvalConfig {
-            samples: cfg.samples,
-            ..EvalConfig::default()
-        },
-    );
+    let (m, seq) = evaluate_against(capture, &truth, &pred, cfg)?;
+    let symmetry_reduced = if capture.symmetries.is_empty() {
+        None
+    } else {
+        let reduced = symmetry_reduced_truth(&truth, &pred.poses, &capture.symmetries);
+        let (r, _) = evaluate_against(capture, &reduced, &pred, cfg)?;
+        Some(ReducedErrors {
+            symmetries: capture.symmetries.len(),
+            epe_cm: r.epe_cm,
+            rotation_mean_deg: r.rigid.as_ref().map(|g| g.rotation_mean_deg),
+            rotation_median_deg: r.rigid.as_ref().map(|g| g.rotation_median_deg),
+            translation_mean_cm: r.rigid.as_ref().map(|g| g.translation_mean_cm),
+            translation_median_cm: r.rigid.as_ref().map(|g| g.translation_median_cm),
+        })
+    };
     let result = SequenceResult::from_metrics(
         RunInfo {
             id,
@@ -295,5 +339,81 @@ pub fn run_sequence_observed(
         &m,
         &seq,
     );
+    let steps = capture.step_angles_deg();
+    let result = SequenceResult {
+        symmetry_reduced,
+        capture_stats: Some(CaptureStats {
+            step_mean_deg: steps.iter().sum::<f64>() / steps.len().max(1) as f64,
+            step_max_deg: steps.iter().cloned().fold(0.0, f64::max),
+            hand_coverage_max: capture
+                .frames
+                .iter()
+                .map(|f| f.hand_coverage)
+                .fold(0.0, f64::max),
+            width: capture.camera.width,
+            height: capture.camera.height,
+        }),
+        ..result
+    };
     Ok((result, tracked.poses))
+}
+
+type Truth = Vec<(String, ObjectPose, Vec<f64>)>;
+
+/// The ground truth `truth` of a capture in the evaluator's form, and the metrics of `pred`
+/// against it.
+fn evaluate_against(
+    capture: &SynthCapture,
+    truth: &Truth,
+    pred: &PredSequence<'_>,
+    cfg: &RunConfig,
+) -> Result<(SequenceMetrics, GtSequence), BenchError> {
+    let id = capture.id();
+    let (file, meshes) =
+        model_ground_truth(&capture.model, capture.scale, truth, &capture.symmetries);
+    let gt = GroundTruth::from_parts(
+        std::path::Path::new(&format!("synthetic:{id}/gt.json")),
+        file,
+        meshes,
+    );
+    let names: Vec<String> = truth.iter().map(|t| t.0.clone()).collect();
+    let seq = gt_sequence(&gt, &names)?;
+    let cams = vec![capture.camera; capture.frames.len()];
+    let m = evaluate(
+        &seq,
+        pred,
+        &cams,
+        &EvalConfig {
+            samples: cfg.samples,
+            ..EvalConfig::default()
+        },
+    );
+    Ok((m, seq))
+}
+
+/// The ground truth reduced by `symmetries` (rotations of the object's canonical frame about
+/// its origin that map it onto itself, in shape and appearance): per frame, the equivalent
+/// true pose `R·S` nearest the predicted rotation (the HOT3D/BOP convention). The prediction
+/// is in the model's own canonical frame, as in the benchmark (the known model).
+pub fn symmetry_reduced_truth(
+    truth: &[(String, ObjectPose, Vec<f64>)],
+    pred: &[(ObjectPose, Vec<f64>)],
+    symmetries: &[UnitQuaternion],
+) -> Truth {
+    truth
+        .iter()
+        .zip(pred)
+        .map(|((name, gt, states), (p, _))| {
+            let best = std::iter::once(UnitQuaternion::identity())
+                .chain(symmetries.iter().copied())
+                .map(|s| gt.rotation * s)
+                .min_by(|a, b| a.angle_to(&p.rotation).total_cmp(&b.angle_to(&p.rotation)))
+                .unwrap_or(gt.rotation);
+            (
+                name.clone(),
+                ObjectPose::new(best, gt.translation),
+                states.clone(),
+            )
+        })
+        .collect()
 }

@@ -160,6 +160,8 @@ fn fake(id: &str, family: &str, method: &str, epe: f64, iou: f64) -> SequenceRes
             position_m: Some(0.002),
             state: Some(0.02),
         }],
+        symmetry_reduced: None,
+        capture_stats: None,
     }
 }
 

@@ -40,8 +40,20 @@ pub fn hand_mesh() -> TriMesh {
 /// The hand's pose (hand frame → camera) gripping an object whose centre is `centre` (camera
 /// frame) and radius `radius` (metres) from the image direction `phi`, in front of it.
 pub fn grip_pose(centre: &Point3, radius: f64, phi: f64, hand_scale: f64) -> Similarity {
+    reach_pose(centre, radius, phi, hand_scale, 1.05)
+}
+
+/// [`grip_pose`] with the palm `reach · radius` from the centre across the image (1.05: at
+/// the rim; smaller values reach across the object and hide more of it).
+pub fn reach_pose(
+    centre: &Point3,
+    radius: f64,
+    phi: f64,
+    hand_scale: f64,
+    reach: f64,
+) -> Similarity {
     let lateral = Vector3::new(phi.cos(), phi.sin(), 0.0);
-    let position = centre.coords + lateral * (1.05 * radius) - Vector3::z() * (0.55 * radius);
+    let position = centre.coords + lateral * (reach * radius) - Vector3::z() * (0.55 * radius);
     // Fingers point back toward the object's centre; the back of the hand faces the camera.
     let fingers = (-lateral + Vector3::new(0.0, 0.0, 0.35)).normalize();
     let back = -Vector3::z();

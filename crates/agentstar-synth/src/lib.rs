@@ -16,7 +16,7 @@ pub mod noise;
 pub mod objects;
 
 pub use motion::Motion;
-pub use objects::{Family, ObjectSpec, Symmetry, LIBRARY};
+pub use objects::{Appearance, Family, ObjectSpec, Symmetry, LIBRARY};
 
 use agentstar_geom::pose::{ObjectPose, Rigid, Similarity};
 use agentstar_geom::{ObjectModel, PinholeCamera, Point3, UnitQuaternion, Vector3};
@@ -52,6 +52,12 @@ pub struct SynthConfig {
     pub mask_noise_px: f64,
     /// Write depth; `None`: only for the static-object orbit (as iTACO has depth).
     pub depth: Option<bool>,
+    /// The principal point (pixels); `None`: the image centre.
+    pub principal_point: Option<(f64, f64)>,
+    /// Hands as in hand-held captures made elsewhere: larger, reaching across the object, and
+    /// hiding up to this fraction of its silhouette (placed again farther out while they hide
+    /// more). `None`: the default grips at the object's rim.
+    pub hand_coverage_max: Option<f64>,
 }
 
 impl Default for SynthConfig {
@@ -66,6 +72,8 @@ impl Default for SynthConfig {
             hands: true,
             mask_noise_px: 0.0,
             depth: None,
+            principal_point: None,
+            hand_coverage_max: None,
         }
     }
 }
@@ -89,6 +97,8 @@ pub struct SynthFrame {
     pub hand: Option<BitMask>,
     /// Planar depth in metres of everything rendered (object and hands); NaN elsewhere.
     pub depth_m: Option<Vec<f32>>,
+    /// The fraction of the object's silhouette hidden by hands (0 to 1).
+    pub hand_coverage: f64,
 }
 
 /// A synthesised capture and everything needed to write it and its ground truth.
@@ -108,6 +118,18 @@ pub struct SynthCapture {
 }
 
 impl SynthCapture {
+    /// The object's rotation in the world between consecutive keyframes, degrees.
+    pub fn step_angles_deg(&self) -> Vec<f64> {
+        self.frames
+            .windows(2)
+            .map(|w| {
+                let a = w[0].world_from_camera.rotation * w[0].camera_from_object.rotation;
+                let b = w[1].world_from_camera.rotation * w[1].camera_from_object.rotation;
+                (b * a.inverse()).angle().to_degrees()
+            })
+            .collect()
+    }
+
     /// A short identifier: `object-motion-sSEED`.
     pub fn id(&self) -> String {
         format!(
@@ -157,13 +179,34 @@ pub fn synthesize(cfg: &SynthConfig) -> Result<SynthCapture, SynthError> {
             cfg.mask_noise_px
         )));
     }
+    if let Some(c) = cfg.hand_coverage_max {
+        if !(c.is_finite() && (0.0..=0.95).contains(&c)) {
+            return Err(SynthError::Config(format!(
+                "the hands' largest coverage must be 0 to 0.95, got {c}"
+            )));
+        }
+    }
+    let (cx, cy) = cfg
+        .principal_point
+        .unwrap_or((0.5 * cfg.width as f64, 0.5 * cfg.height as f64));
+    if !(cx.is_finite() && cy.is_finite())
+        || cx < 0.0
+        || cy < 0.0
+        || cx > cfg.width as f64
+        || cy > cfg.height as f64
+    {
+        return Err(SynthError::Config(format!(
+            "the principal point ({cx}, {cy}) lies outside the {}×{} image",
+            cfg.width, cfg.height
+        )));
+    }
     let model = build_object(spec)?;
     let motion = cfg.motion.unwrap_or(Motion::default_for(spec.family));
     let depth = cfg.depth.unwrap_or(motion == Motion::StaticOrbit);
     let (w, h) = (cfg.width, cfg.height);
     let f = 0.95 * w.max(h) as f64;
-    let camera = PinholeCamera::new(f, f, 0.5 * w as f64, 0.5 * h as f64, w, h)
-        .map_err(|e| SynthError::Config(e.to_string()))?;
+    let camera =
+        PinholeCamera::new(f, f, cx, cy, w, h).map_err(|e| SynthError::Config(e.to_string()))?;
     let scale = spec.size_m;
     // Seeds of independent streams, so that adding a hand does not change the motion.
     let mut motion_rng = Rng::new(cfg.seed.wrapping_mul(0x9E37_79B9).wrapping_add(1));
@@ -186,6 +229,7 @@ pub fn synthesize(cfg: &SynthConfig) -> Result<SynthCapture, SynthError> {
         Motion::HandHeld => 0.85,
         Motion::RigidSteps => 0.6,
         Motion::StaticOrbit => 0.35,
+        Motion::HardHeld => 0.85,
     };
     let hand_phase = hand_rng.range(0.0, std::f64::consts::TAU);
     let mut frames = Vec::with_capacity(cfg.frames);
@@ -200,7 +244,9 @@ pub fn synthesize(cfg: &SynthConfig) -> Result<SynthCapture, SynthError> {
         // Hands: one (sometimes two) gripping the object from the front.
         let mut hand_count = 0;
         if cfg.hands && hand_rng.uniform() < hand_probability {
-            hand_count = if motion == Motion::HandHeld && hand_rng.uniform() < 0.4 {
+            hand_count = if matches!(motion, Motion::HandHeld | Motion::HardHeld)
+                && hand_rng.uniform() < 0.4
+            {
                 2
             } else {
                 1
@@ -210,21 +256,78 @@ pub fn synthesize(cfg: &SynthConfig) -> Result<SynthCapture, SynthError> {
             .camera_from_object
             .with_scale(scale)
             .transform_point(&model.posed_bounds(&step.states).center());
-        for i in 0..hand_count {
-            let phi = hand_phase
-                + 0.35 * k as f64
-                + std::f64::consts::PI * i as f64
-                + hand_rng.range(-0.2, 0.2);
-            let pose = hand::grip_pose(&centre, radius, phi, hand_scale);
-            instances.push(Instance {
-                mesh: &hand_part.mesh,
-                bounds: hand_part.bounds,
-                camera_from_mesh: Affine::from_similarity(&pose),
-                edges: hand_part.edges.as_deref().map(|e| e.as_slice()),
-                part_id: n_parts + i as u16,
-            });
-        }
-        let buffers = render_full(&camera, &instances);
+        let buffers = match cfg.hand_coverage_max {
+            None => {
+                for i in 0..hand_count {
+                    let phi = hand_phase
+                        + 0.35 * k as f64
+                        + std::f64::consts::PI * i as f64
+                        + hand_rng.range(-0.2, 0.2);
+                    let pose = hand::grip_pose(&centre, radius, phi, hand_scale);
+                    instances.push(hand_instance(&hand_part, &pose, n_parts + i as u16));
+                }
+                render_full(&camera, &instances)
+            }
+            Some(max_coverage) => {
+                // Hands reaching across the object; moved out until they hide at most
+                // `max_coverage` of it, dropped if they still hide more.
+                let alone = render_full(&camera, &instances);
+                let full = alone.part.iter().filter(|&&p| p < n_parts).count().max(1);
+                let grips: Vec<(f64, f64, f64)> = (0..hand_count)
+                    .map(|i| {
+                        (
+                            hand_phase
+                                + 0.35 * k as f64
+                                + std::f64::consts::PI * i as f64
+                                + hand_rng.range(-0.4, 0.4),
+                            hand_rng.range(0.2, 1.0),
+                            hand_scale * hand_rng.range(1.0, 1.5),
+                        )
+                    })
+                    .collect();
+                let mut chosen = alone;
+                for attempt in 0..=6 {
+                    if grips.is_empty() {
+                        break;
+                    }
+                    let mut with_hands = instances.clone();
+                    if attempt < 6 {
+                        for (i, &(phi, reach, s)) in grips.iter().enumerate() {
+                            let pose = hand::reach_pose(
+                                &centre,
+                                radius,
+                                phi,
+                                s,
+                                reach + 0.2 * attempt as f64,
+                            );
+                            with_hands.push(hand_instance(&hand_part, &pose, n_parts + i as u16));
+                        }
+                    }
+                    let b = render_full(&camera, &with_hands);
+                    let visible = b.part.iter().filter(|&&p| p < n_parts).count();
+                    chosen = b;
+                    if 1.0 - visible as f64 / full as f64 <= max_coverage {
+                        break;
+                    }
+                }
+                chosen
+            }
+        };
+        let full_count = if cfg.hand_coverage_max.is_some() || hand_count > 0 {
+            render_full(&camera, &posed.instances)
+                .part
+                .iter()
+                .filter(|&&p| p < n_parts)
+                .count()
+        } else {
+            0
+        };
+        let visible_count = buffers.part.iter().filter(|&&p| p < n_parts).count();
+        let hand_coverage = if full_count == 0 {
+            0.0
+        } else {
+            (1.0 - visible_count as f64 / full_count as f64).max(0.0)
+        };
         let mut mask = BitMask::from_fn(w, h, |x, y| buffers.part[(y * w + x) as usize] < n_parts);
         let mut hand_mask = (hand_count > 0).then(|| {
             BitMask::from_fn(w, h, |x, y| {
@@ -267,13 +370,9 @@ pub fn synthesize(cfg: &SynthConfig) -> Result<SynthCapture, SynthError> {
                         let q =
                             Point3::from(camera.ray_direction(x as f64 + 0.5, y as f64 + 0.5) * z);
                         let local = part_from_camera[p as usize].transform_point(&q);
-                        let t = checker(&local);
-                        let base = colors[p as usize];
-                        srgb([
-                            base[0] as f64 * shading * t,
-                            base[1] as f64 * shading * t,
-                            base[2] as f64 * shading * t,
-                        ])
+                        let albedo =
+                            albedo(spec.appearance, p as usize, &local, colors[p as usize]);
+                        srgb(albedo.map(|a| a * shading))
                     } else {
                         let s = hand::SKIN;
                         srgb([
@@ -313,6 +412,7 @@ pub fn synthesize(cfg: &SynthConfig) -> Result<SynthCapture, SynthError> {
             mask,
             hand: hand_mask,
             depth_m,
+            hand_coverage,
         });
     }
     let symmetries = match spec.symmetry {
@@ -333,6 +433,33 @@ pub fn synthesize(cfg: &SynthConfig) -> Result<SynthCapture, SynthError> {
         frames,
         symmetries,
     })
+}
+
+fn hand_instance<'a>(
+    hand: &'a agentstar_geom::Part,
+    pose: &Similarity,
+    part_id: u16,
+) -> Instance<'a> {
+    Instance {
+        mesh: &hand.mesh,
+        bounds: hand.bounds,
+        camera_from_mesh: Affine::from_similarity(pose),
+        edges: hand.edges.as_deref().map(|e| e.as_slice()),
+        part_id,
+    }
+}
+
+/// The albedo (linear RGB) of part `part` at `local` (its canonical rest coordinates).
+fn albedo(appearance: Appearance, part: usize, local: &Point3, color: [f32; 3]) -> [f64; 3] {
+    let c = color.map(|v| v as f64);
+    match appearance {
+        Appearance::Checker => {
+            let t = checker(local);
+            c.map(|v| v * t)
+        }
+        Appearance::Plain => c,
+        Appearance::Printed(paint) => paint(part, local),
+    }
 }
 
 /// Linear RGB to display values (gamma 2.2).

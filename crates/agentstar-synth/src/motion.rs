@@ -21,16 +21,26 @@ pub enum Motion {
     RigidSteps,
     /// iTACO-like: a static object, a camera orbiting it, one joint moving; with depth.
     StaticOrbit,
+    /// The hard suite's hand-held motion, as in captures made outside this project: about
+    /// 40° mean rotation a keyframe (most steps 12°–42°, some 80°–130° and one 130°–150°),
+    /// every joint sweeping its range, a camera that moves around the object as well.
+    HardHeld,
 }
 
 impl Motion {
-    pub const ALL: [Motion; 3] = [Motion::HandHeld, Motion::RigidSteps, Motion::StaticOrbit];
+    pub const ALL: [Motion; 4] = [
+        Motion::HandHeld,
+        Motion::RigidSteps,
+        Motion::StaticOrbit,
+        Motion::HardHeld,
+    ];
 
     pub fn as_str(&self) -> &'static str {
         match self {
             Motion::HandHeld => "handheld",
             Motion::RigidSteps => "rigid-steps",
             Motion::StaticOrbit => "static-orbit",
+            Motion::HardHeld => "hard-held",
         }
     }
     pub fn parse(s: &str) -> Option<Motion> {
@@ -183,6 +193,67 @@ pub fn trajectory(
             }
             steps
         }
+        Motion::HardHeld => {
+            let d = viewing_distance(model, scale, camera, 0.55);
+            let states = joint_states(model, n, &vec![true; n_joints], rng);
+            let start = UnitQuaternion::from_axis_angle(&Vector3::y_axis(), rng.range(-PI, PI))
+                * UnitQuaternion::from_axis_angle(
+                    &Vector3::x_axis(),
+                    rng.range(90.0, 135.0).to_radians(),
+                );
+            // The one step of 130°–150°.
+            let biggest = 1 + ((n.saturating_sub(1)) as f64 * rng.uniform()) as usize;
+            let mut rotation = start;
+            let mut axis = random_axis(rng);
+            let drift = (
+                rng.range(0.0, TAU),
+                rng.range(0.0, TAU),
+                rng.range(0.0, TAU),
+            );
+            let mut steps = Vec::with_capacity(n);
+            for (k, st) in states.into_iter().enumerate() {
+                if k > 0 {
+                    axis = (axis + 0.8 * random_axis(rng)).normalize();
+                    let angle_deg = if k == biggest {
+                        rng.range(130.0, 150.0)
+                    } else if rng.uniform() < 0.12 {
+                        rng.range(80.0, 130.0)
+                    } else {
+                        rng.range(12.0, 42.0)
+                    };
+                    rotation = UnitQuaternion::from_axis_angle(
+                        &agentstar_geom::nalgebra::Unit::new_normalize(axis),
+                        angle_deg.to_radians(),
+                    ) * rotation;
+                }
+                let t = k as f64 / (n - 1).max(1) as f64;
+                let centre = Point3::new(
+                    0.15 * d * (TAU * 0.7 * t + drift.0).sin(),
+                    0.1 * d * (TAU * 0.9 * t + drift.1).sin(),
+                    d * (1.0 + 0.12 * (TAU * 0.5 * t + drift.2).sin()),
+                );
+                // The camera walks around the object (up to about ±25° of azimuth) and looks
+                // near it; world up is −Y.
+                let az = 0.45 * (TAU * 0.6 * t + drift.2).sin();
+                let eye = centre
+                    + Vector3::new(
+                        -d * az.sin(),
+                        0.12 * d * (TAU * t + drift.0).sin(),
+                        -d * az.cos(),
+                    )
+                    + Vector3::new(rng.normal(), rng.normal(), rng.normal()) * 0.02 * d;
+                let aim = centre + Vector3::new(rng.normal(), rng.normal(), 0.0) * 0.04 * d;
+                let camera_from_world = look_at(&eye, &aim, &-Vector3::y());
+                let pivot = model.posed_bounds(&st).center().coords * scale;
+                let world_from_object = ObjectPose::new(rotation, centre.coords - rotation * pivot);
+                steps.push(Step {
+                    world_from_camera: camera_from_world.inverse(),
+                    camera_from_object: compose(&camera_from_world, &world_from_object),
+                    states: st,
+                });
+            }
+            steps
+        }
         Motion::StaticOrbit => {
             // One joint moves (the first with a state); the object stands upright at the world
             // origin (world +Z up) and the camera orbits it at a fixed elevation.
@@ -256,6 +327,12 @@ mod tests {
                 ),
                 Motion::RigidSteps => assert!(max > 40.0 && max <= 180.0, "{angles:?}"),
                 Motion::StaticOrbit => assert!(max < 1e-9, "the object is static: {angles:?}"),
+                Motion::HardHeld => {
+                    let mean = angles.iter().sum::<f64>() / angles.len() as f64;
+                    assert!((130.0..=150.0).contains(&max), "{angles:?}");
+                    assert!((30.0..=50.0).contains(&mean), "mean {mean}: {angles:?}");
+                    assert!(angles.iter().all(|&a| a >= 11.9), "{angles:?}");
+                }
             }
             for s in &steps {
                 assert!(s.camera_from_object.translation.z > 0.2, "{motion:?}");

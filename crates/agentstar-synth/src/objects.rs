@@ -33,6 +33,18 @@ pub enum Symmetry {
     ContinuousZ,
 }
 
+/// How a part's surface is coloured (its albedo, before shading).
+#[derive(Debug, Clone, Copy)]
+pub enum Appearance {
+    /// The part's colour times a checker fixed to the part (six squares per canonical unit).
+    Checker,
+    /// The part's colour only: the appearance has every symmetry of the shape.
+    Plain,
+    /// Printed: the linear-RGB albedo of part `index` at a point in canonical rest
+    /// coordinates (labels, keys, logos: what tells apart poses with the same outline).
+    Printed(fn(usize, &Point3) -> [f64; 3]),
+}
+
 /// One object of the library.
 #[derive(Debug, Clone, Copy)]
 pub struct ObjectSpec {
@@ -40,7 +52,11 @@ pub struct ObjectSpec {
     pub family: Family,
     /// Size in metres of one canonical unit (the object's longest side).
     pub size_m: f64,
+    /// The symmetries of shape *and* appearance (listed in `gt.json`, by which errors are
+    /// reduced as in HOT3D/BOP). An object whose outline is symmetric but whose print is not
+    /// (a can with a label) lists none.
     pub symmetry: Symmetry,
+    pub appearance: Appearance,
     pub script: &'static str,
 }
 
@@ -55,7 +71,10 @@ impl ObjectSpec {
     }
 }
 
-/// Every object, grouped by family.
+use agentstar_geom::Point3;
+
+/// Every object, grouped by family: the default suites' objects, then the hard suite's
+/// (outlines that repeat under rotations or part swaps, told apart only by their print).
 pub static LIBRARY: &[ObjectSpec] = &[
     // ── ARCTIC-like: hand-held, articulated ──
     ObjectSpec {
@@ -63,6 +82,7 @@ pub static LIBRARY: &[ObjectSpec] = &[
         family: Family::Arctic,
         size_m: 0.24,
         symmetry: Symmetry::None,
+        appearance: Appearance::Checker,
         script: r##"// A box with a hinged lid.
 let body = box(1.0, 0.7, 0.48, 0.02) - box(0.92, 0.62, 0.5).translate(0, 0, 0.06);
 part("body", body.translate(0, 0, -0.04).color("#c8553d"));
@@ -75,6 +95,7 @@ joint(#{ name: "lid_hinge", type: "revolute", child: "lid", origin: [0, 0.35, 0.
         family: Family::Arctic,
         size_m: 0.3,
         symmetry: Symmetry::None,
+        appearance: Appearance::Checker,
         script: r##"// A laptop: a base with a keyboard well and a screen hinged at the back.
 let base = box(1.0, 0.7, 0.05, 0.01) - box(0.8, 0.35, 0.03).translate(0, 0.08, 0.03);
 part("base", base.translate(0, 0, -0.025).color("#5c6f7b"));
@@ -87,6 +108,7 @@ joint(#{ name: "screen_hinge", type: "revolute", child: "screen", origin: [0, 0.
         family: Family::Arctic,
         size_m: 0.24,
         symmetry: Symmetry::None,
+        appearance: Appearance::Checker,
         script: r##"// A notebook: pages on the back cover, a front cover hinged along the spine.
 let back = box(1.0, 0.74, 0.02).translate(0, 0, -0.025) + box(0.95, 0.7, 0.04).translate(0.02, 0, 0.0);
 part("back", back.color("#2a9d8f"));
@@ -99,6 +121,7 @@ joint(#{ name: "spine", type: "revolute", child: "cover", origin: [-0.5, 0, 0.02
         family: Family::Arctic,
         size_m: 0.2,
         symmetry: Symmetry::None,
+        appearance: Appearance::Checker,
         script: r##"// A ketchup bottle with a flip-top cap.
 let body = lathe([[0, -0.5], [0.2, -0.5], [0.22, -0.46], [0.22, 0.18], [0.13, 0.33], [0.09, 0.36], [0, 0.36]]);
 let neck = cylinder(0.09, 0.08).translate(0, 0, 0.39);
@@ -112,6 +135,7 @@ joint(#{ name: "cap_hinge", type: "revolute", child: "cap", origin: [0, 0.09, 0.
         family: Family::Arctic,
         size_m: 0.11,
         symmetry: Symmetry::None,
+        appearance: Appearance::Checker,
         script: r##"// A flip phone: a keypad half and a screen half hinged at one end.
 part("keypad", (box(0.46, 1.0, 0.09, 0.02) + box(0.3, 0.5, 0.02).translate(0, -0.15, 0.045)).translate(0, 0, -0.045).color("#3d405b"));
 part("flip", box(0.46, 1.0, 0.07, 0.02).translate(0, 0, 0.045).color("#81b29a"));
@@ -123,6 +147,7 @@ joint(#{ name: "flip_hinge", type: "revolute", child: "flip", origin: [0, 0.5, 0
         family: Family::Arctic,
         size_m: 0.28,
         symmetry: Symmetry::None,
+        appearance: Appearance::Checker,
         script: r##"// A waffle iron: round plates with handles, the top one hinged at the back.
 part("base", (cylinder(0.4, 0.16).translate(0, 0.08, -0.08) + box(0.14, 0.26, 0.06).translate(0, -0.37, -0.1)).color("#4a4e69"));
 part("top", (cylinder(0.4, 0.12).translate(0, 0.08, 0.06) + box(0.14, 0.26, 0.05).translate(0, -0.37, 0.05)).color("#9a8c98"));
@@ -134,6 +159,7 @@ joint(#{ name: "top_hinge", type: "revolute", child: "top", origin: [0, 0.48, 0.
         family: Family::Arctic,
         size_m: 0.2,
         symmetry: Symmetry::None,
+        appearance: Appearance::Checker,
         script: r##"// Scissors: two blades with ring handles turning about a pivot screw.
 let blade = box(0.62, 0.08, 0.02).translate(0.19, 0.0, 0) + torus(0.1, 0.028).translate(-0.3, -0.09, 0) + box(0.2, 0.05, 0.02).translate(-0.12, -0.05, 0);
 part("lower", blade.translate(0, 0, -0.011).color("#e76f51"));
@@ -147,6 +173,7 @@ joint(#{ name: "pivot", type: "revolute", child: "upper", origin: [0, 0, 0], axi
         family: Family::Hot3d,
         size_m: 0.12,
         symmetry: Symmetry::None,
+        appearance: Appearance::Checker,
         script: r##"// A mug with a handle.
 let handle = box(0.22, 0.08, 0.07).translate(0.4, 0, 0.22) + box(0.22, 0.08, 0.07).translate(0.4, 0, -0.22) + box(0.07, 0.08, 0.51).translate(0.475, 0, 0);
 let cup = cylinder(0.32, 0.8) - cylinder(0.28, 0.8).translate(0, 0, 0.06);
@@ -158,6 +185,7 @@ part("mug", (cup + handle).translate(-0.095, 0, 0).color("#f4a261"));
         family: Family::Hot3d,
         size_m: 0.22,
         symmetry: Symmetry::ContinuousZ,
+        appearance: Appearance::Checker,
         script: r##"// A water bottle (symmetric about its axis).
 part("bottle", lathe([[0, -0.5], [0.17, -0.5], [0.18, -0.48], [0.18, 0.15], [0.07, 0.32], [0.06, 0.42], [0.065, 0.5], [0, 0.5]], 40).color("#4ea8de"));
 "##,
@@ -167,6 +195,7 @@ part("bottle", lathe([[0, -0.5], [0.17, -0.5], [0.18, -0.48], [0.18, 0.15], [0.0
         family: Family::Hot3d,
         size_m: 0.12,
         symmetry: Symmetry::ContinuousZ,
+        appearance: Appearance::Checker,
         script: r##"// A drinks can (symmetric about its axis).
 part("can", lathe([[0, -0.5], [0.26, -0.5], [0.3, -0.44], [0.3, 0.4], [0.24, 0.5], [0, 0.5]], 40).color("#c1121f"));
 "##,
@@ -176,6 +205,7 @@ part("can", lathe([[0, -0.5], [0.26, -0.5], [0.3, -0.44], [0.3, 0.4], [0.24, 0.5
         family: Family::Hot3d,
         size_m: 0.42,
         symmetry: Symmetry::None,
+        appearance: Appearance::Checker,
         script: r##"// A keyboard: a flat case, a key field and a number pad.
 let shell = box(1.0, 0.34, 0.05, 0.01);
 let keys = box(0.66, 0.24, 0.03).translate(-0.12, -0.02, 0.035) + box(0.2, 0.24, 0.03).translate(0.36, -0.02, 0.035);
@@ -187,6 +217,7 @@ part("keyboard", (shell + keys).translate(0, 0, -0.02).color("#adb5bd"));
         family: Family::Hot3d,
         size_m: 0.15,
         symmetry: Symmetry::None,
+        appearance: Appearance::Checker,
         script: r##"// A smartphone with a camera bump.
 part("phone", (box(0.48, 1.0, 0.08, 0.03) + box(0.16, 0.2, 0.04, 0.01).translate(0.1, 0.34, -0.05)).color("#343a40"));
 "##,
@@ -196,6 +227,7 @@ part("phone", (box(0.48, 1.0, 0.08, 0.03) + box(0.16, 0.2, 0.04, 0.01).translate
         family: Family::Hot3d,
         size_m: 0.24,
         symmetry: Symmetry::None,
+        appearance: Appearance::Checker,
         script: r##"// A spray bottle: a round body, a trigger head with a nozzle.
 let body = lathe([[0, -0.5], [0.2, -0.5], [0.2, 0.2], [0.08, 0.33], [0, 0.33]], 32);
 let head = box(0.14, 0.34, 0.16).translate(0, -0.08, 0.38);
@@ -209,6 +241,7 @@ part("spray", (body + (head + nozzle)).translate(0, 0.04, 0.02).color("#90be6d")
         family: Family::Itaco,
         size_m: 0.8,
         symmetry: Symmetry::None,
+        appearance: Appearance::Checker,
         script: r##"// A cabinet: a door on the upper compartment, a drawer in the lower one.
 let shell = box(0.8, 0.5, 1.0) - box(0.72, 0.48, 0.44).translate(0, -0.05, 0.23) - box(0.72, 0.48, 0.42).translate(0, -0.05, -0.24);
 part("body", shell.color("#bc6c25"));
@@ -223,6 +256,7 @@ joint(#{ name: "drawer_slide", type: "prismatic", child: "drawer", axis: [0, -1,
         family: Family::Itaco,
         size_m: 0.5,
         symmetry: Symmetry::None,
+        appearance: Appearance::Checker,
         script: r##"// A microwave: a cavity on the left, a control panel, a door hinged on its left edge.
 let shell = box(1.0, 0.6, 0.56) - box(0.62, 0.56, 0.44).translate(-0.15, -0.05, 0);
 part("body", (shell + box(0.2, 0.02, 0.3).translate(0.33, -0.305, 0.05)).color("#e5e5e5"));
@@ -235,6 +269,7 @@ joint(#{ name: "door_hinge", type: "revolute", child: "door", origin: [-0.48, -0
         family: Family::Itaco,
         size_m: 0.7,
         symmetry: Symmetry::None,
+        appearance: Appearance::Checker,
         script: r##"// An oven: a cavity, knobs on the front panel, a door hinged along its bottom edge.
 let shell = box(0.9, 0.8, 0.9) - box(0.74, 0.7, 0.55).translate(0, -0.1, -0.06);
 let knobs = cylinder(0.04, 0.04).rotate_x(90).translate(-0.25, -0.415, 0.35) + cylinder(0.04, 0.04).rotate_x(90).translate(0.25, -0.415, 0.35);
@@ -243,4 +278,240 @@ part("door", (box(0.78, 0.04, 0.6).translate(0, -0.42, -0.06) + box(0.5, 0.04, 0
 joint(#{ name: "door_hinge", type: "revolute", child: "door", origin: [0, -0.42, -0.36], axis: [1, 0, 0], limit: [0, 90] });
 "##,
     },
+    // ── The hard suite's objects: same outline under a rotation or a part swap, told apart
+    // only by their print (or, for the plain bottle, not at all) ──
+    ObjectSpec {
+        name: "labelcan",
+        family: Family::Hot3d,
+        size_m: 0.12,
+        symmetry: Symmetry::None,
+        appearance: Appearance::Printed(paint_labelcan),
+        script: r##"// A drinks can with a printed label on half of its side: the outline is symmetric about
+// the axis, the print is not.
+part("can", lathe([[0, -0.5], [0.26, -0.5], [0.3, -0.44], [0.3, 0.4], [0.24, 0.5], [0, 0.5]], 48).color("#c1121f"));
+"##,
+    },
+    ObjectSpec {
+        name: "plainbottle",
+        family: Family::Hot3d,
+        size_m: 0.22,
+        symmetry: Symmetry::ContinuousZ,
+        appearance: Appearance::Plain,
+        script: r##"// A plain bottle: symmetric about its axis in shape and in colour.
+part("bottle", lathe([[0, -0.5], [0.17, -0.5], [0.18, -0.48], [0.18, 0.15], [0.07, 0.32], [0.06, 0.42], [0.065, 0.5], [0, 0.5]], 48).color("#5fa8d3"));
+"##,
+    },
+    ObjectSpec {
+        name: "printmug",
+        family: Family::Hot3d,
+        size_m: 0.12,
+        symmetry: Symmetry::None,
+        appearance: Appearance::Printed(paint_printmug),
+        script: r##"// A mug with a handle and a printed badge on one side.
+let handle = box(0.22, 0.08, 0.07).translate(0.4, 0, 0.22) + box(0.22, 0.08, 0.07).translate(0.4, 0, -0.22) + box(0.07, 0.08, 0.51).translate(0.475, 0, 0);
+let cup = cylinder(0.32, 0.8) - cylinder(0.28, 0.8).translate(0, 0, 0.06);
+part("mug", (cup + handle).translate(-0.095, 0, 0).color("#e9e4d8"));
+"##,
+    },
+    ObjectSpec {
+        name: "kettle",
+        family: Family::Hot3d,
+        size_m: 0.22,
+        symmetry: Symmetry::None,
+        appearance: Appearance::Printed(paint_kettle),
+        script: r##"// A kettle: a round steel body, a lid knob, a spout and a handle on opposite sides.
+let body = lathe([[0, -0.42], [0.3, -0.42], [0.34, -0.3], [0.34, 0.02], [0.26, 0.2], [0.15, 0.26], [0, 0.26]], 48);
+let knob = cylinder(0.05, 0.1).translate(0, 0, 0.28);
+let spout = cylinder(0.05, 0.34).rotate_y(50).translate(0.38, 0, 0.02);
+let handle = box(0.08, 0.1, 0.5).translate(-0.5, 0, -0.03) + box(0.3, 0.09, 0.08).translate(-0.37, 0, 0.1) + box(0.3, 0.09, 0.08).translate(-0.37, 0, -0.2);
+part("kettle", (body + knob + handle + spout).translate(0.0, 0, 0.045).color("#b8bcc2"));
+"##,
+    },
+    ObjectSpec {
+        name: "twinlaptop",
+        family: Family::Arctic,
+        size_m: 0.3,
+        symmetry: Symmetry::None,
+        appearance: Appearance::Printed(paint_twinlaptop),
+        script: r##"// A laptop whose base and lid are slabs of the same outline: keys and a touchpad on the
+// base, a screen inside the lid, a logo outside.
+part("base", box(1.0, 0.7, 0.03, 0.006).translate(0, 0, -0.016).color("#8d99ae"));
+part("lid", box(1.0, 0.7, 0.03, 0.006).translate(0, 0, 0.016).color("#8d99ae"));
+joint(#{ name: "hinge", type: "revolute", child: "lid", origin: [0, 0.35, 0.0], axis: [-1, 0, 0], limit: [0, 150] });
+"##,
+    },
+    ObjectSpec {
+        name: "drawerbox",
+        family: Family::Arctic,
+        size_m: 0.2,
+        symmetry: Symmetry::None,
+        appearance: Appearance::Printed(paint_drawerbox),
+        script: r##"// A nearly cubic wooden case with a drawer (and its knob) in the front face.
+let shell = box(1.0, 0.94, 0.97, 0.02) - box(0.86, 0.9, 0.36).translate(0, -0.04, -0.24);
+part("body", shell.color("#a47148"));
+part("drawer", (box(0.84, 0.88, 0.34).translate(0, -0.03, -0.24) + box(0.2, 0.04, 0.05).translate(0, -0.485, -0.24)).color("#d4a373"));
+joint(#{ name: "drawer_slide", type: "prismatic", child: "drawer", axis: [0, -1, 0], limit: [0, 0.5] });
+"##,
+    },
+    ObjectSpec {
+        name: "shears",
+        family: Family::Arctic,
+        size_m: 0.2,
+        symmetry: Symmetry::None,
+        appearance: Appearance::Printed(paint_shears),
+        script: r##"// Shears of three parts: two mirror-image blades with ring handles about a pivot screw,
+// and a lock lever hinged on the lower handle. The blades differ by their rings' colours.
+let blade = box(0.62, 0.08, 0.02).translate(0.19, 0.0, 0) + torus(0.1, 0.028).translate(-0.3, -0.09, 0) + box(0.2, 0.05, 0.02).translate(-0.12, -0.05, 0);
+part("lower", blade.translate(0, 0, -0.011).color("#e76f51"));
+part("upper", blade.mirror("y").translate(0, 0, 0.011).color("#264653"));
+part("lock", box(0.16, 0.035, 0.018).translate(-0.2, -0.05, -0.031).color("#f4d35e"));
+joint(#{ name: "pivot", type: "revolute", child: "upper", origin: [0, 0, 0], axis: [0, 0, -1], limit: [0, 45] });
+joint(#{ name: "lock_hinge", type: "revolute", child: "lock", origin: [-0.13, -0.05, -0.031], axis: [0, 0, 1], limit: [0, 70] });
+"##,
+    },
 ];
+
+// ── Prints of the hard suite's objects (linear RGB albedo at canonical rest coordinates) ──
+
+/// A deterministic value in [0, 1) for an integer cell.
+fn cell_hash(i: i64, j: i64, salt: u32) -> f64 {
+    crate::noise::hash01((i + 4096) as u32, (j + 4096) as u32, salt)
+}
+
+/// Can: red, a cream label over half the side with two lines of dark "lettering", a gold
+/// ring near the top, silver ends.
+fn paint_labelcan(_part: usize, p: &Point3) -> [f64; 3] {
+    let r = (p.x * p.x + p.y * p.y).sqrt();
+    if p.z > 0.44 || p.z < -0.46 || r < 0.25 {
+        return [0.55, 0.56, 0.6];
+    }
+    if (0.34..0.39).contains(&p.z) {
+        return [0.75, 0.55, 0.12];
+    }
+    let theta = p.y.atan2(p.x);
+    if p.z.abs() < 0.3 && theta.abs() < 1.6 {
+        // Two rows of letters: large ones above, small ones below.
+        let (cw, z0, z1, salt) = if p.z > 0.0 {
+            (0.2, 0.06, 0.22, 11)
+        } else {
+            (0.11, -0.2, -0.08, 12)
+        };
+        if p.z > z0 && p.z < z1 {
+            let u = theta / cw;
+            let cell = u.floor();
+            let f = u - cell;
+            if f > 0.15 && f < 0.85 && cell_hash(cell as i64, salt, 5) < 0.7 {
+                return [0.04, 0.08, 0.35];
+            }
+        }
+        return [0.85, 0.8, 0.62];
+    }
+    [0.6, 0.04, 0.05]
+}
+
+/// Mug: off-white, a blue badge with a red centre on the side at +Y, a blue rim band over
+/// the half at +Y.
+fn paint_printmug(_part: usize, p: &Point3) -> [f64; 3] {
+    let (x, y) = (p.x + 0.095, p.y);
+    let r = (x * x + y * y).sqrt();
+    if r > 0.3 && r < 0.34 {
+        let theta = y.atan2(x);
+        let arc = 0.32 * (theta - std::f64::consts::FRAC_PI_2);
+        let d = (arc * arc + (p.z - 0.0).powi(2)).sqrt();
+        if d < 0.09 {
+            return [0.75, 0.08, 0.1];
+        }
+        if d < 0.2 {
+            return [0.08, 0.2, 0.6];
+        }
+        if p.z > 0.28 && y > 0.0 {
+            return [0.08, 0.2, 0.6];
+        }
+    }
+    [0.82, 0.79, 0.72]
+}
+
+/// Kettle: steel, a black handle and base band, a dark brand plate with light letters on
+/// the side at −Y.
+fn paint_kettle(_part: usize, p: &Point3) -> [f64; 3] {
+    let x = p.x;
+    if x < -0.36 {
+        return [0.04, 0.04, 0.045];
+    }
+    if p.z < -0.3 && x.abs() < 0.36 {
+        return [0.05, 0.05, 0.06];
+    }
+    if p.y < -0.2 && x.abs() < 0.16 && (p.z + 0.14).abs() < 0.09 {
+        let cell = ((x + 0.16) / 0.05).floor();
+        let f = (x + 0.16) / 0.05 - cell;
+        if (p.z + 0.14).abs() < 0.04 && f > 0.2 && f < 0.8 && cell_hash(cell as i64, 3, 9) < 0.75 {
+            return [0.8, 0.8, 0.75];
+        }
+        return [0.06, 0.1, 0.2];
+    }
+    [0.55, 0.57, 0.6]
+}
+
+/// Laptop: keys and a touchpad on the base's top face, rubber feet under it; a black
+/// screen in a bezel inside the lid, a light logo outside; grey aluminium elsewhere.
+fn paint_twinlaptop(part: usize, p: &Point3) -> [f64; 3] {
+    let alu = [0.45, 0.47, 0.5];
+    if part == 0 {
+        if p.z > -0.004 {
+            if p.x.abs() < 0.42 && p.y > -0.06 && p.y < 0.3 {
+                let (u, v) = ((p.x + 0.42) / 0.07, (p.y + 0.06) / 0.07);
+                let (fu, fv) = (u - u.floor(), v - v.floor());
+                if fu > 0.12 && fu < 0.88 && fv > 0.12 && fv < 0.88 {
+                    return [0.03, 0.03, 0.035];
+                }
+            }
+            if p.x.abs() < 0.13 && p.y > -0.31 && p.y < -0.12 {
+                return [0.65, 0.66, 0.7];
+            }
+        } else if p.z < -0.028 {
+            for (fx, fy) in [(-0.42, -0.28), (0.42, -0.28), (-0.42, 0.28), (0.42, 0.28)] {
+                if (p.x - fx).powi(2) + (p.y - fy).powi(2) < 0.04f64.powi(2) {
+                    return [0.02, 0.02, 0.02];
+                }
+            }
+        }
+        return alu;
+    }
+    if p.z < 0.004 {
+        if p.x.abs() < 0.45 && p.y.abs() < 0.3 {
+            return [0.015, 0.02, 0.03];
+        }
+    } else if p.z > 0.028 && p.x * p.x + p.y * p.y < 0.1f64.powi(2) {
+        return [0.9, 0.9, 0.92];
+    }
+    alu
+}
+
+/// Case: wood with a grain, a light inlaid diamond on the top face, a lighter drawer front
+/// with a brass knob.
+fn paint_drawerbox(part: usize, p: &Point3) -> [f64; 3] {
+    let grain = 0.85 + 0.15 * (38.0 * (p.x + 0.25 * (6.0 * p.z + 3.0 * p.y).sin())).sin();
+    if part == 1 {
+        if p.y < -0.47 {
+            return [0.8, 0.6, 0.18];
+        }
+        return [0.62 * grain, 0.42 * grain, 0.22 * grain];
+    }
+    if p.z > 0.47 && p.x.abs() + p.y.abs() < 0.25 {
+        return [0.85, 0.8, 0.65];
+    }
+    [0.38 * grain, 0.2 * grain, 0.09 * grain]
+}
+
+/// Shears: steel blades, an orange ring on the lower blade, a black one on the upper, a
+/// yellow lock; an engraved mark on the lower blade.
+fn paint_shears(part: usize, p: &Point3) -> [f64; 3] {
+    let steel = [0.55, 0.57, 0.6];
+    match part {
+        0 if p.x < -0.17 => [0.85, 0.3, 0.06],
+        1 if p.x < -0.17 => [0.03, 0.03, 0.03],
+        0 if p.x > 0.2 && p.x < 0.35 && p.y.abs() < 0.02 => [0.15, 0.15, 0.17],
+        2 => [0.9, 0.75, 0.2],
+        _ => steel,
+    }
+}

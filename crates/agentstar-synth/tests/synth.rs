@@ -171,3 +171,72 @@ fn mask_noise_moves_boundaries_only() {
         assert!((changed as f64) < 0.5 * a.mask.count() as f64);
     }
 }
+
+#[test]
+fn hard_captures_have_big_steps_large_hands_and_an_off_centre_camera() {
+    let s = synthesize(&SynthConfig {
+        object: "twinlaptop".into(),
+        motion: Some(Motion::HardHeld),
+        frames: 12,
+        width: 200,
+        height: 150,
+        seed: 3,
+        mask_noise_px: 2.0,
+        principal_point: Some((112.0, 68.0)),
+        hand_coverage_max: Some(0.6),
+        ..SynthConfig::default()
+    })
+    .expect("synth");
+    assert_eq!((s.camera.cx, s.camera.cy), (112.0, 68.0));
+    let steps = s.step_angles_deg();
+    let max = steps.iter().cloned().fold(0.0, f64::max);
+    assert!((130.0..=150.0).contains(&max), "{steps:?}");
+    let coverage: Vec<f64> = s.frames.iter().map(|f| f.hand_coverage).collect();
+    assert!(coverage.iter().all(|&c| c <= 0.6 + 1e-9), "{coverage:?}");
+    assert!(
+        coverage.iter().any(|&c| c > 0.15),
+        "hands reach across the object: {coverage:?}"
+    );
+    // The camera moves: its centre travels in the world.
+    let travel = (s.frames[0].world_from_camera.translation.vector
+        - s.frames[6].world_from_camera.translation.vector)
+        .norm();
+    assert!(travel > 0.05, "the camera moved {travel} m");
+    assert_eq!(s.id(), "twinlaptop-hard-held-s3");
+    let e = synthesize(&SynthConfig {
+        principal_point: Some((500.0, 10.0)),
+        ..cfg("box", None, 1)
+    })
+    .expect_err("principal point outside");
+    assert!(e.to_string().contains("principal point"), "{e}");
+}
+
+#[test]
+fn printed_objects_differ_where_their_outlines_repeat() {
+    // The can's outline is symmetric about its axis; its colours are not: the half with
+    // the label and the half without, at the same height, look different, as do the laptop's
+    // two slabs seen from the same side.
+    let can = agentstar_synth::ObjectSpec::find("labelcan").expect("can");
+    let agentstar_synth::Appearance::Printed(paint) = can.appearance else {
+        panic!("the label can is printed")
+    };
+    let p = |x, y, z| agentstar_geom::Point3::new(x, y, z);
+    let front = paint(0, &p(0.3, 0.0, -0.25));
+    let back = paint(0, &p(-0.3, 0.0, -0.25));
+    let diff: f64 = front.iter().zip(&back).map(|(a, b)| (a - b).abs()).sum();
+    assert!(diff > 0.5, "{front:?} vs {back:?}");
+    let laptop = agentstar_synth::ObjectSpec::find("twinlaptop").expect("laptop");
+    let agentstar_synth::Appearance::Printed(paint) = laptop.appearance else {
+        panic!("the laptop is printed")
+    };
+    // The base's keys (top face) and the lid's outside (its top face) at the same place.
+    let keys = paint(0, &p(0.1, 0.1, -0.002));
+    let lid = paint(1, &p(0.1, 0.1, 0.031));
+    assert_ne!(keys, lid);
+    let bottle = agentstar_synth::ObjectSpec::find("plainbottle").expect("bottle");
+    assert!(matches!(
+        bottle.appearance,
+        agentstar_synth::Appearance::Plain
+    ));
+    assert_eq!(bottle.symmetry, agentstar_synth::Symmetry::ContinuousZ);
+}

@@ -18,7 +18,7 @@ use std::process::ExitCode;
     after_help = "Examples:\n  agentstar bench --suite quick --check bench/quick-tolerances.json\n  agentstar bench --suite full --results bench/full.md --out /tmp/bench-runs"
 )]
 pub struct Args {
-    /// The suite: quick (CI) or full.
+    /// The suite: quick (CI), full, or hard (by hand: 7 × 20 keyframes at 640×480; use --methods tracker).
     #[arg(long, default_value = "quick")]
     suite: String,
     /// Methods, comma separated: tracker, no-temporal, vlm-free.
@@ -187,7 +187,11 @@ pub fn run(a: Args) -> Result<ExitCode> {
         }
     }
     bar.finish_and_clear();
-    let md = tables(&results, a.per_sequence);
+    let mut md = tables(&results, a.per_sequence);
+    if a.suite == "hard" {
+        md.push('\n');
+        md.push_str(&agentstar_bench::table::hard_table(&results));
+    }
     let header = format!(
         "## agentstar bench: {} suite, {} sequence(s), methods {}\n\nRecorded {} on {}.\n\n",
         a.suite,

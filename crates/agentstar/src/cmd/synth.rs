@@ -22,7 +22,7 @@ pub struct Args {
     /// Object of the library (see --list).
     #[arg(long, default_value = "box")]
     object: String,
-    /// Motion: handheld, rigid-steps or static-orbit (default: the object's dataset's).
+    /// Motion: handheld, rigid-steps, static-orbit or hard-held (default: the object's dataset's).
     #[arg(long)]
     motion: Option<String>,
     /// Number of keyframes.
@@ -46,6 +46,12 @@ pub struct Args {
     /// Write no depth.
     #[arg(long)]
     no_depth: bool,
+    /// Principal point CX,CY in pixels (default: the image centre).
+    #[arg(long)]
+    principal_point: Option<String>,
+    /// Hands that reach across the object, hiding up to this fraction of it (0 to 0.95).
+    #[arg(long)]
+    hand_coverage: Option<f64>,
     /// List the object library and the motions, then exit.
     #[arg(long)]
     list: bool,
@@ -67,6 +73,19 @@ pub fn parse_size(s: &str) -> Result<(u32, u32)> {
             .parse()
             .with_context(|| format!("--size `{s}`: height"))?,
     ))
+}
+
+/// Parses `CX,CY` (pixels).
+fn parse_principal_point(s: &str) -> Result<(f64, f64)> {
+    let (x, y) = s
+        .split_once(',')
+        .ok_or_else(|| anyhow!("--principal-point `{s}`: expected CX,CY, e.g. 358,218"))?;
+    let num = |v: &str, what: &str| -> Result<f64> {
+        v.trim()
+            .parse()
+            .with_context(|| format!("--principal-point `{s}`: {what}"))
+    };
+    Ok((num(x, "CX")?, num(y, "CY")?))
 }
 
 pub fn parse_motion(s: &str) -> Result<Motion> {
@@ -207,6 +226,12 @@ pub fn run(a: Args) -> Result<ExitCode> {
         seed: a.seed,
         hands: !a.no_hands,
         mask_noise_px: a.mask_noise,
+        principal_point: a
+            .principal_point
+            .as_deref()
+            .map(parse_principal_point)
+            .transpose()?,
+        hand_coverage_max: a.hand_coverage,
         depth: if a.depth {
             Some(true)
         } else if a.no_depth {
