@@ -2,7 +2,9 @@
 //! Latin-hypercube initial population (optionally holding the current state), dithered
 //! mutation, binomial crossover with one forced component, out-of-box components redrawn
 //! uniformly, the best member kept at index 0, and SciPy's convergence test
-//! `std(energies) ≤ atol + tol · |mean(energies)|`. Minimises.
+//! `std(energies) ≤ atol + tol · |mean(energies)|`, checked only once `min_generations`
+//! generations have run (SciPy checks from the first, so a population that starts flat
+//! stops before it has searched). Minimises.
 
 use crate::nelder_mead::{nelder_mead, NelderMeadConfig};
 use crate::rng::Rng;
@@ -15,8 +17,13 @@ pub struct DeConfig {
     /// Mutation factor drawn uniformly per generation from this range (equal ends: fixed F).
     pub mutation: (f64, f64),
     pub recombination: f64,
+    /// Relative tolerance of the convergence test (SciPy's `tol`).
     pub tol: f64,
+    /// Absolute tolerance of the convergence test, in the objective's units (SciPy's `atol`).
     pub atol: f64,
+    /// Generations that always run (budget permitting) before convergence may stop the
+    /// search: an initial population scoring within the tolerance has not yet explored.
+    pub min_generations: usize,
     /// Total objective evaluations, the initial population included.
     pub max_evals: usize,
     pub seed: u64,
@@ -32,6 +39,7 @@ impl Default for DeConfig {
             recombination: 0.8,
             tol: 0.01,
             atol: 0.0,
+            min_generations: 0,
             max_evals: 600,
             seed: 17,
             polish_evals: 0,
@@ -173,7 +181,7 @@ pub fn differential_evolution(
         var.sqrt() <= cfg.atol + cfg.tol * mean.abs()
     };
     'outer: while nfev < budget {
-        if converged(&energy) {
+        if generations >= cfg.min_generations && converged(&energy) {
             termination = Termination::Converged;
             break;
         }
@@ -224,7 +232,10 @@ pub fn differential_evolution(
         generations += 1;
         generation_best.push(energy[0]);
     }
-    if termination == Termination::MaxEvals && converged(&energy) {
+    if termination == Termination::MaxEvals
+        && generations >= cfg.min_generations
+        && converged(&energy)
+    {
         termination = Termination::Converged;
     }
     let mut x = to_real(&pop[0], bounds);
@@ -408,5 +419,60 @@ mod tests {
             &DeConfig::default()
         )
         .is_err());
+    }
+
+    #[test]
+    fn a_flat_initial_population_still_searches_for_min_generations() {
+        // A plateau at 1.0 with a narrow well at 0.8: every member of the initial population
+        // lands on the plateau, so SciPy's test (std 0 ≤ tol·|mean|) stops at once.
+        let well = |x: &[f64]| {
+            let d2: f64 = x.iter().map(|v| (v - 0.8) * (v - 0.8)).sum();
+            if d2 < 0.04 {
+                d2 - 0.04
+            } else {
+                0.0
+            }
+        };
+        let b = vec![(-1.0, 1.0); 2];
+        let scipy = differential_evolution(
+            &mut |x| well(x),
+            &b,
+            Some(&[0.0, 0.0]),
+            &DeConfig {
+                popsize: 2,
+                max_evals: 2000,
+                ..DeConfig::default()
+            },
+        )
+        .expect("de");
+        let searching = differential_evolution(
+            &mut |x| well(x),
+            &b,
+            Some(&[0.0, 0.0]),
+            &DeConfig {
+                popsize: 2,
+                max_evals: 2000,
+                min_generations: 60,
+                ..DeConfig::default()
+            },
+        )
+        .expect("de");
+        assert!(
+            searching.generations >= 60,
+            "{} generations",
+            searching.generations
+        );
+        assert_eq!(
+            (scipy.generations, scipy.f),
+            (0, 0.0),
+            "SciPy's rule stops flat"
+        );
+        assert!(searching.nfev > scipy.nfev);
+        assert!(
+            searching.f < -0.02,
+            "the well was not found: f {} at {:?}",
+            searching.f,
+            searching.x
+        );
     }
 }

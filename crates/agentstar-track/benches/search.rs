@@ -80,7 +80,6 @@ fn setup_c() {
         for (spec, restarts, budget, polish) in passes {
             let p = FrameProblem::new(&model, cam, &t, 1.0, current.clone());
             let space = parse_spec(spec, &model.tree, Grammar::Camera).expect("space");
-            let tol = if restarts == 6 { 0.01 } else { 1e-4 };
             let r = sweep(
                 &p,
                 &space,
@@ -88,7 +87,6 @@ fn setup_c() {
                     restarts,
                     total_evals: budget,
                     polish_evals: polish,
-                    tol,
                     ..SweepConfig::default()
                 },
             )

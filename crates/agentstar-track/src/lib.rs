@@ -4,8 +4,10 @@
 //! (differential evolution with restarts, grids, explicit candidates), temporal
 //! diagnostics, and an automatic tracker for a known model. No file I/O.
 
+pub mod hypotheses;
 pub mod objective;
 pub mod search;
+pub mod sequence;
 pub mod space;
 pub mod temporal;
 pub mod tracker;

@@ -37,9 +37,14 @@ pub struct SweepConfig {
     pub polish_evals: usize,
     /// How many ranked candidates to return (grid and candidate lists; DE returns one per restart).
     pub topk: usize,
-    /// DE convergence: stop when std(scores) ≤ tol · |mean(scores)| (SciPy's default 0.01;
-    /// fine passes near the optimum want far less, since every member already scores ~1).
-    pub tol: f64,
+    /// DE convergence in IoU units: a restart stops once the standard deviation of its
+    /// population's scores is at most this, after `min_generations`. (A tolerance relative to
+    /// the scores, SciPy's, stops a population that scores 0.95 ± 0.005 before it searched.)
+    pub tol_iou: f64,
+    /// Generations every DE restart runs (budget permitting) before it may stop as converged.
+    pub min_generations: usize,
+    /// SciPy's relative tolerance, `std ≤ tol_relative · |mean|`, added to `tol_iou` (0 = off).
+    pub tol_relative: f64,
 }
 
 impl Default for SweepConfig {
@@ -54,7 +59,22 @@ impl Default for SweepConfig {
             recombination: 0.8,
             polish_evals: 0,
             topk: 10,
-            tol: 0.01,
+            tol_iou: 1e-3,
+            min_generations: 10,
+            tol_relative: 0.0,
+        }
+    }
+}
+
+impl SweepConfig {
+    /// SciPy's stop rule (relative tolerance 0.01 from the first generation): the cheap local
+    /// refinements of the tracker, whose boxes are small and searched again in later passes.
+    pub fn scipy_stop(self) -> Self {
+        SweepConfig {
+            tol_iou: 0.0,
+            min_generations: 0,
+            tol_relative: 0.01,
+            ..self
         }
     }
 }
@@ -70,6 +90,12 @@ pub struct Candidate {
     pub restart: Option<usize>,
     pub seed: Option<u64>,
     pub pass: usize,
+    /// The unchanged starting pose, ranked because no searched candidate beat it (a search
+    /// never returns a best candidate worse than where it started).
+    pub kept_start: bool,
+    /// The score where the candidate was placed, when it was refined before ranking
+    /// ([`crate::hypotheses::refine_ranked`]); `x` is then the placed candidate's vector.
+    pub unrefined: Option<CandidateScore>,
 }
 
 /// What one DE restart did.
@@ -104,7 +130,26 @@ pub struct SweepResult {
     pub score_field: Option<ScoreField>,
 }
 
-fn rank(mut c: Vec<Candidate>, topk: usize) -> Vec<Candidate> {
+/// Adds the starting pose when it beats every searched candidate, so that rank 0 is never
+/// worse than the start (a box that excludes the start, or a grid that misses it).
+fn keep_start(problem: &FrameProblem<'_>, space: &SearchSpace, cands: &mut Vec<Candidate>) {
+    let score = problem.evaluator().score(&problem.base);
+    if cands.iter().all(|c| c.score.combined < score.combined) {
+        cands.push(Candidate {
+            rank: 0,
+            x: problem.start_vector(space),
+            pose: problem.base.clone(),
+            score,
+            restart: None,
+            seed: None,
+            pass: 0,
+            kept_start: true,
+            unrefined: None,
+        });
+    }
+}
+
+pub(crate) fn rank(mut c: Vec<Candidate>, topk: usize) -> Vec<Candidate> {
     c.sort_by(|a, b| b.score.combined.total_cmp(&a.score.combined));
     c.truncate(topk.max(1));
     for (i, x) in c.iter_mut().enumerate() {
@@ -159,6 +204,8 @@ pub fn sweep(
                         restart: None,
                         seed: None,
                         pass: 0,
+                        kept_start: false,
+                        unrefined: None,
                     }
                 })
                 .collect();
@@ -221,7 +268,7 @@ pub fn sweep(
             let mut best: Vec<&agentstar_optim::GridPoint> = pts.iter().collect();
             best.sort_by(|p, q| p.f.total_cmp(&q.f));
             best.dedup_by(|p, q| p.x == q.x);
-            let cands: Vec<Candidate> = best
+            let mut cands: Vec<Candidate> = best
                 .into_iter()
                 .take(cfg.topk.max(1))
                 .map(|p| {
@@ -235,9 +282,12 @@ pub fn sweep(
                         restart: None,
                         seed: None,
                         pass: p.pass,
+                        kept_start: false,
+                        unrefined: None,
                     }
                 })
                 .collect();
+            keep_start(problem, space, &mut cands);
             Ok(SweepResult {
                 ranked: rank(cands, cfg.topk),
                 restarts: vec![],
@@ -259,8 +309,9 @@ pub fn sweep(
                         popsize: cfg.popsize,
                         mutation: cfg.mutation,
                         recombination: cfg.recombination,
-                        tol: 0.01,
-                        atol: 0.0,
+                        tol: cfg.tol_relative,
+                        atol: cfg.tol_iou,
+                        min_generations: cfg.min_generations,
                         max_evals: per,
                         seed,
                         polish_evals: polish,
@@ -294,6 +345,8 @@ pub fn sweep(
                             restart: Some(i),
                             seed: Some(seed),
                             pass: 0,
+                            kept_start: false,
+                            unrefined: None,
                         },
                         rec,
                     ))
@@ -307,8 +360,9 @@ pub fn sweep(
                 records.push(rec);
             }
             let n_evals = records.iter().map(|r| r.nfev + r.polish_nfev).sum();
+            keep_start(problem, space, &mut cands);
             Ok(SweepResult {
-                ranked: rank(cands, restarts),
+                ranked: rank(cands, restarts + 1),
                 restarts: records,
                 n_evals,
                 score_field: None,

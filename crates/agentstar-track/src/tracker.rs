@@ -6,8 +6,10 @@
 //! (flips and a covering around the seed) whenever the score drops; a final consistency pass
 //! that searches temporal outliers again from their neighbours.
 
+use crate::hypotheses::{refine_each, refine_local, twin_candidates, LocalWindow};
 use crate::objective::FrameProblem;
 use crate::search::{sweep, SweepConfig};
+use crate::sequence::cheapest_path;
 use crate::space::{joint_default, Dof, DofRange, SearchSpace};
 use crate::temporal::angle_deg;
 use crate::update::{apply_object_rotation, flip, GenPose};
@@ -43,6 +45,10 @@ pub struct TrackConfig {
     pub consistency_pass: bool,
     /// Start from this frame instead of the one with the largest visible mask.
     pub init_frame: Option<usize>,
+    /// Choose one basin per frame for the whole sequence at the end (twins of every frame
+    /// refined, then dynamic programming over frames; [`crate::sequence`]). Off by default
+    /// until it is measured on the suites (its cost is up to six polishes per frame).
+    pub sequence_choice: bool,
 }
 
 impl Default for TrackConfig {
@@ -56,6 +62,7 @@ impl Default for TrackConfig {
             drop_margin: 0.04,
             consistency_pass: true,
             init_frame: None,
+            sequence_choice: false,
         }
     }
 }
@@ -169,78 +176,6 @@ fn place(
     (g, s)
 }
 
-/// The local search box around a pose: camera-frame increments and joints around their state.
-fn local_space(
-    model: &ObjectModel,
-    base: &GenPose,
-    angle: f64,
-    shift: f64,
-    depth: f64,
-    joint_deg: f64,
-) -> SearchSpace {
-    let mut ranges = vec![
-        DofRange {
-            dof: Dof::Roll,
-            lo: -angle,
-            hi: angle,
-            steps: None,
-        },
-        DofRange {
-            dof: Dof::Yaw,
-            lo: -angle,
-            hi: angle,
-            steps: None,
-        },
-        DofRange {
-            dof: Dof::Pitch,
-            lo: -angle,
-            hi: angle,
-            steps: None,
-        },
-        DofRange {
-            dof: Dof::Dpx,
-            lo: -shift,
-            hi: shift,
-            steps: None,
-        },
-        DofRange {
-            dof: Dof::Dpy,
-            lo: -shift,
-            hi: shift,
-            steps: None,
-        },
-        DofRange {
-            dof: Dof::Tz,
-            lo: -depth,
-            hi: depth,
-            steps: None,
-        },
-    ];
-    for (j, jd) in model.tree.joints().iter().enumerate() {
-        if !jd.kind.has_state() {
-            continue;
-        }
-        let (dlo, dhi) = joint_default(&model.tree, j);
-        let cur = jd.to_interface(base.states[j]);
-        let span = if jd.kind.is_angular() {
-            joint_deg
-        } else {
-            joint_deg / 180.0 * (dhi - dlo).abs().max(1e-6)
-        };
-        let (lo, hi) = ((cur - span).max(dlo), (cur + span).min(dhi));
-        ranges.push(DofRange {
-            dof: Dof::Joint(j),
-            lo: lo.min(hi),
-            hi: hi.max(lo),
-            steps: None,
-        });
-    }
-    SearchSpace {
-        ranges,
-        notes: vec![],
-    }
-}
-
 struct Searcher<'m> {
     model: &'m ObjectModel,
     scale: f64,
@@ -272,8 +207,7 @@ impl<'m> Searcher<'m> {
         })
     }
 
-    /// DE around `base` in a box, then passes in shrinking boxes re-centred on the best so
-    /// far (each re-based, so its pivot follows), the last with a Nelder–Mead polish.
+    /// [`refine_local`] around `base` in the window given, counting its evaluations.
     #[allow(clippy::too_many_arguments)]
     fn refine(
         &self,
@@ -286,51 +220,24 @@ impl<'m> Searcher<'m> {
         evals: usize,
         seed: u64,
     ) -> Result<(GenPose, f64), TrackError> {
-        let passes = [
-            (1.0, evals, 0usize),
-            (0.3, evals / 2, 0),
-            (0.1, evals / 3, 0),
-            (0.04, evals / 4, 300),
-        ];
-        let mut best = base.clone();
-        let mut best_score = f64::NEG_INFINITY;
-        for (k, &(f, n, polish)) in passes.iter().enumerate() {
-            let problem = FrameProblem::new(
-                self.model,
-                frame.camera,
-                frame.target,
-                self.scale,
-                best.clone(),
-            );
-            let space = local_space(
-                self.model,
-                &best,
-                (angle * f).max(0.5),
-                (shift * f).max(0.002),
-                (depth * f).max(0.004),
-                (joint_deg * f).max(1.0),
-            );
-            let cfg = SweepConfig {
-                restarts: 2,
-                total_evals: n.max(40),
-                seed: seed + 1000 * k as u64,
-                polish_evals: polish,
-                ..SweepConfig::default()
-            };
-            let r = sweep(&problem, &space, &cfg)?;
-            self.evals
-                .fetch_add(r.n_evals, std::sync::atomic::Ordering::Relaxed);
-            let top = r
-                .ranked
-                .into_iter()
-                .next()
-                .ok_or_else(|| TrackError::Invalid("empty search".into()))?;
-            if top.score.combined >= best_score {
-                best_score = top.score.combined;
-                best = top.pose;
-            }
-        }
-        Ok((best, best_score))
+        let problem = FrameProblem::new(
+            self.model,
+            frame.camera,
+            frame.target,
+            self.scale,
+            base.clone(),
+        );
+        let window = LocalWindow {
+            angle_deg: angle,
+            shift,
+            depth,
+            joint_deg,
+            evals,
+        };
+        let (best, score, n) = refine_local(&problem, base, &window, seed)?;
+        self.evals
+            .fetch_add(n, std::sync::atomic::Ordering::Relaxed);
+        Ok((best, score))
     }
 
     /// The narrow refinement around a pose that is already close (12°, 4% of the image,
@@ -690,7 +597,24 @@ pub fn track_observed(
         .map(|p| p.ok_or_else(|| TrackError::Invalid("a frame was not tracked".into())))
         .collect::<Result<_, _>>()?;
     if cfg.consistency_pass && n >= 2 {
-        consistency(&s, frames, &mut poses, &mut scores, &mut log)?;
+        consistency(
+            &s,
+            frames,
+            &mut poses,
+            &mut scores,
+            &vec![false; n],
+            &mut log,
+        )?;
+    }
+    if cfg.sequence_choice && n >= 2 {
+        choose_sequence(
+            &s,
+            frames,
+            &mut poses,
+            &mut scores,
+            &vec![false; n],
+            &mut log,
+        )?;
     }
     Ok(TrackResult {
         poses,
@@ -713,6 +637,7 @@ fn consistency(
     frames: &[TrackFrame<'_>],
     poses: &mut [GenPose],
     scores: &mut [f64],
+    fixed: &[bool],
     log: &mut Log<'_>,
 ) -> Result<(), TrackError> {
     let n = frames.len();
@@ -747,7 +672,7 @@ fn consistency(
                 && i + 1 < n
                 && step(poses, i - 1, i) > limit
                 && step(poses, i, i + 1) > limit;
-            if !outlier && scores[i] >= best_neighbour - 0.001 {
+            if fixed[i] || (!outlier && scores[i] >= best_neighbour - 0.001) {
                 continue;
             }
             let mut seeds: Vec<GenPose> =
@@ -838,6 +763,318 @@ fn consistency(
     Ok(())
 }
 
+/// The sequence-level choice's units: a hypothesis this much IoU under its frame's best
+/// costs one unit; a step of this many degrees (rotation through the cameras, or any joint)
+/// costs one unit, growing with its square, and so does this share of the depth in
+/// translation. Alternatives placed within `CHOICE_SCREEN` of a frame's score are refined
+/// (all of them under the gate); refined ones within `CHOICE_KEEP` of the frame's best are
+/// kept as hypotheses.
+const CHOICE_IOU_UNIT: f64 = 0.005;
+const CHOICE_STEP_DEG: f64 = 60.0;
+const CHOICE_STEP_DEPTH: f64 = 0.2;
+const CHOICE_SCREEN: f64 = 0.15;
+const CHOICE_KEEP: f64 = 0.03;
+/// Frames scoring under this (the IoU gate) have every twin refined, in the wide window.
+const CHOICE_SUSPECT: f64 = 0.98;
+
+/// One hypothesis per frame for the whole sequence: every frame's current pose and its twins
+/// ([`twin_candidates`]: flips, principal half-turns) that place close enough to matter,
+/// refined; then the cheapest path through them ([`cheapest_path`]: the frame's IoU shortfall
+/// against the step through the cameras and joint states). Fixed frames keep their pose.
+fn choose_sequence(
+    s: &Searcher<'_>,
+    frames: &[TrackFrame<'_>],
+    poses: &mut [GenPose],
+    scores: &mut [f64],
+    fixed: &[bool],
+    log: &mut Log<'_>,
+) -> Result<(), TrackError> {
+    let n = frames.len();
+    let mut hyps: Vec<Vec<(GenPose, f64)>> = Vec::with_capacity(n);
+    for i in 0..n {
+        let mut h = vec![(poses[i].clone(), scores[i])];
+        if !fixed[i] {
+            let problem = FrameProblem::new(
+                s.model,
+                frames[i].camera,
+                frames[i].target,
+                s.scale,
+                poses[i].clone(),
+            );
+            let mut ev = problem.evaluator();
+            // A frame under the gate may sit in a wrong basin: all its twins, refined in the
+            // wide window (a twin of a pose refined in the wrong basin lands off the mask).
+            let suspect = scores[i] < CHOICE_SUSPECT;
+            let close: Vec<GenPose> = twin_candidates(s.model, s.scale, &poses[i])
+                .into_iter()
+                .filter(|g| suspect || ev.combined(g) >= scores[i] - CHOICE_SCREEN)
+                .collect();
+            let window = if suspect {
+                LocalWindow::basin()
+            } else {
+                LocalWindow::polish()
+            };
+            let refined = refine_each(
+                &problem,
+                &close,
+                &window,
+                s.cfg.seed + 3_000_017 * (i as u64 + 1),
+            )?;
+            for r in refined {
+                s.evals
+                    .fetch_add(r.evals, std::sync::atomic::Ordering::Relaxed);
+                let distinct = h.iter().all(|(g, _)| {
+                    angle_deg(&(g.pose.rotation * r.pose.pose.rotation.inverse())) >= 5.0
+                });
+                if distinct {
+                    h.push((r.pose, r.score.combined));
+                }
+            }
+            let best = h.iter().map(|x| x.1).fold(f64::NEG_INFINITY, f64::max);
+            h.retain(|x| x.1 >= best - CHOICE_KEEP);
+            if h.is_empty() {
+                h.push((poses[i].clone(), scores[i]));
+            }
+        }
+        hyps.push(h);
+    }
+    let alternatives: usize = hyps.iter().map(|h| h.len() - 1).sum();
+    if alternatives == 0 {
+        log.push("sequence choice: no twin explains any frame as well; poses kept".into());
+        return Ok(());
+    }
+    let unary: Vec<Vec<f64>> = hyps
+        .iter()
+        .map(|h| {
+            let best = h.iter().map(|x| x.1).fold(f64::NEG_INFINITY, f64::max);
+            h.iter().map(|x| (best - x.1) / CHOICE_IOU_UNIT).collect()
+        })
+        .collect();
+    let step = |i: usize, a: usize, b: usize| {
+        let from = &hyps[i - 1][a].0;
+        let to = &hyps[i][b].0;
+        let carried = transfer(&from.pose, &frames[i - 1], &frames[i]);
+        let rot = angle_deg(&(to.pose.rotation * carried.rotation.inverse())) / CHOICE_STEP_DEG;
+        let joint = from
+            .states
+            .iter()
+            .zip(&to.states)
+            .map(|(x, y)| (x - y).abs().to_degrees())
+            .fold(0.0, f64::max)
+            / CHOICE_STEP_DEG;
+        let depth = carried.translation.z.abs().max(1e-9);
+        let shift = (to.pose.translation - carried.translation).norm() / depth / CHOICE_STEP_DEPTH;
+        rot * rot + joint * joint + shift * shift
+    };
+    let path = cheapest_path(&unary, &step);
+    if path.len() != n {
+        return Err(TrackError::Invalid("sequence choice: no path".into()));
+    }
+    let mut changed = Vec::new();
+    for (i, &k) in path.iter().enumerate() {
+        if k != 0 {
+            // Then polish: the twin was refined in a window centred where it was placed.
+            let (g, sc) = hyps[i][k].clone();
+            let seed = s.cfg.seed + 5_000_011 * (i as u64 + 1);
+            let (g, sc) = match s.polish(&frames[i], &g, seed)? {
+                (p, psc) if psc > sc => (p, psc),
+                _ => (g, sc),
+            };
+            changed.push(format!(
+                "{} (IoU {:.4} → {sc:.4})",
+                frames[i].name, scores[i]
+            ));
+            poses[i] = g;
+            scores[i] = sc;
+        }
+    }
+    log.push(format!(
+        "sequence choice: {alternatives} twin hypotheses kept over {n} frames; {}",
+        if changed.is_empty() {
+            "every frame keeps its basin".to_string()
+        } else {
+            format!("changed basin: {}", changed.join(", "))
+        }
+    ));
+    Ok(())
+}
+
+/// How much better than a frame's own refined pose a pose carried from the neighbour on the
+/// anchor's side must score to be taken; within it the carried pose wins (continuity: a
+/// twin that explains the mask as well as the carried pose does not break the chain).
+const CARRY_TIE: f64 = 0.002;
+
+/// Tracks from existing poses (a warm start) instead of from scratch: every frame not in
+/// `anchors` is refined around its own pose with the narrow polish; anchors stay exactly as
+/// given and are carried outward to their neighbours, frame by frame (the neighbour on the
+/// anchor's side through the cameras, and at constant velocity), each carried pose refined
+/// and taken when it scores at least as well as the frame's own (within [`CARRY_TIE`]), with
+/// the wide search when both fall clearly under the neighbour. The consistency pass then runs
+/// with the anchors fixed. Cheap after a shape edit: one polish per frame when nothing moved.
+pub fn track_from(
+    model: &ObjectModel,
+    scale: f64,
+    frames: &[TrackFrame<'_>],
+    start: &[GenPose],
+    anchors: &[usize],
+    cfg: &TrackConfig,
+    observe: &(dyn Fn(&str) + Sync),
+) -> Result<TrackResult, TrackError> {
+    let s = Searcher::new(model, scale, frames, cfg)?;
+    let n = frames.len();
+    if start.len() != n {
+        return Err(TrackError::Invalid(format!(
+            "{} starting poses for {n} frames",
+            start.len()
+        )));
+    }
+    let mut fixed = vec![false; n];
+    for &a in anchors {
+        if a >= n {
+            return Err(TrackError::Invalid(format!(
+                "anchor {a} is not a frame (there are {n})"
+            )));
+        }
+        fixed[a] = true;
+    }
+    for (g, f) in start.iter().zip(frames) {
+        if g.states.len() != model.tree.joints().len()
+            || !g.pose.translation.iter().all(|v| v.is_finite())
+        {
+            return Err(TrackError::Invalid(format!(
+                "frame {}: the starting pose is not a pose of this model ({} joint states for {} joints)",
+                f.name,
+                g.states.len(),
+                model.tree.joints().len()
+            )));
+        }
+    }
+    let mut log = Log {
+        lines: Vec::new(),
+        observe,
+    };
+    let polished: Vec<Result<(GenPose, f64), TrackError>> = (0..n)
+        .into_par_iter()
+        .map(|i| {
+            if fixed[i] {
+                let p = FrameProblem::new(
+                    model,
+                    frames[i].camera,
+                    frames[i].target,
+                    scale,
+                    start[i].clone(),
+                );
+                let sc = p.evaluator().combined(&start[i]);
+                Ok((start[i].clone(), sc))
+            } else {
+                s.polish(&frames[i], &start[i], cfg.seed + 7919 * i as u64)
+            }
+        })
+        .collect();
+    let mut poses = Vec::with_capacity(n);
+    let mut scores = Vec::with_capacity(n);
+    for (i, r) in polished.into_iter().enumerate() {
+        let (g, sc) = r?;
+        log.push(format!(
+            "{}: {}, IoU {sc:.4}",
+            frames[i].name,
+            if fixed[i] {
+                "anchor, kept"
+            } else {
+                "refined from its pose"
+            }
+        ));
+        poses.push(g);
+        scores.push(sc);
+    }
+    // Outward from every anchor, nearest frames first, each frame from its neighbour on the
+    // side of its nearest anchor.
+    let mut order: Vec<(usize, usize, isize)> = Vec::new();
+    for i in (0..n).filter(|&i| !fixed[i]) {
+        let left = (0..i).rev().find(|&a| fixed[a]).map(|a| (i - a, 1isize));
+        let right = (i + 1..n).find(|&a| fixed[a]).map(|a| (a - i, -1isize));
+        let nearest = match (left, right) {
+            (Some(l), Some(r)) => Some(if r.0 < l.0 { r } else { l }),
+            (l, r) => l.or(r),
+        };
+        if let Some((d, dir)) = nearest {
+            // `dir` points from the anchor towards the frame; its neighbour is i − dir.
+            order.push((d, i, dir));
+        }
+    }
+    order.sort();
+    for (_, i, dir) in order {
+        let prev_i = (i as isize - dir) as usize;
+        let carried = GenPose {
+            pose: transfer(&poses[prev_i].pose, &frames[prev_i], &frames[i]),
+            states: poses[prev_i].states.clone(),
+        };
+        let mut seeds = vec![carried.clone()];
+        let prev2 = prev_i as isize - dir;
+        if prev2 >= 0 && (prev2 as usize) < n {
+            let p2 = prev2 as usize;
+            let p2t = GenPose {
+                pose: transfer(
+                    &transfer(&poses[p2].pose, &frames[p2], &frames[prev_i]),
+                    &frames[prev_i],
+                    &frames[i],
+                ),
+                states: poses[p2].states.clone(),
+            };
+            seeds.push(extrapolate(&p2t, &carried, &model.tree));
+        }
+        let results: Vec<Result<(GenPose, f64), TrackError>> = seeds
+            .par_iter()
+            .enumerate()
+            .map(|(k, g)| {
+                s.polish(
+                    &frames[i],
+                    g,
+                    cfg.seed + 104_729 * (i as u64 + 1) + k as u64,
+                )
+            })
+            .collect();
+        let mut found = best_of(results)?;
+        let reached = found.as_ref().map_or(f64::NEG_INFINITY, |r| r.1);
+        if reached.max(scores[i]) < scores[prev_i] - FAR_MARGIN {
+            let seed = cfg.seed + 65537 * (i as u64 + 1);
+            if let Some(w) = s
+                .wide(&frames[i], &carried, &carried, (seed, seed))?
+                .filter(|w| w.1 > reached)
+            {
+                found = Some(w);
+            }
+        }
+        if let Some((g, sc)) = found.filter(|r| r.1 >= scores[i] - CARRY_TIE) {
+            let moved = angle_deg(&(g.pose.rotation * poses[i].pose.rotation.inverse()));
+            log.push(format!(
+                "{}: carried from {} (anchor side), IoU {:.4} → {sc:.4}, {moved:.1}° from its refined pose",
+                frames[i].name, frames[prev_i].name, scores[i]
+            ));
+            poses[i] = g;
+            scores[i] = sc;
+        }
+    }
+    if cfg.consistency_pass && n >= 2 {
+        consistency(&s, frames, &mut poses, &mut scores, &fixed, &mut log)?;
+    }
+    if cfg.sequence_choice && n >= 2 {
+        choose_sequence(&s, frames, &mut poses, &mut scores, &fixed, &mut log)?;
+    }
+    let init_frame = anchors.first().copied().unwrap_or_else(|| {
+        (0..n)
+            .max_by(|&a, &b| scores[a].total_cmp(&scores[b]))
+            .unwrap_or(0)
+    });
+    Ok(TrackResult {
+        poses,
+        scores,
+        init_frame,
+        log: log.lines,
+        evaluations: s.evals.into_inner(),
+    })
+}
+
 /// The "VLM-free" baseline of the paper's ablation: every frame on its own, differential
 /// evolution over the whole pose space (every rotation, the joints' full ranges, ±10% of the
 /// image around the mask, ±30% in depth) from an uninformed start (identity rotation, joints
@@ -915,7 +1152,8 @@ pub fn track_independent(
                 total_evals: evals_per_frame.max(60),
                 seed: cfg.seed + 7919 * i as u64,
                 ..SweepConfig::default()
-            },
+            }
+            .scipy_stop(),
         )?;
         s.evals
             .fetch_add(r.n_evals, std::sync::atomic::Ordering::Relaxed);

@@ -2,18 +2,21 @@
 //! masks, with no agent, and write `pose.json`.
 
 use crate::cmd::score::{print_table, summarise};
-use crate::common::{open_capture, open_model, print_json, write_tracked_poses, Session, PASS_IOU};
+use crate::common::{
+    open_capture, open_model, print_json, select_frames, write_tracked_poses, Session, PASS_IOU,
+};
 use agentstar_agent::reports::TrackReport;
 use agentstar_data::posefile::PoseFile;
 use agentstar_render::ScoreTarget;
-use agentstar_track::tracker::{track_observed, TrackConfig, TrackFrame};
-use anyhow::{bail, Result};
+use agentstar_track::tracker::{track_from, track_observed, TrackConfig, TrackFrame};
+use agentstar_track::GenPose;
+use anyhow::{anyhow, bail, Context, Result};
 use std::path::PathBuf;
 use std::process::ExitCode;
 
 #[derive(clap::Args)]
 #[command(
-    after_help = "Example:\n  agentstar track cap --model run/scene.rhai --scale 0.24 --out run/pose.json"
+    after_help = "Examples:\n  agentstar track cap --model run/scene.rhai --scale 0.24 --out run/pose.json\n  agentstar track cap --model run/scene.rhai --from run/pose.json --anchors 000040,000120..000130 --out run/pose.json"
 )]
 pub struct Args {
     /// The capture directory.
@@ -27,6 +30,14 @@ pub struct Args {
     /// A pose file whose scale to use.
     #[arg(long)]
     scale_from: Option<PathBuf>,
+    /// Refine these poses instead of tracking from scratch (a warm start; its scale is used
+    /// unless --scale is given). Cheap after a shape edit.
+    #[arg(long)]
+    from: Option<PathBuf>,
+    /// With --from: frames kept exactly as they are and carried to their neighbours (names,
+    /// stems or `a..b` ranges, comma separated, as --frames takes them).
+    #[arg(long, requires = "from")]
+    anchors: Option<String>,
     /// Where to write the tracked poses.
     #[arg(long)]
     out: PathBuf,
@@ -39,6 +50,10 @@ pub struct Args {
     /// Skip the final consistency pass (the "no temporal" ablation).
     #[arg(long)]
     no_temporal: bool,
+    /// End with the sequence-level choice: every frame's twins (flips, principal half-turns)
+    /// refined, one basin per frame by dynamic programming over the sequence.
+    #[arg(long, conflicts_with = "no_temporal")]
+    sequence_choice: bool,
     /// Print the result as JSON on stdout.
     #[arg(long)]
     json: bool,
@@ -47,10 +62,12 @@ pub struct Args {
 pub fn run(a: Args) -> Result<ExitCode> {
     let capture = open_capture(&a.capture)?;
     let model = open_model(&a.model)?;
-    let scale = match (a.scale, &a.scale_from) {
-        (Some(s), _) => s,
-        (None, Some(p)) => PoseFile::read(p)?.scale,
-        (None, None) => bail!("the tracker needs the object's scale: give --scale S (p_cam = s·R·p + t) or --scale-from pose.json"),
+    let from = a.from.as_deref().map(PoseFile::read).transpose()?;
+    let scale = match (a.scale, &a.scale_from, &from) {
+        (Some(s), _, _) => s,
+        (None, Some(p), _) => PoseFile::read(p)?.scale,
+        (None, None, Some(f)) => f.scale,
+        (None, None, None) => bail!("the tracker needs the object's scale: give --scale S (p_cam = s·R·p + t), --scale-from pose.json or --from pose.json"),
     };
     let targets: Vec<ScoreTarget> = (0..capture.frames.len())
         .map(|i| {
@@ -75,16 +92,44 @@ pub fn run(a: Args) -> Result<ExitCode> {
         seed: a.seed,
         local_evals: a.evals,
         consistency_pass: !a.no_temporal,
+        sequence_choice: a.sequence_choice,
         ..TrackConfig::default()
     };
     let t0 = std::time::Instant::now();
     let bar = crate::common::progress(frames.len(), "track");
-    let r = track_observed(&model.model, scale, &frames, &cfg, &|line: &str| {
+    let observe = |line: &str| {
         if bar.position() < bar.length().unwrap_or(0) {
             bar.inc(1);
         }
         bar.suspend(|| eprintln!("track: {line}"));
-    })?;
+    };
+    let r = match (&from, &a.from) {
+        (Some(f), Some(path)) => {
+            let start: Vec<GenPose> = f
+                .resolve(&capture, &model.model.tree)
+                .map_err(|e| anyhow!("{}: {e}", path.display()))?
+                .into_iter()
+                .map(|p| GenPose {
+                    pose: p.pose,
+                    states: p.states,
+                })
+                .collect();
+            let anchors = match &a.anchors {
+                Some(spec) => select_frames(&capture, Some(spec)).context("--anchors")?,
+                None => vec![],
+            };
+            track_from(
+                &model.model,
+                scale,
+                &frames,
+                &start,
+                &anchors,
+                &cfg,
+                &observe,
+            )?
+        }
+        _ => track_observed(&model.model, scale, &frames, &cfg, &observe)?,
+    };
     bar.finish_and_clear();
     let seconds = t0.elapsed().as_secs_f64();
     let (pose_file, written) =

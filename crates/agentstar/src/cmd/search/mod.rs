@@ -14,6 +14,7 @@ use agentstar_data::posefile::pose_json;
 use agentstar_geom::{KinematicTree, Point3, UnitQuaternion};
 use agentstar_render::views::{contact_sheet, overlay, shade, silhouette_comparison, ShadeOptions};
 use agentstar_render::{render_full, PosedModel};
+use agentstar_track::hypotheses::{refine_each, refine_ranked, LocalWindow};
 use agentstar_track::objective::{CandidateScore, FrameProblem};
 use agentstar_track::search::{sweep, Strategy, SweepConfig, SweepResult};
 use agentstar_track::space::{
@@ -316,8 +317,12 @@ fn rows_from(result: SweepResult, space: &SearchSpace, tree: &KinematicTree) -> 
         .into_iter()
         .map(|c| Row {
             rank: c.rank,
-            label: order_string(space, &c.x, tree),
-            extra: json!({"restart": c.restart, "seed": c.seed, "pass": c.pass, "x": c.x}),
+            label: if c.kept_start {
+                "start (no search result beat it)".into()
+            } else {
+                order_string(space, &c.x, tree)
+            },
+            extra: json!({"restart": c.restart, "seed": c.seed, "pass": c.pass, "x": c.x, "kept_start": c.kept_start, "unrefined": c.unrefined.map(|u| u.combined)}),
             pose: c.pose,
             score: c.score,
         })

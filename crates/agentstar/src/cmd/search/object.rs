@@ -31,6 +31,9 @@ pub struct OsweepArgs {
     /// Ranked candidates kept per frame.
     #[arg(long, default_value_t = 10)]
     topk: usize,
+    /// Rank the candidates as placed, without refining each locally first.
+    #[arg(long)]
+    no_refine: bool,
 }
 
 #[derive(clap::Args)]
@@ -46,6 +49,9 @@ pub struct OapplyArgs {
     /// Candidates separated by `|`, terms by `;`: `identity|flip:x|rz:90;rx:10`, or `flips`.
     #[arg(long, default_value = "flips")]
     set: String,
+    /// Rank the candidates as placed, without refining each locally first.
+    #[arg(long)]
+    no_refine: bool,
 }
 
 #[derive(clap::Args)]
@@ -181,7 +187,10 @@ pub fn run_osweep(a: OsweepArgs) -> Result<ExitCode> {
                 },
             )
         };
-        let r = sweep(&p, &space, &cfg)?;
+        let mut r = sweep(&p, &space, &cfg)?;
+        if !a.no_refine {
+            r = refine_ranked(&p, r, &LocalWindow::basin(), 17)?;
+        }
         outputs.push(FrameOutput {
             frame: s.capture.frames[i].name.clone(),
             rows: rows_from(r, &space, tree),
@@ -272,6 +281,16 @@ pub fn run_oapply(a: OapplyArgs) -> Result<ExitCode> {
                 }
             })
             .collect();
+        if !a.no_refine {
+            let placed: Vec<GenPose> = rows.iter().map(|r| r.pose.clone()).collect();
+            for (r, f) in rows
+                .iter_mut()
+                .zip(refine_each(&p, &placed, &LocalWindow::basin(), 17)?)
+            {
+                r.extra = json!({"unrefined": f.unrefined.combined});
+                (r.pose, r.score) = (f.pose, f.score);
+            }
+        }
         rows.sort_by(|x, y| y.score.combined.total_cmp(&x.score.combined));
         for (k, r) in rows.iter_mut().enumerate() {
             r.rank = k;

@@ -1,0 +1,391 @@
+//! Hypotheses refined before they are compared. A flip or a covering rotation placed on the
+//! mask scores what its unrefined pose scores (the right flip of a slightly wrong pose may
+//! score 0.7 against a wrong pose's 0.93); only after a local search around each does the
+//! comparison say which basin is right. Shared by the tracker and the object verbs
+//! (`oapply`, `osweep`).
+
+use crate::objective::{CandidateScore, FrameProblem};
+use crate::search::{rank, sweep, SweepConfig, SweepResult};
+use crate::space::{joint_default, Dof, DofRange, SearchSpace};
+use crate::update::{apply_object_rotation, flip, GenPose};
+use crate::TrackError;
+use agentstar_geom::nalgebra::{Matrix3, Quaternion, Unit};
+use agentstar_geom::{ObjectModel, Point3, UnitQuaternion, Vector3};
+use agentstar_optim::Rng;
+use rayon::prelude::*;
+
+/// The box of a local refinement around a pose: camera-frame rotation and image-plane
+/// shift (fractions of the depth), depth (fraction), joints (degrees, or that share of a
+/// prismatic joint's range per 180°), and the evaluations of its first pass.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LocalWindow {
+    pub angle_deg: f64,
+    pub shift: f64,
+    pub depth: f64,
+    pub joint_deg: f64,
+    pub evals: usize,
+}
+
+impl LocalWindow {
+    /// Around a pose that is already close: 12°, 4% shift, 8% depth, 20° of joint, 1,200
+    /// evaluations in the first pass (about 2,500 in all): the tracker's polish.
+    pub fn polish() -> Self {
+        LocalWindow {
+            angle_deg: 12.0,
+            shift: 0.04,
+            depth: 0.08,
+            joint_deg: 20.0,
+            evals: 1200,
+        }
+    }
+
+    /// Around a candidate that may be a whole basin away from where it was placed (a flip,
+    /// a covering rotation): 25°, 6% shift, 15% depth, 60° of joint.
+    pub fn basin() -> Self {
+        LocalWindow {
+            angle_deg: 25.0,
+            shift: 0.06,
+            depth: 0.15,
+            joint_deg: 60.0,
+            evals: 2400,
+        }
+    }
+}
+
+/// The local search box around a pose: camera-frame increments and joints around their state.
+pub(crate) fn local_space(
+    model: &ObjectModel,
+    base: &GenPose,
+    angle: f64,
+    shift: f64,
+    depth: f64,
+    joint_deg: f64,
+) -> SearchSpace {
+    let mut ranges: Vec<DofRange> = [
+        (Dof::Roll, angle),
+        (Dof::Yaw, angle),
+        (Dof::Pitch, angle),
+        (Dof::Dpx, shift),
+        (Dof::Dpy, shift),
+        (Dof::Tz, depth),
+    ]
+    .into_iter()
+    .map(|(dof, half)| DofRange {
+        dof,
+        lo: -half,
+        hi: half,
+        steps: None,
+    })
+    .collect();
+    for (j, jd) in model.tree.joints().iter().enumerate() {
+        if !jd.kind.has_state() {
+            continue;
+        }
+        let (dlo, dhi) = joint_default(&model.tree, j);
+        let cur = jd.to_interface(base.states[j]);
+        let span = if jd.kind.is_angular() {
+            joint_deg
+        } else {
+            joint_deg / 180.0 * (dhi - dlo).abs().max(1e-6)
+        };
+        let (lo, hi) = ((cur - span).max(dlo), (cur + span).min(dhi));
+        ranges.push(DofRange {
+            dof: Dof::Joint(j),
+            lo: lo.min(hi),
+            hi: hi.max(lo),
+            steps: None,
+        });
+    }
+    SearchSpace {
+        ranges,
+        notes: vec![],
+    }
+}
+
+/// A refined hypothesis.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Refined {
+    pub pose: GenPose,
+    pub score: CandidateScore,
+    /// What the hypothesis scored where it was placed, before the refinement.
+    pub unrefined: CandidateScore,
+    pub evals: usize,
+}
+
+/// Differential evolution around `base` in the window, then passes in shrinking boxes
+/// re-centred on the best so far (each re-based, so its pivot follows), the last with a
+/// Nelder–Mead polish. `problem` supplies the model, camera, target, depth and scale; its
+/// base is ignored. Never worse than `base`: every pass starts from the best so far.
+pub fn refine_local(
+    problem: &FrameProblem<'_>,
+    base: &GenPose,
+    window: &LocalWindow,
+    seed: u64,
+) -> Result<(GenPose, f64, usize), TrackError> {
+    let evals = window.evals;
+    let passes = [
+        (1.0, evals, 0usize),
+        (0.3, evals / 2, 0),
+        (0.1, evals / 3, 0),
+        (0.04, evals / 4, 300),
+    ];
+    let mut best = base.clone();
+    let mut best_score = f64::NEG_INFINITY;
+    let mut n_evals = 0;
+    for (k, &(f, n, polish)) in passes.iter().enumerate() {
+        let mut p = problem.clone();
+        p.pivot = p.model.pivot(&best.states);
+        p.base = best.clone();
+        let space = local_space(
+            p.model,
+            &best,
+            (window.angle_deg * f).max(0.5),
+            (window.shift * f).max(0.002),
+            (window.depth * f).max(0.004),
+            (window.joint_deg * f).max(1.0),
+        );
+        let cfg = SweepConfig {
+            restarts: 2,
+            total_evals: n.max(40),
+            seed: seed + 1000 * k as u64,
+            polish_evals: polish,
+            ..SweepConfig::default()
+        }
+        .scipy_stop();
+        let r = sweep(&p, &space, &cfg)?;
+        n_evals += r.n_evals;
+        let top = r
+            .ranked
+            .into_iter()
+            .next()
+            .ok_or_else(|| TrackError::Invalid("empty search".into()))?;
+        if top.score.combined >= best_score {
+            best_score = top.score.combined;
+            best = top.pose;
+        }
+    }
+    Ok((best, best_score, n_evals))
+}
+
+/// Every hypothesis refined in `window` (in parallel, seeds `seed + k`), in input order.
+/// Rank them by `score`, not `unrefined`.
+pub fn refine_each(
+    problem: &FrameProblem<'_>,
+    hypotheses: &[GenPose],
+    window: &LocalWindow,
+    seed: u64,
+) -> Result<Vec<Refined>, TrackError> {
+    hypotheses
+        .par_iter()
+        .enumerate()
+        .map(|(k, h)| {
+            let unrefined = problem.evaluator().score(h);
+            let (pose, _, evals) = refine_local(problem, h, window, seed + k as u64)?;
+            let score = problem.evaluator().score(&pose);
+            Ok(Refined {
+                pose,
+                score,
+                unrefined,
+                evals,
+            })
+        })
+        .collect()
+}
+
+/// A sweep's ranked candidates each refined in `window` and ranked again by their refined
+/// scores (the start, when kept, stays as it is): what `oapply` and `osweep` rank by default.
+pub fn refine_ranked(
+    problem: &FrameProblem<'_>,
+    mut result: SweepResult,
+    window: &LocalWindow,
+    seed: u64,
+) -> Result<SweepResult, TrackError> {
+    let poses: Vec<GenPose> = result.ranked.iter().map(|c| c.pose.clone()).collect();
+    let refined = refine_each(problem, &poses, window, seed)?;
+    let n = result.ranked.len();
+    for (c, r) in result.ranked.iter_mut().zip(refined) {
+        if c.kept_start {
+            continue;
+        }
+        result.n_evals += r.evals;
+        c.unrefined = Some(c.score);
+        c.pose = r.pose;
+        c.score = r.score;
+    }
+    result.ranked = rank(result.ranked, n);
+    Ok(result)
+}
+
+/// The posed model's surface centroid and principal axes (area-weighted second moments of
+/// the triangles, in the canonical frame at these joint states), largest spread first. A
+/// half-turn about a principal axis is the twin of any shape symmetric about it, whatever
+/// the joint state makes of it: two slabs of one outline hinged together (lid ↔ base) are
+/// swapped by the half-turn about the axis that bisects them, which is principal.
+pub fn principal_axes(model: &ObjectModel, states: &[f64]) -> Option<(Point3, [Vector3; 3])> {
+    let transforms = model.tree.part_transforms(states);
+    let mut samples: Vec<(Point3, f64)> = Vec::new();
+    for (part, t) in model.parts.iter().zip(&transforms) {
+        let m = &part.mesh;
+        for tri in &m.triangles {
+            let [a, b, c] = tri.map(|k| t * m.positions[k as usize]);
+            let area = 0.5 * (b - a).cross(&(c - a)).norm();
+            if area > 0.0 && area.is_finite() {
+                samples.push((Point3::from((a.coords + b.coords + c.coords) / 3.0), area));
+            }
+        }
+    }
+    let total: f64 = samples.iter().map(|s| s.1).sum();
+    if samples.is_empty() || total <= 0.0 {
+        return None;
+    }
+    let centre = samples.iter().map(|(p, w)| p.coords * *w).sum::<Vector3>() / total;
+    let mut cov = Matrix3::zeros();
+    for (p, w) in &samples {
+        let d = p.coords - centre;
+        cov += d * d.transpose() * *w;
+    }
+    let eig = (cov / total).symmetric_eigen();
+    let mut order = [0usize, 1, 2];
+    order.sort_by(|&i, &j| eig.eigenvalues[j].total_cmp(&eig.eigenvalues[i]));
+    let axes = order.map(|i| eig.eigenvectors.column(i).into_owned().normalize());
+    axes.iter()
+        .all(|a| a.iter().all(|v| v.is_finite()))
+        .then_some((Point3::from(centre), axes))
+}
+
+/// The twins of a pose that every comparison of basins should include: its 180° flips about
+/// the object's axes through the pivot, and the half-turns about the model's principal axes
+/// through its centroid (lid ↔ base swaps and the symmetries of box-like shapes).
+pub fn twin_candidates(model: &ObjectModel, scale: f64, around: &GenPose) -> Vec<GenPose> {
+    let pivot = model.pivot(&around.states);
+    let mut moves: Vec<(UnitQuaternion, Point3)> = ['x', 'y', 'z']
+        .iter()
+        .filter_map(|&a| flip(a))
+        .map(|q| (q, pivot))
+        .collect();
+    if let Some((centre, axes)) = principal_axes(model, &around.states) {
+        moves.extend(axes.iter().map(|a| {
+            (
+                UnitQuaternion::from_axis_angle(&Unit::new_normalize(*a), std::f64::consts::PI),
+                centre,
+            )
+        }));
+    }
+    moves
+        .iter()
+        .map(|(q, c)| GenPose {
+            pose: apply_object_rotation(&around.pose, scale, c, q),
+            states: around.states.clone(),
+        })
+        .collect()
+}
+
+/// Distinct basins of one frame around a pose: the pose itself, its 180° flips about the
+/// object's axes through the pivot, the candidate twins of the model's own shape (half and
+/// quarter turns about its principal axes through its centroid, half turns about 24 axes
+/// spread over the sphere), and `covering` seeded uniform rotations about the pivot. The
+/// pose, its flips and the principal half-turns are always refined; the rest by their
+/// placed score, at least 30° apart, up to `refine` in all. The refined hypotheses come back
+/// best first, merged where two reached the same basin (within 5° of rotation and of every
+/// joint), so a caller sees every basin that explains the mask.
+pub fn basins(
+    problem: &FrameProblem<'_>,
+    around: &GenPose,
+    covering: usize,
+    refine: usize,
+    window: &LocalWindow,
+    seed: u64,
+) -> Result<Vec<Refined>, TrackError> {
+    let pivot = problem.model.pivot(&around.states);
+    let half_turn = |axis: &Vector3| {
+        UnitQuaternion::from_axis_angle(&Unit::new_normalize(*axis), std::f64::consts::PI)
+    };
+    // (rotation, centre) pairs; the first `always` are refined whatever they score.
+    let mut moves: Vec<(UnitQuaternion, Point3)> = vec![(UnitQuaternion::identity(), pivot)];
+    moves.extend(
+        ['x', 'y', 'z']
+            .iter()
+            .filter_map(|&a| flip(a))
+            .map(|q| (q, pivot)),
+    );
+    let mut always = moves.len();
+    if let Some((centre, axes)) = principal_axes(problem.model, &around.states) {
+        moves.extend(axes.iter().map(|a| (half_turn(a), centre)));
+        always = moves.len();
+        for a in &axes {
+            for sign in [-1.0, 1.0] {
+                let q = UnitQuaternion::from_axis_angle(
+                    &Unit::new_normalize(*a),
+                    sign * std::f64::consts::FRAC_PI_2,
+                );
+                moves.push((q, centre));
+            }
+        }
+        // Half turns about axes spread over a hemisphere (golden-angle spiral).
+        let n = 24;
+        for k in 0..n {
+            let z = (k as f64 + 0.5) / n as f64;
+            let r = (1.0 - z * z).sqrt();
+            let phi = k as f64 * 2.399_963_229_728_653;
+            let axis = axes[0] * (r * phi.cos()) + axes[1] * (r * phi.sin()) + axes[2] * z;
+            moves.push((half_turn(&axis), centre));
+        }
+    }
+    let mut rng = Rng::new(seed);
+    let target_len = moves.len() + covering;
+    while moves.len() < target_len {
+        let q = Quaternion::new(rng.normal(), rng.normal(), rng.normal(), rng.normal());
+        if q.norm() > 1e-6 {
+            moves.push((UnitQuaternion::from_quaternion(q), pivot));
+        }
+    }
+    let placed: Vec<GenPose> = moves
+        .iter()
+        .map(|(q, c)| GenPose {
+            pose: apply_object_rotation(&around.pose, problem.scale, c, q),
+            states: around.states.clone(),
+        })
+        .collect();
+    let scores: Vec<f64> = placed
+        .par_iter()
+        .map_init(|| problem.evaluator(), |ev, g| ev.combined(g))
+        .collect();
+    let mut order: Vec<usize> = (0..placed.len()).collect();
+    order[always..].sort_by(|&a, &b| scores[b].total_cmp(&scores[a]));
+    let mut chosen: Vec<GenPose> = Vec::new();
+    for (rank, &k) in order.iter().enumerate() {
+        if chosen.len() >= refine.max(always) {
+            break;
+        }
+        let g = &placed[k];
+        if rank < always
+            || chosen
+                .iter()
+                .all(|c| c.pose.rotation.angle_to(&g.pose.rotation).to_degrees() >= 30.0)
+        {
+            chosen.push(g.clone());
+        }
+    }
+    let mut refined = refine_each(problem, &chosen, window, seed)?;
+    refined.sort_by(|a, b| b.score.combined.total_cmp(&a.score.combined));
+    let mut distinct: Vec<Refined> = Vec::new();
+    for r in refined {
+        let same = distinct.iter().any(|d| {
+            d.pose
+                .pose
+                .rotation
+                .angle_to(&r.pose.pose.rotation)
+                .to_degrees()
+                < 5.0
+                && d.pose
+                    .states
+                    .iter()
+                    .zip(&r.pose.states)
+                    .all(|(a, b)| (a - b).abs().to_degrees() < 5.0)
+        });
+        if !same {
+            distinct.push(r);
+        }
+    }
+    Ok(distinct)
+}
