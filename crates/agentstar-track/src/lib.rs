@@ -4,6 +4,7 @@
 //! (differential evolution with restarts, grids, explicit candidates), temporal
 //! diagnostics, and an automatic tracker for a known model. No file I/O.
 
+pub mod appearance;
 pub mod hypotheses;
 pub mod objective;
 pub mod search;

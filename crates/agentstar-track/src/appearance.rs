@@ -1,0 +1,507 @@
+//! The appearance term: the frames' colours rank poses whose silhouettes are identical.
+//!
+//! Photometric consistency of the model's surface across keyframes. For a candidate pose of
+//! one frame, the model is rendered (full renderer: depth and part per pixel); each sampled
+//! pixel that is both rendered and observed (inside the frame's object mask, so not under a
+//! hand) is lifted to a point on its part's surface, and that point is carried by the other
+//! frames' current poses into their images. Where it is visible there (the other frame's
+//! depth buffer shows the same part at the same depth, and its mask says object) the two
+//! colours form a pair; where the other frame observes the object but its rendering hides
+//! the point, the sample counts as uncorrelated (NCC 0). Pairs are grouped per (other frame, part) and scored by normalised
+//! cross-correlation over the three channels (each channel's mean removed, so a gain and an
+//! offset per part — lighting, exposure, white balance — do not matter). The candidate's
+//! [`AppearanceScore::ncc`] is the pair-weighted mean over groups; its
+//! [`AppearanceScore::cost`] is `1 − ncc` (0 best, 2 worst).
+//!
+//! A wrong pose with the right outline (a can turned half way about its axis, a laptop with
+//! lid and base swapped) lifts pixels to the wrong surface points, so the colours it carries
+//! into the other frames do not correlate with theirs. An object without texture (a plain
+//! bottle) gives the same pairs under every pose of its symmetry, so the scores tie and
+//! [`choose`] answers [`Choice::Ambiguous`]; groups whose colours barely vary (less than
+//! [`AppearanceConfig::min_std`] per channel) in both frames carry no information and are
+//! skipped, so an untextured object with flat shading reports no evidence rather than a
+//! score; a group with texture on one side only (a label carried onto a plain back) counts
+//! as uncorrelated (NCC 0).
+//!
+//! Use, per keyframe and hypothesis (no I/O):
+//! ```text
+//! let refs: Vec<ReferenceView> = other frames → ReferenceView::new(model, scale, frame, &pose_j)
+//! let s = appearance_score(model, scale, &frame_i, &candidate, &refs, &cfg);   // per hypothesis
+//! match choose(&[s_a, s_b, …], &cfg) { Choice::Best(k) => …, Choice::Ambiguous { .. } => … }
+//! ```
+//! A [`ReferenceView`] renders its frame once; build them once per round of the tracker and
+//! reuse them for every hypothesis of every other frame. One evaluation is one render of the
+//! candidate plus a strided pass over its pixels (see `bench` for the measured time).
+
+use crate::update::GenPose;
+use agentstar_geom::pose::Similarity;
+use agentstar_geom::{ObjectModel, PinholeCamera, Point3};
+use agentstar_render::{render_full, BitMask, PosedModel, RenderBuffers, NO_PART};
+
+/// One keyframe's observation: camera, colour image (RGB, 8 bits, row-major, as
+/// `image::RgbImage::as_raw`) and the observed object mask (hands excluded).
+#[derive(Debug, Clone, Copy)]
+pub struct AppearanceFrame<'a> {
+    pub camera: &'a PinholeCamera,
+    pub rgb: &'a [u8],
+    pub mask: &'a BitMask,
+}
+
+impl AppearanceFrame<'_> {
+    fn colour(&self, x: u32, y: u32) -> [f64; 3] {
+        let i = 3 * (y as usize * self.camera.width as usize + x as usize);
+        [
+            self.rgb[i] as f64,
+            self.rgb[i + 1] as f64,
+            self.rgb[i + 2] as f64,
+        ]
+    }
+    fn valid(&self) -> bool {
+        let (w, h) = (self.camera.width, self.camera.height);
+        self.rgb.len() == 3 * w as usize * h as usize
+            && self.mask.width() == w
+            && self.mask.height() == h
+    }
+}
+
+/// Tuning of the term.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct AppearanceConfig {
+    /// Sample every `stride`-th pixel in x and y of the candidate's rendering (2: a quarter).
+    pub stride: u32,
+    /// Depth agreement for visibility in another frame: relative to the depth, plus a floor
+    /// in metres.
+    pub depth_tolerance: f64,
+    pub depth_floor_m: f64,
+    /// Fewest pairs for a (frame, part) group to count.
+    pub min_pairs: usize,
+    /// Least standard deviation (8-bit units, per channel, averaged) of a group's colours in
+    /// both frames for it to carry information.
+    pub min_std: f64,
+    /// Two candidates whose NCC differ by less than this are not told apart.
+    pub margin: f64,
+}
+
+impl Default for AppearanceConfig {
+    fn default() -> Self {
+        AppearanceConfig {
+            stride: 2,
+            depth_tolerance: 0.01,
+            depth_floor_m: 0.002,
+            min_pairs: 24,
+            min_std: 4.0,
+            margin: 0.05,
+        }
+    }
+}
+
+/// Another keyframe at its current pose, rendered once.
+#[derive(Debug, Clone)]
+pub struct ReferenceView<'a> {
+    frame: AppearanceFrame<'a>,
+    buffers: RenderBuffers,
+    /// Part frame → this camera (with the object scale).
+    camera_from_part: Vec<Similarity>,
+}
+
+fn camera_from_parts(model: &ObjectModel, scale: f64, pose: &GenPose) -> Vec<Similarity> {
+    let cam = pose.pose.with_scale(scale);
+    model
+        .tree
+        .part_transforms(&pose.states)
+        .iter()
+        .map(|t| cam.compose(&Similarity::from_rigid(t)))
+        .collect()
+}
+
+impl<'a> ReferenceView<'a> {
+    /// `None` when the frame's image or mask does not match its camera's size.
+    pub fn new(
+        model: &ObjectModel,
+        scale: f64,
+        frame: AppearanceFrame<'a>,
+        pose: &GenPose,
+    ) -> Option<ReferenceView<'a>> {
+        if !frame.valid() {
+            return None;
+        }
+        let posed = PosedModel::new(model, &pose.states, &pose.pose.with_scale(scale));
+        Some(ReferenceView {
+            frame,
+            buffers: render_full(frame.camera, &posed.instances),
+            camera_from_part: camera_from_parts(model, scale, pose),
+        })
+    }
+}
+
+/// The appearance evidence for one candidate pose.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct AppearanceScore {
+    /// Pair-weighted mean NCC over informative groups, in [−1, 1]; `None` without any.
+    pub ncc: Option<f64>,
+    /// Pairs in informative groups.
+    pub pairs: usize,
+    /// Informative (frame, part) groups.
+    pub groups: usize,
+}
+
+impl AppearanceScore {
+    /// `1 − ncc` (0 best, 2 worst); `None` without evidence.
+    pub fn cost(&self) -> Option<f64> {
+        self.ncc.map(|n| 1.0 - n)
+    }
+}
+
+/// Running sums of one (frame, part) group.
+#[derive(Debug, Clone, Copy, Default)]
+struct Group {
+    n: usize,
+    sa: [f64; 3],
+    sb: [f64; 3],
+    saa: [f64; 3],
+    sbb: [f64; 3],
+    sab: [f64; 3],
+}
+
+impl Group {
+    fn add(&mut self, a: [f64; 3], b: [f64; 3]) {
+        self.n += 1;
+        for c in 0..3 {
+            self.sa[c] += a[c];
+            self.sb[c] += b[c];
+            self.saa[c] += a[c] * a[c];
+            self.sbb[c] += b[c] * b[c];
+            self.sab[c] += a[c] * b[c];
+        }
+    }
+    /// NCC over the channels (per-channel means removed), or `None` when too flat or small.
+    fn ncc(&self, cfg: &AppearanceConfig) -> Option<f64> {
+        if self.n < cfg.min_pairs.max(2) {
+            return None;
+        }
+        let n = self.n as f64;
+        let (mut cov, mut va, mut vb) = (0.0, 0.0, 0.0);
+        for c in 0..3 {
+            cov += self.sab[c] - self.sa[c] * self.sb[c] / n;
+            va += (self.saa[c] - self.sa[c] * self.sa[c] / n).max(0.0);
+            vb += (self.sbb[c] - self.sb[c] * self.sb[c] / n).max(0.0);
+        }
+        let min_var = n * 3.0 * cfg.min_std * cfg.min_std;
+        match (va < min_var, vb < min_var) {
+            // Flat in both frames: no information.
+            (true, true) => return None,
+            // Texture in one frame, none where it lands in the other: no correlation.
+            (true, false) | (false, true) => return Some(0.0),
+            (false, false) => {}
+        }
+        Some((cov / (va * vb).sqrt()).clamp(-1.0, 1.0))
+    }
+}
+
+/// The appearance score of `candidate` for `frame` against the other frames' views.
+pub fn appearance_score(
+    model: &ObjectModel,
+    scale: f64,
+    frame: &AppearanceFrame<'_>,
+    candidate: &GenPose,
+    references: &[ReferenceView<'_>],
+    cfg: &AppearanceConfig,
+) -> AppearanceScore {
+    let none = AppearanceScore {
+        ncc: None,
+        pairs: 0,
+        groups: 0,
+    };
+    if !frame.valid() || references.is_empty() {
+        return none;
+    }
+    let cam = frame.camera;
+    let posed = PosedModel::new(model, &candidate.states, &candidate.pose.with_scale(scale));
+    let buffers = render_full(cam, &posed.instances);
+    let part_from_camera: Vec<Similarity> = camera_from_parts(model, scale, candidate)
+        .iter()
+        .map(|s| s.inverse())
+        .collect();
+    let n_parts = model.parts.len();
+    let mut groups = vec![Group::default(); references.len() * n_parts];
+    let stride = cfg.stride.max(1);
+    let mut occluded = 0usize;
+    // The candidate frame's own sampled colours: without texture, nothing to compare.
+    let mut own = Group::default();
+    let (w, h) = (cam.width, cam.height);
+    let mut y = stride / 2;
+    while y < h {
+        let mut x = stride / 2;
+        while x < w {
+            let i = (y * w + x) as usize;
+            let part = buffers.part[i];
+            if part != NO_PART && (part as usize) < n_parts && frame.mask.get(x, y) {
+                let z = buffers.depth[i] as f64;
+                let q = Point3::from(cam.ray_direction(x as f64 + 0.5, y as f64 + 0.5) * z);
+                let local = part_from_camera[part as usize].transform_point(&q);
+                let a = frame.colour(x, y);
+                own.add(a, a);
+                for (r, view) in references.iter().enumerate() {
+                    let qj = view.camera_from_part[part as usize].transform_point(&local);
+                    let Some((u, v)) = view.frame.camera.project(&qj) else {
+                        continue;
+                    };
+                    let (rw, rh) = (view.frame.camera.width, view.frame.camera.height);
+                    if !(u >= 0.0 && v >= 0.0 && u < rw as f64 && v < rh as f64) {
+                        continue;
+                    }
+                    let (ux, vy) = (u as u32, v as u32);
+                    let j = (vy * rw + ux) as usize;
+                    if !view.frame.mask.get(ux, vy) {
+                        continue;
+                    }
+                    let zj = view.buffers.depth[j] as f64;
+                    if view.buffers.part[j] != part
+                        || (zj - qj.z).abs() > cfg.depth_tolerance * qj.z + cfg.depth_floor_m
+                    {
+                        // Seen here, hidden there although the object is observed there: the
+                        // candidate puts this pixel on surface the other frame cannot see.
+                        occluded += 1;
+                        continue;
+                    }
+                    groups[r * n_parts + part as usize].add(a, view.frame.colour(ux, vy));
+                }
+            }
+            x += stride;
+        }
+        y += stride;
+    }
+    let (mut sum, mut pairs, mut count) = (0.0, 0usize, 0usize);
+    for g in &groups {
+        if let Some(ncc) = g.ncc(cfg) {
+            sum += ncc * g.n as f64;
+            pairs += g.n;
+            count += 1;
+        }
+    }
+    if (pairs == 0 && occluded < cfg.min_pairs) || own.ncc(cfg).is_none() {
+        return none;
+    }
+    // Samples hidden in the other frames count as uncorrelated (NCC 0).
+    AppearanceScore {
+        ncc: Some(sum / (pairs + occluded) as f64),
+        pairs,
+        groups: count,
+    }
+}
+
+/// The appearance term's verdict over hypotheses of one frame.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Choice {
+    /// This hypothesis looks right, by more than the margin over every other.
+    Best(usize),
+    /// Appearance cannot tell these apart: `best` scores highest but `runner_up` is within
+    /// the margin, or (both `None`) no hypothesis has evidence (untextured or unseen).
+    Ambiguous {
+        best: Option<usize>,
+        runner_up: Option<usize>,
+    },
+}
+
+/// Chooses among hypotheses' scores (their indices as given). Hypotheses without evidence
+/// never win; a single hypothesis with evidence is [`Choice::Best`].
+pub fn choose(scores: &[AppearanceScore], cfg: &AppearanceConfig) -> Choice {
+    let mut ranked: Vec<(usize, f64)> = scores
+        .iter()
+        .enumerate()
+        .filter_map(|(i, s)| s.ncc.map(|n| (i, n)))
+        .collect();
+    ranked.sort_by(|a, b| b.1.total_cmp(&a.1));
+    match ranked.as_slice() {
+        [] => Choice::Ambiguous {
+            best: None,
+            runner_up: None,
+        },
+        [(i, _)] => Choice::Best(*i),
+        [(i, a), (j, b), ..] => {
+            if a - b > cfg.margin {
+                Choice::Best(*i)
+            } else {
+                Choice::Ambiguous {
+                    best: Some(*i),
+                    runner_up: Some(*j),
+                }
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use agentstar_geom::pose::ObjectPose;
+    use agentstar_geom::{primitives, KinematicTree, Part, UnitQuaternion, Vector3};
+    use std::f64::consts::PI;
+
+    /// A closed cylinder of radius 0.3 and height 1 along Z (48 sides: a half turn about Z
+    /// maps it onto itself, so its silhouette is the same).
+    fn cylinder_model() -> ObjectModel {
+        let mesh = primitives::cylinder(0.3, 1.0, 48).expect("cylinder");
+        ObjectModel {
+            tree: KinematicTree::rigid(1),
+            parts: vec![Part::new("can", mesh, [0.6, 0.1, 0.1])],
+        }
+    }
+
+    /// Renders a frame as the synthesiser does: albedo from canonical coordinates times a
+    /// Lambert term with a light fixed to the camera, plus ambient.
+    fn shoot(
+        model: &ObjectModel,
+        scale: f64,
+        cam: &PinholeCamera,
+        pose: &GenPose,
+        albedo: &dyn Fn(&Point3) -> [f64; 3],
+    ) -> (Vec<u8>, BitMask) {
+        let posed = PosedModel::new(model, &pose.states, &pose.pose.with_scale(scale));
+        let b = render_full(cam, &posed.instances);
+        let inv = pose.pose.with_scale(scale).inverse();
+        let light = Vector3::new(-0.3, -0.6, -1.0).normalize();
+        let (w, h) = (cam.width, cam.height);
+        let mut rgb = vec![0u8; 3 * (w * h) as usize];
+        for y in 0..h {
+            for x in 0..w {
+                let i = (y * w + x) as usize;
+                let c = if b.part[i] == NO_PART {
+                    [0.4, 0.45, 0.5]
+                } else {
+                    let n = b.normal[i];
+                    let lambert =
+                        -(n[0] as f64 * light.x + n[1] as f64 * light.y + n[2] as f64 * light.z);
+                    let s = 0.3 + 0.7 * lambert.max(0.0);
+                    let q = Point3::from(
+                        cam.ray_direction(x as f64 + 0.5, y as f64 + 0.5) * b.depth[i] as f64,
+                    );
+                    albedo(&inv.transform_point(&q)).map(|a| a * s)
+                };
+                for k in 0..3 {
+                    rgb[3 * i + k] = (c[k].clamp(0.0, 1.0) * 255.0).round() as u8;
+                }
+            }
+        }
+        (rgb, b.silhouette())
+    }
+
+    fn pose(axis: Vector3, deg: f64, spin_deg: f64) -> GenPose {
+        // Upright can tilted toward the camera, spun about its own axis.
+        let r = UnitQuaternion::from_axis_angle(
+            &agentstar_geom::nalgebra::Unit::new_normalize(axis),
+            deg.to_radians(),
+        ) * UnitQuaternion::from_axis_angle(&Vector3::x_axis(), 110f64.to_radians())
+            * UnitQuaternion::from_axis_angle(&Vector3::z_axis(), spin_deg.to_radians());
+        GenPose {
+            pose: ObjectPose::new(r, Vector3::new(0.0, 0.0, 0.5)),
+            states: vec![],
+        }
+    }
+
+    /// Scores of the true pose of frame 0 and of its twin turned half way about the axis.
+    fn true_and_twin(albedo: &dyn Fn(&Point3) -> [f64; 3]) -> (AppearanceScore, AppearanceScore) {
+        let model = cylinder_model();
+        let scale = 0.12;
+        let cam = PinholeCamera::new(300.0, 300.0, 168.0, 112.0, 320, 240).expect("camera");
+        let truth = [
+            pose(Vector3::y(), 0.0, 10.0),
+            pose(Vector3::new(0.2, 1.0, 0.1), 35.0, 40.0),
+            pose(Vector3::new(-0.3, 1.0, 0.0), -30.0, -25.0),
+        ];
+        let shots: Vec<(Vec<u8>, BitMask)> = truth
+            .iter()
+            .map(|p| shoot(&model, scale, &cam, p, albedo))
+            .collect();
+        let frames: Vec<AppearanceFrame<'_>> = shots
+            .iter()
+            .map(|(rgb, mask)| AppearanceFrame {
+                camera: &cam,
+                rgb,
+                mask,
+            })
+            .collect();
+        let refs: Vec<ReferenceView<'_>> = (1..3)
+            .map(|k| ReferenceView::new(&model, scale, frames[k], &truth[k]).expect("view"))
+            .collect();
+        let cfg = AppearanceConfig::default();
+        let mut twin = truth[0].clone();
+        twin.pose.rotation *= UnitQuaternion::from_axis_angle(&Vector3::z_axis(), PI);
+        // The twin's silhouette is the true one's.
+        let sil = |p: &GenPose| {
+            render_full(
+                &cam,
+                &PosedModel::new(&model, &p.states, &p.pose.with_scale(scale)).instances,
+            )
+            .silhouette()
+        };
+        let (a, b) = (sil(&truth[0]), sil(&twin));
+        let differ = a.and_not(&b).count() + b.and_not(&a).count();
+        assert!(differ * 200 < a.count(), "{differ} of {} pixels", a.count());
+        (
+            appearance_score(&model, scale, &frames[0], &truth[0], &refs, &cfg),
+            appearance_score(&model, scale, &frames[0], &twin, &refs, &cfg),
+        )
+    }
+
+    #[test]
+    fn a_label_separates_poses_whose_silhouettes_are_identical() {
+        // A cream label with dark letters over half the side of a red can.
+        let label = |p: &Point3| -> [f64; 3] {
+            let theta = p.y.atan2(p.x);
+            if p.z.abs() < 0.3 && theta.abs() < 1.6 {
+                let cell = (theta / 0.2).floor() as i64;
+                let f = theta / 0.2 - theta.div_euclid(0.2);
+                if p.z > 0.05 && f > 0.2 && (cell * 7919).rem_euclid(10) < 7 {
+                    [0.05, 0.1, 0.4]
+                } else {
+                    [0.85, 0.8, 0.6]
+                }
+            } else {
+                [0.6, 0.05, 0.05]
+            }
+        };
+        let (right, twin) = true_and_twin(&label);
+        let cfg = AppearanceConfig::default();
+        let (r, t) = (right.ncc.expect("evidence"), twin.ncc.expect("evidence"));
+        assert!(r > 0.8, "the true pose correlates: {right:?}");
+        assert!(r - t > 0.3, "true {right:?} against twin {twin:?}");
+        assert_eq!(choose(&[twin, right], &cfg), Choice::Best(1));
+        assert!(right.cost().expect("cost") < twin.cost().expect("cost"));
+    }
+
+    #[test]
+    fn an_untextured_symmetric_object_is_ambiguous() {
+        let plain = |_: &Point3| [0.3, 0.6, 0.8];
+        let (right, twin) = true_and_twin(&plain);
+        let cfg = AppearanceConfig::default();
+        match choose(&[right, twin], &cfg) {
+            Choice::Ambiguous { .. } => {}
+            c => panic!("a plain can cannot be told apart: {c:?} ({right:?}, {twin:?})"),
+        }
+    }
+
+    #[test]
+    fn no_references_or_wrong_sizes_give_no_evidence() {
+        let model = cylinder_model();
+        let cam = PinholeCamera::new(300.0, 300.0, 160.0, 120.0, 320, 240).expect("camera");
+        let mask = BitMask::new(320, 240);
+        let short = vec![0u8; 10];
+        let frame = AppearanceFrame {
+            camera: &cam,
+            rgb: &short,
+            mask: &mask,
+        };
+        let p = pose(Vector3::y(), 0.0, 0.0);
+        assert!(ReferenceView::new(&model, 0.12, frame, &p).is_none());
+        let s = appearance_score(&model, 0.12, &frame, &p, &[], &AppearanceConfig::default());
+        assert_eq!(s.ncc, None);
+        assert_eq!(
+            choose(&[s], &AppearanceConfig::default()),
+            Choice::Ambiguous {
+                best: None,
+                runner_up: None
+            }
+        );
+    }
+}
