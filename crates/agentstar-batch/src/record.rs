@@ -5,7 +5,7 @@
 use serde::{Deserialize, Serialize};
 
 /// Who started an attempt.
-#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(tag = "kind", rename_all = "lowercase")]
 pub enum Runner {
     /// `agentstar batch local` or a direct `agentstar batch exec`.

@@ -82,6 +82,9 @@ enum Command {
     Report(cmd::report::Args),
     /// Track a synthetic suite (and the agent-free ablations), evaluate, print the paper's tables with wall times.
     Bench(cmd::bench::Args),
+    /// Batches: one job per capture on Slurm (a job array) or here; status, resubmission, the paper's tables over all runs.
+    #[command(subcommand)]
+    Batch(cmd::batch::BatchCommand),
 }
 
 fn main() -> ExitCode {
@@ -106,6 +109,7 @@ fn main() -> ExitCode {
         Command::Eval(a) => cmd::eval::run(a),
         Command::Synth(a) => cmd::synth::run(a),
         Command::Bench(a) => cmd::bench::run(a),
+        Command::Batch(c) => cmd::batch::run(c),
         Command::Capture(c) => cmd::capture::run(c),
         Command::Completions { shell } => {
             use clap::CommandFactory;

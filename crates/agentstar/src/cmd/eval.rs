@@ -9,7 +9,7 @@ use agentstar_bench::{RunInfo, SequenceResult};
 use agentstar_data::gt::GroundTruth;
 use agentstar_eval::sequence::{evaluate, EvalConfig, PredSequence, SequenceMetrics};
 use anyhow::{bail, Context, Result};
-use serde::Deserialize;
+use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
@@ -31,7 +31,7 @@ pub struct Args {
     #[arg(long)]
     gt: Option<PathBuf>,
     /// A JSON list of runs to evaluate together (capture, model, poses; optional gt, label,
-    /// family: arctic, hot3d or itaco); prints the paper's tables.
+    /// family: arctic, hot3d or itaco, seconds of wall time); prints the paper's tables.
     #[arg(long, conflicts_with_all = ["capture", "model", "poses", "gt"])]
     batch: Option<PathBuf>,
     /// With --batch: a row per sequence in the tables.
@@ -45,19 +45,22 @@ pub struct Args {
     json: bool,
 }
 
-/// One entry of a `--batch` file.
-#[derive(Debug, Deserialize)]
+/// One entry of a `--batch` file (also written by `agentstar batch gather`).
+#[derive(Debug, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
-struct BatchEntry {
-    capture: PathBuf,
-    model: PathBuf,
-    poses: PathBuf,
-    #[serde(default)]
-    gt: Option<PathBuf>,
-    #[serde(default)]
-    label: Option<String>,
-    #[serde(default)]
-    family: Option<String>,
+pub(crate) struct BatchEntry {
+    pub(crate) capture: PathBuf,
+    pub(crate) model: PathBuf,
+    pub(crate) poses: PathBuf,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub(crate) gt: Option<PathBuf>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub(crate) label: Option<String>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub(crate) family: Option<String>,
+    /// The run's wall time in seconds, for the tables' wall-time columns.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub(crate) seconds: Option<f64>,
 }
 
 /// The metrics of one run, and the ground truth's joints for the table rows.
@@ -151,7 +154,12 @@ fn result_of(
     Ok((r, report))
 }
 
-fn run_batch(a: &Args, path: &Path) -> Result<ExitCode> {
+/// The results of every run of a `--batch` file, in its order (relative paths are relative
+/// to the file).
+pub(crate) fn batch_results(
+    path: &Path,
+    samples: usize,
+) -> Result<(Vec<SequenceResult>, Vec<EvalReport>)> {
     let entries: Vec<BatchEntry> = serde_json::from_str(&agentstar_data::read_text(path)?)
         .with_context(|| {
             format!(
@@ -178,7 +186,7 @@ fn run_batch(a: &Args, path: &Path) -> Result<ExitCode> {
             e.gt.as_ref()
                 .map_or_else(|| capture.join("gt.json"), |g| base.join(g));
         bar.suspend(|| eprintln!("eval [{}/{}] {}", i + 1, entries.len(), capture.display()));
-        let (r, report) = result_of(
+        let (mut r, report) = result_of(
             &s,
             &capture,
             &model,
@@ -186,12 +194,18 @@ fn run_batch(a: &Args, path: &Path) -> Result<ExitCode> {
             &gt,
             e.label.as_deref().unwrap_or("run"),
             e.family.as_deref(),
-            a.samples,
+            samples,
         )
         .with_context(|| format!("{}: run {}", path.display(), i + 1))?;
+        r.seconds = e.seconds.unwrap_or(0.0);
         results.push(r);
         reports.push(report);
     }
+    Ok((results, reports))
+}
+
+fn run_batch(a: &Args, path: &Path) -> Result<ExitCode> {
+    let (results, reports) = batch_results(path, a.samples)?;
     if a.json {
         print_json(&EvalBatchReport { results: reports })?;
     } else {

@@ -1,6 +1,7 @@
 //! One module per subcommand.
 
 pub mod agent;
+pub mod batch;
 pub mod bench;
 pub mod capture;
 pub mod check;

@@ -1,0 +1,388 @@
+//! `agentstar batch`: three synthetic captures planned as a batch, run as a Slurm job array
+//! on a one-node cluster on localhost (`scripts/slurm_local.sh`) and with `batch local`, one
+//! job killed midway and resumed, then the tables gathered and compared with `eval --batch`.
+
+use serde_json::Value;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+use std::time::{Duration, Instant};
+
+fn agentstar_in(env: &[(&str, &str)], args: &[&str]) -> Output {
+    let mut c = Command::new(env!("CARGO_BIN_EXE_agentstar"));
+    c.args(args);
+    for (k, v) in env {
+        c.env(k, v);
+    }
+    c.output().expect("run agentstar")
+}
+
+fn text(o: &Output) -> String {
+    format!(
+        "{}{}",
+        String::from_utf8_lossy(&o.stdout),
+        String::from_utf8_lossy(&o.stderr)
+    )
+}
+
+fn json(o: &Output) -> Value {
+    assert!(o.status.success(), "{}", text(o));
+    serde_json::from_slice(&o.stdout).unwrap_or_else(|e| panic!("{e}: {}", text(o)))
+}
+
+fn s(p: &Path) -> &str {
+    p.to_str().expect("utf8")
+}
+
+/// Waits (bounded) until `done` holds, polling.
+fn wait_for(what: &str, limit: Duration, mut done: impl FnMut() -> bool) {
+    let t0 = Instant::now();
+    while !done() {
+        assert!(
+            t0.elapsed() < limit,
+            "timed out after {limit:?} waiting for {what}"
+        );
+        std::thread::sleep(Duration::from_millis(50));
+    }
+}
+
+/// Three small synthetic captures (two ARCTIC-like, one HOT3D-like) and a track batch on
+/// them whose jobs take a few seconds each.
+fn planned_batch(dir: &Path) -> PathBuf {
+    for object in ["box", "laptop", "mug"] {
+        let out = dir.join("caps").join(object);
+        let o = agentstar_in(
+            &[],
+            &[
+                "synth",
+                s(&out),
+                "--object",
+                object,
+                "--frames",
+                "4",
+                "--size",
+                "160x120",
+                "--seed",
+                "3",
+            ],
+        );
+        assert!(o.status.success(), "{}", text(&o));
+    }
+    let batch = dir.join("b");
+    let caps: Vec<PathBuf> = ["box", "laptop", "mug"]
+        .iter()
+        .map(|o| dir.join("caps").join(o))
+        .collect();
+    let mut args = vec!["batch", "plan"];
+    args.extend(caps.iter().map(|c| s(c)));
+    args.extend([
+        "--out",
+        s(&batch),
+        "--job-arg=--evals",
+        "--job-arg=300",
+        "--job-arg=--no-temporal",
+        "--cpus-per-task",
+        "1",
+        "--mem",
+        "1G",
+        "--time",
+        "10",
+        "--json",
+    ]);
+    let m = json(&agentstar_in(&[], &args));
+    assert_eq!(m["format"], "agentstar-batch/v1");
+    let jobs = m["jobs"].as_array().expect("jobs");
+    assert_eq!(jobs.len(), 3);
+    assert_eq!(jobs[1]["name"], "laptop");
+    assert_eq!(jobs[1]["argv"][0], "track");
+    assert_eq!(jobs[1]["resources"]["mem_mb"], 1024);
+    assert!(batch.join("jobs/laptop/job.json").is_file());
+    batch
+}
+
+/// The child pid of the running attempt of `job`, once its command has started.
+fn running_child(batch: &Path, job: &str) -> Option<u32> {
+    let text = std::fs::read_to_string(batch.join("jobs").join(job).join("record.json")).ok()?;
+    let r: Value = serde_json::from_str(&text).ok()?;
+    let last = r["attempts"].as_array()?.last()?;
+    if !last["exit"].is_null() {
+        return None;
+    }
+    last["child_pid"].as_u64().map(|p| p as u32)
+}
+
+fn states(env: &[(&str, &str)], batch: &Path) -> Vec<(String, String, u64)> {
+    let v = json(&agentstar_in(env, &["batch", "status", s(batch), "--json"]));
+    v["jobs"]
+        .as_array()
+        .expect("jobs")
+        .iter()
+        .map(|j| {
+            (
+                j["name"].as_str().expect("name").to_string(),
+                j["state"].as_str().expect("state").to_string(),
+                j["attempts"].as_u64().expect("attempts"),
+            )
+        })
+        .collect()
+}
+
+/// `gather` prints `eval --batch BATCH/runs.json --per-sequence`'s tables, then the jobs.
+fn gather_matches_eval(env: &[(&str, &str)], batch: &Path) {
+    let g = agentstar_in(env, &["batch", "gather", s(batch), "--samples", "500"]);
+    assert!(g.status.success(), "{}", text(&g));
+    let gathered = String::from_utf8_lossy(&g.stdout).into_owned();
+    let runs = batch.join("runs.json");
+    let e = agentstar_in(
+        env,
+        &[
+            "eval",
+            "--batch",
+            s(&runs),
+            "--per-sequence",
+            "--samples",
+            "500",
+        ],
+    );
+    assert!(e.status.success(), "{}", text(&e));
+    let evaluated = String::from_utf8_lossy(&e.stdout).into_owned();
+    assert!(
+        gathered.starts_with(&evaluated),
+        "gather:\n{gathered}\neval --batch:\n{evaluated}"
+    );
+    for table in [
+        "### ARCTIC-like",
+        "### HOT3D-like",
+        "### Per sequence",
+        "### Jobs",
+    ] {
+        assert!(gathered.contains(table), "{table} missing:\n{gathered}");
+    }
+    for job in ["box", "laptop", "mug"] {
+        assert!(
+            gathered.contains(&format!("| track · {job} |"))
+                || gathered.contains(&format!("| {job} | track | 4 |")),
+            "{job}:\n{gathered}"
+        );
+    }
+    // Wall times come from the job records: no finished sequence shows 0.0 s.
+    let per_seq: Vec<&str> = gathered
+        .lines()
+        .filter(|l| l.contains("| track | 4 |"))
+        .collect();
+    assert_eq!(per_seq.len(), 3, "{gathered}");
+    for l in per_seq {
+        let wall: f64 = l
+            .split('|')
+            .nth(4)
+            .expect("cell")
+            .trim()
+            .parse()
+            .expect("number");
+        assert!(wall > 0.0, "{l}");
+    }
+    // The killed job shows its two attempts.
+    assert!(
+        gathered
+            .lines()
+            .any(|l| l.starts_with("| laptop | track | finished | 2 |")),
+        "{gathered}"
+    );
+}
+
+#[test]
+fn a_batch_runs_locally_survives_a_killed_job_and_gathers_the_tables() {
+    let dir = tempfile::tempdir().expect("tmp");
+    let batch = planned_batch(dir.path());
+    assert!(states(&[], &batch)
+        .iter()
+        .all(|(_, st, n)| st == "pending" && *n == 0));
+
+    let mut local = Command::new(env!("CARGO_BIN_EXE_agentstar"))
+        .args(["batch", "local", s(&batch), "-j", "3"])
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .expect("batch local");
+    let mut pid = None;
+    wait_for("the laptop job to start", Duration::from_secs(120), || {
+        pid = running_child(&batch, "laptop");
+        pid.is_some()
+    });
+    let kill = Command::new("kill")
+        .args(["-9", &pid.expect("pid").to_string()])
+        .status()
+        .expect("kill");
+    assert!(kill.success());
+    let status = local.wait().expect("wait");
+    assert!(!status.success(), "a killed job makes `batch local` fail");
+    let st = states(&[], &batch);
+    assert_eq!(st[1], ("laptop".into(), "failed".into(), 1), "{st:?}");
+    assert!(st[0].1 == "finished" && st[2].1 == "finished", "{st:?}");
+    let v = json(&agentstar_in(
+        &[],
+        &["batch", "status", s(&batch), "--json"],
+    ));
+    assert_eq!(v["jobs"][1]["exit"]["signal"], 9);
+
+    // Resuming runs only the killed job.
+    let v = json(&agentstar_in(&[], &["batch", "local", s(&batch), "--json"]));
+    assert_eq!(v["summary"], "3 jobs: 3 finished");
+    let attempts: Vec<u64> = v["jobs"]
+        .as_array()
+        .expect("jobs")
+        .iter()
+        .map(|j| j["attempts"].as_u64().expect("n"))
+        .collect();
+    assert_eq!(attempts, [1, 2, 1]);
+    let log = std::fs::read_to_string(batch.join("logs/laptop.log")).expect("log");
+    assert_eq!(log.matches("== attempt").count(), 2, "{log}");
+    // A finished job is not run again.
+    let o = agentstar_in(&[], &["batch", "exec", s(&batch), "--job", "box"]);
+    assert!(
+        o.status.success() && text(&o).contains("already finished"),
+        "{}",
+        text(&o)
+    );
+    // The array script lists only what still needs a run: nothing.
+    let o = agentstar_in(&[], &["batch", "slurm", s(&batch)]);
+    assert!(
+        o.status.success() && text(&o).contains("nothing to submit"),
+        "{}",
+        text(&o)
+    );
+
+    gather_matches_eval(&[], &batch);
+}
+
+/// The one-node cluster of `scripts/slurm_local.sh`, started if needed; its `SLURM_CONF`.
+/// Only that cluster is used (never whatever Slurm the machine is configured for).
+fn local_slurm() -> Option<String> {
+    let required = std::env::var_os("AGENTSTAR_REQUIRE_SLURM").is_some();
+    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scripts/slurm_local.sh");
+    let installed = Command::new("sh")
+        .args([
+            "-c",
+            "command -v slurmctld && command -v slurmd && command -v munged && command -v sbatch",
+        ])
+        .output()
+        .is_ok_and(|o| o.status.success());
+    if !installed {
+        assert!(
+            !required,
+            "AGENTSTAR_REQUIRE_SLURM is set but Slurm is not installed"
+        );
+        eprintln!("note: Slurm is not installed (scripts/slurm_local.sh install); the Slurm batch test is skipped");
+        return None;
+    }
+    let o = Command::new("bash")
+        .arg(&script)
+        .arg("start")
+        .output()
+        .expect("slurm_local.sh");
+    let conf = String::from_utf8_lossy(&o.stdout)
+        .lines()
+        .find_map(|l| l.strip_prefix("export SLURM_CONF=").map(str::to_string));
+    match (o.status.success(), conf) {
+        (true, Some(c)) => Some(c),
+        _ => {
+            assert!(
+                !required,
+                "scripts/slurm_local.sh start failed: {}",
+                text(&o)
+            );
+            eprintln!(
+                "note: the local Slurm cluster did not start ({}); the Slurm batch test is skipped",
+                text(&o).trim()
+            );
+            None
+        }
+    }
+}
+
+fn queue_empty(env: &[(&str, &str)], job_id: u64) -> bool {
+    let mut c = Command::new("squeue");
+    c.args(["-h", "-o", "%i", "-j", &job_id.to_string()]);
+    for (k, v) in env {
+        c.env(k, v);
+    }
+    let o = c.output().expect("squeue");
+    // Slurm forgets a finished job after MinJobAge; then it says the id is invalid.
+    o.stdout.iter().all(u8::is_ascii_whitespace)
+}
+
+#[test]
+fn a_batch_runs_as_a_slurm_array_resubmits_a_cancelled_task_and_gathers_the_tables() {
+    let Some(conf) = local_slurm() else { return };
+    let env = [("SLURM_CONF", conf.as_str())];
+    let dir = tempfile::tempdir().expect("tmp");
+    let batch = planned_batch(dir.path());
+
+    let v = json(&agentstar_in(
+        &env,
+        &["batch", "slurm", s(&batch), "--submit", "--json"],
+    ));
+    let job_id = v["job_id"].as_u64().expect("job id");
+    assert_eq!(v["tasks"], serde_json::json!([0, 1, 2]));
+    let script = std::fs::read_to_string(batch.join("slurm/array-1.sbatch")).expect("script");
+    assert!(
+        script.contains("#SBATCH --array=0-2\n") && script.contains("#SBATCH --mem=1024M\n"),
+        "{script}"
+    );
+
+    wait_for("the laptop task to start", Duration::from_secs(180), || {
+        running_child(&batch, "laptop").is_some()
+    });
+    let o = Command::new("scancel")
+        .arg(format!("{job_id}_1"))
+        .env("SLURM_CONF", &conf)
+        .output()
+        .expect("scancel");
+    assert!(o.status.success(), "{}", text(&o));
+    wait_for(
+        "the array to leave the queue",
+        Duration::from_secs(300),
+        || queue_empty(&env, job_id),
+    );
+    let st = states(&env, &batch);
+    assert!(st[0].1 == "finished" && st[2].1 == "finished", "{st:?}");
+    assert!(
+        ["interrupted", "failed", "cancelled"].contains(&st[1].1.as_str()),
+        "{st:?}"
+    );
+    let codes = std::fs::read_to_string(batch.join("slurm/exit-codes.tsv")).expect("exit codes");
+    assert!(
+        codes.contains(&format!("{job_id}\t0\t0\n"))
+            && codes.contains(&format!("{job_id}\t2\t0\n")),
+        "{codes}"
+    );
+
+    // Resubmitting runs only the cancelled task.
+    let v = json(&agentstar_in(
+        &env,
+        &["batch", "slurm", s(&batch), "--submit", "--json"],
+    ));
+    let second = v["job_id"].as_u64().expect("job id");
+    assert_eq!(v["tasks"], serde_json::json!([1]));
+    wait_for(
+        "the resubmitted task to finish",
+        Duration::from_secs(300),
+        || queue_empty(&env, second),
+    );
+    let st = states(&env, &batch);
+    assert_eq!(
+        st,
+        [
+            ("box".to_string(), "finished".to_string(), 1),
+            ("laptop".to_string(), "finished".to_string(), 2),
+            ("mug".to_string(), "finished".to_string(), 1)
+        ]
+    );
+    let subs: Value = serde_json::from_str(
+        &std::fs::read_to_string(batch.join("slurm/submissions.json")).expect("submissions"),
+    )
+    .expect("json");
+    assert_eq!(subs["submissions"].as_array().map(Vec::len), Some(2));
+    assert!(batch.join(format!("logs/slurm-{second}_1.log")).is_file());
+
+    gather_matches_eval(&env, &batch);
+}
