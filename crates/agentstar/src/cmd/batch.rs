@@ -1184,10 +1184,10 @@ fn run_gather(a: GatherArgs) -> Result<ExitCode> {
         runs.display(),
         runs.display()
     );
-    let (results, reports) = crate::cmd::eval::batch_results(&runs, a.samples)?;
+    let (results, eval_reports) = crate::cmd::eval::batch_results(&runs, a.samples)?;
     if a.json {
         print_json(&serde_json::json!({
-            "results": reports, "summary": summary(&states), "jobs": reports(&batch, &rows)
+            "results": eval_reports, "summary": summary(&states), "jobs": reports(&batch, &rows)
         }))?;
     } else {
         print!("{}", tables(&results, true));
