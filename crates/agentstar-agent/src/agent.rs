@@ -102,6 +102,28 @@ impl Session {
         self.offset_s + self.start.elapsed().as_secs_f64()
     }
 
+    /// Takes one step of the step budget, atomically (sub-agents share it): `Err` names the
+    /// spent budget when no step is left.
+    fn take_step(&self) -> std::result::Result<(), String> {
+        let max = self.budget.max_steps;
+        self.steps_this_session
+            .fetch_update(Ordering::SeqCst, Ordering::SeqCst, |s| {
+                (s < max).then_some(s + 1)
+            })
+            .map(|_| ())
+            .map_err(|s| format!("step budget spent ({s} of {max})"))
+    }
+
+    fn over_token_budget(&self) -> Option<String> {
+        let tokens = self.tokens.load(Ordering::SeqCst);
+        (tokens > self.budget.max_tokens).then(|| {
+            format!(
+                "token budget spent ({tokens} of {})",
+                self.budget.max_tokens
+            )
+        })
+    }
+
     fn over_budget(&self) -> Option<String> {
         let b = &self.budget;
         let steps = self.steps_this_session.load(Ordering::SeqCst);
@@ -328,8 +350,14 @@ pub fn run_agent(
             Ok(r) => r,
             Err(e) => {
                 let msg = match &e {
+                    LlmError::GaveUp { failures, last, .. }
+                        if failures.len() == 1 && matches!(**last, LlmError::Malformed(_)) =>
+                    {
+                        format!("the model kept sending malformed tool calls ({last})")
+                    }
+                    LlmError::GaveUp { .. } => format!("the model request failed: {e}"),
                     LlmError::Malformed(m) => {
-                        format!("the model kept sending malformed tool calls ({m})")
+                        format!("the model sent a malformed tool call ({m})")
                     }
                     other => format!("the model could not be reached: {other}"),
                 };
@@ -352,6 +380,14 @@ pub fn run_agent(
             text: reply.text.clone(),
             calls: reply.calls.clone(),
         });
+        // A reply that took the session past its token budget runs none of its calls: they
+        // are recorded as refused, and the run stops.
+        if let Some(why) = session.over_token_budget() {
+            for call in &reply.calls {
+                refuse_call(session, toolbox, call, &why, orchestrator, label)?;
+            }
+            return Ok(session.outcome(Stop::Budget(why)));
+        }
         if reply.calls.is_empty() {
             nudges += 1;
             if nudges > 3 {
@@ -366,8 +402,28 @@ pub fn run_agent(
         }
         nudges = 0;
         let mut finished = false;
+        let mut refused: Option<String> = None;
         for call in &reply.calls {
-            let out = if call.name == "delegate_pose" && orchestrator {
+            // Each call takes one step of the budget before it runs; the calls of a reply
+            // past the budget are refused and recorded, not run.
+            let delegating = call.name == "delegate_pose" && orchestrator;
+            if let Err(why) = if delegating {
+                // A delegation is not a step itself; its sub-agent's calls are.
+                Ok(())
+            } else {
+                session.take_step()
+            } {
+                refuse_call(session, toolbox, call, &why, orchestrator, label)?;
+                messages.push(Message::ToolResult {
+                    call_id: call.id.clone(),
+                    name: call.name.clone(),
+                    parts: vec![Part::Text(format!("refused: {why}; the call was not run"))],
+                    is_error: true,
+                });
+                refused = Some(why);
+                continue;
+            }
+            let out = if delegating {
                 delegate(session, toolbox, call)
             } else {
                 let kind = tools
@@ -382,7 +438,6 @@ pub fn run_agent(
                 ));
                 // The toolbox serialises the writers; searches run in parallel.
                 let out = toolbox.call(&call.name, &call.arguments, step);
-                session.steps_this_session.fetch_add(1, Ordering::SeqCst);
                 record_step(
                     &toolbox.run,
                     StepRecord {
@@ -403,7 +458,46 @@ pub fn run_agent(
         if finished {
             return Ok(session.outcome(Stop::Finished));
         }
+        if let Some(why) = refused {
+            return Ok(session.outcome(Stop::Budget(why)));
+        }
     }
+}
+
+/// Records a call that a budget refused: a ledger step marked as an error, so that the
+/// ledger shows every call the model asked for and that none of them ran.
+fn refuse_call(
+    session: &Session,
+    toolbox: &Toolbox,
+    call: &ToolCall,
+    why: &str,
+    orchestrator: bool,
+    label: &str,
+) -> Result<()> {
+    let step = session.step.fetch_add(1, Ordering::SeqCst) + 1;
+    (session.progress)(&format!("{label}: #{step} {} refused ({why})", call.name));
+    let out = ToolOutput {
+        text: format!("refused: {why}; the call was not run"),
+        is_error: true,
+        ..ToolOutput::default()
+    };
+    let mut args = call.arguments.clone();
+    if let Some(o) = args.as_object_mut() {
+        o.insert("refused".into(), json!(why));
+    }
+    record_step(
+        &toolbox.run,
+        StepRecord {
+            step,
+            time_s: session.time_s(),
+            kind: Kind::Diagnostic,
+            tool: &call.name,
+            args: &args,
+            agent: (!orchestrator).then_some(label),
+        },
+        &out,
+    )?;
+    Ok(())
 }
 
 fn brief_args(v: &Value) -> String {

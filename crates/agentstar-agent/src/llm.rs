@@ -153,15 +153,115 @@ pub struct Reply {
 /// Why a request failed.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum LlmError {
-    /// Worth retrying: transport errors, timeouts, 429, 5xx.
+    /// Worth retrying: transport errors, timeouts, 5xx, replies that are not JSON or hold
+    /// no message.
     #[error("{0}")]
     Transient(String),
+    /// HTTP 429; `retry_after` is the server's `Retry-After`, when it sent one.
+    #[error("{message}")]
+    RateLimited {
+        message: String,
+        retry_after: Option<Duration>,
+    },
     /// The reply held a tool call whose arguments are not a JSON object.
     #[error("malformed tool call: {0}")]
     Malformed(String),
     /// Not worth retrying (401, 400, …).
     #[error("{0}")]
     Fatal(String),
+    /// Every attempt failed; `failures` names each kind of failure seen with its count.
+    #[error("{attempts} attempt(s) failed ({}); last: {last}", .failures.iter().map(|(k, n)| format!("{k} ×{n}")).collect::<Vec<_>>().join(", "))]
+    GaveUp {
+        attempts: u32,
+        failures: Vec<(String, u32)>,
+        last: Box<LlmError>,
+    },
+}
+
+impl LlmError {
+    /// A short name of the kind of failure, for counting them.
+    pub fn kind(&self) -> String {
+        match self {
+            LlmError::Transient(m) => {
+                if let Some(status) = m
+                    .split("HTTP ")
+                    .nth(1)
+                    .and_then(|r| r.split(':').next())
+                    .filter(|c| c.chars().all(|ch| ch.is_ascii_digit()))
+                {
+                    format!("HTTP {status}")
+                } else if m.contains("not JSON") {
+                    "reply not JSON".into()
+                } else if m.contains("no choices") || m.contains("no content") {
+                    "reply without a message".into()
+                } else {
+                    "transport error".into()
+                }
+            }
+            LlmError::RateLimited { .. } => "HTTP 429 (rate limited)".into(),
+            LlmError::Malformed(_) => "malformed tool call".into(),
+            LlmError::Fatal(_) => "fatal error".into(),
+            LlmError::GaveUp { .. } => "gave up".into(),
+        }
+    }
+}
+
+/// The longest `Retry-After` honoured; a server asking for more is waited on this long and
+/// then asked again (the attempt still counts).
+pub const MAX_RETRY_AFTER: Duration = Duration::from_secs(300);
+
+/// `Retry-After` as seconds (`3`, `1.5`) or an HTTP date, as a wait from `now`.
+pub fn parse_retry_after(value: &str, now: std::time::SystemTime) -> Option<Duration> {
+    let v = value.trim();
+    if let Ok(secs) = v.parse::<f64>() {
+        return (secs.is_finite() && secs >= 0.0)
+            .then(|| Duration::from_secs_f64(secs.min(MAX_RETRY_AFTER.as_secs_f64())));
+    }
+    let when = parse_http_date(v)?;
+    Some(
+        when.duration_since(now)
+            .unwrap_or(Duration::ZERO)
+            .min(MAX_RETRY_AFTER),
+    )
+}
+
+/// An IMF-fixdate (`Sun, 06 Nov 1994 08:49:37 GMT`), the form HTTP servers send.
+fn parse_http_date(v: &str) -> Option<std::time::SystemTime> {
+    let parts: Vec<&str> = v.split_whitespace().collect();
+    let [_, day, month, year, time, "GMT"] = parts.as_slice() else {
+        return None;
+    };
+    let day: i64 = day.parse().ok()?;
+    let year: i64 = year.parse().ok()?;
+    let month = [
+        "Jan", "Feb", "Mar", "Apr", "May", "Jun", "Jul", "Aug", "Sep", "Oct", "Nov", "Dec",
+    ]
+    .iter()
+    .position(|m| m == month)? as i64
+        + 1;
+    let hms: Vec<i64> = time
+        .split(':')
+        .map(|t| t.parse().ok())
+        .collect::<Option<_>>()?;
+    let [h, mi, sec] = hms.as_slice() else {
+        return None;
+    };
+    if !(1..=31).contains(&day) || *h > 23 || *mi > 59 || *sec > 60 || year < 1970 {
+        return None;
+    }
+    // Days from the civil date (Howard Hinnant's algorithm).
+    let (y, m) = if month <= 2 {
+        (year - 1, month + 9)
+    } else {
+        (year, month - 3)
+    };
+    let era = y.div_euclid(400);
+    let yoe = y - era * 400;
+    let doy = (153 * m + 2) / 5 + day - 1;
+    let doe = yoe * 365 + yoe / 4 - yoe / 100 + doy;
+    let days = era * 146_097 + doe - 719_468;
+    let secs = days * 86_400 + h * 3600 + mi * 60 + sec;
+    Some(std::time::UNIX_EPOCH + Duration::from_secs(u64::try_from(secs).ok()?))
 }
 
 fn openai_body(cfg: &ModelConfig, system: &str, messages: &[Message], tools: &[ToolSpec]) -> Value {
@@ -414,13 +514,24 @@ fn request_once(cfg: &ModelConfig, body: &Value) -> Result<Reply, LlmError> {
         .send_json(body)
         .map_err(|e| LlmError::Transient(format!("{url}: {e}")))?;
     let status = resp.status().as_u16();
+    let retry_after = resp
+        .headers()
+        .get("retry-after")
+        .and_then(|v| v.to_str().ok())
+        .and_then(|v| parse_retry_after(v, std::time::SystemTime::now()));
     let text = resp
         .body_mut()
         .with_config()
         .limit(64 << 20)
         .read_to_string()
         .map_err(|e| LlmError::Transient(format!("{url}: reading the reply: {e}")))?;
-    if status == 429 || status >= 500 {
+    if status == 429 {
+        return Err(LlmError::RateLimited {
+            message: format!("{url}: HTTP 429: {}", truncate(&text, 300)),
+            retry_after,
+        });
+    }
+    if status >= 500 {
         return Err(LlmError::Transient(format!(
             "{url}: HTTP {status}: {}",
             truncate(&text, 300)
@@ -432,16 +543,26 @@ fn request_once(cfg: &ModelConfig, body: &Value) -> Result<Reply, LlmError> {
             truncate(&text, 500)
         )));
     }
-    let v: Value = serde_json::from_str(&text)
-        .map_err(|e| LlmError::Transient(format!("{url}: the reply is not JSON ({e})")))?;
-    match cfg.protocol {
+    parse_reply(cfg.protocol, &text).map_err(|e| match e {
+        LlmError::Transient(m) => LlmError::Transient(format!("{url}: {m}")),
+        other => other,
+    })
+}
+
+/// A model server's reply body, as text, in the protocol's form.
+pub fn parse_reply(protocol: Protocol, text: &str) -> Result<Reply, LlmError> {
+    let v: Value = serde_json::from_str(text)
+        .map_err(|e| LlmError::Transient(format!("the reply is not JSON ({e})")))?;
+    match protocol {
         Protocol::OpenAi => parse_openai(&v),
         Protocol::Anthropic => parse_anthropic(&v),
     }
 }
 
 /// Asks the model, retrying transient failures and malformed tool calls with exponential
-/// backoff. `on_retry` hears each failure before its retry.
+/// backoff (or the server's `Retry-After` on a 429, when longer). `on_retry` hears each
+/// failure before its retry. When every attempt fails the error is
+/// [`LlmError::GaveUp`], which names every kind of failure seen.
 pub fn complete(
     cfg: &ModelConfig,
     system: &str,
@@ -449,22 +570,58 @@ pub fn complete(
     tools: &[ToolSpec],
     on_retry: &dyn Fn(u32, &LlmError),
 ) -> Result<Reply, LlmError> {
+    complete_with(cfg, system, messages, tools, on_retry, &|d| {
+        std::thread::sleep(d)
+    })
+}
+
+/// [`complete`] with the waits between attempts made through `sleep` (tests record them).
+pub fn complete_with(
+    cfg: &ModelConfig,
+    system: &str,
+    messages: &[Message],
+    tools: &[ToolSpec],
+    on_retry: &dyn Fn(u32, &LlmError),
+    sleep: &dyn Fn(Duration),
+) -> Result<Reply, LlmError> {
     let body = match cfg.protocol {
         Protocol::OpenAi => openai_body(cfg, system, messages, tools),
         Protocol::Anthropic => anthropic_body(cfg, system, messages, tools),
     };
+    let mut failures: Vec<(String, u32)> = Vec::new();
     let mut attempt = 0;
     loop {
-        match request_once(cfg, &body) {
+        let e = match request_once(cfg, &body) {
             Ok(r) => return Ok(r),
-            Err(LlmError::Fatal(e)) => return Err(LlmError::Fatal(e)),
-            Err(e) if attempt < cfg.retries => {
-                on_retry(attempt + 1, &e);
-                std::thread::sleep(cfg.backoff * 2u32.saturating_pow(attempt));
-                attempt += 1;
-            }
-            Err(e) => return Err(e),
+            Err(e) => e,
+        };
+        let kind = e.kind();
+        match failures.iter_mut().find(|(k, _)| *k == kind) {
+            Some((_, n)) => *n += 1,
+            None => failures.push((kind, 1)),
         }
+        if matches!(e, LlmError::Fatal(_)) || attempt >= cfg.retries {
+            // A first failure that is fatal is reported as it is.
+            if attempt == 0 {
+                return Err(e);
+            }
+            return Err(LlmError::GaveUp {
+                attempts: attempt + 1,
+                failures,
+                last: Box::new(e),
+            });
+        }
+        on_retry(attempt + 1, &e);
+        let backoff = cfg.backoff * 2u32.saturating_pow(attempt);
+        let wait = match &e {
+            LlmError::RateLimited {
+                retry_after: Some(d),
+                ..
+            } => backoff.max(*d),
+            _ => backoff,
+        };
+        sleep(wait);
+        attempt += 1;
     }
 }
 

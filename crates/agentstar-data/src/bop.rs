@@ -196,9 +196,7 @@ pub fn import_bop(cfg: &BopImport, out: &Path) -> Result<usize> {
         }
         let depth = if cfg.depth {
             let p = cfg.scene.join("depth").join(format!("{stem}.png"));
-            let img = image::open(&p)
-                .map_err(|e| DataError::invalid(&p, format!("cannot read depth: {e}")))?
-                .to_luma16();
+            let img = crate::images::decode_image(&p, "depth")?.to_luma16();
             let s = cam.depth_scale.unwrap_or(1.0) * 0.001;
             Some(
                 img.pixels()

@@ -240,16 +240,14 @@ impl Capture {
         let npz = self.dir.join("depth").join(format!("{stem}.npz"));
         let png = self.dir.join("depth").join(format!("{stem}.png"));
         let (w, h) = (self.width(), self.height());
-        if npz.is_file() {
+        if npz.exists() {
             return load_depth_npz(&npz, w, h).map(Some);
         }
         if png.is_file() {
             let scale = self.manifest.depth_scale.ok_or_else(|| {
                 DataError::invalid(&png, "16-bit depth PNGs need `depth_scale` in capture.json")
             })?;
-            let img = image::open(&png)
-                .map_err(|e| DataError::invalid(&png, format!("cannot read depth: {e}")))?
-                .to_luma16();
+            let img = crate::images::decode_image(&png, "depth")?.to_luma16();
             self.check_size(&png, img.width(), img.height())?;
             let depth = img
                 .pixels()
@@ -294,6 +292,7 @@ impl Capture {
                 let mut problems = Vec::new();
                 for i in 0..cap.frames.len() {
                     for r in [
+                        cap.load_frame(i).map(|_| ()),
                         cap.load_mask(i).map(|_| ()),
                         cap.load_hand(i).map(|_| ()),
                         cap.load_depth(i).map(|_| ()),
@@ -377,7 +376,7 @@ type CameraRows = (Vec<Matrix4>, Vec<Matrix3>, Option<[u32; 2]>, PathBuf);
 fn read_cameras(dir: &Path, c: &mut Collector) -> Option<CameraRows> {
     let npz = dir.join("tracking/cameras.npz");
     let json = dir.join("tracking/cameras.json");
-    if npz.is_file() {
+    if npz.exists() {
         let arrays = match read_arrays(&npz, &["c2w", "intrinsics", "size"]) {
             Ok(a) => a,
             Err(e) => {
@@ -414,13 +413,32 @@ fn read_cameras(dir: &Path, c: &mut Collector) -> Option<CameraRows> {
         let ks = (0..n)
             .map(|i| Matrix3::from_row_slice(&k.data[i * 9..i * 9 + 9]))
             .collect();
-        let size = get("size")
-            .and_then(|s| (s.data.len() == 2).then(|| [s.data[0] as u32, s.data[1] as u32]));
+        let size = match get("size") {
+            None => None,
+            Some(s) => match check_size_array(&s.data) {
+                Ok(size) => Some(size),
+                Err(m) => {
+                    c.add(&npz, m);
+                    return None;
+                }
+            },
+        };
         Some((mats, ks, size, npz))
-    } else if json.is_file() {
+    } else if json.exists() {
         let parsed: std::result::Result<CamerasJson, String> = read_text(&json)
             .map_err(|e| e.to_string())
-            .and_then(|t| serde_json::from_str(&t).map_err(|e| e.to_string()));
+            .and_then(|t| crate::parse_json::<serde_json::Value>(&t))
+            .and_then(|v| {
+                // `size` is checked as numbers first, so that [-1, -1], [NaN, 240] or
+                // [640, 480, 3] are named as `size` rather than as a type error.
+                if let Some(size) = v.get("size").filter(|s| !s.is_null()) {
+                    let values: Option<Vec<f64>> = size
+                        .as_array()
+                        .map(|a| a.iter().map(|x| x.as_f64().unwrap_or(f64::NAN)).collect());
+                    check_size_array(&values.unwrap_or_default())?;
+                }
+                serde_json::from_value(v).map_err(|e| e.to_string())
+            });
         match parsed {
             Err(e) => {
                 c.add(&json, format!("invalid cameras JSON: {e}"));
@@ -448,6 +466,12 @@ fn read_cameras(dir: &Path, c: &mut Collector) -> Option<CameraRows> {
                     .iter()
                     .map(|m| Matrix3::from_fn(|r, col| m[r][col]))
                     .collect();
+                if let Some([sw, sh]) = cj.size {
+                    if let Err(m) = check_size_array(&[f64::from(sw), f64::from(sh)]) {
+                        c.add(&json, m);
+                        return None;
+                    }
+                }
                 Some((mats, ks, cj.size, json))
             }
         }
@@ -457,23 +481,51 @@ fn read_cameras(dir: &Path, c: &mut Collector) -> Option<CameraRows> {
     }
 }
 
+/// `size` `[W, H]`: two positive integers (pixels) at most 16384.
+fn check_size_array(data: &[f64]) -> std::result::Result<[u32; 2], String> {
+    let ok = |v: f64| v.is_finite() && v >= 1.0 && v <= 16384.0 && v.fract() == 0.0;
+    if data.len() != 2 || !data.iter().all(|&v| ok(v)) {
+        return Err(format!(
+            "`size` must be [W, H], two positive integers (pixels) at most 16384; got {data:?}"
+        ));
+    }
+    Ok([data[0] as u32, data[1] as u32])
+}
+
+/// The bottom row of a `c2w` matrix must be `[0, 0, 0, 1]`.
+fn check_bottom_row(m: &Matrix4) -> std::result::Result<(), String> {
+    let row = [m[(3, 0)], m[(3, 1)], m[(3, 2)], m[(3, 3)]];
+    let want = [0.0, 0.0, 0.0, 1.0];
+    if row.iter().zip(want).any(|(a, b)| !((a - b).abs() <= 1e-6)) {
+        return Err(format!(
+            "the bottom row is {row:?}; a rigid camera-to-world matrix ends in [0, 0, 0, 1]"
+        ));
+    }
+    Ok(())
+}
+
 fn open_inner(dir: &Path, c: &mut Collector, check_files: bool) -> Option<Capture> {
     let mpath = Capture::manifest_path(dir);
     let text = match read_text(&mpath) {
         Ok(t) => t,
-        Err(_) => {
-            c.add(
-                &mpath,
-                if dir.is_dir() {
-                    "missing: a capture directory needs capture.json"
-                } else {
-                    "the capture directory does not exist"
-                },
-            );
+        Err(e) => {
+            let message = if std::fs::symlink_metadata(&mpath).is_ok() {
+                // It exists but cannot be read: say why (a device, too large, not UTF-8…).
+                match e {
+                    DataError::Invalid { message, .. } => message,
+                    DataError::Io { error, .. } => error.to_string(),
+                    other => other.to_string(),
+                }
+            } else if dir.is_dir() {
+                "missing: a capture directory needs capture.json".into()
+            } else {
+                "the capture directory does not exist".into()
+            };
+            c.add(&mpath, message);
             return None;
         }
     };
-    let manifest: Manifest = match serde_json::from_str(&text) {
+    let manifest: Manifest = match crate::parse_json(&text) {
         Ok(m) => m,
         Err(e) => {
             c.add(&mpath, format!("invalid manifest: {e}"));
@@ -500,6 +552,14 @@ fn open_inner(dir: &Path, c: &mut Collector, check_files: bool) -> Option<Captur
     if manifest.frames.is_empty() {
         c.add(&mpath, "`frames` is empty");
         return None;
+    }
+    if let Some(d) = manifest.downscale {
+        if !(d.is_finite() && d > 0.0) {
+            c.add(
+                &mpath,
+                format!("downscale {d} must be a positive, finite factor"),
+            );
+        }
     }
     if let Some(s) = manifest.depth_scale {
         if !(s.is_finite() && s > 0.0) {
@@ -592,7 +652,9 @@ fn open_inner(dir: &Path, c: &mut Collector, check_files: bool) -> Option<Captur
     let mut notes = Vec::new();
     let mut cameras = Vec::with_capacity(c2w.len());
     for (i, (m, k)) in c2w.iter().zip(&ks).enumerate() {
-        let rigid = match rigid_from_matrix(m) {
+        let rigid = match check_bottom_row(m)
+            .and_then(|()| rigid_from_matrix(m).map_err(|e| e.to_string()))
+        {
             Ok(r) => Some(r),
             Err(e) => {
                 c.add(&cam_path, format!("c2w[{i}]: {e}"));
@@ -627,19 +689,40 @@ fn open_inner(dir: &Path, c: &mut Collector, check_files: bool) -> Option<Captur
     let kf_path = dir.join("tracking/keyframes.json");
     let mut view_of: Vec<Option<usize>> = vec![None; frames_meta.len()];
     let mut times: Vec<Option<f64>> = vec![None; frames_meta.len()];
-    if kf_path.is_file() {
+    if kf_path.exists() {
         match read_text(&kf_path)
             .map_err(|e| e.to_string())
-            .and_then(|t| serde_json::from_str::<Vec<Keyframe>>(&t).map_err(|e| e.to_string()))
+            .and_then(|t| crate::parse_json::<Vec<Keyframe>>(&t))
         {
             Err(e) => c.add(&kf_path, format!("invalid keyframes list: {e}")),
             Ok(list) => {
-                for kf in list {
+                let mut row_of_frame: Vec<Option<usize>> = vec![None; frames_meta.len()];
+                for (row, kf) in list.into_iter().enumerate() {
+                    if let Some(t) = kf.time_s {
+                        if !t.is_finite() {
+                            c.add(
+                                &kf_path,
+                                format!(
+                                    "row {row} (`{}`): time_s {t} is not finite",
+                                    kf.frame_name
+                                ),
+                            );
+                        }
+                    }
                     match frames_meta
                         .iter()
                         .position(|(n, s, _)| *n == kf.frame_name || *s == stem_of(&kf.frame_name))
                     {
+                        Some(fi) if row_of_frame[fi].is_some() => c.add(
+                            &kf_path,
+                            format!(
+                                "rows {} and {row} both list frame `{}`; each frame has one row",
+                                row_of_frame[fi].unwrap_or(0),
+                                kf.frame_name
+                            ),
+                        ),
                         Some(fi) => {
+                            row_of_frame[fi] = Some(row);
                             if kf.view >= cameras.len() {
                                 c.add(&kf_path, format!("frame `{}`: view {} is out of range (the cameras have {} rows)", kf.frame_name, kf.view, cameras.len()));
                             } else {
@@ -652,6 +735,17 @@ fn open_inner(dir: &Path, c: &mut Collector, check_files: bool) -> Option<Captur
                             kf.frame_name
                         )),
                     }
+                }
+                // Frames are ordered by their stems; their times must not go backwards.
+                let mut last: Option<(f64, &str)> = None;
+                for ((name, _, _), t) in frames_meta.iter().zip(&times) {
+                    let Some(t) = *t else { continue };
+                    if let Some((prev, prev_name)) = last {
+                        if t < prev {
+                            c.add(&kf_path, format!("time goes backwards: frame `{name}` is at {t} s but the earlier frame `{prev_name}` is at {prev} s"));
+                        }
+                    }
+                    last = Some((t, name.as_str()));
                 }
                 let missing: Vec<&str> = frames_meta
                     .iter()

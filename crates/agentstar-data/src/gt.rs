@@ -74,7 +74,7 @@ pub struct GroundTruth {
 impl GroundTruth {
     pub fn load(path: &Path) -> Result<GroundTruth> {
         let text = read_text(path)?;
-        let file: GtFile = serde_json::from_str(&text)
+        let file: GtFile = crate::parse_json(&text)
             .map_err(|e| DataError::invalid(path, format!("invalid ground truth: {e}")))?;
         let bad = |m: String| DataError::invalid(path, m);
         if file.format != FORMAT {
@@ -116,6 +116,19 @@ impl GroundTruth {
                 return Err(bad(format!(
                     "joint `{}`: parent `{}` and child `{}` must be parts",
                     j.name, j.parent, j.child
+                )));
+            }
+            let norm = (j.axis[0].powi(2) + j.axis[1].powi(2) + j.axis[2].powi(2)).sqrt();
+            if !(norm.is_finite() && norm > 1e-9) || j.origin.iter().any(|v| !v.is_finite()) {
+                return Err(bad(format!(
+                    "joint `{}`: axis {:?} must be a finite, non-zero vector (and origin finite)",
+                    j.name, j.axis
+                )));
+            }
+            if let Some((f, v)) = j.states.iter().find(|(_, v)| !v.is_finite()) {
+                return Err(bad(format!(
+                    "joint `{}`: state {v} in frame `{f}` is not finite",
+                    j.name
                 )));
             }
             if !matches!(j.kind.as_str(), "revolute" | "prismatic" | "continuous") {

@@ -28,6 +28,7 @@ pub fn load_mesh(path: &Path) -> Result<TriMesh> {
             }
             m
         }),
+        "" => Err("has no file extension; a mesh file is .obj, .stl, .ply or .glb".into()),
         other => Err(format!(
             "unsupported mesh format `.{other}`; use one of .obj, .stl, .ply, .glb"
         )),
@@ -234,13 +235,25 @@ pub fn parse_ply(bytes: &[u8]) -> Result<TriMesh, String> {
         }
     };
     for (name, count, props) in &elements {
+        // Each entry takes at least one byte (or token): a larger count is a lie that would
+        // otherwise loop or allocate for it.
+        if *count > body.len() {
+            return Err(format!(
+                "PLY element `{name}` claims {count} entries, more than the file's {} bytes hold",
+                body.len()
+            ));
+        }
         for _ in 0..*count {
             let mut xyz = [0.0; 3];
             for (pname, ty, list) in props {
                 match list {
                     Some(ct) => {
-                        let n = next(ct, &mut pos)? as usize;
-                        let mut idx = Vec::with_capacity(n);
+                        let c = next(ct, &mut pos)?;
+                        if !(c.is_finite() && c >= 0.0 && c.fract() == 0.0 && c <= 1e6) {
+                            return Err(format!("PLY list `{pname}` has a bad length {c}"));
+                        }
+                        let n = c as usize;
+                        let mut idx = Vec::with_capacity(n.min(64));
                         for _ in 0..n {
                             idx.push(next(ty, &mut pos)? as u32);
                         }
@@ -287,9 +300,123 @@ pub fn parse_glb_file_frame(bytes: &[u8]) -> Result<Vec<(String, TriMesh)>, Stri
     parse_glb_from(bytes, Matrix4::identity())
 }
 
+/// Checks an accessor before the `gltf` reader touches it (the reader indexes and asserts on
+/// what the file claims): its buffer view lies inside the binary chunk, its elements fit
+/// in the view, and its type is what we read.
+fn check_accessor(
+    acc: &gltf::Accessor,
+    blob_len: usize,
+    what: &str,
+    dims: gltf::accessor::Dimensions,
+    types: &[gltf::accessor::DataType],
+) -> Result<(), String> {
+    let bad = |why: String| Err(format!("accessor {} ({what}): {why}", acc.index()));
+    if acc.sparse().is_some() {
+        return bad("sparse accessors are not supported".into());
+    }
+    if acc.dimensions() != dims || !types.contains(&acc.data_type()) {
+        return bad(format!(
+            "type {:?} {:?} is not the expected {dims:?}",
+            acc.dimensions(),
+            acc.data_type()
+        ));
+    }
+    let Some(view) = acc.view() else {
+        return bad("it has no buffer view".into());
+    };
+    let buffer = view.buffer();
+    if !matches!(buffer.source(), gltf::buffer::Source::Bin) {
+        return bad("its buffer is not the GLB's binary chunk".into());
+    }
+    let view_end = view.offset().checked_add(view.length());
+    if buffer.length() > blob_len || view_end.is_none_or(|e| e > buffer.length()) {
+        return bad("its buffer view lies outside the binary chunk".into());
+    }
+    let elem = acc.size();
+    let stride = view.stride().unwrap_or(elem);
+    if stride < elem {
+        return bad(format!(
+            "byte stride {stride} is smaller than an element ({elem} bytes)"
+        ));
+    }
+    if acc.count() > 0 {
+        let last = (acc.count() - 1)
+            .checked_mul(stride)
+            .and_then(|v| v.checked_add(acc.offset()))
+            .and_then(|v| v.checked_add(elem));
+        if last.is_none_or(|l| l > view.length()) {
+            return bad(format!(
+                "{} elements do not fit in its buffer view of {} bytes",
+                acc.count(),
+                view.length()
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// Checks what the `gltf` crate (1.4) trusts and panics on: the GLB header and chunk
+/// lengths, and the accessor indices that its validation looks up unchecked.
+fn precheck_glb(bytes: &[u8]) -> Result<(), String> {
+    let word = |at: usize| -> Option<u32> {
+        bytes
+            .get(at..at + 4)
+            .map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]]))
+    };
+    if bytes.get(..4) != Some(b"glTF") {
+        return Err("not a GLB file (no `glTF` magic)".into());
+    }
+    let total = word(8).ok_or("the GLB header is truncated")? as usize;
+    if total < 20 || total > bytes.len() {
+        return Err(format!(
+            "the GLB header gives a length of {total} bytes but the file has {}",
+            bytes.len()
+        ));
+    }
+    let json_len = word(12).ok_or("the GLB JSON chunk is truncated")? as usize;
+    if word(16) != Some(0x4E4F_534A) || 20usize.saturating_add(json_len) > total {
+        return Err("the GLB JSON chunk is malformed".into());
+    }
+    let json_end = 20 + json_len;
+    let bin_at = json_end.div_ceil(4) * 4;
+    if bin_at + 8 <= total {
+        let bin_len = word(bin_at).unwrap_or(u32::MAX) as usize;
+        if (bin_at + 8).saturating_add(bin_len) > total {
+            return Err("the GLB binary chunk runs past the end of the file".into());
+        }
+    }
+    let json: serde_json::Value = serde_json::from_slice(&bytes[20..json_end])
+        .map_err(|e| format!("the GLB JSON chunk is not JSON: {e}"))?;
+    let accessors = json["accessors"].as_array().map_or(0, Vec::len);
+    for mesh in json["meshes"].as_array().into_iter().flatten() {
+        for prim in mesh["primitives"].as_array().into_iter().flatten() {
+            let refs = prim["attributes"]
+                .as_object()
+                .into_iter()
+                .flat_map(|a| a.values())
+                .chain(std::iter::once(&prim["indices"]))
+                .filter(|v| !v.is_null());
+            for r in refs {
+                if r.as_u64().is_none_or(|i| i as usize >= accessors) {
+                    return Err(format!(
+                        "a mesh primitive refers to accessor {r}, but there are {accessors}"
+                    ));
+                }
+            }
+        }
+    }
+    Ok(())
+}
+
 fn parse_glb_from(bytes: &[u8], root_from_file: Matrix4) -> Result<Vec<(String, TriMesh)>, String> {
-    let gltf = gltf::Gltf::from_slice(bytes).map_err(|e| format!("not a valid GLB file: {e}"))?;
+    precheck_glb(bytes).map_err(|e| format!("not a valid GLB file: {e}"))?;
+    // The prechecks cover the panics we know of in `gltf`; a reader bug we do not know of
+    // is still an error about this file rather than a crash.
+    let gltf = std::panic::catch_unwind(|| gltf::Gltf::from_slice(bytes))
+        .map_err(|_| "not a valid GLB file: the glTF reader failed on it".to_string())?
+        .map_err(|e| format!("not a valid GLB file: {e}"))?;
     let blob = gltf.blob.as_deref();
+    let blob_len = blob.map_or(0, <[u8]>::len);
     let scene = gltf
         .default_scene()
         .or_else(|| gltf.scenes().next())
@@ -297,14 +424,39 @@ fn parse_glb_from(bytes: &[u8], root_from_file: Matrix4) -> Result<Vec<(String, 
     let mut parts = Vec::new();
     for (i, root) in scene.nodes().enumerate() {
         let mut mesh = TriMesh::default();
-        let mut stack = vec![(root.clone(), root_from_file)];
-        while let Some((node, parent)) = stack.pop() {
+        let mut stack = vec![(root.clone(), root_from_file, 0usize)];
+        let mut visited = 0usize;
+        while let Some((node, parent, depth)) = stack.pop() {
+            // A node graph with a cycle (invalid glTF) would never end.
+            visited += 1;
+            if depth > 256 || visited > 1_000_000 {
+                return Err("the node hierarchy is cyclic or deeper than 256 levels".into());
+            }
             let local = Matrix4::from_fn(|r, c| node.transform().matrix()[c][r] as f64);
             let world = parent * local;
             if let Some(m) = node.mesh() {
                 for prim in m.primitives() {
                     if prim.mode() != gltf::mesh::Mode::Triangles {
                         continue;
+                    }
+                    use gltf::accessor::{DataType, Dimensions};
+                    if let Some(acc) = prim.get(&gltf::Semantic::Positions) {
+                        check_accessor(
+                            &acc,
+                            blob_len,
+                            "positions",
+                            Dimensions::Vec3,
+                            &[DataType::F32],
+                        )?;
+                    }
+                    if let Some(acc) = prim.indices() {
+                        check_accessor(
+                            &acc,
+                            blob_len,
+                            "indices",
+                            Dimensions::Scalar,
+                            &[DataType::U8, DataType::U16, DataType::U32],
+                        )?;
                     }
                     let reader = prim.reader(|b| match b.source() {
                         gltf::buffer::Source::Bin => blob,
@@ -329,10 +481,14 @@ fn parse_glb_from(bytes: &[u8], root_from_file: Matrix4) -> Result<Vec<(String, 
                     match reader.read_indices() {
                         Some(ind) => {
                             let ind: Vec<u32> = ind.into_u32().collect();
-                            mesh.triangles.extend(
-                                ind.chunks_exact(3)
-                                    .map(|t| [t[0] + base, t[1] + base, t[2] + base]),
-                            );
+                            mesh.triangles.extend(ind.chunks_exact(3).map(|t| {
+                                // Out-of-range indices are reported by `check`.
+                                [
+                                    t[0].saturating_add(base),
+                                    t[1].saturating_add(base),
+                                    t[2].saturating_add(base),
+                                ]
+                            }));
                         }
                         None => mesh.triangles.extend(
                             (0..count / 3)
@@ -347,7 +503,7 @@ fn parse_glb_from(bytes: &[u8], root_from_file: Matrix4) -> Result<Vec<(String, 
                 }
             }
             for c in node.children() {
-                stack.push((c, world));
+                stack.push((c, world, depth + 1));
             }
         }
         if !mesh.triangles.is_empty() {

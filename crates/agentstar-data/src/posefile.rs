@@ -135,8 +135,8 @@ pub fn pose_json(p: &ObjectPose, scale: Option<f64>) -> PoseJson {
 impl PoseFile {
     pub fn read(path: &Path) -> Result<PoseFile> {
         let text = read_text(path)?;
-        let pf: PoseFile = serde_json::from_str(&text).map_err(|e| {
-            let hint = if e.to_string().contains("unknown field `joints`") {
+        let pf: PoseFile = crate::parse_json(&text).map_err(|e: String| {
+            let hint = if e.contains("unknown field `joints`") {
                 " (joints are a sibling of object_pose, not nested inside it)"
             } else {
                 ""
@@ -160,7 +160,20 @@ impl PoseFile {
         for (name, f) in &self.frames {
             if let Some(p) = &f.object_pose {
                 ObjectPose::from_wxyz(p.quaternion, p.translation)
-                    .map_err(|e| format!("frame `{name}`: {e}"))?;
+                    .map_err(|e| format!("frame `{name}`: object_pose: {e}"))?;
+                if let Some(s) = p.scale {
+                    if !(s.is_finite() && s > 0.0) {
+                        return Err(format!(
+                            "frame `{name}`: object_pose.scale {s} must be positive and finite"
+                        ));
+                    }
+                    if (s - self.scale).abs() > 1e-6 * self.scale {
+                        return Err(format!(
+                            "frame `{name}`: object_pose.scale {s} differs from the shared scale {}; pose.json has one scale for every frame",
+                            self.scale
+                        ));
+                    }
+                }
             }
             if let Some((j, v)) = f.joints.iter().find(|(_, v)| !v.is_finite()) {
                 return Err(format!(

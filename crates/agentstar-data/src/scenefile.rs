@@ -17,7 +17,14 @@ pub struct ScriptDirMeshes {
 
 impl ScriptDirMeshes {
     pub fn new(dir: impl Into<PathBuf>) -> Self {
-        ScriptDirMeshes { dir: dir.into() }
+        let dir: PathBuf = dir.into();
+        // The parent of `scene.rhai` is "", which `canonicalize` cannot open.
+        let dir = if dir.as_os_str().is_empty() {
+            PathBuf::from(".")
+        } else {
+            dir
+        };
+        ScriptDirMeshes { dir }
     }
 }
 
@@ -39,12 +46,41 @@ impl MeshSource for ScriptDirMeshes {
             ));
         }
         let full = self.dir.join(p);
-        // Refuse symlinks that lead outside the directory.
-        let (Ok(real), Ok(root)) = (full.canonicalize(), self.dir.canonicalize()) else {
-            return Err(format!("no file `{path}` beside the script"));
+        let root = self.dir.canonicalize().map_err(|e| {
+            format!(
+                "the script's directory {} cannot be opened: {e}",
+                self.dir.display()
+            )
+        })?;
+        // Refuse symlinks that lead outside the directory, saying so.
+        let link = std::fs::symlink_metadata(&full)
+            .ok()
+            .filter(|m| m.file_type().is_symlink())
+            .and_then(|_| std::fs::read_link(&full).ok());
+        let real = match (full.canonicalize(), &link) {
+            (Ok(r), _) => r,
+            (Err(_), Some(target)) => {
+                return Err(format!(
+                    "`{path}` is a symbolic link to {}, which does not exist",
+                    target.display()
+                ))
+            }
+            (Err(_), None) => {
+                return Err(format!(
+                    "no file `{path}` beside the script (looked at {})",
+                    full.display()
+                ))
+            }
         };
         if !real.starts_with(&root) {
-            return Err(format!("`{path}` leads outside the script's directory"));
+            return Err(match link {
+                Some(_) => format!(
+                    "`{path}` is a symbolic link to {}, outside the script's directory {}; mesh files must be inside it (copy the file there)",
+                    real.display(),
+                    root.display()
+                ),
+                None => format!("`{path}` leads outside the script's directory"),
+            });
         }
         load_mesh(&real).map_err(|e| e.to_string())
     }
@@ -72,7 +108,11 @@ fn last_good_path(script: &Path) -> PathBuf {
 /// Evaluates a scene script file. On success the script is remembered as the last good one.
 pub fn load_scene_script(path: &Path, limits: &Limits) -> Result<SceneBuild> {
     let source = read_text(path)?;
-    let dir = path.parent().unwrap_or(Path::new("."));
+    // `scene.rhai` has the parent "", which names no directory: meshes are beside it in ".".
+    let dir = match path.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => Path::new("."),
+    };
     match build_scene(&source, &ScriptDirMeshes::new(dir), limits) {
         Ok(b) => {
             // Remembering is best effort: a read-only directory must not fail a good build.
@@ -125,6 +165,7 @@ pub fn load_model(path: &Path) -> Result<LoadedModel> {
             let name = path.file_stem().and_then(|s| s.to_str()).unwrap_or("object").to_string();
             rigid(vec![Part::new(name, load_mesh(path)?, palette(0))])
         }
+        "" => Err(DataError::invalid(path, format!("has no file extension, so it is not a model file; use a scene script (.rhai), a URDF (.urdf) or a mesh (.{})", MESH_EXTENSIONS.join(", .")))),
         other => Err(DataError::invalid(path, format!("unknown model type `.{other}`; use a scene script (.rhai), a URDF (.urdf) or a mesh (.{})", MESH_EXTENSIONS.join(", .")))),
     }
 }

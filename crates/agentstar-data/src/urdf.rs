@@ -111,6 +111,11 @@ pub fn load_urdf(path: &Path) -> Result<ObjectModel> {
             .ok_or_else(|| err("a <link> has no name".into()))?
             .to_string();
         let owner = format!("link `{name}`");
+        if links.contains_key(&name) {
+            return Err(err(format!(
+                "{owner} is defined twice (link names must be unique)"
+            )));
+        }
         let mut mesh = TriMesh::default();
         let mut color = None;
         for visual in link.children().filter(|n| n.has_tag_name("visual")) {
@@ -162,6 +167,11 @@ pub fn load_urdf(path: &Path) -> Result<ObjectModel> {
             .ok_or_else(|| err("a <joint> has no name".into()))?
             .to_string();
         let owner = format!("joint `{name}`");
+        if joints.iter().any(|o: &UrdfJoint| o.name == name) {
+            return Err(err(format!(
+                "{owner} is defined twice (joint names must be unique)"
+            )));
+        }
         let ty = j.attribute("type").unwrap_or("");
         let kind = match ty {
             "revolute" => JointKind::Revolute,
@@ -193,6 +203,12 @@ pub fn load_urdf(path: &Path) -> Result<ObjectModel> {
             }
             None => vec![1.0, 0.0, 0.0],
         };
+        let axis_norm = (axis[0].powi(2) + axis[1].powi(2) + axis[2].powi(2)).sqrt();
+        if kind != JointKind::Fixed && axis_norm < 1e-9 {
+            return Err(err(format!(
+                "{owner}: <axis xyz> is the zero vector; a moving joint needs a direction"
+            )));
+        }
         let limit = match (kind, j.children().find(|c| c.has_tag_name("limit"))) {
             (JointKind::Revolute | JointKind::Prismatic, Some(l)) => {
                 let lo = attr_numbers(l, "lower", 1, &owner, Some(vec![0.0])).map_err(&err)?[0];
@@ -220,6 +236,22 @@ pub fn load_urdf(path: &Path) -> Result<ObjectModel> {
             axis: Vector3::new(axis[0], axis[1], axis[2]),
             limit,
         });
+    }
+    // A link is the child of at most one joint: a second one closes a kinematic loop,
+    // which URDF cannot express.
+    for (i, j) in joints.iter().enumerate() {
+        if let Some(first) = joints[..i].iter().find(|o| o.child == j.child) {
+            return Err(err(format!(
+                "link `{}` is the child of two joints (`{}` and `{}`): the joints form a kinematic loop, and URDF links must form a tree",
+                j.child, first.name, j.name
+            )));
+        }
+        if j.child == j.parent {
+            return Err(err(format!(
+                "joint `{}`: link `{}` is its own parent",
+                j.name, j.child
+            )));
+        }
     }
     // Rest placement of every link, from the root down.
     let children: Vec<&str> = joints.iter().map(|j| j.child.as_str()).collect();
@@ -263,11 +295,12 @@ pub fn load_urdf(path: &Path) -> Result<ObjectModel> {
     }
     let mut parts = Vec::new();
     for name in &link_order {
-        let (mesh, color) = &links[name];
+        let (Some((mesh, color)), Some(&w)) = (links.get(name), world.get(name)) else {
+            continue;
+        };
         if mesh.triangles.is_empty() {
             continue;
         }
-        let w = world[name];
         let rot = w.rotation.to_rotation_matrix().into_inner();
         let placed = mesh.clone().transformed(&rot, &w.translation.vector);
         parts.push(Part::new(
@@ -289,7 +322,10 @@ pub fn load_urdf(path: &Path) -> Result<ObjectModel> {
     let defs: Vec<JointDef> = joints
         .iter()
         .map(|j| {
-            let jw = joint_world[&j.name];
+            let jw = joint_world
+                .get(&j.name)
+                .copied()
+                .unwrap_or_else(Rigid::identity);
             let to_interface = |v: f64| {
                 if j.kind == JointKind::Revolute {
                     v.to_degrees()

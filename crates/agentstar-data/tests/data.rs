@@ -1241,3 +1241,174 @@ fn an_arctic_sequence_imports_two_parts_and_the_articulation() {
         "{err}"
     );
 }
+
+/// Issue 16's silent misreads: each is now an error naming the file and the field.
+#[test]
+fn camera_sizes_bottom_rows_and_keyframes_are_checked() {
+    let dir = tempfile::tempdir().expect("tmp");
+    write_capture(
+        dir.path(),
+        3,
+        vec![identity(), translated(0.1), translated(0.2)],
+    );
+    let cams_path = dir.path().join("tracking/cameras.json");
+    let cams_text = std::fs::read_to_string(&cams_path).expect("cams");
+    let set = |f: &dyn Fn(&mut serde_json::Value)| {
+        let mut v: serde_json::Value = serde_json::from_str(&cams_text).expect("json");
+        f(&mut v);
+        std::fs::write(&cams_path, v.to_string()).expect("write");
+    };
+    for size in [
+        serde_json::json!([0, 0]),
+        serde_json::json!([-1, -1]),
+        serde_json::json!([640, 480, 3]),
+    ] {
+        set(&|v| v["size"] = size.clone());
+        let p = problems_of(dir.path());
+        assert!(
+            p.contains("cameras.json") && p.contains("size"),
+            "{size}: {p}"
+        );
+    }
+    set(&|v| v["c2w"][1][3] = serde_json::json!([1.0, 2.0, 3.0, 4.0]));
+    let p = problems_of(dir.path());
+    assert!(p.contains("c2w[1]") && p.contains("bottom row"), "{p}");
+    std::fs::write(&cams_path, &cams_text).expect("restore");
+    // The same in cameras.npz, where `size` is an array of any shape and value.
+    std::fs::remove_file(&cams_path).expect("rm");
+    let npz = dir.path().join("tracking/cameras.npz");
+    let c2w: Vec<f32> = [identity(), translated(0.1), translated(0.2)]
+        .iter()
+        .flat_map(|m| m.iter().flatten().map(|&v| v as f32).collect::<Vec<_>>())
+        .collect();
+    let k: Vec<f32> = (0..3)
+        .flat_map(|_| [50.0, 0.0, 20.0, 0.0, 50.0, 15.0, 0.0, 0.0, 1.0])
+        .collect();
+    for size in [vec![0i64, 0], vec![-1, -1], vec![640, 480, 3]] {
+        agentstar_data::npz::write_arrays(
+            &npz,
+            &[("c2w", &[3, 4, 4], &c2w), ("intrinsics", &[3, 3, 3], &k)],
+            &[("size", &[size.len()], &size)],
+        )
+        .expect("npz");
+        let p = problems_of(dir.path());
+        assert!(
+            p.contains("cameras.npz") && p.contains("`size`"),
+            "{size:?}: {p}"
+        );
+    }
+    agentstar_data::npz::write_arrays(
+        &npz,
+        &[("c2w", &[3, 4, 4], &c2w), ("intrinsics", &[3, 3, 3], &k)],
+        &[("size", &[2], &[W as i64, H as i64])],
+    )
+    .expect("npz");
+    assert!(
+        Capture::validate(dir.path()).is_empty(),
+        "{}",
+        problems_of(dir.path())
+    );
+}
+
+#[test]
+fn pose_and_ground_truth_values_that_cannot_be_used_are_errors() {
+    let dir = tempfile::tempdir().expect("tmp");
+    let p = dir.path().join("pose.json");
+    let pose = |q: &str, scale: &str| {
+        format!(
+            r#"{{"scale": 0.2, "reference_frame": "a", "frames": {{"a": {{"object_pose": {{"quaternion": {q}, "translation": [0,0,1]{scale}}}}}}}}}"#
+        )
+    };
+    std::fs::write(&p, pose("[1e300, 1e300, 0, 0]", "")).expect("w");
+    let e = PoseFile::read(&p).expect_err("overflow").to_string();
+    assert!(e.contains("pose.json") && e.contains("quaternion"), "{e}");
+    for scale in ["0", "-0.2", "1e300"] {
+        std::fs::write(&p, pose("[1, 0, 0, 0]", &format!(", \"scale\": {scale}"))).expect("w");
+        let e = PoseFile::read(&p).expect_err("scale").to_string();
+        assert!(e.contains("object_pose.scale"), "{scale}: {e}");
+    }
+    std::fs::write(&p, pose("[1, 0, 0, 0]", ", \"scale\": 0.2")).expect("w");
+    PoseFile::read(&p).expect("the shared scale repeated is fine");
+    std::fs::write(&p, pose("[1, NaN, 0, 0]", "")).expect("w");
+    let e = PoseFile::read(&p).expect_err("nan").to_string();
+    assert!(e.contains("`NaN`"), "{e}");
+    // gt.json: a quaternion that overflows and a zero joint axis.
+    let mesh = agentstar_geom::primitives::cuboid(0.1, 0.1, 0.1).expect("box");
+    std::fs::write(
+        dir.path().join("m.obj"),
+        agentstar_data::meshio::obj_text(&mesh, "m"),
+    )
+    .expect("w");
+    let gt = dir.path().join("gt.json");
+    let write_gt = |q: &str, axis: &str| {
+        std::fs::write(&gt, format!(r#"{{"format": "agentstar-gt/1", "base_part": "a", "parts": {{"a": {{"mesh": "m.obj"}}, "b": {{"mesh": "m.obj"}}}},
+            "frames": {{"000000": {{"parts": {{"a": {{"quaternion": {q}, "translation": [0, 0, 1]}}}}}}}},
+            "joints": [{{"name": "h", "type": "revolute", "parent": "a", "child": "b", "axis": {axis}}}]}}"#)).expect("w");
+    };
+    write_gt("[1e300, 1e300, 0, 0]", "[1, 0, 0]");
+    let e = agentstar_data::gt::GroundTruth::load(&gt)
+        .expect_err("quaternion")
+        .to_string();
+    assert!(e.contains("gt.json") && e.contains("quaternion"), "{e}");
+    write_gt("[1, 0, 0, 0]", "[0, 0, 0]");
+    let e = agentstar_data::gt::GroundTruth::load(&gt)
+        .expect_err("axis")
+        .to_string();
+    assert!(e.contains("joint `h`") && e.contains("axis"), "{e}");
+    write_gt("[1, 0, 0, 0]", "[0, 0, 1]");
+    agentstar_data::gt::GroundTruth::load(&gt).expect("valid ground truth");
+}
+
+#[test]
+fn urdf_loops_duplicates_and_zero_axes_are_named() {
+    let dir = tempfile::tempdir().expect("tmp");
+    let p = dir.path().join("r.urdf");
+    let link = |n: &str| {
+        format!("<link name=\"{n}\"><visual><geometry><box size=\"1 1 0.2\"/></geometry></visual></link>")
+    };
+    let joint = |n: &str, p: &str, c: &str, axis: &str| {
+        format!("<joint name=\"{n}\" type=\"continuous\"><parent link=\"{p}\"/><child link=\"{c}\"/><axis xyz=\"{axis}\"/></joint>")
+    };
+    let cases = [
+        (
+            format!(
+                "{}{}{}{}{}{}",
+                link("root"),
+                link("base"),
+                link("lid"),
+                joint("j0", "root", "base", "1 0 0"),
+                joint("j1", "base", "lid", "1 0 0"),
+                joint("back", "lid", "base", "1 0 0")
+            ),
+            "kinematic loop",
+        ),
+        (
+            format!("{}{}", link("base"), link("base")),
+            "link `base` is defined twice",
+        ),
+        (
+            format!(
+                "{}{}{}{}",
+                link("a"),
+                link("b"),
+                joint("j", "a", "b", "1 0 0"),
+                joint("j", "a", "b", "1 0 0")
+            ),
+            "joint `j` is defined twice",
+        ),
+        (
+            format!(
+                "{}{}{}",
+                link("a"),
+                link("b"),
+                joint("j", "a", "b", "0 0 0")
+            ),
+            "zero vector",
+        ),
+    ];
+    for (body, expect) in cases {
+        std::fs::write(&p, format!("<robot name=\"r\">{body}</robot>")).expect("w");
+        let e = load_urdf(&p).expect_err(expect).to_string();
+        assert!(e.contains("r.urdf") && e.contains(expect), "{expect}: {e}");
+    }
+}

@@ -7,6 +7,44 @@
 
 use crate::mesh::{Aabb, TriMesh};
 use crate::{GeomError, Point3, Result, Vector3};
+use std::time::Instant;
+
+/// Bounds on one boolean's work, checked inside the kernel's loops: a wall-clock deadline
+/// (the scene script's wall-time limit) and a cap on the polygons the trees may hold (BSP
+/// splitting can multiply them). A boolean that reaches either stops with
+/// [`GeomError::LimitExceeded`] within a few milliseconds.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Budget {
+    pub deadline: Option<Instant>,
+    pub max_polygons: usize,
+}
+
+impl Default for Budget {
+    /// No deadline; at most 20 million polygons.
+    fn default() -> Self {
+        Budget {
+            deadline: None,
+            max_polygons: 20_000_000,
+        }
+    }
+}
+
+impl Budget {
+    fn check(&self, polygons: usize) -> Result<()> {
+        if polygons > self.max_polygons {
+            return Err(GeomError::LimitExceeded(format!(
+                "the boolean split its operands into more than {} polygons; use fewer segments on the operands",
+                self.max_polygons
+            )));
+        }
+        if self.deadline.is_some_and(|d| Instant::now() >= d) {
+            return Err(GeomError::LimitExceeded(
+                "the boolean ran past the wall-time limit; its cost grows with the operands' triangle counts (use fewer segments, e.g. sphere(r, 48, 24))".into(),
+            ));
+        }
+        Ok(())
+    }
+}
 
 #[derive(Clone, Debug)]
 struct Plane {
@@ -133,22 +171,33 @@ struct Node {
 struct Bsp {
     nodes: Vec<Node>,
     eps: f64,
+    budget: Budget,
+    /// Polygons stored in the nodes (for the budget).
+    stored: usize,
 }
 
 impl Bsp {
-    fn new(polygons: Vec<Polygon>, eps: f64) -> Bsp {
+    fn new(polygons: Vec<Polygon>, eps: f64, budget: Budget) -> Result<Bsp> {
         let mut t = Bsp {
             nodes: vec![Node::default()],
             eps,
+            budget,
+            stored: 0,
         };
-        t.build(0, polygons);
-        t
+        t.build(0, polygons)?;
+        Ok(t)
     }
 
     /// Inserts polygons below `root`, iteratively.
-    fn build(&mut self, root: usize, polygons: Vec<Polygon>) {
+    fn build(&mut self, root: usize, polygons: Vec<Polygon>) -> Result<()> {
         let mut work = vec![(root, polygons)];
+        let mut rounds = 0u32;
         while let Some((ni, polys)) = work.pop() {
+            rounds = rounds.wrapping_add(1);
+            if rounds % 64 == 0 {
+                let pending: usize = work.iter().map(|(_, p)| p.len()).sum();
+                self.budget.check(self.stored + pending)?;
+            }
             if polys.is_empty() {
                 continue;
             }
@@ -162,6 +211,7 @@ impl Bsp {
             for p in polys {
                 split(&plane, p, self.eps, &mut cf, &mut cb, &mut f, &mut b);
             }
+            self.stored += cf.len() + cb.len();
             self.nodes[ni].polygons.extend(cf);
             self.nodes[ni].polygons.extend(cb);
             if !f.is_empty() {
@@ -173,6 +223,7 @@ impl Bsp {
                 work.push((child, b));
             }
         }
+        self.budget.check(self.stored)
     }
 
     fn child(&mut self, ni: usize, front: bool) -> usize {
@@ -207,10 +258,15 @@ impl Bsp {
     }
 
     /// Removes the parts of `polygons` inside this tree's solid.
-    fn clip_polygons(&self, polygons: Vec<Polygon>) -> Vec<Polygon> {
+    fn clip_polygons(&self, polygons: Vec<Polygon>) -> Result<Vec<Polygon>> {
         let mut out = Vec::new();
         let mut work = vec![(0usize, polygons)];
+        let mut rounds = 0u32;
         while let Some((ni, polys)) = work.pop() {
+            rounds = rounds.wrapping_add(1);
+            if rounds % 64 == 0 {
+                self.budget.check(out.len())?;
+            }
             let node = &self.nodes[ni];
             let Some(plane) = &node.plane else {
                 out.extend(polys);
@@ -232,14 +288,18 @@ impl Bsp {
                 work.push((c, b));
             }
         }
-        out
+        Ok(out)
     }
 
-    fn clip_to(&mut self, other: &Bsp) {
+    fn clip_to(&mut self, other: &Bsp) -> Result<()> {
+        let mut stored = 0;
         for i in 0..self.nodes.len() {
             let polys = std::mem::take(&mut self.nodes[i].polygons);
-            self.nodes[i].polygons = other.clip_polygons(polys);
+            self.nodes[i].polygons = other.clip_polygons(polys)?;
+            stored += self.nodes[i].polygons.len();
         }
+        self.stored = stored;
+        self.budget.check(stored)
     }
 
     fn all_polygons(&self) -> Vec<Polygon> {
@@ -285,7 +345,7 @@ enum Op {
     Intersection,
 }
 
-fn boolean(a: &TriMesh, b: &TriMesh, op: Op) -> Result<TriMesh> {
+fn boolean(a: &TriMesh, b: &TriMesh, op: Op, budget: Budget) -> Result<TriMesh> {
     let name = match op {
         Op::Union => "union",
         Op::Difference => "difference",
@@ -309,41 +369,44 @@ fn boolean(a: &TriMesh, b: &TriMesh, op: Op) -> Result<TriMesh> {
             Op::Intersection => TriMesh::default(),
         });
     }
-    let mut ta = Bsp::new(to_polygons(a), eps);
-    let mut tb = Bsp::new(to_polygons(b), eps);
+    budget.check(a.triangles.len() + b.triangles.len())?;
+    let mut ta = Bsp::new(to_polygons(a), eps, budget)?;
+    let mut tb = Bsp::new(to_polygons(b), eps, budget)?;
     match op {
         Op::Union => {
-            ta.clip_to(&tb);
-            tb.clip_to(&ta);
+            ta.clip_to(&tb)?;
+            tb.clip_to(&ta)?;
             tb.invert();
-            tb.clip_to(&ta);
+            tb.clip_to(&ta)?;
             tb.invert();
             let polys = tb.all_polygons();
-            ta.build(0, polys);
+            ta.build(0, polys)?;
         }
         Op::Difference => {
             ta.invert();
-            ta.clip_to(&tb);
-            tb.clip_to(&ta);
+            ta.clip_to(&tb)?;
+            tb.clip_to(&ta)?;
             tb.invert();
-            tb.clip_to(&ta);
+            tb.clip_to(&ta)?;
             tb.invert();
             let polys = tb.all_polygons();
-            ta.build(0, polys);
+            ta.build(0, polys)?;
             ta.invert();
         }
         Op::Intersection => {
             ta.invert();
-            tb.clip_to(&ta);
+            tb.clip_to(&ta)?;
             tb.invert();
-            ta.clip_to(&tb);
-            tb.clip_to(&ta);
+            ta.clip_to(&tb)?;
+            tb.clip_to(&ta)?;
             let polys = tb.all_polygons();
-            ta.build(0, polys);
+            ta.build(0, polys)?;
             ta.invert();
         }
     }
-    Ok(polygons_to_mesh(ta.all_polygons(), size))
+    let polygons = ta.all_polygons();
+    budget.check(polygons.len())?;
+    Ok(polygons_to_mesh(polygons, size))
 }
 
 /// Welds polygon vertices, inserts vertices that lie on other polygons' edges (repairing
@@ -550,17 +613,32 @@ impl Grid {
 
 /// `a ∪ b`.
 pub fn union(a: &TriMesh, b: &TriMesh) -> Result<TriMesh> {
-    boolean(a, b, Op::Union)
+    boolean(a, b, Op::Union, Budget::default())
 }
 
 /// `a \ b`.
 pub fn difference(a: &TriMesh, b: &TriMesh) -> Result<TriMesh> {
-    boolean(a, b, Op::Difference)
+    boolean(a, b, Op::Difference, Budget::default())
 }
 
 /// `a ∩ b`.
 pub fn intersection(a: &TriMesh, b: &TriMesh) -> Result<TriMesh> {
-    boolean(a, b, Op::Intersection)
+    boolean(a, b, Op::Intersection, Budget::default())
+}
+
+/// [`union`] within a budget.
+pub fn union_within(a: &TriMesh, b: &TriMesh, budget: Budget) -> Result<TriMesh> {
+    boolean(a, b, Op::Union, budget)
+}
+
+/// [`difference`] within a budget.
+pub fn difference_within(a: &TriMesh, b: &TriMesh, budget: Budget) -> Result<TriMesh> {
+    boolean(a, b, Op::Difference, budget)
+}
+
+/// [`intersection`] within a budget.
+pub fn intersection_within(a: &TriMesh, b: &TriMesh, budget: Budget) -> Result<TriMesh> {
+    boolean(a, b, Op::Intersection, budget)
 }
 
 /// Whether `p` is inside the closed mesh, by the parity of crossings along a fixed,

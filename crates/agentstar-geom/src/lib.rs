@@ -33,6 +33,9 @@ pub enum GeomError {
     InvalidPose(String),
     #[error("mesh too large: {triangles} triangles exceeds the limit of {limit}")]
     MeshTooLarge { triangles: usize, limit: usize },
+    /// A bounded computation (a boolean) reached its time or size limit.
+    #[error("{0}")]
+    LimitExceeded(String),
 }
 
 pub type Result<T, E = GeomError> = std::result::Result<T, E>;

@@ -111,9 +111,17 @@ pub fn quat_from_wxyz(q: [f64; 4]) -> Result<UnitQuaternion> {
         )));
     }
     let raw = Quaternion::new(q[0], q[1], q[2], q[3]);
-    if raw.norm() < 1e-9 {
+    // The norm of [1e300, 1e300, 0, 0] overflows to infinity; a length that is not a
+    // finite number well away from zero is an error rather than a NaN rotation.
+    let norm = raw.norm();
+    if norm < 1e-9 {
         return Err(GeomError::InvalidPose(format!(
             "quaternion {q:?} has zero length"
+        )));
+    }
+    if !(norm.is_finite() && norm <= 1e9) {
+        return Err(GeomError::InvalidPose(format!(
+            "quaternion {q:?} has length {norm:e}; expected a unit quaternion (renormalised, but its length must lie in [1e-9, 1e9])"
         )));
     }
     Ok(UnitQuaternion::from_quaternion(raw))
@@ -195,6 +203,10 @@ mod tests {
         assert!((p - Vector3::new(0.0, -1.0, 0.0)).norm() < 1e-6);
         assert!(quat_from_wxyz([f64::NAN, 0.0, 0.0, 1.0]).is_err());
         assert!(quat_from_wxyz([0.0; 4]).is_err());
+        // Issue 16: the norm overflows to infinity and the rotation came out NaN.
+        let e = quat_from_wxyz([1e300, 1e300, 0.0, 0.0]).expect_err("overflowing length");
+        assert!(e.to_string().contains("length"), "{e}");
+        assert!(quat_from_wxyz([1e-200, 0.0, 0.0, 0.0]).is_err());
     }
 
     #[test]

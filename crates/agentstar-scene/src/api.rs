@@ -125,6 +125,19 @@ struct State {
     triangles: usize,
     printed: Vec<String>,
     limits: Limits,
+    /// When the script's wall-time limit runs out; booleans stop there too.
+    deadline: Instant,
+}
+
+impl State {
+    fn boolean_budget(&self) -> csg::Budget {
+        csg::Budget {
+            deadline: Some(self.deadline),
+            // Splitting may multiply polygons; a few times the triangle limit is the most a
+            // result could still be admitted with.
+            max_polygons: self.limits.max_triangles.saturating_mul(4),
+        }
+    }
 }
 
 type Shared = Arc<Mutex<State>>;
@@ -242,7 +255,13 @@ fn admit(state: &Shared, mesh: TriMesh, color: Option<[f32; 3]>) -> RResult<Soli
 }
 
 fn geom<T>(r: agentstar_geom::Result<T>) -> RResult<T> {
-    r.or_else(|e| fail(e.to_string()))
+    r.or_else(|e| match e {
+        // A limit stops the script as the wall-time limit of the engine does.
+        agentstar_geom::GeomError::LimitExceeded(m) => Err(Box::new(
+            EvalAltResult::ErrorTerminated(Dynamic::from(m), Position::NONE),
+        )),
+        e => fail(e.to_string()),
+    })
 }
 
 fn parse_color(s: &str) -> RResult<[f32; 3]> {
@@ -534,18 +553,19 @@ fn register(engine: &mut Engine, state: &Shared, meshes: Arc<dyn MeshSource>) {
     }
 
     // Booleans.
-    type Op = fn(&TriMesh, &TriMesh) -> agentstar_geom::Result<TriMesh>;
+    type Op = fn(&TriMesh, &TriMesh, csg::Budget) -> agentstar_geom::Result<TriMesh>;
     let ops: [(&str, Op); 5] = [
-        ("union", csg::union),
-        ("+", csg::union),
-        ("difference", csg::difference),
-        ("-", csg::difference),
-        ("intersection", csg::intersection),
+        ("union", csg::union_within),
+        ("+", csg::union_within),
+        ("difference", csg::difference_within),
+        ("-", csg::difference_within),
+        ("intersection", csg::intersection_within),
     ];
     for (name, op) in ops {
         let st = state.clone();
         engine.register_fn(name, move |a: Solid, b: Solid| -> RResult<Solid> {
-            let m = geom(op(&a.mesh, &b.mesh))?;
+            let budget = lock(&st).boolean_budget();
+            let m = geom(op(&a.mesh, &b.mesh, budget))?;
             admit(&st, m, a.color.or(b.color))
         });
     }
@@ -563,8 +583,9 @@ fn register(engine: &mut Engine, state: &Shared, meshes: Arc<dyn MeshSource>) {
                 return fail("`union_all`: the list is empty");
             };
             let mut acc = (*first.mesh).clone();
+            let budget = lock(&st).boolean_budget();
             for s in &solids[1..] {
-                acc = geom(csg::union(&acc, &s.mesh))?;
+                acc = geom(csg::union_within(&acc, &s.mesh, budget))?;
             }
             admit(&st, acc, first.color)
         });
@@ -812,6 +833,11 @@ pub(crate) fn build(
         triangles: 0,
         printed: vec![],
         limits: limits.clone(),
+        deadline: {
+            let now = Instant::now();
+            now.checked_add(limits.max_wall_time)
+                .unwrap_or(now + std::time::Duration::from_secs(365 * 86_400))
+        },
     }));
     // The engine's callbacks must own their data: mesh files named by the script are
     // loaded up front through the caller's source.

@@ -262,3 +262,27 @@ fn docs_reference_matches_the_registered_api() {
         "docs/scene.md is stale: paste api_markdown() between the markers"
     );
 }
+
+/// Issue 16: one boolean of two fine spheres ran past 150 s, ignoring the 20 s wall limit
+/// (the engine's progress callback never runs inside a native function). The kernel now
+/// checks the script's deadline itself.
+#[test]
+fn booleans_stop_at_the_scripts_wall_time_limit() {
+    let limits = Limits {
+        max_wall_time: Duration::from_millis(300),
+        ..Limits::default()
+    };
+    let src = "part(\"a\", sphere(1, 200, 100) - sphere(0.9, 200, 100).translate(0.05, 0, 0));";
+    let start = std::time::Instant::now();
+    let e = build_scene(src, &NoMeshFiles, &limits).expect_err("over the limit");
+    let took = start.elapsed();
+    assert_eq!(e.kind, SceneErrorKind::Limit, "{}", e.message);
+    assert!(e.message.contains("wall-time limit"), "{}", e.message);
+    // The limit holds inside the kernel: well before the boolean's own minutes. Generous
+    // against a loaded machine, but an unbounded boolean takes minutes.
+    assert!(took < Duration::from_secs(10), "took {took:?}");
+    // union_all checks it too.
+    let src = "let s = []; for i in 0..50 { s.push(sphere(0.3, 96, 48).translate(i * 0.1, 0, 0)); } part(\"a\", union_all(s));";
+    let e = build_scene(src, &NoMeshFiles, &limits).expect_err("chain");
+    assert_eq!(e.kind, SceneErrorKind::Limit, "{}", e.message);
+}

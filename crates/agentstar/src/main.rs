@@ -87,7 +87,51 @@ enum Command {
     Batch(cmd::batch::BatchCommand),
 }
 
+/// The exit status of a command whose output pipe was closed (`agentstar check … | head`):
+/// 128 + SIGPIPE, what a shell shows for a program that the signal ended.
+const BROKEN_PIPE_EXIT: i32 = 141;
+
+/// `println!` panics when stdout is a closed pipe. A closed pipe is the reader saying it has
+/// read enough: end quietly, as a program ended by SIGPIPE does, instead of exit 101 and a
+/// panic message. Every other panic keeps the default report.
+fn install_panic_hook() {
+    let default = std::panic::take_hook();
+    std::panic::set_hook(Box::new(move |info| {
+        let message = info
+            .payload()
+            .downcast_ref::<String>()
+            .map(String::as_str)
+            .or_else(|| info.payload().downcast_ref::<&str>().copied())
+            .unwrap_or("");
+        if message.contains("failed printing to stdout") && message.contains("Broken pipe") {
+            std::process::exit(BROKEN_PIPE_EXIT);
+        }
+        default(info);
+    }));
+}
+
+/// Paths and other arguments must be UTF-8: they are written into JSON results, ledgers and
+/// reports, which cannot hold other bytes. Refusing them here, before anything runs, means
+/// no command stops half-way through (after writing some files) on such a path.
+fn non_utf8_argument() -> Option<String> {
+    std::env::args_os()
+        .enumerate()
+        .skip(1)
+        .find(|(_, a)| a.to_str().is_none())
+        .map(|(i, a)| {
+            format!(
+                "argument {i} ({}) is not valid UTF-8; agentstar writes paths into JSON and needs them in UTF-8 (rename the file or directory)",
+                a.to_string_lossy()
+            )
+        })
+}
+
 fn main() -> ExitCode {
+    install_panic_hook();
+    if let Some(message) = non_utf8_argument() {
+        eprintln!("error: {message}");
+        return ExitCode::from(2);
+    }
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Example(a) => cmd::example::run(a),

@@ -49,8 +49,8 @@ pub fn run_init(a: InitArgs) -> Result<ExitCode> {
             a.run.display(),
             run.capture.display(),
             run.task_path().display(),
-            a.run.display(),
-            a.run.display()
+            agentstar_data::shell_quote(&a.run),
+            agentstar_data::shell_quote(&a.run)
         );
     }
     Ok(ExitCode::SUCCESS)
@@ -191,7 +191,10 @@ pub fn run_run(a: RunArgs) -> Result<ExitCode> {
     } else {
         println!("{}: {reason}", a.run.display());
         println!("  spent: {}", session.spend());
-        println!("  report: agentstar report {}", a.run.display());
+        println!(
+            "  report: agentstar report {}",
+            agentstar_data::shell_quote(&a.run)
+        );
     }
     Ok(ExitCode::from(code))
 }

@@ -142,10 +142,10 @@ pub fn run(a: Args) -> Result<ExitCode> {
     println!();
     println!(
         "next: agentstar render --capture {c} --model {m} --poses {p} --out {o}",
-        c = cap_dir.display(),
-        m = scene.display(),
-        p = pose_path.display(),
-        o = out.join("views").display()
+        c = agentstar_data::shell_quote(&cap_dir),
+        m = agentstar_data::shell_quote(&scene),
+        p = agentstar_data::shell_quote(&pose_path),
+        o = agentstar_data::shell_quote(&out.join("views"))
     );
     Ok(ExitCode::SUCCESS)
 }

@@ -1,0 +1,464 @@
+//! Issue 16 end to end: hostile and careless inputs give a clear error and a non-zero exit,
+//! never a panic (exit 101) or a hang; budgets are exact; the model client's failures are
+//! named.
+
+use std::path::Path;
+use std::process::{Command, Output, Stdio};
+use std::time::{Duration, Instant};
+
+fn agentstar(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_agentstar"))
+        .args(args)
+        .output()
+        .expect("run agentstar")
+}
+
+fn text(o: &Output) -> String {
+    format!(
+        "{}{}",
+        String::from_utf8_lossy(&o.stdout),
+        String::from_utf8_lossy(&o.stderr)
+    )
+}
+
+/// Runs and waits at most `limit`, killing the command past it (a hang fails the test
+/// instead of stalling the suite).
+fn agentstar_within(args: &[&str], limit: Duration) -> Option<Output> {
+    let mut child = Command::new(env!("CARGO_BIN_EXE_agentstar"))
+        .args(args)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("spawn");
+    let start = Instant::now();
+    loop {
+        if child.try_wait().expect("wait").is_some() {
+            return Some(child.wait_with_output().expect("output"));
+        }
+        if start.elapsed() > limit {
+            let _ = child.kill();
+            let _ = child.wait();
+            return None;
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    }
+}
+
+fn s(p: &Path) -> String {
+    p.to_str().expect("utf8").to_string()
+}
+
+fn synth(out: &Path, frames: usize) {
+    let n = frames.to_string();
+    let o = agentstar(&[
+        "synth",
+        &s(out),
+        "--object",
+        "box",
+        "--frames",
+        &n,
+        "--size",
+        "64x48",
+        "--no-hands",
+        "--seed",
+        "7",
+    ]);
+    assert!(o.status.success(), "{}", text(&o));
+}
+
+#[test]
+fn a_closed_stdout_ends_quietly() {
+    let dir = tempfile::tempdir().expect("tmp");
+    let scene = dir.path().join("scene.rhai");
+    std::fs::write(&scene, "part(\"a\", box(1, 1, 1));").expect("write");
+    let (reader, writer) = std::io::pipe().expect("pipe");
+    drop(reader);
+    let o = Command::new(env!("CARGO_BIN_EXE_agentstar"))
+        .args(["check", &s(&scene)])
+        .stdout(writer)
+        .stderr(Stdio::piped())
+        .output()
+        .expect("run");
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_ne!(o.status.code(), Some(101), "{err}");
+    assert!(!err.contains("panicked"), "{err}");
+    assert_eq!(o.status.code(), Some(141), "{err}");
+}
+
+#[cfg(unix)]
+#[test]
+fn paths_that_are_not_utf8_are_refused_before_anything_is_written() {
+    use std::os::unix::ffi::OsStrExt;
+    let dir = tempfile::tempdir().expect("tmp");
+    let cap = dir.path().join("cap");
+    synth(&cap, 2);
+    let out = dir.path().join(std::ffi::OsStr::from_bytes(b"views-\xff"));
+    let o = Command::new(env!("CARGO_BIN_EXE_agentstar"))
+        .arg("render")
+        .arg("--capture")
+        .arg(&cap)
+        .arg("--model")
+        .arg(cap.join("model/scene.rhai"))
+        .arg("--poses")
+        .arg(cap.join("model/pose.json"))
+        .arg("--out")
+        .arg(&out)
+        .arg("--json")
+        .output()
+        .expect("run");
+    assert_eq!(o.status.code(), Some(2), "{}", text(&o));
+    assert!(text(&o).contains("not valid UTF-8"), "{}", text(&o));
+    assert!(!out.exists(), "nothing is written");
+    let model = dir.path().join(std::ffi::OsStr::from_bytes(b"m\xfe.rhai"));
+    std::fs::write(&model, "part(\"a\", box(1, 1, 1));").expect("write");
+    let o = Command::new(env!("CARGO_BIN_EXE_agentstar"))
+        .arg("check")
+        .arg(&model)
+        .arg("--json")
+        .output()
+        .expect("run");
+    assert_eq!(o.status.code(), Some(2), "{}", text(&o));
+}
+
+#[cfg(unix)]
+#[test]
+fn a_manifest_that_is_a_device_or_huge_is_refused_at_once() {
+    let dir = tempfile::tempdir().expect("tmp");
+    let cap = dir.path().join("cap");
+    synth(&cap, 2);
+    std::fs::remove_file(cap.join("capture.json")).expect("rm");
+    std::os::unix::fs::symlink("/dev/zero", cap.join("capture.json")).expect("symlink");
+    let o = agentstar_within(&["validate", &s(&cap)], Duration::from_secs(60))
+        .expect("validate must not hang on /dev/zero");
+    assert_ne!(o.status.code(), Some(0), "{}", text(&o));
+    assert!(
+        text(&o).contains("capture.json") && text(&o).contains("regular file"),
+        "{}",
+        text(&o)
+    );
+}
+
+#[test]
+fn capture_misreads_are_errors_naming_the_file_and_field() {
+    let dir = tempfile::tempdir().expect("tmp");
+    let cap = dir.path().join("cap");
+    synth(&cap, 3);
+    let validate = || agentstar(&["validate", &s(&cap)]);
+    assert!(validate().status.success(), "{}", text(&validate()));
+    let manifest = std::fs::read_to_string(cap.join("capture.json")).expect("manifest");
+    let mut v: serde_json::Value = serde_json::from_str(&manifest).expect("json");
+    // downscale 0.
+    v["downscale"] = serde_json::json!(0.0);
+    std::fs::write(cap.join("capture.json"), v.to_string()).expect("write");
+    let o = validate();
+    assert!(
+        !o.status.success() && text(&o).contains("downscale"),
+        "{}",
+        text(&o)
+    );
+    // A byte-order mark.
+    std::fs::write(cap.join("capture.json"), format!("\u{feff}{manifest}")).expect("write");
+    let o = validate();
+    assert!(text(&o).contains("byte-order mark"), "{}", text(&o));
+    std::fs::write(cap.join("capture.json"), &manifest).expect("write");
+    // Keyframes listed twice and going back in time.
+    let kf_path = cap.join("tracking/keyframes.json");
+    let kf_text = std::fs::read_to_string(&kf_path).expect("keyframes");
+    let kf: Vec<serde_json::Value> = serde_json::from_str(&kf_text).expect("json");
+    let mut dup = kf.clone();
+    dup.push(kf[0].clone());
+    std::fs::write(&kf_path, serde_json::to_string(&dup).expect("json")).expect("write");
+    let o = validate();
+    assert!(
+        !o.status.success() && text(&o).contains("both list frame"),
+        "{}",
+        text(&o)
+    );
+    let mut back = kf.clone();
+    back[2]["time_s"] = serde_json::json!(-1.0);
+    std::fs::write(&kf_path, serde_json::to_string(&back).expect("json")).expect("write");
+    let o = validate();
+    assert!(
+        !o.status.success() && text(&o).contains("backwards"),
+        "{}",
+        text(&o)
+    );
+    std::fs::write(&kf_path, &kf_text).expect("write");
+    // A half-truncated PNG frame.
+    let frame = std::fs::read_dir(cap.join("frames"))
+        .expect("frames")
+        .next()
+        .expect("one")
+        .expect("entry")
+        .path();
+    let bytes = std::fs::read(&frame).expect("frame");
+    std::fs::write(&frame, &bytes[..bytes.len() / 2]).expect("truncate");
+    let o = validate();
+    assert!(!o.status.success(), "{}", text(&o));
+    assert!(
+        text(&o).contains(frame.file_name().and_then(|n| n.to_str()).expect("name")),
+        "{}",
+        text(&o)
+    );
+}
+
+#[test]
+fn urdf_loops_and_duplicates_are_named() {
+    let dir = tempfile::tempdir().expect("tmp");
+    let urdf = dir.path().join("robot.urdf");
+    let link = |n: &str| {
+        format!("<link name=\"{n}\"><visual><geometry><box size=\"1 1 0.2\"/></geometry></visual></link>")
+    };
+    let joint = |n: &str, p: &str, c: &str| {
+        format!("<joint name=\"{n}\" type=\"continuous\"><parent link=\"{p}\"/><child link=\"{c}\"/><axis xyz=\"1 0 0\"/></joint>")
+    };
+    std::fs::write(
+        &urdf,
+        format!(
+            "<robot name=\"r\">{}{}{}{}{}{}</robot>",
+            link("root"),
+            link("base"),
+            link("lid"),
+            joint("j0", "root", "base"),
+            joint("j1", "base", "lid"),
+            joint("back", "lid", "base")
+        ),
+    )
+    .expect("write");
+    let o = agentstar(&["check", &s(&urdf)]);
+    assert_eq!(o.status.code(), Some(2), "{}", text(&o));
+    assert!(text(&o).contains("kinematic loop"), "{}", text(&o));
+    std::fs::write(
+        &urdf,
+        format!("<robot name=\"r\">{}{}</robot>", link("base"), link("base")),
+    )
+    .expect("write");
+    let o = agentstar(&["check", &s(&urdf)]);
+    assert!(text(&o).contains("defined twice"), "{}", text(&o));
+}
+
+#[test]
+fn mesh_messages_say_what_is_wrong() {
+    let dir = tempfile::tempdir().expect("tmp");
+    let o = agentstar(&["check", "/etc/passwd"]);
+    assert_eq!(o.status.code(), Some(2), "{}", text(&o));
+    assert!(text(&o).contains("no file extension"), "{}", text(&o));
+    // A mesh beside a script named by a relative path.
+    let scene = dir.path().join("scene.rhai");
+    std::fs::write(
+        dir.path().join("cube.obj"),
+        "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n",
+    )
+    .expect("obj");
+    std::fs::write(&scene, "part(\"a\", mesh(\"cube.obj\"));").expect("scene");
+    let o = Command::new(env!("CARGO_BIN_EXE_agentstar"))
+        .args(["check", "scene.rhai"])
+        .current_dir(dir.path())
+        .output()
+        .expect("run");
+    assert!(o.status.success(), "{}", text(&o));
+    #[cfg(unix)]
+    {
+        let outside = tempfile::tempdir().expect("tmp");
+        std::fs::copy(dir.path().join("cube.obj"), outside.path().join("far.obj")).expect("cp");
+        std::os::unix::fs::symlink(outside.path().join("far.obj"), dir.path().join("far.obj"))
+            .expect("symlink");
+        std::fs::write(&scene, "part(\"a\", mesh(\"far.obj\"));").expect("scene");
+        let o = agentstar(&["check", &s(&scene)]);
+        assert_eq!(o.status.code(), Some(2), "{}", text(&o));
+        assert!(text(&o).contains("symbolic link"), "{}", text(&o));
+    }
+}
+
+/// What the mock model server does with one request.
+enum Act {
+    Json(u16, serde_json::Value),
+    /// A body that is not JSON.
+    Raw(u16, String),
+}
+
+struct MockModel {
+    url: String,
+    requests: std::sync::Arc<std::sync::Mutex<usize>>,
+}
+
+fn mock_model(script: Vec<Act>) -> MockModel {
+    use std::io::{BufRead, BufReader, Read, Write};
+    let listener = std::net::TcpListener::bind("127.0.0.1:0").expect("bind");
+    let url = format!("http://{}/v1", listener.local_addr().expect("addr"));
+    let requests = std::sync::Arc::new(std::sync::Mutex::new(0));
+    let script = std::sync::Arc::new(std::sync::Mutex::new(std::collections::VecDeque::from(
+        script,
+    )));
+    let reqs = requests.clone();
+    std::thread::spawn(move || {
+        for stream in listener.incoming() {
+            let Ok(mut stream) = stream else { continue };
+            let mut reader = BufReader::new(stream.try_clone().expect("clone"));
+            let mut len = 0usize;
+            loop {
+                let mut line = String::new();
+                if reader.read_line(&mut line).unwrap_or(0) == 0 {
+                    break;
+                }
+                let l = line.trim_end().to_ascii_lowercase();
+                if l.is_empty() {
+                    break;
+                }
+                if let Some(v) = l.strip_prefix("content-length:") {
+                    len = v.trim().parse().unwrap_or(0);
+                }
+            }
+            let mut body = vec![0u8; len];
+            let _ = reader.read_exact(&mut body);
+            *reqs.lock().expect("lock") += 1;
+            let (status, text) = match script.lock().expect("lock").pop_front() {
+                Some(Act::Json(s, v)) => (s, v.to_string()),
+                Some(Act::Raw(s, t)) => (s, t),
+                None => (500, "{\"error\": \"the script is exhausted\"}".into()),
+            };
+            let _ = write!(
+                stream,
+                "HTTP/1.1 {status} X\r\ncontent-type: application/json\r\ncontent-length: {}\r\nconnection: close\r\n\r\n{text}",
+                text.len()
+            );
+        }
+    });
+    MockModel { url, requests }
+}
+
+fn calls(n: usize, name: &str, args: serde_json::Value, prompt_tokens: u64) -> Act {
+    let calls: Vec<serde_json::Value> = (0..n)
+        .map(|i| {
+            serde_json::json!({"id": format!("c{i}"), "type": "function",
+            "function": {"name": name, "arguments": args.to_string()}})
+        })
+        .collect();
+    Act::Json(
+        200,
+        serde_json::json!({"choices": [{"message": {"role": "assistant", "content": "",
+            "tool_calls": calls}}], "usage": {"prompt_tokens": prompt_tokens, "completion_tokens": 20}}),
+    )
+}
+
+fn ledger(run: &Path) -> Vec<serde_json::Value> {
+    std::fs::read_to_string(run.join("ledger.jsonl"))
+        .expect("ledger")
+        .lines()
+        .map(|l| serde_json::from_str(l).expect("ledger line"))
+        .collect()
+}
+
+fn init_run(dir: &Path) -> std::path::PathBuf {
+    let (cap, run) = (dir.join("cap"), dir.join("run"));
+    synth(&cap, 2);
+    let o = agentstar(&["init", &s(&run), "--capture", &s(&cap)]);
+    assert!(o.status.success(), "{}", text(&o));
+    run
+}
+
+#[test]
+fn step_and_token_budgets_are_exact() {
+    let dir = tempfile::tempdir().expect("tmp");
+    let run = init_run(dir.path());
+    // One reply with 50 calls and a budget of 8: 8 run, 42 refused and recorded.
+    let model = mock_model(vec![calls(
+        50,
+        "notes",
+        serde_json::json!({"text": "n"}),
+        100,
+    )]);
+    let o = agentstar(&[
+        "run",
+        &s(&run),
+        "--model",
+        "local:mock",
+        "--base-url",
+        &model.url,
+        "--max-steps",
+        "8",
+    ]);
+    assert_eq!(o.status.code(), Some(3), "{}", text(&o));
+    let entries = ledger(&run);
+    let notes: Vec<&serde_json::Value> = entries.iter().filter(|e| e["tool"] == "notes").collect();
+    let refused = notes
+        .iter()
+        .filter(|e| e["args"]["refused"].is_string())
+        .count();
+    assert_eq!((notes.len() - refused, refused), (8, 42), "{}", text(&o));
+    assert!(
+        text(&o).contains("step budget spent (8 of 8)"),
+        "{}",
+        text(&o)
+    );
+    // A reply that is already over the token budget runs none of its calls.
+    let run2 = dir.path().join("run2");
+    let o = agentstar(&["init", &s(&run2), "--capture", &s(&dir.path().join("cap"))]);
+    assert!(o.status.success(), "{}", text(&o));
+    let model = mock_model(vec![calls(
+        3,
+        "notes",
+        serde_json::json!({"text": "n"}),
+        5000,
+    )]);
+    let o = agentstar(&[
+        "run",
+        &s(&run2),
+        "--model",
+        "local:mock",
+        "--base-url",
+        &model.url,
+        "--max-tokens",
+        "1000",
+    ]);
+    assert_eq!(o.status.code(), Some(3), "{}", text(&o));
+    let entries = ledger(&run2);
+    let notes: Vec<&serde_json::Value> = entries.iter().filter(|e| e["tool"] == "notes").collect();
+    assert_eq!(notes.len(), 3, "{}", text(&o));
+    assert!(
+        notes.iter().all(|e| e["args"]["refused"].is_string()),
+        "{notes:?}"
+    );
+    assert!(text(&o).contains("token budget"), "{}", text(&o));
+}
+
+#[test]
+fn the_stop_message_names_every_kind_of_failure() {
+    let dir = tempfile::tempdir().expect("tmp");
+    let run = init_run(dir.path());
+    let model = mock_model(vec![
+        Act::Json(500, serde_json::json!({"error": "boom"})),
+        Act::Json(429, serde_json::json!({"error": "slow down"})),
+        Act::Raw(200, "this is not json".into()),
+        Act::Json(200, serde_json::json!({"choices": []})),
+        Act::Json(
+            200,
+            serde_json::json!({"choices": [{"message": {"content": "", "tool_calls": [
+            {"id": "x", "type": "function", "function": {"name": "sweep", "arguments": "{\"frames\": "}}]}}]}),
+        ),
+    ]);
+    let o = agentstar(&[
+        "run",
+        &s(&run),
+        "--model",
+        "local:mock",
+        "--base-url",
+        &model.url,
+        "--retries",
+        "4",
+        "--backoff-ms",
+        "1",
+    ]);
+    assert_eq!(o.status.code(), Some(4), "{}", text(&o));
+    assert_eq!(*model.requests.lock().expect("lock"), 5);
+    let t = text(&o);
+    for kind in [
+        "HTTP 500",
+        "HTTP 429",
+        "reply not JSON",
+        "reply without a message",
+        "malformed tool call",
+    ] {
+        assert!(t.contains(kind), "missing `{kind}` in: {t}");
+    }
+}
