@@ -483,7 +483,7 @@ fn read_cameras(dir: &Path, c: &mut Collector) -> Option<CameraRows> {
 
 /// `size` `[W, H]`: two positive integers (pixels) at most 16384.
 fn check_size_array(data: &[f64]) -> std::result::Result<[u32; 2], String> {
-    let ok = |v: f64| v.is_finite() && v >= 1.0 && v <= 16384.0 && v.fract() == 0.0;
+    let ok = |v: f64| (1.0..=16384.0).contains(&v) && v.fract() == 0.0;
     if data.len() != 2 || !data.iter().all(|&v| ok(v)) {
         return Err(format!(
             "`size` must be [W, H], two positive integers (pixels) at most 16384; got {data:?}"
@@ -496,7 +496,11 @@ fn check_size_array(data: &[f64]) -> std::result::Result<[u32; 2], String> {
 fn check_bottom_row(m: &Matrix4) -> std::result::Result<(), String> {
     let row = [m[(3, 0)], m[(3, 1)], m[(3, 2)], m[(3, 3)]];
     let want = [0.0, 0.0, 0.0, 1.0];
-    if row.iter().zip(want).any(|(a, b)| !((a - b).abs() <= 1e-6)) {
+    if row
+        .iter()
+        .zip(want)
+        .any(|(a, b)| (a - b).abs().is_nan() || (a - b).abs() > 1e-6)
+    {
         return Err(format!(
             "the bottom row is {row:?}; a rigid camera-to-world matrix ends in [0, 0, 0, 1]"
         ));

@@ -313,7 +313,7 @@ mod tests {
         .expect("c");
         assert_eq!(c.data, vec![1.0, 4.0, 2.0, 5.0, 3.0, 6.0]);
         // Three axes: element (i, j, k) of a (2, 3, 2) array stored at i + 2j + 6k.
-        let mut stored = vec![0.0f64; 12];
+        let mut stored = [0.0f64; 12];
         for i in 0..2 {
             for j in 0..3 {
                 for k in 0..2 {

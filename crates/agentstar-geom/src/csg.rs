@@ -194,7 +194,7 @@ impl Bsp {
         let mut rounds = 0u32;
         while let Some((ni, polys)) = work.pop() {
             rounds = rounds.wrapping_add(1);
-            if rounds % 64 == 0 {
+            if rounds.is_multiple_of(64) {
                 let pending: usize = work.iter().map(|(_, p)| p.len()).sum();
                 self.budget.check(self.stored + pending)?;
             }
@@ -264,7 +264,7 @@ impl Bsp {
         let mut rounds = 0u32;
         while let Some((ni, polys)) = work.pop() {
             rounds = rounds.wrapping_add(1);
-            if rounds % 64 == 0 {
+            if rounds.is_multiple_of(64) {
                 self.budget.check(out.len())?;
             }
             let node = &self.nodes[ni];
