@@ -368,3 +368,43 @@ pub fn rescaled(k: [f64; 4], from: [u32; 2], to: [u32; 2]) -> Matrix3 {
         1.0,
     )
 }
+
+/// One 3-D point of a COLMAP text model (`points3D.txt`).
+#[derive(Debug, Clone, PartialEq)]
+pub struct ColmapPoint {
+    /// World coordinates in the model's frame.
+    pub xyz: [f64; 3],
+    /// Mean reprojection error in pixels.
+    pub error_px: f64,
+    /// Number of image observations.
+    pub track_len: usize,
+}
+
+/// Reads `points3D.txt` of a COLMAP text model.
+pub fn read_colmap_points(dir: &Path) -> Result<Vec<ColmapPoint>> {
+    let path = dir.join("points3D.txt");
+    let mut points = vec![];
+    for (ln, line) in read_text(&path)?.lines().enumerate() {
+        let line = line.trim();
+        if line.is_empty() || line.starts_with('#') {
+            continue;
+        }
+        let f: Vec<&str> = line.split_whitespace().collect();
+        let bad = |m: String| DataError::invalid(&path, format!("line {}: {m}", ln + 1));
+        if f.len() < 8 {
+            return Err(bad("expected POINT3D_ID X Y Z R G B ERROR TRACK[]".into()));
+        }
+        let num = |i: usize| -> Result<f64> {
+            f[i].parse::<f64>()
+                .ok()
+                .filter(|v| v.is_finite())
+                .ok_or_else(|| bad(format!("value `{}`", f[i])))
+        };
+        points.push(ColmapPoint {
+            xyz: [num(1)?, num(2)?, num(3)?],
+            error_px: num(7)?,
+            track_len: (f.len() - 8) / 2,
+        });
+    }
+    Ok(points)
+}

@@ -25,6 +25,12 @@ pub enum CameraSource {
     Colmap(PathBuf),
     /// A nerfstudio `transforms.json`.
     Nerfstudio(PathBuf),
+    /// Cameras already estimated (by structure from motion, `agentstar-sfm`), by frame stem,
+    /// with a note of how, recorded in the capture's source.
+    Given {
+        cameras: CameraSet,
+        note: serde_json::Value,
+    },
 }
 
 #[derive(Debug, Clone)]
@@ -41,7 +47,9 @@ pub struct VideoImport {
 
 const IMAGE_EXTS: [&str; 6] = ["png", "jpg", "jpeg", "bmp", "tif", "tiff"];
 
-fn images_in(dir: &Path) -> Result<Vec<PathBuf>> {
+/// The image files of a folder in natural order (by the number in the stem when every stem has
+/// one, else by name).
+pub fn images_in(dir: &Path) -> Result<Vec<PathBuf>> {
     let mut v: Vec<PathBuf> = std::fs::read_dir(dir)
         .map_err(|e| DataError::io(dir, e))?
         .filter_map(|e| e.ok().map(|e| e.path()))
@@ -65,7 +73,8 @@ fn images_in(dir: &Path) -> Result<Vec<PathBuf>> {
     Ok(v)
 }
 
-fn stem(p: &Path) -> String {
+/// A path's file stem (empty when it has none).
+pub fn stem(p: &Path) -> String {
     p.file_stem()
         .and_then(|s| s.to_str())
         .unwrap_or("")
@@ -101,7 +110,7 @@ fn extract(video: &Path, dir: &Path) -> Result<()> {
 }
 
 /// Finds the mask of frame `frame_stem` (position `index` among all frames) in `files`.
-fn match_mask<'a>(
+pub fn match_mask<'a>(
     files: &'a [PathBuf],
     frame_stem: &str,
     index: usize,
@@ -119,28 +128,133 @@ fn match_mask<'a>(
         .or_else(|| (files.len() == total).then(|| &files[index]))
 }
 
-/// Writes the capture to `out` (a new directory); returns the number of frames.
-pub fn import_video(cfg: &VideoImport, out: &Path) -> Result<usize> {
-    let tmp;
-    let frame_dir: &Path = if cfg.input.is_dir() {
-        &cfg.input
-    } else if cfg.input.is_file() {
-        tmp = tempfile::tempdir().map_err(|e| DataError::io(std::env::temp_dir(), e))?;
-        extract(&cfg.input, tmp.path())?;
-        tmp.path()
+/// The frames of a video (extracted by ffmpeg into a temporary folder that lives as long as
+/// this value) or of a frame folder, in natural order.
+#[derive(Debug)]
+pub struct FrameFiles {
+    _extracted: Option<tempfile::TempDir>,
+    /// The folder holding the frames.
+    pub dir: PathBuf,
+    /// Every frame, in order; a frame's index in the video is its position here.
+    pub paths: Vec<PathBuf>,
+}
+
+impl FrameFiles {
+    /// The indices of the frames a capture keeps: every `every`-th from the first, at most
+    /// `max_frames`.
+    pub fn keyframe_indices(&self, every: usize, max_frames: Option<usize>) -> Vec<usize> {
+        (0..self.paths.len())
+            .step_by(every.max(1))
+            .take(max_frames.unwrap_or(usize::MAX))
+            .collect()
+    }
+}
+
+/// Opens a video (extracting every frame with ffmpeg) or a folder of frames.
+pub fn open_frames(input: &Path) -> Result<FrameFiles> {
+    let (extracted, dir) = if input.is_dir() {
+        (None, input.to_path_buf())
+    } else if input.is_file() {
+        let tmp = tempfile::tempdir().map_err(|e| DataError::io(std::env::temp_dir(), e))?;
+        extract(input, tmp.path())?;
+        let dir = tmp.path().to_path_buf();
+        (Some(tmp), dir)
     } else {
         return Err(DataError::invalid(
-            &cfg.input,
+            input,
             "no such video file or frame folder",
         ));
     };
-    let all = images_in(frame_dir)?;
-    if all.is_empty() {
+    let paths = images_in(&dir)?;
+    if paths.is_empty() {
         return Err(DataError::invalid(
-            frame_dir,
+            &dir,
             "holds no frames (png, jpg, bmp, tif)",
         ));
     }
+    Ok(FrameFiles {
+        _extracted: extracted,
+        dir,
+        paths,
+    })
+}
+
+/// The focal length in pixels that a video's metadata states, for frames `width` × `height`:
+/// the 35 mm-equivalent focal length phones write (QuickTime
+/// `com.apple.quicktime.camera.focal_length.35mm_equivalent`, or any tag naming a 35 mm
+/// focal length), converted over the frame diagonal. `None` when ffprobe is missing, the file
+/// is not a video, or no such tag exists.
+pub fn video_focal_px(video: &Path, width: u32, height: u32) -> Option<f64> {
+    if !video.is_file() {
+        return None;
+    }
+    let out = std::process::Command::new("ffprobe")
+        .args([
+            "-v",
+            "error",
+            "-of",
+            "json",
+            "-show_entries",
+            "format_tags:stream_tags",
+        ])
+        .arg(video)
+        .stdin(std::process::Stdio::null())
+        .output()
+        .ok()?;
+    if !out.status.success() {
+        return None;
+    }
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).ok()?;
+    let mut tags: Vec<&serde_json::Map<String, serde_json::Value>> = vec![];
+    if let Some(t) = v["format"]["tags"].as_object() {
+        tags.push(t);
+    }
+    for s in v["streams"].as_array().into_iter().flatten() {
+        if let Some(t) = s["tags"].as_object() {
+            tags.push(t);
+        }
+    }
+    focal_from_tags(&tags, width, height)
+}
+
+/// The 35 mm-equivalent focal length among metadata tags, in pixels of a `width` × `height`
+/// frame (the 35 mm frame's diagonal is 43.27 mm).
+fn focal_from_tags(
+    tags: &[&serde_json::Map<String, serde_json::Value>],
+    width: u32,
+    height: u32,
+) -> Option<f64> {
+    let f35 = tags.iter().flat_map(|t| t.iter()).find_map(|(k, v)| {
+        let k = k.to_ascii_lowercase();
+        if !(k.contains("focal") && k.contains("35")) {
+            return None;
+        }
+        let f = match v {
+            serde_json::Value::Number(n) => n.as_f64(),
+            serde_json::Value::String(s) => s.trim().trim_end_matches("mm").trim().parse().ok(),
+            _ => None,
+        }?;
+        (f.is_finite() && (5.0..=500.0).contains(&f)).then_some(f)
+    })?;
+    let diagonal_px = (width as f64).hypot(height as f64);
+    Some(f35 * diagonal_px / 43.27)
+}
+
+/// Writes the capture to `out` (a new directory); returns the number of frames.
+pub fn import_video(cfg: &VideoImport, out: &Path) -> Result<usize> {
+    let frames = open_frames(&cfg.input)?;
+    import_video_frames(cfg, &frames, out, None)
+}
+
+/// Writes the capture to `out` from frames already opened; `attach` is a folder whose files
+/// are copied into the capture under `sfm/` (structure-from-motion logs and model).
+pub fn import_video_frames(
+    cfg: &VideoImport,
+    frames_in: &FrameFiles,
+    out: &Path,
+    attach: Option<&Path>,
+) -> Result<usize> {
+    let all = &frames_in.paths;
     let masks = images_in(&cfg.masks)?;
     let hands = match &cfg.hands {
         Some(h) => images_in(h)?,
@@ -150,6 +264,7 @@ pub fn import_video(cfg: &VideoImport, out: &Path) -> Result<usize> {
     let cams: Option<CameraSet> = match &cfg.cameras {
         CameraSource::Colmap(d) => Some(read_colmap(d)?),
         CameraSource::Nerfstudio(p) => Some(read_nerfstudio(p)?),
+        CameraSource::Given { cameras, .. } => Some(cameras.clone()),
         CameraSource::Static(_) | CameraSource::Fov(_) => None,
     };
     struct Row {
@@ -162,10 +277,8 @@ pub fn import_video(cfg: &VideoImport, out: &Path) -> Result<usize> {
         c2w: Rigid,
     }
     let mut rows = vec![];
-    for (index, path) in all.iter().enumerate().step_by(cfg.every.max(1)) {
-        if cfg.max_frames.is_some_and(|m| rows.len() >= m) {
-            break;
-        }
+    for index in frames_in.keyframe_indices(cfg.every, cfg.max_frames) {
+        let path = &all[index];
         let s = stem(path);
         let rgb = load_rgb(path)?;
         let (w, h) = rgb.dimensions();
@@ -214,9 +327,10 @@ pub fn import_video(cfg: &VideoImport, out: &Path) -> Result<usize> {
                     .map_err(|e| DataError::invalid(path, e.to_string()))?,
                 Rigid::identity(),
             ),
-            (None, CameraSource::Colmap(_) | CameraSource::Nerfstudio(_)) => {
-                return Err(DataError::invalid(path, "no camera source was read"))
-            }
+            (
+                None,
+                CameraSource::Colmap(_) | CameraSource::Nerfstudio(_) | CameraSource::Given { .. },
+            ) => return Err(DataError::invalid(path, "no camera source was read")),
         };
         rows.push(Row {
             name: format!("{index:06}.png"),
@@ -251,10 +365,45 @@ pub fn import_video(cfg: &VideoImport, out: &Path) -> Result<usize> {
         source: Some(
             serde_json::json!({"producer": "agentstar capture from-video",
             "input": cfg.input, "masks": cfg.masks, "every": cfg.every,
-            "cameras": format!("{:?}", cfg.cameras),
+            "cameras": match &cfg.cameras {
+                CameraSource::Given { note, .. } => note.clone(),
+                other => serde_json::Value::String(format!("{other:?}")),
+            },
             "camera_warnings": cams.map(|c| c.warnings).unwrap_or_default()}),
         ),
     };
-    write_capture(out, &frames, &info, |_| Ok(()))?;
+    write_capture(out, &frames, &info, |root| {
+        let Some(src) = attach else { return Ok(()) };
+        let dst = root.join("sfm");
+        for entry in std::fs::read_dir(src).map_err(|e| DataError::io(src, e))? {
+            let path = entry.map_err(|e| DataError::io(src, e))?.path();
+            if let (true, Some(name)) = (path.is_file(), path.file_name()) {
+                let bytes = crate::read_bytes(&path)?;
+                crate::atomic::write_atomic(&dst.join(name), &bytes)?;
+            }
+        }
+        Ok(())
+    })?;
     Ok(rows.len())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_35mm_equivalent_focal_length_becomes_pixels_over_the_diagonal() {
+        let tags: serde_json::Map<String, serde_json::Value> = serde_json::from_str(
+            r#"{"com.apple.quicktime.camera.focal_length.35mm_equivalent": "26",
+                "com.apple.quicktime.make": "Apple"}"#,
+        )
+        .expect("json");
+        let f = focal_from_tags(&[&tags], 1920, 1080).expect("a focal length");
+        // 26 mm on a 43.27 mm diagonal: 2202.9 px × 26 / 43.27.
+        assert!((f - 26.0 * 1920f64.hypot(1080.0) / 43.27).abs() < 1e-9);
+        assert!((1300.0..1340.0).contains(&f), "{f}");
+        let none: serde_json::Map<String, serde_json::Value> =
+            serde_json::from_str(r#"{"encoder": "Lavf", "focal": "abc"}"#).expect("json");
+        assert_eq!(focal_from_tags(&[&none], 1920, 1080), None);
+    }
 }

@@ -10,6 +10,7 @@
 //! No I/O: the caller writes the capture (`agentstar synth`) or uses it in memory
 //! (`agentstar bench`).
 
+pub mod environment;
 pub mod hand;
 pub mod motion;
 pub mod noise;
@@ -463,16 +464,16 @@ fn albedo(appearance: Appearance, part: usize, local: &Point3, color: [f32; 3]) 
 }
 
 /// Linear RGB to display values (gamma 2.2).
-fn srgb(c: [f64; 3]) -> [f64; 3] {
+pub(crate) fn srgb(c: [f64; 3]) -> [f64; 3] {
     c.map(|v| v.max(0.0).powf(1.0 / 2.2))
 }
 
-fn to_u8(v: f64) -> u8 {
+pub(crate) fn to_u8(v: f64) -> u8 {
     (v.clamp(0.0, 1.0) * 255.0 + 0.5) as u8
 }
 
 /// A checker fixed to the part (six squares per canonical unit): 1.0 or 0.78.
-fn checker(p: &Point3) -> f64 {
+pub(crate) fn checker(p: &Point3) -> f64 {
     let k = (6.0 * p.x).floor() + (6.0 * p.y).floor() + (6.0 * p.z).floor();
     if (k as i64).rem_euclid(2) == 0 {
         1.0

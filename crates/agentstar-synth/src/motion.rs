@@ -64,7 +64,7 @@ pub struct Step {
     pub states: Vec<f64>,
 }
 
-fn random_axis(rng: &mut Rng) -> Vector3 {
+pub(crate) fn random_axis(rng: &mut Rng) -> Vector3 {
     loop {
         let v = Vector3::new(rng.normal(), rng.normal(), rng.normal());
         if v.norm() > 1e-3 {
@@ -75,7 +75,12 @@ fn random_axis(rng: &mut Rng) -> Vector3 {
 
 /// Joint states sweeping each joint's limits (a cosine with a random number of cycles and
 /// phase); only `moving` joints move, the others keep a random fixed state.
-fn joint_states(model: &ObjectModel, n: usize, moving: &[bool], rng: &mut Rng) -> Vec<Vec<f64>> {
+pub(crate) fn joint_states(
+    model: &ObjectModel,
+    n: usize,
+    moving: &[bool],
+    rng: &mut Rng,
+) -> Vec<Vec<f64>> {
     let joints = model.tree.joints();
     let plans: Vec<(f64, f64, f64, f64, f64)> = joints
         .iter()
@@ -117,7 +122,12 @@ fn joint_states(model: &ObjectModel, n: usize, moving: &[bool], rng: &mut Rng) -
 }
 
 /// The distance at which the object's bounding sphere spans `fraction` of the image height.
-fn viewing_distance(model: &ObjectModel, scale: f64, camera: &PinholeCamera, fraction: f64) -> f64 {
+pub(crate) fn viewing_distance(
+    model: &ObjectModel,
+    scale: f64,
+    camera: &PinholeCamera,
+    fraction: f64,
+) -> f64 {
     let radius = 0.5
         * model
             .posed_bounds(&model.tree.rest_states())

@@ -2,7 +2,7 @@
 
 use crate::common::print_json;
 use agentstar_data::bop::{import_bop, BopImport};
-use anyhow::Result;
+use anyhow::{Context, Result};
 use serde_json::json;
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -10,9 +10,10 @@ use std::process::ExitCode;
 #[derive(clap::Subcommand)]
 pub enum CaptureCommand {
     /// A capture from a video (frames extracted with ffmpeg) or a folder of frames, with masks
-    /// from a segmenter's output folder and cameras from COLMAP, nerfstudio or a static camera.
+    /// from a segmenter's output folder and cameras by structure from motion (COLMAP), from a
+    /// COLMAP or nerfstudio model, or a static camera.
     #[command(
-        after_help = "Examples:\n  agentstar capture from-video clip.mp4 --masks sam2_masks/ --fov 65 --every 10 --out cap\n  agentstar capture from-video frames/ --masks masks/ --hands hand_masks/ --colmap sparse/0 --out cap"
+        after_help = "With --cameras sfm, COLMAP runs on the keyframes and the frames between them with the object\nand hand masks excluded from its features; --fov/--intrinsics then fix the intrinsics (else the\nvideo's metadata or SfM gives them). The cameras are in the first keyframe's camera frame, one unit\nthe median background depth unless --background-depth-m is given (docs/sfm.md); COLMAP's logs and\nmodel are kept in CAPTURE/sfm/.\n\nExamples:\n  agentstar capture from-video clip.mp4 --masks sam2_masks/ --hands hand_masks/ --every 10 --cameras sfm --out cap\n  agentstar capture from-video clip.mp4 --masks sam2_masks/ --fov 65 --every 10 --out cap\n  agentstar capture from-video frames/ --masks masks/ --hands hand_masks/ --colmap sparse/0 --out cap"
     )]
     FromVideo(FromVideoArgs),
     /// One object of a BOP scene (also HOT3D clips converted to BOP) as capture/v1 with gt.json.
@@ -142,28 +143,51 @@ pub struct FromVideoArgs {
     #[arg(long)]
     fps: Option<f64>,
     /// A COLMAP model directory (cameras.txt/images.txt or .bin).
-    #[arg(long, group = "cameras")]
+    #[arg(long, group = "camera_source")]
     colmap: Option<PathBuf>,
     /// A nerfstudio transforms.json.
-    #[arg(long, group = "cameras")]
+    #[arg(long, group = "camera_source")]
     nerfstudio: Option<PathBuf>,
     /// A static camera with this horizontal field of view in degrees.
-    #[arg(long, group = "cameras")]
+    #[arg(long, group = "camera_source")]
     fov: Option<f64>,
     /// A static camera with these intrinsics: fx,fy,cx,cy (pixels of the frames).
     #[arg(
         long,
-        group = "cameras",
+        group = "camera_source",
         value_delimiter = ',',
         allow_negative_numbers = true
     )]
     intrinsics: Option<Vec<f64>>,
+    /// How the cameras are found: `sfm` (structure from motion with COLMAP; --fov or
+    /// --intrinsics then give the intrinsics) or `static` (the default with --fov/--intrinsics).
+    #[arg(long, value_enum, conflicts_with_all = ["colmap", "nerfstudio"])]
+    cameras: Option<CameraMode>,
+    /// With --cameras sfm: the distance in metres from the first keyframe's camera to the
+    /// background behind the object (the median depth), so that translations are in metres.
+    #[arg(long, requires = "cameras")]
+    background_depth_m: Option<f64>,
+    /// With --cameras sfm: at most this many frames go to SfM (keyframes and frames between
+    /// them, thinned evenly).
+    #[arg(long, default_value_t = 300, requires = "cameras")]
+    sfm_max_frames: usize,
+    /// With --cameras sfm: the time limit of the whole SfM run, in seconds.
+    #[arg(long, default_value_t = 1800, requires = "cameras")]
+    sfm_time_limit_s: u64,
     /// Where to write the capture (a new directory).
     #[arg(long)]
     out: PathBuf,
     /// Print the result as JSON on stdout.
     #[arg(long)]
     json: bool,
+}
+
+#[derive(Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum CameraMode {
+    /// Structure from motion on the background (COLMAP).
+    Sfm,
+    /// One static camera (--fov or --intrinsics).
+    Static,
 }
 
 #[derive(clap::Args)]
@@ -198,49 +222,223 @@ fn four(v: &[f64], flag: &str) -> Result<[f64; 4]> {
     }
 }
 
+/// The intrinsics that --fov or --intrinsics give, for frames of `size`.
+fn given_intrinsics(a: &FromVideoArgs, size: (u32, u32)) -> Result<Option<[f64; 4]>> {
+    if let Some(f) = a.fov {
+        check_fov(f)?;
+        let c = agentstar_geom::PinholeCamera::with_fov(f, size.0, size.1);
+        return Ok(Some([c.fx, c.fy, c.cx, c.cy]));
+    }
+    a.intrinsics
+        .as_ref()
+        .map(|k| four(k, "--intrinsics"))
+        .transpose()
+}
+
+fn check_fov(f: f64) -> Result<()> {
+    if !(f.is_finite() && f > 1.0 && f < 179.0) {
+        anyhow::bail!("--fov {f}: a horizontal field of view in degrees, between 1 and 179");
+    }
+    Ok(())
+}
+
+fn from_video(a: FromVideoArgs) -> Result<ExitCode> {
+    use agentstar_data::video::{import_video_frames, open_frames, CameraSource, VideoImport};
+    let sfm = a.cameras == Some(CameraMode::Sfm);
+    let frames = open_frames(&a.input)?;
+    let (cameras, keep, summary) = if sfm {
+        let (source, keep, summary) = sfm_cameras(&a, &frames)?;
+        (source, Some(keep), Some(summary))
+    } else {
+        let cameras = match (&a.colmap, &a.nerfstudio, a.fov, &a.intrinsics) {
+            (Some(d), ..) => CameraSource::Colmap(d.clone()),
+            (_, Some(p), ..) => CameraSource::Nerfstudio(p.clone()),
+            (_, _, Some(f), _) => {
+                check_fov(f)?;
+                CameraSource::Fov(f)
+            }
+            (_, _, _, Some(k)) => CameraSource::Static(four(k, "--intrinsics")?),
+            _ => anyhow::bail!(
+                "give the cameras: --cameras sfm (structure from motion with COLMAP), --colmap DIR, --nerfstudio transforms.json, --fov DEG or --intrinsics fx,fy,cx,cy"
+            ),
+        };
+        (cameras, None, None)
+    };
+    let n = import_video_frames(
+        &VideoImport {
+            input: a.input.clone(),
+            masks: a.masks.clone(),
+            hands: a.hands.clone(),
+            every: a.every,
+            max_frames: a.max_frames,
+            cameras,
+            fps: a.fps,
+        },
+        &frames,
+        &a.out,
+        keep.as_ref().map(|k| k.join("keep")).as_deref(),
+    )?;
+    if let Some(work) = &keep {
+        // The capture holds what was worth keeping; the work folder goes.
+        if let Err(e) = std::fs::remove_dir_all(work) {
+            eprintln!("warning: cannot remove {}: {e}", work.display());
+        }
+    }
+    if a.json {
+        print_json(&json!({"capture": a.out, "frames": n, "sfm": summary}))?;
+    } else {
+        println!(
+            "wrote {} ({n} frames from {})",
+            a.out.display(),
+            a.input.display()
+        );
+        if let Some(r) = &summary {
+            println!(
+                "cameras by structure from motion ({}): {} of {} frames placed, {} points, reprojection error {:.2} px; intrinsics {} (fx {:.1}, fy {:.1}, cx {:.1}, cy {:.1}); world = the camera of {}, unit = {}; details in {}",
+                r.tool,
+                r.frames_registered,
+                r.frames_used,
+                r.points,
+                r.mean_reprojection_error_px,
+                r.intrinsics.source,
+                r.intrinsics.fx,
+                r.intrinsics.fy,
+                r.intrinsics.cx,
+                r.intrinsics.cy,
+                r.gauge.origin_frame,
+                r.gauge.unit,
+                a.out.join("sfm/report.json").display()
+            );
+        }
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+/// Runs structure from motion for `from-video --cameras sfm`: the camera source, the work
+/// folder (to attach to the capture, then remove) and the report.
+fn sfm_cameras(
+    a: &FromVideoArgs,
+    frames: &agentstar_data::video::FrameFiles,
+) -> Result<(
+    agentstar_data::video::CameraSource,
+    PathBuf,
+    agentstar_sfm::SfmReport,
+)> {
+    use agentstar_sfm::video::{select_frames, sfm_frames};
+    use agentstar_sfm::{estimate_cameras, Intrinsics, SfmJob};
+    if let Some(d) = a.background_depth_m {
+        if !(d.is_finite() && d > 0.0) {
+            anyhow::bail!("--background-depth-m {d}: a distance in metres, above 0");
+        }
+    }
+    if a.sfm_time_limit_s == 0 {
+        anyhow::bail!("--sfm-time-limit-s must be at least 1");
+    }
+    let keyframes = frames.keyframe_indices(a.every, a.max_frames);
+    if keyframes.len() < 2 {
+        anyhow::bail!(
+            "--cameras sfm needs at least two keyframes; {} has {} frame(s) and --every {} keeps {}",
+            a.input.display(),
+            frames.paths.len(),
+            a.every,
+            keyframes.len()
+        );
+    }
+    let indices = select_frames(&keyframes, a.sfm_max_frames.max(keyframes.len()));
+    let (sfm_frames, skipped) =
+        sfm_frames(frames, &a.masks, a.hands.as_deref(), &keyframes, &indices)?;
+    if !skipped.is_empty() {
+        eprintln!(
+            "note: {} frame(s) between keyframes have no mask and are left out of SfM (first: {})",
+            skipped.len(),
+            skipped[0]
+        );
+    }
+    let size = agentstar_data::images::image_size(&frames.paths[keyframes[0]])?;
+    let intrinsics = match given_intrinsics(a, size)? {
+        Some(k) => Intrinsics::Given(k),
+        None => match agentstar_data::video::video_focal_px(&a.input, size.0, size.1) {
+            Some(f) => Intrinsics::Prior {
+                focal_px: f,
+                source: "video metadata".into(),
+            },
+            None => Intrinsics::Estimate,
+        },
+    };
+    // The work folder sits beside the capture; it is kept (with COLMAP's logs) on failure.
+    let name = a
+        .out
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_else(|| "capture".into());
+    let work = a.out.with_file_name(format!("{name}.sfm"));
+    let marker = work.join(".agentstar-sfm");
+    if work.exists() {
+        if marker.is_file() {
+            std::fs::remove_dir_all(&work)
+                .with_context(|| format!("removing the old SfM folder {}", work.display()))?;
+        } else {
+            anyhow::bail!(
+                "{} exists and is not an agentstar SfM folder; move it or choose another --out",
+                work.display()
+            );
+        }
+    }
+    std::fs::create_dir_all(&work).with_context(|| format!("creating {}", work.display()))?;
+    std::fs::write(
+        &marker,
+        b"agentstar capture from-video --cameras sfm work folder\n",
+    )
+    .with_context(|| format!("writing {}", marker.display()))?;
+    let job = SfmJob {
+        image_dir: frames.dir.clone(),
+        frames: sfm_frames,
+        size: [size.0, size.1],
+        intrinsics,
+        work_dir: work.clone(),
+        time_limit: std::time::Duration::from_secs(a.sfm_time_limit_s),
+        background_depth_m: a.background_depth_m,
+        colmap: None,
+        threads: None,
+    };
+    eprintln!(
+        "structure from motion on {} frames ({} keyframes) with COLMAP; logs in {}",
+        job.frames.len(),
+        keyframes.len(),
+        work.join("logs").display()
+    );
+    let bar = crate::common::progress(job.frames.len(), "sfm");
+    let mut stage = "";
+    let outcome = estimate_cameras(&job, &mut |p| {
+        if p.stage != stage {
+            stage = p.stage;
+            bar.set_message(p.stage);
+            bar.set_length(p.total.max(1));
+        }
+        bar.set_position(p.done.min(p.total));
+    });
+    bar.finish_and_clear();
+    let outcome = match outcome {
+        Ok(o) => o,
+        Err(e) => anyhow::bail!(
+            "{e}\n(COLMAP's logs and the masks it used are in {})",
+            work.display()
+        ),
+    };
+    let note = serde_json::to_value(&outcome.report)?;
+    Ok((
+        agentstar_data::video::CameraSource::Given {
+            cameras: outcome.cameras,
+            note: json!({"kind": "sfm", "report": note}),
+        },
+        work,
+        outcome.report,
+    ))
+}
+
 pub fn run(c: CaptureCommand) -> Result<ExitCode> {
     match c {
-        CaptureCommand::FromVideo(a) => {
-            use agentstar_data::video::{import_video, CameraSource, VideoImport};
-            let cameras = match (&a.colmap, &a.nerfstudio, a.fov, &a.intrinsics) {
-                (Some(d), ..) => CameraSource::Colmap(d.clone()),
-                (_, Some(p), ..) => CameraSource::Nerfstudio(p.clone()),
-                (_, _, Some(f), _) => CameraSource::Fov(f),
-                (_, _, _, Some(k)) => CameraSource::Static(four(k, "--intrinsics")?),
-                _ => anyhow::bail!(
-                    "give the cameras: --colmap DIR, --nerfstudio transforms.json, --fov DEG or --intrinsics fx,fy,cx,cy"
-                ),
-            };
-            if let CameraSource::Fov(f) = cameras {
-                if !(f.is_finite() && f > 1.0 && f < 179.0) {
-                    anyhow::bail!(
-                        "--fov {f}: a horizontal field of view in degrees, between 1 and 179"
-                    );
-                }
-            }
-            let n = import_video(
-                &VideoImport {
-                    input: a.input.clone(),
-                    masks: a.masks.clone(),
-                    hands: a.hands.clone(),
-                    every: a.every,
-                    max_frames: a.max_frames,
-                    cameras,
-                    fps: a.fps,
-                },
-                &a.out,
-            )?;
-            if a.json {
-                print_json(&json!({"capture": a.out, "frames": n}))?;
-            } else {
-                println!(
-                    "wrote {} ({n} frames from {})",
-                    a.out.display(),
-                    a.input.display()
-                );
-            }
-            Ok(ExitCode::SUCCESS)
-        }
+        CaptureCommand::FromVideo(a) => from_video(a),
         CaptureCommand::FromBop(a) => {
             let n = import_bop(
                 &BopImport {
