@@ -567,7 +567,7 @@ pub fn estimate_cameras(
     let xyz: Vec<[f64; 3]> = points.iter().map(|p| p.xyz).collect();
     let depth = gauge::median_depth(&camera0, &first.world_from_camera, &xyz)
         .filter(|d| *d > 0.0)
-        .ok_or_else(|| SfmError::NoInitialPair { median_features })?;
+        .ok_or(SfmError::NoInitialPair { median_features })?;
     let c0 = first.world_from_camera.translation.vector;
     let baseline = set
         .by_stem
