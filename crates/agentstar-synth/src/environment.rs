@@ -370,6 +370,12 @@ pub fn synthesize_room_clip(cfg: &RoomConfig) -> Result<RoomClip, SynthError> {
         let c = camera_from_world * world_from_object.to_rigid();
         let camera_from_object = ObjectPose::new(c.rotation, c.translation.vector);
         let posed = PosedModel::new(&model, &st, &camera_from_object.with_scale(scale));
+        // The whole silhouette, for the fraction the hand hides.
+        let silhouette = render_full(&camera, &posed.instances)
+            .part
+            .iter()
+            .filter(|&&p| p != NO_PART)
+            .count();
         let mut instances: Vec<Instance<'_>> = posed.instances.clone();
         let n_parts = instances.len() as u16;
         let centre_cam = camera_from_object
@@ -460,6 +466,7 @@ pub fn synthesize_room_clip(cfg: &RoomConfig) -> Result<RoomClip, SynthError> {
                 );
             }
         }
+        let hand_coverage = 1.0 - mask.count() as f64 / silhouette.max(1) as f64;
         frames.push(SynthFrame {
             name: format!("{k:06}.png"),
             frame_index: k as i64,
@@ -471,6 +478,7 @@ pub fn synthesize_room_clip(cfg: &RoomConfig) -> Result<RoomClip, SynthError> {
             mask,
             hand: Some(hand_mask),
             depth_m: None,
+            hand_coverage,
         });
     }
     Ok(RoomClip {
