@@ -184,9 +184,13 @@ fn non_finite_token_at(text: &str, line: usize, column: usize) -> Option<&'stati
         .char_indices()
         .nth(column.saturating_sub(1))
         .map_or(l.len(), |(i, _)| i);
+    // The byte just after the last character that cannot be part of the word (which may be
+    // several bytes long: the slice must start on a character boundary).
     let from = l[..start]
-        .rfind(|c: char| !(c.is_ascii_alphabetic() || c == '-' || c == '+'))
-        .map_or(0, |i| i + 1);
+        .char_indices()
+        .rev()
+        .find(|&(_, c)| !(c.is_ascii_alphabetic() || c == '-' || c == '+'))
+        .map_or(0, |(i, c)| i + c.len_utf8());
     let word: String = l[from..]
         .chars()
         .take_while(|c| c.is_ascii_alphabetic() || *c == '-' || *c == '+')
@@ -257,5 +261,21 @@ mod tests {
         assert!(e.contains("`Infinity`"), "{e}");
         let e = parse_json::<serde_json::Value>("{\"a\": nope}").expect_err("other");
         assert!(!e.contains("NaN"), "{e}");
+    }
+
+    #[test]
+    fn json_messages_survive_multibyte_characters_before_the_error() {
+        // Found by the fuzz harness: a two-byte character just before the error position
+        // made the word search slice inside it and panic.
+        for text in [
+            "{\n    \"0000\u{ff}x",
+            "{\"frame_con\u{ff}venti",
+            "{\"a\": \u{ff}NaN}",
+        ] {
+            let e = parse_json::<serde_json::Value>(text).expect_err("not JSON");
+            assert!(!e.is_empty());
+        }
+        let e = parse_json::<serde_json::Value>("{\"a\": [\u{e9}NaN]}").expect_err("nan");
+        assert!(!e.is_empty(), "{e}");
     }
 }
