@@ -1,6 +1,6 @@
 //! The agent harness: a run directory and its ledger (`run`), the task document (`task`),
 //! the tool registry and its execution (`tools`), the typed reports commands write and
-//! tools read (`reports`), pose file versions under one lock (`history`), keeping `pose.json` in step with the
+//! tools read (`reports`, and `view_reports` for the image commands), pose file versions under one lock (`history`), keeping `pose.json` in step with the
 //! scene (`poses`), model clients for OpenAI-compatible servers and Anthropic (`llm`), and
 //! the agent loop with pose sub-agents (`agent`). The critic is a model call made through
 //! `llm` (`critic`).
@@ -17,6 +17,7 @@ pub mod reports;
 pub mod run;
 pub mod task;
 pub mod tools;
+pub mod view_reports;
 
 /// What can go wrong in the harness.
 #[derive(Debug, thiserror::Error)]

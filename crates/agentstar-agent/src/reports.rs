@@ -64,7 +64,7 @@ impl SearchVerb {
         dir.join(format!("{}.json", self.stem()))
     }
 
-    /// The text table with paste-ready blocks.
+    /// The text table (ranked candidates and how to keep one).
     pub fn text_path(self, dir: &Path) -> PathBuf {
         dir.join(format!("{}.txt", self.stem()))
     }

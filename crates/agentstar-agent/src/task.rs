@@ -26,6 +26,13 @@ the object's mask.
   object's centre), `dpx`, `dpy` (fractions of the object's image size), `tz` (fraction of its
   depth). Object-frame rotations: `rx`, `ry`, `rz`, and `flip:x|y|z` (180°). Joint states:
   degrees (revolute) or model units (prismatic), absolute.
+- Object-frame candidates (`oapply` sets, `oapply_all`): `rx`/`ry`/`rz` terms together are
+  one rotation vector in degrees (`rz:90;rx:10` is one turn about the axis (10, 0, 90), not
+  two turns); a `flip` term splits a candidate into factors applied left to right, each
+  about the object's own axes as the factors before it turned them (`flip:y;rz:30` flips
+  about y, then turns 30° about the flipped z). `osweep` and `oapply` turn the object
+  about the centre of its bounding box at the frame's joint states, so it stays in place
+  on screen; `oapply_all` turns about the canonical origin and keeps the translation.
 - Scores: IoU of the rendered silhouette with the mask, counting only pixels outside the hand
   masks ("visible"). The gate is 0.98 on every keyframe.
 
@@ -33,7 +40,8 @@ the object's mask.
 
 Alternate two kinds of steps; **each step changes the shape or the poses, never both**.
 
-1. **Shape step.** Read the keyframes and the comparisons, then rewrite `scene.rhai` with
+1. **Shape step.** Look at the keyframes (`frames`: the raw input, cropped and zoomed) and
+   the comparisons, then rewrite `scene.rhai` with
    `scene_write` (the whole script). It is checked before it replaces the current one: on a
    syntax or geometry error you get the message and nothing changes. Check the result with
    `turntable` in every joint state: the 3-D shape must be coherent from every side, not only
@@ -42,7 +50,8 @@ Alternate two kinds of steps; **each step changes the shape or the poses, never 
    `sweep` (camera-frame ranges and joint ranges, e.g. `yaw:-30,30;pitch:-20,20;hinge:0,90`)
    or the object-frame verbs (`osweep`, `oapply` with `flips` for near-symmetric objects,
    `oapply_all` when the model is built the wrong way round), look at the candidate sheet, and
-   commit the candidate you believe with `pose_commit`. A high IoU on a wrong pose is still
+   commit the candidate you believe with `pose_commit` (the search's report and the
+   candidate's rank). A high IoU on a wrong pose is still
    wrong: a mirror or 180° flip of a symmetric-looking object can score well. `track` runs the
    automatic tracker over every keyframe; use it once the shape is right to start the poses.
 3. Keep notes with `notes`: what the object is, which parts move, what you ruled out. Notes
@@ -50,16 +59,43 @@ Alternate two kinds of steps; **each step changes the shape or the poses, never 
 
 ## Reading the images
 
-- **compare**: green = model and mask agree, red = mask not covered (model too small or
-  misplaced there), blue = model outside the mask (too big or misplaced), grey = hand
-  (ignored), white = background.
+- **compare** (the silhouette comparison; each image carries the same legend):
+{COMPARE_LEGEND}
 - **overlay**: the shaded model over the frame, part colours as in the scene.
-- **candidate sheet** (sweeps): one tile per candidate, ranked, each with its scores and the
-  order that produced it.
-- **turntable**: eight views around the model per joint state; look for parts floating,
-  intersecting, or missing from the back.
+- **frames**: the raw keyframe itself, cropped around its mask (optionally zoomed, with the
+  mask's boundary in magenta, the hand's in cyan, the model's in yellow): the only view of
+  the input without the model over it; use it to judge thin parts, print and texture.
+- **candidate sheet** (sweeps): two candidates a row, each as the render over the frame and
+  its comparison, cropped around the object, ranked, labelled with rank, IoU and the order
+  that produced it.
+- **turntable**: eight views around the upright model (canonical +Z up) on a light
+  background, one sheet per joint state (each joint's min, median and max over the
+  keyframes unless you ask for others); look for parts floating, intersecting, or missing
+  from the back, and for joints that move the wrong part.
+- Every image is at most {MAX_SIDE} px on its long side and {MAX_MP} megapixels; larger
+  sets come as several sheets (pages), never one stretched image.
 - **temporal plot**: rotation and translation from keyframe to keyframe after removing the
   camera's motion; a spike is either real fast motion or a wrong pose (usually a flip).
+
+## What the tools cannot see
+
+Every score here compares silhouettes. Three kinds of error leave the silhouette unchanged,
+so a high IoU does not rule them out:
+
+- **Symmetric twins.** An object that looks alike from two sides (a box, a bottle, a mug
+  seen end-on) has a flipped pose with the same outline. Check: `oapply` with `flips` and
+  compare the candidates' tiles, not their scores; look at `frames` for print, a handle,
+  a logo that tells the sides apart; a spike in `temporal` is often a flip.
+- **Joint aliasing.** A revolute joint with a full-turn limit (`[0, 360]`) reaches both θ
+  and 360−θ, and a part symmetric about its axis looks the same at both; a joint that
+  sits at its limit in many keyframes often has its axis reversed or its limit too tight.
+  Check: limit joints to the range they really move (the scene check warns about full
+  turns); look at `turntable` at the joint's min, median and max (it warns when many
+  keyframes sit at a limit) and at `frames` where the part is visible.
+- **Scale.** A larger object farther away casts the same silhouette: the IoU cannot tell
+  the scale from the distance. Check: use depth when the capture has it (the depth error
+  in `score`), a size you know ("the laptop is 30 cm wide"), or a moving camera's
+  parallax; keep proportions from the frames, not from the IoU.
 
 ## Gates before you finish
 
@@ -80,9 +116,37 @@ search that failed: change the region or the shape.
 
 "#;
 
+/// The compare legend as TASK.md writes it: one line per colour of
+/// [`agentstar_render::views::COMPARE_LEGEND`] (the constants the images are drawn with),
+/// with its name, its `#rrggbb` and what it means.
+pub fn compare_legend_markdown() -> String {
+    use agentstar_render::views::{hex, COMPARE_LEGEND};
+    COMPARE_LEGEND
+        .iter()
+        .map(|e| {
+            format!(
+                "  - {} (`{}`{}): {}",
+                e.name,
+                hex(e.colour),
+                if e.hand_only {
+                    ", only where the capture has hand masks"
+                } else {
+                    ""
+                },
+                e.meaning
+            )
+        })
+        .collect::<Vec<_>>()
+        .join("\n")
+}
+
 /// The task document: how to work, the gates, and the scene API with a worked example.
 pub fn task_document() -> String {
-    let mut s = String::from(TASK);
+    use agentstar_render::sheet::{MAX_LONG_SIDE_PX, MAX_PIXELS};
+    let mut s = TASK
+        .replace("{COMPARE_LEGEND}", &compare_legend_markdown())
+        .replace("{MAX_SIDE}", &MAX_LONG_SIDE_PX.to_string())
+        .replace("{MAX_MP}", &format!("{:.2}", MAX_PIXELS as f64 / 1e6));
     s.push_str("# The scene API\n\n");
     let scene = include_str!("../../../docs/scene.md");
     // The scene document's own title is replaced by the heading above.
@@ -95,11 +159,41 @@ pub fn task_document() -> String {
 }
 
 /// What an MCP client shows its model when it connects.
-pub const MCP_INSTRUCTIONS: &str = "agentstar fits an object model written as code (scene.rhai) and its pose in every keyframe of a video to the object's masks. Read TASK.md in the run directory first (the tool `task` returns it): it explains the loop (each step changes the shape or the poses, never both), how to read the images, and the gates `finish` checks. Shape tools: scene_read, scene_write, scene_restore, turntable. Pose tools: track, sweep, apply, osweep, oapply, oapply_all, pose_commit, pose_history, pose_restore. Diagnostics: render, score, temporal, pose_diff, critic. Images come back inline and as files under the run's images/ directory.";
+pub const MCP_INSTRUCTIONS: &str = "agentstar fits an object model written as code (scene.rhai) and its pose in every keyframe of a video to the object's masks. Read TASK.md in the run directory first (the tool `task` returns it): it explains the loop (each step changes the shape or the poses, never both), how to read the images, and the gates `finish` checks. Shape tools: scene_read, scene_write, scene_restore, turntable. Pose tools: track, sweep, apply, osweep, oapply, oapply_all, pose_commit, pose_history, pose_restore. Diagnostics: frames (the raw keyframes, cropped around the mask), render, score, temporal, pose_diff, critic. Images come back inline and as files under the run's images/ directory.";
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_compare_legend_is_the_one_the_images_are_drawn_with() {
+        use agentstar_render::views::{colour_name, comparison_legend, hex, COMPARE_LEGEND};
+        let t = task_document();
+        for hole in ["{COMPARE_LEGEND}", "{MAX_SIDE}", "{MAX_MP}"] {
+            assert!(!t.contains(hole), "{hole}");
+        }
+        // Every colour of the images' legend is in TASK.md, under its own name, which
+        // names the colour it is (a constant changed without its name fails here).
+        for e in COMPARE_LEGEND {
+            let line = t
+                .lines()
+                .find(|l| l.contains(&format!("`{}`", hex(e.colour))))
+                .unwrap_or_else(|| panic!("TASK.md has no line for {}", hex(e.colour)));
+            assert!(line.contains(e.name), "{line}");
+            assert_eq!(colour_name(e.colour), e.name, "{e:?}");
+        }
+        // ... and the image legend draws exactly the swatch colours TASK.md lists.
+        for (c, _) in comparison_legend(true) {
+            assert!(t.contains(&hex(c)), "{}", hex(c));
+        }
+        // The old, wrong legend is gone.
+        assert!(!t.contains("red = mask") && !t.contains("white = background"));
+        assert!(t.contains("What the tools cannot see"));
+        for topic in ["Symmetric twins", "Joint aliasing", "Scale"] {
+            assert!(t.contains(topic), "{topic}");
+        }
+        assert!(t.contains("1568 px"));
+    }
 
     #[test]
     fn the_task_document_holds_the_gates_and_the_whole_scene_api() {

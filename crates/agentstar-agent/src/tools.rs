@@ -25,6 +25,7 @@ use crate::reports::{
 };
 use crate::run::RunDir;
 use crate::task::task_document;
+use crate::view_reports::{RenderReport, TurntableReport};
 use crate::{AgentError, Result};
 use agentstar_data::posefile::PoseFile;
 use schemars::JsonSchema;
@@ -84,6 +85,9 @@ pub const MAX_SCRIPT_CHARS: usize = 256 * 1024;
 pub const MAX_NOTE_CHARS: usize = 4000;
 /// Largest `NOTES.md` the `notes` tool appends to (it is in every model request).
 pub const MAX_NOTES_BYTES: usize = 64 * 1024;
+
+/// Most images one tool call returns inline (the rest stay files, named in the text).
+pub const MAX_IMAGES_RETURNED: usize = 8;
 
 const FRAMES: &str = "Keyframes: `all`, names (`000010.png`), stems (`000010`), frame numbers, or ranges `a..b`, comma separated.";
 
@@ -322,6 +326,57 @@ pub struct FramesArgs {
     pub frames: Option<String>,
 }
 
+/// What the keyframe view draws over the raw pixels.
+#[derive(Debug, Clone, Copy, Deserialize, JsonSchema)]
+#[serde(rename_all = "lowercase")]
+pub enum Outline {
+    /// The raw pixels only.
+    None,
+    /// The object mask's boundary (magenta) and the hand mask's (cyan).
+    Mask,
+    /// The posed model's silhouette boundary (yellow).
+    Model,
+    /// Both.
+    Both,
+}
+
+impl Outline {
+    fn as_str(self) -> &'static str {
+        match self {
+            Outline::None => "none",
+            Outline::Mask => "mask",
+            Outline::Model => "model",
+            Outline::Both => "both",
+        }
+    }
+}
+
+#[derive(Debug, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct KeyframesArgs {
+    #[schemars(description = FRAMES)]
+    pub frames: Option<String>,
+    /// Margin around the mask's box, a fraction of its longer side (default 0.25).
+    #[schemars(range(min = 0.0, max = 4.0))]
+    pub margin: Option<f64>,
+    /// Scale of the crop: 1 = the frame's own pixels (default), up to 8 to look at thin
+    /// parts; reduced where an image would pass the size limits.
+    #[schemars(range(min = 0.1, max = 8.0))]
+    pub zoom: Option<f64>,
+    /// Boundaries drawn over the raw pixels (default none).
+    pub outline: Option<Outline>,
+}
+
+#[derive(Debug, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct TurntableArgs {
+    /// Joint states to show: `representative` (each joint's min, median and max over the
+    /// keyframes; the default), `all` (every distinct state: many sheets), or keyframes in
+    /// the frame grammar (`000010,000040`).
+    #[schemars(length(min = 1, max = 4000))]
+    pub states: Option<String>,
+}
+
 #[derive(Debug, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct TrackArgs {
@@ -502,16 +557,69 @@ tool!(
 );
 
 tool!(Render, "render", Diagnostic, Nothing, RenderArgs,
-    "Render the posed model into keyframes: `overlay` (shaded model over the frame) and `compare` (green agree, red mask not covered, blue model outside the mask, grey hand). Also returns a contact sheet of the overlays.",
+    "Render the posed model into keyframes: `overlay` (shaded model over the frame) and `compare` (silhouette comparison: green model and mask agree, magenta mask not covered by the model, yellow model outside the mask, grey hand (ignored), blue model under the hand, on a near-black background; the legend is on each image), `ids` (parts in flat colours, visible pixels each). With `overlay`, also a contact sheet of the overlays. For the raw keyframes without the model, use `frames`.",
     |tb, a, step| {
         let views = a.views.clone().filter(|v| !v.trim().is_empty()).unwrap_or_else(|| "overlay,compare".into());
-        let (mut o, _, _) = tb.cli(
+        let (mut o, out, _) = tb.cli(
             &["render"],
             step,
             Render::NAME,
             [flag(&a.frames, "--frames"), vec!["--views".into(), views]].concat(),
         )?;
-        o.images.truncate(8);
+        if o.is_error {
+            return Ok(o);
+        }
+        let written = o.images.len();
+        o.images.truncate(MAX_IMAGES_RETURNED);
+        o.text = format!(
+            "render: wrote {written} image(s) in {}; {} returned (sheets first){}",
+            out.display(),
+            o.images.len(),
+            if written > o.images.len() { "; the rest are files there" } else { "" }
+        );
+        Ok(o)
+    });
+
+tool!(Keyframes, "frames", Diagnostic, Nothing, KeyframesArgs,
+    "Look at the raw keyframes (the input itself, no model): each keyframe cropped around its object mask with a margin, optionally zoomed (to judge thin parts: an edge, a handle) and outlined (`mask`: the mask's boundary in magenta and the hand's in cyan; `model`: the posed model's boundary in yellow). Returns sheets of the crops (each labelled with the frame and the crop's position in the frame) and, for a few frames, the crops themselves.",
+    |tb, a, step| {
+        let mut extra = [
+            flag(&a.frames, "--frames"),
+            vec!["--views".into(), "frame".into()],
+        ]
+        .concat();
+        if let Some(m) = a.margin {
+            extra.extend(["--margin".into(), m.to_string()]);
+        }
+        if let Some(z) = a.zoom {
+            extra.extend(["--zoom".into(), z.to_string()]);
+        }
+        if let Some(ol) = a.outline {
+            extra.extend(["--outline".into(), ol.as_str().into()]);
+        }
+        let (mut o, out, stdout) = tb.cli(&["render"], step, Keyframes::NAME, extra)?;
+        if o.is_error {
+            return Ok(o);
+        }
+        let report: RenderReport = serde_json::from_str(&stdout)
+            .map_err(|e| AgentError::Tool(format!("render printed no render report ({e})")))?;
+        let crops = report.frames.len();
+        let sheets = report.sheets.len();
+        o.images.truncate(MAX_IMAGES_RETURNED);
+        let mut text = format!(
+            "frames: {crops} keyframe crop(s) and {sheets} sheet(s) in {}; {} image(s) returned (sheets first)",
+            out.display(),
+            o.images.len()
+        );
+        for f in &report.frames {
+            if let (Some([x, y, w, h]), Some(z)) = (f.crop, f.zoom) {
+                text.push_str(&format!("\n- {}: crop at ({x}, {y}), {w}×{h} frame pixels, zoom {z:.2}", f.frame));
+            }
+        }
+        for n in &report.notes {
+            text.push_str(&format!("\nnote: {n}"));
+        }
+        o.text = text;
         Ok(o)
     });
 
@@ -543,15 +651,42 @@ tool!(Score, "score", Diagnostic, Nothing, FramesArgs,
         Ok(o)
     });
 
-tool!(Turntable, "turntable", Diagnostic, Nothing, NoArgs,
-    "Eight views around the model, once per distinct joint state in pose.json: the 3-D shape check after every shape step (parts floating, intersecting or missing from the back).",
-    |tb, _a, step| {
-        let (mut o, _, stdout) = tb.cli(&["turntable"], step, Turntable::NAME, vec![])?;
+tool!(Turntable, "turntable", Diagnostic, Nothing, TurntableArgs,
+    "Eight views around the upright model (canonical +Z up) on a light background, one sheet per joint state: by default each joint's min, median and max over the keyframes (`states`: `all` or keyframes for others). The 3-D shape check after every shape step: parts floating, intersecting or missing from the back, and joints that move the wrong part or the wrong way.",
+    |tb, a, step| {
+        let (mut o, out, stdout) = tb.cli(
+            &["turntable"],
+            step,
+            Turntable::NAME,
+            flag(&a.states, "--states"),
+        )?;
         if o.is_error {
             return Ok(o);
         }
-        o.images.truncate(6);
-        o.text = format!("turntable: {} view sheet(s)\n{stdout}", o.images.len());
+        let report: TurntableReport = serde_json::from_str(&stdout)
+            .map_err(|e| AgentError::Tool(format!("turntable printed no turntable report ({e})")))?;
+        o.images = report.sheets.clone();
+        o.images.truncate(MAX_IMAGES_RETURNED);
+        let mut text = format!(
+            "turntable: {} sheet(s) for {} joint state(s) in {}; {} returned",
+            report.sheets.len(),
+            report.states.len(),
+            out.display(),
+            o.images.len()
+        );
+        for st in &report.states {
+            let joints: Vec<String> = st.joints.iter().map(|(k, v)| format!("{k} = {v:.2}")).collect();
+            text.push_str(&format!(
+                "\n- {} ({}): {}",
+                st.label,
+                st.source,
+                if joints.is_empty() { "no joints".to_string() } else { joints.join(", ") }
+            ));
+        }
+        for w in &report.warnings {
+            text.push_str(&format!("\nwarning: {w}"));
+        }
+        o.text = text;
         Ok(o)
     });
 
@@ -720,12 +855,13 @@ tool!(Finish, "finish", Diagnostic, Nothing, FinishArgs,
     |tb, a, _step| tb.finish(&a));
 
 /// Every tool, in the order offered.
-pub static REGISTRY: [ToolDef; 21] = [
+pub static REGISTRY: [ToolDef; 22] = [
     ToolDef::of::<Task>(),
     ToolDef::of::<SceneRead>(),
     ToolDef::of::<SceneWrite>(),
     ToolDef::of::<SceneRestore>(),
     ToolDef::of::<Render>(),
+    ToolDef::of::<Keyframes>(),
     ToolDef::of::<Score>(),
     ToolDef::of::<Turntable>(),
     ToolDef::of::<Track>(),
@@ -836,6 +972,51 @@ fn pngs(dir: &Path) -> Vec<PathBuf> {
         (!n.contains("sheet"), n)
     });
     v
+}
+
+/// A search's result as an MCP client should read it: per frame the ranked candidates
+/// (rank, scores, the order that made each), then what to do with them — look at the
+/// sheet and keep one with `pose_commit` by report and rank. No pose numbers and no shell
+/// commands: the agent never types poses.
+pub fn search_text(report: &SearchReport, path: &Path) -> String {
+    let mut t = String::new();
+    for f in &report.frames {
+        t.push_str(&format!(
+            "{} {}\n{:<5} {:>8} {:>8} {:>8}  order\n",
+            report.verb.stem(),
+            f.frame,
+            "rank",
+            "gate_iou",
+            "iou_vis",
+            "iou_raw"
+        ));
+        for c in &f.ranked {
+            t.push_str(&format!(
+                "{:<5} {:>8.4} {:>8} {:>8.4}  {}\n",
+                c.rank,
+                c.gate,
+                c.iou_visible.map_or("n/a".into(), |v| format!("{v:.4}")),
+                c.iou_raw,
+                c.label
+            ));
+        }
+        for n in &f.notes {
+            t.push_str(&format!("note: {n}\n"));
+        }
+    }
+    let frames: Vec<&str> = report.frames.iter().map(|f| f.frame.as_str()).collect();
+    if report.frames.iter().any(|f| !f.ranked.is_empty()) {
+        t.push_str(&format!(
+            "To keep a candidate, look at its tiles on the sheet first (a flipped twin can score as high), then call `pose_commit` with report = \"{}\" and its rank (0 = best){}. Nothing is changed until you commit.\n",
+            path.display(),
+            if frames.len() > 1 {
+                format!("; add frames = \"…\" to commit only some of {}", frames.join(", "))
+            } else {
+                String::new()
+            }
+        ));
+    }
+    t
 }
 
 /// The frames of `spec` outside `window` (names), after resolving the spec to names.
@@ -1113,15 +1294,23 @@ impl Toolbox {
         }
         let path = verb.report_path(&out);
         let report = SearchReport::read(&path)?;
-        let txt = agentstar_data::read_text(&verb.text_path(&out))?;
         let mut images = o.images;
-        images.truncate(6);
+        let written = images.len();
+        images.truncate(MAX_IMAGES_RETURNED);
         let mut scores = BTreeMap::new();
         if let Some(min) = report.min_gate_iou {
             scores.insert("best_iou_min".into(), min);
         }
+        let mut text = search_text(&report, &path);
+        if written > images.len() {
+            text.push_str(&format!(
+                "{written} sheet page(s) written in {}; {} returned\n",
+                out.display(),
+                images.len()
+            ));
+        }
         Ok(ToolOutput {
-            text: format!("{}\nreport: {}\n", txt.trim(), path.display()),
+            text: format!("{text}report: {}\n", path.display()),
             images,
             scores,
             structured: serde_json::to_value(&report).ok(),
@@ -1248,23 +1437,25 @@ impl Toolbox {
                 "--frames".into(),
                 name.clone(),
                 "--views".into(),
-                "overlay,compare".into(),
+                "overlay,compare,frame".into(),
             ],
         )?;
         if r.is_error {
             return Ok(r);
         }
         let tt = self.call(Turntable::NAME, &Value::Null, step);
+        // The keyframe first (cropped around its mask, within the image limits), then the
+        // overlay and the comparison, then one turntable sheet.
         let mut images: Vec<PathBuf> = r
             .images
             .into_iter()
             .filter(|p| !p.to_string_lossy().contains("sheet"))
             .collect();
+        images.sort_by_key(|p| {
+            !p.file_name()
+                .is_some_and(|n| n.to_string_lossy().starts_with("frame_"))
+        });
         images.extend(tt.images.into_iter().take(1));
-        let frame_img = self.run.capture.join("frames").join(name);
-        if frame_img.is_file() {
-            images.insert(0, frame_img);
-        }
         match critic(name, &images) {
             Ok(text) => Ok(ToolOutput {
                 text,
@@ -1516,6 +1707,57 @@ mod tests {
         );
         let o = toolbox(None).call("fly", &json!({}), 1);
         assert!(o.is_error && o.text.contains("sweep"));
+    }
+
+    #[test]
+    fn the_render_description_names_the_colours_the_images_use() {
+        let d = find("render").expect("render").description;
+        for e in agentstar_render::views::COMPARE_LEGEND {
+            assert!(d.contains(e.name), "{}: {d}", e.name);
+        }
+        // The search text tells an MCP client what to call, never pose numbers or a shell.
+        let report = SearchReport {
+            verb: SearchVerb::Oapply,
+            capture: "cap".into(),
+            model: "m.rhai".into(),
+            poses: "p.json".into(),
+            scale: 0.2,
+            depth_weight: 0.0,
+            frames: vec![crate::reports::SearchFrame {
+                frame: "000000.png".into(),
+                sheet: "run/images/x/oapply_sheet_000000.png".into(),
+                notes: vec![],
+                search: json!({}),
+                ranked: vec![crate::reports::Candidate {
+                    rank: 0,
+                    label: "flip:y;rz:30".into(),
+                    pose: crate::reports::CandidatePose {
+                        quaternion: [0.5, 0.5, 0.5, 0.5],
+                        translation: [0.1, 0.2, 0.9],
+                        scale: 0.2,
+                    },
+                    joints: BTreeMap::new(),
+                    iou_visible: Some(0.97),
+                    iou_raw: 0.95,
+                    gate: 0.97,
+                    depth_canon: None,
+                    combined: 0.97,
+                    extra: json!({}),
+                }],
+            }],
+            mean_gate_iou: 0.97,
+            min_gate_iou: Some(0.97),
+            details: json!({}),
+            command: "agentstar oapply".into(),
+        };
+        let t = search_text(&report, Path::new("run/images/x/oapply.json"));
+        assert!(!t.contains("paste") && !t.contains("agentstar "), "{t}");
+        assert!(!t.contains("0.5, 0.5") && !t.contains("quaternion"), "{t}");
+        assert!(
+            t.contains("`pose_commit`") && t.contains("run/images/x/oapply.json"),
+            "{t}"
+        );
+        assert!(t.contains("flip:y;rz:30") && t.contains("0.9700"), "{t}");
     }
 
     #[test]

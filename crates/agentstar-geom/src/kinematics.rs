@@ -274,6 +274,61 @@ impl KinematicTree {
         self.part_joint[part]
     }
 
+    /// Warnings about the limits themselves: a revolute joint whose range spans a full
+    /// turn (e.g. `[0, 360]`) reaches both θ and 360 − θ, which a part symmetric about a
+    /// plane through its axis renders alike, so searches can alias between them.
+    pub fn limit_warnings(&self) -> Vec<String> {
+        self.joints
+            .iter()
+            .filter_map(|j| match (j.kind, j.limit) {
+                (JointKind::Revolute, Some((lo, hi))) if hi - lo >= 360.0 - 1e-9 => Some(format!(
+                    "joint `{}`: its limit [{lo}, {hi}] spans a full turn, so θ and 360−θ (a mirror image about the axis for many parts) are both reachable and can alias; limit it to the range the part really moves through",
+                    j.name
+                )),
+                _ => None,
+            })
+            .collect()
+    }
+
+    /// Warnings for joints whose state sits at a limit (within 0.5% of the range) in at
+    /// least 3 frames and a quarter of them, but not in all: a sign that the limit is too tight, the axis
+    /// reversed or the part built in the wrong place. `states` holds each frame's
+    /// internal-unit states, `names` the frames' names.
+    pub fn at_limit_warnings(&self, states: &[Vec<f64>], names: &[String]) -> Vec<String> {
+        let mut out = Vec::new();
+        for (k, j) in self.joints.iter().enumerate() {
+            let Some((lo, hi)) = j.limit.filter(|(lo, hi)| hi > lo) else {
+                continue;
+            };
+            let tol = 0.005 * (hi - lo);
+            for (bound, which) in [(lo, "lower"), (hi, "upper")] {
+                let at: Vec<&str> = states
+                    .iter()
+                    .zip(names)
+                    .filter(|(s, _)| {
+                        s.get(k)
+                            .is_some_and(|&v| (j.to_interface(v) - bound).abs() <= tol)
+                    })
+                    .map(|(_, n)| n.as_str())
+                    .collect();
+                // Every frame at the limit is a joint that never moved (or was never
+                // searched), not one that piles up against its limit.
+                if at.len() >= 3 && at.len() * 4 >= states.len() && at.len() < states.len() {
+                    let shown: Vec<&str> = at.iter().take(6).copied().collect();
+                    out.push(format!(
+                        "joint `{}` sits at its {which} limit {bound} in {} of {} keyframes ({}{}): the limit may be too tight, the axis reversed, or the part built in the wrong place; check it in the frames and with a turntable at the joint's min, median and max",
+                        j.name,
+                        at.len(),
+                        states.len(),
+                        shown.join(", "),
+                        if at.len() > shown.len() { ", …" } else { "" }
+                    ));
+                }
+            }
+        }
+        out
+    }
+
     /// Rest states (all zero), internal units.
     pub fn rest_states(&self) -> Vec<f64> {
         vec![0.0; self.joints.len()]
@@ -423,6 +478,43 @@ mod tests {
             axis: Vector3::from(axis),
             limit: Some((-180.0, 180.0)),
         }
+    }
+
+    #[test]
+    fn full_turn_limits_and_states_piled_at_a_limit_are_warned_about() {
+        let mut full = hinge("dial", None, "dial", [0.0; 3], [0.0, 0.0, 1.0]);
+        full.limit = Some((0.0, 360.0));
+        let mut lid = hinge("lid", None, "lid", [0.0; 3], [1.0, 0.0, 0.0]);
+        lid.limit = Some((0.0, 120.0));
+        let tree =
+            KinematicTree::new(vec![full, lid], &names(&["body", "dial", "lid"])).expect("tree");
+        let w = tree.limit_warnings();
+        assert_eq!(w.len(), 1, "{w:?}");
+        assert!(w[0].contains("`dial`") && w[0].contains("360"), "{w:?}");
+        // The lid at 0° in 4 of 8 frames (the dial spread out): one warning, the lower limit.
+        let states: Vec<Vec<f64>> = (0..8)
+            .map(|k| {
+                let lid = if k % 2 == 0 { 0.0 } else { 40.0 + k as f64 };
+                vec![(20.0 * k as f64).to_radians(), f64::to_radians(lid)]
+            })
+            .collect();
+        let frames: Vec<String> = (0..8).map(|k| format!("{k:06}.png")).collect();
+        let w = tree.at_limit_warnings(&states, &frames);
+        assert_eq!(w.len(), 1, "{w:?}");
+        assert!(
+            w[0].contains("`lid` sits at its lower limit 0 in 4 of 8"),
+            "{w:?}"
+        );
+        // Every frame at the rest state (nothing tracked yet) is not a pile-up.
+        let rest = vec![vec![0.0, 0.0]; 8];
+        assert!(tree.at_limit_warnings(&rest, &frames).is_empty());
+        // Two frames of eight are not "many".
+        let w = tree.at_limit_warnings(&states[..3], &frames[..3]);
+        assert!(w.is_empty(), "{w:?}");
+        assert!(KinematicTree::new(vec![], &names(&["body"]))
+            .expect("tree")
+            .limit_warnings()
+            .is_empty());
     }
 
     #[test]

@@ -1,14 +1,17 @@
 //! The CPU renderer of agentstar: silhouettes (bit masks, the hot path of every search),
 //! depth, part ids and shaded colour, the scores computed on them, and the images people
-//! and models look at (overlays, silhouette comparisons, part-id views, turntables, sheets).
+//! and models look at (overlays, silhouette comparisons, part-id views, turntables, the raw
+//! keyframes cropped around their masks, sheets paged within the image limits of `sheet`).
 //!
 //! No file I/O here: images are built in memory and written by the caller.
 
+pub mod frames;
 pub mod full;
 pub mod mask;
 pub mod raster;
 pub mod scene;
 pub mod score;
+pub mod sheet;
 pub mod text;
 pub mod views;
 

@@ -4,19 +4,89 @@
 
 use crate::full::{RenderBuffers, NO_PART};
 use crate::mask::BitMask;
+use crate::sheet::{limit_factor, scaled, within_limits, wrap_label, LABEL_SCALE};
 use crate::text::{draw_text, fill_rect, scale_for_width, text_width};
 use agentstar_geom::camera::look_at;
 use agentstar_geom::pose::{Rigid, Similarity};
 use agentstar_geom::{ObjectModel, PinholeCamera, Point3, UnitQuaternion, Vector3};
 use image::{Rgb, RgbImage, Rgba, RgbaImage};
 
-/// Colours of the silhouette comparison; the legend is drawn from the same constants.
+/// Colours of the silhouette comparison; the legend drawn on the images and the one in
+/// TASK.md are both generated from [`COMPARE_LEGEND`], which holds these constants.
 pub const BOTH: Rgb<u8> = Rgb([40, 190, 70]);
 pub const RENDER_ONLY: Rgb<u8> = Rgb([240, 210, 40]);
 pub const MASK_ONLY: Rgb<u8> = Rgb([220, 40, 200]);
 pub const HAND: Rgb<u8> = Rgb([120, 120, 120]);
 pub const RENDER_IN_HAND: Rgb<u8> = Rgb([60, 110, 230]);
 pub const BACKGROUND: Rgb<u8> = Rgb([18, 18, 22]);
+/// Background of turntable views: light, so that dark parts stand out.
+pub const TURNTABLE_BACKGROUND: Rgb<u8> = Rgb([236, 236, 240]);
+
+/// One colour of a legend: the colour, its common name, what it means on the image and
+/// its short label on the image's own legend.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct LegendColour {
+    pub colour: Rgb<u8>,
+    pub name: &'static str,
+    pub label: &'static str,
+    pub meaning: &'static str,
+    /// Shown only when the frame has a hand mask.
+    pub hand_only: bool,
+    /// Drawn as a swatch in the image's legend (the background is not).
+    pub swatch: bool,
+}
+
+/// The silhouette comparison's colours, in legend order.
+pub const COMPARE_LEGEND: [LegendColour; 6] = [
+    LegendColour {
+        colour: BOTH,
+        name: "green",
+        label: "both",
+        meaning: "model and mask agree",
+        hand_only: false,
+        swatch: true,
+    },
+    LegendColour {
+        colour: RENDER_ONLY,
+        name: "yellow",
+        label: "render only (extra)",
+        meaning: "model outside the mask: too big or misplaced there",
+        hand_only: false,
+        swatch: true,
+    },
+    LegendColour {
+        colour: MASK_ONLY,
+        name: "magenta",
+        label: "mask only (missing)",
+        meaning: "mask not covered by the model: too small or misplaced there",
+        hand_only: false,
+        swatch: true,
+    },
+    LegendColour {
+        colour: HAND,
+        name: "grey",
+        label: "hand (ignored)",
+        meaning: "hand mask, not scored",
+        hand_only: true,
+        swatch: true,
+    },
+    LegendColour {
+        colour: RENDER_IN_HAND,
+        name: "blue",
+        label: "render under hand",
+        meaning: "model under the hand (not scored: the hand may hide it)",
+        hand_only: true,
+        swatch: true,
+    },
+    LegendColour {
+        colour: BACKGROUND,
+        name: "near-black",
+        label: "background",
+        meaning: "neither model nor mask",
+        hand_only: false,
+        swatch: false,
+    },
+];
 
 /// Options of the shaded render.
 #[derive(Debug, Clone, Copy)]
@@ -102,31 +172,55 @@ pub fn overlay(frame: &RgbImage, render: &RgbaImage, opacity: f32) -> RgbImage {
     out
 }
 
-/// Adds a bar below `img` with coloured legend swatches and a title line.
+/// Adds a bar below `img` with coloured legend swatches and a title, drawn at the label
+/// scale; the canvas is widened (centred) when the entries need more room than a small
+/// image gives, and the image is shrunk first when the whole would pass the limits, so the
+/// legend itself is never scaled.
 pub fn with_legend(img: &RgbImage, title: &str, entries: &[(Rgb<u8>, String)]) -> RgbImage {
-    let scale = scale_for_width(img.width());
+    let scale = LABEL_SCALE;
     let line = 10 * scale;
-    // Lay out entries left to right, wrapping lines.
-    let mut rows: Vec<Vec<(Rgb<u8>, &str)>> = vec![vec![]];
-    let mut x = 0;
-    for (c, label) in entries {
-        let wdt = 18 * scale + text_width(label, scale);
-        if x + wdt > img.width() && !rows.last().is_some_and(|r| r.is_empty()) {
-            rows.push(vec![]);
-            x = 0;
+    let entry_w = |label: &str| 10 * scale + text_width(label, scale) + 8 * scale;
+    let widest = entries.iter().map(|(_, l)| entry_w(l)).max().unwrap_or(0) + 2 * scale;
+    let layout = |width: u32| {
+        let mut rows: Vec<Vec<(Rgb<u8>, &str)>> = vec![vec![]];
+        let mut x = 2 * scale;
+        for (c, label) in entries {
+            let wdt = entry_w(label);
+            if x + wdt > width && !rows.last().is_some_and(|r| r.is_empty()) {
+                rows.push(vec![]);
+                x = 2 * scale;
+            }
+            if let Some(r) = rows.last_mut() {
+                r.push((*c, label.as_str()));
+            }
+            x += wdt;
         }
-        if let Some(r) = rows.last_mut() {
-            r.push((*c, label.as_str()));
+        let titles = if title.is_empty() {
+            vec![]
+        } else {
+            wrap_label(title, ((width - 4 * scale) / (8 * scale)) as usize, 2)
+        };
+        let bar = (rows.len() as u32 + titles.len() as u32) * (line + 2 * scale) + 2 * scale;
+        (rows, titles, bar)
+    };
+    // Shrink the image until image and bar keep the limits together.
+    let mut img = std::borrow::Cow::Borrowed(img);
+    loop {
+        let width = img.width().max(widest).max(16 * 8 * scale / 2);
+        let (_, _, bar) = layout(width);
+        if within_limits(width, img.height() + bar) || img.width() < 64 {
+            break;
         }
-        x += wdt;
+        let f = limit_factor(width, img.height() + bar) * 0.995;
+        img = std::borrow::Cow::Owned(scaled(&img, f.min(0.98)));
     }
-    let title_lines = if title.is_empty() { 0 } else { 1 };
-    let bar = (rows.len() as u32 + title_lines) * (line + 2 * scale) + 2 * scale;
-    let mut out = RgbImage::from_pixel(img.width(), img.height() + bar, Rgb([250, 250, 250]));
-    image::imageops::replace(&mut out, img, 0, 0);
+    let width = img.width().max(widest).max(16 * 8 * scale / 2);
+    let (rows, titles, bar) = layout(width);
+    let mut out = RgbImage::from_pixel(width, img.height() + bar, Rgb([250, 250, 250]));
+    image::imageops::replace(&mut out, &*img, ((width - img.width()) / 2) as i64, 0);
     let mut y = img.height() as i64 + 2 * scale as i64;
-    if title_lines == 1 {
-        draw_text(&mut out, 2 * scale as i64, y, title, scale, Rgb([0, 0, 0]));
+    for t in titles {
+        draw_text(&mut out, 2 * scale as i64, y, &t, scale, Rgb([0, 0, 0]));
         y += (line + 2 * scale) as i64;
     }
     for row in rows {
@@ -198,18 +292,50 @@ pub fn silhouette_comparison(
     (img, n)
 }
 
-/// The legend entries of the silhouette comparison.
+/// The legend entries of the silhouette comparison (from [`COMPARE_LEGEND`]).
 pub fn comparison_legend(has_hand: bool) -> Vec<(Rgb<u8>, String)> {
-    let mut v = vec![
-        (BOTH, "both".to_string()),
-        (RENDER_ONLY, "render only (extra)".into()),
-        (MASK_ONLY, "mask only (missing)".into()),
-    ];
-    if has_hand {
-        v.push((HAND, "hand (ignored)".into()));
-        v.push((RENDER_IN_HAND, "render under hand".into()));
+    COMPARE_LEGEND
+        .iter()
+        .filter(|e| e.swatch && (has_hand || !e.hand_only))
+        .map(|e| (e.colour, e.label.to_string()))
+        .collect()
+}
+
+/// The common name of a colour, from its hue, saturation and value: near-black, grey,
+/// white, red, orange, yellow, green, cyan, blue, purple or magenta. Tests hold every
+/// legend's names to the colours they describe.
+pub fn colour_name(c: Rgb<u8>) -> &'static str {
+    let [r, g, b] = c.0.map(|v| v as f64 / 255.0);
+    let (max, min) = (r.max(g).max(b), r.min(g).min(b));
+    let d = max - min;
+    if max < 0.15 {
+        return "near-black";
     }
-    v
+    if d / max < 0.15 {
+        return if max > 0.9 { "white" } else { "grey" };
+    }
+    let h = if max == r {
+        60.0 * ((g - b) / d).rem_euclid(6.0)
+    } else if max == g {
+        60.0 * ((b - r) / d + 2.0)
+    } else {
+        60.0 * ((r - g) / d + 4.0)
+    };
+    match h {
+        h if !(15.0..340.0).contains(&h) => "red",
+        h if h < 45.0 => "orange",
+        h if h < 70.0 => "yellow",
+        h if h < 170.0 => "green",
+        h if h < 200.0 => "cyan",
+        h if h < 260.0 => "blue",
+        h if h < 290.0 => "purple",
+        _ => "magenta",
+    }
+}
+
+/// `#rrggbb` of a colour.
+pub fn hex(c: Rgb<u8>) -> String {
+    format!("#{:02x}{:02x}{:02x}", c[0], c[1], c[2])
 }
 
 /// A distinct flat colour for part `i`.
@@ -515,6 +641,38 @@ mod tests {
         assert_eq!(*img.get_pixel(7, 0), RENDER_IN_HAND);
         let with = with_legend(&img, "frame 000000", &comparison_legend(true));
         assert!(with.height() > img.height());
+    }
+
+    #[test]
+    fn every_legend_name_describes_its_colour() {
+        for e in COMPARE_LEGEND {
+            assert_eq!(colour_name(e.colour), e.name, "{e:?}");
+        }
+        // The names are distinct, so a reader can tell the colours apart by name.
+        let mut names: Vec<&str> = COMPARE_LEGEND.iter().map(|e| e.name).collect();
+        names.sort_unstable();
+        names.dedup();
+        assert_eq!(names.len(), COMPARE_LEGEND.len());
+        assert_eq!(colour_name(Rgb([255, 0, 0])), "red");
+        assert_eq!(colour_name(Rgb([250, 250, 250])), "white");
+        assert_eq!(hex(MASK_ONLY), "#dc28c8");
+        assert_eq!(colour_name(TURNTABLE_BACKGROUND), "white");
+    }
+
+    #[test]
+    fn a_legend_is_readable_on_a_small_image_and_keeps_the_limits_on_a_large_one() {
+        let small = RgbImage::from_pixel(160, 120, BACKGROUND);
+        let out = with_legend(
+            &small,
+            "000000.png IoU 0.9 raw 0.9",
+            &comparison_legend(true),
+        );
+        // Widened so that the longest entry fits at the label scale.
+        assert!(out.width() > 160 && out.width() >= text_width("render only (extra)", 2));
+        assert_eq!(*out.get_pixel((out.width() - 160) / 2, 0), BACKGROUND);
+        let big = RgbImage::from_pixel(1920, 1080, BACKGROUND);
+        let out = with_legend(&big, "000000.png", &comparison_legend(true));
+        assert!(within_limits(out.width(), out.height()), "{out:?}");
     }
 
     #[test]

@@ -909,6 +909,7 @@ pub(crate) fn build(
             }
         }
     }
+    warnings.extend(tree.limit_warnings());
     for (p, part) in parts.iter().enumerate() {
         if !part.watertight && part.mesh.volume().abs() > 1e-9 {
             warnings.push(format!("part `{}` is not watertight (open or self-overlapping surface); silhouettes still render, but it cannot be checked as a solid", names[p]));

@@ -177,6 +177,15 @@ fn joint_mistakes_are_explained() {
         "{:?}",
         w.warnings
     );
+    // A full turn lets θ and 360−θ alias: the check says so.
+    let w = build(&format!("{base}joint(#{{ name: \"h\", type: \"revolute\", child: \"lid\", axis: [1, 0, 0], limit: [0, 360] }});")).expect("builds");
+    assert!(
+        w.warnings
+            .iter()
+            .any(|m| m.contains("`h`") && m.contains("full turn")),
+        "{:?}",
+        w.warnings
+    );
 }
 
 #[test]

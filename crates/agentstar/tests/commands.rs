@@ -3,6 +3,7 @@
 
 mod support;
 
+use std::path::Path;
 use support::{agentstar, example, text};
 
 #[test]
@@ -62,6 +63,81 @@ fn example_and_every_subcommand_on_it() {
         !out.join("overlay_000015.png").exists(),
         "frame selection ignored"
     );
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("json");
+    assert_eq!(
+        v["sheets"][0],
+        out.join("sheet_overlay.png").display().to_string()
+    );
+
+    // The raw keyframes cropped around the mask, outlined and zoomed; a call without the
+    // overlay names no overlay sheet, and every file it names exists.
+    let fv = dir.path().join("frames_view");
+    let o = agentstar(&[
+        "render",
+        "--capture",
+        &cap,
+        "--model",
+        &model,
+        "--poses",
+        &poses,
+        "--frames",
+        "000000,000005",
+        "--views",
+        "compare,frame",
+        "--outline",
+        "both",
+        "--zoom",
+        "2",
+        "--out",
+        fv.to_str().expect("utf8"),
+        "--json",
+    ]);
+    assert!(o.status.success(), "{}", text(&o));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("json");
+    let sheets: Vec<&str> = v["sheets"]
+        .as_array()
+        .expect("sheets")
+        .iter()
+        .map(|p| p.as_str().expect("path"))
+        .collect();
+    assert_eq!(sheets, [fv.join("sheet_frames.png").display().to_string()]);
+    assert!(!fv.join("sheet_overlay.png").exists());
+    for f in v["frames"].as_array().expect("frames") {
+        for p in f["files"].as_array().expect("files") {
+            assert!(Path::new(p.as_str().expect("path")).is_file(), "{p}");
+        }
+        let crop = f["crop"].as_array().expect("crop");
+        let (w, h) = (crop[2].as_u64().expect("w"), crop[3].as_u64().expect("h"));
+        let frame = f["frame"].as_str().expect("frame").trim_end_matches(".png");
+        let img = image::open(fv.join(format!("frame_{frame}.png"))).expect("png");
+        assert_eq!((img.width() as u64, img.height() as u64), (2 * w, 2 * h));
+        assert_eq!(f["zoom"], 2.0);
+    }
+    for (bad, says) in [
+        ("--zoom=0", "--zoom"),
+        ("--zoom=9", "--zoom"),
+        ("--margin=-1", "--margin"),
+    ] {
+        let o = agentstar(&[
+            "render",
+            "--capture",
+            &cap,
+            "--model",
+            &model,
+            "--poses",
+            &poses,
+            "--views",
+            "frame",
+            "--out",
+            fv.to_str().expect("utf8"),
+            bad,
+        ]);
+        assert!(
+            !o.status.success() && text(&o).contains(says),
+            "{}",
+            text(&o)
+        );
+    }
 
     let tt = dir.path().join("tt");
     let o = agentstar(&[
@@ -80,7 +156,41 @@ fn example_and_every_subcommand_on_it() {
     ]);
     assert!(o.status.success(), "{}", text(&o));
     let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("json");
-    // Every frame of the example has its own lid angle: one turntable per state.
+    // Every frame of the example has its own lid angle: by default the lid's minimum,
+    // median and maximum, one sheet each, and no single views.
+    let labels: Vec<&str> = v["states"]
+        .as_array()
+        .expect("states")
+        .iter()
+        .map(|s| s["label"].as_str().expect("label"))
+        .collect();
+    assert_eq!(labels, ["min", "median", "max"]);
+    assert_eq!(v["sheets"].as_array().expect("sheets").len(), 3);
+    for f in v["files"].as_array().expect("files") {
+        assert!(Path::new(f.as_str().expect("path")).is_file(), "{f}");
+    }
+    assert!(tt.join("turntable_sheet_median.png").is_file());
+    assert!(!tt.join("turntable_min_az000_el+20.png").exists());
+    // Every distinct state, with the single views, on request.
+    let o = agentstar(&[
+        "turntable",
+        "--model",
+        &model,
+        "--capture",
+        &cap,
+        "--poses",
+        &poses,
+        "--out",
+        tt.to_str().expect("utf8"),
+        "--size",
+        "96",
+        "--states",
+        "all",
+        "--each",
+        "--json",
+    ]);
+    assert!(o.status.success(), "{}", text(&o));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("json");
     assert_eq!(v["states"].as_array().expect("states").len(), 6);
     assert!(tt.join("turntable_000000_az000_el+20.png").is_file());
 

@@ -35,6 +35,10 @@ fn sample(tool: &str, prop: &str, scene: &str) -> Option<Value> {
         ("notes", "text") => json!("the box's lid is on top"),
         ("temporal", "sort_by") => json!("vel.rot"),
         ("finish", "summary") => json!("checking the gates"),
+        ("frames", "margin") => json!(0.3),
+        ("frames", "zoom") => json!(2.0),
+        ("frames", "outline") => json!("both"),
+        ("turntable", "states") => json!("representative"),
         _ => return None,
     })
 }
@@ -66,6 +70,7 @@ fn every_tool_runs_over_stdio_with_schema_arguments_and_typed_results() {
         .collect();
     assert_eq!(names, registry);
     let mut id = 10;
+    let mut legend: Vec<(String, [u8; 3], bool)> = vec![];
     let mut report: Option<String> = None;
     let mut called = vec![];
     for t in &tools {
@@ -94,6 +99,16 @@ fn every_tool_runs_over_stdio_with_schema_arguments_and_typed_results() {
         let result = &resp["result"];
         assert_eq!(result["isError"], false, "{name} {args:?}: {resp}");
         let body = McpClient::text_of(&resp);
+        // Every image within the limits, every path the result names on disk.
+        let images = returned_images(&resp);
+        check_paths(name, &body);
+        if name == "task" {
+            legend = task_legend(&body);
+        }
+        if name == "render" {
+            let compare = images.first().expect("the compare image");
+            assert_compare_colours_are_the_legend(compare, &legend, (160, 120));
+        }
         let structured = result.get("structuredContent").cloned();
         match name {
             "score" => {
@@ -147,15 +162,35 @@ fn every_tool_runs_over_stdio_with_schema_arguments_and_typed_results() {
                 assert!(rows[n - 2].command.starts_with("track"), "{rows:?}");
                 assert!(rows[n - 1].command.contains("pose commit"), "{rows:?}");
             }
-            "render" | "turntable" => {
-                assert!(
-                    result["content"]
-                        .as_array()
-                        .expect("content")
-                        .iter()
-                        .any(|b| b["type"] == "image"),
-                    "{name} returns images"
-                );
+            "render" | "turntable" | "frames" => {
+                assert!(!images.is_empty(), "{name} returns images");
+                // The text says how many sheets it wrote, and that is how many there are.
+                if name == "turntable" {
+                    let sheets = body
+                        .strip_prefix("turntable: ")
+                        .and_then(|t| t.split(' ').next())
+                        .and_then(|n| n.parse::<usize>().ok())
+                        .expect("a sheet count");
+                    let dir = result_dir(&body);
+                    let on_disk = std::fs::read_dir(&dir)
+                        .expect("dir")
+                        .flatten()
+                        .filter(|e| {
+                            e.file_name()
+                                .to_string_lossy()
+                                .starts_with("turntable_sheet_")
+                        })
+                        .count();
+                    assert_eq!(sheets, on_disk, "{body}");
+                    assert_eq!(images.len(), sheets.min(8), "{body}");
+                }
+                if name == "frames" {
+                    assert!(body.contains("1 keyframe crop(s) and 1 sheet(s)"), "{body}");
+                    assert!(body.contains("zoom 2.00"), "{body}");
+                }
+            }
+            "task" => {
+                assert!(legend.len() >= 5, "{legend:?}");
             }
             "critic" => assert!(body.contains("critic skipped"), "{body}"),
             "finish" => assert!(body.starts_with("Not finished"), "{body}"),
@@ -167,6 +202,192 @@ fn every_tool_runs_over_stdio_with_schema_arguments_and_typed_results() {
     let mut expected = vec!["init".to_string()];
     expected.extend(called);
     assert_eq!(ledger_tools(&run), expected);
+}
+
+/// The images of a tool result, decoded, each checked against the size limits.
+fn returned_images(resp: &Value) -> Vec<image::RgbImage> {
+    use agentstar_render::sheet::within_limits;
+    use base64::Engine;
+    resp["result"]["content"]
+        .as_array()
+        .into_iter()
+        .flatten()
+        .filter(|b| b["type"] == "image")
+        .map(|b| {
+            let png = base64::engine::general_purpose::STANDARD
+                .decode(b["data"].as_str().expect("data"))
+                .expect("base64");
+            let img = image::load_from_memory(&png).expect("a PNG").to_rgb8();
+            assert!(
+                within_limits(img.width(), img.height()),
+                "an image of {}×{} passes the limits",
+                img.width(),
+                img.height()
+            );
+            img
+        })
+        .collect()
+}
+
+/// Every path a result's text names (image lists, `report:` lines) exists.
+fn check_paths(tool: &str, body: &str) {
+    for line in body.lines() {
+        let path = line
+            .strip_prefix("- ")
+            .filter(|p| p.ends_with(".png"))
+            .or_else(|| line.strip_prefix("report: "));
+        if let Some(p) = path {
+            assert!(
+                Path::new(p.trim()).is_file(),
+                "{tool} names {p}, which is not a file"
+            );
+        }
+    }
+}
+
+/// The directory a render/turntable result says it wrote into (`… in DIR; …`).
+fn result_dir(body: &str) -> std::path::PathBuf {
+    let first = body.lines().next().expect("a line");
+    let dir = first
+        .split(" in ")
+        .nth(1)
+        .and_then(|r| r.split(';').next())
+        .expect("the directory");
+    std::path::PathBuf::from(dir.trim())
+}
+
+/// TASK.md's compare legend: (name, rgb, shown only with hands) of every line with a
+/// `#rrggbb` code.
+fn task_legend(task: &str) -> Vec<(String, [u8; 3], bool)> {
+    task.lines()
+        .filter_map(|l| {
+            let l = l.trim().strip_prefix("- ")?;
+            let code = l.split('`').nth(1)?.strip_prefix('#')?;
+            let byte = |k: usize| u8::from_str_radix(code.get(k..k + 2)?, 16).ok();
+            let name = l.split(" (").next()?.to_string();
+            Some((
+                name,
+                [byte(0)?, byte(2)?, byte(4)?],
+                l.contains("hand masks"),
+            ))
+        })
+        .collect()
+}
+
+/// Every pixel of the comparison itself (the frame-sized area above the legend bar,
+/// centred) is one of TASK.md's legend colours, and every legend colour appears.
+fn assert_compare_colours_are_the_legend(
+    img: &image::RgbImage,
+    legend: &[(String, [u8; 3], bool)],
+    frame: (u32, u32),
+) {
+    assert!(!legend.is_empty(), "TASK.md was read first");
+    let colours: BTreeSet<[u8; 3]> = legend.iter().map(|l| l.1).collect();
+    let x0 = (img.width() - frame.0) / 2;
+    let mut seen = BTreeSet::new();
+    for y in 0..frame.1 {
+        for x in x0..x0 + frame.0 {
+            let p = img.get_pixel(x, y).0;
+            assert!(
+                colours.contains(&p),
+                "pixel ({x}, {y}) is {p:?}, not in TASK.md's legend {legend:?}"
+            );
+            seen.insert(p);
+        }
+    }
+    // The legend bar below draws a swatch of every other colour TASK.md names (the hand's
+    // colours where the frame has a hand mask).
+    for (name, c, hand_only) in legend {
+        assert!(
+            *hand_only || seen.contains(c) || img.pixels().any(|p| p.0 == *c),
+            "TASK.md's {name} {c:?} is nowhere in the image"
+        );
+    }
+    assert!(seen.len() >= 2, "{seen:?}");
+}
+
+#[test]
+fn images_of_a_large_capture_keep_the_limits() {
+    let dir = tempfile::tempdir().expect("tmp");
+    let (cap, run) = (dir.path().join("cap"), dir.path().join("run"));
+    let o = agentstar(&[
+        "synth",
+        &s(&cap),
+        "--object",
+        "box",
+        "--frames",
+        "2",
+        "--seed",
+        "7",
+        "--size",
+        "1600x1200",
+    ]);
+    assert!(o.status.success(), "{}", text(&o));
+    let scene = s(&cap.join("model/scene.rhai"));
+    let o = agentstar(&[
+        "init",
+        &s(&run),
+        "--capture",
+        &s(&cap),
+        "--scene",
+        &scene,
+        "--scale",
+        "0.24",
+    ]);
+    assert!(o.status.success(), "{}", text(&o));
+    let (mut c, _) = McpClient::initialised(&run);
+    let mut id = 10;
+    for (tool, args) in [
+        ("render", json!({"views": "overlay,compare,ids"})),
+        (
+            "frames",
+            json!({"zoom": 8.0, "outline": "mask", "margin": 2.0}),
+        ),
+        ("turntable", json!({"states": "all"})),
+        (
+            "oapply",
+            json!({"frames": "000000", "set": "identity|flip:x|flip:y;rz:30|flip:z|rz:90|rx:90"}),
+        ),
+    ] {
+        id += 1;
+        c.call(id, tool, args.clone());
+        let (resp, _) = c.response(id);
+        assert_eq!(resp["result"]["isError"], false, "{tool} {args}: {resp}");
+        let body = McpClient::text_of(&resp);
+        let images = returned_images(&resp);
+        assert!(!images.is_empty(), "{tool}: {body}");
+        check_paths(tool, &body);
+        // Every file the call wrote keeps the limits, not only those returned.
+        let step_dir = run.join("images");
+        for e in walk(&step_dir) {
+            if e.extension().is_some_and(|x| x == "png") {
+                let (w, h) = image::image_dimensions(&e).expect("png");
+                assert!(
+                    agentstar_render::sheet::within_limits(w, h),
+                    "{}: {w}×{h}",
+                    e.display()
+                );
+            }
+        }
+        if tool == "frames" {
+            // A zoom of 8 on a 1600×1200 frame is reduced to the limits, and says so.
+            assert!(body.contains("zoom"), "{body}");
+            assert!(!body.contains("zoom 8.00"), "{body}");
+        }
+    }
+}
+
+fn walk(dir: &Path) -> Vec<std::path::PathBuf> {
+    let mut out = vec![];
+    for e in std::fs::read_dir(dir).into_iter().flatten().flatten() {
+        let p = e.path();
+        if p.is_dir() {
+            out.extend(walk(&p));
+        } else {
+            out.push(p);
+        }
+    }
+    out
 }
 
 #[test]

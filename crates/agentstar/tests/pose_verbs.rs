@@ -66,8 +66,11 @@ fn pose_verbs_track_commit_and_diagnose() {
     ]);
     let o = agentstar(&args.iter().map(String::as_str).collect::<Vec<_>>());
     assert!(o.status.success(), "{}", text(&o));
+    // The text says how to keep a candidate; it never offers pose numbers to paste.
     assert!(
-        text(&o).contains("BEST — paste into pose.json frames[\"000005.png\"]"),
+        text(&o).contains("keep a candidate after looking at the sheet: agentstar pose commit")
+            && !text(&o).contains("paste")
+            && !text(&o).contains("quaternion"),
         "{}",
         text(&o)
     );

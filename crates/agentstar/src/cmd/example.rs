@@ -236,7 +236,8 @@ pub fn run(a: Args) -> Result<ExitCode> {
         &contact_sheet(&tiles, 4, "example: render over frame"),
         &views_dir.join("sheet_overlay.png"),
     )?;
-    let ref_rot = gt[0].pose.rotation;
+    // Upright, as `agentstar turntable` shows a model.
+    let ref_rot = crate::cmd::turntable::upright();
     for (label, k) in [("open_first", 0usize), ("open_last", n - 1)] {
         let t: Vec<(String, RgbImage)> =
             turntable_tiles(&model, &gt[k].states, &ref_rot, 200, 45.0)

@@ -1,22 +1,43 @@
-//! `agentstar render`: views of the posed model in chosen frames.
+//! `agentstar render`: views of the posed model in chosen frames, and the raw keyframes
+//! cropped around their masks (`frame`); every image within the limits of
+//! `agentstar_render::sheet`, sheets paged.
 
 use crate::common::{out_dir, print_json, select_frames, SessionArgs};
+use agentstar_agent::view_reports::{RenderFrame, RenderReport};
 use agentstar_data::images::{save_png_rgb, save_png_rgba};
+use agentstar_render::frames::{frame_view, FrameViewOptions, MAX_ZOOM};
+use agentstar_render::sheet::{fit_to_limits, sheet_pages};
 use agentstar_render::views::{
-    comparison_legend, contact_sheet, id_color, overlay, part_id_view, shade,
-    silhouette_comparison, with_legend, ShadeOptions,
+    comparison_legend, id_color, overlay, part_id_view, shade, silhouette_comparison, with_legend,
+    ShadeOptions,
 };
 use anyhow::{bail, Result};
+use image::RgbImage;
 use rayon::prelude::*;
-use serde_json::json;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
-pub const VIEWS: [&str; 5] = ["overlay", "compare", "ids", "shaded", "depth"];
+pub const VIEWS: [&str; 6] = ["overlay", "compare", "ids", "shaded", "depth", "frame"];
+
+/// Long side of a keyframe crop on the frames sheet before the sheet's own layout.
+const FRAME_TILE_PX: u32 = 400;
+
+/// What the frames view outlines.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum Outline {
+    /// The raw pixels only.
+    None,
+    /// The object mask's boundary (magenta) and the hand mask's (cyan).
+    Mask,
+    /// The rendered model's boundary (yellow).
+    Model,
+    /// Both.
+    Both,
+}
 
 #[derive(clap::Args)]
 #[command(
-    after_help = "Example:\n  agentstar render --capture cap --model run/scene.rhai --poses run/pose.json --out views --views overlay,compare --frames 000000..000020"
+    after_help = "Examples:\n  agentstar render --capture cap --model run/scene.rhai --poses run/pose.json --out views --views overlay,compare --frames 000000..000020\n  agentstar render --capture cap --model run/scene.rhai --poses run/pose.json --out views --views frame --outline mask --zoom 2"
 )]
 pub struct Args {
     #[command(flatten)]
@@ -24,7 +45,8 @@ pub struct Args {
     /// Frames: `all` (default), names, stems, indices or `a..b` ranges, comma separated.
     #[arg(long)]
     frames: Option<String>,
-    /// Views, comma separated: overlay, compare, ids, shaded, depth.
+    /// Views, comma separated: overlay, compare, ids, shaded, depth, frame (the raw
+    /// keyframe cropped around its mask, with a sheet of them).
     #[arg(long, default_value = "overlay,compare")]
     views: String,
     /// Output directory.
@@ -33,13 +55,36 @@ pub struct Args {
     /// Draw no outlines on the shaded render.
     #[arg(long)]
     no_outlines: bool,
+    /// Frame view: margin around the mask's box, a fraction of its longer side.
+    #[arg(long, default_value_t = 0.25)]
+    margin: f64,
+    /// Frame view: scale of the crop (1 = the frame's pixels, at most 8); reduced where
+    /// the image would pass the size limits.
+    #[arg(long, default_value_t = 1.0)]
+    zoom: f64,
+    /// Frame view: boundaries drawn over the raw pixels.
+    #[arg(long, value_enum, default_value_t = Outline::None)]
+    outline: Outline,
     /// Print the result as JSON on stdout.
     #[arg(long)]
     json: bool,
 }
 
-/// What one frame's rendering produced: its name, files, visible IoU and overlay tile.
-type FrameViews = (String, Vec<PathBuf>, Option<f64>, image::RgbImage);
+/// What one frame's rendering produced.
+struct FrameViews {
+    row: RenderFrame,
+    overlay_tile: Option<(String, RgbImage)>,
+    frame_tile: Option<(String, RgbImage)>,
+    note: Option<String>,
+}
+
+fn sheet_path(dir: &Path, stem: &str, page: usize) -> PathBuf {
+    if page == 0 {
+        dir.join(format!("{stem}.png"))
+    } else {
+        dir.join(format!("{stem}_p{}.png", page + 1))
+    }
+}
 
 pub fn run(a: Args) -> Result<ExitCode> {
     let views: Vec<&str> = a
@@ -53,6 +98,15 @@ pub fn run(a: Args) -> Result<ExitCode> {
             bail!("unknown view `{v}`; views are {}", VIEWS.join(", "));
         }
     }
+    if views.is_empty() {
+        bail!("--views is empty; views are {}", VIEWS.join(", "));
+    }
+    if !(a.margin.is_finite() && (0.0..=4.0).contains(&a.margin)) {
+        bail!("--margin {} must lie in [0, 4]", a.margin);
+    }
+    if !(a.zoom.is_finite() && a.zoom > 0.0 && a.zoom <= MAX_ZOOM) {
+        bail!("--zoom {} must lie in (0, {MAX_ZOOM}]", a.zoom);
+    }
     let s = a.session.open()?;
     let frames = select_frames(&s.capture, a.frames.as_deref())?;
     let dir = out_dir(&a.out)?;
@@ -61,6 +115,12 @@ pub fn run(a: Args) -> Result<ExitCode> {
     let opts = ShadeOptions {
         outlines: !a.no_outlines,
     };
+    let frame_opts = FrameViewOptions {
+        margin: a.margin,
+        zoom: a.zoom,
+        mask_outline: matches!(a.outline, Outline::Mask | Outline::Both),
+    };
+    let model_outline = matches!(a.outline, Outline::Model | Outline::Both);
     let bar = crate::common::progress(frames.len(), "render");
     let results: Vec<Result<FrameViews>> = frames
         .par_iter()
@@ -72,20 +132,37 @@ pub fn run(a: Args) -> Result<ExitCode> {
             let mut written = Vec::new();
             let mut iou = None;
             let frame_img = s.capture.load_frame(i)?;
-            let over = overlay(&frame_img, &shaded, 0.6);
+            let mut out = FrameViews {
+                row: RenderFrame {
+                    frame: f.name.clone(),
+                    files: vec![],
+                    iou_visible: None,
+                    crop: None,
+                    zoom: None,
+                },
+                overlay_tile: None,
+                frame_tile: None,
+                note: None,
+            };
             if views.contains(&"overlay") {
+                let over = fit_to_limits(overlay(&frame_img, &shaded, 0.6));
                 let p = dir.join(format!("overlay_{}.png", f.stem));
                 save_png_rgb(&over, &p)?;
                 written.push(p);
+                out.overlay_tile = Some((f.name.clone(), over));
             }
-            if views.contains(&"compare") {
-                let mask = s.capture.load_mask(i)?;
-                let hand = s.capture.load_hand(i)?;
+            let needs_mask = views.contains(&"compare") || views.contains(&"frame");
+            let (mask, hand) = if needs_mask {
+                (Some(s.capture.load_mask(i)?), s.capture.load_hand(i)?)
+            } else {
+                (None, None)
+            };
+            if let (true, Some(mask)) = (views.contains(&"compare"), &mask) {
                 let sil = buffers.silhouette();
                 let score =
                     agentstar_render::ScoreTarget::new(mask.clone(), hand.clone())?.score(&sil);
                 iou = score.iou_visible;
-                let (img, _) = silhouette_comparison(&sil, &mask, hand.as_ref());
+                let (img, _) = silhouette_comparison(&sil, mask, hand.as_ref());
                 let title = format!(
                     "{}  IoU visible {}  raw {:.4}",
                     f.name,
@@ -114,7 +191,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
             }
             if views.contains(&"shaded") {
                 let p = dir.join(format!("shaded_{}.png", f.stem));
-                save_png_rgba(&shaded, &p)?;
+                save_png_rgba(&fit_to_limits(shaded), &p)?;
                 written.push(p);
             }
             if views.contains(&"depth") {
@@ -122,36 +199,91 @@ pub fn run(a: Args) -> Result<ExitCode> {
                 write_depth_npy(&p, &buffers)?;
                 written.push(p);
             }
-            Ok((f.name.clone(), written, iou, over))
+            if let (true, Some(mask)) = (views.contains(&"frame"), &mask) {
+                let sil = model_outline.then(|| buffers.silhouette());
+                let v = frame_view(&frame_img, mask, hand.as_ref(), sil.as_ref(), &frame_opts);
+                let p = dir.join(format!("frame_{}.png", f.stem));
+                save_png_rgb(&v.image, &p)?;
+                written.push(p);
+                if v.empty_mask {
+                    out.note = Some(format!(
+                        "{}: the mask is empty; the whole frame is shown",
+                        f.name
+                    ));
+                }
+                let [x0, y0, w, h] = v.crop;
+                // The sheet's tile drawn at its own size, so its outlines are not shrunk away.
+                let tile_opts = FrameViewOptions {
+                    zoom: (FRAME_TILE_PX as f64 / w.max(h).max(1) as f64).min(MAX_ZOOM),
+                    ..frame_opts
+                };
+                let tile =
+                    frame_view(&frame_img, mask, hand.as_ref(), sil.as_ref(), &tile_opts).image;
+                out.frame_tile = Some((format!("{} at {x0},{y0} {w}x{h}", f.stem), tile));
+                out.row.crop = Some(v.crop);
+                out.row.zoom = Some(v.zoom);
+            }
+            out.row.files = written;
+            out.row.iou_visible = iou;
+            Ok(out)
         })
         .collect();
     let mut rows = Vec::new();
-    let mut tiles = Vec::new();
+    let mut overlay_tiles = Vec::new();
+    let mut frame_tiles = Vec::new();
+    let mut notes = Vec::new();
     for r in results {
-        let (name, written, iou, over) = r?;
-        tiles.push((
-            match iou {
-                Some(v) => format!("{name} {v:.3}"),
-                None => name.clone(),
-            },
-            over,
-        ));
-        rows.push(json!({"frame": name, "files": written, "iou_visible": iou}));
+        let r = r?;
+        if let Some((name, img)) = r.overlay_tile {
+            overlay_tiles.push((
+                match r.row.iou_visible {
+                    Some(v) => format!("{name} IoU {v:.3}"),
+                    None => name,
+                },
+                img,
+            ));
+        }
+        frame_tiles.extend(r.frame_tile);
+        notes.extend(r.note);
+        rows.push(r.row);
     }
-    let sheet = dir.join("sheet_overlay.png");
-    if views.contains(&"overlay") && !tiles.is_empty() {
+    let mut sheets = Vec::new();
+    for (tiles, stem, title) in [
+        (&overlay_tiles, "sheet_overlay", "render over frame"),
+        (
+            &frame_tiles,
+            "sheet_frames",
+            "keyframes, cropped around the mask",
+        ),
+    ] {
+        if tiles.is_empty() {
+            continue;
+        }
         let cols = (tiles.len() as f64).sqrt().ceil() as usize;
-        save_png_rgb(&contact_sheet(&tiles, cols, "render over frame"), &sheet)?;
+        for (k, page) in sheet_pages(tiles, cols, title).iter().enumerate() {
+            let p = sheet_path(&dir, stem, k);
+            save_png_rgb(page, &p)?;
+            sheets.push(p);
+        }
     }
     if a.json {
-        print_json(&json!({"out": dir, "frames": rows, "sheet": sheet}))?;
+        print_json(&RenderReport {
+            out: dir,
+            frames: rows,
+            sheets,
+            notes,
+        })?;
     } else {
         println!(
-            "rendered {} frame(s) into {} ({})",
+            "rendered {} frame(s) into {} ({}); {} sheet(s)",
             rows.len(),
             dir.display(),
-            views.join(", ")
+            views.join(", "),
+            sheets.len()
         );
+        for n in notes {
+            println!("note: {n}");
+        }
     }
     Ok(ExitCode::SUCCESS)
 }

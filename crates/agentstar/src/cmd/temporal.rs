@@ -94,7 +94,13 @@ fn cell(v: Option<f64>) -> String {
 
 pub fn run(a: Args) -> Result<ExitCode> {
     let s = a.session.open()?;
-    let rep = report(&samples(&s), s.scale(), &s.model.model.tree);
+    let samples = samples(&s);
+    let mut rep = report(&samples, s.scale(), &s.model.model.tree);
+    // Joints piled at a limit over the sequence (a too-tight limit or a reversed axis).
+    let states: Vec<Vec<f64>> = samples.iter().map(|x| x.states.clone()).collect();
+    let names: Vec<String> = samples.iter().map(|x| x.frame.clone()).collect();
+    rep.warnings
+        .extend(s.model.model.tree.at_limit_warnings(&states, &names));
     let keep = select_frames(&s.capture, a.frames.as_deref())?;
     let mut rows: Vec<&Row> = keep.iter().map(|&i| &rep.rows[i]).collect();
     let joint_names: Vec<String> = s

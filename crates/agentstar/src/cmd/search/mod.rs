@@ -1,9 +1,10 @@
 //! The pose verbs: `sweep` and `apply` (camera-frame increments about the pivot, in
 //! `camera.rs`), `osweep` and `oapply` (object-frame rotations per frame) and `oapply-all`
 //! (one shared object-frame rotation for every frame, in `object.rs`). Each writes a typed
-//! report ([`SearchReport`]), a text table with paste-ready blocks, and a candidate sheet
-//! (render over the frame and silhouette comparison per finalist, labelled with rank,
-//! score and the order); this module holds what they share.
+//! report ([`SearchReport`]), a text table that says how to keep a candidate (never pose
+//! numbers to paste), and a candidate sheet (render over the frame and silhouette
+//! comparison per finalist, cropped around the object, labelled with rank, score and the
+//! order, paged within the image limits); this module holds what they share.
 
 use crate::common::{
     out_dir, print_json, progress, select_frames, FrameInputs, Session, SessionArgs,
@@ -12,8 +13,10 @@ use agentstar_agent::reports::{Candidate, CandidatePose, SearchFrame, SearchRepo
 use agentstar_data::images::save_png_rgb;
 use agentstar_data::posefile::pose_json;
 use agentstar_geom::{KinematicTree, Point3, UnitQuaternion};
-use agentstar_render::views::{contact_sheet, overlay, shade, silhouette_comparison, ShadeOptions};
-use agentstar_render::{render_full, PosedModel};
+use agentstar_render::frames::crop_box;
+use agentstar_render::sheet::sheet_pages;
+use agentstar_render::views::{overlay, shade, silhouette_comparison, ShadeOptions};
+use agentstar_render::{render_full, BitMask, PosedModel};
 use agentstar_track::hypotheses::{refine_each, refine_ranked, LocalWindow};
 use agentstar_track::objective::{CandidateScore, FrameProblem};
 use agentstar_track::search::{sweep, Strategy, SweepConfig, SweepResult};
@@ -109,53 +112,73 @@ fn space_json(space: &SearchSpace, tree: &KinematicTree) -> Value {
         .collect::<Vec<_>>())
 }
 
-/// The candidate sheet of one frame: per finalist, the render over the frame and the
-/// silhouette comparison, labelled with rank, score and order.
+/// Margin around the mask and the finalists' silhouettes on a candidate sheet, a fraction
+/// of the box's longer side.
+const SHEET_MARGIN: f64 = 0.15;
+
+/// The candidate sheet of one frame, as pages within the image limits: per finalist, the
+/// render over the frame and the silhouette comparison (two finalists a row), cropped to
+/// the mask and every finalist's silhouette with a margin (the same crop for all, so they
+/// compare), labelled with rank, score and order.
 fn candidate_sheet(
     s: &Session,
     i: usize,
     rows: &[Row],
     limit: usize,
     title: &str,
-) -> Result<RgbImage> {
+) -> Result<Vec<RgbImage>> {
     let frame = s.capture.load_frame(i)?;
     let (target, _) = s.target(i)?;
     let cam = s.capture.frames[i].camera;
     let colors: Vec<[f32; 3]> = s.model.model.parts.iter().map(|p| p.color).collect();
-    let mut tiles = Vec::new();
-    for r in rows.iter().take(limit.max(1)) {
-        let buffers = render_full(
-            &cam,
-            &PosedModel::new(
+    let hand = target.keep().map(|k| k.not());
+    let shown: Vec<(&Row, agentstar_render::RenderBuffers)> = rows
+        .iter()
+        .take(limit.max(1))
+        .map(|r| {
+            let posed = PosedModel::new(
                 &s.model.model,
                 &r.pose.states,
                 &r.pose.pose.with_scale(s.scale()),
-            )
-            .instances,
-        );
+            );
+            (r, render_full(&cam, &posed.instances))
+        })
+        .collect();
+    let silhouettes: Vec<BitMask> = shown.iter().map(|(_, b)| b.silhouette()).collect();
+    let union = silhouettes
+        .iter()
+        .skip(1)
+        .fold(silhouettes.first().cloned(), |acc, m| acc.map(|a| a.or(m)));
+    let [x0, y0, w, h] = crop_box(target.mask(), union.as_ref(), SHEET_MARGIN).unwrap_or([
+        0,
+        0,
+        frame.width(),
+        frame.height(),
+    ]);
+    let cut = |img: &RgbImage| image::imageops::crop_imm(img, x0, y0, w, h).to_image();
+    let mut tiles = Vec::new();
+    for ((r, buffers), sil) in shown.iter().zip(&silhouettes) {
         let over = overlay(
             &frame,
-            &shade(&buffers, &colors, ShadeOptions::default()),
+            &shade(buffers, &colors, ShadeOptions::default()),
             0.6,
         );
-        let hand = target.keep().map(|k| k.not());
-        let (cmp, _) = silhouette_comparison(&buffers.silhouette(), target.mask(), hand.as_ref());
+        let (cmp, _) = silhouette_comparison(sil, target.mask(), hand.as_ref());
         tiles.push((
             format!("#{} IoU {:.4} {}", r.rank, r.score.gate, r.label),
-            over,
+            cut(&over),
         ));
-        tiles.push((format!("#{} compare", r.rank), cmp));
+        tiles.push((format!("#{} compare", r.rank), cut(&cmp)));
     }
-    Ok(contact_sheet(&tiles, 2, title))
+    Ok(sheet_pages(&tiles, 4, title))
 }
 
-#[allow(clippy::too_many_arguments)]
+/// The text a person reads at a shell: the ranked table, notes, and how to keep a
+/// candidate (the numbers are in the JSON report, never to be typed into pose.json).
 fn text_report(
     verb: &str,
     frame: &str,
     rows: &[Row],
-    scale: f64,
-    tree: &KinematicTree,
     notes: &[String],
     report_path: &Path,
     poses: &Path,
@@ -182,23 +205,12 @@ fn text_report(
     for n in notes {
         t.push_str(&format!("note: {n}\n"));
     }
-    if let Some(b) = rows.first() {
-        let p = pose_json(&b.pose.pose, None);
-        let q: Vec<String> = p.quaternion.iter().map(|v| fmt6(*v)).collect();
-        let tr: Vec<String> = p.translation.iter().map(|v| fmt6(*v)).collect();
-        let joints: Vec<String> = tree
-            .states_to_interface(&b.pose.states)
-            .iter()
-            .map(|(k, v)| format!("\"{k}\": {}", fmt6(*v)))
-            .collect();
+    if !rows.is_empty() {
         t.push_str(&format!(
-            "\nBEST — paste into pose.json frames[\"{frame}\"]:\n\"object_pose\": {{\"quaternion\": [{}], \"translation\": [{}], \"scale\": {}}},\n\"joints\": {{{}}}\n",
-            q.join(", "),
-            tr.join(", "),
-            fmt6(scale),
-            joints.join(", ")
+            "keep a candidate after looking at the sheet: agentstar pose commit --poses {} --report {} --rank N --frames {frame}\n",
+            poses.display(),
+            report_path.display()
         ));
-        t.push_str(&format!("\nor commit it: agentstar pose commit --poses {} --report {} --rank 0 --frames {frame}\n", poses.display(), report_path.display()));
     }
     t
 }
@@ -225,22 +237,31 @@ fn write_outputs(
     let mut report_frames = Vec::new();
     for (o, &i) in outputs.iter().zip(frames) {
         let sheet = verb.sheet_path(&dir, &s.capture.frames[i].stem);
-        save_png_rgb(
-            &candidate_sheet(
-                s,
-                i,
-                &o.rows,
-                c.sheet,
-                &format!("{} {}", verb.stem(), o.frame),
-            )?,
-            &sheet,
+        let pages = candidate_sheet(
+            s,
+            i,
+            &o.rows,
+            c.sheet,
+            &format!("{} {}", verb.stem(), o.frame),
         )?;
+        for (k, page) in pages.iter().enumerate() {
+            // The first page is the report's sheet; further pages beside it.
+            let p = if k == 0 {
+                sheet.clone()
+            } else {
+                sheet.with_file_name(format!(
+                    "{}_sheet_{}_p{}.png",
+                    verb.stem(),
+                    s.capture.frames[i].stem,
+                    k + 1
+                ))
+            };
+            save_png_rgb(page, &p)?;
+        }
         text.push_str(&text_report(
             verb.stem(),
             &o.frame,
             &o.rows,
-            s.scale(),
-            tree,
             &o.notes,
             &report_path,
             &c.session.poses,

@@ -46,7 +46,10 @@ pub struct OapplyArgs {
     /// Frames: names, stems or `a..b` ranges, comma separated (default: all).
     #[arg(long)]
     frames: Option<String>,
-    /// Candidates separated by `|`, terms by `;`: `identity|flip:x|rz:90;rx:10`, or `flips`.
+    /// Candidates separated by `|`, terms by `;`: `identity|flip:x|rz:90;rx:10|flip:y;rz:30`,
+    /// or `flips`. rx/ry/rz terms make one rotation vector (degrees); a flip splits a
+    /// candidate into factors applied left to right about the turned object axes. Each
+    /// candidate turns the object about its box centre (at the frame's joint states).
     #[arg(long, default_value = "flips")]
     set: String,
     /// Rank the candidates as placed, without refining each locally first.
@@ -64,7 +67,9 @@ pub struct OapplyAllArgs {
     /// Frames to rotate (default: all).
     #[arg(long)]
     frames: Option<String>,
-    /// One rotation: `rz:90;rx:10` (rotation vector, degrees) or `flip:x|y|z`.
+    /// One rotation: `rz:90;rx:10` (rotation vector, degrees), `flip:x|y|z`, or a compound
+    /// such as `flip:y;rz:30`. It turns every frame about the canonical origin (the
+    /// translation is kept).
     #[arg(long)]
     rotation: String,
 }
@@ -224,34 +229,72 @@ fn rotation_set(spec: &str) -> Result<Vec<(String, UnitQuaternion)>> {
     Ok(out)
 }
 
+/// One candidate rotation: `identity`, `flip:x|y|z` (180°), `rx`/`ry`/`rz` terms in degrees,
+/// or a compound of them separated by `;`. Consecutive `rx`/`ry`/`rz` terms make one
+/// rotation vector (`rz:90;rx:10` is the vector (10, 0, 90)°, not two turns); a `flip`
+/// term splits the candidate into factors applied left to right, each about the object's
+/// axes as the factors before it have turned them: `flip:y;rz:30` is the flip about y, then
+/// 30° about the flipped z. The product right-multiplies the pose's rotation.
 fn parse_rotation(cand: &str) -> Result<UnitQuaternion> {
-    if cand == "identity" {
-        return Ok(UnitQuaternion::identity());
-    }
-    if let Some(ax) = cand.strip_prefix("flip:") {
-        let c = ax.trim().chars().next().unwrap_or(' ');
-        return flip(c).ok_or_else(|| anyhow!("`{cand}`: flip axis must be x, y or z"));
-    }
-    let mut r = [0.0; 3];
+    let mut total = UnitQuaternion::identity();
+    let mut vector = [0.0; 3];
+    let mut given = [false; 3];
+    let mut any = false;
+    let flush = |total: &mut UnitQuaternion, vector: &mut [f64; 3], given: &mut [bool; 3]| {
+        if given.iter().any(|g| *g) {
+            *total *= rotation_vector_deg(*vector);
+        }
+        *vector = [0.0; 3];
+        *given = [false; 3];
+    };
     for term in cand.split(';').map(str::trim).filter(|t| !t.is_empty()) {
+        any = true;
+        if term == "identity" {
+            continue;
+        }
         let (k, v) = term.split_once(':').ok_or_else(|| {
             anyhow!("`{term}`: expected `rx:deg`, `ry:deg`, `rz:deg`, `flip:x` or `identity`")
         })?;
         let idx = match k.trim() {
+            "flip" => {
+                let axis = v.trim();
+                let q = match axis {
+                    "x" | "y" | "z" | "X" | "Y" | "Z" => axis.chars().next().and_then(flip),
+                    _ => None,
+                }
+                .ok_or_else(|| anyhow!("`{term}`: flip axis must be x, y or z"))?;
+                flush(&mut total, &mut vector, &mut given);
+                total *= q;
+                continue;
+            }
             "rx" => 0,
             "ry" => 1,
             "rz" => 2,
             o if ["roll", "yaw", "pitch", "dpx", "dpy", "tz"].contains(&o) => {
                 bail!("`{o}` is a camera-frame increment; use sweep/apply for it")
             }
-            o => bail!("`{o}` is not an object-frame axis (rx, ry, rz)"),
+            o => bail!("`{o}` is not an object-frame axis (rx, ry, rz) or `flip`"),
         };
-        r[idx] = v
+        if given[idx] {
+            bail!(
+                "`{cand}`: `{}` is given twice in one rotation vector; write one value (or separate them with a flip)",
+                ["rx", "ry", "rz"][idx]
+            );
+        }
+        let deg = v
             .trim()
             .parse::<f64>()
-            .map_err(|_| anyhow!("`{term}`: `{v}` is not an angle"))?;
+            .ok()
+            .filter(|d| d.is_finite())
+            .ok_or_else(|| anyhow!("`{term}`: `{v}` is not an angle"))?;
+        vector[idx] = deg;
+        given[idx] = true;
     }
-    Ok(rotation_vector_deg(r))
+    if !any {
+        bail!("`{cand}`: an empty rotation; e.g. `identity`, `flip:x`, `rz:90;rx:10`");
+    }
+    flush(&mut total, &mut vector, &mut given);
+    Ok(total)
 }
 
 pub fn run_oapply(a: OapplyArgs) -> Result<ExitCode> {
@@ -349,4 +392,50 @@ pub fn run_oapply_all(a: OapplyAllArgs) -> Result<ExitCode> {
         outputs,
         json!({"shared_rotation": {"rx": r.x, "ry": r.y, "rz": r.z, "quaternion": [q.w, q.i, q.j, q.k]}}),
     )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn flips_compose_with_rotation_vectors_in_a_compound_candidate() {
+        let close = |a: &UnitQuaternion, b: &UnitQuaternion| a.angle_to(b) < 1e-9;
+        let fy = flip('y').expect("axis");
+        // The documented compound: a flip then a turn about the flipped axes.
+        let q = parse_rotation("flip:y;rz:30").expect("parses");
+        assert!(close(&q, &(fy * rotation_vector_deg([0.0, 0.0, 30.0]))));
+        let q = parse_rotation("rz:90;flip:y;rx:10").expect("parses");
+        assert!(close(
+            &q,
+            &(rotation_vector_deg([0.0, 0.0, 90.0]) * fy * rotation_vector_deg([10.0, 0.0, 0.0]))
+        ));
+        // rx/ry/rz together are one rotation vector, as before.
+        let q = parse_rotation("rz:90;rx:10").expect("parses");
+        assert!(close(&q, &rotation_vector_deg([10.0, 0.0, 90.0])));
+        assert!(close(
+            &parse_rotation("identity").expect("id"),
+            &UnitQuaternion::identity()
+        ));
+        for bad in [
+            "flip:w",
+            "flip:yy",
+            "rx:10;rx:5",
+            "yaw:10",
+            "rx:abc",
+            "rx:NaN",
+            "",
+            "flip",
+        ] {
+            assert!(parse_rotation(bad).is_err(), "{bad}");
+        }
+        // A whole set with flips inside compounds.
+        let set = rotation_set("identity|flip:x;rz:15|flips").expect("set");
+        assert_eq!(
+            set.len(),
+            5,
+            "{:?}",
+            set.iter().map(|s| &s.0).collect::<Vec<_>>()
+        );
+    }
 }

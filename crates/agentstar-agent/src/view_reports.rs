@@ -1,0 +1,60 @@
+//! The reports of the image commands (`render`, `turntable` with `--json`), written by the
+//! binary and read by the tools, so the files a tool names and the counts it states are
+//! the ones the command wrote.
+
+use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
+use std::path::PathBuf;
+
+/// One frame of `render`: its files and scores, and the frames view's crop.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RenderFrame {
+    pub frame: String,
+    pub files: Vec<PathBuf>,
+    pub iou_visible: Option<f64>,
+    /// The frames view's crop in frame pixels: x0, y0, width, height.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub crop: Option<[u32; 4]>,
+    /// Output pixels per frame pixel of the frames view (after the size limits).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub zoom: Option<f64>,
+}
+
+/// What `render --json` prints.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RenderReport {
+    pub out: PathBuf,
+    pub frames: Vec<RenderFrame>,
+    /// Every sheet written (overlay sheets, then frames sheets), pages in order; only
+    /// files that exist.
+    pub sheets: Vec<PathBuf>,
+    pub notes: Vec<String>,
+}
+
+/// One joint state a turntable shows.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TurntableState {
+    /// `rest`, `min`, `median`, `max` or a frame stem.
+    pub label: String,
+    /// Why this state: `rest`, `min`, `median`, `max` or the keyframe's name.
+    pub source: String,
+    /// Joint states in interface units (degrees, model units).
+    pub joints: BTreeMap<String, f64>,
+    pub sheets: Vec<PathBuf>,
+}
+
+/// What `turntable --json` prints.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TurntableReport {
+    pub states: Vec<TurntableState>,
+    /// Every sheet written, in order.
+    pub sheets: Vec<PathBuf>,
+    /// Every file written (the sheets, and the single views with `--each`).
+    pub files: Vec<PathBuf>,
+    /// Joint limits that alias, joints piled at a limit.
+    pub warnings: Vec<String>,
+}
