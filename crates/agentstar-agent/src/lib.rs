@@ -10,6 +10,7 @@
 
 pub mod agent;
 pub mod critic;
+pub mod fit;
 pub mod history;
 pub mod llm;
 pub mod poses;

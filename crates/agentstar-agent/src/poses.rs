@@ -1,25 +1,96 @@
 //! Keeping `pose.json` in step with the scene: after a shape step, joints the new scene
 //! added start at rest in every frame, joints it removed are dropped, and the joint
-//! definitions and part names are the new scene's.
+//! definitions and part names are the new scene's. When the edit moved the canonical origin
+//! (geometry that did not change moved, as re-centring a model does), every written pose
+//! is carried by the shift ([`agentstar_geom::origin_shift`]), so the object stays where it
+//! was in every image and an edit costs a local refinement, not a re-track.
 
 use crate::history::PoseHistory;
 use crate::Result;
-use agentstar_data::posefile::{joint_json, PoseFile};
+use agentstar_data::posefile::{joint_json, pose_json, PoseFile};
+use agentstar_geom::pose::ObjectPose;
+use agentstar_geom::{origin_shift, ObjectModel};
 use std::path::Path;
 
+/// Shifts of the origin under this many canonical units are left alone (float noise).
+const SHIFT_TOLERANCE: f64 = 1e-7;
+
 /// Updates the pose file at `poses` to the model at `scene` (under the pose file's lock,
-/// recorded in its history as `command` when anything changed); returns what changed and
-/// the version recorded.
-pub fn reconcile(scene: &Path, poses: &Path, command: &str) -> Result<(Vec<String>, Option<u64>)> {
+/// recorded in its history as `command` when anything changed); `before` is the model the
+/// poses were made for, when it is known (then a moved origin is compensated). Returns what
+/// changed and the version recorded.
+pub fn reconcile(
+    scene: &Path,
+    poses: &Path,
+    before: Option<&ObjectModel>,
+    command: &str,
+) -> Result<(Vec<String>, Option<u64>)> {
     let model = agentstar_data::scenefile::load_model(scene)?.model;
-    PoseHistory::new(poses).update_if_changed(command, |pf| Ok(reconcile_file(&model, pf)))
+    PoseHistory::new(poses).update_if_changed(command, |pf| Ok(reconcile_file(before, &model, pf)))
+}
+
+/// Carries every written pose of `pf` from `before` to `model` when the origin moved;
+/// returns what changed.
+pub fn carry_origin(before: &ObjectModel, model: &ObjectModel, pf: &mut PoseFile) -> Vec<String> {
+    let shift = origin_shift(before, model);
+    if !shift.moved(SHIFT_TOLERANCE) {
+        return vec![];
+    }
+    let mut n = 0;
+    for entry in pf.frames.values_mut() {
+        let Some(p) = &entry.object_pose else {
+            continue;
+        };
+        let Ok(pose) = ObjectPose::from_wxyz(p.quaternion, p.translation) else {
+            continue;
+        };
+        entry.object_pose = Some(pose_json(&shift.carry(&pose, pf.scale), p.scale));
+        n += 1;
+    }
+    let s = shift.shift;
+    vec![format!(
+        "the canonical origin moved by ({:.4}, {:.4}, {:.4}) (part `{}` moved whole or on its unchanged side); {n} pose(s) carried so the object stays where it was in every image",
+        s.x,
+        s.y,
+        s.z,
+        shift.part.as_deref().unwrap_or("?")
+    )]
+}
+
+/// Gives `pf` the scale `scale`: every written translation is multiplied by the ratio to
+/// the old scale and every rotation kept, so each pose renders the same silhouette (every
+/// point moves along its ray) and only metric quantities change.
+pub fn rescale(pf: &mut PoseFile, scale: f64) -> std::result::Result<(), String> {
+    if !(scale.is_finite() && scale > 0.0) {
+        return Err(format!(
+            "the scale must be positive and finite, got {scale}"
+        ));
+    }
+    let ratio = scale / pf.scale;
+    for entry in pf.frames.values_mut() {
+        if let Some(p) = entry.object_pose.as_mut() {
+            p.translation = p.translation.map(|t| t * ratio);
+            if p.scale.is_some() {
+                p.scale = Some(scale);
+            }
+        }
+    }
+    pf.scale = scale;
+    Ok(())
 }
 
 /// Brings `pf` in step with `model`; returns what changed.
-fn reconcile_file(model: &agentstar_geom::ObjectModel, pf: &mut PoseFile) -> Vec<String> {
+fn reconcile_file(
+    before: Option<&ObjectModel>,
+    model: &ObjectModel,
+    pf: &mut PoseFile,
+) -> Vec<String> {
     let tree = &model.tree;
     let rest = tree.states_to_interface(&tree.rest_states());
-    let mut changes = vec![];
+    let mut changes = match before {
+        Some(b) => carry_origin(b, model, pf),
+        None => vec![],
+    };
     let mut added = std::collections::BTreeSet::new();
     let mut removed = std::collections::BTreeSet::new();
     let mut clamped: std::collections::BTreeMap<String, usize> = Default::default();
@@ -86,7 +157,7 @@ mod tests {
             }
         });
         std::fs::write(&poses, pf.to_string()).expect("w");
-        let (changes, version) = reconcile(&scene, &poses, "test").expect("reconcile");
+        let (changes, version) = reconcile(&scene, &poses, None, "test").expect("reconcile");
         // The file as it was is version 0, the reconciled one version 1.
         assert_eq!(version, Some(1));
         assert_eq!(
@@ -104,7 +175,7 @@ mod tests {
         assert_eq!(back.joint_defs.len(), 2);
         // Nothing to change: nothing written, no version.
         assert_eq!(
-            reconcile(&scene, &poses, "again").expect("again"),
+            reconcile(&scene, &poses, None, "again").expect("again"),
             (vec![], None)
         );
     }

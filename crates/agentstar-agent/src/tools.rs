@@ -501,6 +501,48 @@ pub struct FinishArgs {
     pub summary: Option<String>,
 }
 
+#[derive(Debug, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct FitShapeArgs {
+    /// The parameters to fit: names of the scene's `param("name", value, min, max)` calls. Only these move, and only within their bounds; every other parameter keeps its value.
+    #[schemars(length(min = 1, max = 12))]
+    pub params: Vec<String>,
+    #[schemars(description = FRAMES)]
+    pub frames: Option<String>,
+    /// Rounds of (parameters with the poses held, then every pose refined locally); default 3.
+    #[schemars(range(min = 1, max = 10))]
+    pub rounds: Option<u64>,
+    /// Model builds per round (default 60).
+    #[schemars(range(min = 5, max = 500))]
+    pub evals: Option<u64>,
+}
+
+/// A model axis a stated size is along.
+#[derive(Debug, Clone, Copy, Deserialize, JsonSchema)]
+#[serde(rename_all = "lowercase")]
+pub enum SizeAxis {
+    X,
+    Y,
+    Z,
+    Longest,
+}
+
+#[derive(Debug, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct ScaleArgs {
+    /// `depth` (the capture's depth against the render), `parallax` (metric cameras moving around an object that stays put) or `size` (give `axis` and `metres`).
+    pub method: crate::fit::ScaleMethod,
+    /// With `size`: the model axis the size is along (default the longest side).
+    pub axis: Option<SizeAxis>,
+    /// With `size`: the object's size along `axis`, metres ("the laptop is 30 cm wide": axis x, metres 0.3).
+    #[schemars(extend("exclusiveMinimum" = 0))]
+    pub metres: Option<f64>,
+    #[schemars(description = FRAMES)]
+    pub frames: Option<String>,
+    /// Rescale pose.json to the estimate (a pose version); default false: estimate only.
+    pub apply: Option<bool>,
+}
+
 /// The arguments of the built-in loop's `delegate_pose` (run by the loop, not the toolbox).
 #[derive(Debug, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
@@ -850,21 +892,31 @@ tool!(Notes, "notes", Note, Notes, NotesArgs,
         Ok(ToolOutput::text("noted"))
     });
 
+tool!(FitShape, "fit_shape", Shape, Scene, FitShapeArgs,
+    "Fit shape parameters the scene declares with `let d = param(\"depth\", 0.6, 0.4, 0.9);` (value, min, max) against the committed poses over the keyframes (default all): only the parameters you name move, within their bounds, while every keyframe's pose is refined locally. Returns the values, the IoU change per keyframe and before/after silhouette comparisons; when the mean IoU rises, the fitted values become the script's `param` values (a new scene version) and the refined poses a pose version. Fit proportions you judged wrong by eye on poses that are right otherwise; then look at a turntable (a shape that games IoU from these views can still be wrong in 3-D).",
+    |tb, a, step| tb.fit_shape(&a, step));
+
+tool!(Scale, "scale", Pose, Poses, ScaleArgs,
+    "Estimate the scale (metres per model unit) from the capture's depth, from the parallax of metric cameras moving around an object that stays put, or from a size you state along a model axis; with `apply: true` rescale pose.json to it (rotations kept, translations scaled, so every silhouette and IoU stays the same; a pose version). Silhouettes never say the scale: use this before reporting metric results.",
+    |tb, a, step| tb.scale(&a, step));
+
 tool!(Finish, "finish", Diagnostic, Nothing, FinishArgs,
     "Check the gates and end the run when they hold: every keyframe's visible IoU ≥ 0.98 or a reason for it in `unreachable`; a turntable after the last shape change; a temporal report after the last pose change. Returns what is missing otherwise.",
     |tb, a, _step| tb.finish(&a));
 
 /// Every tool, in the order offered.
-pub static REGISTRY: [ToolDef; 22] = [
+pub static REGISTRY: [ToolDef; 24] = [
     ToolDef::of::<Task>(),
     ToolDef::of::<SceneRead>(),
     ToolDef::of::<SceneWrite>(),
     ToolDef::of::<SceneRestore>(),
+    ToolDef::of::<FitShape>(),
     ToolDef::of::<Render>(),
     ToolDef::of::<Keyframes>(),
     ToolDef::of::<Score>(),
     ToolDef::of::<Turntable>(),
     ToolDef::of::<Track>(),
+    ToolDef::of::<Scale>(),
     ToolDef::of::<Sweep>(),
     ToolDef::of::<Apply>(),
     ToolDef::of::<Osweep>(),
@@ -1520,6 +1572,10 @@ impl Toolbox {
                 .as_file()
                 .set_permissions(std::fs::Permissions::from_mode(0o644));
         }
+        // The model the poses were made for: a moved origin is compensated against it.
+        let before = agentstar_data::scenefile::load_model(&self.run.scene)
+            .ok()
+            .map(|m| m.model);
         candidate
             .persist(&self.run.scene)
             .map_err(|e| agentstar_data::DataError::io(&self.run.scene, e.error))?;
@@ -1528,6 +1584,7 @@ impl Toolbox {
         let (joints, pose_version) = crate::poses::reconcile(
             &self.run.scene,
             &self.run.poses,
+            before.as_ref(),
             &format!("scene version {version} (step {step}): joints reconciled"),
         )?;
         Ok(ToolOutput {
@@ -1543,6 +1600,221 @@ impl Toolbox {
             scene_version: Some(version),
             pose_changed: pose_version.is_some(),
             pose_version,
+            ..Default::default()
+        })
+    }
+
+    /// `scale`: `agentstar scale`, its rescaled poses committed as a pose version when asked.
+    fn scale(&self, a: &ScaleArgs, step: u64) -> Result<ToolOutput> {
+        let apply = a.apply.unwrap_or(false);
+        if apply && self.window.is_some() {
+            return Ok(ToolOutput::error(
+                "a pose sub-agent cannot rescale every keyframe",
+            ));
+        }
+        let out = self.run.step_dir(step, Scale::NAME);
+        std::fs::create_dir_all(&out).map_err(|e| agentstar_data::DataError::io(&out, e))?;
+        let scaled = out.join("scaled_pose.json");
+        let method = match a.method {
+            crate::fit::ScaleMethod::Depth => "depth",
+            crate::fit::ScaleMethod::Parallax => "parallax",
+            crate::fit::ScaleMethod::Size => "size",
+        };
+        let mut args: Vec<String> = vec!["scale".into()];
+        args.extend(self.session_args());
+        args.extend([
+            "--from".into(),
+            method.into(),
+            "--out".into(),
+            scaled.display().to_string(),
+            "--json".into(),
+        ]);
+        if let Some(axis) = a.axis {
+            let axis = match axis {
+                SizeAxis::X => "x",
+                SizeAxis::Y => "y",
+                SizeAxis::Z => "z",
+                SizeAxis::Longest => "longest",
+            };
+            args.extend(["--axis".into(), axis.into()]);
+        }
+        if let Some(m) = a.metres {
+            args.extend(["--metres".into(), m.to_string()]);
+        }
+        args.extend(flag(&a.frames, "--frames"));
+        let (ok, stdout, stderr) = self.exec(&args)?;
+        if !ok {
+            return Ok(ToolOutput::error(stderr.trim().to_string()));
+        }
+        let report: crate::fit::ScaleReport = serde_json::from_str(&stdout).map_err(|e| {
+            AgentError::Tool(format!("scale printed no scale report ({e}): {stdout}"))
+        })?;
+        let mut text = format!(
+            "scale from {method}: {} → {:.6} m per model unit (translations × {:.4}; spread {:.2}%, {} sample(s))\n",
+            report.scale_before,
+            report.scale_after,
+            report.ratio,
+            100.0 * report.spread,
+            report.samples
+        );
+        for n in &report.notes {
+            text.push_str(&format!("note: {n}\n"));
+        }
+        let mut scores = BTreeMap::new();
+        scores.insert("scale".to_string(), report.scale_after);
+        let structured = serde_json::to_value(&report).ok();
+        if !apply {
+            text.push_str(
+                "pose.json is unchanged; call scale again with `apply: true` to rescale it.\n",
+            );
+            return Ok(ToolOutput {
+                text,
+                scores,
+                structured,
+                ..Default::default()
+            });
+        }
+        let pf = PoseFile::read(&scaled)?;
+        let version = PoseHistory::new(&self.run.poses).replace(
+            pf,
+            &format!(
+                "scale from {method} (step {step}): {} -> {:.6} m per unit",
+                report.scale_before, report.scale_after
+            ),
+        )?;
+        text.push_str(&format!(
+            "pose.json rescaled (version {version}); every IoU is as it was.\n"
+        ));
+        Ok(ToolOutput {
+            text,
+            scores,
+            structured,
+            pose_changed: true,
+            pose_version: Some(version),
+            ..Default::default()
+        })
+    }
+
+    /// `fit_shape`: `agentstar fit-shape` in the step's directory; when the mean IoU rose,
+    /// its script becomes the scene (a new version) and its poses a pose version. Runs
+    /// under the writer lock.
+    fn fit_shape(&self, a: &FitShapeArgs, step: u64) -> Result<ToolOutput> {
+        if self.window.is_some() {
+            return Ok(ToolOutput::error(
+                "a pose sub-agent cannot change the shape",
+            ));
+        }
+        let names: Vec<String> = a.params.iter().map(|p| p.trim().to_string()).collect();
+        if let Some(bad) = names.iter().find(|n| n.is_empty() || n.contains(',')) {
+            return Ok(ToolOutput::error(format!(
+                "fit_shape: `{bad}` is not a parameter name (one name per list entry)"
+            )));
+        }
+        let extra = [
+            vec!["--params".to_string(), names.join(",")],
+            flag(&a.frames, "--frames"),
+            a.rounds
+                .map(|r| vec!["--rounds".into(), r.to_string()])
+                .unwrap_or_default(),
+            a.evals
+                .map(|e| vec!["--evals".into(), e.to_string()])
+                .unwrap_or_default(),
+        ]
+        .concat();
+        let (o, _, stdout) = self.cli(&["fit-shape"], step, FitShape::NAME, extra)?;
+        if o.is_error {
+            return Ok(o);
+        }
+        let report: crate::fit::FitReport = serde_json::from_str(&stdout).map_err(|e| {
+            AgentError::Tool(format!("fit-shape printed no fit report ({e}): {stdout}"))
+        })?;
+        let values: Vec<String> = report
+            .params
+            .iter()
+            .map(|p| {
+                format!(
+                    "{} {} → {} (bounds [{}, {}]{})",
+                    p.name,
+                    agentstar_scene::format_param_value(p.before),
+                    agentstar_scene::format_param_value(p.after),
+                    p.min,
+                    p.max,
+                    if p.at_bound { ", AT A BOUND" } else { "" }
+                )
+            })
+            .collect();
+        let mut text = format!(
+            "fit_shape: {}\nvisible IoU over {} keyframe(s): mean {:.4} → {:.4}, min {:.4} → {:.4}\n",
+            values.join("; "),
+            report.frames.len(),
+            report.iou_mean_before,
+            report.iou_mean_after,
+            report.iou_min_before,
+            report.iou_min_after
+        );
+        if !report.held.is_empty() {
+            text.push_str(&format!(
+                "held as they are: {}\n",
+                report
+                    .held
+                    .iter()
+                    .map(|h| format!(
+                        "{} {}",
+                        h.name,
+                        agentstar_scene::format_param_value(h.value)
+                    ))
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            ));
+        }
+        for f in &report.frames {
+            text.push_str(&format!(
+                "  {}  {:.4} → {:.4}\n",
+                f.frame, f.iou_before, f.iou_after
+            ));
+        }
+        let mut scores = BTreeMap::new();
+        scores.insert("iou_mean_before".to_string(), report.iou_mean_before);
+        scores.insert("iou_mean_after".to_string(), report.iou_mean_after);
+        let images = report.sheets.clone();
+        let structured = serde_json::to_value(&report).ok();
+        if report.iou_mean_after <= report.iou_mean_before + 1e-4 {
+            text.push_str(
+                "The fit did not raise the mean IoU: the scene and pose.json are unchanged.\n",
+            );
+            return Ok(ToolOutput {
+                text,
+                images,
+                scores,
+                structured,
+                ..Default::default()
+            });
+        }
+        let script = agentstar_data::read_text(&report.scene)?;
+        let written = self.scene_write(&script, step)?;
+        if written.is_error {
+            return Ok(written);
+        }
+        let fitted = PoseFile::read(&report.poses)?;
+        let pose_version = PoseHistory::new(&self.run.poses).replace(
+            fitted,
+            &format!(
+                "fit_shape (step {step}): poses refined for scene version {}",
+                written.scene_version.unwrap_or(0)
+            ),
+        )?;
+        text.push_str(&format!(
+            "scene version {} saved with the fitted values; pose.json version {pose_version} holds the refined poses. Look at a `turntable` before finishing.\n",
+            written.scene_version.unwrap_or(0)
+        ));
+        Ok(ToolOutput {
+            text,
+            images,
+            scores,
+            scene_version: written.scene_version,
+            pose_changed: true,
+            pose_version: Some(pose_version),
+            structured,
             ..Default::default()
         })
     }

@@ -17,7 +17,7 @@ pub mod primitives;
 pub use camera::PinholeCamera;
 pub use kinematics::{JointDef, JointKind, KinematicTree};
 pub use mesh::{Aabb, TriMesh};
-pub use model::{CanonicalReport, ObjectModel, Part};
+pub use model::{origin_shift, CanonicalReport, ObjectModel, OriginShift, Part};
 pub use pose::{ObjectPose, Similarity};
 
 /// Errors of the geometry layer. Messages name the offending value and say what is valid.

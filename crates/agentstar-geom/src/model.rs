@@ -3,8 +3,9 @@
 
 use crate::kinematics::KinematicTree;
 use crate::mesh::{Aabb, TriMesh};
-use crate::pose::Rigid;
-use crate::Point3;
+use crate::pose::{ObjectPose, Rigid};
+use crate::{Point3, Vector3};
+use std::collections::BTreeMap;
 use std::sync::Arc;
 
 #[derive(Debug, Clone, PartialEq)]
@@ -139,6 +140,113 @@ impl ObjectModel {
     }
 }
 
+/// How the canonical origin moved between two versions of a model: `new ≈ old + shift` for
+/// the geometry that did not change, so a pose made for `old` is carried to `new` by
+/// [`OriginShift::carry`] (the object lands where it was in every image).
+///
+/// The canonical origin is the script's origin; it moves only when an edit moves geometry
+/// that did not otherwise change, which is what re-centring a model after a shape edit does
+/// (`translate(-c)` of every part). Every part of the same name and mesh layout in both
+/// versions votes: moved whole by one translation, or with most of its vertices (at least
+/// half, and 1.5× the next group) moved by one translation (its unchanged side), it votes
+/// for that translation; changed with no translation shared, it votes for none (its origin
+/// stayed). The largest voting part decides; with no vote the shift is zero.
+#[derive(Debug, Clone, PartialEq)]
+pub struct OriginShift {
+    pub shift: Vector3,
+    /// The part that decided it (`None`: no part matched, the shift is zero).
+    pub part: Option<String>,
+    /// Share of that part's vertices that moved by `shift` (1 for a whole part).
+    pub share: f64,
+}
+
+impl OriginShift {
+    pub fn none() -> Self {
+        OriginShift {
+            shift: Vector3::zeros(),
+            part: None,
+            share: 0.0,
+        }
+    }
+
+    /// True when the origin moved by more than `tolerance` canonical units.
+    pub fn moved(&self, tolerance: f64) -> bool {
+        self.shift.norm() > tolerance
+    }
+
+    /// `pose` (made for the old model) for the new model: `p_cam = s·R·(x − shift) + t`.
+    pub fn carry(&self, pose: &ObjectPose, scale: f64) -> ObjectPose {
+        ObjectPose {
+            rotation: pose.rotation,
+            translation: pose.translation - pose.rotation * (self.shift * scale),
+        }
+    }
+}
+
+/// Groups vertex displacements by value (to `quantum`); returns the largest group's
+/// displacement and its share of the vertices, and the next group's share.
+fn displacement_groups(old: &TriMesh, new: &TriMesh, quantum: f64) -> (Vector3, f64, f64) {
+    let mut groups: BTreeMap<[i64; 3], (usize, Vector3)> = BTreeMap::new();
+    for (a, b) in old.positions.iter().zip(&new.positions) {
+        let d = b - a;
+        let key = [0, 1, 2].map(|k| (d[k] / quantum).round() as i64);
+        let e = groups.entry(key).or_insert((0, Vector3::zeros()));
+        e.0 += 1;
+        e.1 += d;
+    }
+    let n = old.positions.len().max(1) as f64;
+    let mut sizes: Vec<(usize, Vector3)> = groups.into_values().collect();
+    sizes.sort_by_key(|g| std::cmp::Reverse(g.0));
+    match sizes.as_slice() {
+        [] => (Vector3::zeros(), 0.0, 0.0),
+        [(c, sum), rest @ ..] => (
+            sum / *c as f64,
+            *c as f64 / n,
+            rest.first().map_or(0.0, |r| r.0 as f64 / n),
+        ),
+    }
+}
+
+/// How far the canonical origin moved from `old` to `new` (see [`OriginShift`]).
+pub fn origin_shift(old: &ObjectModel, new: &ObjectModel) -> OriginShift {
+    let size = old
+        .posed_bounds(&old.tree.rest_states())
+        .extent()
+        .max()
+        .max(1e-9);
+    let quantum = 1e-6 * size;
+    let mut best: Option<(f64, OriginShift)> = None;
+    for part in &new.parts {
+        let Some(before) = old.parts.iter().find(|p| p.name == part.name) else {
+            continue;
+        };
+        let (a, b) = (&before.mesh, &part.mesh);
+        if a.positions.len() != b.positions.len() || a.triangles != b.triangles || a.is_empty() {
+            continue;
+        }
+        let (shift, share, next) = displacement_groups(a, b, quantum);
+        let whole = share >= 1.0 - 1e-12;
+        let vote = if whole || (share >= 0.5 && share >= 1.5 * next) {
+            OriginShift {
+                shift,
+                part: Some(part.name.clone()),
+                share,
+            }
+        } else {
+            OriginShift {
+                shift: Vector3::zeros(),
+                part: Some(part.name.clone()),
+                share: 0.0,
+            }
+        };
+        let weight = before.bounds.extent().norm();
+        if best.as_ref().is_none_or(|(w, _)| weight > *w) {
+            best = Some((weight, vote));
+        }
+    }
+    best.map_or_else(OriginShift::none, |(_, s)| s)
+}
+
 /// A copy of `mesh` mapped by a rigid transform.
 pub fn transform_rigid(mesh: &TriMesh, t: &Rigid) -> TriMesh {
     TriMesh {
@@ -180,6 +288,75 @@ mod tests {
             parts: vec![moved],
         };
         assert_eq!(model.canonical_report().warnings.len(), 2);
+    }
+
+    fn two_part(offset: Vector3, handle_x: f64) -> ObjectModel {
+        let body = cuboid(1.0, 0.6, 0.4).expect("box").translated(offset);
+        let handle = cuboid(handle_x, 0.1, 0.1)
+            .expect("box")
+            .translated(Vector3::new(0.5 + handle_x / 2.0, 0.0, 0.0) + offset);
+        ObjectModel {
+            tree: KinematicTree::rigid(2),
+            parts: vec![
+                Part::new("body", body, [0.5; 3]),
+                Part::new("handle", handle, [0.5; 3]),
+            ],
+        }
+    }
+
+    #[test]
+    fn the_origin_shift_follows_the_geometry_that_did_not_change() {
+        // A longer handle, then everything re-centred: the body says how far.
+        let old = two_part(Vector3::zeros(), 0.2);
+        let moved = Vector3::new(-0.05, 0.01, 0.0);
+        let new = two_part(moved, 0.3);
+        let s = origin_shift(&old, &new);
+        assert_eq!(s.part.as_deref(), Some("body"));
+        assert!((s.shift - moved).norm() < 1e-9, "{s:?}");
+        // Not re-centred: nothing moved.
+        let s = origin_shift(&old, &two_part(Vector3::zeros(), 0.3));
+        assert!(s.shift.norm() < 1e-12 && !s.moved(1e-9), "{s:?}");
+        // A carried pose puts the unchanged body where it was in the camera.
+        let pose = ObjectPose::new(
+            crate::UnitQuaternion::from_euler_angles(0.3, -0.2, 1.0),
+            Vector3::new(0.1, 0.0, 2.0),
+        );
+        let s = origin_shift(&old, &new);
+        let carried = s.carry(&pose, 0.25);
+        let p_old = Point3::new(0.5, 0.3, -0.2);
+        let before = pose.with_scale(0.25).transform_point(&p_old);
+        let after = carried.with_scale(0.25).transform_point(&(p_old + moved));
+        assert!((before - after).norm() < 1e-12);
+        // One part whose vertices moved apart symmetrically (a deeper box, still centred):
+        // no translation is shared by most of them, so the origin stays.
+        let deep = |d: f64| ObjectModel {
+            tree: KinematicTree::rigid(1),
+            parts: vec![Part::new(
+                "body",
+                cuboid(1.0, d, 0.4).expect("box"),
+                [0.5; 3],
+            )],
+        };
+        let s = origin_shift(&deep(0.6), &deep(0.7));
+        assert_eq!((s.shift, s.share), (Vector3::zeros(), 0.0));
+        // A part whose layout changed does not vote.
+        let single = ObjectModel {
+            tree: KinematicTree::rigid(1),
+            parts: vec![old.parts[0].clone()],
+        };
+        assert_eq!(
+            origin_shift(&single, &deep(0.7)).part.as_deref(),
+            Some("body")
+        );
+        let other = ObjectModel {
+            tree: KinematicTree::rigid(1),
+            parts: vec![Part::new(
+                "body",
+                crate::primitives::uv_sphere(0.5, 8, 4).expect("s"),
+                [0.5; 3],
+            )],
+        };
+        assert_eq!(origin_shift(&single, &other), OriginShift::none());
     }
 
     #[test]

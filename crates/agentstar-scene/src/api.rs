@@ -2,13 +2,14 @@
 //! and the evaluation that turns a script into an object model.
 
 use crate::diagnostics::{did_you_mean, SceneError, SceneErrorKind};
-use crate::{Limits, MeshSource, SceneBuild};
+use crate::{Limits, MeshSource, ParamDecl, SceneBuild};
 use agentstar_geom::kinematics::{JointDef, JointKind};
 use agentstar_geom::{
     csg, primitives as prim, KinematicTree, Matrix3, ObjectModel, Part, Point3, TriMesh,
     UnitQuaternion, Vector3,
 };
 use rhai::{Array, Dynamic, Engine, EvalAltResult, Map, Position, AST};
+use std::collections::BTreeMap;
 use std::sync::{Arc, Mutex};
 use std::time::Instant;
 
@@ -54,6 +55,7 @@ pub const API: &[ApiEntry] = &[
     ApiEntry { name: "volume", forms: &["s.volume()"], doc: "Enclosed volume." },
     ApiEntry { name: "triangle_count", forms: &["s.triangle_count()"], doc: "Number of triangles." },
     ApiEntry { name: "part", forms: &["part(name, solid)"], doc: "Declares a named part (the unit that joints move and exports name)." },
+    ApiEntry { name: "param", forms: &["param(name, value, min, max)"], doc: "A named shape parameter with its bounds: returns `value` (or the value `fit_shape` is trying); `agentstar fit-shape --params name` fits it within [min, max] against the committed poses and writes the result back as the new `value` (keep it a number literal)." },
     ApiEntry { name: "joint", forms: &["joint(#{name, type, child, origin, axis, limit, parent})"], doc: "Declares a joint: type revolute (limit in degrees), continuous (no limit), prismatic (limit in canonical units) or fixed; child is a part name or a list; origin and axis in the canonical rest frame; parent names another joint for chains." },
 ];
 
@@ -124,6 +126,10 @@ struct State {
     joints: Vec<(JointDef, Position)>,
     triangles: usize,
     printed: Vec<String>,
+    /// Shape parameters in the order the script declared them.
+    params: Vec<ParamDecl>,
+    /// Values to use instead of the declared ones (`fit_shape`'s trials).
+    overrides: BTreeMap<String, f64>,
     limits: Limits,
     /// When the script's wall-time limit runs out; booleans stop there too.
     deadline: Instant,
@@ -761,10 +767,87 @@ fn register(engine: &mut Engine, state: &Shared, meshes: Arc<dyn MeshSource>) {
             },
         );
     }
+    {
+        let st = state.clone();
+        engine.register_fn(
+            "param",
+            move |ctx: rhai::NativeCallContext,
+                  name: &str,
+                  value: Dynamic,
+                  min: Dynamic,
+                  max: Dynamic|
+                  -> RResult<f64> {
+                let value = num(&value, "param", "value")?;
+                let min = num(&min, "param", "min")?;
+                let max = num(&max, "param", "max")?;
+                declare_param(&st, name, value, min, max, ctx.call_position())
+            },
+        );
+    }
     // Catch the common mistake of passing a joint as positional arguments.
     engine.register_fn("joint", |_: Dynamic, _: Dynamic| -> RResult<()> {
         fail("`joint` takes one map: joint(#{name: \"hinge\", type: \"revolute\", child: \"lid\", origin: [0, 0, 0], axis: [1, 0, 0], limit: [0, 90]})")
     });
+}
+
+/// Records a `param(name, value, min, max)` call and returns the value the script uses.
+fn declare_param(
+    state: &Shared,
+    name: &str,
+    value: f64,
+    min: f64,
+    max: f64,
+    pos: Position,
+) -> RResult<f64> {
+    let mut s = lock(state);
+    let valid = !name.is_empty()
+        && name
+            .chars()
+            .all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '-');
+    if !valid {
+        return fail(format!(
+            "`param`: the name \"{name}\" must be letters, digits, `_` or `-` (it is named on the command line)"
+        ));
+    }
+    if s.params.iter().any(|p| p.name == name) {
+        return fail(format!(
+            "`param`: a parameter named `{name}` already exists; parameter names are unique"
+        ));
+    }
+    if !(value.is_finite() && min.is_finite() && max.is_finite()) {
+        return fail(format!(
+            "`param` `{name}`: value, min and max must be finite, got {value}, {min}, {max}"
+        ));
+    }
+    if min >= max {
+        return fail(format!(
+            "`param` `{name}`: min {min} must be under max {max}"
+        ));
+    }
+    if value < min || value > max {
+        return fail(format!(
+            "`param` `{name}`: the value {value} lies outside its bounds [{min}, {max}]"
+        ));
+    }
+    let used = match s.overrides.get(name) {
+        Some(&v) if !(min..=max).contains(&v) || !v.is_finite() => {
+            return fail(format!(
+                "`param` `{name}`: the value tried, {v}, lies outside its bounds [{min}, {max}]"
+            ))
+        }
+        Some(&v) => v,
+        None => value,
+    };
+    s.params.push(ParamDecl {
+        name: name.to_string(),
+        default: value,
+        value: used,
+        min,
+        max,
+        line: pos.line(),
+        column: pos.position(),
+    });
+    Ok(used)
 }
 
 fn make_engine(state: &Shared, meshes: Arc<dyn MeshSource>, limits: &Limits) -> Engine {
@@ -812,6 +895,7 @@ pub(crate) fn build(
     source: &str,
     meshes: &dyn MeshSource,
     limits: &Limits,
+    overrides: &BTreeMap<String, f64>,
 ) -> Result<SceneBuild, SceneError> {
     let no_parts = Vec::new;
     if source.len() > limits.max_script_bytes {
@@ -832,6 +916,8 @@ pub(crate) fn build(
         joints: vec![],
         triangles: 0,
         printed: vec![],
+        params: vec![],
+        overrides: overrides.clone(),
         limits: limits.clone(),
         deadline: {
             let now = Instant::now();
@@ -858,6 +944,30 @@ pub(crate) fn build(
     let parts_so_far: Vec<String> = st.parts.iter().map(|(n, _)| n.clone()).collect();
     if let Err(e) = run {
         return Err(explain(*e, parts_so_far, limits));
+    }
+    if let Some(unknown) = overrides
+        .keys()
+        .find(|k| !st.params.iter().any(|p| &p.name == *k))
+    {
+        let declared: Vec<&str> = st.params.iter().map(|p| p.name.as_str()).collect();
+        return Err(SceneError {
+            kind: SceneErrorKind::UnknownName,
+            message: format!(
+                "the script declares no parameter `{unknown}`{}",
+                if declared.is_empty() {
+                    "; declare one with `let w = param(\"width\", 1.0, 0.8, 1.2);`".to_string()
+                } else {
+                    format!(
+                        "; it declares: {}{}",
+                        declared.join(", "),
+                        did_you_mean(unknown, &declared)
+                    )
+                }
+            ),
+            line: None,
+            column: None,
+            parts_so_far,
+        });
     }
     if st.parts.is_empty() {
         return Err(SceneError {
@@ -919,12 +1029,14 @@ pub(crate) fn build(
     let report = model.canonical_report();
     warnings.extend(report.warnings.iter().cloned());
     let printed = st.printed.clone();
+    let params = st.params.clone();
     drop(st);
     Ok(SceneBuild {
         model,
         report,
         warnings,
         printed,
+        params,
     })
 }
 

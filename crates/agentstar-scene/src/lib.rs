@@ -9,11 +9,14 @@
 
 mod api;
 mod diagnostics;
+mod params;
 
 pub use api::{api_markdown, api_names, ApiEntry, API};
 pub use diagnostics::{SceneError, SceneErrorKind};
+pub use params::{format_param_value, set_param_values};
 
 use agentstar_geom::{CanonicalReport, ObjectModel, TriMesh};
+use std::collections::BTreeMap;
 use std::time::Duration;
 
 /// Loads mesh files that a script names (`mesh("handle.obj")`). Implementations decide
@@ -71,6 +74,23 @@ pub struct SceneBuild {
     pub warnings: Vec<String>,
     /// Lines the script printed with `print`/`debug`, in order.
     pub printed: Vec<String>,
+    /// The shape parameters the script declared with `param(...)`, in order.
+    pub params: Vec<ParamDecl>,
+}
+
+/// One `param(name, value, min, max)` of a script.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ParamDecl {
+    pub name: String,
+    /// The value written in the script.
+    pub default: f64,
+    /// The value this build used (the default, or an override).
+    pub value: f64,
+    pub min: f64,
+    pub max: f64,
+    /// Where the call is (1-based line and column).
+    pub line: Option<usize>,
+    pub column: Option<usize>,
 }
 
 /// Evaluates a scene script under `limits`.
@@ -79,5 +99,16 @@ pub fn build_scene(
     meshes: &dyn MeshSource,
     limits: &Limits,
 ) -> Result<SceneBuild, SceneError> {
-    api::build(source, meshes, limits)
+    api::build(source, meshes, limits, &BTreeMap::new())
+}
+
+/// Evaluates a scene script with some of its `param(...)` values replaced by `overrides`
+/// (each must be declared by the script and lie within its bounds).
+pub fn build_scene_with(
+    source: &str,
+    meshes: &dyn MeshSource,
+    limits: &Limits,
+    overrides: &BTreeMap<String, f64>,
+) -> Result<SceneBuild, SceneError> {
+    api::build(source, meshes, limits, overrides)
 }

@@ -295,3 +295,56 @@ fn booleans_stop_at_the_scripts_wall_time_limit() {
     let e = build_scene(src, &NoMeshFiles, &limits).expect_err("chain");
     assert_eq!(e.kind, SceneErrorKind::Limit, "{}", e.message);
 }
+
+const PARAMS: &str = r#"
+let w = param("width", 1.0, 0.8, 1.3);
+let d = param("depth", 0.6, 0.4, 0.9);
+part("body", box(w, d, 0.3));
+"#;
+
+#[test]
+fn params_take_their_value_or_an_override_within_bounds() {
+    let b = build(PARAMS).expect("params");
+    let names: Vec<&str> = b.params.iter().map(|p| p.name.as_str()).collect();
+    assert_eq!(names, ["width", "depth"]);
+    assert_eq!(
+        (b.params[1].value, b.params[1].min, b.params[1].max),
+        (0.6, 0.4, 0.9)
+    );
+    assert_eq!((b.params[1].line, b.params[1].column), (Some(3), Some(9)));
+    assert!((b.report.extent[1] - 0.6).abs() < 1e-12);
+    let with = |name: &str, v: f64| {
+        let o = std::collections::BTreeMap::from([(name.to_string(), v)]);
+        agentstar_scene::build_scene_with(PARAMS, &NoMeshFiles, &Limits::default(), &o)
+    };
+    let b = with("depth", 0.75).expect("override");
+    assert!((b.report.extent[1] - 0.75).abs() < 1e-12);
+    assert_eq!((b.params[1].default, b.params[1].value), (0.6, 0.75));
+    // The width is what the script says.
+    assert!((b.report.extent[0] - 1.0).abs() < 1e-12);
+    let e = with("depth", 0.95).expect_err("outside");
+    assert!(e.message.contains("outside its bounds [0.4, 0.9]"), "{e}");
+    let e = with("dept", 0.5).expect_err("unknown");
+    assert!(
+        e.message.contains("no parameter `dept`") && e.message.contains("did you mean `depth`"),
+        "{e}"
+    );
+    for (src, says) in [
+        ("let a = param(\"a\", 2, 0, 1); part(\"b\", box(a, 1, 1));", "outside its bounds"),
+        ("let a = param(\"a\", 1, 2, 0); part(\"b\", box(a, 1, 1));", "must be under max"),
+        ("let a = param(\"a\", 1, 0, 2); let b = param(\"a\", 1, 0, 2); part(\"b\", box(a, b, 1));", "already exists"),
+        ("let a = param(\"a b\", 1, 0, 2); part(\"b\", box(a, 1, 1));", "must be letters"),
+    ] {
+        let e = build(src).expect_err(src);
+        assert!(e.message.contains(says), "{src}: {e}");
+        assert!(e.line.is_some(), "{src}: {e}");
+    }
+    // Fitted values go back into the literals.
+    let v = std::collections::BTreeMap::from([("depth".to_string(), 0.7123456)]);
+    let out = agentstar_scene::set_param_values(PARAMS, &v).expect("write");
+    assert!(
+        out.contains("param(\"depth\", 0.712346, 0.4, 0.9)"),
+        "{out}"
+    );
+    assert_eq!(build(&out).expect("rebuilt").params[1].value, 0.712346);
+}

@@ -7,8 +7,10 @@
 pub mod appearance;
 pub mod hypotheses;
 pub mod objective;
+pub mod scale;
 pub mod search;
 pub mod sequence;
+pub mod shape;
 pub mod space;
 pub mod temporal;
 pub mod tracker;

@@ -57,6 +57,11 @@ enum Command {
     PoseDiff(cmd::temporal::DiffArgs),
     /// Track every keyframe of a capture with a known model, no agent.
     Track(cmd::track::Args),
+    /// Fit named `param(...)` values of a scene script against the committed poses (poses refined locally), with before/after comparisons.
+    #[command(name = "fit-shape")]
+    FitShape(cmd::fit::Args),
+    /// Estimate metres per model unit from depth, the parallax of moving metric cameras or a stated size; rescale the poses (rotations kept).
+    Scale(cmd::scale::Args),
     /// The paper's metrics against the capture's ground truth: scale alignment, EPE, Chamfer, pose and articulation errors.
     Eval(cmd::eval::Args),
     /// Write a seeded synthetic capture with ground truth (objects modelled on ARCTIC, HOT3D, iTACO).
@@ -150,6 +155,8 @@ fn main() -> ExitCode {
         Command::Temporal(a) => cmd::temporal::run(a),
         Command::PoseDiff(a) => cmd::temporal::run_diff(a),
         Command::Track(a) => cmd::track::run(a),
+        Command::FitShape(a) => cmd::fit::run(a),
+        Command::Scale(a) => cmd::scale::run(a),
         Command::Eval(a) => cmd::eval::run(a),
         Command::Synth(a) => cmd::synth::run(a),
         Command::Bench(a) => cmd::bench::run(a),

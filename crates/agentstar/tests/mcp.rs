@@ -18,6 +18,8 @@ use support::{agentstar, ledger, ledger_tools, s, small_run, text, McpClient};
 fn sample(tool: &str, prop: &str, scene: &str) -> Option<Value> {
     Some(match (tool, prop) {
         ("scene_write", "script") => json!(scene),
+        // Version 2 is the scene `scene_write` wrote (with the parameter `fit_shape` fits).
+        ("scene_restore", "version") => json!(2),
         (_, "version") => json!(1),
         (_, "frames") => json!("000000"),
         ("render", "views") => json!("compare"),
@@ -39,6 +41,13 @@ fn sample(tool: &str, prop: &str, scene: &str) -> Option<Value> {
         ("frames", "zoom") => json!(2.0),
         ("frames", "outline") => json!("both"),
         ("turntable", "states") => json!("representative"),
+        ("fit_shape", "params") => json!(["lid_thickness"]),
+        ("scale", "method") => json!("size"),
+        ("scale", "axis") => json!("longest"),
+        ("scale", "metres") => json!(0.24),
+        ("scale", "apply") => json!(false),
+        ("fit_shape", "rounds") => json!(1),
+        ("fit_shape", "evals") => json!(8),
         _ => return None,
     })
 }
@@ -48,7 +57,13 @@ fn every_tool_runs_over_stdio_with_schema_arguments_and_typed_results() {
     let dir = tempfile::tempdir().expect("tmp");
     let run = dir.path().join("run");
     small_run(dir.path(), 3, true);
-    let scene = std::fs::read_to_string(run.join("scene.rhai")).expect("scene");
+    // The scene written declares a parameter for `fit_shape` (the lid's thickness).
+    let scene = format!(
+        "let lid_t = param(\"lid_thickness\", 0.06, 0.05, 0.07);\n{}",
+        std::fs::read_to_string(run.join("scene.rhai"))
+            .expect("scene")
+            .replace("box(1.0, 0.7, 0.06, 0.01)", "box(1.0, 0.7, lid_t, 0.01)")
+    );
     let (mut c, init) = McpClient::initialised(&run);
     assert_eq!(init["result"]["serverInfo"]["name"], "agentstar", "{init}");
     c.send(json!({"jsonrpc": "2.0", "id": 2, "method": "tools/list"}));
@@ -193,6 +208,21 @@ fn every_tool_runs_over_stdio_with_schema_arguments_and_typed_results() {
                 assert!(legend.len() >= 5, "{legend:?}");
             }
             "critic" => assert!(body.contains("critic skipped"), "{body}"),
+            "scale" => {
+                let r: agentstar_agent::fit::ScaleReport =
+                    serde_json::from_value(structured.expect("scale report")).expect("scale");
+                // The box is 1.0 unit long: 0.24 m makes the scale 0.24 m per unit.
+                assert!((r.scale_after - 0.24).abs() < 1e-9, "{r:?}");
+                assert!(!r.written);
+            }
+            "fit_shape" => {
+                let r: agentstar_agent::fit::FitReport =
+                    serde_json::from_value(structured.expect("fit report")).expect("fit");
+                assert_eq!(r.params[0].name, "lid_thickness");
+                assert!((0.05..=0.07).contains(&r.params[0].after), "{r:?}");
+                // The one keyframe the call named.
+                assert_eq!(r.frames.len(), 1);
+            }
             "finish" => assert!(body.starts_with("Not finished"), "{body}"),
             _ => assert!(!body.trim().is_empty(), "{name} says nothing"),
         }

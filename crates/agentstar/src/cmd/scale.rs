@@ -1,0 +1,196 @@
+//! `agentstar scale`: metres per model unit from the capture's depth, from the parallax of
+//! metric cameras that move around a static object, or from a size the agent states; and
+//! the poses rescaled to it (rotations kept, translations scaled, so every silhouette stays).
+
+use crate::common::{print_json, select_frames, SessionArgs};
+use agentstar_agent::fit::{ScaleFrame, ScaleMethod, ScaleReport};
+use agentstar_agent::history::PoseHistory;
+use agentstar_track::scale::{
+    ratio_from_depth, ratio_from_parallax, DepthFrame, ParallaxFrame, ScaleEstimate,
+};
+use anyhow::{anyhow, bail, Result};
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+/// A model axis a stated size is measured along.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum Axis {
+    X,
+    Y,
+    Z,
+    /// The longest side of the bounding box at rest.
+    Longest,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum Method {
+    Depth,
+    Parallax,
+    Size,
+}
+
+#[derive(clap::Args)]
+#[command(
+    after_help = "Examples:\n  agentstar scale --capture cap --model run/scene.rhai --poses run/pose.json --from depth\n  agentstar scale --capture cap --model run/scene.rhai --poses run/pose.json --from size --axis x --metres 0.30 --write"
+)]
+pub struct Args {
+    #[command(flatten)]
+    session: SessionArgs,
+    /// What to measure the scale from.
+    #[arg(long = "from", value_enum)]
+    method: Method,
+    /// With --from size: the model axis the size is along.
+    #[arg(long, value_enum, default_value = "longest")]
+    axis: Axis,
+    /// With --from size: the object's size along --axis, metres.
+    #[arg(long)]
+    metres: Option<f64>,
+    /// Keyframes to use: `all` (default), names, stems, indices or `a..b` ranges.
+    #[arg(long)]
+    frames: Option<String>,
+    /// Write the rescaled poses to this file.
+    #[arg(long)]
+    out: Option<PathBuf>,
+    /// Write the rescaled poses over --poses (recorded as a pose version).
+    #[arg(long)]
+    write: bool,
+    /// Print the report as JSON on stdout.
+    #[arg(long)]
+    json: bool,
+}
+
+pub fn run(a: Args) -> Result<ExitCode> {
+    let s = a.session.open()?;
+    let indices = select_frames(&s.capture, a.frames.as_deref())?;
+    let scale = s.scale();
+    let (method, estimate) = match a.method {
+        Method::Depth => {
+            let mut inputs = vec![];
+            for &i in &indices {
+                let (target, depth) = s.target(i)?;
+                if let Some(d) = depth {
+                    inputs.push((i, s.render_buffers(i), d, target));
+                }
+            }
+            if inputs.is_empty() {
+                bail!(
+                    "{}: no keyframe has depth; use --from parallax (metric cameras that move) or --from size",
+                    a.session.capture.display()
+                );
+            }
+            let frames: Vec<DepthFrame<'_>> = inputs
+                .iter()
+                .map(|(i, r, d, t)| DepthFrame {
+                    name: s.capture.frames[*i].name.clone(),
+                    render: r,
+                    observed: d,
+                    target: t,
+                })
+                .collect();
+            (ScaleMethod::Depth, ratio_from_depth(&frames)?)
+        }
+        Method::Parallax => {
+            let frames: Vec<ParallaxFrame> = indices
+                .iter()
+                .map(|&i| ParallaxFrame {
+                    name: s.capture.frames[i].name.clone(),
+                    world_from_camera: s.capture.frames[i].world_from_camera,
+                    origin_in_camera: s.poses[i].pose.translation,
+                })
+                .collect();
+            let mut e = ratio_from_parallax(&frames)?;
+            e.notes.push(
+                "parallax assumes the cameras are metric (COLMAP without --background-depth-m is not) and the object stays put in the world".into(),
+            );
+            (ScaleMethod::Parallax, e)
+        }
+        Method::Size => {
+            let metres = a
+                .metres
+                .ok_or_else(|| anyhow!("--from size needs --metres (the size along --axis)"))?;
+            if !(metres.is_finite() && metres > 0.0) {
+                bail!("--metres must be positive, got {metres}");
+            }
+            let m = &s.model.model;
+            let extent = m.posed_bounds(&m.tree.rest_states()).extent();
+            let units = match a.axis {
+                Axis::X => extent.x,
+                Axis::Y => extent.y,
+                Axis::Z => extent.z,
+                Axis::Longest => extent.max(),
+            };
+            if !(units.is_finite() && units > 1e-9) {
+                bail!("the model has no extent along {:?}", a.axis);
+            }
+            let new_scale = metres / units;
+            (
+                ScaleMethod::Size,
+                ScaleEstimate {
+                    ratio: new_scale / scale,
+                    per_frame: vec![],
+                    spread: 0.0,
+                    samples: 1,
+                    notes: vec![format!(
+                        "{metres} m along {:?} over the model's {units:.4} units at rest",
+                        a.axis
+                    )],
+                },
+            )
+        }
+    };
+    let new_scale = scale * estimate.ratio;
+    let mut pf = s.pose_file.clone();
+    agentstar_agent::poses::rescale(&mut pf, new_scale).map_err(|e| anyhow!(e))?;
+    if let Some(out) = &a.out {
+        pf.write(out)?;
+    }
+    let mut report = ScaleReport {
+        method,
+        scale_before: scale,
+        scale_after: new_scale,
+        ratio: estimate.ratio,
+        frames: estimate
+            .per_frame
+            .iter()
+            .map(|(f, v)| ScaleFrame {
+                frame: f.clone(),
+                value: *v,
+            })
+            .collect(),
+        spread: estimate.spread,
+        samples: estimate.samples,
+        notes: estimate.notes,
+        poses: a.out.clone(),
+        written: false,
+    };
+    if a.write {
+        PoseHistory::new(&a.session.poses).replace(
+            pf,
+            &format!(
+                "scale --from {}: {scale} -> {new_scale:.6} m per unit (translations × {:.6})",
+                match method {
+                    ScaleMethod::Depth => "depth",
+                    ScaleMethod::Parallax => "parallax",
+                    ScaleMethod::Size => "size",
+                },
+                estimate.ratio
+            ),
+        )?;
+        report.written = true;
+    }
+    if a.json {
+        print_json(&report)?;
+    } else {
+        println!(
+            "scale: {scale} -> {new_scale:.6} m per model unit (× {:.4}, spread {:.2}%, {} sample(s)){}",
+            report.ratio,
+            100.0 * report.spread,
+            report.samples,
+            if report.written { "; pose.json rescaled" } else { "" }
+        );
+        for n in &report.notes {
+            println!("note: {n}");
+        }
+    }
+    Ok(ExitCode::SUCCESS)
+}

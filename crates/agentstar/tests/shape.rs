@@ -1,0 +1,384 @@
+//! The shape tools against the real binary: `fit_shape` over MCP recovers two deliberately
+//! wrong proportions of a known model and leaves the others as they are; a scene edit that
+//! moves the bounding-box centre keeps every keyframe's IoU.
+
+mod support;
+
+use agentstar_agent::fit::FitReport;
+use agentstar_agent::reports::ScoreReport;
+use serde_json::json;
+use std::path::Path;
+use support::{agentstar, s, text, McpClient};
+
+/// The synthetic box (`agentstar synth --object box`) with its proportions as parameters:
+/// the true values are width 1.0, depth 0.7, body height 0.48.
+fn box_script(width: &str, depth: &str, height: &str) -> String {
+    format!(
+        r##"// The box with a hinged lid, its proportions as parameters.
+let w = param("width", {width}, 0.8, 1.2);
+let d = param("depth", {depth}, 0.5, 0.9);
+let h = param("height", {height}, 0.35, 0.7);
+let body = box(w, d, h, 0.02) - box(w - 0.08, d - 0.08, h + 0.02).translate(0, 0, 0.06);
+part("body", body.translate(0, 0, 0.2 - h / 2).color("#c8553d"));
+part("lid", box(w, d, 0.06, 0.01).translate(0, 0, 0.23).color("#f2d0a4"));
+joint(#{{ name: "lid_hinge", type: "revolute", child: "lid", origin: [0, d / 2, 0.2], axis: [-1, 0, 0], limit: [0, 110] }});
+"##
+    )
+}
+
+/// A capture of the synthetic box and a run on it whose scene is `script`, with the true
+/// poses committed.
+fn run_with(dir: &Path, frames: usize, script: &str) -> (std::path::PathBuf, std::path::PathBuf) {
+    let (cap, run) = (dir.join("cap"), dir.join("run"));
+    let n = frames.to_string();
+    let o = agentstar(&[
+        "synth",
+        &s(&cap),
+        "--object",
+        "box",
+        "--frames",
+        &n,
+        "--seed",
+        "3",
+        "--no-hands",
+    ]);
+    assert!(o.status.success(), "{}", text(&o));
+    let scene = dir.join("start.rhai");
+    std::fs::write(&scene, script).expect("write scene");
+    let o = agentstar(&[
+        "init",
+        &s(&run),
+        "--capture",
+        &s(&cap),
+        "--scene",
+        &s(&scene),
+        "--scale",
+        "0.24",
+    ]);
+    assert!(o.status.success(), "{}", text(&o));
+    std::fs::copy(cap.join("model/pose.json"), run.join("pose.json")).expect("true poses");
+    (cap, run)
+}
+
+fn score(cap: &Path, model: &Path, poses: &Path) -> Vec<f64> {
+    let o = agentstar(&[
+        "score",
+        "--capture",
+        &s(cap),
+        "--model",
+        &s(model),
+        "--poses",
+        &s(poses),
+        "--json",
+    ]);
+    let r: ScoreReport =
+        serde_json::from_slice(&o.stdout).unwrap_or_else(|_| panic!("{}", text(&o)));
+    r.frames.iter().map(|f| f.gate()).collect()
+}
+
+/// The value of `param("name", VALUE, …)` in a script.
+fn param_value(script: &str, name: &str) -> f64 {
+    let key = format!("param(\"{name}\", ");
+    let at = script
+        .find(&key)
+        .unwrap_or_else(|| panic!("no {name} in {script}"))
+        + key.len();
+    script[at..]
+        .split(',')
+        .next()
+        .and_then(|v| v.trim().parse().ok())
+        .unwrap_or_else(|| panic!("{name}: {script}"))
+}
+
+#[test]
+fn fit_shape_recovers_two_wrong_proportions_and_holds_the_rest() {
+    let dir = tempfile::tempdir().expect("tmp");
+    // Depth 15% short, body height 20% tall; the width is right.
+    let (cap, run) = run_with(dir.path(), 6, &box_script("1.0", "0.595", "0.576"));
+    // A parameter the script does not declare is named, with those it does.
+    let o = agentstar(&[
+        "fit-shape",
+        "--capture",
+        &s(&cap),
+        "--model",
+        &s(&run.join("scene.rhai")),
+        "--poses",
+        &s(&run.join("pose.json")),
+        "--params",
+        "depth,lenght",
+        "--out",
+        &s(&dir.path().join("x")),
+    ]);
+    assert!(!o.status.success());
+    assert!(
+        text(&o).contains("no parameter `lenght`") && text(&o).contains("width, depth, height"),
+        "{}",
+        text(&o)
+    );
+    let (mut c, _) = McpClient::initialised(&run);
+    c.call(2, "fit_shape", json!({"params": ["depth", "height"]}));
+    let (resp, _) = c.response(2);
+    let result = &resp["result"];
+    assert_eq!(result["isError"], false, "{resp}");
+    let r: FitReport =
+        serde_json::from_value(result["structuredContent"].clone()).expect("fit report");
+    let body = McpClient::text_of(&resp);
+    let depth = r.params.iter().find(|p| p.name == "depth").expect("depth");
+    let height = r
+        .params
+        .iter()
+        .find(|p| p.name == "height")
+        .expect("height");
+    assert!(
+        (depth.after / 0.7 - 1.0).abs() < 0.02 && (height.after / 0.48 - 1.0).abs() < 0.02,
+        "depth {} (0.7), height {} (0.48)\n{body}",
+        depth.after,
+        height.after
+    );
+    assert!(r.iou_mean_after > r.iou_mean_before + 0.01, "{body}");
+    assert_eq!(r.held.len(), 1);
+    assert_eq!((r.held[0].name.as_str(), r.held[0].value), ("width", 1.0));
+    // The scene is a new version with the fitted values as its defaults, the width as written.
+    let scene = std::fs::read_to_string(run.join("scene.rhai")).expect("scene");
+    assert!(
+        (param_value(&scene, "depth") - depth.after).abs() < 1e-5,
+        "{scene}"
+    );
+    assert!(
+        (param_value(&scene, "height") - height.after).abs() < 1e-5,
+        "{scene}"
+    );
+    assert!(scene.contains("param(\"width\", 1.0, 0.8, 1.2)"), "{scene}");
+    assert!(run.join(".agentstar/scenes/0002.rhai").is_file());
+    // The refined poses are pose.json, and score there as the fit said.
+    let now = score(&cap, &run.join("scene.rhai"), &run.join("pose.json"));
+    let mean = now.iter().sum::<f64>() / now.len() as f64;
+    assert!(
+        (mean - r.iou_mean_after).abs() < 1e-6,
+        "{mean} vs {}",
+        r.iou_mean_after
+    );
+    // The before/after sheet came back as an image, under the size a VLM reads.
+    let images: Vec<_> = result["content"]
+        .as_array()
+        .expect("content")
+        .iter()
+        .filter(|b| b["type"] == "image")
+        .collect();
+    assert!(!images.is_empty(), "{resp}");
+    let sheet = image::open(&r.sheets[0]).expect("sheet");
+    assert!(
+        sheet.width() <= 1568 && sheet.height() <= 1568,
+        "{}×{}",
+        sheet.width(),
+        sheet.height()
+    );
+    // The step is a shape step: the turntable gate applies after it.
+    c.call(3, "finish", json!({}));
+    let (fin, _) = c.response(3);
+    assert!(McpClient::text_of(&fin).contains("turntable"), "{fin}");
+}
+
+#[test]
+fn a_scene_edit_that_moves_the_centre_keeps_every_keyframes_iou() {
+    let dir = tempfile::tempdir().expect("tmp");
+    let original = box_script("1.0", "0.7", "0.48");
+    let (cap, run) = run_with(dir.path(), 6, &original);
+    let before = score(&cap, &run.join("scene.rhai"), &run.join("pose.json"));
+    assert!(before.iter().all(|&v| v > 0.97), "{before:?}");
+    let old_poses = dir.path().join("old_pose.json");
+    std::fs::copy(run.join("pose.json"), &old_poses).expect("copy");
+    // Thinner walls (a wider cavity), and every part moved, as re-centring does: the
+    // bounding-box centre moves by about 4 cm at this scale.
+    let edited = original
+        .replace(
+            "box(w - 0.08, d - 0.08, h + 0.02)",
+            "box(w - 0.07, d - 0.07, h + 0.02)",
+        )
+        .replace(
+            ".color(\"#c8553d\")",
+            ".translate(0.1, -0.12, 0.07).color(\"#c8553d\")",
+        )
+        .replace(
+            ".color(\"#f2d0a4\")",
+            ".translate(0.1, -0.12, 0.07).color(\"#f2d0a4\")",
+        )
+        .replace(
+            "origin: [0, d / 2, 0.2]",
+            "origin: [0.1, d / 2 - 0.12, 0.27]",
+        );
+    assert_ne!(edited, original);
+    let (mut c, _) = McpClient::initialised(&run);
+    c.call(2, "scene_write", json!({"script": edited}));
+    let (resp, _) = c.response(2);
+    let body = McpClient::text_of(&resp);
+    assert_eq!(resp["result"]["isError"], false, "{resp}");
+    assert!(body.contains("canonical origin moved"), "{body}");
+    let after = score(&cap, &run.join("scene.rhai"), &run.join("pose.json"));
+    for (k, (b, a)) in before.iter().zip(&after).enumerate() {
+        assert!(
+            (b - a).abs() <= 0.005,
+            "keyframe {k}: IoU {b:.4} before, {a:.4} after\n{body}"
+        );
+    }
+    // Without the compensation the same edit costs far more.
+    let stale = score(&cap, &run.join("scene.rhai"), &old_poses);
+    let worst = before
+        .iter()
+        .zip(&stale)
+        .map(|(b, a)| b - a)
+        .fold(0.0, f64::max);
+    assert!(worst > 0.05, "{stale:?}");
+}
+
+/// `pose.json` with its scale (and every translation) multiplied by `k`: the same
+/// silhouettes at a wrong scale.
+fn rescaled(poses: &Path, k: f64, out: &Path) -> f64 {
+    let mut v: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(poses).expect("read")).expect("json");
+    let truth = v["scale"].as_f64().expect("scale");
+    v["scale"] = json!(truth * k);
+    for (_, f) in v["frames"].as_object_mut().expect("frames").iter_mut() {
+        if let Some(p) = f.get_mut("object_pose").filter(|p| p.is_object()) {
+            let t: Vec<f64> = p["translation"]
+                .as_array()
+                .expect("t")
+                .iter()
+                .map(|x| x.as_f64().expect("n") * k)
+                .collect();
+            p["translation"] = json!(t);
+            if p.get("scale").is_some() {
+                p["scale"] = json!(truth * k);
+            }
+        }
+    }
+    std::fs::write(out, serde_json::to_vec(&v).expect("json")).expect("write");
+    truth
+}
+
+#[test]
+fn scale_comes_back_from_depth_parallax_and_a_stated_size() {
+    let dir = tempfile::tempdir().expect("tmp");
+    let cap = dir.path().join("cap");
+    // A static microwave, an orbiting metric camera, depth (as iTACO has).
+    let o = agentstar(&[
+        "synth",
+        &s(&cap),
+        "--object",
+        "microwave",
+        "--motion",
+        "static-orbit",
+        "--frames",
+        "6",
+        "--size",
+        "160x120",
+        "--no-hands",
+        "--seed",
+        "2",
+    ]);
+    assert!(o.status.success(), "{}", text(&o));
+    let model = cap.join("model/scene.rhai");
+    let wrong = dir.path().join("wrong.json");
+    let truth = rescaled(&cap.join("model/pose.json"), 0.8, &wrong);
+    let estimate = |extra: &[&str]| -> agentstar_agent::fit::ScaleReport {
+        let mut args = vec![
+            "scale".to_string(),
+            "--capture".into(),
+            s(&cap),
+            "--model".into(),
+            s(&model),
+            "--poses".into(),
+            s(&wrong),
+            "--json".into(),
+        ];
+        args.extend(extra.iter().map(|a| a.to_string()));
+        let args: Vec<&str> = args.iter().map(String::as_str).collect();
+        let o = agentstar(&args);
+        assert!(o.status.success(), "{}", text(&o));
+        serde_json::from_slice(&o.stdout).unwrap_or_else(|_| panic!("{}", text(&o)))
+    };
+    let depth = estimate(&["--from", "depth"]);
+    assert!(
+        (depth.scale_after / truth - 1.0).abs() < 0.03,
+        "depth: {} vs {truth}: {depth:?}",
+        depth.scale_after
+    );
+    let parallax = estimate(&["--from", "parallax"]);
+    assert!(
+        (parallax.scale_after / truth - 1.0).abs() < 0.05,
+        "parallax: {} vs {truth}: {parallax:?}",
+        parallax.scale_after
+    );
+    // "The microwave is this long": its longest side in metres.
+    let size = estimate(&[
+        "--from",
+        "size",
+        "--axis",
+        "longest",
+        "--metres",
+        &format!("{truth}"),
+    ]);
+    let longest = {
+        let o = agentstar(&["check", &s(&model), "--json"]);
+        let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("check json");
+        v["canonical"]["longest_side"]
+            .as_f64()
+            .or_else(|| v["longest_side"].as_f64())
+            .expect("longest side")
+    };
+    assert!(
+        (size.scale_after - truth / longest).abs() < 1e-9,
+        "{size:?}"
+    );
+    // Rescaling in place keeps every silhouette: the IoU is what it was.
+    let before = score(&cap, &model, &wrong);
+    let o = agentstar(&[
+        "scale",
+        "--capture",
+        &s(&cap),
+        "--model",
+        &s(&model),
+        "--poses",
+        &s(&wrong),
+        "--from",
+        "depth",
+        "--write",
+    ]);
+    assert!(o.status.success(), "{}", text(&o));
+    let after = score(&cap, &model, &wrong);
+    for (b, a) in before.iter().zip(&after) {
+        assert!((b - a).abs() < 1e-3, "{before:?} vs {after:?}");
+    }
+    let v: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(&wrong).expect("read")).expect("json");
+    assert!((v["scale"].as_f64().expect("scale") / truth - 1.0).abs() < 0.03);
+    // A capture without depth says what to use instead.
+    let flat = dir.path().join("flat");
+    let o = agentstar(&[
+        "synth",
+        &s(&flat),
+        "--object",
+        "box",
+        "--frames",
+        "3",
+        "--size",
+        "160x120",
+    ]);
+    assert!(o.status.success(), "{}", text(&o));
+    let o = agentstar(&[
+        "scale",
+        "--capture",
+        &s(&flat),
+        "--model",
+        &s(&flat.join("model/scene.rhai")),
+        "--poses",
+        &s(&flat.join("model/pose.json")),
+        "--from",
+        "depth",
+    ]);
+    assert!(
+        !o.status.success() && text(&o).contains("no keyframe has depth"),
+        "{}",
+        text(&o)
+    );
+}
