@@ -1,19 +1,69 @@
 //! Committed versions of a pose file (`.agentstar/history/STEM/NNNNNN.json` beside it) and
-//! the one way to change a pose file that keeps them: [`PoseHistory::update`].
+//! the two ways to change a pose file that keep them: [`PoseHistory::update`] (a change of
+//! what is there: a commit, a restore of some frames, a rescale) and [`PoseHistory::write`]
+//! (a whole new file: the tracker's result, a shape fit). Every writer of a pose file calls
+//! one of them with its command ([`command_line`] for a command run from a shell), so every
+//! change is a version that names what made it.
 //!
-//! Every change (a `pose commit`, a restore, the tracker's result, a shape step's joint
-//! reconciliation) holds an exclusive lock on `.agentstar/STEM.lock` for its whole
+//! Every change holds an exclusive lock on `.agentstar/STEM.lock` for its whole
 //! read-modify-write, across threads and processes (`agentstar pose commit` from a shell
 //! and an MCP server on the same run serialise on it). Version numbers are allocated under
 //! that lock and each version file is created with a no-replace link, so two writers can
 //! never claim the same number.
+//!
+//! Versions are read back whole ([`PoseHistory::read_entry`]), frame by frame
+//! ([`PoseHistory::frame_versions`]: one frame's pose in every version) or restored, whole
+//! or for chosen frames ([`PoseHistory::restore_frames`]).
 
-use crate::reports::{HistoryEntry, HistoryRow};
+use crate::reports::{FrameVersion, HistoryEntry, HistoryRow};
 use crate::{AgentError, Result};
-use agentstar_data::posefile::PoseFile;
+use agentstar_data::posefile::{FrameEntry, PoseFile};
 use agentstar_data::DataError;
 use std::io::Write;
 use std::path::{Path, PathBuf};
+
+/// What the first version says when a history starts on a file that already existed.
+pub const INITIAL: &str = "initial version (before the first commit)";
+
+/// This process's command as it is recorded in a history: `agentstar` and its arguments
+/// (arguments with spaces or quotes are quoted).
+pub fn command_line() -> String {
+    let mut words = vec!["agentstar".to_string()];
+    words.extend(std::env::args().skip(1).map(|a| {
+        if a.is_empty() || a.contains(|c: char| c.is_whitespace() || c == '\'' || c == '"') {
+            format!("'{}'", a.replace('\'', "'\\''"))
+        } else {
+            a
+        }
+    }));
+    words.join(" ")
+}
+
+/// An exclusive lock on a file (`flock`), released when dropped; waits for other holders,
+/// across threads and processes. Creates the file and its directory when missing.
+pub fn lock_file(path: &Path) -> Result<PoseLock> {
+    if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir).map_err(|e| DataError::io(dir, e))?;
+    }
+    let file = std::fs::OpenOptions::new()
+        .create(true)
+        .truncate(false)
+        .write(true)
+        .open(path)
+        .map_err(|e| DataError::io(path, e))?;
+    file.lock().map_err(|e| DataError::io(path, e))?;
+    Ok(PoseLock { file })
+}
+
+/// The entry of `frame` (a name or its stem) in `pf`.
+fn entry_of<'a>(pf: &'a PoseFile, frame: &str) -> Option<(&'a String, &'a FrameEntry)> {
+    pf.frames.get_key_value(frame).or_else(|| {
+        let stem = Path::new(frame).file_stem()?.to_str()?;
+        pf.frames
+            .iter()
+            .find(|(k, _)| Path::new(k.as_str()).file_stem().and_then(|s| s.to_str()) == Some(stem))
+    })
+}
 
 /// The history of the pose file at `poses`.
 #[derive(Debug, Clone)]
@@ -75,17 +125,7 @@ impl PoseHistory {
 
     /// Takes the pose file's lock, waiting for other writers.
     pub fn lock(&self) -> Result<PoseLock> {
-        let base = self.base();
-        std::fs::create_dir_all(&base).map_err(|e| DataError::io(&base, e))?;
-        let path = base.join(format!("{}.lock", self.stem()));
-        let file = std::fs::OpenOptions::new()
-            .create(true)
-            .truncate(false)
-            .write(true)
-            .open(&path)
-            .map_err(|e| DataError::io(&path, e))?;
-        file.lock().map_err(|e| DataError::io(&path, e))?;
-        Ok(PoseLock { file })
+        lock_file(&self.base().join(format!("{}.lock", self.stem())))
     }
 
     /// The versions kept, in order.
@@ -190,7 +230,7 @@ impl PoseHistory {
         let lock = self.lock()?;
         let mut pf = PoseFile::read(&self.poses)?;
         if self.versions()?.is_empty() {
-            self.record(&lock, &pf, "initial version (before the first commit)")?;
+            self.record(&lock, &pf, INITIAL)?;
         }
         let out = change(&mut pf)?;
         pf.write(&self.poses)?;
@@ -213,34 +253,151 @@ impl PoseHistory {
             return Ok((out, None));
         }
         if self.versions()?.is_empty() {
-            self.record(&lock, &before, "initial version (before the first commit)")?;
+            self.record(&lock, &before, INITIAL)?;
         }
         pf.write(&self.poses)?;
         let v = self.record(&lock, &pf, command)?;
         Ok((out, Some(v)))
     }
 
+    /// Writes `pose` as the whole pose file and records it as a new version (the one call
+    /// of every writer that makes a new file: the tracker, a shape fit). The file need not
+    /// exist; when it does and has no history yet, it becomes version 0 first. A file
+    /// there that is not a pose file is left alone (an error), never overwritten.
+    pub fn write(&self, pose: &PoseFile, command: &str) -> Result<u64> {
+        let lock = self.lock()?;
+        if self.versions()?.is_empty() && self.poses.exists() {
+            let before = PoseFile::read(&self.poses).map_err(|e| {
+                AgentError::Invalid(format!(
+                    "{} exists and is not a pose file, so it is not overwritten ({e})",
+                    self.poses.display()
+                ))
+            })?;
+            if before != *pose {
+                self.record(&lock, &before, INITIAL)?;
+            }
+        }
+        pose.write(&self.poses)?;
+        self.record(&lock, pose, command)
+    }
+
     /// Replaces the pose file with `pose` (recorded as a new version).
     pub fn replace(&self, pose: PoseFile, command: &str) -> Result<u64> {
-        self.update(command, |pf| {
-            *pf = pose;
-            Ok(())
-        })
-        .map(|(_, v)| v)
+        self.write(&pose, command)
+    }
+
+    /// The entry of version `version`; an error listing the versions when there is none.
+    pub fn entry(&self, version: u64) -> Result<HistoryEntry> {
+        let list = self.versions()?;
+        let Some((_, path)) = list.iter().find(|(n, _)| *n == version) else {
+            return Err(AgentError::Invalid(format!(
+                "no version {version} of {}; {}",
+                self.poses.display(),
+                if list.is_empty() {
+                    "it has no versions yet".to_string()
+                } else {
+                    format!(
+                        "versions are {}..{} ({} kept)",
+                        list[0].0,
+                        list[list.len() - 1].0,
+                        list.len()
+                    )
+                }
+            )));
+        };
+        Self::read_entry(path)
     }
 
     /// Makes version `version` current again (recorded as a new version).
     pub fn restore(&self, version: u64) -> Result<u64> {
-        let list = self.versions()?;
-        let Some((_, path)) = list.iter().find(|(n, _)| *n == version) else {
-            return Err(AgentError::Invalid(format!(
-                "no version {version} of {}; versions are {:?}",
-                self.poses.display(),
-                list.iter().map(|(n, _)| *n).collect::<Vec<_>>()
-            )));
+        self.restore_frames(version, None).map(|(_, v)| v)
+    }
+
+    /// Restores `frames` (names as the pose file keys them, or their stems) from version
+    /// `version`, leaving every other frame as it is; `None` restores the whole file. The
+    /// restored frames get the version's pose and joint states (joints the current file no
+    /// longer has are dropped, new ones keep their current value). Refused when the
+    /// version's scale differs (its translations mean something else). Returns the frames
+    /// restored and the new version.
+    pub fn restore_frames(
+        &self,
+        version: u64,
+        frames: Option<&[String]>,
+    ) -> Result<(Vec<String>, u64)> {
+        let entry = self.entry(version)?;
+        let Some(frames) = frames else {
+            let names: Vec<String> = entry.pose.frames.keys().cloned().collect();
+            let v = self.write(&entry.pose, &format!("restore version {version}"))?;
+            return Ok((names, v));
         };
-        let entry = Self::read_entry(path)?;
-        self.replace(entry.pose, &format!("restore version {version}"))
+        if frames.is_empty() {
+            return Err(AgentError::Invalid("no frame to restore".into()));
+        }
+        let command = format!("restore {} of version {version}", frames.join(","));
+        self.update(&command, |pf| {
+            if (entry.pose.scale - pf.scale).abs() > 1e-9 * pf.scale.abs() {
+                return Err(AgentError::Invalid(format!(
+                    "version {version} has scale {} but {} has scale {}; restore the whole version, or frames of a version at this scale",
+                    entry.pose.scale,
+                    self.poses.display(),
+                    pf.scale
+                )));
+            }
+            let known: Vec<String> = pf.joint_defs.iter().map(|j| j.name.clone()).collect();
+            let mut done = Vec::new();
+            for f in frames {
+                let Some((_, old)) = entry_of(&entry.pose, f) else {
+                    return Err(AgentError::Invalid(format!(
+                        "version {version} has no pose for frame {f}"
+                    )));
+                };
+                let key = entry_of(pf, f)
+                    .map(|(k, _)| k.clone())
+                    .unwrap_or_else(|| f.clone());
+                let e = pf.frames.entry(key.clone()).or_default();
+                e.object_pose = old.object_pose.clone();
+                if let Some(p) = e.object_pose.as_mut() {
+                    p.scale = Some(pf.scale);
+                }
+                for (name, value) in &old.joints {
+                    if known.is_empty() || known.contains(name) {
+                        e.joints.insert(name.clone(), *value);
+                    }
+                }
+                e.moved = true;
+                done.push(key);
+            }
+            Ok(done)
+        })
+    }
+
+    /// Frame `frame` (a name or its stem) in every version, oldest first: its pose and
+    /// joint states, and the earlier version it is identical to (so a person sees where it
+    /// changed). Scores are left for the caller, who has the renderer.
+    pub fn frame_versions(&self, frame: &str) -> Result<Vec<FrameVersion>> {
+        let mut out: Vec<FrameVersion> = Vec::new();
+        for (_, path) in self.versions()? {
+            let e = Self::read_entry(&path)?;
+            let entry = entry_of(&e.pose, frame).map(|(_, v)| v.clone());
+            let pose = entry.as_ref().and_then(|x| x.object_pose.clone());
+            let joints = entry.map(|x| x.joints).unwrap_or_default();
+            let same_as = out
+                .iter()
+                .rev()
+                .find(|o| o.pose == pose && o.joints == joints && o.scale == e.pose.scale)
+                .map(|o| o.same_as.unwrap_or(o.version));
+            out.push(FrameVersion {
+                version: e.version,
+                time_unix_s: e.time_unix_s,
+                command: e.command,
+                scale: e.pose.scale,
+                pose,
+                joints,
+                same_as,
+                iou_visible: None,
+            });
+        }
+        Ok(out)
     }
 }
 
@@ -312,5 +469,89 @@ mod tests {
         .expect("update");
         assert_eq!(h.restore(0).expect("restore"), 2);
         assert_eq!(PoseFile::read(h.poses()).expect("read").scale, 0.2);
+    }
+
+    fn moved_to(pf: &mut PoseFile, frame: &str, x: f64) {
+        let e = pf.frames.entry(frame.to_string()).or_default();
+        e.object_pose = Some(agentstar_data::posefile::PoseJson {
+            quaternion: [1.0, 0.0, 0.0, 0.0],
+            translation: [x, 0.0, 1.0],
+            scale: Some(pf.scale),
+        });
+        e.moved = true;
+    }
+
+    #[test]
+    fn restoring_frames_of_an_old_version_leaves_the_others() {
+        let dir = tempfile::tempdir().expect("tmp");
+        let h = PoseHistory::new(&pose_file(dir.path()));
+        // v0 the file, v1 both frames at x = 1, v2 both at x = 2.
+        for x in [1.0, 2.0] {
+            h.update(&format!("move to {x}"), |pf| {
+                moved_to(pf, "a.png", x);
+                moved_to(pf, "b.png", x);
+                Ok(())
+            })
+            .expect("update");
+        }
+        let (done, v) = h
+            .restore_frames(1, Some(&["a".to_string()]))
+            .expect("restore a");
+        assert_eq!((done, v), (vec!["a.png".to_string()], 3));
+        let pf = PoseFile::read(h.poses()).expect("read");
+        let x = |f: &str| pf.frames[f].object_pose.as_ref().expect("pose").translation[0];
+        assert_eq!((x("a.png"), x("b.png")), (1.0, 2.0));
+        assert_eq!(h.rows().expect("rows")[3].command, "restore a of version 1");
+        // A frame the version lacks, and a version at another scale, are refused.
+        let e = h
+            .restore_frames(0, Some(&["b.png".to_string()]))
+            .expect_err("b not in v0");
+        assert!(e.to_string().contains("no pose for frame b.png"), "{e}");
+        h.update("rescale", |pf| {
+            pf.scale = 0.4;
+            for e in pf.frames.values_mut() {
+                if let Some(p) = e.object_pose.as_mut() {
+                    p.scale = Some(0.4);
+                }
+            }
+            Ok(())
+        })
+        .expect("update");
+        let e = h
+            .restore_frames(1, Some(&["a.png".to_string()]))
+            .expect_err("scale");
+        assert!(e.to_string().contains("scale 0.2"), "{e}");
+        // One frame across the versions: where it changed and where it came back.
+        let rows = h.frame_versions("a").expect("frame versions");
+        let xs: Vec<Option<f64>> = rows
+            .iter()
+            .map(|r| r.pose.as_ref().map(|p| p.translation[0]))
+            .collect();
+        assert_eq!(xs, [Some(0.0), Some(1.0), Some(2.0), Some(1.0), Some(1.0)]);
+        let same: Vec<Option<u64>> = rows.iter().map(|r| r.same_as).collect();
+        // v3 restored v1's pose; v4 changed the scale, so it is a pose of its own.
+        assert_eq!(same, [None, None, None, Some(1), None]);
+    }
+
+    #[test]
+    fn a_whole_file_write_starts_or_extends_the_history_and_never_clobbers() {
+        let dir = tempfile::tempdir().expect("tmp");
+        let src = PoseFile::read(&pose_file(dir.path())).expect("read");
+        // No file yet: the write is version 0.
+        let fresh = PoseHistory::new(&dir.path().join("out/tracked.json"));
+        assert_eq!(fresh.write(&src, "track").expect("write"), 0);
+        assert_eq!(fresh.rows().expect("rows")[0].command, "track");
+        // An existing file without a history becomes version 0 first.
+        let h = PoseHistory::new(&dir.path().join("pose.json"));
+        let mut tracked = src.clone();
+        moved_to(&mut tracked, "a.png", 3.0);
+        assert_eq!(h.write(&tracked, "track again").expect("write"), 1);
+        assert_eq!(h.rows().expect("rows")[0].command, INITIAL);
+        // Something that is not a pose file is left as it is.
+        let junk = dir.path().join("junk.json");
+        std::fs::write(&junk, "{\"not\": 1}").expect("w");
+        let e = PoseHistory::new(&junk).write(&src, "x").expect_err("junk");
+        assert!(e.to_string().contains("not a pose file"), "{e}");
+        assert_eq!(std::fs::read_to_string(&junk).expect("r"), "{\"not\": 1}");
     }
 }

@@ -6,7 +6,7 @@
 //! Free-form diagnostics that nothing reads back (a search's restarts, score fields) stay
 //! [`serde_json::Value`] inside the typed reports.
 
-use agentstar_data::posefile::PoseFile;
+use agentstar_data::posefile::{JointDefJson, PoseFile, PoseJson};
 use serde::{Deserialize, Serialize};
 use serde_json::Value;
 use std::collections::BTreeMap;
@@ -235,6 +235,9 @@ pub struct TrackReport {
     pub log: Vec<String>,
     pub frames: Vec<FrameScore>,
     pub sequence: SequenceScore,
+    /// The version of the pose file's history the result was recorded as.
+    #[serde(default)]
+    pub pose_version: Option<u64>,
 }
 
 /// One joint's articulation errors in an [`EvalReport`].
@@ -307,6 +310,50 @@ pub struct HistoryRow {
     pub command: String,
 }
 
+/// What `pose history --json` prints without `--frame` (and the `pose_history` tool's
+/// report): the last versions, oldest first.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct HistoryReport {
+    pub poses: PathBuf,
+    /// Versions kept in all.
+    pub total: usize,
+    /// The rows shown (the last ones when limited).
+    pub versions: Vec<HistoryRow>,
+}
+
+/// One frame in one version of a pose file.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct FrameVersion {
+    pub version: u64,
+    pub time_unix_s: u64,
+    pub command: String,
+    /// The version's shared scale.
+    pub scale: f64,
+    /// The frame's pose in that version (`None`: the version has none for it).
+    pub pose: Option<PoseJson>,
+    /// Joint states in interface units (degrees, metres).
+    pub joints: BTreeMap<String, f64>,
+    /// The first earlier version with the same pose, joint states and scale.
+    pub same_as: Option<u64>,
+    /// The visible IoU of that pose with the current model (when scored).
+    pub iou_visible: Option<f64>,
+}
+
+/// What `pose history --frame F --json` prints (and the `pose_history` tool with `frame`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct FrameHistoryReport {
+    pub poses: PathBuf,
+    pub frame: String,
+    /// The model the poses were scored with, when they were.
+    pub model: Option<PathBuf>,
+    pub versions: Vec<FrameVersion>,
+    /// Why some versions have no score (a model whose joints differ, …).
+    pub notes: Vec<String>,
+}
+
 /// What `pose commit --json` prints.
 #[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -314,6 +361,198 @@ pub struct CommitReport {
     pub committed: Vec<String>,
     pub version: u64,
     pub poses: PathBuf,
+    /// What the poses came from: `search report`, `pose file` or `history version N`.
+    #[serde(default)]
+    pub source: String,
+}
+
+/// What `pose restore --json` prints.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RestoreReport {
+    /// The version restored from.
+    pub from_version: u64,
+    /// The frames restored (every frame of the version for a whole restore).
+    pub frames: Vec<String>,
+    /// The new version.
+    pub version: u64,
+    pub poses: PathBuf,
+}
+
+/// Anything `pose commit` takes poses from, recognised by its fields.
+#[derive(Debug, Clone, PartialEq)]
+pub enum PoseSource {
+    /// A search verb's report: a ranked candidate per frame.
+    Search(Box<SearchReport>),
+    /// A pose file (a track's `pose.json`, another run's poses).
+    Poses(Box<PoseFile>),
+    /// A version of a pose file's history.
+    Version(Box<HistoryEntry>),
+}
+
+/// The fields that tell the sources apart.
+#[derive(Deserialize)]
+struct Probe {
+    verb: Option<serde::de::IgnoredAny>,
+    version: Option<serde::de::IgnoredAny>,
+    pose: Option<serde::de::IgnoredAny>,
+    log: Option<serde::de::IgnoredAny>,
+}
+
+impl PoseSource {
+    /// Reads `path` as a search report, a history version, a track report (whose pose file
+    /// it names, relative to the report's directory when it is not found as given) or a
+    /// pose file; the error names the file and what it was taken for.
+    pub fn read(path: &Path) -> crate::Result<PoseSource> {
+        let text = agentstar_data::read_text(path)?;
+        let bad = |what: &str, e: String| {
+            crate::AgentError::Data(agentstar_data::DataError::invalid(
+                path,
+                format!("not a {what}: {e}"),
+            ))
+        };
+        let probe: Probe = serde_json::from_str(&text).map_err(|e| {
+            bad(
+                "search report, pose file or history version (not a JSON object)",
+                e.to_string(),
+            )
+        })?;
+        if probe.verb.is_some() {
+            return Ok(PoseSource::Search(Box::new(SearchReport::read(path)?)));
+        }
+        if probe.version.is_some() && probe.pose.is_some() {
+            let e: HistoryEntry = serde_json::from_str(&text)
+                .map_err(|e| bad("pose history version", e.to_string()))?;
+            return Ok(PoseSource::Version(Box::new(e)));
+        }
+        if probe.log.is_some() {
+            let r: TrackReport =
+                serde_json::from_str(&text).map_err(|e| bad("track report", e.to_string()))?;
+            let named = if r.poses.is_file() || r.poses.is_absolute() {
+                r.poses.clone()
+            } else {
+                path.parent().unwrap_or(Path::new(".")).join(&r.poses)
+            };
+            return Ok(PoseSource::Poses(Box::new(PoseFile::read(&named)?)));
+        }
+        Ok(PoseSource::Poses(Box::new(PoseFile::read(path)?)))
+    }
+
+    /// What the source is, for messages and the history.
+    pub fn describe(&self) -> String {
+        match self {
+            PoseSource::Search(r) => format!("{} report", r.verb.command()),
+            PoseSource::Poses(_) => "pose file".into(),
+            PoseSource::Version(e) => format!("history version {}", e.version),
+        }
+    }
+}
+
+/// The units of a [`TemporalReport`].
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TemporalUnits {
+    pub rotation: String,
+    pub translation: String,
+    pub joints: String,
+}
+
+/// Rotation, translation and radial motion of one step (velocity) or change of step
+/// (acceleration); `None` where a neighbour is missing.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Motion {
+    pub rotation_deg: Option<f64>,
+    pub translation_canon: Option<f64>,
+    pub radial_canon: Option<f64>,
+}
+
+/// One joint in a [`TemporalRow`] (interface units: degrees or canonical units).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct JointMotion {
+    pub state: f64,
+    pub velocity: Option<f64>,
+    pub acceleration: Option<f64>,
+}
+
+/// One keyframe of a [`TemporalReport`]: the step arriving at it.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TemporalRow {
+    pub frame: String,
+    pub from: Option<String>,
+    pub frame_gap: Option<i64>,
+    pub velocity: Motion,
+    pub acceleration: Motion,
+    pub joints: BTreeMap<String, JointMotion>,
+}
+
+/// What `temporal --json` prints.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TemporalReport {
+    /// `oriented` (camera motion removed) or `camera`.
+    pub pose_frame: String,
+    pub units: TemporalUnits,
+    pub warnings: Vec<String>,
+    pub frames: Vec<TemporalRow>,
+}
+
+/// What `pose-diff` prints: the residual between two keyframes' poses.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PoseDiffReport {
+    pub from: String,
+    pub to: String,
+    pub pose_frame: String,
+    pub rotation_deg: f64,
+    /// The rotation axis in the first frame's object frame; `None` for no rotation.
+    pub axis_body: Option<[f64; 3]>,
+    pub translation_canon: [f64; 3],
+    pub translation_dist_canon: f64,
+    pub translation_dist: f64,
+    /// Joint changes (b − a) in interface units.
+    pub joints: BTreeMap<String, f64>,
+}
+
+/// One part in a [`CheckReport`].
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CheckPart {
+    pub name: String,
+    pub triangles: usize,
+    pub watertight: bool,
+    /// Only for watertight parts.
+    pub volume: Option<f64>,
+    pub bbox_min: [f64; 3],
+    pub bbox_max: [f64; 3],
+    pub color: [f32; 3],
+}
+
+/// The canonical frame of a model in a [`CheckReport`].
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CheckCanonical {
+    pub bbox_min: [f64; 3],
+    pub bbox_max: [f64; 3],
+    pub extent: [f64; 3],
+    pub center: [f64; 3],
+    pub longest_side: f64,
+    pub triangles: usize,
+}
+
+/// What `check --json` prints (and `scene_read` / `scene_write` show).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CheckReport {
+    pub model: PathBuf,
+    pub parts: Vec<CheckPart>,
+    pub joints: Vec<JointDefJson>,
+    pub canonical: CheckCanonical,
+    pub warnings: Vec<String>,
+    /// What the script printed.
+    pub printed: Vec<String>,
 }
 
 #[cfg(test)]

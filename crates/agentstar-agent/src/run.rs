@@ -25,6 +25,29 @@ pub struct RunFile {
     pub model: PathBuf,
     #[serde(default = "default_poses")]
     pub poses: PathBuf,
+    /// What `finish` accepts.
+    #[serde(default)]
+    pub finish: FinishPolicy,
+}
+
+/// What the `finish` tool accepts (`run.json`'s `finish`; every field optional).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct FinishPolicy {
+    /// The largest share of keyframes that may be under the IoU gate, even with reasons.
+    pub max_share_under_gate: f64,
+    /// An `occlusion` reason is accepted when at least this share of the rendered model
+    /// is hidden, percent.
+    pub min_occlusion_percent: f64,
+}
+
+impl Default for FinishPolicy {
+    fn default() -> Self {
+        FinishPolicy {
+            max_share_under_gate: 0.25,
+            min_occlusion_percent: 30.0,
+        }
+    }
 }
 
 fn default_model() -> PathBuf {
@@ -43,6 +66,17 @@ impl RunFile {
         }
         let mut rf: RunFile = serde_json::from_str(&agentstar_data::read_text(&p)?)
             .map_err(|e| AgentError::Invalid(format!("{}: not a run file: {e}", p.display())))?;
+        let f = rf.finish;
+        if !(0.0..=1.0).contains(&f.max_share_under_gate)
+            || !(0.0..=100.0).contains(&f.min_occlusion_percent)
+        {
+            return Err(AgentError::Invalid(format!(
+                "{}: finish.max_share_under_gate must be in [0, 1] and finish.min_occlusion_percent in [0, 100] (they are {} and {})",
+                p.display(),
+                f.max_share_under_gate,
+                f.min_occlusion_percent
+            )));
+        }
         for path in [&mut rf.capture, &mut rf.model, &mut rf.poses] {
             if path.is_relative() {
                 *path = run.join(&*path);
@@ -64,6 +98,8 @@ pub struct RunDir {
     pub capture: PathBuf,
     pub scene: PathBuf,
     pub poses: PathBuf,
+    /// What `finish` accepts (from `run.json`).
+    pub finish: FinishPolicy,
 }
 
 /// Where a run stands, read back from its ledger (to resume).
@@ -95,6 +131,7 @@ impl RunDir {
             capture: rf.capture,
             scene: rf.model,
             poses: rf.poses,
+            finish: rf.finish,
         })
     }
 
@@ -109,6 +146,12 @@ impl RunDir {
     }
     pub fn scene_versions(&self) -> PathBuf {
         self.dir.join(".agentstar").join("scenes")
+    }
+    /// Takes the run's scene lock (`.agentstar/scene.lock`), held while the scene and its
+    /// versions change, across processes: two servers on one run never give one version
+    /// twice.
+    pub fn lock_scene(&self) -> Result<crate::history::PoseLock> {
+        crate::history::lock_file(&self.dir.join(".agentstar").join("scene.lock"))
     }
     /// The output directory of step `step` of `tool`.
     pub fn step_dir(&self, step: u64, tool: &str) -> PathBuf {
@@ -225,6 +268,7 @@ pub fn init_run(dir: &Path, capture: &Path, scene: Option<&str>, scale: f64) -> 
         capture: capture_abs,
         model: default_model(),
         poses: default_poses(),
+        finish: FinishPolicy::default(),
     };
     let write = |name: &str, bytes: &[u8]| -> Result<()> {
         Ok(agentstar_data::atomic::write_atomic(

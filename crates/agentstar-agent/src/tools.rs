@@ -21,13 +21,13 @@
 
 use crate::history::PoseHistory;
 use crate::reports::{
-    CommitReport, HistoryRow, ScoreReport, SearchReport, SearchVerb, TrackReport, GATE_IOU,
+    CheckReport, CommitReport, FrameHistoryReport, HistoryReport, PoseDiffReport, RestoreReport,
+    ScoreReport, SearchReport, SearchVerb, TrackReport, GATE_IOU,
 };
 use crate::run::RunDir;
 use crate::task::task_document;
 use crate::view_reports::{RenderReport, TurntableReport};
 use crate::{AgentError, Result};
-use agentstar_data::posefile::PoseFile;
 use schemars::JsonSchema;
 use serde::de::DeserializeOwned;
 use serde::Deserialize;
@@ -306,8 +306,32 @@ pub struct SceneWriteArgs {
 #[derive(Debug, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct VersionArgs {
+    /// A scene version (they start at 1, the starting scene).
     #[schemars(range(min = 1))]
     pub version: u64,
+}
+
+#[derive(Debug, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct PoseRestoreArgs {
+    /// A pose version as `pose_history` lists them (0 is the first).
+    #[schemars(range(min = 0))]
+    pub version: u64,
+    /// Only these keyframes (same grammar as `frames`); the others stay as they are.
+    /// Default: the whole file.
+    pub frames: Option<String>,
+}
+
+#[derive(Debug, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct PoseHistoryArgs {
+    /// One keyframe (name, stem or number): its pose and visible IoU (with the current
+    /// model) in every version, and where it changed.
+    #[schemars(length(min = 1))]
+    pub frame: Option<String>,
+    /// Only the last N versions (default 50).
+    #[schemars(range(min = 1))]
+    pub last: Option<u64>,
 }
 
 #[derive(Debug, Deserialize, JsonSchema)]
@@ -380,9 +404,17 @@ pub struct TurntableArgs {
 #[derive(Debug, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct TrackArgs {
-    /// Metres per model unit (default: the scale in pose.json).
+    /// Metres per model unit (default: the scale in pose.json, or in `from`).
     #[schemars(extend("exclusiveMinimum" = 0))]
     pub scale: Option<f64>,
+    /// Refine these poses instead of tracking from scratch (a warm start, cheap after a
+    /// shape edit): `pose.json` for the current poses, or another pose file in the run.
+    #[schemars(length(min = 1))]
+    pub from: Option<String>,
+    /// With `from`: keyframes kept exactly and carried to their neighbours (same grammar
+    /// as `frames`).
+    #[schemars(length(min = 1))]
+    pub anchors: Option<String>,
 }
 
 /// A sweep's search strategy.
@@ -451,10 +483,11 @@ pub struct OapplyAllArgs {
 #[derive(Debug, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct PoseCommitArgs {
-    /// The report a search returned (inside the run directory).
+    /// Where the poses come from (inside the run directory): the report a search returned,
+    /// a pose file (a track's pose.json) or a history version file.
     #[schemars(length(min = 1))]
     pub report: String,
-    /// The candidate's rank (0 = best).
+    /// The candidate's rank in a search report (0 = best).
     #[schemars(range(min = 0))]
     pub rank: Option<u64>,
     /// Only these frames of the report (same grammar as `frames`).
@@ -495,8 +528,9 @@ pub struct NotesArgs {
 #[derive(Debug, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct FinishArgs {
-    /// Keyframe name → why it cannot reach the gate.
-    pub unreachable: Option<BTreeMap<String, String>>,
+    /// Keyframes (a name, stem, number or `a..b` range) → why they cannot reach the gate,
+    /// one of the categories.
+    pub unreachable: Option<BTreeMap<String, Unreachable>>,
     #[schemars(length(max = 4000))]
     pub summary: Option<String>,
 }
@@ -541,6 +575,44 @@ pub struct ScaleArgs {
     pub frames: Option<String>,
     /// Rescale pose.json to the estimate (a pose version); default false: estimate only.
     pub apply: Option<bool>,
+}
+
+/// Why a keyframe cannot reach the gate: the categories `finish` accepts, each checked.
+#[derive(Debug, Clone, PartialEq, Deserialize, JsonSchema)]
+#[serde(tag = "category", rename_all = "snake_case", deny_unknown_fields)]
+pub enum Unreachable {
+    /// Hands or other occluders hide much of the object: accepted when the hidden share
+    /// of the rendered model is over the run's threshold (`finish.min_occlusion_percent`
+    /// in run.json, default 30).
+    Occlusion {
+        /// The share of the object you judge hidden, percent.
+        percent: f64,
+    },
+    /// The mask is wrong here: name an image of this run that shows it (a render or a
+    /// frames view).
+    MaskError {
+        /// Path of the image (inside the run directory or the capture).
+        image: String,
+        note: Option<String>,
+    },
+    /// The object is cut by the frame border (accepted when its mask touches the border).
+    Truncated { note: Option<String> },
+    /// The model cannot reach it (a deforming part, a part the model lacks): say what.
+    OutOfReach {
+        /// What the model cannot do here (at least 20 characters).
+        note: String,
+    },
+}
+
+impl Unreachable {
+    fn label(&self) -> &'static str {
+        match self {
+            Unreachable::Occlusion { .. } => "occlusion",
+            Unreachable::MaskError { .. } => "mask error",
+            Unreachable::Truncated { .. } => "truncated",
+            Unreachable::OutOfReach { .. } => "out of reach",
+        }
+    }
 }
 
 /// The arguments of the built-in loop's `delegate_pose` (run by the loop, not the toolbox).
@@ -733,7 +805,7 @@ tool!(Turntable, "turntable", Diagnostic, Nothing, TurntableArgs,
     });
 
 tool!(Track, "track", Pose, Poses, TrackArgs,
-    "Run the automatic tracker over every keyframe with the current model and scale (a pose step for all keyframes; the previous pose.json is kept as a version). Use it once the shape is right, then fix the frames it gets wrong with sweeps and flips.",
+    "Run the automatic tracker over every keyframe with the current model and scale (a pose step for all keyframes; the result is a new pose version, the previous ones stay in pose_history). Use it once the shape is right, then fix the frames it gets wrong with sweeps and flips. After a shape edit, `from: \"pose.json\"` refines the current poses instead of starting over (cheap), and `anchors` keeps the keyframes you trust exactly and carries them to their neighbours.",
     |tb, a, step| tb.track(&a, step));
 
 tool!(Sweep, "sweep", Pose, Nothing, SweepArgs,
@@ -780,7 +852,7 @@ tool!(OapplyAll, "oapply_all", Pose, Nothing, OapplyAllArgs,
     });
 
 tool!(PoseCommit, "pose_commit", Pose, Poses, PoseCommitArgs,
-    "Commit a candidate of a search report to pose.json (atomically; the previous pose.json becomes a version). `report` is the path a search returned.",
+    "Put poses into pose.json (atomically, as a new pose version). `report` is the path a search returned (then `rank` picks the candidate), a pose file (a track's pose.json) or a history version file; `frames` limits it to some keyframes.",
     |tb, a, _step| tb.pose_commit(&a));
 
 tool!(
@@ -788,24 +860,9 @@ tool!(
     "pose_history",
     Diagnostic,
     Nothing,
-    NoArgs,
-    "List the committed pose versions with the command that made each.",
-    |tb, _a, _step| {
-        let rows: Vec<HistoryRow> = PoseHistory::new(&tb.run.poses).rows()?;
-        let mut text = if rows.is_empty() {
-            "no committed pose versions yet\n".to_string()
-        } else {
-            String::new()
-        };
-        for r in &rows {
-            text.push_str(&format!("{:>4}  {}\n", r.version, r.command));
-        }
-        Ok(ToolOutput {
-            text,
-            structured: Some(serde_json::json!({ "versions": rows })),
-            ..Default::default()
-        })
-    }
+    PoseHistoryArgs,
+    "List the pose versions with the command that made each (the last 50 unless `last` says). With `frame`: that keyframe's pose and visible IoU (with the current model) in every version, and where it changed; restore a good one with pose_restore and `frames`.",
+    |tb, a, _step| tb.pose_history(&a)
 );
 
 tool!(
@@ -813,25 +870,9 @@ tool!(
     "pose_restore",
     Pose,
     Poses,
-    VersionArgs,
-    "Make an earlier pose version current again.",
-    |tb, a, _step| {
-        if tb.window.is_some() {
-            return Ok(ToolOutput::error(
-                "a pose sub-agent cannot restore the whole pose file",
-            ));
-        }
-        let v = PoseHistory::new(&tb.run.poses).restore(a.version)?;
-        Ok(ToolOutput {
-            text: format!(
-                "restored version {} of pose.json (recorded as version {v})",
-                a.version
-            ),
-            pose_changed: true,
-            pose_version: Some(v),
-            ..Default::default()
-        })
-    }
+    PoseRestoreArgs,
+    "Make an earlier pose version current again (recorded as a new version), whole or only for some keyframes (`frames`; the others stay as they are). Versions are listed by pose_history.",
+    |tb, a, _step| tb.pose_restore(&a)
 );
 
 tool!(Temporal, "temporal", Diagnostic, Nothing, TemporalArgs,
@@ -863,10 +904,15 @@ tool!(
         args.extend(tb.session_args());
         args.extend(["--a".into(), a.a.clone(), "--b".into(), a.b.clone()]);
         let (ok, stdout, stderr) = tb.exec(&args)?;
-        Ok(if ok {
-            ToolOutput::text(stdout)
-        } else {
-            ToolOutput::error(stderr.trim().to_string())
+        if !ok {
+            return Ok(ToolOutput::error(stderr.trim().to_string()));
+        }
+        let report: PoseDiffReport = serde_json::from_str(&stdout)
+            .map_err(|e| AgentError::Tool(format!("pose-diff printed no report ({e})")))?;
+        Ok(ToolOutput {
+            text: stdout,
+            structured: serde_json::to_value(&report).ok(),
+            ..Default::default()
         })
     }
 );
@@ -901,7 +947,7 @@ tool!(Scale, "scale", Pose, Poses, ScaleArgs,
     |tb, a, step| tb.scale(&a, step));
 
 tool!(Finish, "finish", Diagnostic, Nothing, FinishArgs,
-    "Check the gates and end the run when they hold: every keyframe's visible IoU ≥ 0.98 or a reason for it in `unreachable`; a turntable after the last shape change; a temporal report after the last pose change. Returns what is missing otherwise.",
+    "Check the gates and end the run when they hold: every keyframe's visible IoU ≥ 0.98 or a checked reason for it in `unreachable` (categories: occlusion over the run's threshold, a mask error shown on an image, truncated by the frame border, out of the model's reach with a note); at most a quarter of the keyframes (the run's `finish.max_share_under_gate`) under the gate even with reasons; a turntable after the last shape change; a temporal report after the last pose change. Returns what is missing otherwise.",
     |tb, a, _step| tb.finish(&a));
 
 /// Every tool, in the order offered.
@@ -1417,30 +1463,55 @@ impl Toolbox {
         })
     }
 
-    fn track(&self, a: &TrackArgs, step: u64) -> Result<ToolOutput> {
+    /// `agentstar track` writing pose.json itself, as a version of its history (the
+    /// command that made it is recorded there, the step in the ledger).
+    fn track(&self, a: &TrackArgs, _step: u64) -> Result<ToolOutput> {
         if self.window.is_some() {
             return Ok(ToolOutput::error(
                 "track changes every keyframe; a pose sub-agent works on its window with sweeps and flips",
             ));
         }
-        let out = self.run.step_dir(step, Track::NAME);
-        std::fs::create_dir_all(&out).map_err(|e| agentstar_data::DataError::io(&out, e))?;
-        let before = out.join("pose_before.json");
-        std::fs::copy(&self.run.poses, &before)
-            .map_err(|e| agentstar_data::DataError::io(&before, e))?;
-        let tracked = out.join("pose.json");
         let mut args = vec![
             "track".to_string(),
             self.run.capture.display().to_string(),
             "--model".into(),
             self.run.scene.display().to_string(),
             "--out".into(),
-            tracked.display().to_string(),
+            self.run.poses.display().to_string(),
             "--json".into(),
         ];
-        match a.scale {
-            Some(s) => args.extend(["--scale".into(), s.to_string()]),
-            None => args.extend(["--scale-from".into(), self.run.poses.display().to_string()]),
+        let from = a.from.as_deref().map(str::trim).filter(|f| !f.is_empty());
+        let anchors = a
+            .anchors
+            .as_deref()
+            .map(str::trim)
+            .filter(|f| !f.is_empty());
+        match (from, anchors) {
+            (None, Some(_)) => {
+                return Ok(ToolOutput::error(
+                    "track: `anchors` keeps keyframes of a warm start; give `from` too (\"pose.json\" for the current poses)",
+                ))
+            }
+            (Some(f), _) => {
+                let path = match self.confine(f) {
+                    Ok(p) => p,
+                    Err(e) => return Ok(ToolOutput::error(format!("track: {e}"))),
+                };
+                args.extend(["--from".into(), path.display().to_string()]);
+                if let Some(spec) = anchors {
+                    // The frame grammar, checked here so a bad name is the tool's error.
+                    let names = self.frame_names(Some(spec))?;
+                    args.extend(["--anchors".into(), names.join(",")]);
+                }
+            }
+            (None, None) => {}
+        }
+        match (a.scale, from) {
+            (Some(s), _) => args.extend(["--scale".into(), s.to_string()]),
+            (None, Some(_)) => {}
+            (None, None) => {
+                args.extend(["--scale-from".into(), self.run.poses.display().to_string()])
+            }
         }
         let (ok, stdout, stderr) = self.exec(&args)?;
         if !ok {
@@ -1448,17 +1519,16 @@ impl Toolbox {
         }
         let report: TrackReport = serde_json::from_str(&stdout)
             .map_err(|e| AgentError::Tool(format!("track printed no track report ({e})")))?;
-        let pf = PoseFile::read(&tracked)?;
-        let version =
-            PoseHistory::new(&self.run.poses).replace(pf, &format!("track (step {step})"))?;
+        let version = report
+            .pose_version
+            .ok_or_else(|| AgentError::Tool("track recorded no pose version".into()))?;
         let mut scores = BTreeMap::new();
         scores.insert("iou_min".into(), report.sequence.min_iou_visible);
         scores.insert("iou_mean".into(), report.sequence.mean_iou_visible);
         Ok(ToolOutput {
             text: format!(
-                "{}\npose.json is version {version}; the previous poses are kept in {}.",
-                stdout.trim(),
-                before.display()
+                "{}\npose.json is version {version}; the earlier versions are in pose_history.",
+                stdout.trim()
             ),
             pose_changed: true,
             pose_version: Some(version),
@@ -1525,13 +1595,19 @@ impl Toolbox {
             self.run.scene.display().to_string(),
             "--json".into(),
         ])?;
-        Ok(ToolOutput::text(format!(
-            "scene.rhai (versions saved: {:?}):\n```rhai\n{}\n```\ncheck:\n{}{}",
-            self.run.list_scene_versions(),
-            script.trim_end(),
-            check.trim(),
-            stderr.trim()
-        )))
+        // The check's report, typed (absent when the scene does not build).
+        let report: Option<CheckReport> = serde_json::from_str(&check).ok();
+        Ok(ToolOutput {
+            text: format!(
+                "scene.rhai (versions saved: {:?}):\n```rhai\n{}\n```\ncheck:\n{}{}",
+                self.run.list_scene_versions(),
+                script.trim_end(),
+                check.trim(),
+                stderr.trim()
+            ),
+            structured: report.and_then(|r| serde_json::to_value(&r).ok()),
+            ..Default::default()
+        })
     }
 
     /// Checks `script` in the sandbox from a candidate file of its own (beside the scene,
@@ -1576,6 +1652,9 @@ impl Toolbox {
         let before = agentstar_data::scenefile::load_model(&self.run.scene)
             .ok()
             .map(|m| m.model);
+        // The scene and its version change together under the run's scene lock, which
+        // every process serving this run (two MCP servers, the loop) takes.
+        let _scene_lock = self.run.lock_scene()?;
         candidate
             .persist(&self.run.scene)
             .map_err(|e| agentstar_data::DataError::io(&self.run.scene, e.error))?;
@@ -1819,6 +1898,194 @@ impl Toolbox {
         })
     }
 
+    /// Checks a reason given for keyframe `i` (score `f`) being under the gate.
+    fn check_reason(
+        &self,
+        i: usize,
+        f: &crate::reports::FrameScore,
+        why: &Unreachable,
+    ) -> std::result::Result<(), String> {
+        match why {
+            Unreachable::Occlusion { percent } => {
+                if !(percent.is_finite() && *percent > 0.0 && *percent <= 100.0) {
+                    return Err(format!("`percent` is {percent}; a share in (0, 100]"));
+                }
+                // The hidden share of the rendered model: what the mask (hands excluded)
+                // does not show of it.
+                if f.render_px == 0 {
+                    return Err("the model is not in view here, so nothing is hidden".into());
+                }
+                let hidden = 100.0 * (1.0 - f.mask_px as f64 / f.render_px as f64).max(0.0);
+                let min = self.run.finish.min_occlusion_percent;
+                if hidden < min {
+                    return Err(format!(
+                        "about {hidden:.0}% of the rendered model is hidden (1 − mask/render pixels), under the run's {min:.0}% threshold"
+                    ));
+                }
+                Ok(())
+            }
+            Unreachable::MaskError { image, .. } => {
+                let p = self.confine(image)?;
+                let is_image = p.extension().and_then(|e| e.to_str()).is_some_and(|e| {
+                    matches!(e.to_ascii_lowercase().as_str(), "png" | "jpg" | "jpeg")
+                });
+                if !p.is_file() || !is_image {
+                    return Err(format!("`{image}` is not an image file (PNG or JPEG)"));
+                }
+                Ok(())
+            }
+            Unreachable::Truncated { .. } => {
+                let cap = self.capture().map_err(|e| e.to_string())?;
+                let m = cap.load_mask(i).map_err(|e| e.to_string())?;
+                let (w, h) = (m.width(), m.height());
+                let touches = (0..w).any(|x| m.get(x, 0) || m.get(x, h - 1))
+                    || (0..h).any(|y| m.get(0, y) || m.get(w - 1, y));
+                if touches {
+                    Ok(())
+                } else {
+                    Err("its mask does not touch the frame border".into())
+                }
+            }
+            Unreachable::OutOfReach { note } => {
+                if note.trim().chars().count() < 20 {
+                    Err(
+                        "say in `note` (at least 20 characters) what the model cannot do here"
+                            .into(),
+                    )
+                } else {
+                    Ok(())
+                }
+            }
+        }
+    }
+
+    /// `pose_history`: the versions, or one frame across them (scored by the CLI, which
+    /// has the renderer).
+    fn pose_history(&self, a: &PoseHistoryArgs) -> Result<ToolOutput> {
+        let last = a.last.unwrap_or(50).to_string();
+        let mut args = vec![
+            "pose".to_string(),
+            "history".into(),
+            "--poses".into(),
+            self.run.poses.display().to_string(),
+            "--last".into(),
+            last,
+            "--json".into(),
+        ];
+        let Some(frame) = a.frame.as_deref().map(str::trim).filter(|f| !f.is_empty()) else {
+            let (ok, stdout, stderr) = self.exec(&args)?;
+            if !ok {
+                return Ok(ToolOutput::error(stderr.trim().to_string()));
+            }
+            let r: HistoryReport = serde_json::from_str(&stdout).map_err(|e| {
+                AgentError::Tool(format!("pose history printed no history report ({e})"))
+            })?;
+            let mut text = if r.versions.is_empty() {
+                "no committed pose versions yet\n".to_string()
+            } else if r.versions.len() < r.total {
+                format!("the last {} of {} versions:\n", r.versions.len(), r.total)
+            } else {
+                String::new()
+            };
+            for row in &r.versions {
+                text.push_str(&format!("{:>4}  {}\n", row.version, row.command));
+            }
+            return Ok(ToolOutput {
+                text,
+                structured: serde_json::to_value(&r).ok(),
+                ..Default::default()
+            });
+        };
+        args.extend([
+            "--frame".into(),
+            frame.to_string(),
+            "--capture".into(),
+            self.run.capture.display().to_string(),
+            "--model".into(),
+            self.run.scene.display().to_string(),
+        ]);
+        let (ok, stdout, stderr) = self.exec(&args)?;
+        if !ok {
+            return Ok(ToolOutput::error(stderr.trim().to_string()));
+        }
+        let r: FrameHistoryReport = serde_json::from_str(&stdout).map_err(|e| {
+            AgentError::Tool(format!("pose history printed no frame history ({e})"))
+        })?;
+        let mut text = format!(
+            "{} in {} version(s) (visible IoU with the current model):\n",
+            r.frame,
+            r.versions.len()
+        );
+        for v in &r.versions {
+            let iou = v.iou_visible.map_or("-".to_string(), |x| format!("{x:.4}"));
+            let what = match v.same_as {
+                Some(s) => format!("same pose as version {s}"),
+                None if v.pose.is_none() => "no pose".into(),
+                None => "a new pose".into(),
+            };
+            text.push_str(&format!(
+                "{:>4}  IoU {iou:>6}  {what:<24}  {}\n",
+                v.version, v.command
+            ));
+        }
+        for n in &r.notes {
+            text.push_str(&format!("note: {n}\n"));
+        }
+        let mut o = ToolOutput {
+            text,
+            structured: serde_json::to_value(&r).ok(),
+            ..Default::default()
+        };
+        if let Some(best) = r
+            .versions
+            .iter()
+            .filter_map(|v| v.iou_visible)
+            .reduce(f64::max)
+        {
+            o.scores.insert("best_iou".into(), best);
+        }
+        Ok(o)
+    }
+
+    /// `pose_restore`: a version, whole or for some frames (a sub-agent only its window's).
+    fn pose_restore(&self, a: &PoseRestoreArgs) -> Result<ToolOutput> {
+        let frames = a.frames.as_deref().map(str::trim).filter(|f| !f.is_empty());
+        if self.window.is_some() && frames.is_none() {
+            return Ok(ToolOutput::error(
+                "a pose sub-agent cannot restore the whole pose file; name its frames",
+            ));
+        }
+        if let Err(e) = self.check_window(frames) {
+            return Ok(ToolOutput::error(e));
+        }
+        let history = PoseHistory::new(&self.run.poses);
+        let wanted = frames.map(|f| self.frame_names(Some(f))).transpose()?;
+        let (restored, v) = history.restore_frames(a.version, wanted.as_deref())?;
+        let r = RestoreReport {
+            from_version: a.version,
+            frames: restored,
+            version: v,
+            poses: self.run.poses.clone(),
+        };
+        Ok(ToolOutput {
+            text: match &wanted {
+                Some(_) => format!(
+                    "restored {} of version {} (recorded as version {v}); the other keyframes are unchanged",
+                    r.frames.join(", "),
+                    a.version
+                ),
+                None => format!(
+                    "restored version {} of pose.json (recorded as version {v})",
+                    a.version
+                ),
+            },
+            pose_changed: true,
+            pose_version: Some(v),
+            structured: serde_json::to_value(&r).ok(),
+            ..Default::default()
+        })
+    }
+
     /// The gates: IoU (or reasons), a turntable after the last shape change, a temporal
     /// report after the last pose change (both read from the ledger).
     fn finish(&self, args: &FinishArgs) -> Result<ToolOutput> {
@@ -1839,29 +2106,66 @@ impl Toolbox {
             o.scores.insert("window".into(), 1.0);
             return Ok(o);
         }
-        let unreachable = args.unreachable.clone().unwrap_or_default();
+        let policy = self.run.finish;
         let mut missing = vec![];
         let mut scores = BTreeMap::new();
-        let below: Vec<String> = match self.ious(None) {
-            Ok(ious) => ious
-                .into_iter()
-                .inspect(|(_, iou)| {
-                    let min = scores.entry("iou_min".to_string()).or_insert(1.0f64);
-                    *min = min.min(*iou);
-                })
-                .filter(|(name, iou)| *iou < GATE_IOU && !unreachable.contains_key(name))
-                .map(|(name, iou)| format!("{name} ({iou:.4})"))
-                .collect(),
-            Err(e) => {
-                missing.push(format!("the poses could not be scored: {e}"));
-                vec![]
+        // The reasons, by frame name (a key may name several frames).
+        let mut reasons: BTreeMap<String, &Unreachable> = BTreeMap::new();
+        for (spec, why) in args.unreachable.iter().flatten() {
+            match self.frame_names(Some(spec)) {
+                Ok(names) => {
+                    for n in names {
+                        reasons.insert(n, why);
+                    }
+                }
+                Err(e) => missing.push(format!("`unreachable` names `{spec}`: {e}")),
             }
-        };
-        if !below.is_empty() {
-            missing.push(format!(
-                "keyframes under the {GATE_IOU} gate without a reason: {}",
-                below.join(", ")
-            ));
+        }
+        let mut accepted: Vec<String> = vec![];
+        match self.score_report(None) {
+            Ok(report) => {
+                let n = report.frames.len();
+                let under: Vec<(usize, &crate::reports::FrameScore)> = report
+                    .frames
+                    .iter()
+                    .enumerate()
+                    .filter(|(_, f)| f.gate() < GATE_IOU)
+                    .collect();
+                let min = report.frames.iter().map(|f| f.gate()).fold(1.0, f64::min);
+                scores.insert("iou_min".to_string(), min);
+                scores.insert("under_gate".to_string(), under.len() as f64);
+                let mut without = vec![];
+                for (i, f) in &under {
+                    match reasons.get(&f.frame) {
+                        None => without.push(format!("{} ({:.4})", f.frame, f.gate())),
+                        Some(why) => match self.check_reason(*i, f, why) {
+                            Ok(()) => accepted.push(format!("{} ({})", f.frame, why.label())),
+                            Err(e) => missing.push(format!(
+                                "{} ({:.4}): the {} reason is not accepted: {e}",
+                                f.frame,
+                                f.gate(),
+                                why.label()
+                            )),
+                        },
+                    }
+                }
+                if !without.is_empty() {
+                    missing.push(format!(
+                        "keyframes under the {GATE_IOU} gate without a reason: {}",
+                        without.join(", ")
+                    ));
+                }
+                let share = under.len() as f64 / n.max(1) as f64;
+                if share > policy.max_share_under_gate {
+                    missing.push(format!(
+                        "{} of {n} keyframes ({:.0}%) are under the gate; at most {:.0}% may finish with reasons (run.json `finish.max_share_under_gate`): fix the poses or the shape",
+                        under.len(),
+                        100.0 * share,
+                        100.0 * policy.max_share_under_gate
+                    ));
+                }
+            }
+            Err(e) => missing.push(format!("the poses could not be scored: {e}")),
         }
         let (entries, _) = if self.run.ledger_path().is_file() {
             agentstar_data::ledger::read(&self.run.ledger_path())?
@@ -1887,13 +2191,10 @@ impl Toolbox {
             text: if passed {
                 format!(
                     "All gates hold. The run is finished.{}",
-                    if unreachable.is_empty() {
+                    if accepted.is_empty() {
                         String::new()
                     } else {
-                        format!(
-                            " Keyframes with reasons: {}.",
-                            unreachable.keys().cloned().collect::<Vec<_>>().join(", ")
-                        )
+                        format!(" Keyframes with accepted reasons: {}.", accepted.join(", "))
                     }
                 )
             } else {
@@ -1920,6 +2221,7 @@ mod tests {
             capture: "cap".into(),
             scene: "run/scene.rhai".into(),
             poses: "run/pose.json".into(),
+            finish: Default::default(),
         };
         let t = Toolbox::new("agentstar".into(), run);
         match window {
@@ -1979,6 +2281,33 @@ mod tests {
         );
         let o = toolbox(None).call("fly", &json!({}), 1);
         assert!(o.is_error && o.text.contains("sweep"));
+        // `finish` takes reasons from a fixed set, named in its schema.
+        let finish = find("finish").expect("finish").schema();
+        let reason = &finish["properties"]["unreachable"]["additionalProperties"];
+        let categories: Vec<&str> = reason["oneOf"]
+            .as_array()
+            .expect("one schema per category")
+            .iter()
+            .map(|v| {
+                let c = &v["properties"]["category"];
+                c["const"]
+                    .as_str()
+                    .or_else(|| c["enum"][0].as_str())
+                    .expect("a category")
+            })
+            .collect();
+        assert_eq!(
+            categories,
+            ["occlusion", "mask_error", "truncated", "out_of_reach"],
+            "{reason}"
+        );
+        // Pose versions start at 0 (as the CLI's), scene versions at 1.
+        let restore = find("pose_restore").expect("tool").schema();
+        assert_eq!(restore["properties"]["version"]["minimum"], 0);
+        let track = find("track").expect("tool").schema();
+        assert!(
+            track["properties"]["from"].is_object() && track["properties"]["anchors"].is_object()
+        );
     }
 
     #[test]
@@ -2057,7 +2386,22 @@ mod tests {
             ),
             ("track", json!({"scale": 0}), "must be over 0"),
             ("track", json!({"scale": -2.5}), "must be over 0"),
-            ("pose_restore", json!({"version": 0}), "under its minimum 1"),
+            (
+                "scene_restore",
+                json!({"version": 0}),
+                "under its minimum 1",
+            ),
+            ("pose_restore", json!({"version": -1}), "invalid value"),
+            (
+                "finish",
+                json!({"unreachable": {"000000": {"category": "glare"}}}),
+                "unknown variant",
+            ),
+            (
+                "finish",
+                json!({"unreachable": {"000000": {"category": "out_of_reach"}}}),
+                "missing field `note`",
+            ),
             (
                 "sweep",
                 json!({"frames": "", "ranges": "yaw:-1,1"}),
@@ -2103,6 +2447,7 @@ mod tests {
                 capture: cap,
                 scene: run_dir.join("scene.rhai"),
                 poses: run_dir.join("pose.json"),
+                finish: Default::default(),
             },
         );
         assert!(t.confine("images/r.json").is_ok());

@@ -176,6 +176,33 @@ pub fn write_tracked_poses(
     poses: &[agentstar_track::GenPose],
     path: &Path,
 ) -> Result<(PoseFile, Vec<FramePose>)> {
+    let (pf, frames) = tracked_pose_file(capture, tree, scale, poses)?;
+    pf.write(path)?;
+    Ok((pf, frames))
+}
+
+/// Like [`write_tracked_poses`], but the file is written as a version of its history
+/// (`agentstar_agent::history`) with this process's command: what `track` does. Returns
+/// the version too.
+pub fn write_tracked_version(
+    capture: &Capture,
+    tree: &agentstar_geom::KinematicTree,
+    scale: f64,
+    poses: &[agentstar_track::GenPose],
+    path: &Path,
+) -> Result<(PoseFile, Vec<FramePose>, u64)> {
+    let (pf, frames) = tracked_pose_file(capture, tree, scale, poses)?;
+    let version = agentstar_agent::history::PoseHistory::new(path)
+        .write(&pf, &agentstar_agent::history::command_line())?;
+    Ok((pf, frames, version))
+}
+
+fn tracked_pose_file(
+    capture: &Capture,
+    tree: &agentstar_geom::KinematicTree,
+    scale: f64,
+    poses: &[agentstar_track::GenPose],
+) -> Result<(PoseFile, Vec<FramePose>)> {
     let frames: Vec<FramePose> = poses
         .iter()
         .map(|g| FramePose {
@@ -190,7 +217,6 @@ pub fn write_tracked_poses(
         .ok_or_else(|| anyhow!("no pose for the reference frame"))?;
     let mut pf = PoseFile::initial(capture, tree, scale, &reference.pose);
     pf.set_frames(capture, tree, &frames);
-    pf.write(path)?;
     Ok((pf, frames))
 }
 

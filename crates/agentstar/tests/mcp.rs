@@ -174,7 +174,10 @@ fn every_tool_runs_over_stdio_with_schema_arguments_and_typed_results() {
                 assert_eq!(versions, (0..rows.len() as u64).collect::<Vec<_>>());
                 let n = rows.len();
                 assert!(n >= 3, "{rows:?}");
-                assert!(rows[n - 2].command.starts_with("track"), "{rows:?}");
+                assert!(
+                    rows[n - 2].command.starts_with("agentstar track "),
+                    "{rows:?}"
+                );
                 assert!(rows[n - 1].command.contains("pose commit"), "{rows:?}");
             }
             "render" | "turntable" | "frames" => {

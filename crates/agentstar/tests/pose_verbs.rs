@@ -92,8 +92,14 @@ fn pose_verbs_track_commit_and_diagnose() {
     let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("json");
     assert!(v["frames"][0]["iou_visible"].as_f64().expect("iou") < 0.95);
     let o = agentstar(&["pose", "history", "--poses", &tracked, "--json"]);
-    let h: serde_json::Value = serde_json::from_slice(&o.stdout).expect("json");
-    assert_eq!(h.as_array().expect("versions").len(), 2);
+    let h: agentstar_agent::reports::HistoryReport =
+        serde_json::from_slice(&o.stdout).expect("json");
+    // The tracker's file (version 0) and the commit.
+    assert_eq!(h.total, 2);
+    assert!(
+        h.versions[0].command.starts_with("agentstar track "),
+        "{h:?}"
+    );
     let o = agentstar(&["pose", "restore", "--poses", &tracked, "--version", "0"]);
     assert!(o.status.success(), "{}", text(&o));
     let o = agentstar(&[

@@ -2,9 +2,9 @@
 //! holds: parts, joints, the canonical-frame measurement and warnings.
 
 use crate::common::print_json;
+use agentstar_agent::reports::{CheckCanonical, CheckPart, CheckReport};
 use agentstar_data::scenefile::load_model;
 use anyhow::Result;
-use serde_json::json;
 use std::path::PathBuf;
 use std::process::ExitCode;
 
@@ -27,9 +27,15 @@ pub fn run(a: Args) -> Result<ExitCode> {
         .iter()
         .map(|p| {
             let b = p.mesh.bounds();
-            json!({"name": p.name, "triangles": p.mesh.triangles.len(), "watertight": p.watertight,
-                   "volume": if p.watertight { Some(p.mesh.volume()) } else { None },
-                   "bbox_min": <[f64; 3]>::from(b.min.coords), "bbox_max": <[f64; 3]>::from(b.max.coords), "color": p.color})
+            CheckPart {
+                name: p.name.clone(),
+                triangles: p.mesh.triangles.len(),
+                watertight: p.watertight,
+                volume: p.watertight.then(|| p.mesh.volume()),
+                bbox_min: b.min.coords.into(),
+                bbox_max: b.max.coords.into(),
+                color: p.color,
+            }
         })
         .collect();
     let joints: Vec<_> = model
@@ -39,11 +45,21 @@ pub fn run(a: Args) -> Result<ExitCode> {
         .map(agentstar_data::posefile::joint_json)
         .collect();
     if a.json {
-        print_json(&json!({
-            "model": a.model, "parts": parts, "joints": joints,
-            "canonical": {"bbox_min": r.bbox_min, "bbox_max": r.bbox_max, "extent": r.extent, "center": r.center, "longest_side": r.longest_side, "triangles": r.triangle_count},
-            "warnings": m.warnings, "printed": m.printed,
-        }))?;
+        print_json(&CheckReport {
+            model: a.model.clone(),
+            parts,
+            joints,
+            canonical: CheckCanonical {
+                bbox_min: r.bbox_min,
+                bbox_max: r.bbox_max,
+                extent: r.extent,
+                center: r.center,
+                longest_side: r.longest_side,
+                triangles: r.triangle_count,
+            },
+            warnings: m.warnings.clone(),
+            printed: m.printed.clone(),
+        })?;
         return Ok(ExitCode::SUCCESS);
     }
     println!(

@@ -97,6 +97,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
             capture: "../capture".into(),
             model: "scene.rhai".into(),
             poses: "pose.json".into(),
+            finish: Default::default(),
         })?
         .as_bytes(),
     )?;

@@ -2,12 +2,14 @@
 //! `agentstar pose-diff` (the residual between two frames).
 
 use crate::common::{print_json, select_frames, Session, SessionArgs};
+use agentstar_agent::reports::{
+    JointMotion, Motion, PoseDiffReport, TemporalReport, TemporalRow, TemporalUnits,
+};
 use agentstar_data::images::save_png_rgb;
 use agentstar_render::text::{draw_text, fill_rect};
 use agentstar_track::temporal::{pair_diff, report, Row, Sample};
 use anyhow::{bail, Result};
 use image::{Rgb, RgbImage};
-use serde_json::json;
 use std::path::PathBuf;
 use std::process::ExitCode;
 
@@ -159,17 +161,44 @@ pub fn run(a: Args) -> Result<ExitCode> {
         save_png_rgb(&plot_velocities(&rep.rows), plot)?;
     }
     if a.json {
-        print_json(&json!({
-            "pose_frame": rep.pose_frame,
-            "units": {"rotation": "deg per step", "translation": "object units per step", "joints": "deg or canonical units per step"},
-            "warnings": rep.warnings,
-            "frames": rows.iter().map(|r| json!({
-                "frame": r.frame, "from": r.from, "frame_gap": r.gap,
-                "velocity": {"rotation_deg": r.vel_rot_deg, "translation_canon": r.vel_trans, "radial_canon": r.vel_radial},
-                "acceleration": {"rotation_deg": r.acc_rot_deg, "translation_canon": r.acc_trans, "radial_canon": r.acc_radial},
-                "joints": r.joints.iter().map(|c| (c.name.clone(), json!({"state": c.state, "velocity": c.velocity, "acceleration": c.acceleration}))).collect::<serde_json::Map<_, _>>(),
-            })).collect::<Vec<_>>(),
-        }))?;
+        let motion = |rot, trans, radial| Motion {
+            rotation_deg: rot,
+            translation_canon: trans,
+            radial_canon: radial,
+        };
+        print_json(&TemporalReport {
+            pose_frame: rep.pose_frame.to_string(),
+            units: TemporalUnits {
+                rotation: "deg per step".into(),
+                translation: "object units per step".into(),
+                joints: "deg or canonical units per step".into(),
+            },
+            warnings: rep.warnings.clone(),
+            frames: rows
+                .iter()
+                .map(|r| TemporalRow {
+                    frame: r.frame.clone(),
+                    from: r.from.clone(),
+                    frame_gap: r.gap,
+                    velocity: motion(r.vel_rot_deg, r.vel_trans, r.vel_radial),
+                    acceleration: motion(r.acc_rot_deg, r.acc_trans, r.acc_radial),
+                    joints: r
+                        .joints
+                        .iter()
+                        .map(|c| {
+                            (
+                                c.name.clone(),
+                                JointMotion {
+                                    state: c.state,
+                                    velocity: c.velocity,
+                                    acceleration: c.acceleration,
+                                },
+                            )
+                        })
+                        .collect(),
+                })
+                .collect(),
+        })?;
         return Ok(ExitCode::SUCCESS);
     }
     let mut head = format!("{:<26} {:>4}", "step", "gap");
@@ -343,11 +372,16 @@ pub fn run_diff(a: DiffArgs) -> Result<ExitCode> {
     let sm = samples(&s);
     let oriented = sm.iter().all(|x| x.world_from_camera.is_some());
     let d = pair_diff(&sm[ia], &sm[ib], s.scale(), &s.model.model.tree, oriented);
-    print_json(&json!({
-        "from": sm[ia].frame, "to": sm[ib].frame, "pose_frame": if oriented { "oriented" } else { "camera" },
-        "rotation_deg": d.rotation_deg, "axis_body": d.axis_body,
-        "translation_canon": d.translation_canon, "translation_dist_canon": d.translation_dist_canon, "translation_dist": d.translation_dist,
-        "joints": d.joints.iter().map(|(k, v)| (k.clone(), json!(v))).collect::<serde_json::Map<_, _>>(),
-    }))?;
+    print_json(&PoseDiffReport {
+        from: sm[ia].frame.clone(),
+        to: sm[ib].frame.clone(),
+        pose_frame: if oriented { "oriented" } else { "camera" }.into(),
+        rotation_deg: d.rotation_deg,
+        axis_body: d.axis_body,
+        translation_canon: d.translation_canon,
+        translation_dist_canon: d.translation_dist_canon,
+        translation_dist: d.translation_dist,
+        joints: d.joints.iter().cloned().collect(),
+    })?;
     Ok(ExitCode::SUCCESS)
 }

@@ -1,9 +1,10 @@
 //! `agentstar track`: fit every keyframe's pose and joint states for a known model from the
-//! masks, with no agent, and write `pose.json`.
+//! masks, with no agent, and write `pose.json` (as a version of its history, with the
+//! command, like every writer of a pose file).
 
 use crate::cmd::score::{print_table, summarise};
 use crate::common::{
-    open_capture, open_model, print_json, select_frames, write_tracked_poses, Session, PASS_IOU,
+    open_capture, open_model, print_json, select_frames, write_tracked_version, Session, PASS_IOU,
 };
 use agentstar_agent::reports::TrackReport;
 use agentstar_data::posefile::PoseFile;
@@ -132,8 +133,9 @@ pub fn run(a: Args) -> Result<ExitCode> {
     };
     bar.finish_and_clear();
     let seconds = t0.elapsed().as_secs_f64();
-    let (pose_file, written) =
-        write_tracked_poses(&capture, &model.model.tree, scale, &r.poses, &a.out)?;
+    // Written as a version of the pose file's history, with this command.
+    let (pose_file, written, version) =
+        write_tracked_version(&capture, &model.model.tree, scale, &r.poses, &a.out)?;
     // Scored from what is in memory: the poses as written, not read back.
     let s = Session::from_memory(capture, model, pose_file, written);
     let capture = &s.capture;
@@ -150,10 +152,11 @@ pub fn run(a: Args) -> Result<ExitCode> {
             log: r.log.clone(),
             frames: scores,
             sequence: summary,
+            pose_version: Some(version),
         })?;
     } else {
         println!(
-            "tracked {} frames in {seconds:.1} s ({} evaluations), initialised on {}; wrote {}",
+            "tracked {} frames in {seconds:.1} s ({} evaluations), initialised on {}; wrote {} (version {version} of its history)",
             capture.frames.len(),
             r.evaluations,
             capture.frames[r.init_frame].name,

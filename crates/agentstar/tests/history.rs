@@ -1,0 +1,446 @@
+//! History that connects, end to end: every writer of `pose.json` is a version with its
+//! command (the tracker included), a version restores whole or for some frames, `pose
+//! commit` takes a report, a pose file or a history version, one frame's pose and score
+//! can be followed across versions; `finish` with categorised reasons and a share of
+//! keyframes under the gate; two MCP servers on one run never give a scene version twice.
+
+mod support;
+
+use agentstar_agent::reports::{
+    CommitReport, FrameHistoryReport, HistoryReport, RestoreReport, SearchReport, TrackReport,
+};
+use agentstar_data::posefile::PoseFile;
+use serde_json::json;
+use std::collections::BTreeSet;
+use std::path::Path;
+use support::{agentstar, ledger, s, small_run, text, McpClient};
+
+fn json_of<T: serde::de::DeserializeOwned>(o: &std::process::Output) -> T {
+    assert!(o.status.success(), "{}", text(o));
+    serde_json::from_slice(&o.stdout).unwrap_or_else(|e| panic!("{e}: {}", text(o)))
+}
+
+fn translation(pf: &PoseFile, frame: &str) -> [f64; 3] {
+    pf.frames[frame]
+        .object_pose
+        .as_ref()
+        .expect("a pose")
+        .translation
+}
+
+fn quaternion(pf: &PoseFile, frame: &str) -> [f64; 4] {
+    pf.frames[frame]
+        .object_pose
+        .as_ref()
+        .expect("a pose")
+        .quaternion
+}
+
+#[test]
+fn a_track_is_a_version_and_frames_restore_commit_and_follow_across_versions() {
+    let dir = tempfile::tempdir().expect("tmp");
+    small_run(dir.path(), 4, true);
+    let (cap, run) = (dir.path().join("cap"), dir.path().join("run"));
+    let (model, poses) = (s(&run.join("scene.rhai")), s(&run.join("pose.json")));
+    // The tracker, warm-started from the true poses, writes the run's pose.json: version 1
+    // after the file init made (version 0), with its command.
+    let o = agentstar(&[
+        "track",
+        &s(&cap),
+        "--model",
+        &model,
+        "--from",
+        &s(&cap.join("model/pose.json")),
+        "--out",
+        &poses,
+        "--evals",
+        "300",
+        "--json",
+    ]);
+    let tracked: TrackReport = json_of(&o);
+    assert_eq!(tracked.pose_version, Some(1), "{}", text(&o));
+    let h: HistoryReport = json_of(&agentstar(&[
+        "pose", "history", "--poses", &poses, "--json",
+    ]));
+    assert_eq!(h.total, 2);
+    assert!(h.versions[0].command.starts_with("initial version"));
+    assert!(
+        h.versions[1].command.starts_with("agentstar track ")
+            && h.versions[1].command.contains("--from"),
+        "{:?}",
+        h.versions[1]
+    );
+    let v1 = PoseFile::read(Path::new(&poses)).expect("v1");
+
+    // One rotation for every frame, committed: version 2, every frame moved.
+    let out = s(&run.join("images/rot"));
+    let o = agentstar(&[
+        "oapply-all",
+        "--capture",
+        &s(&cap),
+        "--model",
+        &model,
+        "--poses",
+        &poses,
+        "--out",
+        &out,
+        "--rotation",
+        "rz:40",
+        "--json",
+    ]);
+    let rotated: SearchReport = json_of(&o);
+    assert_eq!(rotated.frames.len(), 4);
+    let report = s(&run.join("images/rot/oapply_all.json"));
+    let c: CommitReport = json_of(&agentstar(&[
+        "pose", "commit", "--poses", &poses, "--report", &report, "--json",
+    ]));
+    assert_eq!((c.version, c.committed.len()), (2, 4));
+    let v2 = PoseFile::read(Path::new(&poses)).expect("v2");
+    assert_ne!(quaternion(&v2, "000005.png"), quaternion(&v1, "000005.png"));
+
+    // Frame 000005 back from version 1, by its stem: the other frames keep version 2.
+    let r: RestoreReport = json_of(&agentstar(&[
+        "pose",
+        "restore",
+        "--poses",
+        &poses,
+        "--version",
+        "1",
+        "--frames",
+        "000005",
+        "--json",
+    ]));
+    assert_eq!(
+        (r.frames.as_slice(), r.version),
+        (&["000005.png".to_string()][..], 3)
+    );
+    let v3 = PoseFile::read(Path::new(&poses)).expect("v3");
+    assert_eq!(
+        v3.frames["000005.png"].object_pose,
+        v1.frames["000005.png"].object_pose
+    );
+    assert_eq!(
+        v3.frames["000005.png"].joints,
+        v1.frames["000005.png"].joints
+    );
+    for f in ["000000.png", "000010.png", "000015.png"] {
+        assert_eq!(v3.frames[f], v2.frames[f], "{f} changed");
+    }
+    // A range restores a set of frames with the same grammar.
+    let r: RestoreReport = json_of(&agentstar(&[
+        "pose",
+        "restore",
+        "--poses",
+        &poses,
+        "--version",
+        "1",
+        "--frames",
+        "000010..000015",
+        "--json",
+    ]));
+    assert_eq!(r.frames, ["000010.png", "000015.png"]);
+    assert_eq!(r.version, 4);
+    let v4 = PoseFile::read(Path::new(&poses)).expect("v4");
+    assert_eq!(v4.frames["000000.png"], v2.frames["000000.png"]);
+
+    // Frame 000005 across the versions, scored with the run's model (found from run.json).
+    let fh: FrameHistoryReport = json_of(&agentstar(&[
+        "pose", "history", "--poses", &poses, "--frame", "000005", "--json",
+    ]));
+    assert_eq!(fh.frame, "000005.png");
+    let same: Vec<Option<u64>> = fh.versions.iter().map(|v| v.same_as).collect();
+    assert_eq!(same, [None, None, None, Some(1), Some(1)]);
+    let iou: Vec<f64> = fh
+        .versions
+        .iter()
+        .map(|v| v.iou_visible.expect("scored"))
+        .collect();
+    assert!(iou[1] > 0.97 && iou[2] < iou[1] - 0.05, "{iou:?}");
+    assert_eq!(iou[3], iou[1]);
+    let listing = text(&agentstar(&[
+        "pose", "history", "--poses", &poses, "--frame", "000005",
+    ]));
+    assert!(listing.contains("same as version 1"), "{listing}");
+
+    // Commit takes a history version file and a track's pose file as well.
+    let version2 = s(&run.join(".agentstar/history/pose/000002.json"));
+    let c: CommitReport = json_of(&agentstar(&[
+        "pose", "commit", "--poses", &poses, "--report", &version2, "--frames", "000005", "--json",
+    ]));
+    assert_eq!((c.source.as_str(), c.version), ("history version 2", 5));
+    assert_eq!(
+        translation(
+            &PoseFile::read(Path::new(&poses)).expect("v5"),
+            "000005.png"
+        ),
+        translation(&v2, "000005.png")
+    );
+    let elsewhere = run.join("alt/pose.json");
+    let o = agentstar(&[
+        "track",
+        &s(&cap),
+        "--model",
+        &model,
+        "--from",
+        &poses,
+        "--anchors",
+        "000000..000015",
+        "--out",
+        &s(&elsewhere),
+        "--json",
+    ]);
+    // A new file starts its own history at version 0.
+    assert_eq!(json_of::<TrackReport>(&o).pose_version, Some(0));
+    let c: CommitReport = json_of(&agentstar(&[
+        "pose",
+        "commit",
+        "--poses",
+        &poses,
+        "--from",
+        &s(&elsewhere),
+        "--json",
+    ]));
+    assert_eq!((c.source.as_str(), c.committed.len()), ("pose file", 4));
+    // A rank means nothing for a pose file; a frame the source lacks is named.
+    let o = agentstar(&[
+        "pose",
+        "commit",
+        "--poses",
+        &poses,
+        "--report",
+        &s(&elsewhere),
+        "--rank",
+        "2",
+    ]);
+    assert!(
+        !o.status.success() && text(&o).contains("--rank applies to search reports"),
+        "{}",
+        text(&o)
+    );
+    let o = agentstar(&["pose", "restore", "--poses", &poses, "--version", "99"]);
+    assert!(
+        !o.status.success() && text(&o).contains("no version 99"),
+        "{}",
+        text(&o)
+    );
+    let h: HistoryReport = json_of(&agentstar(&[
+        "pose", "history", "--poses", &poses, "--last", "2", "--json",
+    ]));
+    assert_eq!(
+        (h.total, h.versions.len(), h.versions[1].version),
+        (7, 2, 6)
+    );
+}
+
+/// An MCP session that numbers its calls and waits for each answer.
+struct Session {
+    client: McpClient,
+    id: u64,
+}
+
+impl Session {
+    fn new(run: &Path) -> Session {
+        Session {
+            client: McpClient::initialised(run).0,
+            id: 10,
+        }
+    }
+
+    fn call(&mut self, name: &str, args: serde_json::Value) -> serde_json::Value {
+        self.id += 1;
+        self.client.call(self.id, name, args);
+        self.client.response(self.id).0
+    }
+}
+
+#[test]
+fn finish_takes_categorised_reasons_and_refuses_too_many_frames_under_the_gate() {
+    let dir = tempfile::tempdir().expect("tmp");
+    small_run(dir.path(), 4, true);
+    let (cap, run) = (dir.path().join("cap"), dir.path().join("run"));
+    let mut c = Session::new(&run);
+    // The tracker over MCP, warm-started from the true poses: a pose version.
+    let r = c.call("track", json!({"from": s(&cap.join("model/pose.json"))}));
+    assert_eq!(r["result"]["isError"], false, "{r}");
+    let t: TrackReport =
+        serde_json::from_value(r["result"]["structuredContent"].clone()).expect("track");
+    assert_eq!(t.pose_version, Some(1));
+    assert!(t.sequence.min_iou_visible >= 0.98, "{:?}", t.sequence);
+    // Anchors are kept exactly.
+    let before = PoseFile::read(&run.join("pose.json")).expect("poses");
+    let r = c.call("track", json!({"from": "pose.json", "anchors": "000010"}));
+    assert_eq!(r["result"]["isError"], false, "{r}");
+    let after = PoseFile::read(&run.join("pose.json")).expect("poses");
+    assert_eq!(
+        after.frames["000010.png"].object_pose,
+        before.frames["000010.png"].object_pose
+    );
+    let r = c.call("track", json!({"anchors": "000010"}));
+    assert!(McpClient::text_of(&r).contains("give `from`"), "{r}");
+
+    // One keyframe turned off the gate.
+    let spoil = |c: &mut Session, frame: &str| {
+        let r = c.call("apply", json!({"frame": frame, "order": "yaw:35"}));
+        let rep: SearchReport =
+            serde_json::from_value(r["result"]["structuredContent"].clone()).expect("apply");
+        assert!(rep.frames[0].ranked[0].gate < 0.9, "{rep:?}");
+        let path = McpClient::text_of(&r)
+            .lines()
+            .find_map(|l| l.strip_prefix("report: ").map(str::to_string))
+            .expect("report path");
+        let r = c.call("pose_commit", json!({"report": path}));
+        assert_eq!(r["result"]["isError"], false, "{r}");
+        c.call("temporal", json!({}));
+    };
+    spoil(&mut c, "000000");
+    let r = c.call("turntable", json!({}));
+    let image = r["result"]["content"][0]["text"]
+        .as_str()
+        .expect("text")
+        .lines()
+        .find_map(|l| l.strip_prefix("- ").map(str::to_string))
+        .expect("an image path");
+    // No reason: refused, naming the frame.
+    let r = c.call("finish", json!({}));
+    let body = McpClient::text_of(&r);
+    assert!(
+        body.starts_with("Not finished") && body.contains("without a reason: 000000.png"),
+        "{body}"
+    );
+    // Reasons that do not hold are named; a category outside the set is a schema error.
+    for (why, says) in [
+        (
+            json!({"category": "out_of_reach", "note": "lid"}),
+            "at least 20 characters",
+        ),
+        (
+            json!({"category": "mask_error", "image": "/etc/passwd"}),
+            "outside the run",
+        ),
+        (
+            json!({"category": "occlusion", "percent": 80}),
+            "under the run's 30% threshold",
+        ),
+    ] {
+        let r = c.call("finish", json!({"unreachable": {"000000": why}}));
+        let body = McpClient::text_of(&r);
+        assert!(
+            body.starts_with("Not finished") && body.contains(says),
+            "{why}: {body}"
+        );
+    }
+    let r = c.call(
+        "finish",
+        json!({"unreachable": {"000000": {"category": "glare"}}}),
+    );
+    assert_eq!(r["result"]["isError"], true, "{r}");
+    // An image that shows the mask error, or a real note: one of four frames is within
+    // the share, and the run finishes.
+    for why in [
+        json!({"category": "mask_error", "image": image}),
+        json!({"category": "out_of_reach", "note": "the lid bends here; the model's lid is rigid"}),
+    ] {
+        let r = c.call("finish", json!({"unreachable": {"000000": why}}));
+        let body = McpClient::text_of(&r);
+        assert!(
+            body.starts_with("All gates hold") && body.contains("000000.png ("),
+            "{why}: {body}"
+        );
+    }
+    // Two of four under the gate is over the share of a quarter, reasons or not.
+    spoil(&mut c, "000005");
+    let note =
+        json!({"category": "out_of_reach", "note": "the lid bends here; the model's lid is rigid"});
+    let r = c.call("finish", json!({"unreachable": {"000000..000005": note}}));
+    let body = McpClient::text_of(&r);
+    assert!(
+        body.contains("2 of 4 keyframes (50%) are under the gate"),
+        "{body}"
+    );
+    assert!(!body.contains("without a reason"), "{body}");
+    // A run that allows half finishes with the same reasons.
+    let rf = run.join("run.json");
+    let mut v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&rf).expect("run.json")).expect("json");
+    v["finish"]["max_share_under_gate"] = json!(0.5);
+    std::fs::write(&rf, v.to_string()).expect("write");
+    drop(c);
+    let mut c = Session::new(&run);
+    let r = c.call("finish", json!({"unreachable": {"000000..000005": note}}));
+    assert!(McpClient::text_of(&r).starts_with("All gates hold"), "{r}");
+    // The first frame's story, and its good pose back from version 1.
+    let r = c.call("pose_history", json!({"frame": "000000"}));
+    let fh: FrameHistoryReport =
+        serde_json::from_value(r["result"]["structuredContent"].clone()).expect("frame history");
+    let best = fh
+        .versions
+        .iter()
+        .max_by(|a, b| a.iou_visible.partial_cmp(&b.iou_visible).expect("cmp"))
+        .expect("a version");
+    assert!(best.iou_visible.expect("iou") >= 0.98, "{fh:?}");
+    let r = c.call(
+        "pose_restore",
+        json!({"version": best.version, "frames": "000000"}),
+    );
+    let rr: RestoreReport =
+        serde_json::from_value(r["result"]["structuredContent"].clone()).expect("restore");
+    assert_eq!(rr.frames, ["000000.png"]);
+    let r = c.call("pose_restore", json!({"version": 0}));
+    assert_eq!(
+        r["result"]["isError"], false,
+        "version 0 restores like the CLI: {r}"
+    );
+}
+
+#[test]
+fn two_mcp_servers_on_one_run_never_give_a_scene_version_twice() {
+    let dir = tempfile::tempdir().expect("tmp");
+    let run = dir.path().join("run");
+    small_run(dir.path(), 2, true);
+    let scene = std::fs::read_to_string(run.join("scene.rhai")).expect("scene");
+    let (mut a, _) = McpClient::initialised(&run);
+    let (mut b, _) = McpClient::initialised(&run);
+    let script = |server: &str, k: u64| format!("// server {server}, write {k}\n{scene}");
+    // Every request is sent before any answer is read.
+    for k in 0..4u64 {
+        a.call(100 + k, "scene_write", json!({"script": script("a", k)}));
+        b.call(100 + k, "scene_write", json!({"script": script("b", k)}));
+    }
+    let ids: Vec<u64> = (100..104).collect();
+    let mut versions = vec![];
+    for (server, c) in [("a", &mut a), ("b", &mut b)] {
+        for (id, r) in c.responses(&ids) {
+            let body = McpClient::text_of(&r);
+            assert_eq!(r["result"]["isError"], false, "{server} {id}: {r}");
+            let v: u64 = body
+                .strip_prefix("scene version ")
+                .and_then(|t| t.split_whitespace().next())
+                .and_then(|n| n.parse().ok())
+                .unwrap_or_else(|| panic!("{body}"));
+            // The version file holds the script this call sent.
+            let file = run.join(format!(".agentstar/scenes/{v:04}.rhai"));
+            assert_eq!(
+                std::fs::read_to_string(file).expect("version"),
+                script(server, id - 100)
+            );
+            versions.push(v);
+        }
+    }
+    versions.sort_unstable();
+    assert_eq!(
+        versions,
+        (2..10).collect::<Vec<u64>>(),
+        "a version was given twice"
+    );
+    let last = std::fs::read_to_string(run.join(".agentstar/scenes/0009.rhai")).expect("v9");
+    assert_eq!(
+        std::fs::read_to_string(run.join("scene.rhai")).expect("scene"),
+        last
+    );
+    let recorded: BTreeSet<u64> = ledger(&run)
+        .iter()
+        .filter(|e| e["tool"] == "scene_write")
+        .filter_map(|e| e["scene_version"].as_u64())
+        .collect();
+    assert_eq!(recorded.len(), 8);
+}
