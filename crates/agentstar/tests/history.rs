@@ -293,13 +293,17 @@ fn finish_takes_categorised_reasons_and_refuses_too_many_frames_under_the_gate()
         c.call("temporal", json!({}));
     };
     spoil(&mut c, "000000");
-    let r = c.call("turntable", json!({}));
-    let image = r["result"]["content"][0]["text"]
-        .as_str()
-        .expect("text")
-        .lines()
-        .find_map(|l| l.strip_prefix("- ").map(str::to_string))
-        .expect("an image path");
+    c.call("turntable", json!({}));
+    // An image of the frame (as the server lists them after the text).
+    let r = c.call("render", json!({"frames": "000000", "views": "compare"}));
+    let listed = McpClient::text_of(&r);
+    let image = listed
+        .split("images (also inline below):\n")
+        .nth(1)
+        .and_then(|t| t.lines().next())
+        .and_then(|l| l.strip_prefix("- "))
+        .map(str::to_string)
+        .unwrap_or_else(|| panic!("an image path: {listed}"));
     // No reason: refused, naming the frame.
     let r = c.call("finish", json!({}));
     let body = McpClient::text_of(&r);
