@@ -28,6 +28,7 @@ use crate::run::RunDir;
 use crate::task::task_document;
 use crate::view_reports::{RenderReport, TurntableReport};
 use crate::{AgentError, Result};
+use agentstar_data::posefile::PoseFile;
 use schemars::JsonSchema;
 use serde::de::DeserializeOwned;
 use serde::Deserialize;
