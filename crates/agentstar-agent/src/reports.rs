@@ -96,6 +96,9 @@ pub struct Candidate {
     pub joints: BTreeMap<String, f64>,
     pub iou_visible: Option<f64>,
     pub iou_raw: f64,
+    /// IoU with the observed mask's boundary band (±`band_px`) also excluded, when scored.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub iou_band: Option<f64>,
     pub gate: f64,
     pub depth_canon: Option<f64>,
     pub combined: f64,
@@ -166,12 +169,21 @@ pub struct FrameScore {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub depth_bias: Option<f64>,
     pub combined: f64,
+    /// The half-width in pixels of the observed mask's boundary band excluded from
+    /// `iou_band`; `None` when no band was scored.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub band_px: Option<f64>,
+    /// IoU over the visible region without the boundary band (a segmenter's 1–2 px boundary
+    /// errors do not count); `None` without a band or when that region is empty.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub iou_band: Option<f64>,
 }
 
 impl FrameScore {
-    /// The score a gate compares: the visible IoU, 0 where nothing is visible.
+    /// The score a gate compares: the boundary-band IoU where one was scored, else the
+    /// visible IoU; 0 where nothing is visible.
     pub fn gate(&self) -> f64 {
-        self.iou_visible.unwrap_or(0.0)
+        self.iou_band.or(self.iou_visible).unwrap_or(0.0)
     }
 }
 
@@ -187,13 +199,31 @@ pub struct SequenceScore {
     pub pass_iou: f64,
     /// Frames under the gate, worst first.
     pub below_gate: Vec<String>,
+    /// The boundary band's half-width (pixels), when the frames were scored with one; the
+    /// gate is then on the band IoU.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub band_px: Option<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub mean_iou_band: Option<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub min_iou_band: Option<f64>,
 }
 
 impl SequenceScore {
     /// Summarises `scores` against the gate `pass_iou`.
     pub fn of(scores: &[FrameScore], pass_iou: f64) -> SequenceScore {
-        let mut gates: Vec<f64> = scores.iter().map(FrameScore::gate).collect();
+        let mut gates: Vec<f64> = scores
+            .iter()
+            .map(|s| s.iou_visible.unwrap_or(0.0))
+            .collect();
         gates.sort_by(|a, b| a.total_cmp(b));
+        let band_px = scores.iter().find_map(|s| s.band_px);
+        let bands: Vec<f64> = scores
+            .iter()
+            .filter_map(|s| s.band_px.map(|_| s.gate()))
+            .collect();
+        let band_mean = (!bands.is_empty()).then(|| bands.iter().sum::<f64>() / bands.len() as f64);
+        let band_min = bands.iter().copied().reduce(f64::min);
         let n = gates.len().max(1);
         let worst = scores.iter().min_by(|a, b| a.gate().total_cmp(&b.gate()));
         let mut below: Vec<&FrameScore> = scores.iter().filter(|s| s.gate() < pass_iou).collect();
@@ -210,6 +240,9 @@ impl SequenceScore {
             worst_frame: worst.map(|w| w.frame.clone()).unwrap_or_default(),
             pass_iou,
             below_gate: below.iter().map(|s| s.frame.clone()).collect(),
+            band_px,
+            mean_iou_band: band_mean,
+            min_iou_band: band_min,
         }
     }
 }
@@ -589,6 +622,8 @@ mod tests {
             depth_mae_canon: None,
             depth_bias: None,
             combined: iou.unwrap_or(0.0),
+            band_px: None,
+            iou_band: None,
         };
         let s = SequenceScore::of(
             &[f("a", Some(0.99)), f("b", Some(0.5)), f("c", None)],
@@ -598,5 +633,20 @@ mod tests {
         assert_eq!(s.worst_frame, "c");
         assert_eq!(s.min_iou_visible, 0.0);
         assert_eq!(s.median_iou_visible, 0.5);
+        assert_eq!(s.band_px, None);
+        // With a band, the gate is on the band IoU; the visible figures stay visible.
+        let banded = |name: &str, visible: f64, band: f64| FrameScore {
+            band_px: Some(2.0),
+            iou_band: Some(band),
+            ..f(name, Some(visible))
+        };
+        let s = SequenceScore::of(
+            &[banded("a", 0.97, 0.995), banded("b", 0.99, 0.96)],
+            GATE_IOU,
+        );
+        assert_eq!(s.below_gate, ["b"]);
+        assert_eq!(s.min_iou_visible, 0.97);
+        assert_eq!(s.min_iou_band, Some(0.96));
+        assert_eq!(s.band_px, Some(2.0));
     }
 }

@@ -757,7 +757,7 @@ tool!(Score, "score", Diagnostic, Nothing, FramesArgs,
             o.scores.insert("iou_min".into(), min);
             o.scores.insert("iou_mean".into(), mean);
             head.push_str(&format!(
-                ", visible IoU mean {mean:.4}, min {min:.4}; under the gate: {}",
+                ", gate IoU (visible, boundary band excluded) mean {mean:.4}, min {min:.4}; under the gate: {}",
                 if below.is_empty() { "none".to_string() } else { below.join(", ") }
             ));
         }

@@ -19,7 +19,7 @@ pub use full::{render_full, RenderBuffers, NO_PART};
 pub use mask::BitMask;
 pub use raster::{Affine, Instance, SilhouetteRenderer};
 pub use scene::PosedModel;
-pub use score::{DepthObservation, IouScore, ScoreTarget};
+pub use score::{boundary_band, DepthObservation, IouScore, ScoreTarget, DEFAULT_BAND_PX};
 
 #[derive(Debug, thiserror::Error)]
 pub enum RenderError {

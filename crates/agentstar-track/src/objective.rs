@@ -38,6 +38,9 @@ pub struct CandidateScore {
     pub gate: f64,
     pub iou_raw: f64,
     pub iou_visible: Option<f64>,
+    /// IoU with the observed mask's boundary band also excluded, when the target scores a
+    /// band ([`ScoreTarget::with_band`]); reported, never searched on.
+    pub iou_band: Option<f64>,
     /// Depth error in canonical units, when depth is scored.
     pub depth_canon: Option<f64>,
     /// `gate − w · min(depth_canon, 1)`, or [`BEHIND_CAMERA`].
@@ -146,6 +149,7 @@ impl Evaluator<'_, '_> {
                 gate: 0.0,
                 iou_raw: 0.0,
                 iou_visible: None,
+                iou_band: None,
                 depth_canon: None,
                 combined: BEHIND_CAMERA,
             };
@@ -179,6 +183,7 @@ impl Evaluator<'_, '_> {
             gate: s.gate(),
             iou_raw: s.iou_raw,
             iou_visible: s.iou_visible,
+            iou_band: s.iou_band,
             depth_canon,
             combined,
         }

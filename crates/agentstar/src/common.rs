@@ -5,7 +5,7 @@ pub use agentstar_agent::reports::FrameScore;
 use agentstar_data::capture::Capture;
 use agentstar_data::posefile::{FramePose, PoseFile};
 use agentstar_data::scenefile::{load_model, LoadedModel};
-use agentstar_render::score::{combined_score, depth_score, DepthScore};
+use agentstar_render::score::{combined_score, depth_score, DepthScore, DEFAULT_BAND_PX};
 use agentstar_render::{
     render_full, IouScore, PosedModel, RenderBuffers, ScoreTarget, SilhouetteRenderer,
 };
@@ -63,6 +63,9 @@ pub struct Session {
     pub model: LoadedModel,
     pub pose_file: PoseFile,
     pub poses: Vec<FramePose>,
+    /// The boundary band (half-width in pixels) that scores and targets exclude for the band
+    /// IoU; 0 scores no band. [`DEFAULT_BAND_PX`] unless a command's `--band-px` says otherwise.
+    pub band_px: f64,
 }
 
 impl Session {
@@ -78,6 +81,7 @@ impl Session {
             model,
             pose_file,
             poses: resolved,
+            band_px: DEFAULT_BAND_PX,
         })
     }
 
@@ -94,6 +98,7 @@ impl Session {
             model,
             pose_file,
             poses,
+            band_px: DEFAULT_BAND_PX,
         }
     }
 
@@ -116,7 +121,8 @@ impl Session {
 
     /// The score target (mask with hands excluded) and observed depth of frame `i`.
     pub fn target(&self, i: usize) -> Result<FrameInputs> {
-        let target = ScoreTarget::new(self.capture.load_mask(i)?, self.capture.load_hand(i)?)?;
+        let target = ScoreTarget::new(self.capture.load_mask(i)?, self.capture.load_hand(i)?)?
+            .with_band(self.band_px);
         Ok((target, self.capture.load_depth(i)?))
     }
 
@@ -133,7 +139,7 @@ impl Session {
         let f = &self.capture.frames[i];
         let mask = self.capture.load_mask(i)?;
         let hand = self.capture.load_hand(i)?;
-        let target = ScoreTarget::new(mask, hand)?;
+        let target = ScoreTarget::new(mask, hand)?.with_band(self.band_px);
         let mut r = SilhouetteRenderer::new(f.camera.width, f.camera.height);
         let s = target.score(r.render(&f.camera, &self.posed(i).instances));
         let depth = match self.capture.load_depth(i)? {
@@ -141,12 +147,18 @@ impl Session {
             None => None,
         };
         let combined = combined_score(s.gate(), depth.as_ref(), depth_weight);
-        Ok(frame_score(&f.name, &s, depth, combined))
+        Ok(frame_score(&f.name, &s, target.band_px(), depth, combined))
     }
 }
 
 /// One frame's score from the renderer's scores (the report type is shared with the tools).
-pub fn frame_score(frame: &str, s: &IouScore, d: Option<DepthScore>, combined: f64) -> FrameScore {
+pub fn frame_score(
+    frame: &str,
+    s: &IouScore,
+    band_px: Option<f64>,
+    d: Option<DepthScore>,
+    combined: f64,
+) -> FrameScore {
     FrameScore {
         frame: frame.to_string(),
         iou_visible: s.iou_visible,
@@ -158,6 +170,8 @@ pub fn frame_score(frame: &str, s: &IouScore, d: Option<DepthScore>, combined: f
         depth_mae_canon: d.map(|d| d.mae_canon),
         depth_bias: d.map(|d| d.bias),
         combined,
+        band_px,
+        iou_band: s.iou_band,
     }
 }
 

@@ -126,7 +126,7 @@ fn result_of(
 ) -> Result<(SequenceResult, EvalReport)> {
     let (m, seq) = evaluate_run(s, gt_path, samples)?;
     let iou: Vec<f64> = (0..s.capture.frames.len())
-        .map(|i| s.score(i, 0.0).map(|f| f.gate()))
+        .map(|i| s.score(i, 0.0).map(|f| f.iou_visible.unwrap_or(0.0)))
         .collect::<Result<_>>()?;
     let id = capture
         .file_name()

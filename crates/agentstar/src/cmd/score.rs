@@ -2,7 +2,8 @@
 
 use crate::common::{print_json, select_frames, FrameScore, SessionArgs, PASS_IOU};
 use agentstar_agent::reports::{ScoreReport, SequenceScore};
-use anyhow::Result;
+use agentstar_render::DEFAULT_BAND_PX;
+use anyhow::{bail, Result};
 use rayon::prelude::*;
 use std::process::ExitCode;
 
@@ -19,9 +20,15 @@ pub struct Args {
     /// Weight w of the depth term in `combined = IoU − w · min(depth error in canonical units, 1)`.
     #[arg(long, default_value_t = 0.1)]
     depth_weight: f64,
-    /// The gate on the visible-region IoU.
+    /// The gate: on the band IoU (visible region without the ±band-px boundary band of the
+    /// observed mask), or on the visible IoU with `--band-px 0`.
     #[arg(long, default_value_t = PASS_IOU)]
     pass_iou: f64,
+    /// Half-width in pixels of the band around the observed mask's boundary that the band IoU
+    /// excludes (a segmenter's 1–2 px boundary errors); 0 scores no band and gates the visible
+    /// IoU. The default is chosen by measurement (docs/scoring.md).
+    #[arg(long, default_value_t = DEFAULT_BAND_PX)]
+    band_px: f64,
     /// Print the result as JSON on stdout.
     #[arg(long)]
     json: bool,
@@ -33,7 +40,14 @@ pub fn summarise(scores: &[FrameScore], pass_iou: f64) -> SequenceScore {
 }
 
 pub fn run(a: Args) -> Result<ExitCode> {
-    let s = a.session.open()?;
+    if !(a.band_px.is_finite() && a.band_px >= 0.0 && a.band_px <= 64.0) {
+        bail!(
+            "--band-px {}: give a width in pixels from 0 to 64",
+            a.band_px
+        );
+    }
+    let mut s = a.session.open()?;
+    s.band_px = a.band_px;
     let frames = select_frames(&s.capture, a.frames.as_deref())?;
     let scores: Vec<FrameScore> = frames
         .par_iter()
@@ -57,9 +71,14 @@ pub fn run(a: Args) -> Result<ExitCode> {
 
 pub fn print_table(scores: &[FrameScore], summary: &SequenceScore) {
     let has_depth = scores.iter().any(|s| s.depth_mae.is_some());
+    let band = summary.band_px;
+    print!("{:<14} {:>11}", "frame", "iou_visible");
+    if band.is_some() {
+        print!(" {:>9}", "iou_band");
+    }
     print!(
-        "{:<14} {:>11} {:>8} {:>9} {:>9} {:>8}",
-        "frame", "iou_visible", "iou_raw", "render_px", "mask_px", "hand_px"
+        " {:>8} {:>9} {:>9} {:>8}",
+        "iou_raw", "render_px", "mask_px", "hand_px"
     );
     if has_depth {
         print!(" {:>10} {:>9}", "depth_canon", "combined");
@@ -72,13 +91,19 @@ pub fn print_table(scores: &[FrameScore], summary: &SequenceScore) {
             ""
         };
         print!(
-            "{:<14} {:>11} {:>8.4} {:>9} {:>9} {:>8}",
+            "{:<14} {:>11}",
             s.frame,
-            s.iou_visible.map_or("n/a".into(), |v| format!("{v:.4}")),
-            s.iou_raw,
-            s.render_px,
-            s.mask_px,
-            s.hand_px
+            s.iou_visible.map_or("n/a".into(), |v| format!("{v:.4}"))
+        );
+        if band.is_some() {
+            print!(
+                " {:>9}",
+                s.iou_band.map_or("n/a".into(), |v| format!("{v:.4}"))
+            );
+        }
+        print!(
+            " {:>8.4} {:>9} {:>9} {:>8}",
+            s.iou_raw, s.render_px, s.mask_px, s.hand_px
         );
         if has_depth {
             print!(
@@ -90,8 +115,16 @@ pub fn print_table(scores: &[FrameScore], summary: &SequenceScore) {
         }
         println!("{mark}");
     }
+    let band_text = match (band, summary.mean_iou_band, summary.min_iou_band) {
+        (Some(px), Some(mean), Some(min)) => {
+            format!(
+                "; band IoU (±{px} px boundary excluded, the gate) mean {mean:.4}, min {min:.4}"
+            )
+        }
+        _ => String::new(),
+    };
     println!(
-        "sequence: {} frames, IoU visible mean {:.4}, median {:.4}, min {:.4} ({}); {} below {:.2}",
+        "sequence: {} frames, IoU visible mean {:.4}, median {:.4}, min {:.4} ({}){band_text}; {} below {:.2}",
         summary.frames,
         summary.mean_iou_visible,
         summary.median_iou_visible,

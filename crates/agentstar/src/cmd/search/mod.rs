@@ -97,6 +97,7 @@ fn candidate(r: &Row, scale: f64, tree: &KinematicTree) -> Candidate {
         joints: tree.states_to_interface(&r.pose.states),
         iou_visible: r.score.iou_visible,
         iou_raw: r.score.iou_raw,
+        iou_band: r.score.iou_band,
         gate: r.score.gate,
         depth_canon: r.score.depth_canon,
         combined: r.score.combined,
