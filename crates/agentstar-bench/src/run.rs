@@ -51,6 +51,10 @@ pub struct RunConfig {
     pub vlm_free_evals: usize,
     /// Surface samples per mesh for Chamfer distances.
     pub samples: usize,
+    /// The tracker ends with the sequence-level choice ([`TrackConfig::sequence_choice`]).
+    pub sequence_choice: bool,
+    /// The tracker sees the frames' colours (the appearance term); off: masks alone.
+    pub appearance: bool,
 }
 
 impl Default for RunConfig {
@@ -60,6 +64,8 @@ impl Default for RunConfig {
             local_evals: 2400,
             vlm_free_evals: 8000,
             samples: 10_000,
+            sequence_choice: false,
+            appearance: true,
         }
     }
 }
@@ -268,12 +274,15 @@ pub fn run_sequence_observed(
             camera: capture.camera,
             target: t,
             world_from_camera: Some(f.world_from_camera),
+            rgb: cfg.appearance.then(|| f.rgb.as_raw().as_slice()),
         })
         .collect();
     let tcfg = TrackConfig {
         seed: cfg.seed,
         local_evals: cfg.local_evals,
         consistency_pass: method == Method::Tracker,
+        sequence_choice: cfg.sequence_choice && method == Method::Tracker,
+        appearance: cfg.appearance,
         ..TrackConfig::default()
     };
     let t0 = Instant::now();

@@ -126,6 +126,7 @@ fn tracking() {
             camera: cam,
             target: t,
             world_from_camera: None,
+            rgb: None,
         })
         .collect();
     let mut times = Vec::new();

@@ -198,23 +198,23 @@ impl Group {
     }
 }
 
-/// The appearance score of `candidate` for `frame` against the other frames' views.
-pub fn appearance_score(
+/// What one candidate's samples gathered: per (reference, part) groups, per reference the
+/// samples hidden there, and the candidate frame's own colours.
+struct Gathered {
+    groups: Vec<Group>,
+    occluded: Vec<usize>,
+    own: Group,
+    n_parts: usize,
+}
+
+fn gather(
     model: &ObjectModel,
     scale: f64,
     frame: &AppearanceFrame<'_>,
     candidate: &GenPose,
     references: &[ReferenceView<'_>],
     cfg: &AppearanceConfig,
-) -> AppearanceScore {
-    let none = AppearanceScore {
-        ncc: None,
-        pairs: 0,
-        groups: 0,
-    };
-    if !frame.valid() || references.is_empty() {
-        return none;
-    }
+) -> Gathered {
     let cam = frame.camera;
     let posed = PosedModel::new(model, &candidate.states, &candidate.pose.with_scale(scale));
     let buffers = render_full(cam, &posed.instances);
@@ -225,7 +225,7 @@ pub fn appearance_score(
     let n_parts = model.parts.len();
     let mut groups = vec![Group::default(); references.len() * n_parts];
     let stride = cfg.stride.max(1);
-    let mut occluded = 0usize;
+    let mut occluded = vec![0usize; references.len()];
     // The candidate frame's own sampled colours: without texture, nothing to compare.
     let mut own = Group::default();
     let (w, h) = (cam.width, cam.height);
@@ -261,7 +261,7 @@ pub fn appearance_score(
                     {
                         // Seen here, hidden there although the object is observed there: the
                         // candidate puts this pixel on surface the other frame cannot see.
-                        occluded += 1;
+                        occluded[r] += 1;
                         continue;
                     }
                     groups[r * n_parts + part as usize].add(a, view.frame.colour(ux, vy));
@@ -271,15 +271,31 @@ pub fn appearance_score(
         }
         y += stride;
     }
+    Gathered {
+        groups,
+        occluded,
+        own,
+        n_parts,
+    }
+}
+
+/// The score over the groups of the references in `refs` (indices into the gathered ones).
+fn finish(g: &Gathered, refs: std::ops::Range<usize>, cfg: &AppearanceConfig) -> AppearanceScore {
+    let none = AppearanceScore {
+        ncc: None,
+        pairs: 0,
+        groups: 0,
+    };
     let (mut sum, mut pairs, mut count) = (0.0, 0usize, 0usize);
-    for g in &groups {
-        if let Some(ncc) = g.ncc(cfg) {
-            sum += ncc * g.n as f64;
-            pairs += g.n;
+    for group in &g.groups[refs.start * g.n_parts..refs.end * g.n_parts] {
+        if let Some(ncc) = group.ncc(cfg) {
+            sum += ncc * group.n as f64;
+            pairs += group.n;
             count += 1;
         }
     }
-    if (pairs == 0 && occluded < cfg.min_pairs) || own.ncc(cfg).is_none() {
+    let occluded: usize = g.occluded[refs].iter().sum();
+    if (pairs == 0 && occluded < cfg.min_pairs) || g.own.ncc(cfg).is_none() {
         return none;
     }
     // Samples hidden in the other frames count as uncorrelated (NCC 0).
@@ -288,6 +304,53 @@ pub fn appearance_score(
         pairs,
         groups: count,
     }
+}
+
+/// The appearance score of `candidate` for `frame` against the other frames' views.
+pub fn appearance_score(
+    model: &ObjectModel,
+    scale: f64,
+    frame: &AppearanceFrame<'_>,
+    candidate: &GenPose,
+    references: &[ReferenceView<'_>],
+    cfg: &AppearanceConfig,
+) -> AppearanceScore {
+    if !frame.valid() || references.is_empty() {
+        return AppearanceScore {
+            ncc: None,
+            pairs: 0,
+            groups: 0,
+        };
+    }
+    let g = gather(model, scale, frame, candidate, references, cfg);
+    finish(&g, 0..references.len(), cfg)
+}
+
+/// The appearance score of `candidate` against each reference on its own (one rendering
+/// of the candidate for all of them): what a choice between pairs of hypotheses of
+/// neighbouring frames compares.
+pub fn appearance_each(
+    model: &ObjectModel,
+    scale: f64,
+    frame: &AppearanceFrame<'_>,
+    candidate: &GenPose,
+    references: &[ReferenceView<'_>],
+    cfg: &AppearanceConfig,
+) -> Vec<AppearanceScore> {
+    if !frame.valid() || references.is_empty() {
+        return vec![
+            AppearanceScore {
+                ncc: None,
+                pairs: 0,
+                groups: 0,
+            };
+            references.len()
+        ];
+    }
+    let g = gather(model, scale, frame, candidate, references, cfg);
+    (0..references.len())
+        .map(|r| finish(&g, r..r + 1, cfg))
+        .collect()
 }
 
 /// The appearance term's verdict over hypotheses of one frame.
@@ -468,6 +531,52 @@ mod tests {
         assert!(r - t > 0.3, "true {right:?} against twin {twin:?}");
         assert_eq!(choose(&[twin, right], &cfg), Choice::Best(1));
         assert!(right.cost().expect("cost") < twin.cost().expect("cost"));
+    }
+
+    #[test]
+    fn per_reference_scores_add_up_to_the_pooled_score() {
+        let model = cylinder_model();
+        let scale = 0.12;
+        let cam = PinholeCamera::new(300.0, 300.0, 168.0, 112.0, 320, 240).expect("camera");
+        let stripes = |p: &Point3| -> [f64; 3] {
+            let theta = p.y.atan2(p.x);
+            if (theta * 3.0).sin() > 0.0 {
+                [0.9, 0.8, 0.3]
+            } else {
+                [0.1, 0.2, 0.6]
+            }
+        };
+        let truth = [
+            pose(Vector3::y(), 0.0, 10.0),
+            pose(Vector3::new(0.2, 1.0, 0.1), 35.0, 40.0),
+            pose(Vector3::new(-0.3, 1.0, 0.0), -30.0, -25.0),
+        ];
+        let shots: Vec<(Vec<u8>, BitMask)> = truth
+            .iter()
+            .map(|p| shoot(&model, scale, &cam, p, &stripes))
+            .collect();
+        let frames: Vec<AppearanceFrame<'_>> = shots
+            .iter()
+            .map(|(rgb, mask)| AppearanceFrame {
+                camera: &cam,
+                rgb,
+                mask,
+            })
+            .collect();
+        let refs: Vec<ReferenceView<'_>> = (1..3)
+            .map(|k| ReferenceView::new(&model, scale, frames[k], &truth[k]).expect("view"))
+            .collect();
+        let cfg = AppearanceConfig::default();
+        let each = appearance_each(&model, scale, &frames[0], &truth[0], &refs, &cfg);
+        assert_eq!(each.len(), 2);
+        for (k, e) in each.iter().enumerate() {
+            let alone =
+                appearance_score(&model, scale, &frames[0], &truth[0], &refs[k..k + 1], &cfg);
+            assert_eq!(*e, alone);
+            assert!(e.ncc.expect("evidence") > 0.8, "{e:?}");
+        }
+        let pooled = appearance_score(&model, scale, &frames[0], &truth[0], &refs, &cfg);
+        assert_eq!(pooled.pairs, each.iter().map(|e| e.pairs).sum::<usize>());
     }
 
     #[test]

@@ -6,7 +6,10 @@
 //! (flips and a covering around the seed) whenever the score drops; a final consistency pass
 //! that searches temporal outliers again from their neighbours.
 
-use crate::hypotheses::{refine_each, refine_local, twin_candidates, LocalWindow};
+use crate::appearance::{
+    appearance_each, appearance_score, AppearanceConfig, AppearanceFrame, ReferenceView,
+};
+use crate::hypotheses::{principal_axes, refine_each, refine_local, twin_candidates, LocalWindow};
 use crate::objective::FrameProblem;
 use crate::search::{sweep, SweepConfig};
 use crate::sequence::cheapest_path;
@@ -27,6 +30,20 @@ pub struct TrackFrame<'a> {
     pub camera: PinholeCamera,
     pub target: &'a ScoreTarget,
     pub world_from_camera: Option<Rigid>,
+    /// The frame's colour image (RGB, 8 bits, row-major, `camera.width × camera.height`), for
+    /// the appearance term ([`crate::appearance`]); `None` tracks from the masks alone.
+    pub rgb: Option<&'a [u8]>,
+}
+
+impl TrackFrame<'_> {
+    /// The frame as the appearance term sees it, when it has a colour image.
+    fn appearance(&self) -> Option<AppearanceFrame<'_>> {
+        self.rgb.map(|rgb| AppearanceFrame {
+            camera: &self.camera,
+            rgb,
+            mask: self.target.mask(),
+        })
+    }
 }
 
 #[derive(Debug, Clone, PartialEq)]
@@ -49,6 +66,9 @@ pub struct TrackConfig {
     /// refined, then dynamic programming over frames; [`crate::sequence`]). Off by default
     /// until it is measured on the suites (its cost is up to six polishes per frame).
     pub sequence_choice: bool,
+    /// Let the frames' colours enter the sequence-level choice (photometric consistency
+    /// between hypotheses of neighbouring frames; frames without an image use the masks alone).
+    pub appearance: bool,
 }
 
 impl Default for TrackConfig {
@@ -63,6 +83,7 @@ impl Default for TrackConfig {
             consistency_pass: true,
             init_frame: None,
             sequence_choice: false,
+            appearance: true,
         }
     }
 }
@@ -306,6 +327,99 @@ impl<'m> Searcher<'m> {
             })
             .collect();
         best_of(wide)
+    }
+
+    /// Appearance among silhouette twins: the turns of `pose` about the model's principal
+    /// axes through its centroid (every [`TURN_STEP_DEG`]) that explain the mask as well (within
+    /// [`APPEARANCE_TIE`] of `score`, unrefined: a turn about a symmetry axis keeps the
+    /// outline), scored by photometric consistency with `refs` (frames already tracked); the
+    /// best is taken when its NCC beats the pose's own by the appearance margin, then turned
+    /// finely (10° and 5° steps) about the same axis while its NCC improves and its outline
+    /// holds. `None` when appearance keeps the pose (no twin, no evidence, or no clear winner:
+    /// an untextured object).
+    fn settle(
+        &self,
+        frame: &TrackFrame<'_>,
+        pose: &GenPose,
+        score: f64,
+        refs: &[ReferenceView<'_>],
+    ) -> Option<(GenPose, f64, String)> {
+        let app = frame.appearance()?;
+        if refs.is_empty() {
+            return None;
+        }
+        let (centre, axes) = principal_axes(self.model, &pose.states)?;
+        let problem = FrameProblem::new(
+            self.model,
+            frame.camera,
+            frame.target,
+            self.scale,
+            pose.clone(),
+        );
+        let turn = |axis: &Vector3, deg: f64| GenPose {
+            pose: apply_object_rotation(
+                &pose.pose,
+                self.scale,
+                &centre,
+                &UnitQuaternion::from_axis_angle(
+                    &agentstar_geom::nalgebra::Unit::new_normalize(*axis),
+                    deg.to_radians(),
+                ),
+            ),
+            states: pose.states.clone(),
+        };
+        let cfg = AppearanceConfig::default();
+        let ncc = |g: &GenPose| appearance_score(self.model, self.scale, &app, g, refs, &cfg).ncc;
+        let steps = (360.0 / TURN_STEP_DEG).round() as usize;
+        let turns: Vec<(usize, f64)> = (0..3)
+            .flat_map(|k| (1..steps).map(move |m| (k, m as f64 * TURN_STEP_DEG)))
+            .collect();
+        let mut ev = problem.evaluator();
+        let placed: Vec<(usize, f64, GenPose, f64)> = turns
+            .iter()
+            .filter_map(|&(k, deg)| {
+                let g = turn(&axes[k], deg);
+                let sc = ev.combined(&g);
+                (sc >= score - APPEARANCE_TIE).then_some((k, deg, g, sc))
+            })
+            .collect();
+        self.evals
+            .fetch_add(turns.len(), std::sync::atomic::Ordering::Relaxed);
+        if placed.is_empty() {
+            return None;
+        }
+        let own = ncc(pose)?;
+        let scored: Vec<Option<f64>> = placed.par_iter().map(|(_, _, g, _)| ncc(g)).collect();
+        let (best, best_ncc) = scored
+            .iter()
+            .enumerate()
+            .filter_map(|(i, n)| n.map(|n| (i, n)))
+            .max_by(|a, b| a.1.total_cmp(&b.1))?;
+        if best_ncc - own <= cfg.margin {
+            return None;
+        }
+        let (axis, mut deg, mut g, mut sc) = placed[best].clone();
+        let mut n_best = best_ncc;
+        for step in [10.0, 5.0] {
+            for dir in [-1.0, 1.0] {
+                let d = deg + dir * step;
+                let cand = turn(&axes[axis], d);
+                let csc = ev.combined(&cand);
+                self.evals
+                    .fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                if csc < score - APPEARANCE_TIE {
+                    continue;
+                }
+                if let Some(cn) = ncc(&cand).filter(|&cn| cn > n_best) {
+                    (deg, g, sc, n_best) = (d, cand, csc, cn);
+                }
+            }
+        }
+        let deg = deg.rem_euclid(360.0);
+        let note = format!(
+            "appearance: turned {deg:.0}° about principal axis {axis} (NCC {own:.2} → {n_best:.2}, IoU {score:.4} → {sc:.4})"
+        );
+        Some((g, sc, note))
     }
 
     fn joint_grid(&self) -> Vec<Vec<f64>> {
@@ -585,8 +699,29 @@ pub fn track_observed(
                 how = "wide";
             }
         }
+        let mut note = String::new();
+        if cfg.appearance {
+            // The frames tracked just before this one, at their poses, as the references.
+            let refs: Vec<ReferenceView<'_>> = [
+                Some(prev_i),
+                Some(prev2_i)
+                    .filter(|&k| k >= 0 && (k as usize) < n)
+                    .map(|k| k as usize),
+            ]
+            .into_iter()
+            .flatten()
+            .filter_map(|k| {
+                let p = poses[k].as_ref()?;
+                ReferenceView::new(model, scale, frames[k].appearance()?, p)
+            })
+            .collect();
+            if let Some((tg, tsc, text)) = s.settle(&frames[i], &g, sc, &refs) {
+                (g, sc) = (tg, tsc);
+                note = format!("; {text}");
+            }
+        }
         log.push(format!(
-            "{} from {}: {how} search, IoU {sc:.4}",
+            "{} from {}: {how} search, IoU {sc:.4}{note}",
             frames[i].name, frames[prev_i].name
         ));
         poses[i] = Some(g);
@@ -624,6 +759,13 @@ pub fn track_observed(
         evaluations: s.evals.into_inner(),
     })
 }
+
+/// Two poses of one frame whose IoU differ by less than this explain its mask equally for
+/// the appearance term (a segmenter's boundary noise moves the IoU of the right pose by
+/// about this much).
+const APPEARANCE_TIE: f64 = 0.005;
+/// The turns about the principal axes that [`Searcher::settle`] compares.
+const TURN_STEP_DEG: f64 = 30.0;
 
 /// How much better a neighbour must score for the consistency pass to search from it with
 /// the tracking step's window rather than the narrow polish.
@@ -850,7 +992,23 @@ fn choose_sequence(
             h.iter().map(|x| (best - x.1) / CHOICE_IOU_UNIT).collect()
         })
         .collect();
+    // Photometric consistency of every pair of hypotheses of neighbouring frames (in both
+    // directions): a pair that puts the frames' colours on the same surface points costs
+    // little, one that does not (a half-turn twin of a labelled can) costs up to
+    // 1 / CHOICE_NCC_UNIT. Without colour evidence at a step (no images, an untextured
+    // object) the step costs only motion.
+    let appearance: Vec<Vec<Vec<f64>>> = if s.cfg.appearance {
+        pair_appearance(s, frames, &hyps)
+    } else {
+        vec![]
+    };
     let step = |i: usize, a: usize, b: usize| {
+        let colour = appearance
+            .get(i)
+            .and_then(|m| m.get(a))
+            .and_then(|r| r.get(b))
+            .copied()
+            .unwrap_or(0.0);
         let from = &hyps[i - 1][a].0;
         let to = &hyps[i][b].0;
         let carried = transfer(&from.pose, &frames[i - 1], &frames[i]);
@@ -864,7 +1022,7 @@ fn choose_sequence(
             / CHOICE_STEP_DEG;
         let depth = carried.translation.z.abs().max(1e-9);
         let shift = (to.pose.translation - carried.translation).norm() / depth / CHOICE_STEP_DEPTH;
-        rot * rot + joint * joint + shift * shift
+        rot * rot + joint * joint + shift * shift + colour
     };
     let path = cheapest_path(&unary, &step);
     if path.len() != n {
@@ -888,8 +1046,14 @@ fn choose_sequence(
             scores[i] = sc;
         }
     }
+    let colour_steps = appearance.iter().filter(|m| !m.is_empty()).count();
     log.push(format!(
-        "sequence choice: {alternatives} twin hypotheses kept over {n} frames; {}",
+        "sequence choice: {alternatives} twin hypotheses kept over {n} frames, {}; {}",
+        if colour_steps > 0 {
+            format!("appearance compared at {colour_steps} of {} steps", n - 1)
+        } else {
+            "no appearance evidence (masks alone)".to_string()
+        },
         if changed.is_empty() {
             "every frame keeps its basin".to_string()
         } else {
@@ -897,6 +1061,100 @@ fn choose_sequence(
         }
     ));
     Ok(())
+}
+
+/// One unit of the sequence choice's cost per this much photometric correlation (NCC)
+/// missing between a pair of hypotheses of neighbouring frames: a half-turn twin of a
+/// labelled can (NCC near 0 against the right pose's 0.6–0.9) costs several units, more than
+/// the IoU noise of a segmenter's boundary (0.01 = 2 units), less than a clear silhouette
+/// difference (0.03 = 6 units).
+const CHOICE_NCC_UNIT: f64 = 0.1;
+
+/// `cost[i][a][b]`: the appearance cost of hypothesis `a` at frame `i − 1` followed by `b` at
+/// frame `i` (`cost[0]` empty; a step without colour evidence is empty too). Each direction
+/// renders one frame's hypothesis and carries its colours into the other frame's hypothesis
+/// views; the cost is `(1 − mean NCC) / CHOICE_NCC_UNIT`, a pair without evidence at a step
+/// that has some counting as uncorrelated.
+fn pair_appearance(
+    s: &Searcher<'_>,
+    frames: &[TrackFrame<'_>],
+    hyps: &[Vec<(GenPose, f64)>],
+) -> Vec<Vec<Vec<f64>>> {
+    let cfg = AppearanceConfig::default();
+    let n = frames.len();
+    (0..n)
+        .into_par_iter()
+        .map(|i| {
+            if i == 0 {
+                return vec![];
+            }
+            let (Some(fa), Some(fb)) = (frames[i - 1].appearance(), frames[i].appearance()) else {
+                return vec![];
+            };
+            let (Some(va), Some(vb)) = (
+                hypothesis_views(s, fa, &hyps[i - 1]),
+                hypothesis_views(s, fb, &hyps[i]),
+            ) else {
+                return vec![];
+            };
+            // forward[b][a]: hypothesis b of frame i against frame i − 1 at a; backward[a][b].
+            let forward: Vec<Vec<Option<f64>>> = hyps[i]
+                .iter()
+                .map(|(g, _)| {
+                    appearance_each(s.model, s.scale, &fb, g, &va, &cfg)
+                        .iter()
+                        .map(|x| x.ncc)
+                        .collect()
+                })
+                .collect();
+            let backward: Vec<Vec<Option<f64>>> = hyps[i - 1]
+                .iter()
+                .map(|(g, _)| {
+                    appearance_each(s.model, s.scale, &fa, g, &vb, &cfg)
+                        .iter()
+                        .map(|x| x.ncc)
+                        .collect()
+                })
+                .collect();
+            let evidence = forward
+                .iter()
+                .flatten()
+                .chain(backward.iter().flatten())
+                .any(Option::is_some);
+            if !evidence {
+                return vec![];
+            }
+            (0..hyps[i - 1].len())
+                .map(|a| {
+                    (0..hyps[i].len())
+                        .map(|b| {
+                            let both: Vec<f64> = [forward[b][a], backward[a][b]]
+                                .into_iter()
+                                .flatten()
+                                .collect();
+                            let ncc = if both.is_empty() {
+                                0.0
+                            } else {
+                                both.iter().sum::<f64>() / both.len() as f64
+                            };
+                            (1.0 - ncc) / CHOICE_NCC_UNIT
+                        })
+                        .collect()
+                })
+                .collect()
+        })
+        .collect()
+}
+
+/// One frame rendered at each of its hypotheses, as references for the appearance term.
+fn hypothesis_views<'a>(
+    s: &Searcher<'_>,
+    frame: AppearanceFrame<'a>,
+    hyps: &[(GenPose, f64)],
+) -> Option<Vec<ReferenceView<'a>>> {
+    hyps.iter()
+        .map(|(g, _)| ReferenceView::new(s.model, s.scale, frame, g))
+        .collect()
 }
 
 /// How much better than a frame's own refined pose a pose carried from the neighbour on the

@@ -99,6 +99,7 @@ fn tracker_recovers_a_rapid_articulated_sequence() {
             camera: camera(),
             target: t,
             world_from_camera: None,
+            rgb: None,
         })
         .collect();
     let r = track(&model, scale, &frames, &TrackConfig::default()).expect("track");

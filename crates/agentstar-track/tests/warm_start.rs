@@ -64,6 +64,7 @@ fn frames_of(targets: &[ScoreTarget]) -> Vec<TrackFrame<'_>> {
             camera: camera(),
             target: t,
             world_from_camera: None,
+            rgb: None,
         })
         .collect()
 }

@@ -48,6 +48,13 @@ pub struct Args {
     /// Seed of the trackers' searches.
     #[arg(long, default_value_t = 17)]
     seed: u64,
+    /// The tracker ends with the sequence-level choice (twins of every frame, one basin per
+    /// frame by dynamic programming over the sequence).
+    #[arg(long)]
+    sequence_choice: bool,
+    /// The tracker sees the masks alone, not the frames' colours (no appearance term).
+    #[arg(long)]
+    no_appearance: bool,
     /// Print the results as JSON on stdout.
     #[arg(long)]
     json: bool,
@@ -137,6 +144,8 @@ pub fn run(a: Args) -> Result<ExitCode> {
     let cfg = RunConfig {
         seed: a.seed,
         local_evals: a.evals,
+        sequence_choice: a.sequence_choice,
+        appearance: !a.no_appearance,
         ..RunConfig::default()
     };
     let mut results: Vec<SequenceResult> = Vec::new();
@@ -159,7 +168,8 @@ pub fn run(a: Args) -> Result<ExitCode> {
             });
             bar.set_message(format!("{id} ({})", method.as_str()));
             let (r, poses) = run_sequence_observed(&capture, method, &cfg, &|line: &str| {
-                bar.set_message(format!("{id}: {line}"))
+                bar.set_message(format!("{id}: {line}"));
+                bar.suspend(|| eprintln!("bench   {id}: {line}"));
             })?;
             bar.inc(1);
             bar.suspend(|| {
@@ -193,7 +203,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
         md.push_str(&agentstar_bench::table::hard_table(&results));
     }
     let header = format!(
-        "## agentstar bench: {} suite, {} sequence(s), methods {}\n\nRecorded {} on {}.\n\n",
+        "## agentstar bench: {} suite, {} sequence(s), methods {}\n\nRecorded {} on {}; tracker with the appearance term {}, sequence-level choice {}.\n\n",
         a.suite,
         specs.len(),
         methods
@@ -202,7 +212,9 @@ pub fn run(a: Args) -> Result<ExitCode> {
             .collect::<Vec<_>>()
             .join(", "),
         today(),
-        machine()
+        machine(),
+        if a.no_appearance { "off" } else { "on" },
+        if a.sequence_choice { "on" } else { "off" },
     );
     if let Some(p) = &a.results {
         agentstar_data::atomic::write_atomic(p, format!("{header}{md}").as_bytes())?;

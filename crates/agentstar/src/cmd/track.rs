@@ -55,6 +55,10 @@ pub struct Args {
     /// refined, one basin per frame by dynamic programming over the sequence.
     #[arg(long, conflicts_with = "no_temporal")]
     sequence_choice: bool,
+    /// Track from the masks alone: leave the frames' colours out (the appearance term that
+    /// turns silhouette twins to the pose whose colours agree with the frames before).
+    #[arg(long)]
+    no_appearance: bool,
     /// Print the result as JSON on stdout.
     #[arg(long)]
     json: bool,
@@ -78,15 +82,49 @@ pub fn run(a: Args) -> Result<ExitCode> {
             )?)
         })
         .collect::<Result<_>>()?;
+    let images: Vec<Option<image::RgbImage>> = (0..capture.frames.len())
+        .map(|i| -> Result<_> {
+            Ok(if a.no_appearance {
+                None
+            } else {
+                // A frame whose image cannot be read, or is not its camera's size, is tracked
+                // from its mask alone (the appearance term is optional; the masks are not).
+                let cam = &capture.frames[i].camera;
+                match capture.load_frame(i) {
+                    Ok(img) if img.width() == cam.width && img.height() == cam.height => Some(img),
+                    Ok(img) => {
+                        eprintln!(
+                            "warning: frame {}: image {}×{} is not the camera's {}×{}; tracked from its mask alone",
+                            capture.frames[i].name,
+                            img.width(),
+                            img.height(),
+                            cam.width,
+                            cam.height
+                        );
+                        None
+                    }
+                    Err(e) => {
+                        eprintln!(
+                            "warning: frame {}: {e:#}; tracked from its mask alone",
+                            capture.frames[i].name
+                        );
+                        None
+                    }
+                }
+            })
+        })
+        .collect::<Result<_>>()?;
     let frames: Vec<TrackFrame> = capture
         .frames
         .iter()
         .zip(&targets)
-        .map(|(f, t)| TrackFrame {
+        .zip(&images)
+        .map(|((f, t), img)| TrackFrame {
             name: f.name.clone(),
             camera: f.camera,
             target: t,
             world_from_camera: Some(f.world_from_camera),
+            rgb: img.as_ref().map(|m| m.as_raw().as_slice()),
         })
         .collect();
     let cfg = TrackConfig {
@@ -94,6 +132,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
         local_evals: a.evals,
         consistency_pass: !a.no_temporal,
         sequence_choice: a.sequence_choice,
+        appearance: !a.no_appearance,
         ..TrackConfig::default()
     };
     let t0 = std::time::Instant::now();
