@@ -2341,6 +2341,7 @@ mod tests {
                     joints: BTreeMap::new(),
                     iou_visible: Some(0.97),
                     iou_raw: 0.95,
+                    iou_band: None,
                     gate: 0.97,
                     depth_canon: None,
                     combined: 0.97,
