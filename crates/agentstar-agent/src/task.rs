@@ -34,7 +34,9 @@ the object's mask.
   about the centre of its bounding box at the frame's joint states, so it stays in place
   on screen; `oapply_all` turns about the canonical origin and keeps the translation.
 - Scores: IoU of the rendered silhouette with the mask, counting only pixels outside the hand
-  masks ("visible"). The gate is 0.98 on every keyframe.
+  masks ("visible"). The gate is 0.98 on every keyframe, on the band IoU: the visible IoU
+  without the pixels within {BAND_PX} px of the mask's outline, where a segmenter's mask is
+  unsure (`score` prints both). Passing the gate means the right basin, up to a few degrees.
 
 ## How to work
 
@@ -45,7 +47,11 @@ Alternate two kinds of steps; **each step changes the shape or the poses, never 
    `scene_write` (the whole script). It is checked before it replaces the current one: on a
    syntax or geometry error you get the message and nothing changes. Check the result with
    `turntable` in every joint state: the 3-D shape must be coherent from every side, not only
-   from the camera.
+   from the camera. Proportions you are unsure of (a depth, a handle's height) are better
+   declared as parameters, `param("depth", 0.9, 0.7, 1.1)`, and fitted with `fit_shape`
+   (only the parameters you name move, within their bounds, against the committed poses);
+   `scale` estimates metres per model unit (from depth, camera parallax or a size you state)
+   and rescales the poses.
 2. **Pose step.** Pick the worst keyframes (`score`, `temporal`), name a bounded region with
    `sweep` (camera-frame ranges and joint ranges, e.g. `yaw:-30,30;pitch:-20,20;hinge:0,90`)
    or the object-frame verbs (`osweep`, `oapply` with `flips` for near-symmetric objects,
@@ -95,7 +101,8 @@ so a high IoU does not rule them out:
 - **Scale.** A larger object farther away casts the same silhouette: the IoU cannot tell
   the scale from the distance. Check: use depth when the capture has it (the depth error
   in `score`), a size you know ("the laptop is 30 cm wide"), or a moving camera's
-  parallax; keep proportions from the frames, not from the IoU.
+  parallax, each a method of the `scale` tool; keep proportions from the frames, not from
+  the IoU.
 
 ## Gates before you finish
 
@@ -149,7 +156,8 @@ pub fn task_document() -> String {
     let mut s = TASK
         .replace("{COMPARE_LEGEND}", &compare_legend_markdown())
         .replace("{MAX_SIDE}", &MAX_LONG_SIDE_PX.to_string())
-        .replace("{MAX_MP}", &format!("{:.2}", MAX_PIXELS as f64 / 1e6));
+        .replace("{MAX_MP}", &format!("{:.2}", MAX_PIXELS as f64 / 1e6))
+        .replace("{BAND_PX}", &agentstar_render::DEFAULT_BAND_PX.to_string());
     s.push_str("# The scene API\n\n");
     let scene = include_str!("../../../docs/scene.md");
     // The scene document's own title is replaced by the heading above.
@@ -162,7 +170,7 @@ pub fn task_document() -> String {
 }
 
 /// What an MCP client shows its model when it connects.
-pub const MCP_INSTRUCTIONS: &str = "agentstar fits an object model written as code (scene.rhai) and its pose in every keyframe of a video to the object's masks. Read TASK.md in the run directory first (the tool `task` returns it): it explains the loop (each step changes the shape or the poses, never both), how to read the images, and the gates `finish` checks. Shape tools: scene_read, scene_write, scene_restore, turntable. Pose tools: track, sweep, apply, osweep, oapply, oapply_all, pose_commit, pose_history, pose_restore. Diagnostics: frames (the raw keyframes, cropped around the mask), render, score, temporal, pose_diff, critic. Images come back inline and as files under the run's images/ directory.";
+pub const MCP_INSTRUCTIONS: &str = "agentstar fits an object model written as code (scene.rhai) and its pose in every keyframe of a video to the object's masks. Read TASK.md in the run directory first (the tool `task` returns it): it explains the loop (each step changes the shape or the poses, never both), how to read the images, and the gates `finish` checks. Shape tools: scene_read, scene_write, scene_restore, fit_shape, scale, turntable. Pose tools: track, sweep, apply, osweep, oapply, oapply_all, pose_commit, pose_history, pose_restore. Diagnostics: frames (the raw keyframes, cropped around the mask), render, score, temporal, pose_diff, critic. Images come back inline and as files under the run's images/ directory.";
 
 #[cfg(test)]
 mod tests {
@@ -172,7 +180,7 @@ mod tests {
     fn the_compare_legend_is_the_one_the_images_are_drawn_with() {
         use agentstar_render::views::{colour_name, comparison_legend, hex, COMPARE_LEGEND};
         let t = task_document();
-        for hole in ["{COMPARE_LEGEND}", "{MAX_SIDE}", "{MAX_MP}"] {
+        for hole in ["{COMPARE_LEGEND}", "{MAX_SIDE}", "{MAX_MP}", "{BAND_PX}"] {
             assert!(!t.contains(hole), "{hole}");
         }
         // Every colour of the images' legend is in TASK.md, under its own name, which
