@@ -108,7 +108,7 @@ so a high IoU does not rule them out:
 
 Call `finish` only when all of these hold; it checks them and tells you what is missing:
 
-1. Every keyframe's visible IoU ≥ 0.98, or a reason for each keyframe that cannot reach it,
+1. Every keyframe's band IoU ≥ 0.98, or a reason for each keyframe that cannot reach it,
    given to `finish` in one of its categories, each checked: `occlusion` (more of the object
    hidden than the run's threshold, 30% by default), `mask_error` (name an image that shows
    it), `truncated` (cut by the frame border), `out_of_reach` (what the model cannot do, in a

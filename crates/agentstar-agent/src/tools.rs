@@ -948,7 +948,7 @@ tool!(Scale, "scale", Pose, Poses, ScaleArgs,
     |tb, a, step| tb.scale(&a, step));
 
 tool!(Finish, "finish", Diagnostic, Nothing, FinishArgs,
-    "Check the gates and end the run when they hold: every keyframe's visible IoU ≥ 0.98 or a checked reason for it in `unreachable` (categories: occlusion over the run's threshold, a mask error shown on an image, truncated by the frame border, out of the model's reach with a note); at most a quarter of the keyframes (the run's `finish.max_share_under_gate`) under the gate even with reasons; a turntable after the last shape change; a temporal report after the last pose change. Returns what is missing otherwise.",
+    "Check the gates and end the run when they hold: every keyframe's band IoU (the gate `score` reports) ≥ 0.98 or a checked reason for it in `unreachable` (categories: occlusion over the run's threshold, a mask error shown on an image, truncated by the frame border, out of the model's reach with a note); at most a quarter of the keyframes (the run's `finish.max_share_under_gate`) under the gate even with reasons; a turntable after the last shape change; a temporal report after the last pose change. Returns what is missing otherwise.",
     |tb, a, _step| tb.finish(&a));
 
 /// Every tool, in the order offered.
@@ -1081,20 +1081,23 @@ pub fn search_text(report: &SearchReport, path: &Path) -> String {
     let mut t = String::new();
     for f in &report.frames {
         t.push_str(&format!(
-            "{} {}\n{:<5} {:>8} {:>8} {:>8}  order\n",
+            "{} {}\n{:<5} {:>8} {:>8} {:>8} {:>8}  order\n",
             report.verb.stem(),
             f.frame,
             "rank",
-            "gate_iou",
+            "score",
+            "iou_band",
             "iou_vis",
             "iou_raw"
         ));
+        let or_na = |v: Option<f64>| v.map_or("n/a".into(), |v| format!("{v:.4}"));
         for c in &f.ranked {
             t.push_str(&format!(
-                "{:<5} {:>8.4} {:>8} {:>8.4}  {}\n",
+                "{:<5} {:>8.4} {:>8} {:>8} {:>8.4}  {}\n",
                 c.rank,
                 c.gate,
-                c.iou_visible.map_or("n/a".into(), |v| format!("{v:.4}")),
+                or_na(c.iou_band),
+                or_na(c.iou_visible),
                 c.iou_raw,
                 c.label
             ));
@@ -1105,6 +1108,9 @@ pub fn search_text(report: &SearchReport, path: &Path) -> String {
     }
     let frames: Vec<&str> = report.frames.iter().map(|f| f.frame.as_str()).collect();
     if report.frames.iter().any(|f| !f.ranked.is_empty()) {
+        t.push_str(&format!(
+            "Ranked by score (the visible IoU the search optimises, with depth where weighted); the gate ({GATE_IOU}) is on iou_band, the visible IoU without the mask's uncertain outline.\n"
+        ));
         t.push_str(&format!(
             "To keep a candidate, look at its tiles on the sheet first (a flipped twin can score as high), then call `pose_commit` with report = \"{}\" and its rank (0 = best){}. Nothing is changed until you commit.\n",
             path.display(),
