@@ -15,7 +15,7 @@
 use crate::hand;
 use crate::noise::hash01;
 use crate::objects::ObjectSpec;
-use crate::{build_object, checker, srgb, to_u8, SynthError, SynthFrame};
+use crate::{build_object, srgb, to_u8, Foreground, SynthError, SynthFrame};
 use agentstar_geom::camera::look_at;
 use agentstar_geom::pose::{ObjectPose, Rigid, Similarity};
 use agentstar_geom::{ObjectModel, PinholeCamera, Point3, UnitQuaternion, Vector3};
@@ -407,6 +407,14 @@ pub fn synthesize_room_clip(cfg: &RoomConfig) -> Result<RoomClip, SynthError> {
             })
             .collect();
         let eye = Point3::from(world_from_camera.translation.vector);
+        let foreground = Foreground {
+            camera: &camera,
+            light: &light,
+            appearance: spec.appearance,
+            colors: &colors,
+            part_from_camera: &part_from_camera,
+            n_parts,
+        };
         let mut rgb = RgbImage::new(w, h);
         for y in 0..h {
             for x in 0..w {
@@ -428,32 +436,7 @@ pub fn synthesize_room_clip(cfg: &RoomConfig) -> Result<RoomClip, SynthError> {
                     }
                     srgb(acc)
                 } else {
-                    let nrm = buffers.normal[i];
-                    let lambert = (-(nrm[0] as f64 * light.x
-                        + nrm[1] as f64 * light.y
-                        + nrm[2] as f64 * light.z))
-                        .max(0.0);
-                    let shading = 0.3 + 0.7 * lambert;
-                    if p < n_parts {
-                        let z = buffers.depth[i] as f64;
-                        let q =
-                            Point3::from(camera.ray_direction(x as f64 + 0.5, y as f64 + 0.5) * z);
-                        let local = part_from_camera[p as usize].transform_point(&q);
-                        let tex = checker(&local);
-                        let base = colors[p as usize];
-                        srgb([
-                            base[0] as f64 * shading * tex,
-                            base[1] as f64 * shading * tex,
-                            base[2] as f64 * shading * tex,
-                        ])
-                    } else {
-                        let s = hand::SKIN;
-                        srgb([
-                            s[0] as f64 * shading,
-                            s[1] as f64 * shading,
-                            s[2] as f64 * shading,
-                        ])
-                    }
+                    foreground.shade(&buffers, x, y)
                 };
                 rgb.put_pixel(
                     x,

@@ -352,6 +352,14 @@ pub fn synthesize(cfg: &SynthConfig) -> Result<SynthCapture, SynthError> {
                     .inverse()
             })
             .collect();
+        let foreground = Foreground {
+            camera: &camera,
+            light: &light,
+            appearance: spec.appearance,
+            colors: &colors,
+            part_from_camera: &part_from_camera,
+            n_parts,
+        };
         let mut rgb = RgbImage::new(w, h);
         for y in 0..h {
             for x in 0..w {
@@ -361,27 +369,7 @@ pub fn synthesize(cfg: &SynthConfig) -> Result<SynthCapture, SynthError> {
                 let c = if p == NO_PART {
                     background.at(x, y)
                 } else {
-                    let n = buffers.normal[i];
-                    let lambert =
-                        (-(n[0] as f64 * light.x + n[1] as f64 * light.y + n[2] as f64 * light.z))
-                            .max(0.0);
-                    let shading = 0.3 + 0.7 * lambert;
-                    if p < n_parts {
-                        let z = buffers.depth[i] as f64;
-                        let q =
-                            Point3::from(camera.ray_direction(x as f64 + 0.5, y as f64 + 0.5) * z);
-                        let local = part_from_camera[p as usize].transform_point(&q);
-                        let albedo =
-                            albedo(spec.appearance, p as usize, &local, colors[p as usize]);
-                        srgb(albedo.map(|a| a * shading))
-                    } else {
-                        let s = hand::SKIN;
-                        srgb([
-                            s[0] as f64 * shading,
-                            s[1] as f64 * shading,
-                            s[2] as f64 * shading,
-                        ])
-                    }
+                    foreground.shade(&buffers, x, y)
                 };
                 rgb.put_pixel(
                     x,
@@ -447,6 +435,39 @@ fn hand_instance<'a>(
         camera_from_mesh: Affine::from_similarity(pose),
         edges: hand.edges.as_deref().map(|e| e.as_slice()),
         part_id,
+    }
+}
+
+/// What colours a foreground pixel: the object's parts (their albedo under `appearance`, at
+/// the pixel's point in the part's rest coordinates) and, from part id `n_parts` on, the
+/// hands (skin); both Lambert-shaded under `light`. Captures and room clips share it.
+pub(crate) struct Foreground<'a> {
+    pub camera: &'a PinholeCamera,
+    pub light: &'a Vector3,
+    pub appearance: Appearance,
+    pub colors: &'a [[f32; 3]],
+    pub part_from_camera: &'a [Similarity],
+    pub n_parts: u16,
+}
+
+impl Foreground<'_> {
+    /// The display colour (gamma applied) of pixel (`x`, `y`), which must not be background.
+    pub fn shade(&self, buffers: &agentstar_render::RenderBuffers, x: u32, y: u32) -> [f64; 3] {
+        let i = (y * buffers.width + x) as usize;
+        let p = buffers.part[i];
+        let n = buffers.normal[i];
+        let l = self.light;
+        let lambert = (-(n[0] as f64 * l.x + n[1] as f64 * l.y + n[2] as f64 * l.z)).max(0.0);
+        let shading = 0.3 + 0.7 * lambert;
+        if p < self.n_parts {
+            let z = buffers.depth[i] as f64;
+            let q = Point3::from(self.camera.ray_direction(x as f64 + 0.5, y as f64 + 0.5) * z);
+            let local = self.part_from_camera[p as usize].transform_point(&q);
+            let albedo = albedo(self.appearance, p as usize, &local, self.colors[p as usize]);
+            srgb(albedo.map(|a| a * shading))
+        } else {
+            srgb(hand::SKIN.map(|v| v as f64 * shading))
+        }
     }
 }
 
