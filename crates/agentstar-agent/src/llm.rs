@@ -482,6 +482,11 @@ fn truncate(s: &str, n: usize) -> String {
     }
 }
 
+/// The most a model server's reply body may hold. A reply holds at most the requested
+/// tokens, a few MiB of JSON; past this the server or a proxy misbehaves, and the reply is
+/// refused (not retried: another attempt would read as much again).
+pub const MAX_REPLY_BYTES: u64 = 64 << 20;
+
 /// One request, no retries.
 fn request_once(cfg: &ModelConfig, body: &Value) -> Result<Reply, LlmError> {
     let agent: ureq::Agent = ureq::Agent::config_builder()
@@ -519,12 +524,29 @@ fn request_once(cfg: &ModelConfig, body: &Value) -> Result<Reply, LlmError> {
         .get("retry-after")
         .and_then(|v| v.to_str().ok())
         .and_then(|v| parse_retry_after(v, std::time::SystemTime::now()));
+    let too_large = || {
+        LlmError::Fatal(format!(
+            "{url}: the reply is larger than the limit of {} MiB (a misbehaving server or proxy); not retried",
+            MAX_REPLY_BYTES >> 20
+        ))
+    };
+    let declared = resp
+        .headers()
+        .get("content-length")
+        .and_then(|v| v.to_str().ok())
+        .and_then(|v| v.trim().parse::<u64>().ok());
+    if declared.is_some_and(|n| n > MAX_REPLY_BYTES) {
+        return Err(too_large());
+    }
     let text = resp
         .body_mut()
         .with_config()
-        .limit(64 << 20)
+        .limit(MAX_REPLY_BYTES)
         .read_to_string()
-        .map_err(|e| LlmError::Transient(format!("{url}: reading the reply: {e}")))?;
+        .map_err(|e| match e {
+            ureq::Error::BodyExceedsLimit(_) => too_large(),
+            e => LlmError::Transient(format!("{url}: reading the reply: {e}")),
+        })?;
     if status == 429 {
         return Err(LlmError::RateLimited {
             message: format!("{url}: HTTP 429: {}", truncate(&text, 300)),

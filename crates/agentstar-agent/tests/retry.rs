@@ -143,3 +143,84 @@ fn giving_up_names_every_kind_of_failure() {
     let text = e.to_string();
     assert!(text.contains("4 attempt(s) failed"), "{text}");
 }
+
+/// A server that answers every request with a reply body far larger than any model reply:
+/// with a declared length of 10 GB, or (`declared` false) no length, streaming until the
+/// client hangs up. Counts the requests it saw.
+fn huge_reply_server(declared: bool) -> (String, std::sync::Arc<std::sync::atomic::AtomicUsize>) {
+    let listener = std::net::TcpListener::bind("127.0.0.1:0").expect("bind");
+    let url = format!("http://{}", listener.local_addr().expect("addr"));
+    let seen = std::sync::Arc::new(std::sync::atomic::AtomicUsize::new(0));
+    let counter = seen.clone();
+    std::thread::spawn(move || {
+        for stream in listener.incoming() {
+            let Ok(mut stream) = stream else { continue };
+            counter.fetch_add(1, std::sync::atomic::Ordering::SeqCst);
+            let mut r = BufReader::new(stream.try_clone().expect("clone"));
+            let mut len = 0;
+            loop {
+                let mut l = String::new();
+                if r.read_line(&mut l).unwrap_or(0) == 0 || l.trim().is_empty() {
+                    break;
+                }
+                if let Some(v) = l.to_ascii_lowercase().strip_prefix("content-length:") {
+                    len = v.trim().parse().unwrap_or(0);
+                }
+            }
+            let mut body = vec![0; len];
+            let _ = r.read_exact(&mut body);
+            let length = if declared {
+                "content-length: 10000000000\r\n"
+            } else {
+                ""
+            };
+            let _ = write!(
+                stream,
+                "HTTP/1.1 200 OK\r\ncontent-type: application/json\r\n{length}connection: close\r\n\r\n{{\"choices\": [{{\"message\": {{\"content\": \""
+            );
+            let chunk = vec![b'a'; 1 << 20];
+            // Until the client hangs up (at most 10 GB).
+            for _ in 0..10_000 {
+                if stream.write_all(&chunk).is_err() {
+                    break;
+                }
+            }
+        }
+    });
+    (url, seen)
+}
+
+/// Issue 16: replies are read with a bound; one over it is a clear error naming the server
+/// and the limit, and it is not retried (another attempt would read as much again).
+#[test]
+fn a_huge_reply_is_refused_with_its_limit_and_not_retried() {
+    for declared in [true, false] {
+        let (url, seen) = huge_reply_server(declared);
+        let start = std::time::Instant::now();
+        let e = complete_with(
+            &config(&url),
+            "sys",
+            &[Message::User(vec![Part::Text("hi".into())])],
+            &[],
+            &|_, _| {},
+            &|_| {},
+        )
+        .expect_err("over the limit");
+        let text = e.to_string();
+        assert!(
+            matches!(e, LlmError::Fatal(_)),
+            "declared {declared}: {e:?}"
+        );
+        assert!(
+            text.contains(&url) && text.contains("larger than the limit of 64 MiB"),
+            "{text}"
+        );
+        assert_eq!(seen.load(std::sync::atomic::Ordering::SeqCst), 1);
+        // Well under the 5 s timeout: the limit, not the timeout, ends it.
+        assert!(
+            start.elapsed() < Duration::from_secs(4),
+            "{:?}",
+            start.elapsed()
+        );
+    }
+}

@@ -17,6 +17,7 @@ pub mod gt;
 pub mod hot3d;
 pub mod images;
 mod import_common;
+pub mod jpeg_scan;
 pub mod ledger;
 pub mod meshio;
 pub mod npz;
