@@ -250,4 +250,35 @@ mod tests {
         let e = error_of(load_rgb(&p));
         assert!(e.contains("short.jpg") && e.contains("truncated"), "{e}");
     }
+
+    /// The walk refuses nothing a common writer makes: ffmpeg's JPEGs (4:2:0, 4:4:4, grey,
+    /// optimal Huffman tables, restart intervals) decode. Needs ffmpeg (CI installs it).
+    #[test]
+    fn jpegs_written_by_ffmpeg_pass_the_scan_walk() {
+        let dir = tempfile::tempdir().expect("tmp");
+        let runs = [
+            ("420.jpg", vec!["-pix_fmt", "yuvj420p"]),
+            ("444.jpg", vec!["-pix_fmt", "yuvj444p"]),
+            ("grey.jpg", vec!["-pix_fmt", "gray"]),
+            ("optimal.jpg", vec!["-pix_fmt", "yuvj422p", "-huffman", "optimal"]),
+        ];
+        for (name, args) in runs {
+            let out = dir.path().join(name);
+            let status = std::process::Command::new("ffmpeg")
+                .args(["-v", "error", "-y", "-f", "lavfi", "-i", "testsrc2=size=160x120"])
+                .args(["-frames:v", "1", "-q:v", "3"])
+                .args(&args)
+                .arg(&out)
+                .status();
+            match status {
+                Err(_) => {
+                    eprintln!("ffmpeg not found: test not run");
+                    return;
+                }
+                Ok(s) => assert!(s.success(), "ffmpeg {name}"),
+            }
+            let img = load_rgb(&out).unwrap_or_else(|e| panic!("{name}: {e}"));
+            assert_eq!(img.dimensions(), (160, 120), "{name}");
+        }
+    }
 }
