@@ -260,12 +260,23 @@ mod tests {
             ("420.jpg", vec!["-pix_fmt", "yuvj420p"]),
             ("444.jpg", vec!["-pix_fmt", "yuvj444p"]),
             ("grey.jpg", vec!["-pix_fmt", "gray"]),
-            ("optimal.jpg", vec!["-pix_fmt", "yuvj422p", "-huffman", "optimal"]),
+            (
+                "optimal.jpg",
+                vec!["-pix_fmt", "yuvj422p", "-huffman", "optimal"],
+            ),
         ];
         for (name, args) in runs {
             let out = dir.path().join(name);
             let status = std::process::Command::new("ffmpeg")
-                .args(["-v", "error", "-y", "-f", "lavfi", "-i", "testsrc2=size=160x120"])
+                .args([
+                    "-v",
+                    "error",
+                    "-y",
+                    "-f",
+                    "lavfi",
+                    "-i",
+                    "testsrc2=size=160x120",
+                ])
                 .args(["-frames:v", "1", "-q:v", "3"])
                 .args(&args)
                 .arg(&out)
