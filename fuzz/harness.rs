@@ -179,7 +179,20 @@ pub type Run = Box<dyn Fn(&[u8])>;
 
 /// Runs every target for its share of `AGENTSTAR_FUZZ_SECS` (default `default_secs`) and
 /// fails on any panic or slow case, naming the saved input.
+///
+/// With `AGENTSTAR_FUZZ_CASES=N` (CI), every target runs a budget of cases instead: its
+/// seeds, then mutations up to N cases in all, the same inputs on any machine for a seed.
+/// `AGENTSTAR_FUZZ_SECS` (default 300 then) is a ceiling on the whole run, split between
+/// the targets; a target that reaches its share stops there and the report says so.
 pub fn fuzz(all: Vec<(&'static str, Run)>, default_secs: u64) {
+    let case_budget = std::env::var("AGENTSTAR_FUZZ_CASES")
+        .ok()
+        .and_then(|v| v.parse::<u64>().ok());
+    let default_secs = if case_budget.is_some() {
+        300
+    } else {
+        default_secs
+    };
     let total = Duration::from_secs(env_u64("AGENTSTAR_FUZZ_SECS", default_secs));
     let seed = env_u64("AGENTSTAR_FUZZ_SEED", 16);
     let only: Option<Vec<String>> = std::env::var("AGENTSTAR_FUZZ_ONLY")
@@ -202,7 +215,11 @@ pub fn fuzz(all: Vec<(&'static str, Run)>, default_secs: u64) {
         let start = Instant::now();
         let (mut cases, mut slowest) = (0u64, Duration::ZERO);
         // Every seed as it is first, then mutations until the target's share of time is spent.
-        while cases < corpus.len() as u64 || start.elapsed() < per_target {
+        let more = |cases: u64| match case_budget {
+            Some(n) => cases < corpus.len() as u64 || (cases < n && start.elapsed() < per_target),
+            None => cases < corpus.len() as u64 || start.elapsed() < per_target,
+        };
+        while more(cases) {
             let input = if (cases as usize) < corpus.len() {
                 corpus[cases as usize].clone()
             } else {
@@ -235,8 +252,12 @@ pub fn fuzz(all: Vec<(&'static str, Run)>, default_secs: u64) {
                 findings.push(format!("{name}: {what} ({})", file.display()));
             }
         }
+        let short = match case_budget {
+            Some(n) if cases < n => format!(" (stopped at its time share, {n} budgeted)"),
+            _ => String::new(),
+        };
         report.push(format!(
-            "{name}: {cases} cases in {:.1} s, slowest {:.0} ms",
+            "{name}: {cases} cases in {:.1} s, slowest {:.0} ms{short}",
             start.elapsed().as_secs_f64(),
             slowest.as_secs_f64() * 1e3
         ));
