@@ -181,6 +181,8 @@ impl PoseHistory {
     fn record(&self, _lock: &PoseLock, pose: &PoseFile, command: &str) -> Result<u64> {
         let dir = self.dir();
         std::fs::create_dir_all(&dir).map_err(|e| DataError::io(&dir, e))?;
+        // What a writer killed mid-version left (issue 16: `kill -9` during `track`).
+        agentstar_data::atomic::remove_stale_temporaries(&dir);
         let mut next = self.versions()?.last().map_or(0, |(n, _)| n + 1);
         loop {
             let entry = HistoryEntry {
@@ -192,7 +194,7 @@ impl PoseHistory {
             let text = serde_json::to_string_pretty(&entry)
                 .map_err(|e| DataError::invalid(&dir, format!("cannot encode a version: {e}")))?;
             let mut tmp = tempfile::Builder::new()
-                .prefix(".agentstar-")
+                .prefix(&agentstar_data::atomic::temporary_prefix())
                 .suffix(".tmp")
                 .tempfile_in(&dir)
                 .map_err(|e| DataError::io(&dir, e))?;

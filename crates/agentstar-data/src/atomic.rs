@@ -16,9 +16,8 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
     };
     std::fs::create_dir_all(dir).map_err(|e| DataError::io(dir, e))?;
     remove_stale_temporaries(dir);
-    let prefix = format!(".agentstar-{}-", std::process::id());
     let mut tmp = tempfile::Builder::new()
-        .prefix(&prefix)
+        .prefix(&temporary_prefix())
         .suffix(".tmp")
         .tempfile_in(dir)
         .map_err(|e| DataError::io(dir, e))?;
@@ -39,10 +38,17 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
     Ok(())
 }
 
+/// The start of this process's temporaries' names, `.agentstar-<pid>-` (with the suffix
+/// `.tmp`), for writers that cannot use [`write_atomic`] (a link that must not replace):
+/// with it and [`remove_stale_temporaries`], what a killed writer leaves is removed too.
+pub fn temporary_prefix() -> String {
+    format!(".agentstar-{}-", std::process::id())
+}
+
 /// Removes `.agentstar-<pid>-*.tmp` files left in `dir` by processes that no longer run, once
 /// per directory and process. Best effort: errors are ignored, and nothing is removed where
 /// `/proc` cannot tell which processes run.
-fn remove_stale_temporaries(dir: &Path) {
+pub fn remove_stale_temporaries(dir: &Path) {
     use std::collections::HashSet;
     use std::sync::{Mutex, OnceLock};
     static SWEPT: OnceLock<Mutex<HashSet<std::path::PathBuf>>> = OnceLock::new();

@@ -462,3 +462,132 @@ fn the_stop_message_names_every_kind_of_failure() {
         assert!(t.contains(kind), "missing `{kind}` in: {t}");
     }
 }
+
+/// Every `.agentstar-*.tmp` temporary under `dir`, at any depth.
+fn temporaries(dir: &Path) -> Vec<std::path::PathBuf> {
+    let mut out = Vec::new();
+    let mut todo = vec![dir.to_path_buf()];
+    while let Some(d) = todo.pop() {
+        let Ok(entries) = std::fs::read_dir(&d) else {
+            continue;
+        };
+        for e in entries.flatten() {
+            let p = e.path();
+            let name = e.file_name().to_string_lossy().to_string();
+            if p.is_dir() {
+                todo.push(p);
+            } else if name.starts_with(".agentstar-") && name.ends_with(".tmp") {
+                out.push(p);
+            }
+        }
+    }
+    out
+}
+
+/// Issue 16: `kill -9` during `track` left a stray `.agentstar-XXXX.tmp`. Killed at points
+/// spread over a whole run (and the moment a temporary appears), `track` leaves `pose.json`
+/// whole (the version before or the new one, never half-written) and the pose history
+/// readable; the next run completes and leaves no temporary anywhere in the run.
+#[test]
+fn track_killed_at_any_point_leaves_whole_files_and_the_next_run_cleans_up() {
+    use agentstar_data::posefile::PoseFile;
+    let dir = tempfile::tempdir().expect("tmp");
+    let (cap, run) = (dir.path().join("cap"), dir.path().join("run"));
+    synth(&cap, 4);
+    let o = agentstar(&[
+        "init",
+        &s(&run),
+        "--capture",
+        &s(&cap),
+        "--scene",
+        &s(&cap.join("model/scene.rhai")),
+        "--scale",
+        "0.24",
+    ]);
+    assert!(o.status.success(), "{}", text(&o));
+    let poses = run.join("pose.json");
+    let args = [
+        "track".to_string(),
+        s(&cap),
+        "--model".into(),
+        s(&run.join("scene.rhai")),
+        "--out".into(),
+        s(&poses),
+        "--scale".into(),
+        "0.24".into(),
+        "--evals".into(),
+        "200".into(),
+    ];
+    let spawn = || {
+        Command::new(env!("CARGO_BIN_EXE_agentstar"))
+            .args(&args)
+            .stdout(Stdio::null())
+            .stderr(Stdio::null())
+            .spawn()
+            .expect("spawn track")
+    };
+    let check_whole = |when: &str| {
+        PoseFile::read(&poses).unwrap_or_else(|e| panic!("{when}: pose.json not whole: {e}"));
+        let h = agentstar(&["pose", "history", "--poses", &s(&poses)]);
+        assert!(h.status.success(), "{when}: history: {}", text(&h));
+    };
+    // A whole run, for its duration.
+    let start = Instant::now();
+    let status = spawn().wait().expect("track");
+    assert!(status.success());
+    let whole = start.elapsed();
+    check_whole("after a whole run");
+    // Killed at fractions of a run, the last ones near its end where the files are written.
+    let mut killed = 0;
+    for fraction in [
+        0.05, 0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9, 0.95, 0.99,
+    ] {
+        let mut child = spawn();
+        let at = whole.mul_f64(fraction);
+        let t = Instant::now();
+        while t.elapsed() < at {
+            if child.try_wait().expect("wait").is_some() {
+                break;
+            }
+            std::thread::sleep(Duration::from_millis(2));
+        }
+        if child.try_wait().expect("wait").is_none() {
+            child.kill().expect("kill -9");
+            killed += 1;
+        }
+        let _ = child.wait();
+        check_whole(&format!("killed at {:.0}% of a run", fraction * 100.0));
+    }
+    // Killed the moment a temporary appears (while a file is being written).
+    let mut child = spawn();
+    let t = Instant::now();
+    let mut caught = false;
+    while t.elapsed() < whole * 3 {
+        if child.try_wait().expect("wait").is_some() {
+            break;
+        }
+        if !temporaries(&run).is_empty() {
+            child.kill().expect("kill -9");
+            caught = true;
+            break;
+        }
+    }
+    let _ = child.wait();
+    check_whole("killed while writing");
+    eprintln!(
+        "a whole run {whole:?}; {killed} of 12 runs killed before their end; killed with a temporary present: {caught}"
+    );
+    assert!(
+        killed >= 3,
+        "only {killed} runs were killed before they ended"
+    );
+    // The next run completes and every temporary a killed run left is gone.
+    let status = spawn().wait().expect("track");
+    assert!(status.success());
+    check_whole("after the next run");
+    let left = temporaries(&run);
+    assert!(
+        left.is_empty(),
+        "stray temporaries (killed while writing: {caught}): {left:?}"
+    );
+}
