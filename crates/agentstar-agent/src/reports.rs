@@ -253,6 +253,24 @@ impl SequenceScore {
 pub struct ScoreReport {
     pub frames: Vec<FrameScore>,
     pub sequence: SequenceScore,
+    /// Per frame (in `frames`' order), the appearance figure beside the IoU: photometric
+    /// consistency of the frame's colours with its neighbours' at the committed poses
+    /// (`agentstar_track::appearance::neighbour_consistency`). Empty without frame images.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub appearance: Vec<FrameAppearance>,
+}
+
+/// One frame's appearance figure in a [`ScoreReport`].
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct FrameAppearance {
+    pub frame: String,
+    /// Mean normalised cross-correlation (−1..1) of the colours the pose carries to the
+    /// neighbouring keyframes with theirs; `None`: no evidence (no image, or an untextured
+    /// object whose colours do not vary).
+    pub ncc: Option<f64>,
+    /// Colour pairs compared.
+    pub pairs: usize,
 }
 
 /// What `track --json` prints.

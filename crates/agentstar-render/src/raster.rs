@@ -342,6 +342,13 @@ impl SilhouetteRenderer {
     pub fn mask(&self) -> &BitMask {
         &self.mask
     }
+
+    /// The rows (inclusive) that may hold pixels of the last render; `None` when it is empty.
+    /// Every set pixel lies in them, so scores may read only these rows
+    /// ([`crate::ScoreTarget::gate_rows`]).
+    pub fn rows(&self) -> Option<(u32, u32)> {
+        self.dirty
+    }
 }
 
 pub(crate) fn camera_inside_bounds(inst: &Instance<'_>) -> bool {

@@ -22,6 +22,8 @@ pub struct ScoreTarget {
     /// `K = not hand`; `None` when the frame has no hand mask.
     keep: Option<BitMask>,
     mask_px: u64,
+    /// `|M ∩ K|`: the observed pixels outside the hands (`mask_px` without a hand mask).
+    visible_mask_px: u64,
     /// The boundary band's half-width and `K` without the band, when a band is scored.
     band: Option<(f64, BitMask)>,
 }
@@ -74,10 +76,13 @@ impl ScoreTarget {
             }
         }
         let mask_px = mask.count();
+        let keep = hand.map(|h| h.not());
+        let visible_mask_px = keep.as_ref().map_or(mask_px, |k| mask.and(k).count());
         Ok(ScoreTarget {
-            keep: hand.map(|h| h.not()),
+            keep,
             mask,
             mask_px,
+            visible_mask_px,
             band: None,
         })
     }
@@ -120,24 +125,44 @@ impl ScoreTarget {
     /// The gate value only, for search loops: one pass of popcounts over the words.
     #[inline]
     pub fn gate(&self, render: &BitMask) -> f64 {
-        let r = render.words();
-        let m = self.mask.words();
-        let (mut inter, mut union) = (0u64, 0u64);
-        match &self.keep {
-            None => {
-                for (a, b) in r.iter().zip(m) {
-                    inter += (a & b).count_ones() as u64;
-                    union += (a | b).count_ones() as u64;
+        self.gate_rows(render, Some((0, render.height().saturating_sub(1))))
+    }
+
+    /// [`ScoreTarget::gate`] of a render whose set pixels all lie in `rows` (inclusive; `None`:
+    /// an empty render), as [`crate::SilhouetteRenderer::rows`] reports them. Only those rows
+    /// are read, and only their nonzero words: `|(R ∪ M) ∩ K| = |R ∩ K| + |M ∩ K| − |R ∩ M ∩ K|`
+    /// with `|M ∩ K|` counted once when the target is built. The same value as `gate` when the
+    /// render has no pixel outside `rows`.
+    #[inline]
+    pub fn gate_rows(&self, render: &BitMask, rows: Option<(u32, u32)>) -> f64 {
+        let (mut inter, mut render_visible) = (0u64, 0u64);
+        if let Some((y0, y1)) = rows.filter(|r| r.0 <= r.1 && self.mask.height() > 0) {
+            let wpr = self.mask.words_per_row();
+            let y1 = y1.min(self.mask.height() - 1);
+            let range = y0 as usize * wpr..(y1 as usize + 1) * wpr;
+            let r = &render.words()[range.clone()];
+            let m = &self.mask.words()[range.clone()];
+            match &self.keep {
+                None => {
+                    for (&a, &b) in r.iter().zip(m) {
+                        if a != 0 {
+                            inter += (a & b).count_ones() as u64;
+                            render_visible += a.count_ones() as u64;
+                        }
+                    }
                 }
-            }
-            Some(k) => {
-                for ((a, b), c) in r.iter().zip(m).zip(k.words()) {
-                    inter += (a & b & c).count_ones() as u64;
-                    union += ((a | b) & c).count_ones() as u64;
+                Some(k) => {
+                    for ((&a, &b), &c) in r.iter().zip(m).zip(&k.words()[range]) {
+                        let a = a & c;
+                        if a != 0 {
+                            inter += (a & b).count_ones() as u64;
+                            render_visible += a.count_ones() as u64;
+                        }
+                    }
                 }
             }
         }
-        ratio(inter, union)
+        ratio(inter, render_visible + self.visible_mask_px - inter)
     }
 
     /// Every figure of the score.
@@ -398,6 +423,30 @@ mod tests {
         assert_eq!(plain.score(&noisy).iou_band, None);
         assert_eq!(plain.gate(&noisy), t.gate(&noisy));
         assert_eq!(plain.with_band(0.0).band_px(), None);
+    }
+
+    #[test]
+    fn gate_over_the_render_rows_equals_the_full_gate() {
+        // Renders in rows 10..30 against a mask with hands: the row-restricted gate reads
+        // only those rows and must give exactly the full pass's IoU (and the score's gate).
+        let (w, h) = (150, 60);
+        let mask = BitMask::from_fn(w, h, |x, y| (30..100).contains(&x) && (5..40).contains(&y));
+        let hand = BitMask::from_fn(w, h, |x, y| (80..140).contains(&x) && (20..50).contains(&y));
+        let render = BitMask::from_fn(w, h, |x, y| {
+            (10..30).contains(&y) && (40 + y..120).contains(&x)
+        });
+        for t in [
+            ScoreTarget::new(mask.clone(), Some(hand)).expect("target"),
+            ScoreTarget::new(mask, None).expect("target"),
+        ] {
+            let full = t.gate(&render);
+            assert!(full > 0.1 && full < 0.9, "{full}");
+            assert_eq!(t.gate_rows(&render, Some((10, 29))), full);
+            assert_eq!(t.gate_rows(&render, Some((0, h + 5))), full);
+            assert!((t.score(&render).gate() - full).abs() < 1e-15);
+            // An empty render: nothing intersects.
+            assert_eq!(t.gate_rows(&BitMask::new(w, h), None), 0.0);
+        }
     }
 
     #[test]

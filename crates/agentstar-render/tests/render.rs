@@ -225,6 +225,23 @@ fn renderer_reuse_clears_previous_frames() {
     assert!(a > b.count());
     assert_eq!(b, c);
     let _ = Point3::origin();
+    // The reported rows hold every pixel of the last render, and the row-restricted gate
+    // equals the full one; an empty render reports none.
+    let (y0, y1) = r.rows().expect("rows");
+    for y in 0..72 {
+        for x in 0..96 {
+            assert!(!b.get(x, y) || (y0..=y1).contains(&y), "({x}, {y})");
+        }
+    }
+    let target = agentstar_render::ScoreTarget::new(c.clone(), None).expect("target");
+    assert_eq!(target.gate_rows(r.mask(), r.rows()), target.gate(&b));
+    let behind = Similarity {
+        translation: Vector3::new(0.0, 0.0, -6.0),
+        ..near
+    };
+    r.render(&camera, &PosedModel::new(&model, &[0.0], &behind).instances);
+    assert_eq!(r.rows(), None);
+    assert_eq!(r.mask().count(), 0);
 }
 
 /// Compares against a small committed golden image with explicit tolerances. Run with

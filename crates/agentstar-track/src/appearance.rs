@@ -353,6 +353,41 @@ pub fn appearance_each(
         .collect()
 }
 
+/// The appearance figure of frame `i` of a sequence at its pose: photometric consistency
+/// ([`appearance_score`]) with its neighbours in the sequence (the frames just before and
+/// after, at their poses), as `score` reports it beside the IoU. `frames[k]` is `None` for a
+/// frame without a colour image; a frame without one, or without a neighbour with one, has
+/// no evidence (`ncc: None`).
+pub fn neighbour_consistency(
+    model: &ObjectModel,
+    scale: f64,
+    frames: &[Option<AppearanceFrame<'_>>],
+    poses: &[GenPose],
+    i: usize,
+    cfg: &AppearanceConfig,
+) -> AppearanceScore {
+    let none = AppearanceScore {
+        ncc: None,
+        pairs: 0,
+        groups: 0,
+    };
+    let Some(Some(frame)) = frames.get(i) else {
+        return none;
+    };
+    if poses.len() != frames.len() {
+        return none;
+    }
+    let refs: Vec<ReferenceView<'_>> = [i.checked_sub(1), Some(i + 1)]
+        .into_iter()
+        .flatten()
+        .filter_map(|k| {
+            let f = (*frames.get(k)?)?;
+            ReferenceView::new(model, scale, f, &poses[k])
+        })
+        .collect();
+    appearance_score(model, scale, frame, &poses[i], &refs, cfg)
+}
+
 /// The appearance term's verdict over hypotheses of one frame.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Choice {
@@ -577,6 +612,42 @@ mod tests {
         }
         let pooled = appearance_score(&model, scale, &frames[0], &truth[0], &refs, &cfg);
         assert_eq!(pooled.pairs, each.iter().map(|e| e.pairs).sum::<usize>());
+        // As a sequence, the middle frame is judged against both neighbours, the first
+        // against the second only; a frame without an image has no figure, and its
+        // neighbours lose it as a reference.
+        let seq: Vec<Option<AppearanceFrame<'_>>> = frames.iter().copied().map(Some).collect();
+        let mid = neighbour_consistency(&model, scale, &seq, &truth, 1, &cfg);
+        let mid_refs: Vec<ReferenceView<'_>> = [0, 2]
+            .iter()
+            .map(|&k| ReferenceView::new(&model, scale, frames[k], &truth[k]).expect("view"))
+            .collect();
+        assert_eq!(
+            mid,
+            appearance_score(&model, scale, &frames[1], &truth[1], &mid_refs, &cfg)
+        );
+        let first = neighbour_consistency(&model, scale, &seq, &truth, 0, &cfg);
+        assert_eq!(first, each[0]);
+        let mut wrong = truth.to_vec();
+        wrong[1].pose.rotation *= UnitQuaternion::from_axis_angle(&Vector3::z_axis(), PI);
+        let flipped = neighbour_consistency(&model, scale, &seq, &wrong, 1, &cfg);
+        assert!(
+            mid.ncc.expect("evidence") - flipped.ncc.expect("evidence") > 0.3,
+            "{mid:?} against {flipped:?}"
+        );
+        let mut gap = seq.clone();
+        gap[1] = None;
+        assert_eq!(
+            neighbour_consistency(&model, scale, &gap, &truth, 1, &cfg).ncc,
+            None
+        );
+        assert_eq!(
+            neighbour_consistency(&model, scale, &gap, &truth, 0, &cfg).ncc,
+            None
+        );
+        assert_eq!(
+            neighbour_consistency(&model, scale, &seq, &truth, 7, &cfg).ncc,
+            None
+        );
     }
 
     #[test]

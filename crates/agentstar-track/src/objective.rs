@@ -201,7 +201,8 @@ impl Evaluator<'_, '_> {
         }
         self.builder
             .build(p.model, &g.states, &sim, &mut self.instances);
+        self.renderer.render(&p.camera, &self.instances);
         p.target
-            .gate(self.renderer.render(&p.camera, &self.instances))
+            .gate_rows(self.renderer.mask(), self.renderer.rows())
     }
 }

@@ -35,6 +35,10 @@ fn frames_are_selected_by_names_stems_numbers_and_ranges() {
             text(&o)
         );
         let r: ScoreReport = serde_json::from_slice(&o.stdout).expect("score report");
+        // The appearance figure stands beside each selected frame's IoU, in the same order.
+        let beside: Vec<&str> = r.appearance.iter().map(|a| a.frame.as_str()).collect();
+        let framed: Vec<&str> = r.frames.iter().map(|f| f.frame.as_str()).collect();
+        assert_eq!(beside, framed, "{spec}");
         r.frames.into_iter().map(|f| f.frame).collect()
     };
     let all = ["000000.png", "000005.png", "000010.png"];

@@ -1,8 +1,9 @@
 //! `agentstar score`: per-frame and per-sequence scores of the posed model.
 
 use crate::common::{print_json, select_frames, FrameScore, SessionArgs, PASS_IOU};
-use agentstar_agent::reports::{ScoreReport, SequenceScore};
+use agentstar_agent::reports::{FrameAppearance, ScoreReport, SequenceScore};
 use agentstar_render::DEFAULT_BAND_PX;
+use agentstar_track::appearance::{neighbour_consistency, AppearanceConfig, AppearanceFrame};
 use anyhow::{bail, Result};
 use rayon::prelude::*;
 use std::process::ExitCode;
@@ -29,6 +30,10 @@ pub struct Args {
     /// IoU. The default is chosen by measurement (docs/scoring.md).
     #[arg(long, default_value_t = DEFAULT_BAND_PX)]
     band_px: f64,
+    /// Leave out the appearance figure (photometric consistency with the neighbouring
+    /// keyframes; it reads every frame's image).
+    #[arg(long)]
+    no_appearance: bool,
     /// Print the result as JSON on stdout.
     #[arg(long)]
     json: bool,
@@ -54,13 +59,19 @@ pub fn run(a: Args) -> Result<ExitCode> {
         .map(|&i| s.score(i, a.depth_weight))
         .collect::<Result<_>>()?;
     let summary = summarise(&scores, a.pass_iou);
+    let appearance = if a.no_appearance {
+        vec![]
+    } else {
+        appearance(&s, &frames)?
+    };
     if a.json {
         print_json(&ScoreReport {
             frames: scores,
             sequence: summary.clone(),
+            appearance,
         })?;
     } else {
-        print_table(&scores, &summary);
+        print_table(&scores, &summary, &appearance);
     }
     Ok(if summary.below_gate.is_empty() {
         ExitCode::SUCCESS
@@ -69,7 +80,57 @@ pub fn run(a: Args) -> Result<ExitCode> {
     })
 }
 
-pub fn print_table(scores: &[FrameScore], summary: &SequenceScore) {
+/// Each selected frame's appearance figure ([`neighbour_consistency`]), from every frame's
+/// image and mask (a frame whose image cannot be read, or is not its camera's size, has no
+/// figure and is no reference). Empty when no frame has an image.
+fn appearance(s: &crate::common::Session, selected: &[usize]) -> Result<Vec<FrameAppearance>> {
+    let cap = &s.capture;
+    let inputs: Vec<Option<(image::RgbImage, agentstar_render::BitMask)>> = (0..cap.frames.len())
+        .into_par_iter()
+        .map(|i| -> Result<_> {
+            let cam = &cap.frames[i].camera;
+            Ok(match cap.load_frame(i) {
+                Ok(img) if img.width() == cam.width && img.height() == cam.height => {
+                    let mask = match cap.load_hand(i)? {
+                        Some(hand) => cap.load_mask(i)?.and_not(&hand),
+                        None => cap.load_mask(i)?,
+                    };
+                    Some((img, mask))
+                }
+                _ => None,
+            })
+        })
+        .collect::<Result<_>>()?;
+    if inputs.iter().all(Option::is_none) {
+        return Ok(vec![]);
+    }
+    let frames: Vec<Option<AppearanceFrame<'_>>> = inputs
+        .iter()
+        .zip(&cap.frames)
+        .map(|(x, f)| {
+            x.as_ref().map(|(img, mask)| AppearanceFrame {
+                camera: &f.camera,
+                rgb: img.as_raw(),
+                mask,
+            })
+        })
+        .collect();
+    let poses: Vec<_> = (0..cap.frames.len()).map(|i| s.gen_pose(i)).collect();
+    let cfg = AppearanceConfig::default();
+    Ok(selected
+        .par_iter()
+        .map(|&i| {
+            let a = neighbour_consistency(&s.model.model, s.scale(), &frames, &poses, i, &cfg);
+            FrameAppearance {
+                frame: cap.frames[i].name.clone(),
+                ncc: a.ncc,
+                pairs: a.pairs,
+            }
+        })
+        .collect())
+}
+
+pub fn print_table(scores: &[FrameScore], summary: &SequenceScore, appearance: &[FrameAppearance]) {
     let has_depth = scores.iter().any(|s| s.depth_mae.is_some());
     let band = summary.band_px;
     print!("{:<14} {:>11}", "frame", "iou_visible");
@@ -83,8 +144,12 @@ pub fn print_table(scores: &[FrameScore], summary: &SequenceScore) {
     if has_depth {
         print!(" {:>10} {:>9}", "depth_canon", "combined");
     }
+    let has_appearance = appearance.len() == scores.len();
+    if has_appearance {
+        print!(" {:>6}", "ncc");
+    }
     println!();
-    for s in scores {
+    for (k, s) in scores.iter().enumerate() {
         let mark = if s.gate() < summary.pass_iou {
             "  <"
         } else {
@@ -113,6 +178,14 @@ pub fn print_table(scores: &[FrameScore], summary: &SequenceScore) {
                 s.combined
             );
         }
+        if has_appearance {
+            print!(
+                " {:>6}",
+                appearance[k]
+                    .ncc
+                    .map_or("n/a".into(), |v| format!("{v:.2}"))
+            );
+        }
         println!("{mark}");
     }
     let band_text = match (band, summary.mean_iou_band, summary.min_iou_band) {
@@ -133,4 +206,22 @@ pub fn print_table(scores: &[FrameScore], summary: &SequenceScore) {
         summary.below_gate.len(),
         summary.pass_iou
     );
+    let with: Vec<&FrameAppearance> = appearance.iter().filter(|a| a.ncc.is_some()).collect();
+    if let Some(low) = with
+        .iter()
+        .min_by(|a, b| a.ncc.unwrap_or(0.0).total_cmp(&b.ncc.unwrap_or(0.0)))
+    {
+        let mean = with.iter().filter_map(|a| a.ncc).sum::<f64>() / with.len() as f64;
+        println!(
+            "appearance: NCC of each frame's colours with its neighbouring keyframes' at these poses, mean {mean:.2}, lowest {:.2} ({}); {} of {} frames with evidence",
+            low.ncc.unwrap_or(0.0),
+            low.frame,
+            with.len(),
+            appearance.len()
+        );
+    } else if !appearance.is_empty() {
+        println!(
+            "appearance: no evidence (no frame's colours vary enough on the model to compare)"
+        );
+    }
 }

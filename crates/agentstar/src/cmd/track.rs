@@ -201,7 +201,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
             capture.frames[r.init_frame].name,
             a.out.display()
         );
-        print_table(&scores, &summary);
+        print_table(&scores, &summary, &[]);
     }
     Ok(ExitCode::SUCCESS)
 }
