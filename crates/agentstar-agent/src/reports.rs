@@ -12,9 +12,8 @@ use serde_json::Value;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
-/// The gate every keyframe's visible IoU must reach (the `finish` gate, `score`'s default
-/// `--pass-iou`, `track`'s summary).
-pub const GATE_IOU: f64 = 0.98;
+/// The gate every keyframe's band IoU must reach (defined once in the renderer's scores).
+pub use agentstar_render::GATE_IOU;
 
 /// The pose-search verbs. Each owns its command name and its file names, so the tool that
 /// runs a verb and the command that writes its report agree by construction.

@@ -6,7 +6,6 @@
 //!
 //! No file I/O: everything runs in memory; the `agentstar bench` command writes results.
 
-pub mod gt;
 pub mod run;
 pub mod suite;
 pub mod table;

@@ -1,6 +1,5 @@
 //! One sequence tracked by one method and evaluated with the paper's metrics.
 
-use crate::gt::gt_sequence;
 use crate::BenchError;
 use agentstar_data::gt::{model_ground_truth, GroundTruth};
 use agentstar_eval::sequence::{evaluate, EvalConfig, GtSequence, PredSequence, SequenceMetrics};
@@ -313,11 +312,7 @@ pub fn run_sequence_observed(
     let pred = PredSequence {
         model: &capture.model,
         scale: capture.scale,
-        poses: tracked
-            .poses
-            .iter()
-            .map(|g| (g.pose, g.states.clone()))
-            .collect(),
+        poses: tracked.poses.clone(),
     };
     let (m, seq) = evaluate_against(capture, &truth, &pred, cfg)?;
     let symmetry_reduced = if capture.symmetries.is_empty() {
@@ -386,7 +381,9 @@ fn evaluate_against(
         meshes,
     );
     let names: Vec<String> = truth.iter().map(|t| t.0.clone()).collect();
-    let seq = gt_sequence(&gt, &names)?;
+    let seq = gt
+        .sequence(&names)
+        .map_err(|e| BenchError::GroundTruth(e.to_string()))?;
     let cams = vec![capture.camera; capture.frames.len()];
     let m = evaluate(
         &seq,
@@ -406,13 +403,14 @@ fn evaluate_against(
 /// is in the model's own canonical frame, as in the benchmark (the known model).
 pub fn symmetry_reduced_truth(
     truth: &[(String, ObjectPose, Vec<f64>)],
-    pred: &[(ObjectPose, Vec<f64>)],
+    pred: &[GenPose],
     symmetries: &[UnitQuaternion],
 ) -> Truth {
     truth
         .iter()
         .zip(pred)
-        .map(|((name, gt, states), (p, _))| {
+        .map(|((name, gt, states), p)| {
+            let p = &p.pose;
             let best = std::iter::once(UnitQuaternion::identity())
                 .chain(symmetries.iter().copied())
                 .map(|s| gt.rotation * s)

@@ -2,11 +2,11 @@
 //! articulated hand-held capture, ground truth converts exactly, tables carry every section,
 //! and tolerances catch regressions.
 
-use agentstar_bench::gt::gt_sequence;
 use agentstar_bench::table::{result_table, tables};
 use agentstar_bench::tolerance::{check, record};
 use agentstar_bench::{run_sequence, Method, RunConfig, SequenceResult};
 use agentstar_data::gt::{model_ground_truth, GroundTruth};
+use agentstar_geom::GenPose;
 use agentstar_synth::{synthesize, SynthConfig};
 
 fn small(object: &str, seed: u64) -> SynthConfig {
@@ -94,14 +94,14 @@ fn ground_truth_of_the_true_poses_scores_zero() {
     assert_eq!(file.base_part, "body");
     let gt = GroundTruth::from_parts(std::path::Path::new("mem/gt.json"), file, meshes);
     let names: Vec<String> = capture.frames.iter().map(|f| f.name.clone()).collect();
-    let seq = gt_sequence(&gt, &names).expect("sequence");
+    let seq = gt.sequence(&names).expect("sequence");
     let pred = agentstar_eval::sequence::PredSequence {
         model: &capture.model,
         scale: capture.scale,
         poses: capture
             .frames
             .iter()
-            .map(|f| (f.camera_from_object, f.states.clone()))
+            .map(|f| GenPose::new(f.camera_from_object, f.states.clone()))
             .collect(),
     };
     let m = agentstar_eval::sequence::evaluate(
@@ -123,7 +123,9 @@ fn ground_truth_of_the_true_poses_scores_zero() {
         assert!(j.state_error.expect("state") < 1e-9, "{j:?}");
     }
     // A frame the ground truth lacks is named.
-    let e = gt_sequence(&gt, &["999999.png".to_string()]).expect_err("missing");
+    let e = gt
+        .sequence(&["999999.png".to_string()])
+        .expect_err("missing");
     assert!(
         e.to_string().contains("999999.png") && e.to_string().contains("mem/gt.json"),
         "{e}"
@@ -253,12 +255,12 @@ fn a_full_sequence_matches_an_independent_numpy_implementation() {
     let (file, meshes) = model_ground_truth(&capture.model, capture.scale, &truth, &[]);
     let gt = GroundTruth::from_parts(std::path::Path::new("mem/gt.json"), file, meshes);
     let names: Vec<String> = capture.frames.iter().map(|f| f.name.clone()).collect();
-    let seq = gt_sequence(&gt, &names).expect("sequence");
+    let seq = gt.sequence(&names).expect("sequence");
     // The prediction: 1.2 times too large (and so 1.2 times too far), a few degrees and
     // millimetres off, joints off by 3° and 0.02 units.
     let k = 1.2;
     let pred_scale = capture.scale * k;
-    let poses: Vec<(ObjectPose, Vec<f64>)> = capture
+    let poses: Vec<GenPose> = capture
         .frames
         .iter()
         .enumerate()
@@ -268,7 +270,7 @@ fn a_full_sequence_matches_an_independent_numpy_implementation() {
             let mut states = f.states.clone();
             states[0] += 3f64.to_radians();
             states[1] += 0.02;
-            (
+            GenPose::new(
                 ObjectPose::new(
                     wobble * f.camera_from_object.rotation,
                     f.camera_from_object.translation * k
@@ -325,7 +327,7 @@ fn a_full_sequence_matches_an_independent_numpy_implementation() {
                "triangles": m.triangles})
     };
     let mut depth_pairs = Vec::new();
-    for (f, (pose, states)) in poses.iter().enumerate() {
+    for (f, GenPose { pose, states }) in poses.iter().enumerate() {
         let gi: Vec<Instance<'_>> = seq
             .meshes
             .iter()
@@ -353,12 +355,17 @@ fn a_full_sequence_matches_an_independent_numpy_implementation() {
     let tree = &capture.model.tree;
     let pred_part_poses: Vec<Vec<Vec<f64>>> = poses
         .iter()
-        .map(|(p, st)| {
-            tree.part_transforms(st)
-                .iter()
-                .map(|t| row8(&p.with_scale(pred_scale).compose(&Similarity::from_rigid(t))))
-                .collect()
-        })
+        .map(
+            |GenPose {
+                 pose: p,
+                 states: st,
+             }| {
+                tree.part_transforms(st)
+                    .iter()
+                    .map(|t| row8(&p.with_scale(pred_scale).compose(&Similarity::from_rigid(t))))
+                    .collect()
+            },
+        )
         .collect();
     let pred_joints: Vec<_> = seq
         .joints
@@ -369,8 +376,8 @@ fn a_full_sequence_matches_an_independent_numpy_implementation() {
                 .expect("same joint names in the synthetic model");
             let jd = &tree.joints()[j];
             json!({"axis": [jd.axis.x, jd.axis.y, jd.axis.z], "origin": [jd.origin.x, jd.origin.y, jd.origin.z],
-                   "states": poses.iter().map(|p| p.1[j]).collect::<Vec<_>>(),
-                   "object_pose": row8(&poses[0].0.with_scale(pred_scale))})
+                   "states": poses.iter().map(|p| p.states[j]).collect::<Vec<_>>(),
+                   "object_pose": row8(&poses[0].pose.with_scale(pred_scale))})
         })
         .collect();
     let input = json!({
@@ -386,7 +393,7 @@ fn a_full_sequence_matches_an_independent_numpy_implementation() {
         "pred_poses": pred_part_poses,
         "pred_moving": (0..capture.model.parts.len()).map(|i| tree.part_joint(i).is_some()).collect::<Vec<_>>(),
         "pred_joints": pred_joints,
-        "pred_object_poses": poses.iter().map(|p| row8(&p.0.with_scale(pred_scale))).collect::<Vec<_>>(),
+        "pred_object_poses": poses.iter().map(|p| row8(&p.pose.with_scale(pred_scale))).collect::<Vec<_>>(),
         "pred_scale": pred_scale,
     });
     let script = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))

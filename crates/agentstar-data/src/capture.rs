@@ -6,7 +6,7 @@ use crate::npz::read_arrays;
 use crate::{read_text, DataError, Result};
 use agentstar_geom::pose::{rigid_from_matrix, Rigid};
 use agentstar_geom::{Matrix3, Matrix4, PinholeCamera};
-use agentstar_render::{BitMask, DepthObservation};
+use agentstar_mask::{BitMask, DepthObservation};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 

@@ -7,7 +7,7 @@ use crate::images::{mask_to_gray, save_png_gray, save_png_rgb};
 use crate::{DataError, Result};
 use agentstar_geom::pose::Rigid;
 use agentstar_geom::PinholeCamera;
-use agentstar_render::BitMask;
+use agentstar_mask::BitMask;
 use image::RgbImage;
 use std::path::Path;
 

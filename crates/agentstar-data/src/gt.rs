@@ -5,7 +5,8 @@
 use crate::meshio::load_mesh;
 use crate::{read_text, DataError, Result};
 use agentstar_geom::pose::ObjectPose;
-use agentstar_geom::TriMesh;
+use agentstar_geom::truth::{GtJoint as SequenceJoint, GtSequence};
+use agentstar_geom::{TriMesh, Vector3};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -249,6 +250,61 @@ pub fn model_ground_truth(
 }
 
 impl GroundTruth {
+    /// The ground truth of `frames` (frame names, in order) in the evaluator's form. Fails,
+    /// naming the file, when a frame lacks a part's pose or a joint's state.
+    pub fn sequence(&self, frames: &[String]) -> Result<GtSequence> {
+        let bad = |m: String| DataError::invalid(&self.path, m);
+        let names: Vec<String> = self.meshes.keys().cloned().collect();
+        let index = |n: &str| {
+            names
+                .iter()
+                .position(|x| x == n)
+                .ok_or_else(|| bad(format!("unknown part `{n}`")))
+        };
+        let mut poses = Vec::with_capacity(frames.len());
+        for f in frames {
+            let mut row = Vec::with_capacity(names.len());
+            for n in &names {
+                row.push(
+                    self.pose(f, n)
+                        .ok_or_else(|| bad(format!("frame `{f}` has no pose for part `{n}`")))?,
+                );
+            }
+            poses.push(row);
+        }
+        let joints = self
+            .file
+            .joints
+            .iter()
+            .map(|j| {
+                let states = frames
+                    .iter()
+                    .map(|f| {
+                        j.states.get(f).copied().ok_or_else(|| {
+                            bad(format!("joint `{}` has no state for frame `{f}`", j.name))
+                        })
+                    })
+                    .collect::<Result<Vec<f64>>>()?;
+                Ok(SequenceJoint {
+                    name: j.name.clone(),
+                    revolute: j.kind != "prismatic",
+                    parent: index(&j.parent)?,
+                    child: index(&j.child)?,
+                    axis: Vector3::from(j.axis),
+                    origin: Vector3::from(j.origin),
+                    states,
+                })
+            })
+            .collect::<Result<Vec<_>>>()?;
+        Ok(GtSequence {
+            base_part: index(&self.file.base_part)?,
+            meshes: self.meshes.values().cloned().collect(),
+            part_names: names,
+            poses,
+            joints,
+        })
+    }
+
     /// Ground truth held in memory (as if loaded from `path`, which names it in messages).
     pub fn from_parts(path: &Path, file: GtFile, meshes: BTreeMap<String, TriMesh>) -> Self {
         GroundTruth {
@@ -270,28 +326,4 @@ impl GroundTruth {
         }
         crate::atomic::write_json(&dir.join("gt.json"), &self.file)
     }
-}
-
-/// The silhouette of ground-truth parts: each mesh with its `camera_from_part` pose. Used by
-/// importers whose datasets ship no masks (the mask is then the whole object, hands not cut
-/// out).
-pub fn render_parts_mask(
-    camera: &agentstar_geom::PinholeCamera,
-    parts: &[(&TriMesh, agentstar_geom::pose::Rigid)],
-) -> agentstar_render::BitMask {
-    use agentstar_geom::pose::Similarity;
-    use agentstar_render::{Affine, Instance, SilhouetteRenderer};
-    let instances: Vec<Instance<'_>> = parts
-        .iter()
-        .enumerate()
-        .map(|(i, (mesh, camera_from_part))| Instance {
-            mesh,
-            bounds: mesh.bounds(),
-            camera_from_mesh: Affine::from_similarity(&Similarity::from_rigid(camera_from_part)),
-            edges: None,
-            part_id: i as u16,
-        })
-        .collect();
-    let mut r = SilhouetteRenderer::new(camera.width, camera.height);
-    r.render(camera, &instances).clone()
 }

@@ -2,7 +2,7 @@
 //! frames are RGB JPEG or PNG; outputs are written atomically as PNG.
 
 use crate::{DataError, Result};
-use agentstar_render::BitMask;
+use agentstar_mask::BitMask;
 use image::{GrayImage, RgbImage};
 use std::path::Path;
 

@@ -6,17 +6,12 @@
 //! half-written file behind. Bad input is reported with the file and what is wrong.
 
 pub mod animation;
-pub mod arctic;
 pub mod atomic;
-pub mod bop;
-pub mod cameras;
 pub mod capture;
 pub mod capture_writer;
 pub mod export;
 pub mod gt;
-pub mod hot3d;
 pub mod images;
-mod import_common;
 pub mod jpeg_scan;
 pub mod ledger;
 pub mod meshio;
@@ -24,7 +19,6 @@ pub mod npz;
 pub mod posefile;
 pub mod scenefile;
 pub mod urdf;
-pub mod video;
 
 use std::path::{Path, PathBuf};
 

@@ -11,41 +11,19 @@ use crate::chamfer::{chamfer_both, sample_surface};
 use crate::rigid::{gauge_aligned_errors, GaugeErrors};
 use crate::scale::median_log_depth_scale;
 use agentstar_geom::model::transform_rigid;
-use agentstar_geom::pose::{ObjectPose, Similarity};
-use agentstar_geom::{KinematicTree, ObjectModel, Part, PinholeCamera, Point3, TriMesh, Vector3};
+use agentstar_geom::pose::{GenPose, ObjectPose, Similarity};
+use agentstar_geom::{KinematicTree, ObjectModel, Part, PinholeCamera, Point3, TriMesh};
 use agentstar_render::raster::Affine;
 use agentstar_render::{render_full, Instance, PosedModel, RenderBuffers};
 
-/// One ground-truth joint, in its parent part's frame (metres, radians).
-#[derive(Debug, Clone)]
-pub struct GtJoint {
-    pub name: String,
-    pub revolute: bool,
-    pub parent: usize,
-    pub child: usize,
-    pub axis: Vector3,
-    pub origin: Vector3,
-    /// Per keyframe.
-    pub states: Vec<f64>,
-}
-
-/// Ground truth of a sequence: part meshes (metres, own frames) and their poses per keyframe.
-#[derive(Debug, Clone)]
-pub struct GtSequence {
-    pub part_names: Vec<String>,
-    pub meshes: Vec<TriMesh>,
-    pub base_part: usize,
-    /// `poses[frame][part]`: part frame → camera.
-    pub poses: Vec<Vec<ObjectPose>>,
-    pub joints: Vec<GtJoint>,
-}
+pub use agentstar_geom::truth::{GtJoint, GtSequence};
 
 /// A prediction: the object model, its shared scale and its generalised pose per keyframe.
 #[derive(Debug, Clone)]
 pub struct PredSequence<'a> {
     pub model: &'a ObjectModel,
     pub scale: f64,
-    pub poses: Vec<(ObjectPose, Vec<f64>)>,
+    pub poses: Vec<GenPose>,
 }
 
 #[derive(Debug, Clone, Copy)]
@@ -127,7 +105,7 @@ fn gt_buffers(model: &ObjectModel, poses: &[ObjectPose], cam: &PinholeCamera) ->
 
 /// `camera_from_part` of every predicted part, before scale alignment.
 fn pred_part_transforms(pred: &PredSequence<'_>, f: usize) -> Vec<Similarity> {
-    let (pose, states) = &pred.poses[f];
+    let GenPose { pose, states } = &pred.poses[f];
     let cam = pose.with_scale(pred.scale);
     pred.model
         .tree
@@ -158,7 +136,7 @@ pub fn evaluate(
     #[allow(clippy::needless_range_loop)] // three sequences indexed by frame
     for f in 0..n {
         let g = gt_buffers(&gtm, &gt.poses[f], &cameras[f]);
-        let (pose, states) = &pred.poses[f];
+        let GenPose { pose, states } = &pred.poses[f];
         let p = render_full(
             &cameras[f],
             &PosedModel::new(pred.model, states, &pose.with_scale(pred.scale)).instances,
@@ -320,7 +298,7 @@ pub fn evaluate(
 
     // Rigid: the ground-truth base part against the predicted object pose.
     let gt_base: Vec<ObjectPose> = (0..n).map(|f| gt.poses[f][gt.base_part]).collect();
-    let pr_base: Vec<ObjectPose> = (0..n).map(|f| pred.poses[f].0).collect();
+    let pr_base: Vec<ObjectPose> = (0..n).map(|f| pred.poses[f].pose).collect();
     let rigid = gauge_aligned_errors(&gt_base, &pr_base, pred.scale, s_hat);
 
     // Articulation.
@@ -377,7 +355,10 @@ pub fn evaluate(
             let gparent = gt.poses[0][gj.parent];
             let g_axis = gparent.rotation * gj.axis;
             let g_origin = gparent.rotation * gj.origin + gparent.translation;
-            let (pose0, states0) = &pred.poses[0];
+            let GenPose {
+                pose: pose0,
+                states: states0,
+            } = &pred.poses[0];
             let parent_acc = jd
                 .parent
                 .as_deref()
@@ -395,7 +376,7 @@ pub fn evaluate(
             let angular = jd.kind.is_angular();
             let pred_states: Vec<f64> = (0..n)
                 .map(|f| {
-                    let v = pred.poses[f].1[pj];
+                    let v = pred.poses[f].states[pj];
                     if angular {
                         v
                     } else {

@@ -2,7 +2,7 @@
 
 use agentstar_eval::sequence::{evaluate, EvalConfig, GtJoint, GtSequence, PredSequence};
 use agentstar_geom::kinematics::{JointDef, JointKind};
-use agentstar_geom::pose::{ObjectPose, Similarity};
+use agentstar_geom::pose::{GenPose, ObjectPose, Similarity};
 use agentstar_geom::primitives::cuboid;
 use agentstar_geom::{KinematicTree, ObjectModel, Part, PinholeCamera, UnitQuaternion, Vector3};
 
@@ -32,13 +32,13 @@ fn model() -> ObjectModel {
     }
 }
 
-fn frames() -> Vec<(ObjectPose, Vec<f64>)> {
+fn frames() -> Vec<GenPose> {
     (0..5)
         .map(|k| {
             let t = k as f64;
             let r = UnitQuaternion::from_axis_angle(&Vector3::x_axis(), 2.0)
                 * UnitQuaternion::from_axis_angle(&Vector3::z_axis(), 0.3 * t);
-            (
+            GenPose::new(
                 ObjectPose::new(r, Vector3::new(0.02 * t, -0.01, 0.8 + 0.02 * t)),
                 vec![(20.0 + 15.0 * t).to_radians()],
             )
@@ -47,7 +47,7 @@ fn frames() -> Vec<(ObjectPose, Vec<f64>)> {
 }
 
 /// The ground truth of `model` at scale `s`: meshes in metres, each part's pose per frame.
-fn ground_truth(m: &ObjectModel, s: f64, f: &[(ObjectPose, Vec<f64>)]) -> GtSequence {
+fn ground_truth(m: &ObjectModel, s: f64, f: &[GenPose]) -> GtSequence {
     let meshes = m
         .parts
         .iter()
@@ -60,7 +60,7 @@ fn ground_truth(m: &ObjectModel, s: f64, f: &[(ObjectPose, Vec<f64>)]) -> GtSequ
         .collect();
     let poses = f
         .iter()
-        .map(|(pose, states)| {
+        .map(|GenPose { pose, states }| {
             m.tree
                 .part_transforms(states)
                 .iter()
@@ -85,7 +85,7 @@ fn ground_truth(m: &ObjectModel, s: f64, f: &[(ObjectPose, Vec<f64>)]) -> GtSequ
             child: 1,
             axis: j.axis,
             origin: j.origin * s,
-            states: f.iter().map(|x| x.1[0]).collect(),
+            states: f.iter().map(|x| x.states[0]).collect(),
         }],
     }
 }
@@ -162,9 +162,14 @@ fn monocular_scale_is_aligned_and_joints_match_by_geometry() {
     let m = model();
     let f = frames();
     let gt = ground_truth(&m, 0.3, &f);
-    let doubled: Vec<(ObjectPose, Vec<f64>)> = f
+    let doubled: Vec<GenPose> = f
         .iter()
-        .map(|(p, s)| (ObjectPose::new(p.rotation, p.translation * 2.0), s.clone()))
+        .map(|g| {
+            GenPose::new(
+                ObjectPose::new(g.pose.rotation, g.pose.translation * 2.0),
+                g.states.clone(),
+            )
+        })
         .collect();
     let mut renamed = m.clone();
     renamed.parts[1].name = "top".into();
@@ -198,9 +203,9 @@ fn monocular_scale_is_aligned_and_joints_match_by_geometry() {
     assert_eq!(j.matched_by, "nearest moving parts");
     assert!(j.axis_distance_m.expect("line") < 1e-6);
     // A state off by 10° in every frame reads as 10° of state error.
-    let off: Vec<(ObjectPose, Vec<f64>)> = f
+    let off: Vec<GenPose> = f
         .iter()
-        .map(|(p, s)| (*p, vec![s[0] + 10f64.to_radians()]))
+        .map(|g| GenPose::new(g.pose, vec![g.states[0] + 10f64.to_radians()]))
         .collect();
     let r = evaluate(
         &gt,
@@ -236,7 +241,7 @@ fn rigid_errors_match_an_independent_numpy_implementation() {
         return;
     }
     let f = frames();
-    let gt: Vec<ObjectPose> = f.iter().map(|x| x.0).collect();
+    let gt: Vec<ObjectPose> = f.iter().map(|x| x.pose).collect();
     let pred: Vec<ObjectPose> = gt
         .iter()
         .enumerate()

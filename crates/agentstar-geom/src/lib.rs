@@ -13,12 +13,13 @@ pub mod mesh;
 pub mod model;
 pub mod pose;
 pub mod primitives;
+pub mod truth;
 
 pub use camera::PinholeCamera;
 pub use kinematics::{JointDef, JointKind, KinematicTree};
 pub use mesh::{Aabb, TriMesh};
 pub use model::{origin_shift, CanonicalReport, ObjectModel, OriginShift, Part};
-pub use pose::{ObjectPose, Similarity};
+pub use pose::{GenPose, ObjectPose, Similarity};
 
 /// Errors of the geometry layer. Messages name the offending value and say what is valid.
 #[derive(Debug, thiserror::Error, Clone, PartialEq)]

@@ -15,6 +15,22 @@ pub struct Similarity {
     pub translation: Vector3,
 }
 
+/// A generalised pose: the base pose (object → camera) and every joint state, in the
+/// kinematic tree's joint order and internal units (radians, model units). The one
+/// articulated pose type: the tracker's hypotheses, resolved pose files, the evaluator's
+/// predictions and the synthetic ground truth's frames are all `GenPose`s.
+#[derive(Debug, Clone, PartialEq)]
+pub struct GenPose {
+    pub pose: ObjectPose,
+    pub states: Vec<f64>,
+}
+
+impl GenPose {
+    pub fn new(pose: ObjectPose, states: Vec<f64>) -> Self {
+        GenPose { pose, states }
+    }
+}
+
 /// The pose of an object in one frame: rotation and translation (object-to-camera); the
 /// scale lives once per run and is combined with [`ObjectPose::with_scale`].
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -2,8 +2,8 @@
 //! margin, optionally outlined (the mask's boundary, the hand's, the model's), and zoomed,
 //! never past the image limits.
 
-use crate::mask::BitMask;
 use crate::sheet::{fit_to_limits, limit_factor, scaled};
+use agentstar_mask::BitMask;
 use image::{Rgb, RgbImage};
 
 /// Outline of the object's mask on the frames view.

@@ -7,7 +7,6 @@
 
 pub mod frames;
 pub mod full;
-pub mod mask;
 pub mod raster;
 pub mod scene;
 pub mod score;
@@ -15,11 +14,11 @@ pub mod sheet;
 pub mod text;
 pub mod views;
 
+pub use agentstar_mask::{BitMask, DepthObservation};
 pub use full::{render_full, RenderBuffers, NO_PART};
-pub use mask::BitMask;
 pub use raster::{Affine, Instance, SilhouetteRenderer};
 pub use scene::PosedModel;
-pub use score::{boundary_band, DepthObservation, IouScore, ScoreTarget, DEFAULT_BAND_PX};
+pub use score::{boundary_band, IouScore, ScoreTarget, DEFAULT_BAND_PX, GATE_IOU};
 
 #[derive(Debug, thiserror::Error)]
 pub enum RenderError {

@@ -7,9 +7,9 @@
 //! share an edge compute bit-identical crossings and no pixel falls through a crack.
 //! Triangles crossing the near plane are clipped in camera space before projection.
 
-use crate::mask::BitMask;
 use agentstar_geom::pose::{Rigid, Similarity};
 use agentstar_geom::{Aabb, PinholeCamera, Point3, TriMesh};
+use agentstar_mask::BitMask;
 
 /// Points closer than this (planar depth) are clipped away.
 pub const NEAR_Z: f64 = 1e-6;

@@ -6,8 +6,14 @@
 //! `IoU − w · min(depth error in canonical units, 1)`.
 
 use crate::full::RenderBuffers;
-use crate::mask::BitMask;
 use crate::RenderError;
+use agentstar_mask::{BitMask, DepthObservation};
+
+/// The gate a keyframe's score must reach for its pose to count as right: the `finish` gate,
+/// `score`'s default `--pass-iou`, `track`'s summary and the tracker's threshold for a frame
+/// it doubts. The tools read it on the band IoU ([`IouScore::iou_band`], `docs/scoring.md`);
+/// defined here once, beside the band.
+pub const GATE_IOU: f64 = 0.98;
 
 /// The default half-width of the boundary band, in pixels: chosen by measurement on the hard
 /// suite's 640×480 captures with 2 px segmenter-like noise (`docs/scoring.md`, 2026-12-02:
@@ -252,17 +258,6 @@ pub fn boundary_band(mask: &BitMask, band_px: f64) -> BitMask {
         }
     }
     band
-}
-
-/// Observed planar depth for one frame, in the capture's units, with per-pixel confidence.
-#[derive(Debug, Clone)]
-pub struct DepthObservation {
-    pub width: u32,
-    pub height: u32,
-    /// Planar depth; non-finite or ≤ 0 means invalid.
-    pub depth: Vec<f32>,
-    /// Confidence in [0, 1] (all 1 when the source has none).
-    pub confidence: Vec<f32>,
 }
 
 /// Depth agreement over the pixels where the mask, the render and a valid, confident

@@ -3,12 +3,12 @@
 //! sheets. Labels sit in bars beside the pixels, never over them.
 
 use crate::full::{RenderBuffers, NO_PART};
-use crate::mask::BitMask;
 use crate::sheet::{limit_factor, scaled, within_limits, wrap_label, LABEL_SCALE};
 use crate::text::{draw_text, fill_rect, scale_for_width, text_width};
 use agentstar_geom::camera::look_at;
 use agentstar_geom::pose::{Rigid, Similarity};
 use agentstar_geom::{ObjectModel, PinholeCamera, Point3, UnitQuaternion, Vector3};
+use agentstar_mask::BitMask;
 use image::{Rgb, RgbImage, Rgba, RgbaImage};
 
 /// Colours of the silhouette comparison; the legend drawn on the images and the one in

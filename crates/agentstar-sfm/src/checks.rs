@@ -1,7 +1,7 @@
 //! What is decided before COLMAP runs: the masks it reads (object and hands excluded, with a
 //! margin) and whether the camera moves at all.
 
-use agentstar_render::BitMask;
+use agentstar_mask::BitMask;
 use image::GrayImage;
 
 /// `mask` grown by `radius` pixels (a square structuring element).

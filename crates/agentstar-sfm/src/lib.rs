@@ -4,7 +4,7 @@
 //! one) sees the keyframes and the frames between them with the **object and hand masks
 //! excluded from feature extraction** (a margin around them too), so only the background
 //! constrains the cameras. The result is read back from COLMAP's text model
-//! (`agentstar_data::cameras`), put in the documented gauge ([`gauge`]: the first keyframe's
+//! (`agentstar_import::cameras`), put in the documented gauge ([`gauge`]: the first keyframe's
 //! camera frame, one unit the median background depth or metres), and checked.
 //!
 //! The failures a user meets come back as [`SfmError`]s that say what to do instead: a
@@ -20,9 +20,9 @@ pub mod colmap;
 pub mod gauge;
 pub mod video;
 
-use agentstar_data::cameras::{read_colmap, read_colmap_points, CameraSet, SourceCamera};
 use agentstar_geom::PinholeCamera;
-use agentstar_render::BitMask;
+use agentstar_import::cameras::{read_colmap, read_colmap_points, CameraSet, SourceCamera};
+use agentstar_mask::BitMask;
 use colmap::{progress_in, Colmap, FeatureCounts};
 use serde::Serialize;
 use std::collections::BTreeMap;

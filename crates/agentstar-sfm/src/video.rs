@@ -3,7 +3,7 @@
 
 use crate::{SfmError, SfmFrame};
 use agentstar_data::images::load_mask;
-use agentstar_data::video::{images_in, match_mask, stem, FrameFiles};
+use agentstar_import::video::{images_in, match_mask, stem, FrameFiles};
 use std::path::Path;
 
 /// The indices SfM uses: every frame from the first keyframe to the last, thinned evenly to

@@ -986,7 +986,7 @@ const CHOICE_STEP_DEPTH: f64 = 0.2;
 const CHOICE_SCREEN: f64 = 0.15;
 const CHOICE_KEEP: f64 = 0.03;
 /// Frames scoring under this (the IoU gate) have every twin refined, in the wide window.
-const CHOICE_SUSPECT: f64 = 0.98;
+const CHOICE_SUSPECT: f64 = agentstar_render::GATE_IOU;
 
 /// One hypothesis per frame for the whole sequence: every frame's current pose and its twins
 /// ([`twin_candidates`]: flips, principal half-turns) that place close enough to matter,

@@ -12,12 +12,7 @@
 use agentstar_geom::pose::ObjectPose;
 use agentstar_geom::{PinholeCamera, Point3, UnitQuaternion, Vector3};
 
-/// A generalised pose: base pose and joint states (internal units).
-#[derive(Debug, Clone, PartialEq)]
-pub struct GenPose {
-    pub pose: ObjectPose,
-    pub states: Vec<f64>,
-}
+pub use agentstar_geom::pose::GenPose;
 
 /// A camera-frame increment: angles in degrees, shifts as fractions.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]

@@ -1,7 +1,7 @@
 //! `agentstar capture …`: captures from other sources.
 
 use crate::common::print_json;
-use agentstar_data::bop::{import_bop, BopImport};
+use agentstar_import::bop::{import_bop, BopImport};
 use anyhow::{Context, Result};
 use serde_json::json;
 use std::path::PathBuf;
@@ -243,7 +243,7 @@ fn check_fov(f: f64) -> Result<()> {
 }
 
 fn from_video(a: FromVideoArgs) -> Result<ExitCode> {
-    use agentstar_data::video::{import_video_frames, open_frames, CameraSource, VideoImport};
+    use agentstar_import::video::{import_video_frames, open_frames, CameraSource, VideoImport};
     let sfm = a.cameras == Some(CameraMode::Sfm);
     let frames = open_frames(&a.input)?;
     let (cameras, keep, summary) = if sfm {
@@ -318,9 +318,9 @@ fn from_video(a: FromVideoArgs) -> Result<ExitCode> {
 /// folder (to attach to the capture, then remove) and the report.
 fn sfm_cameras(
     a: &FromVideoArgs,
-    frames: &agentstar_data::video::FrameFiles,
+    frames: &agentstar_import::video::FrameFiles,
 ) -> Result<(
-    agentstar_data::video::CameraSource,
+    agentstar_import::video::CameraSource,
     PathBuf,
     agentstar_sfm::SfmReport,
 )> {
@@ -357,7 +357,7 @@ fn sfm_cameras(
     let size = agentstar_data::images::image_size(&frames.paths[keyframes[0]])?;
     let intrinsics = match given_intrinsics(a, size)? {
         Some(k) => Intrinsics::Given(k),
-        None => match agentstar_data::video::video_focal_px(&a.input, size.0, size.1) {
+        None => match agentstar_import::video::video_focal_px(&a.input, size.0, size.1) {
             Some(f) => Intrinsics::Prior {
                 focal_px: f,
                 source: "video metadata".into(),
@@ -427,7 +427,7 @@ fn sfm_cameras(
     };
     let note = serde_json::to_value(&outcome.report)?;
     Ok((
-        agentstar_data::video::CameraSource::Given {
+        agentstar_import::video::CameraSource::Given {
             cameras: outcome.cameras,
             note: json!({"kind": "sfm", "report": note}),
         },
@@ -463,8 +463,8 @@ pub fn run(c: CaptureCommand) -> Result<ExitCode> {
             Ok(ExitCode::SUCCESS)
         }
         CaptureCommand::FromHot3d(a) => {
-            use agentstar_data::hot3d::{import_hot3d, Hot3dImport};
             use agentstar_geom::pose::{quat_from_wxyz, Rigid};
+            use agentstar_import::hot3d::{import_hot3d, Hot3dImport};
             let intrinsics = four(&a.intrinsics, "--intrinsics")?;
             let device_from_camera = match &a.device_from_camera {
                 None => Rigid::identity(),
@@ -516,7 +516,7 @@ pub fn run(c: CaptureCommand) -> Result<ExitCode> {
             Ok(ExitCode::SUCCESS)
         }
         CaptureCommand::FromArctic(a) => {
-            use agentstar_data::arctic::{import_arctic, ArcticImport};
+            use agentstar_import::arctic::{import_arctic, ArcticImport};
             let n = import_arctic(
                 &ArcticImport {
                     root: a.root.clone(),

@@ -3,7 +3,6 @@
 
 use crate::common::{print_json, Session, SessionArgs};
 use agentstar_agent::reports::{EvalBatchReport, EvalJoint, EvalReport};
-use agentstar_bench::gt::gt_sequence;
 use agentstar_bench::table::{result_table, tables};
 use agentstar_bench::{RunInfo, SequenceResult};
 use agentstar_data::gt::GroundTruth;
@@ -71,11 +70,15 @@ pub(crate) fn evaluate_run(
 ) -> Result<(SequenceMetrics, agentstar_eval::sequence::GtSequence)> {
     let gt = GroundTruth::load(gt_path)?;
     let frames: Vec<String> = s.capture.frames.iter().map(|f| f.name.clone()).collect();
-    let seq = gt_sequence(&gt, &frames)?;
+    let seq = gt.sequence(&frames)?;
     let pred = PredSequence {
         model: &s.model.model,
         scale: s.scale(),
-        poses: s.poses.iter().map(|p| (p.pose, p.states.clone())).collect(),
+        poses: s
+            .poses
+            .iter()
+            .map(|p| agentstar_geom::GenPose::new(p.pose, p.states.clone()))
+            .collect(),
     };
     let cams: Vec<_> = s.capture.frames.iter().map(|f| f.camera).collect();
     let m = evaluate(

@@ -10,11 +10,11 @@
 //! continuous symmetries of `models_info.json` become `gt.json` symmetries (continuous ones
 //! sampled every 30°).
 
-use crate::capture_writer::CaptureInfo;
-use crate::images::{load_mask, load_rgb};
 use crate::import_common::{write_rows, GtModel, Row};
-use crate::meshio::load_mesh;
-use crate::{read_text, DataError, Result};
+use agentstar_data::capture_writer::CaptureInfo;
+use agentstar_data::images::{load_mask, load_rgb};
+use agentstar_data::meshio::load_mesh;
+use agentstar_data::{read_text, DataError, Result};
 use agentstar_geom::pose::{quat_to_wxyz, Rigid};
 use agentstar_geom::{Matrix3, PinholeCamera, UnitQuaternion, Vector3};
 use serde::Deserialize;
@@ -183,7 +183,7 @@ pub fn import_bop(cfg: &BopImport, out: &Path) -> Result<usize> {
                 .join(format!("{stem}_{i:06}.png"))
         };
         let mask = load_mask(&mask_path(gi))?;
-        let mut occluders: Option<agentstar_render::BitMask> = None;
+        let mut occluders: Option<agentstar_mask::BitMask> = None;
         for (i, _) in entries.iter().enumerate().filter(|(i, _)| *i != gi) {
             let p = mask_path(i);
             if p.is_file() {
@@ -196,7 +196,7 @@ pub fn import_bop(cfg: &BopImport, out: &Path) -> Result<usize> {
         }
         let depth = if cfg.depth {
             let p = cfg.scene.join("depth").join(format!("{stem}.png"));
-            let img = crate::images::decode_image(&p, "depth")?.to_luma16();
+            let img = agentstar_data::images::decode_image(&p, "depth")?.to_luma16();
             let s = cam.depth_scale.unwrap_or(1.0) * 0.001;
             Some(
                 img.pixels()

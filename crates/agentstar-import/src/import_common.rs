@@ -1,12 +1,12 @@
 //! What the dataset importers share: an owned frame row, stem matching of mask folders, and
 //! a single-part ground truth written beside the capture.
 
-use crate::capture_writer::{write_capture, CaptureInfo, FrameOut};
-use crate::gt::{GroundTruth, GtFile, GtFrame, GtJoint, GtPartFile, GtPose, FORMAT};
-use crate::{DataError, Result};
+use agentstar_data::capture_writer::{write_capture, CaptureInfo, FrameOut};
+use agentstar_data::gt::{GroundTruth, GtFile, GtFrame, GtJoint, GtPartFile, GtPose, FORMAT};
+use agentstar_data::{DataError, Result};
 use agentstar_geom::pose::{quat_to_wxyz, Rigid};
 use agentstar_geom::{PinholeCamera, TriMesh};
-use agentstar_render::BitMask;
+use agentstar_mask::BitMask;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 

@@ -7,7 +7,7 @@
 //! into OpenCV axes by flipping the camera's Y and Z. Distortion parameters are ignored with
 //! a warning (captures are assumed undistorted).
 
-use crate::{read_bytes, read_text, DataError, Result};
+use agentstar_data::{read_bytes, read_text, DataError, Result};
 use agentstar_geom::pose::Rigid;
 use agentstar_geom::{Matrix3, Matrix4};
 use std::collections::BTreeMap;

@@ -7,9 +7,9 @@
 //! before subsampling. Frames are numbered by their index in the video or folder.
 
 use crate::cameras::{read_colmap, read_nerfstudio, rescaled, CameraSet};
-use crate::capture_writer::{write_capture, CaptureInfo, FrameOut};
-use crate::images::{load_mask, load_rgb};
-use crate::{DataError, Result};
+use agentstar_data::capture_writer::{write_capture, CaptureInfo, FrameOut};
+use agentstar_data::images::{load_mask, load_rgb};
+use agentstar_data::{DataError, Result};
 use agentstar_geom::pose::Rigid;
 use agentstar_geom::PinholeCamera;
 use std::path::{Path, PathBuf};
@@ -271,8 +271,8 @@ pub fn import_video_frames(
         name: String,
         index: usize,
         rgb: image::RgbImage,
-        mask: agentstar_render::BitMask,
-        hand: Option<agentstar_render::BitMask>,
+        mask: agentstar_mask::BitMask,
+        hand: Option<agentstar_mask::BitMask>,
         camera: PinholeCamera,
         c2w: Rigid,
     }
@@ -378,8 +378,8 @@ pub fn import_video_frames(
         for entry in std::fs::read_dir(src).map_err(|e| DataError::io(src, e))? {
             let path = entry.map_err(|e| DataError::io(src, e))?.path();
             if let (true, Some(name)) = (path.is_file(), path.file_name()) {
-                let bytes = crate::read_bytes(&path)?;
-                crate::atomic::write_atomic(&dst.join(name), &bytes)?;
+                let bytes = agentstar_data::read_bytes(&path)?;
+                agentstar_data::atomic::write_atomic(&dst.join(name), &bytes)?;
             }
         }
         Ok(())

@@ -13,12 +13,12 @@
 //! when not given). Masks come from a folder, matched by stem; without one they are rendered
 //! from the ground truth (the whole object, hands not cut out), and the manifest says so.
 
-use crate::capture_writer::CaptureInfo;
-use crate::gt::render_parts_mask;
-use crate::images::{load_mask, load_rgb};
 use crate::import_common::{images_by_stem, mask_for, write_rows, GtModel, Row};
-use crate::meshio::parse_glb_file_frame;
-use crate::{read_bytes, read_text, DataError, Result};
+use crate::render_parts_mask;
+use agentstar_data::capture_writer::CaptureInfo;
+use agentstar_data::images::{load_mask, load_rgb};
+use agentstar_data::meshio::parse_glb_file_frame;
+use agentstar_data::{read_bytes, read_text, DataError, Result};
 use agentstar_geom::pose::Rigid;
 use agentstar_geom::{nalgebra, PinholeCamera, TriMesh, UnitQuaternion, Vector3};
 use std::collections::BTreeMap;

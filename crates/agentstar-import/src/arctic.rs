@@ -15,12 +15,13 @@
 //! rendered from the ground truth (the whole object, hands not cut out), and the manifest
 //! says which. The egocentric camera (view 0, a moving camera) is not supported.
 
-use crate::capture_writer::CaptureInfo;
-use crate::gt::{render_parts_mask, GtJoint};
-use crate::images::{load_mask, load_rgb};
 use crate::import_common::{images_by_stem, mask_for, write_rows, GtModel, Row};
-use crate::npz::read_npy;
-use crate::{read_bytes, read_text, DataError, Result};
+use crate::render_parts_mask;
+use agentstar_data::capture_writer::CaptureInfo;
+use agentstar_data::gt::GtJoint;
+use agentstar_data::images::{load_mask, load_rgb};
+use agentstar_data::npz::read_npy;
+use agentstar_data::{read_bytes, read_text, DataError, Result};
 use agentstar_geom::pose::Rigid;
 use agentstar_geom::{Matrix3, PinholeCamera, Point3, TriMesh, UnitQuaternion, Vector3};
 use std::collections::BTreeMap;

@@ -1,0 +1,40 @@
+//! Captures made from other people's data, written in our capture format with
+//! `agentstar-data`'s writers: BOP scenes, HOT3D CSV sequences and ARCTIC object arrays with
+//! their ground truth (`bop`, `hot3d`, `arctic`, sharing one row writer in `import_common`),
+//! a video or a folder of frames (`video`, frames extracted by the `ffmpeg` command) with
+//! cameras from COLMAP, nerfstudio or one static pinhole camera (`cameras`).
+//!
+//! The file formats of our own files live in `agentstar-data`, which knows nothing of the
+//! renderer; the importers here render a silhouette of the ground truth for datasets that
+//! ship no masks ([`render_parts_mask`]). Every error names the file and what is wrong.
+
+pub mod arctic;
+pub mod bop;
+pub mod cameras;
+pub mod hot3d;
+mod import_common;
+pub mod video;
+
+use agentstar_geom::pose::{Rigid, Similarity};
+use agentstar_geom::{PinholeCamera, TriMesh};
+use agentstar_mask::BitMask;
+use agentstar_render::{Affine, Instance, SilhouetteRenderer};
+
+/// The silhouette of ground-truth parts: each mesh with its `camera_from_part` pose. Used by
+/// importers whose datasets ship no masks (the mask is then the whole object, hands not cut
+/// out).
+pub fn render_parts_mask(camera: &PinholeCamera, parts: &[(&TriMesh, Rigid)]) -> BitMask {
+    let instances: Vec<Instance<'_>> = parts
+        .iter()
+        .enumerate()
+        .map(|(i, (mesh, camera_from_part))| Instance {
+            mesh,
+            bounds: mesh.bounds(),
+            camera_from_mesh: Affine::from_similarity(&Similarity::from_rigid(camera_from_part)),
+            edges: None,
+            part_id: i as u16,
+        })
+        .collect();
+    let mut r = SilhouetteRenderer::new(camera.width, camera.height);
+    r.render(camera, &instances).clone()
+}
