@@ -169,14 +169,68 @@ pub fn schema_of<A: JsonSchema>() -> Value {
         let props = o
             .entry("properties")
             .or_insert_with(|| Value::Object(Default::default()));
-        // An optional argument is left out, not sent as null: say so in its schema.
+        // An optional argument is left out, not sent as null: say so in its schema, at
+        // every depth (the fields of `finish`'s reasons too).
         if let Some(props) = props.as_object_mut() {
             for p in props.values_mut() {
                 drop_null(p);
+                tidy(p);
             }
         }
     }
     v
+}
+
+/// Why a shape fit's result is not saved, if it is not: no parameter moved by more than a
+/// thousandth of its range (the gain, if any, came from refining the poses alone: play-test,
+/// 2026-12-02, a fit from wrong poses saved an unchanged scene as a new version), or the
+/// mean IoU did not rise.
+fn fit_saves_nothing(report: &crate::fit::FitReport) -> Option<&'static str> {
+    let moved = report
+        .params
+        .iter()
+        .any(|p| (p.after - p.before).abs() > 1e-3 * (p.max - p.min));
+    if !moved {
+        Some("No parameter moved: the silhouettes ask for no other shape at these poses. The scene and pose.json are unchanged (no version saved).\n")
+    } else if report.iou_mean_after <= report.iou_mean_before + 1e-4 {
+        Some("The fit did not raise the mean IoU: the scene and pose.json are unchanged.\n")
+    } else {
+        None
+    }
+}
+
+/// Below the top level: nested properties lose their `null` like the top-level ones, and
+/// descriptions from multi-line doc comments become one line per paragraph (a model reads
+/// the schema as text; line breaks from the source's wrapping are noise there).
+fn tidy(v: &mut Value) {
+    match v {
+        Value::Object(o) => {
+            if let Some(Value::String(d)) = o.get_mut("description") {
+                *d = one_line_paragraphs(d);
+            }
+            if let Some(Value::Object(props)) = o.get_mut("properties") {
+                for p in props.values_mut() {
+                    drop_null(p);
+                }
+            }
+            for (k, child) in o.iter_mut() {
+                if k != "description" && k != "enum" && k != "const" && k != "default" {
+                    tidy(child);
+                }
+            }
+        }
+        Value::Array(items) => items.iter_mut().for_each(tidy),
+        _ => {}
+    }
+}
+
+/// `"a\nb\n\nc"` → `"a b\n\nc"`.
+fn one_line_paragraphs(text: &str) -> String {
+    text.split("\n\n")
+        .map(|para| para.split_whitespace().collect::<Vec<_>>().join(" "))
+        .filter(|p| !p.is_empty())
+        .collect::<Vec<_>>()
+        .join("\n\n")
 }
 
 /// Removes `null` from a property's types (`["string", "null"]` → `"string"`, an
@@ -952,7 +1006,7 @@ tool!(Finish, "finish", Diagnostic, Nothing, FinishArgs,
     |tb, a, _step| tb.finish(&a));
 
 /// Every tool, in the order offered.
-pub static REGISTRY: [ToolDef; 24] = [
+pub static REGISTRY: &[ToolDef] = &[
     ToolDef::of::<Task>(),
     ToolDef::of::<SceneRead>(),
     ToolDef::of::<SceneWrite>(),
@@ -981,7 +1035,7 @@ pub static REGISTRY: [ToolDef; 24] = [
 
 /// The registry: every tool, in the order offered.
 pub fn registry() -> &'static [ToolDef] {
-    &REGISTRY
+    REGISTRY
 }
 
 /// The tool called `name`.
@@ -1457,7 +1511,7 @@ impl Toolbox {
         })?;
         Ok(ToolOutput {
             text: format!(
-                "committed rank {} of {} frame(s) ({}) to pose.json as version {}",
+                "committed candidate rank {} in each of {} frame(s) ({}) to pose.json as version {}",
                 a.rank.unwrap_or(0),
                 r.committed.len(),
                 r.committed.join(", "),
@@ -1864,10 +1918,18 @@ impl Toolbox {
         scores.insert("iou_mean_after".to_string(), report.iou_mean_after);
         let images = report.sheets.clone();
         let structured = serde_json::to_value(&report).ok();
-        if report.iou_mean_after <= report.iou_mean_before + 1e-4 {
-            text.push_str(
-                "The fit did not raise the mean IoU: the scene and pose.json are unchanged.\n",
-            );
+        let under_gate = report
+            .frames
+            .iter()
+            .filter(|f| f.iou_after < GATE_IOU)
+            .count();
+        if let Some(why) = fit_saves_nothing(&report) {
+            text.push_str(why);
+            if under_gate > 0 {
+                text.push_str(&format!(
+                    "{under_gate} keyframe(s) stay under the {GATE_IOU} gate: a shape fit cannot repair a pose in a wrong basin (a flip or a twin). Check `temporal` for large steps and try the flips (`osweep`) or `track` with trusted anchors before fitting again.\n"
+                ));
+            }
             return Ok(ToolOutput {
                 text,
                 images,
@@ -2221,6 +2283,84 @@ impl Toolbox {
 mod tests {
     use super::*;
     use serde_json::json;
+
+    #[test]
+    fn a_fit_is_saved_only_when_a_parameter_moved_and_the_iou_rose() {
+        let report =
+            |before: f64, after: f64, iou_before: f64, iou_after: f64| crate::fit::FitReport {
+                params: vec![crate::fit::FitParam {
+                    name: "width".into(),
+                    before,
+                    after,
+                    min: 0.8,
+                    max: 1.2,
+                    at_bound: false,
+                }],
+                held: vec![],
+                frames: vec![],
+                iou_mean_before: iou_before,
+                iou_mean_after: iou_after,
+                iou_min_before: iou_before,
+                iou_min_after: iou_after,
+                rounds: vec![],
+                origin_shift: [0.0; 3],
+                scene: "s.rhai".into(),
+                poses: "p.json".into(),
+                sheets: vec![],
+                builds: 1,
+                evaluations: 1,
+                seconds: 0.0,
+                written: false,
+            };
+        // The play-test's case: the IoU rose (the poses were refined) but the width stayed.
+        let why = fit_saves_nothing(&report(1.0, 1.0002, 0.93, 0.99)).expect("not saved");
+        assert!(why.contains("No parameter moved"), "{why}");
+        let why = fit_saves_nothing(&report(1.0, 1.05, 0.99, 0.99)).expect("not saved");
+        assert!(why.contains("did not raise"), "{why}");
+        assert_eq!(fit_saves_nothing(&report(1.0, 1.05, 0.93, 0.99)), None);
+    }
+
+    /// Every schema, at every depth: no `null` types (optional fields are left out) and no
+    /// line breaks inside a paragraph of a description (review, 2026-12-02: `finish`'s
+    /// reasons showed `["string","null"]` and descriptions kept the source's wrapping).
+    #[test]
+    fn schemas_have_no_null_types_and_no_wrapped_descriptions() {
+        fn walk(tool: &str, path: &str, v: &Value, problems: &mut Vec<String>) {
+            match v {
+                Value::Object(o) => {
+                    if let Some(t) = o.get("type") {
+                        let has_null = t == "null"
+                            || t.as_array().is_some_and(|a| a.iter().any(|x| x == "null"));
+                        if has_null {
+                            problems.push(format!("{tool}{path}: type {t}"));
+                        }
+                    }
+                    if let Some(Value::String(d)) = o.get("description") {
+                        if d.replace("\n\n", "").contains('\n') {
+                            problems.push(format!("{tool}{path}: description {d:?}"));
+                        }
+                    }
+                    for (k, c) in o {
+                        if k != "enum" && k != "const" && k != "default" {
+                            walk(tool, &format!("{path}/{k}"), c, problems);
+                        }
+                    }
+                }
+                Value::Array(a) => {
+                    for (i, c) in a.iter().enumerate() {
+                        walk(tool, &format!("{path}/{i}"), c, problems);
+                    }
+                }
+                _ => {}
+            }
+        }
+        let mut problems = vec![];
+        for t in registry() {
+            walk(t.name, "", &t.schema(), &mut problems);
+        }
+        assert!(problems.is_empty(), "{}", problems.join("\n"));
+        assert_eq!(one_line_paragraphs("a\n b\n\nc\nd"), "a b\n\nc d");
+    }
 
     fn toolbox(window: Option<&[&str]>) -> Toolbox {
         let run = RunDir {

@@ -3,8 +3,9 @@
 
 mod support;
 
+use agentstar_agent::reports::ScoreReport;
 use std::path::Path;
-use support::{agentstar, example, text};
+use support::{agentstar, example, score_of, text};
 
 #[test]
 fn example_and_every_subcommand_on_it() {
@@ -16,20 +17,9 @@ fn example_and_every_subcommand_on_it() {
     assert_eq!(v["valid"], true);
     assert_eq!(v["frames"], 6);
 
-    let o = agentstar(&[
-        "score",
-        "--capture",
-        &cap,
-        "--model",
-        &model,
-        "--poses",
-        &poses,
-        "--json",
-    ]);
-    assert!(o.status.success(), "{}", text(&o));
-    let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("json");
-    assert_eq!(v["sequence"]["min_iou_visible"], 1.0);
-    assert_eq!(v["frames"].as_array().expect("frames").len(), 6);
+    let v: ScoreReport = score_of(&cap, &model, &poses, None);
+    assert_eq!(v.sequence.min_iou_visible, 1.0);
+    assert_eq!(v.frames.len(), 6);
 
     let out = dir.path().join("views");
     let o = agentstar(&[

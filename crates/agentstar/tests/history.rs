@@ -13,12 +13,7 @@ use agentstar_data::posefile::PoseFile;
 use serde_json::json;
 use std::collections::BTreeSet;
 use std::path::Path;
-use support::{agentstar, ledger, s, small_run, text, McpClient};
-
-fn json_of<T: serde::de::DeserializeOwned>(o: &std::process::Output) -> T {
-    assert!(o.status.success(), "{}", text(o));
-    serde_json::from_slice(&o.stdout).unwrap_or_else(|e| panic!("{e}: {}", text(o)))
-}
+use support::{agentstar, json_of, ledger, s, small_run, text, McpClient};
 
 fn translation(pf: &PoseFile, frame: &str) -> [f64; 3] {
     pf.frames[frame]

@@ -3,33 +3,16 @@
 
 mod support;
 
-use support::{agentstar, example, text};
+use agentstar_agent::reports::{ScoreReport, TrackReport};
+use support::{agentstar, example, score_of, text, track_known};
 
 #[test]
 fn pose_verbs_track_commit_and_diagnose() {
     let dir = tempfile::tempdir().expect("tmp");
     let (cap, model, poses) = example(dir.path());
     let tracked = dir.path().join("tracked.json");
-    let o = agentstar(&[
-        "track",
-        &cap,
-        "--model",
-        &model,
-        "--scale-from",
-        &poses,
-        "--out",
-        tracked.to_str().expect("utf8"),
-        "--evals",
-        "1200",
-        "--json",
-    ]);
-    assert!(o.status.success(), "{}", text(&o));
-    let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("json");
-    assert!(
-        v["sequence"]["min_iou_visible"].as_f64().expect("min") >= 0.98,
-        "{}",
-        v["sequence"]
-    );
+    let v: TrackReport = track_known(&cap, &model, &poses, &tracked);
+    assert!(v.sequence.min_iou_visible >= 0.98, "{:?}", v.sequence);
     let tracked = tracked.to_str().expect("utf8").to_string();
     let common = |verb: &str, out: &str| -> Vec<String> {
         vec![
@@ -77,20 +60,8 @@ fn pose_verbs_track_commit_and_diagnose() {
     let report = dir.path().join("apply/apply.json").display().to_string();
     let o = agentstar(&["pose", "commit", "--poses", &tracked, "--report", &report]);
     assert!(o.status.success(), "{}", text(&o));
-    let o = agentstar(&[
-        "score",
-        "--capture",
-        &cap,
-        "--model",
-        &model,
-        "--poses",
-        &tracked,
-        "--frames",
-        "000005",
-        "--json",
-    ]);
-    let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("json");
-    assert!(v["frames"][0]["iou_visible"].as_f64().expect("iou") < 0.95);
+    let v: ScoreReport = score_of(&cap, &model, &tracked, Some("000005"));
+    assert!(v.frames[0].iou_visible.expect("iou") < 0.95, "{v:?}");
     let o = agentstar(&["pose", "history", "--poses", &tracked, "--json"]);
     let h: agentstar_agent::reports::HistoryReport =
         serde_json::from_slice(&o.stdout).expect("json");
@@ -102,20 +73,8 @@ fn pose_verbs_track_commit_and_diagnose() {
     );
     let o = agentstar(&["pose", "restore", "--poses", &tracked, "--version", "0"]);
     assert!(o.status.success(), "{}", text(&o));
-    let o = agentstar(&[
-        "score",
-        "--capture",
-        &cap,
-        "--model",
-        &model,
-        "--poses",
-        &tracked,
-        "--frames",
-        "000005",
-        "--json",
-    ]);
-    let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("json");
-    assert!(v["frames"][0]["iou_visible"].as_f64().expect("iou") >= 0.98);
+    let v: ScoreReport = score_of(&cap, &model, &tracked, Some("000005"));
+    assert!(v.frames[0].iou_visible.expect("iou") >= 0.98, "{v:?}");
 
     // A sweep with a bad range spec shows the grammar; a good one writes its three outputs.
     let mut args = common("sweep", "sweep");

@@ -8,7 +8,7 @@ use agentstar_agent::fit::FitReport;
 use agentstar_agent::reports::ScoreReport;
 use serde_json::json;
 use std::path::Path;
-use support::{agentstar, s, text, McpClient};
+use support::{agentstar, s, score_of, text, McpClient};
 
 /// The synthetic box (`agentstar synth --object box`) with its proportions as parameters:
 /// the true values are width 1.0, depth 0.7, body height 0.48.
@@ -61,18 +61,7 @@ fn run_with(dir: &Path, frames: usize, script: &str) -> (std::path::PathBuf, std
 }
 
 fn score(cap: &Path, model: &Path, poses: &Path) -> Vec<f64> {
-    let o = agentstar(&[
-        "score",
-        "--capture",
-        &s(cap),
-        "--model",
-        &s(model),
-        "--poses",
-        &s(poses),
-        "--json",
-    ]);
-    let r: ScoreReport =
-        serde_json::from_slice(&o.stdout).unwrap_or_else(|_| panic!("{}", text(&o)));
+    let r: ScoreReport = score_of(&s(cap), &s(model), &s(poses), None);
     r.frames.iter().map(|f| f.gate()).collect()
 }
 

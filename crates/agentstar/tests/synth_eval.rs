@@ -2,67 +2,31 @@
 
 mod support;
 
-use support::{agentstar, example, text};
+use agentstar_agent::reports::{EvalReport, ScoreReport, TrackReport};
+use support::{agentstar, eval_of, example, score_of, text, track_known};
 
 #[test]
 fn eval_scores_ground_truth_as_zero_and_tracking_as_small() {
     let dir = tempfile::tempdir().expect("tmp");
     let (cap, model, poses) = example(dir.path());
-    let o = agentstar(&[
-        "eval",
-        "--capture",
-        &cap,
-        "--model",
-        &model,
-        "--poses",
-        &poses,
-        "--samples",
-        "3000",
-        "--json",
-    ]);
-    assert!(o.status.success(), "{}", text(&o));
-    let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("json");
-    for k in ["epe_cm", "rotation_mean_deg", "translation_mean_cm"] {
-        assert!(v[k].as_f64().expect(k) < 1e-3, "{k}: {}", v[k]);
+    let truth: EvalReport = eval_of(&cap, &model, &poses, 3000);
+    for (k, v) in [
+        ("epe_cm", truth.epe_cm),
+        ("rotation_mean_deg", truth.rotation_mean_deg),
+        ("translation_mean_cm", truth.translation_mean_cm),
+    ] {
+        assert!(v.expect(k) < 1e-3, "{k}: {v:?}");
     }
     // Independent samples of the same surfaces: the sampling floor only.
+    assert!(truth.chamfer_cm.expect("cd") < 1.0, "{truth:?}");
+    assert_eq!(truth.joints[0].matched_by, "child part name");
+    let tracked = dir.path().join("tracked.json");
+    let _: TrackReport = track_known(&cap, &model, &poses, &tracked);
+    let tracked = tracked.display().to_string();
+    let v: EvalReport = eval_of(&cap, &model, &tracked, 3000);
     assert!(
-        v["chamfer_cm"].as_f64().expect("cd") < 1.0,
-        "{}",
-        v["chamfer_cm"]
-    );
-    assert_eq!(v["joints"][0]["matched_by"], "child part name");
-    let tracked = dir.path().join("tracked.json").display().to_string();
-    let o = agentstar(&[
-        "track",
-        &cap,
-        "--model",
-        &model,
-        "--scale-from",
-        &poses,
-        "--out",
-        &tracked,
-        "--evals",
-        "1200",
-    ]);
-    assert!(o.status.success(), "{}", text(&o));
-    let o = agentstar(&[
-        "eval",
-        "--capture",
-        &cap,
-        "--model",
-        &model,
-        "--poses",
-        &tracked,
-        "--samples",
-        "3000",
-        "--json",
-    ]);
-    let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("json");
-    assert!(
-        v["epe_cm"].as_f64().expect("epe") < 1.0
-            && v["rotation_mean_deg"].as_f64().expect("rot") < 2.0,
-        "{v}"
+        v.epe_cm.expect("epe") < 1.0 && v.rotation_mean_deg.expect("rot") < 2.0,
+        "{v:?}"
     );
     // A missing ground truth is named.
     let o = agentstar(&[
@@ -109,35 +73,11 @@ fn synth_writes_a_valid_capture_whose_truth_scores_perfectly() {
     );
     let model = out.join("model/scene.rhai").display().to_string();
     let poses = out.join("model/pose.json").display().to_string();
-    let o = agentstar(&[
-        "score",
-        "--capture",
-        &cap,
-        "--model",
-        &model,
-        "--poses",
-        &poses,
-        "--json",
-    ]);
-    assert!(o.status.success(), "{}", text(&o));
-    let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("json");
-    assert_eq!(v["sequence"]["min_iou_visible"], 1.0, "{v}");
-    let o = agentstar(&[
-        "eval",
-        "--capture",
-        &cap,
-        "--model",
-        &model,
-        "--poses",
-        &poses,
-        "--samples",
-        "2000",
-        "--json",
-    ]);
-    assert!(o.status.success(), "{}", text(&o));
-    let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("json");
-    assert!(v["epe_cm"].as_f64().expect("epe") < 1e-3, "{v}");
-    assert_eq!(v["joints"].as_array().expect("joints").len(), 2);
+    let v: ScoreReport = score_of(&cap, &model, &poses, None);
+    assert_eq!(v.sequence.min_iou_visible, 1.0, "{v:?}");
+    let v: EvalReport = eval_of(&cap, &model, &poses, 2000);
+    assert!(v.epe_cm.expect("epe") < 1e-3, "{v:?}");
+    assert_eq!(v.joints.len(), 2);
     // Two runs in a batch give the paper's tables, one row per sequence.
     let batch = dir.path().join("runs.json");
     std::fs::write(
@@ -175,8 +115,7 @@ fn synth_writes_a_valid_capture_whose_truth_scores_perfectly() {
     assert!(o.status.success(), "{}", text(&o));
     let b: agentstar_agent::reports::EvalBatchReport =
         serde_json::from_slice(&o.stdout).expect("batch report");
-    let mut single: agentstar_agent::reports::EvalReport =
-        serde_json::from_value(v.clone()).expect("eval report");
+    let mut single = v.clone();
     assert_eq!(b.results.len(), 2);
     assert_eq!(b.results[1].family, "itaco");
     single.label = "truth".into();

@@ -1,23 +1,10 @@
 //! `agentstar track --from`: a warm start keeps its anchors exactly and repairs a block of
 //! frames left flipped end for end.
 
+mod support;
+
 use std::path::Path;
-use std::process::{Command, Output};
-
-fn agentstar(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_agentstar"))
-        .args(args)
-        .output()
-        .expect("run agentstar")
-}
-
-fn text(o: &Output) -> String {
-    format!(
-        "{}{}",
-        String::from_utf8_lossy(&o.stdout),
-        String::from_utf8_lossy(&o.stderr)
-    )
-}
+use support::{agentstar, example, text, track_known};
 
 fn read_json(p: &Path) -> serde_json::Value {
     serde_json::from_slice(&std::fs::read(p).expect("read")).expect("json")
@@ -39,30 +26,9 @@ fn angle_deg(a: [f64; 4], b: [f64; 4]) -> f64 {
 #[test]
 fn track_from_keeps_anchors_and_repairs_a_flipped_block() {
     let dir = tempfile::tempdir().expect("tmp");
-    let o = agentstar(&[
-        "example",
-        dir.path().to_str().expect("utf8"),
-        "--frames",
-        "6",
-    ]);
-    assert!(o.status.success(), "{}", text(&o));
-    let cap = dir.path().join("capture").display().to_string();
-    let model = dir.path().join("run/scene.rhai").display().to_string();
-    let poses = dir.path().join("run/pose.json").display().to_string();
+    let (cap, model, poses) = example(dir.path());
     let tracked = dir.path().join("tracked.json");
-    let o = agentstar(&[
-        "track",
-        &cap,
-        "--model",
-        &model,
-        "--scale-from",
-        &poses,
-        "--out",
-        tracked.to_str().expect("utf8"),
-        "--evals",
-        "1200",
-    ]);
-    assert!(o.status.success(), "{}", text(&o));
+    let _: serde_json::Value = track_known(&cap, &model, &poses, &tracked);
     let good = read_json(&tracked);
     let mut names: Vec<String> = good["frames"]
         .as_object()

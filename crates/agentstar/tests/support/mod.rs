@@ -38,6 +38,85 @@ pub fn example(dir: &Path) -> (String, String, String) {
     (cap, model, poses)
 }
 
+/// A command's stdout parsed as its typed report, asserting that it succeeded.
+pub fn json_of<T: serde::de::DeserializeOwned>(o: &Output) -> T {
+    assert!(o.status.success(), "{}", text(o));
+    serde_json::from_slice(&o.stdout).unwrap_or_else(|e| panic!("{e}: {}", text(o)))
+}
+
+/// `agentstar track CAP --model MODEL --scale-from POSES --out OUT --evals 1200 --json`
+/// (the known model tracked from scratch at the true scale), its report (`TrackReport`, or
+/// `serde_json::Value`; generic so that this module links nothing of ours).
+pub fn track_known<T: serde::de::DeserializeOwned>(
+    cap: &str,
+    model: &str,
+    scale_from: &str,
+    out: &Path,
+) -> T {
+    json_of(&agentstar(&[
+        "track",
+        cap,
+        "--model",
+        model,
+        "--scale-from",
+        scale_from,
+        "--out",
+        out.to_str().expect("utf8"),
+        "--evals",
+        "1200",
+        "--json",
+    ]))
+}
+
+/// `agentstar score --capture CAP --model MODEL --poses POSES [--frames F] --json`, its
+/// report (`ScoreReport`). Its status is not asserted: `score` exits 1 when a frame is
+/// under the gate, and still prints its report.
+pub fn score_of<T: serde::de::DeserializeOwned>(
+    cap: &str,
+    model: &str,
+    poses: &str,
+    frames: Option<&str>,
+) -> T {
+    let mut args = vec![
+        "score",
+        "--capture",
+        cap,
+        "--model",
+        model,
+        "--poses",
+        poses,
+        "--json",
+    ];
+    if let Some(f) = frames {
+        args.extend(["--frames", f]);
+    }
+    let o = agentstar(&args);
+    serde_json::from_slice(&o.stdout).unwrap_or_else(|e| panic!("{e}: {}", text(&o)))
+}
+
+/// `agentstar eval --capture CAP --model MODEL --poses POSES --samples N --json`, its report
+/// (`EvalReport`).
+pub fn eval_of<T: serde::de::DeserializeOwned>(
+    cap: &str,
+    model: &str,
+    poses: &str,
+    samples: usize,
+) -> T {
+    let n = samples.to_string();
+    json_of(&agentstar(&[
+        "eval",
+        "--capture",
+        cap,
+        "--model",
+        model,
+        "--poses",
+        poses,
+        "--samples",
+        &n,
+        "--json",
+    ]))
+}
+
 /// The hand-held box with hands, seed 7 (the demo's clip), `frames` keyframes, at 160×120
 /// when `small` (else 320×240), written to `out`.
 pub fn synth_box(out: &Path, frames: usize, small: bool) {
