@@ -181,6 +181,40 @@ pub fn schema_of<A: JsonSchema>() -> Value {
     v
 }
 
+/// The most bytes of a tool's stdout or stderr the toolbox keeps (a report, a log).
+pub const MAX_TOOL_OUTPUT_BYTES: usize = 16 << 20;
+
+/// Reads `r` to its end, keeping the first [`MAX_TOOL_OUTPUT_BYTES`] (cut at a character
+/// boundary) and a line saying how much was dropped.
+fn read_capped(r: impl std::io::Read) -> String {
+    read_capped_to(r, MAX_TOOL_OUTPUT_BYTES)
+}
+
+fn read_capped_to(mut r: impl std::io::Read, cap: usize) -> String {
+    let mut kept = Vec::new();
+    let mut dropped = 0u64;
+    let mut buf = [0u8; 64 * 1024];
+    loop {
+        match r.read(&mut buf) {
+            Ok(0) => break,
+            Ok(n) => {
+                let room = cap.saturating_sub(kept.len()).min(n);
+                kept.extend_from_slice(&buf[..room]);
+                dropped += (n - room) as u64;
+            }
+            Err(e) if e.kind() == std::io::ErrorKind::Interrupted => continue,
+            Err(_) => break,
+        }
+    }
+    let mut text = String::from_utf8_lossy(&kept).into_owned();
+    if dropped > 0 {
+        text.push_str(&format!(
+            "\n[{dropped} more bytes of output dropped: the toolbox keeps {cap}]\n"
+        ));
+    }
+    text
+}
+
 /// Why a shape fit's result is not saved, if it is not: no parameter moved by more than a
 /// thousandth of its range (the gain, if any, came from refining the poses alone: play-test,
 /// 2026-12-02, a fit from wrong poses saved an unchanged scene as a new version), or the
@@ -1281,23 +1315,12 @@ impl Toolbox {
             .stderr(std::process::Stdio::piped())
             .spawn()
             .map_err(|e| AgentError::Tool(format!("cannot run {}: {e}", self.exe.display())))?;
-        // Read both pipes on threads so a large output never blocks the child.
-        let mut out = child.stdout.take();
-        let mut err = child.stderr.take();
-        let t_out = std::thread::spawn(move || {
-            let mut s = String::new();
-            if let Some(o) = out.as_mut() {
-                let _ = std::io::Read::read_to_string(o, &mut s);
-            }
-            s
-        });
-        let t_err = std::thread::spawn(move || {
-            let mut s = String::new();
-            if let Some(e) = err.as_mut() {
-                let _ = std::io::Read::read_to_string(e, &mut s);
-            }
-            s
-        });
+        // Read both pipes on threads so a large output never blocks the child, each kept up
+        // to MAX_TOOL_OUTPUT_BYTES (the rest is drained and dropped, and the text says so).
+        let out = child.stdout.take();
+        let err = child.stderr.take();
+        let t_out = std::thread::spawn(move || out.map(read_capped).unwrap_or_default());
+        let t_err = std::thread::spawn(move || err.map(read_capped).unwrap_or_default());
         let start = std::time::Instant::now();
         let status = loop {
             match child.try_wait() {
@@ -2283,6 +2306,15 @@ impl Toolbox {
 mod tests {
     use super::*;
     use serde_json::json;
+
+    #[test]
+    fn a_tools_output_is_kept_up_to_its_cap_and_the_rest_is_counted() {
+        let big = vec![b'x'; 1000];
+        let t = read_capped_to(&big[..], 100);
+        assert!(t.starts_with(&"x".repeat(100)), "{t}");
+        assert!(t.contains("[900 more bytes of output dropped"), "{t}");
+        assert_eq!(read_capped_to(&b"short"[..], 100), "short");
+    }
 
     #[test]
     fn a_fit_is_saved_only_when_a_parameter_moved_and_the_iou_rose() {
