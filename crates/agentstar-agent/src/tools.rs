@@ -1492,7 +1492,9 @@ impl Toolbox {
             ));
         }
         Ok(ToolOutput {
-            text: format!("{text}report: {}\n", path.display()),
+            // The path first (play-test, 2026-12-02): it is what `pose_commit` needs, and
+            // step numbers cannot be predicted.
+            text: format!("report: {}\n{text}", path.display()),
             images,
             scores,
             structured: serde_json::to_value(&report).ok(),

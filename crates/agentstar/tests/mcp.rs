@@ -146,10 +146,12 @@ fn every_tool_runs_over_stdio_with_schema_arguments_and_typed_results() {
                 assert_eq!(r.frames.len(), 1, "{name}");
                 assert!(!r.frames[0].ranked.is_empty());
                 // The file the result names is the same report.
+                // The report's path is the first line: what pose_commit needs.
                 let path = body
                     .lines()
-                    .find_map(|l| l.strip_prefix("report: "))
-                    .expect("the report's path");
+                    .next()
+                    .and_then(|l| l.strip_prefix("report: "))
+                    .unwrap_or_else(|| panic!("{name}: the report's path first: {body}"));
                 let file = SearchReport::read(Path::new(path)).expect("report file");
                 assert_eq!(file, r);
                 assert!(
