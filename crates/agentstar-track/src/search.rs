@@ -149,6 +149,27 @@ fn keep_start(problem: &FrameProblem<'_>, space: &SearchSpace, cands: &mut Vec<C
     }
 }
 
+/// The candidates with repeats dropped (the first of each kept, so the lowest restart):
+/// restarts that all end at the same vector (typically the start, when nothing in the box
+/// beats it) are one candidate, not one per restart (play-test, 2026-12-02).
+fn distinct_poses(cands: Vec<Candidate>) -> Vec<Candidate> {
+    let mut out: Vec<Candidate> = Vec::with_capacity(cands.len());
+    for c in cands {
+        // The kept start is never a repeat: its vector may be the start clamped into the
+        // box, which a restart can also reach, with another pose.
+        let repeat = !c.kept_start
+            && out.iter().any(|o| {
+                !o.kept_start
+                    && o.x.len() == c.x.len()
+                    && o.x.iter().zip(&c.x).all(|(p, q)| (p - q).abs() <= 1e-9)
+            });
+        if !repeat {
+            out.push(c);
+        }
+    }
+    out
+}
+
 pub(crate) fn rank(mut c: Vec<Candidate>, topk: usize) -> Vec<Candidate> {
     c.sort_by(|a, b| b.score.combined.total_cmp(&a.score.combined));
     c.truncate(topk.max(1));
@@ -362,7 +383,7 @@ pub fn sweep(
             let n_evals = records.iter().map(|r| r.nfev + r.polish_nfev).sum();
             keep_start(problem, space, &mut cands);
             Ok(SweepResult {
-                ranked: rank(cands, restarts + 1),
+                ranked: rank(distinct_poses(cands), restarts + 1),
                 restarts: records,
                 n_evals,
                 score_field: None,

@@ -132,3 +132,39 @@ fn rank_zero_is_never_worse_than_the_start() {
         assert!(r.ranked[1..].iter().all(|c| c.score.combined < start));
     }
 }
+
+/// Play-test, 2026-12-02: a DE sweep whose start nothing beats listed the start six times
+/// (every restart's winner). Distinct restarts are distinct candidates; repeats are dropped.
+#[test]
+fn a_de_sweep_lists_each_pose_once() {
+    let model = case_model();
+    let scale = 0.5;
+    let gt = truth(2.0);
+    let target = target_of(&model, &gt, scale);
+    let problem = FrameProblem::new(&model, camera(), &target, scale, gt.clone());
+    let space = parse_spec("yaw:-10,10;pitch:-10,10", &model.tree, Grammar::Camera).expect("space");
+    let r = sweep(
+        &problem,
+        &space,
+        &SweepConfig {
+            strategy: agentstar_track::search::Strategy::De,
+            total_evals: 600,
+            ..SweepConfig::default()
+        },
+    )
+    .expect("sweep");
+    for (i, a) in r.ranked.iter().enumerate() {
+        for b in &r.ranked[i + 1..] {
+            let same = a.x.iter().zip(&b.x).all(|(p, q)| (p - q).abs() <= 1e-9);
+            assert!(
+                !same,
+                "ranks {} and {} are the same pose {:?}",
+                a.rank, b.rank, a.x
+            );
+        }
+    }
+    assert_eq!(
+        r.ranked[0].score.combined,
+        problem.evaluator().score(&problem.base).combined
+    );
+}
