@@ -216,34 +216,41 @@ pub fn refine_ranked(
     Ok(result)
 }
 
-/// The posed model's surface centroid and principal axes (area-weighted second moments of
-/// the triangles, in the canonical frame at these joint states), largest spread first. A
-/// half-turn about a principal axis is the twin of any shape symmetric about it, whatever
-/// the joint state makes of it: two slabs of one outline hinged together (lid ↔ base) are
-/// swapped by the half-turn about the axis that bisects them, which is principal.
+/// The posed model's surface centroid and principal axes (the exact area-weighted second
+/// moments of its triangles, in the canonical frame at these joint states), largest spread
+/// first. A half-turn about a principal axis is the twin of any shape symmetric about it,
+/// whatever the joint state makes of it: two slabs of one outline hinged together (lid ↔
+/// base) are swapped by the half-turn about the axis that bisects them, which is principal.
+/// The moments are exact (not one sample per triangle), so the axes keep the shape's
+/// symmetry whatever its triangulation: a face split along one diagonal tilted them by
+/// several degrees, and the half-turn then missed the twin.
 pub fn principal_axes(model: &ObjectModel, states: &[f64]) -> Option<(Point3, [Vector3; 3])> {
     let transforms = model.tree.part_transforms(states);
-    let mut samples: Vec<(Point3, f64)> = Vec::new();
+    let mut total = 0.0;
+    let mut first = Vector3::zeros();
+    let mut second = Matrix3::zeros();
     for (part, t) in model.parts.iter().zip(&transforms) {
         let m = &part.mesh;
         for tri in &m.triangles {
-            let [a, b, c] = tri.map(|k| t * m.positions[k as usize]);
+            let [a, b, c] = tri.map(|k| (t * m.positions[k as usize]).coords);
             let area = 0.5 * (b - a).cross(&(c - a)).norm();
-            if area > 0.0 && area.is_finite() {
-                samples.push((Point3::from((a.coords + b.coords + c.coords) / 3.0), area));
+            if !(area > 0.0 && area.is_finite()) {
+                continue;
             }
+            let sum = a + b + c;
+            // Over a triangle of area A: ∫ x dA = A·s/3, ∫ x xᵀ dA = A/12·(a aᵀ + b bᵀ + c cᵀ + s sᵀ).
+            total += area;
+            first += sum * (area / 3.0);
+            second +=
+                (a * a.transpose() + b * b.transpose() + c * c.transpose() + sum * sum.transpose())
+                    * (area / 12.0);
         }
     }
-    let total: f64 = samples.iter().map(|s| s.1).sum();
-    if samples.is_empty() || total <= 0.0 {
+    if total <= 0.0 || !total.is_finite() {
         return None;
     }
-    let centre = samples.iter().map(|(p, w)| p.coords * *w).sum::<Vector3>() / total;
-    let mut cov = Matrix3::zeros();
-    for (p, w) in &samples {
-        let d = p.coords - centre;
-        cov += d * d.transpose() * *w;
-    }
+    let centre = first / total;
+    let cov = second - centre * centre.transpose() * total;
     let eig = (cov / total).symmetric_eigen();
     let mut order = [0usize, 1, 2];
     order.sort_by(|&i, &j| eig.eigenvalues[j].total_cmp(&eig.eigenvalues[i]));

@@ -180,3 +180,60 @@ fn the_lid_base_twin_is_found_and_refined_with_both_basins_kept() {
         report.join("\n")
     );
 }
+
+/// Two slabs of one outline and thickness, mirror images about the hinge's plane when closed
+/// (the hard suite's `twinlaptop`): at any opening, a half-turn about a principal axis
+/// through the centroid swaps lid and base exactly.
+fn twin_slabs() -> ObjectModel {
+    let slab = |z: f64| {
+        cuboid(1.0, 0.7, 0.03)
+            .expect("slab")
+            .translated(Vector3::new(0.0, 0.0, z))
+    };
+    let hinge = JointDef {
+        name: "hinge".into(),
+        kind: JointKind::Revolute,
+        parent: None,
+        child: vec!["lid".into()],
+        origin: Vector3::new(0.0, 0.35, 0.0),
+        axis: -Vector3::x(),
+        limit: Some((0.0, 150.0)),
+    };
+    ObjectModel {
+        tree: KinematicTree::new(vec![hinge], &["base".to_string(), "lid".to_string()])
+            .expect("tree"),
+        parts: vec![
+            Part::new("base", slab(-0.016), [0.3, 0.3, 0.3]),
+            Part::new("lid", slab(0.016), [0.6, 0.6, 0.6]),
+        ],
+    }
+}
+
+#[test]
+fn a_twin_candidate_swaps_equal_slabs_exactly_at_any_opening() {
+    let model = twin_slabs();
+    let scale = 0.3;
+    for deg in [10.0f64, 35.0, 70.0, 108.0, 140.0] {
+        let gt = GenPose {
+            pose: ObjectPose::new(
+                UnitQuaternion::from_euler_angles(-1.1, 0.5, 0.3),
+                Vector3::new(0.02, -0.01, 1.0),
+            ),
+            states: vec![deg.to_radians()],
+        };
+        let target = target_of(&model, &gt, scale);
+        let problem = FrameProblem::new(&model, camera(), &target, scale, gt.clone());
+        let mut ev = problem.evaluator();
+        let scores: Vec<(f64, f64)> =
+            agentstar_track::hypotheses::twin_candidates(&model, scale, &gt)
+                .iter()
+                .map(|g| (ev.score(g).gate, rotation_error_deg(g, &gt)))
+                .collect();
+        assert!(
+            scores
+                .iter()
+                .any(|&(iou, angle)| iou > 0.99 && angle > 170.0),
+            "opening {deg}°: no exact twin among {scores:?}"
+        );
+    }
+}
