@@ -63,7 +63,7 @@ impl Default for RunConfig {
             local_evals: 2400,
             vlm_free_evals: 8000,
             samples: 10_000,
-            sequence_choice: false,
+            sequence_choice: true,
             appearance: true,
         }
     }

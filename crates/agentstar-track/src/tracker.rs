@@ -20,7 +20,7 @@ use crate::TrackError;
 use agentstar_geom::pose::{ObjectPose, Rigid};
 use agentstar_geom::{ObjectModel, PinholeCamera, Point3, UnitQuaternion, Vector3};
 use agentstar_optim::Rng;
-use agentstar_render::{BitMask, ScoreTarget};
+use agentstar_render::{BitMask, ScoreTarget, DEFAULT_BAND_PX};
 use rayon::prelude::*;
 
 /// One frame to track.
@@ -63,8 +63,9 @@ pub struct TrackConfig {
     /// Start from this frame instead of the one with the largest visible mask.
     pub init_frame: Option<usize>,
     /// Choose one basin per frame for the whole sequence at the end (twins of every frame
-    /// refined, then dynamic programming over frames; [`crate::sequence`]). Off by default
-    /// until it is measured on the suites (its cost is up to six polishes per frame).
+    /// refined, then dynamic programming over frames; [`crate::sequence`]). On by default:
+    /// on the hard suite it took mean rotation errors down on 5 of 7 sequences
+    /// (bench/hard-2026-12-02c-sequence-choice.md), and the quick suite is unchanged.
     pub sequence_choice: bool,
     /// Let the frames' colours enter the sequence-level choice (photometric consistency
     /// between hypotheses of neighbouring frames; frames without an image use the masks alone).
@@ -82,7 +83,7 @@ impl Default for TrackConfig {
             drop_margin: 0.04,
             consistency_pass: true,
             init_frame: None,
-            sequence_choice: false,
+            sequence_choice: true,
             appearance: true,
         }
     }
@@ -219,6 +220,9 @@ struct Searcher<'m> {
     scale: f64,
     cfg: TrackConfig,
     evals: std::sync::atomic::AtomicUsize,
+    /// Each frame's target with the boundary band excluded ([`DEFAULT_BAND_PX`]): what
+    /// [`Searcher::band_iou`] reads to tell a right pose from a wrong basin on noisy masks.
+    banded: Vec<ScoreTarget>,
 }
 
 impl<'m> Searcher<'m> {
@@ -242,6 +246,10 @@ impl<'m> Searcher<'m> {
             scale,
             cfg: cfg.clone(),
             evals: Default::default(),
+            banded: frames
+                .iter()
+                .map(|f| f.target.clone().with_band(DEFAULT_BAND_PX))
+                .collect(),
         })
     }
 
@@ -298,6 +306,167 @@ impl<'m> Searcher<'m> {
         )
     }
 
+    /// The band IoU of `g` in frame `i` (the visible IoU without the ±[`DEFAULT_BAND_PX`]
+    /// boundary band of the observed mask, as the gate reads it): true poses on masks with
+    /// a segmenter's 1–2 px boundary errors score 0.995–1.0 on it, poses a few degrees off
+    /// or in a wrong basin clearly less.
+    fn band_iou(&self, frame: &TrackFrame<'_>, i: usize, g: &GenPose) -> f64 {
+        let problem = FrameProblem::new(
+            self.model,
+            frame.camera,
+            &self.banded[i],
+            self.scale,
+            g.clone(),
+        );
+        self.evals
+            .fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+        let sc = problem.evaluator().score(g);
+        sc.iou_band.unwrap_or(sc.gate)
+    }
+
+    /// A search of the whole rotation space for one frame, as the initialisation does it:
+    /// a covering of rotations and joint states placed on the mask, the best distinct
+    /// hypotheses refined in the basin window. Every refined hypothesis, best first (empty
+    /// when the mask is).
+    fn global(
+        &self,
+        frame: &TrackFrame<'_>,
+        rotations: &[UnitQuaternion],
+        joint_sets: &[Vec<f64>],
+        seed: u64,
+    ) -> Result<Vec<(GenPose, f64)>, TrackError> {
+        let hyps = self.covering(frame, rotations, joint_sets);
+        let top = diverse(&hyps, GLOBAL_KEEP, 30.0);
+        let mut refined: Vec<(GenPose, f64)> = top
+            .par_iter()
+            .enumerate()
+            .map(|(k, g)| {
+                self.refine(
+                    frame,
+                    g,
+                    25.0,
+                    0.06,
+                    0.15,
+                    60.0,
+                    self.cfg.local_evals,
+                    seed + 100 * k as u64,
+                )
+            })
+            .collect::<Result<_, _>>()?;
+        refined.sort_by(|a, b| b.1.total_cmp(&a.1));
+        Ok(refined)
+    }
+
+    /// The twins of `pose` ([`twin_candidates`]) refined in the basin window.
+    fn twins(
+        &self,
+        frame: &TrackFrame<'_>,
+        pose: &GenPose,
+        seed: u64,
+    ) -> Result<Vec<(GenPose, f64)>, TrackError> {
+        let problem = FrameProblem::new(
+            self.model,
+            frame.camera,
+            frame.target,
+            self.scale,
+            pose.clone(),
+        );
+        let refined = refine_each(
+            &problem,
+            &twin_candidates(self.model, self.scale, pose),
+            &LocalWindow::basin(),
+            seed,
+        )?;
+        Ok(refined
+            .into_iter()
+            .map(|r| {
+                self.evals
+                    .fetch_add(r.evals, std::sync::atomic::Ordering::Relaxed);
+                (r.pose, r.score.combined)
+            })
+            .collect())
+    }
+
+    /// Which of a global search's hypotheses (`found`, best first) replaces the pose found
+    /// from the neighbours (`current`), if any, and why. Hypotheses within
+    /// [`APPEARANCE_TIE`] of the best score explain the mask alike (twins); among distinct
+    /// ones the frames' colours decide (NCC against `refs`, by the appearance margin), and
+    /// without a clear colour winner the current pose is kept while it is among them
+    /// (continuity), else the best score is taken. A hypothesis that is not a tie must beat
+    /// the current pose by [`RESCUE_MARGIN`].
+    fn pick(
+        &self,
+        frame: &TrackFrame<'_>,
+        current: (&GenPose, f64),
+        found: &[(GenPose, f64)],
+        refs: &[ReferenceView<'_>],
+    ) -> Option<(usize, String)> {
+        let (first, top) = found.first().map(|f| (0usize, f.1))?;
+        let top = top.max(current.1);
+        let distinct = |a: &GenPose, b: &GenPose| {
+            angle_deg(&(a.pose.rotation * b.pose.rotation.inverse())) >= DISTINCT_DEG
+        };
+        let current_in = current.1 >= top - APPEARANCE_TIE;
+        // Tied hypotheses of other basins than the current pose's (and than each other's).
+        let mut tied: Vec<usize> = Vec::new();
+        for (k, (g, sc)) in found.iter().enumerate() {
+            if *sc >= top - APPEARANCE_TIE
+                && (!current_in || distinct(g, current.0))
+                && tied.iter().all(|&t| distinct(g, &found[t].0))
+            {
+                tied.push(k);
+            }
+        }
+        if tied.is_empty() {
+            // (Only reached with the current pose among the best.)
+            // Only the current basin ties: keep it unless the search found it better.
+            return (found[first].1 > current.1 + RESCUE_MARGIN
+                && !distinct(&found[first].0, current.0))
+            .then(|| {
+                (
+                    first,
+                    format!("refined globally to IoU {:.4}", found[first].1),
+                )
+            });
+        }
+        if let Some(app) = frame.appearance().filter(|_| !refs.is_empty()) {
+            let cfg = AppearanceConfig::default();
+            let ncc =
+                |g: &GenPose| appearance_score(self.model, self.scale, &app, g, refs, &cfg).ncc;
+            let mut scored: Vec<(Option<usize>, f64)> = tied
+                .par_iter()
+                .filter_map(|&k| ncc(&found[k].0).map(|v| (Some(k), v)))
+                .collect();
+            if current_in {
+                if let Some(v) = ncc(current.0) {
+                    scored.push((None, v));
+                }
+            }
+            self.evals
+                .fetch_add(scored.len(), std::sync::atomic::Ordering::Relaxed);
+            scored.sort_by(|a, b| b.1.total_cmp(&a.1));
+            if let [(best, v0), (_, v1), ..] = scored[..] {
+                if v0 - v1 > cfg.margin {
+                    return best.map(|k| {
+                        (
+                            k,
+                            format!(
+                                "colours chose among {} twins (NCC {v0:.2} against {v1:.2})",
+                                scored.len()
+                            ),
+                        )
+                    });
+                }
+            }
+        }
+        if current_in {
+            return None;
+        }
+        let k = tied[0];
+        (found[k].1 > current.1 + RESCUE_MARGIN)
+            .then(|| (k, format!("{} twins tie; the best IoU taken", tied.len())))
+    }
+
     /// The wide search after a drop: the 180° flips of the best pose so far, and a covering
     /// of rotations within 120° of the seed with the joint grid, placed on the mask; the
     /// best four refined.
@@ -351,9 +520,11 @@ impl<'m> Searcher<'m> {
     /// [`APPEARANCE_TIE`] of `score`, unrefined: a turn about a symmetry axis keeps the
     /// outline), scored by photometric consistency with `refs` (frames already tracked); the
     /// best is taken when its NCC beats the pose's own by the appearance margin, then turned
-    /// finely (10° and 5° steps) about the same axis while its NCC improves and its outline
-    /// holds. `None` when appearance keeps the pose (no twin, no evidence, or no clear winner:
-    /// an untextured object).
+    /// finely (10°, 5° and 2.5° steps) about the same axis while its NCC improves and its
+    /// outline holds. Without such a winner, a pose on an axis of continuous symmetry (every
+    /// turn ties) is turned finely about it while its NCC gains [`CONTINUOUS_GAIN`] a step.
+    /// `None` when appearance keeps the pose (no twin, no evidence, or no clear winner: an
+    /// untextured object).
     fn settle(
         &self,
         frame: &TrackFrame<'_>,
@@ -412,12 +583,21 @@ impl<'m> Searcher<'m> {
             .enumerate()
             .filter_map(|(i, n)| n.map(|n| (i, n)))
             .max_by(|a, b| a.1.total_cmp(&b.1))?;
-        if best_ncc - own <= cfg.margin {
-            return None;
-        }
-        let (axis, mut deg, mut g, mut sc) = placed[best].clone();
-        let mut n_best = best_ncc;
-        for step in [10.0, 5.0] {
+        // A turn clearly better in colour than the pose, or else (about an axis of
+        // continuous symmetry, where every turn keeps the outline: a can, a bottle) the pose
+        // itself, whose angle about that axis only the colours fix: it is turned finely
+        // too, by at least CONTINUOUS_GAIN of NCC a step, so that the small error of each
+        // frame does not add up along the sequence.
+        let (axis, mut deg, mut g, mut sc, gain) = if best_ncc - own > cfg.margin {
+            let (axis, deg, g, sc) = placed[best].clone();
+            (axis, deg, g, sc, 0.0)
+        } else {
+            let axis = (0..3).find(|&k| placed.iter().filter(|p| p.0 == k).count() + 1 == steps)?;
+            (axis, 0.0, pose.clone(), score, CONTINUOUS_GAIN)
+        };
+        let mut n_best = if gain > 0.0 { own } else { best_ncc };
+        let start_deg = deg;
+        for step in [10.0, 5.0, 2.5] {
             for dir in [-1.0, 1.0] {
                 let d = deg + dir * step;
                 let cand = turn(&axes[axis], d);
@@ -427,10 +607,13 @@ impl<'m> Searcher<'m> {
                 if csc < score - APPEARANCE_TIE {
                     continue;
                 }
-                if let Some(cn) = ncc(&cand).filter(|&cn| cn > n_best) {
+                if let Some(cn) = ncc(&cand).filter(|&cn| cn > n_best + gain) {
                     (deg, g, sc, n_best) = (d, cand, csc, cn);
                 }
             }
+        }
+        if gain > 0.0 && deg == start_deg {
+            return None;
         }
         let deg = deg.rem_euclid(360.0);
         let note = format!(
@@ -669,7 +852,7 @@ pub fn track_observed(
             frames[init].name
         )));
     }
-    let top = diverse(&hyps, 8, 30.0);
+    let top = diverse(&hyps, GLOBAL_KEEP, 30.0);
     let refined: Vec<Result<(GenPose, f64), TrackError>> = top
         .par_iter()
         .enumerate()
@@ -764,10 +947,10 @@ pub fn track_observed(
             }
         }
         log.phase("propagation", &s);
-        let mut note = String::new();
-        if cfg.appearance {
-            // The frames tracked just before this one, at their poses, as the references.
-            let refs: Vec<ReferenceView<'_>> = [
+        // The frames tracked just before this one, at their poses: the appearance term's
+        // references.
+        let refs: Vec<ReferenceView<'_>> = if cfg.appearance {
+            [
                 Some(prev_i),
                 Some(prev2_i)
                     .filter(|&k| k >= 0 && (k as usize) < n)
@@ -779,10 +962,43 @@ pub fn track_observed(
                 let p = poses[k].as_ref()?;
                 ReferenceView::new(model, scale, frames[k].appearance()?, p)
             })
-            .collect();
+            .collect()
+        } else {
+            vec![]
+        };
+        // Under the band threshold the frame may sit in a wrong basin that no search around
+        // its neighbour reaches (a step of 90–150°): the whole rotation space, as at the start.
+        let band = s.band_iou(&frames[i], i, &g);
+        let mut note = String::new();
+        if band < RESCUE_BAND {
+            // The joint grid, and the states found here and at the neighbour: joints move
+            // less between keyframes than the base does.
+            let mut sets = joint_sets.clone();
+            sets.push(g.states.clone());
+            sets.push(prev.states.clone());
+            let mut found = s.global(
+                &frames[i],
+                &rotations,
+                &sets,
+                cfg.seed + 104_729 * (i as u64 + 1),
+            )?;
+            // The twins of the best basin found (flips, principal half-turns: a laptop's lid
+            // and base swapped), refined, so that colours can choose between them.
+            if let Some((best, _)) = found.first().cloned() {
+                found.extend(s.twins(&frames[i], &best, cfg.seed + 7_727 * (i as u64 + 1))?);
+                found.sort_by(|a, b| b.1.total_cmp(&a.1));
+            }
+            if let Some((k, text)) = s.pick(&frames[i], (&g, sc), &found, &refs) {
+                (g, sc) = found[k].clone();
+                how = "global";
+                note = format!("; {text}");
+            }
+            log.phase("global", &s);
+        }
+        if cfg.appearance {
             if let Some((tg, tsc, text)) = s.settle(&frames[i], &g, sc, &refs) {
                 (g, sc) = (tg, tsc);
-                note = format!("; {text}");
+                note = format!("{note}; {text}");
             }
             log.phase("appearance", &s);
         }
@@ -819,6 +1035,18 @@ pub fn track_observed(
         )?;
         log.phase("sequence choice", &s);
     }
+    if cfg.appearance && n >= 2 {
+        appearance_pass(
+            &s,
+            frames,
+            &mut poses,
+            &mut scores,
+            &vec![false; n],
+            init,
+            &mut log,
+        );
+        log.phase("appearance", &s);
+    }
     log.phases_line();
     Ok(TrackResult {
         poses,
@@ -829,16 +1057,95 @@ pub fn track_observed(
     })
 }
 
+/// Distinct hypotheses of a covering refined by a global search (and the initialisation).
+const GLOBAL_KEEP: usize = 8;
+/// A frame whose band IoU ([`Searcher::band_iou`]) falls under this after the searches
+/// from its neighbours is searched globally: true poses on segmenter-noisy masks score
+/// 0.9956–1.0 there and wrong basins 0.93–0.997 (hard suite, 2026-12-02: drawerbox and
+/// twinlaptop, every frame's truth against the tracked pose). At 0.995 a third of the wrong
+/// drawerbox frames escaped the search; at 0.998 none did, for about 1–3 s a sequence.
+const RESCUE_BAND: f64 = 0.998;
+/// How much better (visible IoU) the global search's pose must score to replace the one
+/// found from the neighbours (within it, continuity wins: twins score alike).
+const RESCUE_MARGIN: f64 = 0.002;
+/// Poses this far apart in rotation are different basins for the global search's choice.
+const DISTINCT_DEG: f64 = 20.0;
+
 /// Two poses of one frame whose IoU differ by less than this explain its mask equally for
 /// the appearance term (a segmenter's boundary noise moves the IoU of the right pose by
 /// about this much).
 const APPEARANCE_TIE: f64 = 0.005;
+/// The NCC a fine turn about an axis of continuous symmetry must gain to be taken (the
+/// colours' noise between two near turns is about half of it).
+const CONTINUOUS_GAIN: f64 = 0.01;
 /// The turns about the principal axes that [`Searcher::settle`] compares.
 const TURN_STEP_DEG: f64 = 30.0;
 
 /// How much better a neighbour must score for the consistency pass to search from it with
 /// the tracking step's window rather than the narrow polish.
 const FAR_MARGIN: f64 = 0.02;
+
+/// Rounds of [`appearance_pass`], and the frames each frame is compared with in it.
+const APPEARANCE_ROUNDS: usize = 2;
+const APPEARANCE_REFS: usize = 3;
+
+/// The appearance term once more over the final poses: every searching pass after the
+/// propagation (the consistency pass, the sequence choice's polish) ranks by the masks alone,
+/// and about an axis of symmetry (a can's) a refinement turns the pose freely, so each frame
+/// is settled again ([`Searcher::settle`]) against up to [`APPEARANCE_REFS`] frames between
+/// it and the first tracked frame, settled before it in the same round (so a correction
+/// carries outward, and a block of frames turned alike cannot hold a frame at its edge).
+fn appearance_pass(
+    s: &Searcher<'_>,
+    frames: &[TrackFrame<'_>],
+    poses: &mut [GenPose],
+    scores: &mut [f64],
+    fixed: &[bool],
+    init: usize,
+    log: &mut Log<'_>,
+) {
+    let n = frames.len();
+    let mut order: Vec<usize> = (0..n).collect();
+    order.sort_by_key(|&i| (i.abs_diff(init), i));
+    for _ in 0..APPEARANCE_ROUNDS {
+        let mut changed = 0;
+        for &i in &order {
+            if fixed[i] {
+                continue;
+            }
+            // The frames between this one and the first, settled before it in this pass.
+            let toward: Vec<usize> = if i > init {
+                (1..=APPEARANCE_REFS)
+                    .filter_map(|d| i.checked_sub(d))
+                    .filter(|&k| k >= init)
+                    .collect()
+            } else {
+                (1..=APPEARANCE_REFS)
+                    .map(|d| i + d)
+                    .filter(|&k| k <= init && k < n)
+                    .collect()
+            };
+            let refs: Vec<ReferenceView<'_>> = toward
+                .into_iter()
+                .filter_map(|k| {
+                    ReferenceView::new(s.model, s.scale, frames[k].appearance()?, &poses[k])
+                })
+                .collect();
+            if let Some((g, sc, text)) = s.settle(&frames[i], &poses[i], scores[i], &refs) {
+                log.push(format!(
+                    "{}: {text} (final appearance pass)",
+                    frames[i].name
+                ));
+                poses[i] = g;
+                scores[i] = sc;
+                changed += 1;
+            }
+        }
+        if changed == 0 {
+            break;
+        }
+    }
+}
 
 /// Searches again every frame that is a temporal outlier or scores below a neighbour, from
 /// its neighbours: their poses carried through the cameras, extrapolated at constant
@@ -1387,6 +1694,11 @@ pub fn track_from(
     if cfg.sequence_choice && n >= 2 {
         choose_sequence(&s, frames, &mut poses, &mut scores, &fixed, &mut log)?;
         log.phase("sequence choice", &s);
+    }
+    if cfg.appearance && n >= 2 {
+        let first = anchors.first().copied().unwrap_or(0);
+        appearance_pass(&s, frames, &mut poses, &mut scores, &fixed, first, &mut log);
+        log.phase("appearance", &s);
     }
     log.phases_line();
     let init_frame = anchors.first().copied().unwrap_or_else(|| {

@@ -48,10 +48,10 @@ pub struct Args {
     /// Seed of the trackers' searches.
     #[arg(long, default_value_t = 17)]
     seed: u64,
-    /// The tracker ends with the sequence-level choice (twins of every frame, one basin per
-    /// frame by dynamic programming over the sequence).
+    /// The tracker leaves out the sequence-level choice at the end (twins of every frame, one
+    /// basin per frame by dynamic programming over the sequence; on by default).
     #[arg(long)]
-    sequence_choice: bool,
+    no_sequence_choice: bool,
     /// The tracker sees the masks alone, not the frames' colours (no appearance term).
     #[arg(long)]
     no_appearance: bool,
@@ -144,7 +144,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
     let cfg = RunConfig {
         seed: a.seed,
         local_evals: a.evals,
-        sequence_choice: a.sequence_choice,
+        sequence_choice: !a.no_sequence_choice,
         appearance: !a.no_appearance,
         ..RunConfig::default()
     };
@@ -214,7 +214,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
         today(),
         machine(),
         if a.no_appearance { "off" } else { "on" },
-        if a.sequence_choice { "on" } else { "off" },
+        if a.no_sequence_choice { "off" } else { "on" },
     );
     if let Some(p) = &a.results {
         agentstar_data::atomic::write_atomic(p, format!("{header}{md}").as_bytes())?;

@@ -51,10 +51,11 @@ pub struct Args {
     /// Skip the final consistency pass (the "no temporal" ablation).
     #[arg(long)]
     no_temporal: bool,
-    /// End with the sequence-level choice: every frame's twins (flips, principal half-turns)
-    /// refined, one basin per frame by dynamic programming over the sequence.
-    #[arg(long, conflicts_with = "no_temporal")]
-    sequence_choice: bool,
+    /// Leave out the sequence-level choice at the end (on by default, and off with
+    /// `--no-temporal`): every frame's twins (flips, principal half-turns) refined, one basin
+    /// per frame by dynamic programming over the sequence.
+    #[arg(long)]
+    no_sequence_choice: bool,
     /// Track from the masks alone: leave the frames' colours out (the appearance term that
     /// turns silhouette twins to the pose whose colours agree with the frames before).
     #[arg(long)]
@@ -131,7 +132,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
         seed: a.seed,
         local_evals: a.evals,
         consistency_pass: !a.no_temporal,
-        sequence_choice: a.sequence_choice,
+        sequence_choice: !a.no_sequence_choice && !a.no_temporal,
         appearance: !a.no_appearance,
         ..TrackConfig::default()
     };
