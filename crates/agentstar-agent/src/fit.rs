@@ -26,13 +26,24 @@ pub struct HeldParam {
     pub value: f64,
 }
 
-/// One keyframe's visible IoU before and after.
+/// One keyframe's visible IoU before and after, and its band IoU after (what the gate reads).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct FitFrame {
     pub frame: String,
     pub iou_before: f64,
     pub iou_after: f64,
+    /// The band IoU after the fit (the visible IoU without the ±2 px band around the observed
+    /// mask's outline: the gate's figure, as `score` prints it); absent in older reports.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub iou_band_after: Option<f64>,
+}
+
+impl FitFrame {
+    /// The figure the IoU gate reads: the band IoU, or the visible IoU in older reports.
+    pub fn gate_after(&self) -> f64 {
+        self.iou_band_after.unwrap_or(self.iou_after)
+    }
 }
 
 /// One round of the fit.

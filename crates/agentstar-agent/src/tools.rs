@@ -1933,8 +1933,12 @@ impl Toolbox {
             ));
         }
         for f in &report.frames {
+            let band = f
+                .iou_band_after
+                .map(|b| format!("  (band {b:.4})"))
+                .unwrap_or_default();
             text.push_str(&format!(
-                "  {}  {:.4} → {:.4}\n",
+                "  {}  {:.4} → {:.4}{band}\n",
                 f.frame, f.iou_before, f.iou_after
             ));
         }
@@ -1946,13 +1950,13 @@ impl Toolbox {
         let under_gate = report
             .frames
             .iter()
-            .filter(|f| f.iou_after < GATE_IOU)
+            .filter(|f| f.gate_after() < GATE_IOU)
             .count();
         if let Some(why) = fit_saves_nothing(&report) {
             text.push_str(why);
             if under_gate > 0 {
                 text.push_str(&format!(
-                    "{under_gate} keyframe(s) stay under the {GATE_IOU} gate: a shape fit cannot repair a pose in a wrong basin (a flip or a twin). Check `temporal` for large steps and try the flips (`osweep`) or `track` with trusted anchors before fitting again.\n"
+                    "{under_gate} keyframe(s) stay under the {GATE_IOU} gate (band IoU, as `score` reads it): a shape fit cannot repair a pose in a wrong basin (a flip or a twin). Check `temporal` for large steps and try the flips (`osweep`) or `track` with trusted anchors before fitting again.\n"
                 ));
             }
             return Ok(ToolOutput {

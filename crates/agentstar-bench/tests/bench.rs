@@ -56,9 +56,10 @@ fn the_tracker_recovers_an_articulated_hand_held_sequence() {
 
 #[test]
 fn a_short_clip_with_frames_in_a_wrong_basin_is_recovered_from_its_neighbours() {
-    // Six keyframes of the hand-held box: the initial frame and those tracked from it land
-    // in a wrong basin (IoU 0.87–0.93) while the far end is right; the consistency pass
-    // carries the good pose back with the wide search, frame by frame.
+    // Six keyframes of the hand-held box: the initial frame lands in a wrong basin (IoU 0.91);
+    // the frames tracked from it are searched globally (under the band threshold), then the
+    // first frame again with the wide search around its neighbours, and the consistency pass
+    // carries the good poses to the frame the others left a few degrees off.
     let capture = synthesize(&SynthConfig {
         frames: 6,
         seed: 7,
@@ -73,11 +74,14 @@ fn a_short_clip_with_frames_in_a_wrong_basin_is_recovered_from_its_neighbours() 
         r.iou_mean
     );
     assert!(r.epe_cm.expect("epe") < 1.0, "EPE {:?}", r.epe_cm);
+    // Without the pass, the global search of the propagation (frames under the band
+    // threshold) and of the first frame already takes every frame but one out of the wrong
+    // basin; that one stays a few degrees off (it was IoU < 0.95 before the global search).
     let (n, _) = run_sequence(&capture, Method::NoTemporal, &RunConfig::default()).expect("run");
+    let (with, without) = (r.epe_cm.expect("epe"), n.epe_cm.expect("epe"));
     assert!(
-        n.iou_min < 0.95,
-        "without the pass the clip should stay wrong: {}",
-        n.iou_min
+        without > with + 0.3,
+        "the pass should matter: EPE {with} cm with it, {without} cm without"
     );
 }
 

@@ -1013,6 +1013,61 @@ pub fn track_observed(
         .into_iter()
         .map(|p| p.ok_or_else(|| TrackError::Invalid("a frame was not tracked".into())))
         .collect::<Result<_, _>>()?;
+    // The first frame had only the initialisation's search: under the band threshold, the
+    // global search again (with its neighbours' joint states), and the wide search around each
+    // neighbour's pose carried to it; the neighbours' colours choose among ties.
+    if n >= 2 && s.band_iou(&frames[init], init, &poses[init]) < RESCUE_BAND {
+        let neighbours: Vec<usize> = [init.checked_sub(1), Some(init + 1).filter(|&k| k < n)]
+            .into_iter()
+            .flatten()
+            .collect();
+        let mut sets = joint_sets.clone();
+        sets.push(poses[init].states.clone());
+        sets.extend(neighbours.iter().map(|&k| poses[k].states.clone()));
+        let mut found = s.global(
+            &frames[init],
+            &rotations,
+            &sets,
+            cfg.seed + 104_729 * (init as u64 + 1) + 1,
+        )?;
+        if let Some((best, _)) = found.first().cloned() {
+            found.extend(s.twins(
+                &frames[init],
+                &best,
+                cfg.seed + 7_727 * (init as u64 + 1) + 1,
+            )?);
+        }
+        // And the wide search around each neighbour's pose carried here: they were tracked
+        // after the first frame and may be right where it is not.
+        for &k in &neighbours {
+            let carried = GenPose {
+                pose: transfer(&poses[k].pose, &frames[k], &frames[init]),
+                states: poses[k].states.clone(),
+            };
+            let seed = cfg.seed + 65_537 * (k as u64 + 1) + 3;
+            found.extend(s.wide(&frames[init], &carried, &carried, (seed, seed))?);
+        }
+        found.sort_by(|a, b| b.1.total_cmp(&a.1));
+        let refs: Vec<ReferenceView<'_>> = if cfg.appearance {
+            neighbours
+                .iter()
+                .filter_map(|&k| {
+                    ReferenceView::new(model, scale, frames[k].appearance()?, &poses[k])
+                })
+                .collect()
+        } else {
+            vec![]
+        };
+        if let Some((k, text)) = s.pick(&frames[init], (&poses[init], scores[init]), &found, &refs)
+        {
+            log.push(format!(
+                "{} (the first frame): global search again, IoU {:.4} → {:.4}; {text}",
+                frames[init].name, scores[init], found[k].1
+            ));
+            (poses[init], scores[init]) = found[k].clone();
+        }
+        log.phase("global", &s);
+    }
     if cfg.consistency_pass && n >= 2 {
         consistency(
             &s,
@@ -1245,14 +1300,21 @@ fn consistency(
             // A neighbour clearly better than this frame, and the narrow search from it not
             // reaching it: this frame sits in a wrong basin a whole step away. The wide
             // search around the better neighbour's carried pose.
-            if best_neighbour
-                > found.as_ref().map_or(scores[i], |r| r.1.max(scores[i])) + FAR_MARGIN
-            {
-                let j = neighbours
-                    .iter()
-                    .copied()
-                    .max_by(|&a, &b| scores[a].total_cmp(&scores[b]))
-                    .unwrap_or(i);
+            let j = neighbours
+                .iter()
+                .copied()
+                .max_by(|&a, &b| scores[a].total_cmp(&scores[b]))
+                .unwrap_or(i);
+            let here = found.as_ref().map_or(scores[i], |r| r.1.max(scores[i]));
+            // Or, on the band IoU, the neighbour right and this frame not (its visible IoU a
+            // little under the neighbour's, but a few degrees off: a segmenter's noise and the
+            // hands make visible IoUs differ by more than that).
+            let band_gap = || {
+                let g = found.as_ref().map_or(&poses[i], |r| &r.0);
+                s.band_iou(&frames[i], i, g) < RESCUE_BAND
+                    && s.band_iou(&frames[j], j, &poses[j]) >= RESCUE_BAND
+            };
+            if best_neighbour > here + FAR_MARGIN || (best_neighbour > here && band_gap()) {
                 let from = carried(poses, j, i);
                 let seed = s.cfg.seed + 65537 * (i as u64 + 1) + 97 * round + 50;
                 let wide = s.wide(&frames[i], &from, &from, (seed, seed))?;

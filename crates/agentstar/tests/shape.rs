@@ -147,6 +147,22 @@ fn fit_shape_recovers_two_wrong_proportions_and_holds_the_rest() {
         "{mean} vs {}",
         r.iou_mean_after
     );
+    // Each frame's band IoU in the fit's report is the gate's figure as `score` reads it.
+    let scored: ScoreReport = score_of(
+        &s(&cap),
+        &s(&run.join("scene.rhai")),
+        &s(&run.join("pose.json")),
+        None,
+    );
+    for (f, sf) in r.frames.iter().zip(&scored.frames) {
+        let band = f.iou_band_after.expect("band IoU in the fit report");
+        assert!(
+            (band - sf.gate()).abs() < 1e-6,
+            "{}: fit says band {band}, score {}",
+            f.frame,
+            sf.gate()
+        );
+    }
     // The before/after sheet came back as an image, under the size a VLM reads.
     let images: Vec<_> = result["content"]
         .as_array()
