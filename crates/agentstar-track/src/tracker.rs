@@ -340,18 +340,7 @@ impl<'m> Searcher<'m> {
         let mut refined: Vec<(GenPose, f64)> = top
             .par_iter()
             .enumerate()
-            .map(|(k, g)| {
-                self.refine(
-                    frame,
-                    g,
-                    25.0,
-                    0.06,
-                    0.15,
-                    60.0,
-                    self.cfg.local_evals,
-                    seed + 100 * k as u64,
-                )
-            })
+            .map(|(k, g)| self.basin(frame, g, seed + 100 * k as u64))
             .collect::<Result<_, _>>()?;
         refined.sort_by(|a, b| b.1.total_cmp(&a.1));
         Ok(refined)
@@ -467,6 +456,26 @@ impl<'m> Searcher<'m> {
             .then(|| (k, format!("{} twins tie; the best IoU taken", tied.len())))
     }
 
+    /// The refinement around a hypothesis that may be a whole basin away from where it was
+    /// placed (25°, 6% of the image, 15% in depth, 60° of joint), with the whole local budget.
+    fn basin(
+        &self,
+        frame: &TrackFrame<'_>,
+        base: &GenPose,
+        seed: u64,
+    ) -> Result<(GenPose, f64), TrackError> {
+        self.refine(
+            frame,
+            base,
+            25.0,
+            0.06,
+            0.15,
+            60.0,
+            self.cfg.local_evals,
+            seed,
+        )
+    }
+
     /// The wide search after a drop: the 180° flips of the best pose so far, and a covering
     /// of rotations within 120° of the seed with the joint grid, placed on the mask; the
     /// best four refined.
@@ -499,18 +508,7 @@ impl<'m> Searcher<'m> {
             .map(|(k, h)| (k, h.0.clone()))
             .collect::<Vec<_>>()
             .par_iter()
-            .map(|(k, h)| {
-                self.refine(
-                    frame,
-                    h,
-                    25.0,
-                    0.06,
-                    0.15,
-                    60.0,
-                    self.cfg.local_evals,
-                    seed + *k as u64,
-                )
-            })
+            .map(|(k, h)| self.basin(frame, h, seed + *k as u64))
             .collect();
         best_of(wide)
     }
@@ -856,18 +854,7 @@ pub fn track_observed(
     let refined: Vec<Result<(GenPose, f64), TrackError>> = top
         .par_iter()
         .enumerate()
-        .map(|(k, g)| {
-            s.refine(
-                &frames[init],
-                g,
-                25.0,
-                0.06,
-                0.15,
-                60.0,
-                cfg.local_evals,
-                cfg.seed + 100 * k as u64,
-            )
-        })
+        .map(|(k, g)| s.basin(&frames[init], g, cfg.seed + 100 * k as u64))
         .collect();
     let (g0, s0) = best_of(refined)?
         .ok_or_else(|| TrackError::Invalid("initialisation found nothing".into()))?;

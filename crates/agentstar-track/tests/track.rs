@@ -28,6 +28,21 @@ fn target_of(model: &ObjectModel, g: &GenPose, scale: f64) -> ScoreTarget {
     ScoreTarget::new(m, None).expect("target")
 }
 
+/// Keyframes named by their index, seen by [`camera`] from a static camera, masks only.
+fn frames_of(targets: &[ScoreTarget]) -> Vec<TrackFrame<'_>> {
+    targets
+        .iter()
+        .enumerate()
+        .map(|(k, t)| TrackFrame {
+            name: format!("{k:06}"),
+            camera: camera(),
+            target: t,
+            world_from_camera: None,
+            rgb: None,
+        })
+        .collect()
+}
+
 #[test]
 fn sweep_recovers_a_perturbed_pose() {
     let model = case_model();
@@ -91,17 +106,7 @@ fn tracker_recovers_a_rapid_articulated_sequence() {
     let n = 10;
     let gts: Vec<GenPose> = (0..n).map(|k| truth(k as f64)).collect();
     let targets: Vec<ScoreTarget> = gts.iter().map(|g| target_of(&model, g, scale)).collect();
-    let frames: Vec<TrackFrame> = targets
-        .iter()
-        .enumerate()
-        .map(|(k, t)| TrackFrame {
-            name: format!("{k:06}"),
-            camera: camera(),
-            target: t,
-            world_from_camera: None,
-            rgb: None,
-        })
-        .collect();
+    let frames = frames_of(&targets);
     let r = track(&model, scale, &frames, &TrackConfig::default()).expect("track");
     for (k, (g, e)) in gts.iter().zip(&r.poses).enumerate() {
         let rot = g.pose.rotation.angle_to(&e.pose.rotation).to_degrees();
@@ -151,17 +156,7 @@ fn a_frame_a_whole_turn_away_from_its_neighbour_is_found_by_the_global_search() 
         .iter()
         .map(|g| target_of(&model, g, scale).with_band(agentstar_render::DEFAULT_BAND_PX))
         .collect();
-    let frames: Vec<TrackFrame> = targets
-        .iter()
-        .enumerate()
-        .map(|(k, t)| TrackFrame {
-            name: format!("{k:06}"),
-            camera: camera(),
-            target: t,
-            world_from_camera: None,
-            rgb: None,
-        })
-        .collect();
+    let frames = frames_of(&targets);
     // From keyframe 0, so that the propagation meets the jump going forward. (The consistency
     // pass would also repair keyframe 4 from keyframe 5 once that one is right, so the log
     // says which search met it.)
