@@ -827,7 +827,7 @@ tool!(Keyframes, "frames", Diagnostic, Nothing, KeyframesArgs,
     });
 
 tool!(Score, "score", Diagnostic, Nothing, FramesArgs,
-    "Per keyframe: visible IoU (hands excluded; the gate is 0.98), raw IoU, pixel counts, depth error when the capture has depth. Lists the keyframes under the gate.",
+    "Per keyframe: band IoU (the visible IoU without ±2 px around the mask's outline, where segmenters err: the gate is 0.98 on it), visible IoU (hands excluded), raw IoU, pixel counts, depth error when the capture has depth, and the appearance figure (colour agreement with the neighbouring keyframes). Lists the keyframes under the gate.",
     |tb, a, _step| {
         let report = tb.score_report(a.frames.as_deref())?;
         let mut o = ToolOutput::default();
@@ -2125,6 +2125,24 @@ impl Toolbox {
                 "{:>4}  IoU {iou:>6}  {what:<24}  {}\n",
                 v.version, v.command
             ));
+            // The pose itself where it is new (play-test: the description promised it).
+            if let (None, Some(p)) = (v.same_as, &v.pose) {
+                let joints: Vec<String> = v
+                    .joints
+                    .iter()
+                    .map(|(name, value)| format!("{name} {value:.2}"))
+                    .collect();
+                let [w, x, y, z] = p.quaternion;
+                let [tx, ty, tz] = p.translation;
+                text.push_str(&format!(
+                    "      quaternion (w,x,y,z) [{w:.4}, {x:.4}, {y:.4}, {z:.4}]  translation [{tx:.4}, {ty:.4}, {tz:.4}]{}\n",
+                    if joints.is_empty() {
+                        String::new()
+                    } else {
+                        format!("  joints {}", joints.join(", "))
+                    }
+                ));
+            }
         }
         for n in &r.notes {
             text.push_str(&format!("note: {n}\n"));

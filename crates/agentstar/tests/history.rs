@@ -377,6 +377,20 @@ fn finish_takes_categorised_reasons_and_refuses_too_many_frames_under_the_gate()
         .max_by(|a, b| a.iou_visible.partial_cmp(&b.iou_visible).expect("cmp"))
         .expect("a version");
     assert!(best.iou_visible.expect("iou") >= 0.98, "{fh:?}");
+    // The text shows each new pose itself, as the structured report holds it.
+    let text = McpClient::text_of(&r);
+    for v in fh.versions.iter().filter(|v| v.same_as.is_none()) {
+        let p = v.pose.as_ref().expect("a new pose has a pose");
+        let q = format!(
+            "quaternion (w,x,y,z) [{:.4}, {:.4}, {:.4}, {:.4}]",
+            p.quaternion[0], p.quaternion[1], p.quaternion[2], p.quaternion[3]
+        );
+        assert!(
+            text.contains(&q),
+            "version {}: {q} not in\n{text}",
+            v.version
+        );
+    }
     let r = c.call(
         "pose_restore",
         json!({"version": best.version, "frames": "000000"}),
