@@ -1036,7 +1036,7 @@ tool!(Scale, "scale", Pose, Poses, ScaleArgs,
     |tb, a, step| tb.scale(&a, step));
 
 tool!(Finish, "finish", Diagnostic, Nothing, FinishArgs,
-    "Check the gates and end the run when they hold: every keyframe's band IoU (the gate `score` reports) ≥ 0.98 or a checked reason for it in `unreachable` (categories: occlusion over the run's threshold, a mask error shown on an image, truncated by the frame border, out of the model's reach with a note); at most a quarter of the keyframes (the run's `finish.max_share_under_gate`) under the gate even with reasons; a turntable after the last shape change; a temporal report after the last pose change. Returns what is missing otherwise.",
+    "Check the gates and end the run when they hold: every keyframe's band IoU (the gate `score` reports) ≥ 0.98 or a checked reason for it in `unreachable` (categories: occlusion over the run's threshold, a mask error shown on an image, truncated by the frame border, out of the model's reach with a note); at most a quarter of the keyframes (the run's `finish.max_share_under_gate`) under the gate even with reasons; a turntable after the last shape change; a temporal report after the last change of the poses (a commit, track, restore, fit or rescale; searches that were not committed do not count). Returns what is missing otherwise.",
     |tb, a, _step| tb.finish(&a));
 
 /// Every tool, in the order offered.
@@ -2302,7 +2302,12 @@ impl Toolbox {
         };
         let ok = |e: &agentstar_data::ledger::LedgerEntry| !e.scores.contains_key("error");
         let shape = last(&|e| e.kind == "shape" && ok(e)).unwrap_or(0);
-        let pose = last(&|e| e.kind == "pose" && ok(e)).unwrap_or(0);
+        // The last step that wrote the poses (a search that was not committed changes
+        // nothing; play-test 2026-12-02: `finish` asked for `temporal` again after uncommitted
+        // `osweep`s); in a run without any, the last pose step, as before.
+        let pose = last(&|e| e.pose_version.is_some() && ok(e))
+            .or_else(|| last(&|e| e.kind == "pose" && ok(e)))
+            .unwrap_or(0);
         let turntable = last(&|e| e.tool == "turntable" && ok(e));
         let temporal = last(&|e| e.tool == "temporal" && ok(e));
         if turntable.is_none_or(|t| t < shape) {

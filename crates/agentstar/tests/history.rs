@@ -346,6 +346,14 @@ fn finish_takes_categorised_reasons_and_refuses_too_many_frames_under_the_gate()
             "{why}: {body}"
         );
     }
+    // A search that is not committed changes no pose: the temporal report still counts.
+    let r = c.call("osweep", json!({"frames": "000005", "opreset": "z:flip"}));
+    assert_eq!(r["result"]["isError"], false, "{r}");
+    let note =
+        json!({"category": "out_of_reach", "note": "the lid bends here; the model's lid is rigid"});
+    let r = c.call("finish", json!({"unreachable": {"000000": note}}));
+    let body = McpClient::text_of(&r);
+    assert!(body.starts_with("All gates hold"), "{body}");
     // Two of four under the gate is over the share of a quarter, reasons or not.
     spoil(&mut c, "000005");
     let note =
