@@ -404,6 +404,10 @@ pub struct FrameHistoryReport {
     pub notes: Vec<String>,
 }
 
+/// The label of the start pose a search keeps when nothing it found beat it (the search
+/// commands write it; the search text explains it).
+pub const KEPT_START: &str = "start (no search result beat it)";
+
 /// What `pose commit --json` prints.
 #[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]

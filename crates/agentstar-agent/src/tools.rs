@@ -1161,10 +1161,6 @@ fn pngs(dir: &Path) -> Vec<PathBuf> {
     v
 }
 
-/// How a search report labels the start pose it kept because nothing beat it (the search
-/// commands' `start (no search result beat it)`).
-pub const KEPT_START: &str = "start (no search result beat it)";
-
 /// A search's result as an MCP client should read it: per frame the ranked candidates
 /// (rank, scores, the order that made each), then what to do with them — look at the
 /// sheet and keep one with `pose_commit` by report and rank. No pose numbers and no shell
@@ -1198,7 +1194,7 @@ pub fn search_text(report: &SearchReport, path: &Path) -> String {
             t.push_str(&format!("note: {n}\n"));
         }
         if let [only] = &f.ranked[..] {
-            if only.label.starts_with(KEPT_START) {
+            if only.label.starts_with(crate::reports::KEPT_START) {
                 t.push_str("note: nothing the search evaluated in this region scored above the start. Either the start is already the best pose here (a sharp optimum: `apply` single small steps to see the surface), or a better pose lies outside the region (widen it, or try the flips with `osweep`).\n");
             }
         }
@@ -2581,7 +2577,7 @@ mod tests {
         // A search that kept only its start says so, and what to try (play-test 2026-12-02:
         // three sweeps came back with the start alone and the agent could not tell why).
         let mut kept = report.clone();
-        kept.frames[0].ranked[0].label = KEPT_START.into();
+        kept.frames[0].ranked[0].label = crate::reports::KEPT_START.into();
         let t = search_text(&kept, Path::new("run/images/x/sweep.json"));
         assert!(
             t.contains("nothing the search evaluated in this region scored above the start"),

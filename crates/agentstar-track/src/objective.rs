@@ -129,6 +129,22 @@ impl<'a> FrameProblem<'a> {
     }
 }
 
+/// The band IoU of `pose` against `banded`, a target that scores a boundary band
+/// ([`ScoreTarget::with_band`]): the figure the IoU gate reads; the visible IoU when the
+/// target has no band. One render, not for search loops.
+pub fn band_iou(
+    model: &ObjectModel,
+    camera: PinholeCamera,
+    banded: &ScoreTarget,
+    scale: f64,
+    pose: &GenPose,
+) -> f64 {
+    let score = FrameProblem::new(model, camera, banded, scale, pose.clone())
+        .evaluator()
+        .score(pose);
+    score.iou_band.unwrap_or(score.gate)
+}
+
 /// Per-thread scoring state (renderer and buffers reused across candidates).
 pub struct Evaluator<'p, 'a> {
     problem: &'p FrameProblem<'a>,

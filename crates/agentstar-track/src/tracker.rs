@@ -215,6 +215,9 @@ fn place(
     (g, s)
 }
 
+/// A pose with the score it was searched by.
+type Scored = (GenPose, f64);
+
 struct Searcher<'m> {
     model: &'m ObjectModel,
     scale: f64,
@@ -253,17 +256,12 @@ impl<'m> Searcher<'m> {
         })
     }
 
-    /// [`refine_local`] around `base` in the window given, counting its evaluations.
-    #[allow(clippy::too_many_arguments)]
+    /// [`refine_local`] around `base` in `window`, counting its evaluations.
     fn refine(
         &self,
         frame: &TrackFrame<'_>,
         base: &GenPose,
-        angle: f64,
-        shift: f64,
-        depth: f64,
-        joint_deg: f64,
-        evals: usize,
+        window: &LocalWindow,
         seed: u64,
     ) -> Result<(GenPose, f64), TrackError> {
         let problem = FrameProblem::new(
@@ -273,37 +271,40 @@ impl<'m> Searcher<'m> {
             self.scale,
             base.clone(),
         );
-        let window = LocalWindow {
-            angle_deg: angle,
-            shift,
-            depth,
-            joint_deg,
-            evals,
-        };
-        let (best, score, n) = refine_local(&problem, base, &window, seed)?;
+        let (best, score, n) = refine_local(&problem, base, window, seed)?;
         self.evals
             .fetch_add(n, std::sync::atomic::Ordering::Relaxed);
         Ok((best, score))
     }
 
-    /// The narrow refinement around a pose that is already close (12°, 4% of the image,
-    /// 8% in depth, 20° of joint), with half the local budget.
+    /// The narrow refinement around a pose that is already close ([`LocalWindow::polish`]),
+    /// with half the local budget.
     fn polish(
         &self,
         frame: &TrackFrame<'_>,
         base: &GenPose,
         seed: u64,
     ) -> Result<(GenPose, f64), TrackError> {
-        self.refine(
-            frame,
-            base,
-            12.0,
-            0.04,
-            0.08,
-            20.0,
-            self.cfg.local_evals / 2,
-            seed,
-        )
+        let window = LocalWindow {
+            evals: self.cfg.local_evals / 2,
+            ..LocalWindow::polish()
+        };
+        self.refine(frame, base, &window, seed)
+    }
+
+    /// The refinement around a hypothesis that may be a whole basin away from where it was
+    /// placed ([`LocalWindow::basin`]), with the whole local budget.
+    fn basin(
+        &self,
+        frame: &TrackFrame<'_>,
+        base: &GenPose,
+        seed: u64,
+    ) -> Result<(GenPose, f64), TrackError> {
+        let window = LocalWindow {
+            evals: self.cfg.local_evals,
+            ..LocalWindow::basin()
+        };
+        self.refine(frame, base, &window, seed)
     }
 
     /// The band IoU of `g` in frame `i` (the visible IoU without the ±[`DEFAULT_BAND_PX`]
@@ -311,17 +312,9 @@ impl<'m> Searcher<'m> {
     /// a segmenter's 1–2 px boundary errors score 0.995–1.0 on it, poses a few degrees off
     /// or in a wrong basin clearly less.
     fn band_iou(&self, frame: &TrackFrame<'_>, i: usize, g: &GenPose) -> f64 {
-        let problem = FrameProblem::new(
-            self.model,
-            frame.camera,
-            &self.banded[i],
-            self.scale,
-            g.clone(),
-        );
         self.evals
             .fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-        let sc = problem.evaluator().score(g);
-        sc.iou_band.unwrap_or(sc.gate)
+        crate::objective::band_iou(self.model, frame.camera, &self.banded[i], self.scale, g)
     }
 
     /// A search of the whole rotation space for one frame, as the initialisation does it:
@@ -376,6 +369,44 @@ impl<'m> Searcher<'m> {
             .collect())
     }
 
+    /// The global search of one frame ([`Searcher::global`] over `joint_sets`, each once),
+    /// the twins of its best basin ([`Searcher::twins`]) and any `extra` hypotheses, and the
+    /// choice among them ([`Searcher::pick`]): the hypothesis that replaces `current` and why,
+    /// or `None`. `seeds`: the covering's refinements', the twins'.
+    #[allow(clippy::too_many_arguments)]
+    fn rescue(
+        &self,
+        frame: &TrackFrame<'_>,
+        current: (&GenPose, f64),
+        rotations: &[UnitQuaternion],
+        mut joint_sets: Vec<Vec<f64>>,
+        extra: Vec<(GenPose, f64)>,
+        refs: &[ReferenceView<'_>],
+        seeds: (u64, u64),
+    ) -> Result<Option<(Scored, String)>, TrackError> {
+        // A rigid model's sets are all empty, and a state found here may be the neighbour's:
+        // each set once, or the covering places the same hypotheses again.
+        let mut seen: Vec<Vec<f64>> = Vec::with_capacity(joint_sets.len());
+        joint_sets.retain(|set| {
+            let new = !seen.contains(set);
+            if new {
+                seen.push(set.clone());
+            }
+            new
+        });
+        let mut found = self.global(frame, rotations, &joint_sets, seeds.0)?;
+        // The twins of the best basin found (flips, principal half-turns: a laptop's lid
+        // and base swapped), refined, so that colours can choose between them.
+        if let Some((best, _)) = found.first().cloned() {
+            found.extend(self.twins(frame, &best, seeds.1)?);
+        }
+        found.extend(extra);
+        found.sort_by(|a, b| b.1.total_cmp(&a.1));
+        Ok(self
+            .pick(frame, current, &found, refs)
+            .map(|(k, text)| (found.swap_remove(k), text)))
+    }
+
     /// Which of a global search's hypotheses (`found`, best first) replaces the pose found
     /// from the neighbours (`current`), if any, and why. Hypotheses within
     /// [`APPEARANCE_TIE`] of the best score explain the mask alike (twins); among distinct
@@ -390,8 +421,7 @@ impl<'m> Searcher<'m> {
         found: &[(GenPose, f64)],
         refs: &[ReferenceView<'_>],
     ) -> Option<(usize, String)> {
-        let (first, top) = found.first().map(|f| (0usize, f.1))?;
-        let top = top.max(current.1);
+        let top = found.first()?.1.max(current.1);
         let distinct = |a: &GenPose, b: &GenPose| {
             angle_deg(&(a.pose.rotation * b.pose.rotation.inverse())) >= DISTINCT_DEG
         };
@@ -407,16 +437,10 @@ impl<'m> Searcher<'m> {
             }
         }
         if tied.is_empty() {
-            // (Only reached with the current pose among the best.)
-            // Only the current basin ties: keep it unless the search found it better.
-            return (found[first].1 > current.1 + RESCUE_MARGIN
-                && !distinct(&found[first].0, current.0))
-            .then(|| {
-                (
-                    first,
-                    format!("refined globally to IoU {:.4}", found[first].1),
-                )
-            });
+            // Only the current basin ties (the current pose is among the best, or tied would
+            // hold the best): keep it unless the search refined it further.
+            return (found[0].1 > current.1 + RESCUE_MARGIN)
+                .then(|| (0, format!("refined globally to IoU {:.4}", found[0].1)));
         }
         if let Some(app) = frame.appearance().filter(|_| !refs.is_empty()) {
             let cfg = AppearanceConfig::default();
@@ -454,26 +478,6 @@ impl<'m> Searcher<'m> {
         let k = tied[0];
         (found[k].1 > current.1 + RESCUE_MARGIN)
             .then(|| (k, format!("{} twins tie; the best IoU taken", tied.len())))
-    }
-
-    /// The refinement around a hypothesis that may be a whole basin away from where it was
-    /// placed (25°, 6% of the image, 15% in depth, 60° of joint), with the whole local budget.
-    fn basin(
-        &self,
-        frame: &TrackFrame<'_>,
-        base: &GenPose,
-        seed: u64,
-    ) -> Result<(GenPose, f64), TrackError> {
-        self.refine(
-            frame,
-            base,
-            25.0,
-            0.06,
-            0.15,
-            60.0,
-            self.cfg.local_evals,
-            seed,
-        )
     }
 
     /// The wide search after a drop: the 180° flips of the best pose so far, and a covering
@@ -586,15 +590,15 @@ impl<'m> Searcher<'m> {
         // itself, whose angle about that axis only the colours fix: it is turned finely
         // too, by at least CONTINUOUS_GAIN of NCC a step, so that the small error of each
         // frame does not add up along the sequence.
-        let (axis, mut deg, mut g, mut sc, gain) = if best_ncc - own > cfg.margin {
-            let (axis, deg, g, sc) = placed[best].clone();
-            (axis, deg, g, sc, 0.0)
-        } else {
+        let continuous = best_ncc - own <= cfg.margin;
+        let (axis, mut deg, mut g, mut sc, mut n_best) = if continuous {
             let axis = (0..3).find(|&k| placed.iter().filter(|p| p.0 == k).count() + 1 == steps)?;
-            (axis, 0.0, pose.clone(), score, CONTINUOUS_GAIN)
+            (axis, 0.0, pose.clone(), score, own)
+        } else {
+            let (axis, deg, g, sc) = placed[best].clone();
+            (axis, deg, g, sc, best_ncc)
         };
-        let mut n_best = if gain > 0.0 { own } else { best_ncc };
-        let start_deg = deg;
+        let gain = if continuous { CONTINUOUS_GAIN } else { 0.0 };
         for step in [10.0, 5.0, 2.5] {
             for dir in [-1.0, 1.0] {
                 let d = deg + dir * step;
@@ -610,7 +614,7 @@ impl<'m> Searcher<'m> {
                 }
             }
         }
-        if gain > 0.0 && deg == start_deg {
+        if continuous && deg == 0.0 {
             return None;
         }
         let deg = deg.rem_euclid(360.0);
@@ -842,6 +846,14 @@ pub fn track_observed(
             .unwrap_or(0),
     };
     let rotations = haar_rotations(cfg.rotations, cfg.seed);
+    // The window of a search from a neighbour's pose: one inter-frame step away.
+    let step_window = LocalWindow {
+        angle_deg: 30.0,
+        shift: 0.08,
+        depth: 0.15,
+        joint_deg: 40.0,
+        evals: cfg.local_evals,
+    };
     let joint_sets = s.joint_grid();
     let hyps = s.covering(&frames[init], &rotations, &joint_sets);
     if hyps.is_empty() {
@@ -907,11 +919,7 @@ pub fn track_observed(
                 s.refine(
                     &frames[i],
                     g,
-                    30.0,
-                    0.08,
-                    0.15,
-                    40.0,
-                    cfg.local_evals,
+                    &step_window,
                     cfg.seed + 7919 * i as u64 + k as u64,
                 )
             })
@@ -963,20 +971,14 @@ pub fn track_observed(
             let mut sets = joint_sets.clone();
             sets.push(g.states.clone());
             sets.push(prev.states.clone());
-            let mut found = s.global(
-                &frames[i],
-                &rotations,
-                &sets,
+            let seeds = (
                 cfg.seed + 104_729 * (i as u64 + 1),
-            )?;
-            // The twins of the best basin found (flips, principal half-turns: a laptop's lid
-            // and base swapped), refined, so that colours can choose between them.
-            if let Some((best, _)) = found.first().cloned() {
-                found.extend(s.twins(&frames[i], &best, cfg.seed + 7_727 * (i as u64 + 1))?);
-                found.sort_by(|a, b| b.1.total_cmp(&a.1));
-            }
-            if let Some((k, text)) = s.pick(&frames[i], (&g, sc), &found, &refs) {
-                (g, sc) = found[k].clone();
+                cfg.seed + 7_727 * (i as u64 + 1),
+            );
+            if let Some((r, text)) =
+                s.rescue(&frames[i], (&g, sc), &rotations, sets, vec![], &refs, seeds)?
+            {
+                (g, sc) = r;
                 how = "global";
                 note = format!("; {text}");
             }
@@ -1011,30 +1013,17 @@ pub fn track_observed(
         let mut sets = joint_sets.clone();
         sets.push(poses[init].states.clone());
         sets.extend(neighbours.iter().map(|&k| poses[k].states.clone()));
-        let mut found = s.global(
-            &frames[init],
-            &rotations,
-            &sets,
-            cfg.seed + 104_729 * (init as u64 + 1) + 1,
-        )?;
-        if let Some((best, _)) = found.first().cloned() {
-            found.extend(s.twins(
-                &frames[init],
-                &best,
-                cfg.seed + 7_727 * (init as u64 + 1) + 1,
-            )?);
-        }
         // And the wide search around each neighbour's pose carried here: they were tracked
         // after the first frame and may be right where it is not.
+        let mut carried_wide = Vec::new();
         for &k in &neighbours {
             let carried = GenPose {
                 pose: transfer(&poses[k].pose, &frames[k], &frames[init]),
                 states: poses[k].states.clone(),
             };
             let seed = cfg.seed + 65_537 * (k as u64 + 1) + 3;
-            found.extend(s.wide(&frames[init], &carried, &carried, (seed, seed))?);
+            carried_wide.extend(s.wide(&frames[init], &carried, &carried, (seed, seed))?);
         }
-        found.sort_by(|a, b| b.1.total_cmp(&a.1));
         let refs: Vec<ReferenceView<'_>> = if cfg.appearance {
             neighbours
                 .iter()
@@ -1045,13 +1034,25 @@ pub fn track_observed(
         } else {
             vec![]
         };
-        if let Some((k, text)) = s.pick(&frames[init], (&poses[init], scores[init]), &found, &refs)
-        {
+        let seeds = (
+            cfg.seed + 104_729 * (init as u64 + 1) + 1,
+            cfg.seed + 7_727 * (init as u64 + 1) + 1,
+        );
+        let current = (&poses[init], scores[init]);
+        if let Some((r, text)) = s.rescue(
+            &frames[init],
+            current,
+            &rotations,
+            sets,
+            carried_wide,
+            &refs,
+            seeds,
+        )? {
             log.push(format!(
                 "{} (the first frame): global search again, IoU {:.4} → {:.4}; {text}",
-                frames[init].name, scores[init], found[k].1
+                frames[init].name, scores[init], r.1
             ));
-            (poses[init], scores[init]) = found[k].clone();
+            (poses[init], scores[init]) = r;
         }
         log.phase("global", &s);
     }
@@ -1104,8 +1105,9 @@ const GLOBAL_KEEP: usize = 8;
 /// A frame whose band IoU ([`Searcher::band_iou`]) falls under this after the searches
 /// from its neighbours is searched globally: true poses on segmenter-noisy masks score
 /// 0.9956–1.0 there and wrong basins 0.93–0.997 (hard suite, 2026-12-02: drawerbox and
-/// twinlaptop, every frame's truth against the tracked pose). At 0.995 a third of the wrong
-/// drawerbox frames escaped the search; at 0.998 none did, for about 1–3 s a sequence.
+/// twinlaptop, every frame's truth against the tracked pose). At 0.995, 2 of drawerbox's 9
+/// wrong frames escaped the search; at 0.998 none did. Its cost: 2–6 s a sequence on that
+/// suite, 33 s on the three-part shears, whose truth scores 0.97–1.0 (thin parts).
 const RESCUE_BAND: f64 = 0.998;
 /// How much better (visible IoU) the global search's pose must score to replace the one
 /// found from the neighbours (within it, continuity wins: twins score alike).

@@ -267,7 +267,15 @@ pub fn run(a: Args) -> Result<ExitCode> {
                 frame: f.name.clone(),
                 iou_before: fit.before[k],
                 iou_after: fit.after[k],
-                iou_band_after: band_iou(&fit.model, f, &fit.poses[k], s.scale()),
+                iou_band_after: Some(agentstar_track::objective::band_iou(
+                    &fit.model,
+                    f.camera,
+                    &f.target
+                        .clone()
+                        .with_band(agentstar_render::DEFAULT_BAND_PX),
+                    s.scale(),
+                    &fit.poses[k],
+                )),
             })
             .collect(),
         iou_mean_before: mean(&fit.before),
@@ -391,20 +399,4 @@ fn print_summary(r: &FitReport) {
             ""
         }
     );
-}
-
-/// The band IoU of `pose` in `frame` (the gate's figure, with the default band).
-fn band_iou(
-    model: &ObjectModel,
-    frame: &ShapeFrame<'_>,
-    pose: &GenPose,
-    scale: f64,
-) -> Option<f64> {
-    let banded = frame
-        .target
-        .clone()
-        .with_band(agentstar_render::DEFAULT_BAND_PX);
-    let problem =
-        agentstar_track::FrameProblem::new(model, frame.camera, &banded, scale, pose.clone());
-    problem.evaluator().score(pose).iou_band
 }

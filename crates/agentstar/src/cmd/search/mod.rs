@@ -340,7 +340,7 @@ fn rows_from(result: SweepResult, space: &SearchSpace, tree: &KinematicTree) -> 
         .map(|c| Row {
             rank: c.rank,
             label: if c.kept_start {
-                agentstar_agent::tools::KEPT_START.into()
+                agentstar_agent::reports::KEPT_START.into()
             } else {
                 order_string(space, &c.x, tree)
             },
