@@ -287,8 +287,10 @@ joint(#{ name: "door_hinge", type: "revolute", child: "door", origin: [0, -0.42,
         symmetry: Symmetry::None,
         appearance: Appearance::Printed(paint_labelcan),
         script: r##"// A drinks can with a printed label on half of its side: the outline is symmetric about
-// the axis, the print is not.
+// the axis, the print is not; the label is a thin part of its own colour.
 part("can", lathe([[0, -0.5], [0.26, -0.5], [0.3, -0.44], [0.3, 0.4], [0.24, 0.5], [0, 0.5]], 48).color("#c1121f"));
+let sleeve = cylinder(0.306, 0.6) - cylinder(0.301, 0.62);
+part("label", intersection(sleeve, box(0.4, 0.9, 0.7).translate(0.2, 0, 0)).color("#d9cc9e"));
 "##,
     },
     ObjectSpec {
@@ -307,10 +309,12 @@ part("bottle", lathe([[0, -0.5], [0.17, -0.5], [0.18, -0.48], [0.18, 0.15], [0.0
         size_m: 0.12,
         symmetry: Symmetry::None,
         appearance: Appearance::Printed(paint_printmug),
-        script: r##"// A mug with a handle and a printed badge on one side.
+        script: r##"// A mug with a handle and a printed badge on one side (a thin part of its own colour).
 let handle = box(0.22, 0.08, 0.07).translate(0.4, 0, 0.22) + box(0.22, 0.08, 0.07).translate(0.4, 0, -0.22) + box(0.07, 0.08, 0.51).translate(0.475, 0, 0);
 let cup = cylinder(0.32, 0.8) - cylinder(0.28, 0.8).translate(0, 0, 0.06);
 part("mug", (cup + handle).translate(-0.095, 0, 0).color("#e9e4d8"));
+let sleeve = cylinder(0.326, 0.4) - cylinder(0.321, 0.42);
+part("badge", intersection(sleeve, box(0.4, 0.4, 0.5).translate(0, 0.2, 0)).translate(-0.095, 0, 0).color("#14339a"));
 "##,
     },
     ObjectSpec {

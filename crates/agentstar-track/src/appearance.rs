@@ -204,7 +204,28 @@ struct Gathered {
     groups: Vec<Group>,
     occluded: Vec<usize>,
     own: Group,
+    /// The frame's colours against the model's own part colours, where the model has them
+    /// ([`model_has_appearance`]).
+    model: Option<Group>,
     n_parts: usize,
+}
+
+/// Two part colours differing by at least this much (0–1 units, in some channel) make the
+/// model's own colours evidence: a label part on a can, a badge on a mug.
+const MODEL_COLOUR_STEP: f32 = 0.1;
+
+/// Whether the model's own colours tell poses apart: at least two parts whose colours
+/// differ by [`MODEL_COLOUR_STEP`] in some channel. A model of one colour (or of parts
+/// painted alike) has none: only the frames' colours against each other rank its poses.
+pub fn model_has_appearance(model: &ObjectModel) -> bool {
+    model.parts.iter().enumerate().any(|(i, a)| {
+        model.parts[i + 1..].iter().any(|b| {
+            a.color
+                .iter()
+                .zip(&b.color)
+                .any(|(x, y)| (x - y).abs() >= MODEL_COLOUR_STEP)
+        })
+    })
 }
 
 fn gather(
@@ -228,6 +249,15 @@ fn gather(
     let mut occluded = vec![0usize; references.len()];
     // The candidate frame's own sampled colours: without texture, nothing to compare.
     let mut own = Group::default();
+    // The model's part colours in 8-bit units, when they carry evidence.
+    let albedo: Option<Vec<[f64; 3]>> = model_has_appearance(model).then(|| {
+        model
+            .parts
+            .iter()
+            .map(|p| p.color.map(|c| 255.0 * c as f64))
+            .collect()
+    });
+    let mut model_group = albedo.as_ref().map(|_| Group::default());
     let (w, h) = (cam.width, cam.height);
     let mut y = stride / 2;
     while y < h {
@@ -241,6 +271,9 @@ fn gather(
                 let local = part_from_camera[part as usize].transform_point(&q);
                 let a = frame.colour(x, y);
                 own.add(a, a);
+                if let (Some(g), Some(al)) = (model_group.as_mut(), albedo.as_ref()) {
+                    g.add(a, al[part as usize]);
+                }
                 for (r, view) in references.iter().enumerate() {
                     let qj = view.camera_from_part[part as usize].transform_point(&local);
                     let Some((u, v)) = view.frame.camera.project(&qj) else {
@@ -275,12 +308,19 @@ fn gather(
         groups,
         occluded,
         own,
+        model: model_group,
         n_parts,
     }
 }
 
-/// The score over the groups of the references in `refs` (indices into the gathered ones).
-fn finish(g: &Gathered, refs: std::ops::Range<usize>, cfg: &AppearanceConfig) -> AppearanceScore {
+/// The score over the groups of the references in `refs` (indices into the gathered ones),
+/// and the model's own colours when `with_model`.
+fn finish(
+    g: &Gathered,
+    refs: std::ops::Range<usize>,
+    with_model: bool,
+    cfg: &AppearanceConfig,
+) -> AppearanceScore {
     let none = AppearanceScore {
         ncc: None,
         pairs: 0,
@@ -295,12 +335,27 @@ fn finish(g: &Gathered, refs: std::ops::Range<usize>, cfg: &AppearanceConfig) ->
         }
     }
     let occluded: usize = g.occluded[refs].iter().sum();
+    // Samples hidden in the other frames count as uncorrelated (NCC 0).
+    let mut weight = (pairs + occluded) as f64;
+    // The model's own colours weigh at least as much as all the other frames together:
+    // they are the one absolute reference (the other frames' poses may be wrong alike).
+    if let Some((ncc, n)) = g
+        .model
+        .as_ref()
+        .filter(|_| with_model)
+        .and_then(|m| Some((m.ncc(cfg)?, m.n)))
+    {
+        let w = weight.max(n as f64);
+        sum += ncc * w;
+        weight += w;
+        pairs += n;
+        count += 1;
+    }
     if (pairs == 0 && occluded < cfg.min_pairs) || g.own.ncc(cfg).is_none() {
         return none;
     }
-    // Samples hidden in the other frames count as uncorrelated (NCC 0).
     AppearanceScore {
-        ncc: Some(sum / (pairs + occluded) as f64),
+        ncc: Some(sum / weight),
         pairs,
         groups: count,
     }
@@ -315,7 +370,7 @@ pub fn appearance_score(
     references: &[ReferenceView<'_>],
     cfg: &AppearanceConfig,
 ) -> AppearanceScore {
-    if !frame.valid() || references.is_empty() {
+    if !frame.valid() || (references.is_empty() && !model_has_appearance(model)) {
         return AppearanceScore {
             ncc: None,
             pairs: 0,
@@ -323,7 +378,28 @@ pub fn appearance_score(
         };
     }
     let g = gather(model, scale, frame, candidate, references, cfg);
-    finish(&g, 0..references.len(), cfg)
+    finish(&g, 0..references.len(), true, cfg)
+}
+
+/// The frame's colours against the model's own part colours alone, at `candidate`: the
+/// evidence that needs no other frame (a label part that the frame shows where the pose
+/// puts it). `ncc: None` for a model of one colour ([`model_has_appearance`]).
+pub fn model_agreement(
+    model: &ObjectModel,
+    scale: f64,
+    frame: &AppearanceFrame<'_>,
+    candidate: &GenPose,
+    cfg: &AppearanceConfig,
+) -> AppearanceScore {
+    if !frame.valid() || !model_has_appearance(model) {
+        return AppearanceScore {
+            ncc: None,
+            pairs: 0,
+            groups: 0,
+        };
+    }
+    let g = gather(model, scale, frame, candidate, &[], cfg);
+    finish(&g, 0..0, true, cfg)
 }
 
 /// The appearance score of `candidate` against each reference on its own (one rendering
@@ -349,7 +425,7 @@ pub fn appearance_each(
     }
     let g = gather(model, scale, frame, candidate, references, cfg);
     (0..references.len())
-        .map(|r| finish(&g, r..r + 1, cfg))
+        .map(|r| finish(&g, r..r + 1, false, cfg))
         .collect()
 }
 
@@ -682,6 +758,87 @@ mod tests {
                 best: None,
                 runner_up: None
             }
+        );
+    }
+
+    /// The can of [`cylinder_model`] with its label as a second part: a shell over the side
+    /// at +X (|θ| < 1.5 rad, |z| < 0.3), just outside the can's surface, painted cream.
+    fn labelled_model() -> ObjectModel {
+        let arc = |r: f64| -> Vec<(f64, f64)> {
+            (0..=24)
+                .map(|k| {
+                    let t = -1.5 + 3.0 * k as f64 / 24.0;
+                    (r * t.cos(), r * t.sin())
+                })
+                .collect()
+        };
+        let mut outline = arc(0.306);
+        outline.extend(arc(0.301).into_iter().rev());
+        let label = primitives::extrude(&outline, &[], 0.6).expect("label");
+        let mut model = cylinder_model();
+        model
+            .parts
+            .push(Part::new("label", label, [0.85, 0.8, 0.6]));
+        model.tree = KinematicTree::rigid(2);
+        model
+    }
+
+    #[test]
+    fn the_models_own_colours_tell_a_label_facing_from_a_turned_can_without_other_frames() {
+        let labelled = labelled_model();
+        assert!(model_has_appearance(&labelled));
+        let plain = cylinder_model();
+        assert!(!model_has_appearance(&plain));
+        // Frames of the real can (its label painted on): the label faces the camera
+        // in the true pose; the twin is turned half way about the axis.
+        let label = |p: &Point3| -> [f64; 3] {
+            if p.z.abs() < 0.3 && p.y.atan2(p.x).abs() < 1.5 {
+                [0.85, 0.8, 0.6]
+            } else {
+                [0.6, 0.05, 0.05]
+            }
+        };
+        let scale = 0.12;
+        let cam = PinholeCamera::new(300.0, 300.0, 168.0, 112.0, 320, 240).expect("camera");
+        // Spun so that +X (the label's middle) looks at the camera, a little to the side.
+        let truth = pose(Vector3::y(), 0.0, -100.0);
+        let (rgb, mask) = shoot(&plain, scale, &cam, &truth, &label);
+        let frame = AppearanceFrame {
+            camera: &cam,
+            rgb: &rgb,
+            mask: &mask,
+        };
+        let cfg = AppearanceConfig::default();
+        let at = |deg: f64| {
+            let mut g = truth.clone();
+            g.pose.rotation *=
+                UnitQuaternion::from_axis_angle(&Vector3::z_axis(), deg.to_radians());
+            model_agreement(&labelled, scale, &frame, &g, &cfg)
+        };
+        let (right, turned, twin) = (at(0.0), at(60.0), at(180.0));
+        let r = right.ncc.expect("the label is seen");
+        assert!(r > 0.7, "{right:?}");
+        // A turn of 60° still shows two thirds of the label; the twin shows none of it.
+        for (other, margin) in [(turned, 0.1), (twin, 0.5)] {
+            assert!(
+                r - other.ncc.expect("evidence") > margin,
+                "{right:?} against {other:?}"
+            );
+        }
+        // The pooled score without references is the model's term alone; a model of one
+        // colour has none.
+        let truth_lab = truth.clone();
+        assert_eq!(
+            appearance_score(&labelled, scale, &frame, &truth_lab, &[], &cfg),
+            right
+        );
+        assert_eq!(
+            model_agreement(&plain, scale, &frame, &truth, &cfg).ncc,
+            None
+        );
+        assert_eq!(
+            appearance_score(&plain, scale, &frame, &truth, &[], &cfg).ncc,
+            None
         );
     }
 }

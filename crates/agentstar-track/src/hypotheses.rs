@@ -216,16 +216,26 @@ pub fn refine_ranked(
     Ok(result)
 }
 
-/// The posed model's surface centroid and principal axes (the exact area-weighted second
-/// moments of its triangles, in the canonical frame at these joint states), largest spread
-/// first. A half-turn about a principal axis is the twin of any shape symmetric about it,
-/// whatever the joint state makes of it: two slabs of one outline hinged together (lid ↔
-/// base) are swapped by the half-turn about the axis that bisects them, which is principal.
-/// The moments are exact (not one sample per triangle), so the axes keep the shape's
-/// symmetry whatever its triangulation: a face split along one diagonal tilted them by
-/// several degrees, and the half-turn then missed the twin.
+/// The posed model's centroid and principal axes (exact second moments, in the canonical
+/// frame at these joint states), largest spread first. A half-turn about a principal axis is
+/// the twin of any shape symmetric about it, whatever the joint state makes of it: two slabs
+/// of one outline hinged together (lid ↔ base) are swapped by the half-turn about the axis
+/// that bisects them, which is principal.
+///
+/// The moments are those of the solid (signed tetrahedra from the origin) when every part is
+/// closed ([`TriMesh::is_watertight`](agentstar_geom::TriMesh::is_watertight)) with a
+/// positive volume, so a thin part (a label sleeve on a can, a badge on a mug) barely moves
+/// the axes that the outline keeps; an open part makes them the surface's (area-weighted
+/// triangles), where a label's two faces would pull the centroid off the can's axis. Either
+/// way they are exact, not one sample per triangle, so the axes keep the shape's symmetry
+/// whatever its triangulation: a face split along one diagonal tilted them by several
+/// degrees, and the half-turn then missed the twin.
 pub fn principal_axes(model: &ObjectModel, states: &[f64]) -> Option<(Point3, [Vector3; 3])> {
     let transforms = model.tree.part_transforms(states);
+    let solid = model
+        .parts
+        .iter()
+        .all(|p| p.mesh.is_watertight() && p.mesh.volume() > 0.0);
     let mut total = 0.0;
     let mut first = Vector3::zeros();
     let mut second = Matrix3::zeros();
@@ -233,17 +243,28 @@ pub fn principal_axes(model: &ObjectModel, states: &[f64]) -> Option<(Point3, [V
         let m = &part.mesh;
         for tri in &m.triangles {
             let [a, b, c] = tri.map(|k| (t * m.positions[k as usize]).coords);
-            let area = 0.5 * (b - a).cross(&(c - a)).norm();
-            if !(area > 0.0 && area.is_finite()) {
-                continue;
-            }
             let sum = a + b + c;
-            // Over a triangle of area A: ∫ x dA = A·s/3, ∫ x xᵀ dA = A/12·(a aᵀ + b bᵀ + c cᵀ + s sᵀ).
-            total += area;
-            first += sum * (area / 3.0);
-            second +=
-                (a * a.transpose() + b * b.transpose() + c * c.transpose() + sum * sum.transpose())
-                    * (area / 12.0);
+            let outer = a * a.transpose() + b * b.transpose() + c * c.transpose();
+            if solid {
+                // The tetrahedron (0, a, b, c) of signed volume V: ∫ x dV = V·s/4,
+                // ∫ x xᵀ dV = V/20·(a aᵀ + b bᵀ + c cᵀ + s sᵀ).
+                let volume = a.dot(&b.cross(&c)) / 6.0;
+                if !volume.is_finite() {
+                    continue;
+                }
+                total += volume;
+                first += sum * (volume / 4.0);
+                second += (outer + sum * sum.transpose()) * (volume / 20.0);
+            } else {
+                let area = 0.5 * (b - a).cross(&(c - a)).norm();
+                if !(area > 0.0 && area.is_finite()) {
+                    continue;
+                }
+                // Over a triangle of area A: ∫ x dA = A·s/3, ∫ x xᵀ dA = A/12·(a aᵀ + b bᵀ + c cᵀ + s sᵀ).
+                total += area;
+                first += sum * (area / 3.0);
+                second += (outer + sum * sum.transpose()) * (area / 12.0);
+            }
         }
     }
     if total <= 0.0 || !total.is_finite() {

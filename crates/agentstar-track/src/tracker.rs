@@ -7,7 +7,8 @@
 //! that searches temporal outliers again from their neighbours.
 
 use crate::appearance::{
-    appearance_each, appearance_score, AppearanceConfig, AppearanceFrame, ReferenceView,
+    appearance_each, appearance_score, model_agreement, model_has_appearance, AppearanceConfig,
+    AppearanceFrame, ReferenceView,
 };
 use crate::hypotheses::{principal_axes, refine_each, refine_local, twin_candidates, LocalWindow};
 use crate::objective::FrameProblem;
@@ -442,7 +443,9 @@ impl<'m> Searcher<'m> {
             return (found[0].1 > current.1 + RESCUE_MARGIN)
                 .then(|| (0, format!("refined globally to IoU {:.4}", found[0].1)));
         }
-        if let Some(app) = frame.appearance().filter(|_| !refs.is_empty()) {
+        // The frames' colours against `refs`, and the model's own colours where it has them.
+        let evidence = !refs.is_empty() || model_has_appearance(self.model);
+        if let Some(app) = frame.appearance().filter(|_| evidence) {
             let cfg = AppearanceConfig::default();
             let ncc =
                 |g: &GenPose| appearance_score(self.model, self.scale, &app, g, refs, &cfg).ncc;
@@ -535,7 +538,7 @@ impl<'m> Searcher<'m> {
         refs: &[ReferenceView<'_>],
     ) -> Option<(GenPose, f64, String)> {
         let app = frame.appearance()?;
-        if refs.is_empty() {
+        if refs.is_empty() && !model_has_appearance(self.model) {
             return None;
         }
         let (centre, axes) = principal_axes(self.model, &pose.states)?;
@@ -868,11 +871,22 @@ pub fn track_observed(
         .enumerate()
         .map(|(k, g)| s.basin(&frames[init], g, cfg.seed + 100 * k as u64))
         .collect();
-    let (g0, s0) = best_of(refined)?
+    let mut refined: Vec<(GenPose, f64)> = refined.into_iter().collect::<Result<_, _>>()?;
+    refined.sort_by(|a, b| b.1.total_cmp(&a.1));
+    let (mut g0, mut s0) = refined
+        .first()
+        .cloned()
         .ok_or_else(|| TrackError::Invalid("initialisation found nothing".into()))?;
+    // No frame is tracked yet: among basins that explain the mask alike, only the model's
+    // own colours (a label part, a badge) can choose.
+    let mut chosen = String::new();
+    if let Some((k, text)) = s.pick(&frames[init], (&g0, s0), &refined[1..], &[]) {
+        (g0, s0) = refined[k + 1].clone();
+        chosen = format!("; {text}");
+    }
     log.phase("init", &s);
     log.push(format!(
-        "init {}: covering of {} hypotheses, best placed {:.3}, refined {:.4}",
+        "init {}: covering of {} hypotheses, best placed {:.3}, refined {:.4}{chosen}",
         frames[init].name,
         hyps.len(),
         hyps[0].1,
@@ -1412,11 +1426,36 @@ fn choose_sequence(
         log.push("sequence choice: no twin explains any frame as well; poses kept".into());
         return Ok(());
     }
+    // The model's own colours (a label part, a badge), where it has them: each hypothesis
+    // against its frame, no other frame needed; `(1 − NCC) / CHOICE_NCC_UNIT` as for a
+    // pair of frames, a hypothesis without evidence counting as uncorrelated.
+    let model_cost: Vec<Vec<f64>> = if s.cfg.appearance && model_has_appearance(s.model) {
+        let cfg = AppearanceConfig::default();
+        hyps.par_iter()
+            .zip(frames.par_iter())
+            .map(|(h, f)| match f.appearance() {
+                Some(app) => h
+                    .iter()
+                    .map(|(g, _)| {
+                        let ncc = model_agreement(s.model, s.scale, &app, g, &cfg).ncc;
+                        (1.0 - ncc.unwrap_or(0.0)) / CHOICE_NCC_UNIT
+                    })
+                    .collect(),
+                None => vec![0.0; h.len()],
+            })
+            .collect()
+    } else {
+        hyps.iter().map(|h| vec![0.0; h.len()]).collect()
+    };
     let unary: Vec<Vec<f64>> = hyps
         .iter()
-        .map(|h| {
+        .zip(&model_cost)
+        .map(|(h, colour)| {
             let best = h.iter().map(|x| x.1).fold(f64::NEG_INFINITY, f64::max);
-            h.iter().map(|x| (best - x.1) / CHOICE_IOU_UNIT).collect()
+            h.iter()
+                .zip(colour)
+                .map(|(x, c)| (best - x.1) / CHOICE_IOU_UNIT + c)
+                .collect()
         })
         .collect();
     // Photometric consistency of every pair of hypotheses of neighbouring frames (in both
