@@ -249,7 +249,9 @@ fn gather(
     let mut occluded = vec![0usize; references.len()];
     // The candidate frame's own sampled colours: without texture, nothing to compare.
     let mut own = Group::default();
-    // The model's part colours in 8-bit units, when they carry evidence.
+    // The model's part colours in 8-bit units, when they carry evidence. (Compared by
+    // chromaticity instead, which shading does not change, the hard suite's printed mug
+    // and can came out worse: 0.56 → 0.66 cm, 3.9° → 6.9° mean on the mug, 2026-12-02.)
     let albedo: Option<Vec<[f64; 3]>> = model_has_appearance(model).then(|| {
         model
             .parts

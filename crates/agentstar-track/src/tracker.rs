@@ -1183,6 +1183,15 @@ fn appearance_pass(
                     .filter(|&k| k <= init && k < n)
                     .collect()
             };
+            // And the frames that see the same side of the object, wherever they are in the
+            // sequence: after a step of 100–150° the neighbours share little surface with
+            // this frame, a frame several steps away may share most of it.
+            let mut toward = toward;
+            for k in covisible(s, &poses[i], poses, i) {
+                if !toward.contains(&k) {
+                    toward.push(k);
+                }
+            }
             let refs: Vec<ReferenceView<'_>> = toward
                 .into_iter()
                 .filter_map(|k| {
@@ -1203,6 +1212,56 @@ fn appearance_pass(
             break;
         }
     }
+}
+
+/// Frames whose cameras see the object from within this angle of one another share most of
+/// its visible surface.
+const COVISIBLE_DEG: f64 = 60.0;
+/// Frames taken per direction of view ([`covisible`]).
+const COVISIBLE_PER_VIEW: usize = 2;
+
+/// The frames (other than `own`) whose cameras see the object from nearest the directions
+/// `pose` and its half-turns about the model's principal axes see it from (within
+/// [`COVISIBLE_DEG`], up to [`COVISIBLE_PER_VIEW`] each, nearest first): references that
+/// share surface with the pose and with each of its twins, so that colours can judge between
+/// them even where the neighbours in time saw another side.
+fn covisible(s: &Searcher<'_>, pose: &GenPose, poses: &[GenPose], own: usize) -> Vec<usize> {
+    // The camera's centre in the object's frame, as a direction from the object.
+    let view = |g: &GenPose| -> Vector3 {
+        let p = &g.pose;
+        let v = p.rotation.inverse() * (-p.translation);
+        v / v.norm().max(1e-12)
+    };
+    let mut views = vec![view(pose)];
+    if let Some((centre, axes)) = principal_axes(s.model, &pose.states) {
+        views.extend(axes.iter().map(|a| {
+            let q = UnitQuaternion::from_axis_angle(
+                &agentstar_geom::nalgebra::Unit::new_normalize(*a),
+                std::f64::consts::PI,
+            );
+            view(&GenPose {
+                pose: apply_object_rotation(&pose.pose, s.scale, &centre, &q),
+                states: pose.states.clone(),
+            })
+        }));
+    }
+    let mut out: Vec<usize> = Vec::new();
+    for v in &views {
+        let mut near: Vec<(f64, usize)> = poses
+            .iter()
+            .enumerate()
+            .filter(|&(k, _)| k != own)
+            .map(|(k, g)| (v.dot(&view(g)).clamp(-1.0, 1.0).acos().to_degrees(), k))
+            .filter(|&(deg, _)| deg <= COVISIBLE_DEG)
+            .collect();
+        near.sort_by(|a, b| a.0.total_cmp(&b.0));
+        for (_, k) in near.into_iter().take(COVISIBLE_PER_VIEW) {
+            if !out.contains(&k) {
+                out.push(k);
+            }
+        }
+    }
+    out
 }
 
 /// Searches again every frame that is a temporal outlier or scores below a neighbour, from
@@ -1357,6 +1416,10 @@ const CHOICE_STEP_DEG: f64 = 60.0;
 const CHOICE_STEP_DEPTH: f64 = 0.2;
 const CHOICE_SCREEN: f64 = 0.15;
 const CHOICE_KEEP: f64 = 0.03;
+/// Rotation steps beyond this cost alike: a hand turns an object by 100–150° between
+/// keyframes, and of a pose and its half-turn twin the one nearer the carried pose is then
+/// the wrong one as often as not; past this the masks and colours decide.
+const CHOICE_STEP_CAP_DEG: f64 = 90.0;
 /// Frames scoring under this (the IoU gate) have every twin refined, in the wide window.
 const CHOICE_SUSPECT: f64 = agentstar_render::GATE_IOU;
 
@@ -1478,7 +1541,9 @@ fn choose_sequence(
         let from = &hyps[i - 1][a].0;
         let to = &hyps[i][b].0;
         let carried = transfer(&from.pose, &frames[i - 1], &frames[i]);
-        let rot = angle_deg(&(to.pose.rotation * carried.rotation.inverse())) / CHOICE_STEP_DEG;
+        let rot = angle_deg(&(to.pose.rotation * carried.rotation.inverse()))
+            .min(CHOICE_STEP_CAP_DEG)
+            / CHOICE_STEP_DEG;
         let joint = from
             .states
             .iter()
