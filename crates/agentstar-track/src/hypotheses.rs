@@ -216,8 +216,9 @@ pub fn refine_ranked(
     Ok(result)
 }
 
-/// The posed model's centroid and principal axes (exact second moments, in the canonical
-/// frame at these joint states), largest spread first. A half-turn about a principal axis is
+/// The posed model's principal axes (exact second moments, in the canonical frame at these
+/// joint states), largest spread first, and a centre for turns about them: the middle of the
+/// model's extent along each axis, which lies on every axis of the outline's symmetry. A half-turn about a principal axis is
 /// the twin of any shape symmetric about it, whatever the joint state makes of it: two slabs
 /// of one outline hinged together (lid ↔ base) are swapped by the half-turn about the axis
 /// that bisects them, which is principal.
@@ -276,9 +277,34 @@ pub fn principal_axes(model: &ObjectModel, states: &[f64]) -> Option<(Point3, [V
     let mut order = [0usize, 1, 2];
     order.sort_by(|&i, &j| eig.eigenvalues[j].total_cmp(&eig.eigenvalues[i]));
     let axes = order.map(|i| eig.eigenvectors.column(i).into_owned().normalize());
-    axes.iter()
-        .all(|a| a.iter().all(|v| v.is_finite()))
-        .then_some((Point3::from(centre), axes))
+    if !axes.iter().all(|a| a.iter().all(|v| v.is_finite())) {
+        return None;
+    }
+    // The centre: the middle of the posed vertices' extent along each axis. A half-turn
+    // about an axis of the outline's symmetry maps the extents across it onto themselves,
+    // so their middle lies on the axis whatever the mass does (a mug's solid bottom and open
+    // top put its centroid 0.07 below the middle, and the half-turn through it moved the
+    // outline by twice that).
+    let mut lo = [f64::INFINITY; 3];
+    let mut hi = [f64::NEG_INFINITY; 3];
+    for (part, t) in model.parts.iter().zip(&transforms) {
+        for p in &part.mesh.positions {
+            let q = (t * p).coords - centre;
+            for k in 0..3 {
+                let d = q.dot(&axes[k]);
+                lo[k] = lo[k].min(d);
+                hi[k] = hi[k].max(d);
+            }
+        }
+    }
+    let middle = (0..3).fold(centre, |c, k| {
+        if lo[k].is_finite() && hi[k].is_finite() {
+            c + axes[k] * (0.5 * (lo[k] + hi[k]))
+        } else {
+            c
+        }
+    });
+    Some((Point3::from(middle), axes))
 }
 
 /// The twins of a pose that every comparison of basins should include: its 180° flips about

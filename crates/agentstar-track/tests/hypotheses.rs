@@ -274,3 +274,49 @@ fn a_thin_label_part_keeps_the_principal_axes_on_the_cans_axis() {
     let tilt = axes[0].dot(&Vector3::z()).abs().acos().to_degrees();
     assert!(tilt < 1.0, "longest axis {:?} is {tilt:.2}° off Z", axes[0]);
 }
+
+#[test]
+fn a_half_turn_about_a_principal_axis_keeps_the_outline_of_a_shape_heavy_at_one_end() {
+    // A can with a heavy slab inside its bottom (as a mug's solid base under its open
+    // top): the outline is symmetric end for end, the mass is not. The centroid sits 0.055
+    // below the middle; a half-turn through it would move the outline by 0.11.
+    let can = agentstar_geom::primitives::cylinder(0.3, 1.0, 48).expect("can");
+    let slab = agentstar_geom::primitives::cylinder(0.29, 0.2, 48)
+        .expect("slab")
+        .translated(Vector3::new(0.0, 0.0, -0.35));
+    let model = ObjectModel {
+        tree: KinematicTree::rigid(2),
+        parts: vec![
+            Part::new("can", can, [0.5, 0.5, 0.5]),
+            Part::new("base", slab, [0.5, 0.5, 0.5]),
+        ],
+    };
+    let scale = 0.3;
+    let gt = GenPose {
+        pose: ObjectPose::new(
+            UnitQuaternion::from_euler_angles(1.2, 0.4, -0.3),
+            Vector3::new(0.01, 0.02, 1.0),
+        ),
+        states: vec![],
+    };
+    let target = target_of(&model, &gt, scale);
+    let problem = FrameProblem::new(&model, camera(), &target, scale, gt.clone());
+    let mut ev = problem.evaluator();
+    let (centre, axes) = agentstar_track::hypotheses::principal_axes(&model, &[]).expect("axes");
+    assert!(centre.z.abs() < 0.01, "centre {centre:?}");
+    // Every axis across the can: a half-turn about it swaps the ends.
+    let across: Vec<&Vector3> = axes.iter().filter(|a| a.z.abs() < 0.1).collect();
+    assert_eq!(across.len(), 2, "axes {axes:?}");
+    for axis in across {
+        let q = UnitQuaternion::from_axis_angle(
+            &agentstar_geom::nalgebra::Unit::new_normalize(*axis),
+            std::f64::consts::PI,
+        );
+        let twin = GenPose {
+            pose: apply_object_rotation(&gt.pose, scale, &centre, &q),
+            states: vec![],
+        };
+        let iou = ev.score(&twin).gate;
+        assert!(iou > 0.99, "the half-turn about {axis:?} scores {iou}");
+    }
+}
