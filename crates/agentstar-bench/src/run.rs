@@ -287,7 +287,9 @@ pub fn run_sequence_observed(
     let t0 = Instant::now();
     let tracked = match method {
         Method::Tracker | Method::NoTemporal => {
-            track_observed(&capture.model, capture.scale, &frames, &tcfg, observe)
+            track_observed(&capture.model, capture.scale, &frames, &tcfg, &|l: &str| {
+                observe(l)
+            })
         }
         Method::VlmFree => track_independent(
             &capture.model,
@@ -295,7 +297,7 @@ pub fn run_sequence_observed(
             &frames,
             &tcfg,
             cfg.vlm_free_evals,
-            observe,
+            &|l: &str| observe(l),
         ),
     }
     .map_err(|source| BenchError::Track {

@@ -758,17 +758,33 @@ fn best_of(
     Ok(best)
 }
 
+/// What a tracking run reports as it goes: each line of its log (progress), and the poses
+/// found so far, so that a caller can keep them if the run is stopped. A closure over lines
+/// is an observer that ignores the poses.
+pub trait TrackObserver: Sync {
+    fn line(&self, line: &str);
+    /// The poses so far, frame by frame (`None`: not tracked yet): after each frame of the
+    /// propagation and after each pass over the sequence.
+    fn poses(&self, _poses: &[Option<GenPose>]) {}
+}
+
+impl<F: Fn(&str) + Sync> TrackObserver for F {
+    fn line(&self, line: &str) {
+        self(line)
+    }
+}
+
 /// What the tracker did, line by line, also handed to an observer as it happens (progress),
 /// and the time and evaluations of each phase, for the closing line ([`Log::phases`]).
 struct Log<'o> {
     lines: Vec<String>,
-    observe: &'o (dyn Fn(&str) + Sync),
+    observe: &'o dyn TrackObserver,
     phases: Vec<(&'static str, f64, usize)>,
     phase_start: (std::time::Instant, usize),
 }
 
 impl<'o> Log<'o> {
-    fn new(observe: &'o (dyn Fn(&str) + Sync)) -> Self {
+    fn new(observe: &'o dyn TrackObserver) -> Self {
         Log {
             lines: Vec::new(),
             observe,
@@ -778,8 +794,19 @@ impl<'o> Log<'o> {
     }
 
     fn push(&mut self, line: String) {
-        (self.observe)(&line);
+        self.observe.line(&line);
         self.lines.push(line);
+    }
+
+    /// The poses so far, to the observer (after a frame of the propagation).
+    fn poses(&self, poses: &[Option<GenPose>]) {
+        self.observe.poses(poses);
+    }
+
+    /// Every frame's pose, to the observer (after a pass over the whole sequence).
+    fn all_poses(&self, poses: &[GenPose]) {
+        let some: Vec<Option<GenPose>> = poses.iter().cloned().map(Some).collect();
+        self.observe.poses(&some);
     }
 
     /// Ends a stretch of the phase `name`: its wall time and the evaluations counted since
@@ -818,7 +845,7 @@ pub fn track(
     frames: &[TrackFrame<'_>],
     cfg: &TrackConfig,
 ) -> Result<TrackResult, TrackError> {
-    track_observed(model, scale, frames, cfg, &|_| {})
+    track_observed(model, scale, frames, cfg, &|_: &str| {})
 }
 
 /// [`track`], calling `observe` with each line of the log as the tracker writes it (one per
@@ -828,7 +855,7 @@ pub fn track_observed(
     scale: f64,
     frames: &[TrackFrame<'_>],
     cfg: &TrackConfig,
-    observe: &(dyn Fn(&str) + Sync),
+    observe: &dyn TrackObserver,
 ) -> Result<TrackResult, TrackError> {
     let s = Searcher::new(model, scale, frames, cfg)?;
     let mut log = Log::new(observe);
@@ -897,6 +924,7 @@ pub fn track_observed(
     let mut scores = vec![0.0; n];
     poses[init] = Some(g0);
     scores[init] = s0;
+    log.poses(&poses);
     // Forward then backward from the initial frame.
     let order: Vec<(usize, isize)> = ((init + 1)..n)
         .map(|i| (i, -1))
@@ -1011,6 +1039,7 @@ pub fn track_observed(
         ));
         poses[i] = Some(g);
         scores[i] = sc;
+        log.poses(&poses);
     }
     let mut poses: Vec<GenPose> = poses
         .into_iter()
@@ -1070,6 +1099,7 @@ pub fn track_observed(
         }
         log.phase("global", &s);
     }
+    log.all_poses(&poses);
     if cfg.consistency_pass && n >= 2 {
         consistency(
             &s,
@@ -1080,6 +1110,7 @@ pub fn track_observed(
             &mut log,
         )?;
         log.phase("consistency", &s);
+        log.all_poses(&poses);
     }
     if cfg.sequence_choice && n >= 2 {
         choose_sequence(
@@ -1091,6 +1122,7 @@ pub fn track_observed(
             &mut log,
         )?;
         log.phase("sequence choice", &s);
+        log.all_poses(&poses);
     }
     if cfg.appearance && n >= 2 {
         appearance_pass(
@@ -1707,7 +1739,7 @@ pub fn track_from(
     start: &[GenPose],
     anchors: &[usize],
     cfg: &TrackConfig,
-    observe: &(dyn Fn(&str) + Sync),
+    observe: &dyn TrackObserver,
 ) -> Result<TrackResult, TrackError> {
     let s = Searcher::new(model, scale, frames, cfg)?;
     let n = frames.len();
@@ -1842,13 +1874,16 @@ pub fn track_from(
         }
     }
     log.phase("warm start", &s);
+    log.all_poses(&poses);
     if cfg.consistency_pass && n >= 2 {
         consistency(&s, frames, &mut poses, &mut scores, &fixed, &mut log)?;
         log.phase("consistency", &s);
+        log.all_poses(&poses);
     }
     if cfg.sequence_choice && n >= 2 {
         choose_sequence(&s, frames, &mut poses, &mut scores, &fixed, &mut log)?;
         log.phase("sequence choice", &s);
+        log.all_poses(&poses);
     }
     if cfg.appearance && n >= 2 {
         let first = anchors.first().copied().unwrap_or(0);
@@ -1882,7 +1917,7 @@ pub fn track_independent(
     frames: &[TrackFrame<'_>],
     cfg: &TrackConfig,
     evals_per_frame: usize,
-    observe: &(dyn Fn(&str) + Sync),
+    observe: &dyn TrackObserver,
 ) -> Result<TrackResult, TrackError> {
     let s = Searcher::new(model, scale, frames, cfg)?;
     let rest = model.tree.rest_states();

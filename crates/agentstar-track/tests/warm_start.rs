@@ -121,7 +121,7 @@ fn the_sequence_choice_takes_a_chained_block_out_of_its_wrong_basin() {
         sequence_choice: true,
         ..TrackConfig::default()
     };
-    let r = track_from(&model, scale, &frames, &start, &[], &cfg, &|_| {}).expect("track");
+    let r = track_from(&model, scale, &frames, &start, &[], &cfg, &|_: &str| {}).expect("track");
     let choice = r
         .log
         .iter()
@@ -146,6 +146,6 @@ fn the_sequence_choice_takes_a_chained_block_out_of_its_wrong_basin() {
         sequence_choice: true,
         ..TrackConfig::default()
     };
-    let r = track_from(&model, scale, &frames, &start, &[], &cfg, &|_| {}).expect("track");
+    let r = track_from(&model, scale, &frames, &start, &[], &cfg, &|_: &str| {}).expect("track");
     assert_close(&gts, &r);
 }

@@ -103,3 +103,114 @@ fn track_from_keeps_anchors_and_repairs_a_flipped_block() {
     ]);
     assert!(!bad_arg.status.success());
 }
+
+/// The frames of a pose file and whether each is marked moved.
+fn moved_flags(v: &serde_json::Value) -> Vec<(String, bool)> {
+    let mut out: Vec<(String, bool)> = v["frames"]
+        .as_object()
+        .expect("frames")
+        .iter()
+        .map(|(k, f)| (k.clone(), f["moved"].as_bool().unwrap_or(false)))
+        .collect();
+    out.sort();
+    out
+}
+
+#[test]
+fn a_stopped_track_leaves_its_poses_so_far_and_a_finished_one_removes_them() {
+    let dir = tempfile::tempdir().expect("tmp");
+    let (cap, model, poses) = example(dir.path());
+    let out = dir.path().join("tracked.json");
+    let partial = dir.path().join("tracked.partial.json");
+    let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_agentstar"))
+        .args([
+            "track",
+            &cap,
+            "--model",
+            &model,
+            "--scale-from",
+            &poses,
+            "--out",
+            out.to_str().expect("utf8"),
+        ])
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .expect("spawn");
+    // Stopped as soon as it has kept anything (the first frame, before the others).
+    let t0 = std::time::Instant::now();
+    let mut finished = None;
+    while !partial.exists() {
+        if let Some(status) = child.try_wait().expect("wait") {
+            finished = Some(status);
+            break;
+        }
+        assert!(t0.elapsed().as_secs() < 300, "no partial poses after 300 s");
+        std::thread::sleep(std::time::Duration::from_millis(5));
+    }
+    if finished.is_none() {
+        child.kill().expect("kill");
+        child.wait().expect("wait");
+        // A complete pose file (written atomically), every frame in it, the tracked ones
+        // marked moved; `score` reads it and scores every frame.
+        let kept = read_json(&partial);
+        let flags = moved_flags(&kept);
+        assert_eq!(flags.len(), 6, "{kept}");
+        assert!(flags.iter().any(|f| f.1), "no frame tracked: {flags:?}");
+        let o = agentstar(&[
+            "score",
+            "--capture",
+            &cap,
+            "--model",
+            &model,
+            "--poses",
+            partial.to_str().expect("utf8"),
+            "--no-appearance",
+            "--json",
+        ]);
+        // (It exits 1 when frames are under the gate, as the carried ones are.)
+        let scored: serde_json::Value =
+            serde_json::from_slice(&o.stdout).unwrap_or_else(|e| panic!("{e}: {}", text(&o)));
+        assert_eq!(
+            scored["frames"].as_array().map(Vec::len),
+            Some(6),
+            "{scored}"
+        );
+        assert!(!out.exists(), "the stopped run wrote its final file");
+    }
+    // A run that finishes writes the pose file and removes the partial one.
+    let _: serde_json::Value = track_known(&cap, &model, &poses, &out);
+    assert!(out.exists());
+    assert!(
+        !partial.exists(),
+        "the partial file outlived a finished run"
+    );
+    assert!(moved_flags(&read_json(&out)).iter().all(|f| f.1));
+}
+
+#[test]
+fn a_track_whose_final_write_fails_keeps_every_tracked_pose() {
+    let dir = tempfile::tempdir().expect("tmp");
+    let (cap, model, poses) = example(dir.path());
+    // The output path is a directory: the final write fails after the tracking.
+    let out = dir.path().join("tracked.json");
+    std::fs::create_dir(&out).expect("mkdir");
+    let o = agentstar(&[
+        "track",
+        &cap,
+        "--model",
+        &model,
+        "--scale-from",
+        &poses,
+        "--out",
+        out.to_str().expect("utf8"),
+        "--evals",
+        "1200",
+    ]);
+    assert!(!o.status.success(), "{}", text(&o));
+    assert!(text(&o).contains("tracked.json"), "{}", text(&o));
+    let kept = read_json(&dir.path().join("tracked.partial.json"));
+    let flags = moved_flags(&kept);
+    assert_eq!(flags.len(), 6);
+    assert!(flags.iter().all(|f| f.1), "{flags:?}");
+}

@@ -9,7 +9,9 @@ use crate::common::{
 use agentstar_agent::reports::TrackReport;
 use agentstar_data::posefile::PoseFile;
 use agentstar_render::ScoreTarget;
-use agentstar_track::tracker::{track_from, track_observed, TrackConfig, TrackFrame};
+use agentstar_track::tracker::{
+    track_from, track_observed, TrackConfig, TrackFrame, TrackObserver,
+};
 use agentstar_track::GenPose;
 use anyhow::{anyhow, bail, Context, Result};
 use std::path::PathBuf;
@@ -39,7 +41,9 @@ pub struct Args {
     /// stems or `a..b` ranges, comma separated, as --frames takes them).
     #[arg(long, requires = "from")]
     anchors: Option<String>,
-    /// Where to write the tracked poses.
+    /// Where to write the tracked poses. While the run goes, the poses so far are kept in
+    /// OUT with the extension `.partial.json` (frames not tracked yet marked `"moved": false`),
+    /// removed when the run finishes: a stopped run leaves them.
     #[arg(long)]
     out: PathBuf,
     /// Seed of every search.
@@ -138,11 +142,16 @@ pub fn run(a: Args) -> Result<ExitCode> {
     };
     let t0 = std::time::Instant::now();
     let bar = crate::common::progress(frames.len(), "track");
-    let observe = |line: &str| {
-        if bar.position() < bar.length().unwrap_or(0) {
-            bar.inc(1);
-        }
-        bar.suspend(|| eprintln!("track: {line}"));
+    let partial_path = partial_path(&a.out);
+    let observe = Observer {
+        bar: &bar,
+        partial: Partial {
+            capture: &capture,
+            tree: &model.model.tree,
+            scale,
+            path: &partial_path,
+            failed: std::sync::atomic::AtomicBool::new(false),
+        },
     };
     let r = match (&from, &a.from) {
         (Some(f), Some(path)) => {
@@ -176,6 +185,12 @@ pub fn run(a: Args) -> Result<ExitCode> {
     // Written as a version of the pose file's history, with this command.
     let (pose_file, written, version) =
         write_tracked_version(&capture, &model.model.tree, scale, &r.poses, &a.out)?;
+    // The run finished: its partial results are superseded.
+    if let Err(e) = std::fs::remove_file(&partial_path) {
+        if e.kind() != std::io::ErrorKind::NotFound {
+            eprintln!("track: could not remove {}: {e}", partial_path.display());
+        }
+    }
     // Scored from what is in memory: the poses as written, not read back.
     let s = Session::from_memory(capture, model, pose_file, written);
     let capture = &s.capture;
@@ -205,4 +220,98 @@ pub fn run(a: Args) -> Result<ExitCode> {
         print_table(&scores, &summary, &[]);
     }
     Ok(ExitCode::SUCCESS)
+}
+
+/// Where a run keeps its poses while it runs: `pose.json` → `pose.partial.json`.
+pub fn partial_path(out: &std::path::Path) -> PathBuf {
+    out.with_extension("partial.json")
+}
+
+/// The command's observer: each log line on stderr (under the progress bar), and the poses
+/// so far in the partial file.
+struct Observer<'a> {
+    bar: &'a indicatif::ProgressBar,
+    partial: Partial<'a>,
+}
+
+impl TrackObserver for Observer<'_> {
+    fn line(&self, line: &str) {
+        if self.bar.position() < self.bar.length().unwrap_or(0) {
+            self.bar.inc(1);
+        }
+        self.bar.suspend(|| eprintln!("track: {line}"));
+    }
+
+    fn poses(&self, poses: &[Option<GenPose>]) {
+        use std::sync::atomic::Ordering;
+        // After the first failed write (reported), no more are tried.
+        if self.partial.failed.load(Ordering::Relaxed) {
+            return;
+        }
+        if let Err(e) = self.partial.write(poses) {
+            self.partial.failed.store(true, Ordering::Relaxed);
+            self.bar.suspend(|| {
+                eprintln!(
+                    "track: could not keep the partial poses in {}: {e}",
+                    self.partial.path.display()
+                )
+            });
+        }
+    }
+}
+
+/// The poses found so far, kept in a pose file (atomically: a stopped run leaves the last
+/// complete one) so that a run stopped by a signal, a timeout or an error leaves them. A frame
+/// not tracked yet carries the pose of the nearest tracked frame through the cameras and is
+/// marked `"moved": false`; `track --from PARTIAL --anchors FRAMES-MARKED-MOVED` resumes.
+struct Partial<'a> {
+    capture: &'a agentstar_data::capture::Capture,
+    tree: &'a agentstar_geom::KinematicTree,
+    scale: f64,
+    path: &'a std::path::Path,
+    /// Set after the first failed write.
+    failed: std::sync::atomic::AtomicBool,
+}
+
+impl Partial<'_> {
+    /// Writes the poses so far (nothing before the first is tracked).
+    fn write(&self, poses: &[Option<GenPose>]) -> agentstar_data::Result<()> {
+        if poses.len() != self.capture.frames.len() {
+            return Ok(());
+        }
+        let tracked: Vec<usize> = (0..poses.len()).filter(|&i| poses[i].is_some()).collect();
+        if tracked.is_empty() {
+            return Ok(());
+        }
+        let mut frames: Vec<agentstar_data::posefile::FramePose> = Vec::with_capacity(poses.len());
+        for i in 0..poses.len() {
+            // The frame itself when tracked, else the nearest tracked one.
+            let Some((k, g)) = tracked
+                .iter()
+                .min_by_key(|&&k| (k.abs_diff(i), k))
+                .and_then(|&k| Some((k, poses[k].as_ref()?)))
+            else {
+                return Ok(());
+            };
+            let pose = if k == i {
+                g.pose
+            } else {
+                agentstar_geom::pose::seed_from_reference(
+                    &self.capture.frames[i].world_from_camera,
+                    &self.capture.frames[k].world_from_camera,
+                    &g.pose,
+                )
+            };
+            frames.push(agentstar_data::posefile::FramePose {
+                pose,
+                states: g.states.clone(),
+                seeded: k != i,
+                moved: k == i,
+            });
+        }
+        let reference = &frames[self.capture.ref_index.min(frames.len() - 1)];
+        let mut pf = PoseFile::initial(self.capture, self.tree, self.scale, &reference.pose);
+        pf.set_frames(self.capture, self.tree, &frames);
+        pf.write(self.path)
+    }
 }
