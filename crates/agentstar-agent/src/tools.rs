@@ -186,6 +186,75 @@ pub const MAX_TOOL_OUTPUT_BYTES: usize = 16 << 20;
 
 /// Reads `r` to its end, keeping the first [`MAX_TOOL_OUTPUT_BYTES`] (cut at a character
 /// boundary) and a line saying how much was dropped.
+/// The last line a running child command wrote on stderr (the tracker writes one per frame
+/// tracked): what the tool is doing now, for whoever reports on it while it runs (the MCP
+/// server's progress notifications). The child commands that the calls inside
+/// [`with_activity`] start on that thread report to it.
+#[derive(Debug, Clone, Default)]
+pub struct Activity(Arc<Mutex<String>>);
+
+impl Activity {
+    /// The last non-empty line, or "" before the first.
+    pub fn last_line(&self) -> String {
+        self.0.lock().map(|l| l.clone()).unwrap_or_default()
+    }
+
+    fn set(&self, line: &str) {
+        if let Ok(mut l) = self.0.lock() {
+            line.clone_into(&mut l);
+        }
+    }
+}
+
+thread_local! {
+    static ACTIVITY: std::cell::RefCell<Option<Activity>> = const { std::cell::RefCell::new(None) };
+}
+
+/// Runs `f` with the child commands it starts on this thread reporting their stderr lines
+/// to `activity`.
+pub fn with_activity<T>(activity: &Activity, f: impl FnOnce() -> T) -> T {
+    /// Unsets the thread's activity however `f` ends (a pool thread runs other calls later).
+    struct Reset;
+    impl Drop for Reset {
+        fn drop(&mut self) {
+            ACTIVITY.with(|a| *a.borrow_mut() = None);
+        }
+    }
+    ACTIVITY.with(|a| *a.borrow_mut() = Some(activity.clone()));
+    let _reset = Reset;
+    f()
+}
+
+/// Longest line kept for [`Activity`] (bytes; the rest of a longer line is dropped).
+const ACTIVITY_LINE_BYTES: usize = 300;
+
+/// A reader that hands each complete line it passes through to an [`Activity`].
+struct LastLine<R> {
+    inner: R,
+    activity: Option<Activity>,
+    pending: Vec<u8>,
+}
+
+impl<R: std::io::Read> std::io::Read for LastLine<R> {
+    fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
+        let n = self.inner.read(buf)?;
+        if let Some(activity) = &self.activity {
+            for &b in &buf[..n] {
+                if b == b'\n' {
+                    let line = String::from_utf8_lossy(&self.pending);
+                    if !line.trim().is_empty() {
+                        activity.set(line.trim());
+                    }
+                    self.pending.clear();
+                } else if self.pending.len() < ACTIVITY_LINE_BYTES {
+                    self.pending.push(b);
+                }
+            }
+        }
+        Ok(n)
+    }
+}
+
 fn read_capped(r: impl std::io::Read) -> String {
     read_capped_to(r, MAX_TOOL_OUTPUT_BYTES)
 }
@@ -894,7 +963,7 @@ tool!(Turntable, "turntable", Diagnostic, Nothing, TurntableArgs,
     });
 
 tool!(Track, "track", Pose, Poses, TrackArgs,
-    "Run the automatic tracker over every keyframe with the current model and scale (a pose step for all keyframes; the result is a new pose version, the previous ones stay in pose_history). Use it once the shape is right, then fix the frames it gets wrong with sweeps and flips. After a shape edit, `from: \"pose.json\"` refines the current poses instead of starting over (cheap), and `anchors` keeps the keyframes you trust exactly and carries them to their neighbours.",
+    "Run the automatic tracker over every keyframe with the current model and scale (a pose step for all keyframes; the result is a new pose version, the previous ones stay in pose_history). Use it once the shape is right, then fix the frames it gets wrong with sweeps and flips. After a shape edit, `from: \"pose.json\"` refines the current poses instead of starting over (cheap), and `anchors` keeps the keyframes you trust exactly and carries them to their neighbours. Progress notifications carry its latest line; a run that is stopped keeps what it had tracked in pose.partial.json.",
     |tb, a, step| tb.track(&a, step));
 
 tool!(Sweep, "sweep", Pose, Nothing, SweepArgs,
@@ -1325,7 +1394,17 @@ impl Toolbox {
         let out = child.stdout.take();
         let err = child.stderr.take();
         let t_out = std::thread::spawn(move || out.map(read_capped).unwrap_or_default());
-        let t_err = std::thread::spawn(move || err.map(read_capped).unwrap_or_default());
+        let activity = ACTIVITY.with(|a| a.borrow().clone());
+        let t_err = std::thread::spawn(move || {
+            err.map(|inner| {
+                read_capped(LastLine {
+                    inner,
+                    activity,
+                    pending: Vec::new(),
+                })
+            })
+            .unwrap_or_default()
+        });
         let start = std::time::Instant::now();
         let status = loop {
             match child.try_wait() {
@@ -1606,7 +1685,19 @@ impl Toolbox {
         }
         let (ok, stdout, stderr) = self.exec(&args)?;
         if !ok {
-            return Ok(ToolOutput::error(stderr.trim().to_string()));
+            let mut text = stderr.trim().to_string();
+            // What the stopped run had tracked (the command keeps it beside the pose file).
+            let partial = self.run.poses.with_extension("partial.json");
+            if partial.is_file() {
+                let name = partial
+                    .file_name()
+                    .map(|n| n.to_string_lossy().into_owned())
+                    .unwrap_or_default();
+                text.push_str(&format!(
+                    "\nThe poses it had tracked are kept in {name} (frames marked \"moved\": true); track with `from: \"{name}\"` and `anchors` on those frames goes on from them."
+                ));
+            }
+            return Ok(ToolOutput::error(text));
         }
         let report: TrackReport = serde_json::from_str(&stdout)
             .map_err(|e| AgentError::Tool(format!("track printed no track report ({e})")))?;
@@ -2426,6 +2517,35 @@ mod tests {
         }
         assert!(problems.is_empty(), "{}", problems.join("\n"));
         assert_eq!(one_line_paragraphs("a\n b\n\nc\nd"), "a b\n\nc d");
+    }
+
+    #[test]
+    fn a_child_commands_last_stderr_line_is_the_activity_of_the_call() {
+        let activity = Activity::default();
+        let mut t = toolbox(None);
+        t.exe = "sh".into();
+        let script = "printf 'track: 000000.png init\\n\\ntrack: 000005.png from 000000.png' >&2; echo ' tail' >&2; echo done";
+        let (ok, stdout, stderr) =
+            with_activity(&activity, || t.exec(&["-c".into(), script.into()])).expect("exec");
+        assert!(ok, "{stderr}");
+        assert_eq!(stdout.trim(), "done");
+        // The last complete non-empty line, blank lines skipped.
+        assert_eq!(
+            activity.last_line(),
+            "track: 000005.png from 000000.png tail"
+        );
+        assert!(stderr.contains("000000.png init"), "{stderr}");
+        // Outside with_activity nothing reports, and the thread's activity is unset.
+        let other = Activity::default();
+        let (ok, _, _) = t
+            .exec(&["-c".into(), "echo quiet >&2".into()])
+            .expect("exec");
+        assert!(ok);
+        assert_eq!(
+            activity.last_line(),
+            "track: 000005.png from 000000.png tail"
+        );
+        assert_eq!(other.last_line(), "");
     }
 
     fn toolbox(window: Option<&[&str]>) -> Toolbox {

@@ -12,7 +12,7 @@ use crate::cmd::agent::{mcp_config_json, mcp_config_toml};
 use agentstar_agent::agent::{record_step, StepRecord};
 use agentstar_agent::run::RunDir;
 use agentstar_agent::task::MCP_INSTRUCTIONS;
-use agentstar_agent::tools::{catalogue, find, Toolbox};
+use agentstar_agent::tools::{catalogue, find, with_activity, Activity, Toolbox};
 use anyhow::{bail, Context, Result};
 use base64::Engine;
 use rmcp::model::{
@@ -110,7 +110,11 @@ impl ServerHandler for Server {
                 )
                 .await;
         }
-        let work = tokio::task::spawn_blocking(move || toolbox.call(&n, &a, step));
+        // What the tool's child command says it is doing (the tracker: a line per frame).
+        let activity = Activity::default();
+        let act = activity.clone();
+        let work =
+            tokio::task::spawn_blocking(move || with_activity(&act, || toolbox.call(&n, &a, step)));
         let ticker = token.map(|token| {
             let peer = context.peer.clone();
             let name = name.clone();
@@ -121,8 +125,12 @@ impl ServerHandler for Server {
                     k += 1;
                     let _ = peer
                         .notify_progress(
-                            ProgressNotificationParam::new(token.clone(), k as f64)
-                                .with_message(format!("{name}: running for {k} s")),
+                            ProgressNotificationParam::new(token.clone(), k as f64).with_message(
+                                match activity.last_line() {
+                                    l if l.is_empty() => format!("{name}: running for {k} s"),
+                                    l => format!("{name}: running for {k} s; {l}"),
+                                },
+                            ),
                         )
                         .await;
                 }

@@ -143,6 +143,12 @@ pub fn run(a: Args) -> Result<ExitCode> {
     let t0 = std::time::Instant::now();
     let bar = crate::common::progress(frames.len(), "track");
     let partial_path = partial_path(&a.out);
+    // An earlier stopped run's partial poses are superseded by this run's.
+    if let Err(e) = std::fs::remove_file(&partial_path) {
+        if e.kind() != std::io::ErrorKind::NotFound {
+            bail!("cannot remove {}: {e}", partial_path.display());
+        }
+    }
     let observe = Observer {
         bar: &bar,
         partial: Partial {
