@@ -508,7 +508,7 @@ pub fn choose(scores: &[AppearanceScore], cfg: &AppearanceConfig) -> Choice {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use agentstar_geom::pose::ObjectPose;
     use agentstar_geom::{primitives, KinematicTree, Part, UnitQuaternion, Vector3};
@@ -516,7 +516,7 @@ mod tests {
 
     /// A closed cylinder of radius 0.3 and height 1 along Z (48 sides: a half turn about Z
     /// maps it onto itself, so its silhouette is the same).
-    fn cylinder_model() -> ObjectModel {
+    pub(crate) fn cylinder_model() -> ObjectModel {
         let mesh = primitives::cylinder(0.3, 1.0, 48).expect("cylinder");
         ObjectModel {
             tree: KinematicTree::rigid(1),
@@ -765,7 +765,7 @@ mod tests {
 
     /// The can of [`cylinder_model`] with its label as a second part: a shell over the side
     /// at +X (|θ| < 1.5 rad, |z| < 0.3), just outside the can's surface, painted cream.
-    fn labelled_model() -> ObjectModel {
+    pub(crate) fn labelled_model() -> ObjectModel {
         let arc = |r: f64| -> Vec<(f64, f64)> {
             (0..=24)
                 .map(|k| {

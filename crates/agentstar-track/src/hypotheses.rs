@@ -443,3 +443,21 @@ pub fn basins(
     }
     Ok(distinct)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::appearance::tests::labelled_model;
+
+    #[test]
+    fn a_thin_label_part_keeps_the_principal_axes_on_the_cans_axis() {
+        // The solid's moments: the sleeve's volume is about 1% of the can's. The surface's
+        // would count its two faces, about a third of the can's area, and pull the centroid
+        // some 0.06 toward the label, so that a turn about the axis moved the outline.
+        let (centre, axes) = principal_axes(&labelled_model(), &[]).expect("axes");
+        let off_axis = (centre.x * centre.x + centre.y * centre.y).sqrt();
+        assert!(off_axis < 0.005, "centre {centre:?}");
+        let tilt = axes[0].dot(&Vector3::z()).abs().acos().to_degrees();
+        assert!(tilt < 1.0, "longest axis {:?} is {tilt:.2}° off Z", axes[0]);
+    }
+}

@@ -238,43 +238,6 @@ fn a_twin_candidate_swaps_equal_slabs_exactly_at_any_opening() {
     }
 }
 
-/// A can (a closed cylinder along Z) with its label as a second part: a closed sleeve over
-/// the side at +X, just outside the surface.
-fn labelled_can() -> ObjectModel {
-    let arc = |r: f64| -> Vec<(f64, f64)> {
-        (0..=24)
-            .map(|k| {
-                let t = -1.5 + 3.0 * k as f64 / 24.0;
-                (r * t.cos(), r * t.sin())
-            })
-            .collect()
-    };
-    let mut outline = arc(0.306);
-    outline.extend(arc(0.301).into_iter().rev());
-    let label = agentstar_geom::primitives::extrude(&outline, &[], 0.6).expect("label");
-    let can = agentstar_geom::primitives::cylinder(0.3, 1.0, 48).expect("can");
-    ObjectModel {
-        tree: KinematicTree::rigid(2),
-        parts: vec![
-            Part::new("can", can, [0.76, 0.07, 0.12]),
-            Part::new("label", label, [0.85, 0.8, 0.62]),
-        ],
-    }
-}
-
-#[test]
-fn a_thin_label_part_keeps_the_principal_axes_on_the_cans_axis() {
-    // The solid's moments: the sleeve's volume is about 1% of the can's. The surface's
-    // would count its two faces, about a third of the can's area, and pull the centroid
-    // some 0.06 toward the label, so that a turn about the axis moved the outline.
-    let model = labelled_can();
-    let (centre, axes) = agentstar_track::hypotheses::principal_axes(&model, &[]).expect("axes");
-    let off_axis = (centre.x * centre.x + centre.y * centre.y).sqrt();
-    assert!(off_axis < 0.005, "centre {centre:?}");
-    let tilt = axes[0].dot(&Vector3::z()).abs().acos().to_degrees();
-    assert!(tilt < 1.0, "longest axis {:?} is {tilt:.2}° off Z", axes[0]);
-}
-
 #[test]
 fn a_half_turn_about_a_principal_axis_keeps_the_outline_of_a_shape_heavy_at_one_end() {
     // A can with a heavy slab inside its bottom (as a mug's solid base under its open

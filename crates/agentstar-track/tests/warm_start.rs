@@ -100,7 +100,7 @@ fn track_from_keeps_anchors_and_repairs_a_flipped_block_of_frames() {
         &start,
         &[0, 4],
         &TrackConfig::default(),
-        &|_| {},
+        &|_: &str| {},
     )
     .expect("track");
     assert_eq!(r.poses[0], start[0], "anchor 0 moved");

@@ -116,6 +116,21 @@ fn moved_flags(v: &serde_json::Value) -> Vec<(String, bool)> {
     out
 }
 
+/// `track CAP --model MODEL --scale-from POSES --out OUT` (the known model from scratch).
+fn track_args<'a>(cap: &'a str, model: &'a str, poses: &'a str, out: &'a Path) -> Vec<&'a str> {
+    let out = out.to_str().expect("utf8");
+    vec![
+        "track",
+        cap,
+        "--model",
+        model,
+        "--scale-from",
+        poses,
+        "--out",
+        out,
+    ]
+}
+
 #[test]
 fn a_stopped_track_leaves_its_poses_so_far_and_a_finished_one_removes_them() {
     let dir = tempfile::tempdir().expect("tmp");
@@ -123,16 +138,7 @@ fn a_stopped_track_leaves_its_poses_so_far_and_a_finished_one_removes_them() {
     let out = dir.path().join("tracked.json");
     let partial = dir.path().join("tracked.partial.json");
     let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_agentstar"))
-        .args([
-            "track",
-            &cap,
-            "--model",
-            &model,
-            "--scale-from",
-            &poses,
-            "--out",
-            out.to_str().expect("utf8"),
-        ])
+        .args(track_args(&cap, &model, &poses, &out))
         .stdout(std::process::Stdio::null())
         .stderr(std::process::Stdio::null())
         .spawn()
@@ -195,18 +201,13 @@ fn a_track_whose_final_write_fails_keeps_every_tracked_pose() {
     // The output path is a directory: the final write fails after the tracking.
     let out = dir.path().join("tracked.json");
     std::fs::create_dir(&out).expect("mkdir");
-    let o = agentstar(&[
-        "track",
-        &cap,
-        "--model",
-        &model,
-        "--scale-from",
-        &poses,
-        "--out",
-        out.to_str().expect("utf8"),
-        "--evals",
-        "1200",
-    ]);
+    let o = agentstar(
+        &[
+            track_args(&cap, &model, &poses, &out),
+            vec!["--evals", "1200"],
+        ]
+        .concat(),
+    );
     assert!(!o.status.success(), "{}", text(&o));
     assert!(text(&o).contains("tracked.json"), "{}", text(&o));
     let kept = read_json(&dir.path().join("tracked.partial.json"));
