@@ -497,7 +497,9 @@ pub struct PoseHistoryArgs {
 pub struct RenderArgs {
     #[schemars(description = FRAMES)]
     pub frames: Option<String>,
-    /// Comma separated: overlay, compare, ids, shaded. Default overlay,compare.
+    /// Comma separated: overlay, compare, ids, shaded, side (the keyframe cropped around its
+    /// mask beside the model rendered opaque over the same crop, with a sheet: to compare a
+    /// print without one showing through the other). Default overlay,compare.
     pub views: Option<String>,
 }
 

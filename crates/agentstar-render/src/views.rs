@@ -500,6 +500,41 @@ pub fn contact_sheet(tiles: &[(String, RgbImage)], columns: usize, title: &str) 
     out
 }
 
+/// The frame and the model side by side over one crop (`[x0, y0, w, h]` in frame pixels,
+/// scaled by `zoom`): the frame's own pixels on the left, the render opaque over `background`
+/// on the right, with a gap of [`SIDE_GAP_PX`]. Nothing of one shows through the other, so
+/// a print on the model can be compared with the print in the frame (an overlay blends
+/// them).
+pub fn side_by_side(
+    frame: &RgbImage,
+    render: &RgbaImage,
+    crop: [u32; 4],
+    zoom: f64,
+    background: Rgb<u8>,
+) -> RgbImage {
+    let [x0, y0, w, h] = crop;
+    let cut = |img: &RgbImage| -> RgbImage {
+        let (x0, y0) = (x0.min(img.width()), y0.min(img.height()));
+        let w = w.min(img.width() - x0).max(1);
+        let h = h.min(img.height() - y0).max(1);
+        let part = image::imageops::crop_imm(img, x0, y0, w, h).to_image();
+        scaled(&part, zoom)
+    };
+    let left = cut(frame);
+    let right = cut(&flatten(render, background));
+    let mut out = RgbImage::from_pixel(
+        left.width() + SIDE_GAP_PX + right.width(),
+        left.height().max(right.height()),
+        Rgb([255, 255, 255]),
+    );
+    image::imageops::replace(&mut out, &left, 0, 0);
+    image::imageops::replace(&mut out, &right, (left.width() + SIDE_GAP_PX) as i64, 0);
+    out
+}
+
+/// The white gap between the two halves of [`side_by_side`], in pixels.
+pub const SIDE_GAP_PX: u32 = 6;
+
 /// Composites an RGBA render over a solid background.
 pub fn flatten(render: &RgbaImage, background: Rgb<u8>) -> RgbImage {
     RgbImage::from_fn(render.width(), render.height(), |x, y| {
@@ -619,6 +654,40 @@ pub fn heat_map(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn side_by_side_shows_the_frame_and_the_opaque_render_apart() {
+        // A grey frame with a red square; a render with a blue square half transparent.
+        let frame = RgbImage::from_fn(40, 30, |x, y| {
+            if (10..20).contains(&x) && (10..20).contains(&y) {
+                Rgb([200, 0, 0])
+            } else {
+                Rgb([90, 90, 90])
+            }
+        });
+        let render = RgbaImage::from_fn(40, 30, |x, y| {
+            if (12..22).contains(&x) && (8..18).contains(&y) {
+                Rgba([0, 0, 255, 255])
+            } else {
+                Rgba([0, 0, 0, 0])
+            }
+        });
+        let bg = Rgb([255, 255, 255]);
+        let img = side_by_side(&frame, &render, [8, 6, 16, 16], 2.0, bg);
+        assert_eq!(img.dimensions(), (32 + SIDE_GAP_PX + 32, 32));
+        // Left: the frame's red, untouched by the render's blue.
+        assert_eq!(*img.get_pixel(2 * (15 - 8), 2 * (15 - 6)), Rgb([200, 0, 0]));
+        // Right: the render opaque, the background where it is empty.
+        let right = 32 + SIDE_GAP_PX;
+        assert_eq!(
+            *img.get_pixel(right + 2 * (15 - 8), 2 * (10 - 6)),
+            Rgb([0, 0, 255])
+        );
+        assert_eq!(*img.get_pixel(right + 1, 30), bg);
+        // A crop past the edge is cut at the edge.
+        let edge = side_by_side(&frame, &render, [30, 20, 20, 20], 1.0, bg);
+        assert_eq!(edge.dimensions(), (10 + SIDE_GAP_PX + 10, 10));
+    }
 
     #[test]
     fn comparison_counts_every_category() {

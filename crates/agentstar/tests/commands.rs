@@ -73,7 +73,7 @@ fn example_and_every_subcommand_on_it() {
         "--frames",
         "000000,000005",
         "--views",
-        "compare,frame",
+        "compare,frame,side",
         "--outline",
         "both",
         "--zoom",
@@ -90,7 +90,10 @@ fn example_and_every_subcommand_on_it() {
         .iter()
         .map(|p| p.as_str().expect("path"))
         .collect();
-    assert_eq!(sheets, [fv.join("sheet_frames.png").display().to_string()]);
+    assert_eq!(
+        sheets,
+        ["sheet_frames.png", "sheet_side.png"].map(|n| fv.join(n).display().to_string())
+    );
     assert!(!fv.join("sheet_overlay.png").exists());
     for f in v["frames"].as_array().expect("frames") {
         for p in f["files"].as_array().expect("files") {
@@ -102,6 +105,13 @@ fn example_and_every_subcommand_on_it() {
         let img = image::open(fv.join(format!("frame_{frame}.png"))).expect("png");
         assert_eq!((img.width() as u64, img.height() as u64), (2 * w, 2 * h));
         assert_eq!(f["zoom"], 2.0);
+        // The same crop and zoom, the model opaque beside the frame.
+        let side = image::open(fv.join(format!("side_{frame}.png"))).expect("png");
+        let gap = agentstar_render::views::SIDE_GAP_PX as u64;
+        assert_eq!(
+            (side.width() as u64, side.height() as u64),
+            (4 * w + gap, 2 * h)
+        );
     }
     for (bad, says) in [
         ("--zoom=0", "--zoom"),

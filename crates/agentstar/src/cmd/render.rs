@@ -8,16 +8,18 @@ use agentstar_data::images::{save_png_rgb, save_png_rgba};
 use agentstar_render::frames::{frame_view, FrameViewOptions, MAX_ZOOM};
 use agentstar_render::sheet::{fit_to_limits, sheet_pages};
 use agentstar_render::views::{
-    comparison_legend, id_color, overlay, part_id_view, shade, silhouette_comparison, with_legend,
-    ShadeOptions,
+    comparison_legend, id_color, overlay, part_id_view, shade, side_by_side, silhouette_comparison,
+    with_legend, ShadeOptions,
 };
 use anyhow::{bail, Result};
-use image::RgbImage;
+use image::{Rgb, RgbImage};
 use rayon::prelude::*;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
-pub const VIEWS: [&str; 6] = ["overlay", "compare", "ids", "shaded", "depth", "frame"];
+pub const VIEWS: [&str; 7] = [
+    "overlay", "compare", "ids", "shaded", "depth", "frame", "side",
+];
 
 /// Long side of a keyframe crop on the frames sheet before the sheet's own layout.
 const FRAME_TILE_PX: u32 = 400;
@@ -46,7 +48,9 @@ pub struct Args {
     #[arg(long)]
     frames: Option<String>,
     /// Views, comma separated: overlay, compare, ids, shaded, depth, frame (the raw
-    /// keyframe cropped around its mask, with a sheet of them).
+    /// keyframe cropped around its mask, with a sheet of them), side (the cropped keyframe
+    /// beside the model rendered opaque over the same crop, with a sheet: prints compared
+    /// without one showing through the other).
     #[arg(long, default_value = "overlay,compare")]
     views: String,
     /// Output directory.
@@ -75,6 +79,7 @@ struct FrameViews {
     row: RenderFrame,
     overlay_tile: Option<(String, RgbImage)>,
     frame_tile: Option<(String, RgbImage)>,
+    side_tile: Option<(String, RgbImage)>,
     note: Option<String>,
 }
 
@@ -142,6 +147,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
                 },
                 overlay_tile: None,
                 frame_tile: None,
+                side_tile: None,
                 note: None,
             };
             if views.contains(&"overlay") {
@@ -151,7 +157,9 @@ pub fn run(a: Args) -> Result<ExitCode> {
                 written.push(p);
                 out.overlay_tile = Some((f.name.clone(), over));
             }
-            let needs_mask = views.contains(&"compare") || views.contains(&"frame");
+            let needs_mask = ["compare", "frame", "side"]
+                .iter()
+                .any(|v| views.contains(v));
             let (mask, hand) = if needs_mask {
                 (Some(s.capture.load_mask(i)?), s.capture.load_hand(i)?)
             } else {
@@ -191,7 +199,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
             }
             if views.contains(&"shaded") {
                 let p = dir.join(format!("shaded_{}.png", f.stem));
-                save_png_rgba(&fit_to_limits(shaded), &p)?;
+                save_png_rgba(&fit_to_limits(shaded.clone()), &p)?;
                 written.push(p);
             }
             if views.contains(&"depth") {
@@ -223,6 +231,21 @@ pub fn run(a: Args) -> Result<ExitCode> {
                 out.row.crop = Some(v.crop);
                 out.row.zoom = Some(v.zoom);
             }
+            if let (true, Some(mask)) = (views.contains(&"side"), &mask) {
+                // The crop of the frame view (around the mask), the model opaque beside it.
+                let crop = frame_view(&frame_img, mask, hand.as_ref(), None, &frame_opts);
+                let [x0, y0, w, h] = crop.crop;
+                let background = Rgb([255, 255, 255]);
+                let img = fit_to_limits(side_by_side(
+                    &frame_img, &shaded, crop.crop, crop.zoom, background,
+                ));
+                let p = dir.join(format!("side_{}.png", f.stem));
+                save_png_rgb(&img, &p)?;
+                written.push(p);
+                let tile_zoom = (FRAME_TILE_PX as f64 / w.max(h).max(1) as f64).min(MAX_ZOOM);
+                let tile = side_by_side(&frame_img, &shaded, crop.crop, tile_zoom, background);
+                out.side_tile = Some((format!("{} at {x0},{y0} {w}x{h}", f.stem), tile));
+            }
             out.row.files = written;
             out.row.iou_visible = iou;
             Ok(out)
@@ -231,6 +254,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
     let mut rows = Vec::new();
     let mut overlay_tiles = Vec::new();
     let mut frame_tiles = Vec::new();
+    let mut side_tiles = Vec::new();
     let mut notes = Vec::new();
     for r in results {
         let r = r?;
@@ -244,6 +268,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
             ));
         }
         frame_tiles.extend(r.frame_tile);
+        side_tiles.extend(r.side_tile);
         notes.extend(r.note);
         rows.push(r.row);
     }
@@ -254,6 +279,11 @@ pub fn run(a: Args) -> Result<ExitCode> {
             &frame_tiles,
             "sheet_frames",
             "keyframes, cropped around the mask",
+        ),
+        (
+            &side_tiles,
+            "sheet_side",
+            "keyframe, then the model opaque, cropped around the mask",
         ),
     ] {
         if tiles.is_empty() {
