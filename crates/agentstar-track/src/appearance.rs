@@ -13,6 +13,14 @@
 //! [`AppearanceScore::ncc`] is the pair-weighted mean over groups; its
 //! [`AppearanceScore::cost`] is `1 − ncc` (0 best, 2 worst).
 //!
+//! Where the model's own parts differ in colour ([`model_has_appearance`]: a label part on a
+//! can, a badge on a mug), the frame's sampled colours are also correlated with the colour
+//! of the part the candidate puts at each pixel, in one more group that weighs at least as
+//! much as all the other frames' together: the one reference that does not depend on other
+//! poses being right ([`model_agreement`] scores it alone). With a model of one colour, a
+//! can's angle about its axis is unobservable: every turn scores alike in the masks and in
+//! colour across frames.
+//!
 //! A wrong pose with the right outline (a can turned half way about its axis, a laptop with
 //! lid and base swapped) lifts pixels to the wrong surface points, so the colours it carries
 //! into the other frames do not correlate with theirs. An object without texture (a plain
@@ -215,7 +223,7 @@ struct Gathered {
 const MODEL_COLOUR_STEP: f32 = 0.1;
 
 /// Whether the model's own colours tell poses apart: at least two parts whose colours
-/// differ by [`MODEL_COLOUR_STEP`] in some channel. A model of one colour (or of parts
+/// differ by 0.1 (`MODEL_COLOUR_STEP`) in some channel. A model of one colour (or of parts
 /// painted alike) has none: only the frames' colours against each other rank its poses.
 pub fn model_has_appearance(model: &ObjectModel) -> bool {
     model.parts.iter().enumerate().any(|(i, a)| {
@@ -405,8 +413,8 @@ pub fn model_agreement(
 }
 
 /// The appearance score of `candidate` against each reference on its own (one rendering
-/// of the candidate for all of them): what a choice between pairs of hypotheses of
-/// neighbouring frames compares.
+/// of the candidate for all of them; without the model's own colours): what a choice
+/// between pairs of hypotheses of neighbouring frames compares.
 pub fn appearance_each(
     model: &ObjectModel,
     scale: f64,
