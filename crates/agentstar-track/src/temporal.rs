@@ -52,6 +52,9 @@ pub struct Report {
     pub warnings: Vec<String>,
 }
 
+/// A rotation step between keyframes over this many degrees is warned about ([`report`]).
+pub const LARGE_STEP_DEG: f64 = 90.0;
+
 /// Geodesic angle of a rotation in degrees, in [0, 180].
 pub fn angle_deg(q: &UnitQuaternion) -> f64 {
     q.angle().to_degrees()
@@ -95,7 +98,7 @@ pub fn report(samples: &[Sample], scale: f64, tree: &KinematicTree) -> Report {
     let mut gaps: Vec<i64> = (1..n)
         .map(|i| samples[i].number as i64 - samples[i - 1].number as i64)
         .collect();
-    let rows = (0..n)
+    let rows: Vec<Row> = (0..n)
         .map(|i| {
             let has_v = i >= 1;
             let has_a = i >= 1 && i + 1 < n;
@@ -138,6 +141,19 @@ pub fn report(samples: &[Sample], scale: f64, tree: &KinematicTree) -> Report {
             }
         })
         .collect();
+    // A turn of more than a quarter between keyframes: hands do make them, but then a twin of
+    // one of the two poses (a flip, a part swap) is as near as the pose itself, and every
+    // gate passes either.
+    for r in &rows {
+        if let (Some(from), Some(deg)) = (&r.from, r.vel_rot_deg) {
+            if deg > LARGE_STEP_DEG {
+                warnings.push(format!(
+                    "step {from} -> {} turns the object by {deg:.0}° (over {LARGE_STEP_DEG:.0}°): a hand can, but a flip or part swap of either pose fits its mask as well; compare their twins by eye (oapply flips, render side)",
+                    r.frame
+                ));
+            }
+        }
+    }
     gaps.sort_unstable();
     if let Some(&mode) = mode_of(&gaps) {
         for i in 1..n {
@@ -303,7 +319,13 @@ mod tests {
         assert!((r.rows[2].joints[0].velocity.expect("v") - 20.0).abs() < 1e-9);
         assert!((r.rows[1].joints[0].acceleration.expect("a") - 10.0).abs() < 1e-9);
         assert_eq!(r.rows[1].vel_radial, None, "radial needs cameras");
-        assert!(r.warnings.is_empty());
+        // The 170° step, and only it, is over a quarter turn.
+        assert_eq!(r.warnings.len(), 1, "{:?}", r.warnings);
+        assert!(
+            r.warnings[0].starts_with("step 000010.jpg -> 000015.jpg turns the object by 170°"),
+            "{:?}",
+            r.warnings
+        );
     }
 
     #[test]
