@@ -1689,7 +1689,7 @@ impl Toolbox {
         if !ok {
             let mut text = stderr.trim().to_string();
             // What the stopped run had tracked (the command keeps it beside the pose file).
-            let partial = self.run.poses.with_extension("partial.json");
+            let partial = agentstar_data::posefile::partial_path(&self.run.poses);
             if partial.is_file() {
                 let name = partial
                     .file_name()

@@ -108,6 +108,13 @@ pub struct FramePose {
     pub moved: bool,
 }
 
+/// Where a tracking run that writes `out` keeps its poses while it runs (`pose.json` →
+/// `pose.partial.json`): the `track` command writes it, the agent's `track` tool points to it
+/// when a run stops.
+pub fn partial_path(out: &Path) -> std::path::PathBuf {
+    out.with_extension("partial.json")
+}
+
 pub fn joint_json(j: &JointDef) -> JointDefJson {
     JointDefJson {
         name: j.name.clone(),

@@ -286,11 +286,16 @@ impl<'m> Searcher<'m> {
         base: &GenPose,
         seed: u64,
     ) -> Result<(GenPose, f64), TrackError> {
-        let window = LocalWindow {
-            evals: self.cfg.local_evals / 2,
-            ..LocalWindow::polish()
-        };
-        self.refine(frame, base, &window, seed)
+        let evals = self.cfg.local_evals / 2;
+        self.refine(
+            frame,
+            base,
+            &LocalWindow {
+                evals,
+                ..LocalWindow::polish()
+            },
+            seed,
+        )
     }
 
     /// The refinement around a hypothesis that may be a whole basin away from where it was
@@ -301,11 +306,16 @@ impl<'m> Searcher<'m> {
         base: &GenPose,
         seed: u64,
     ) -> Result<(GenPose, f64), TrackError> {
-        let window = LocalWindow {
-            evals: self.cfg.local_evals,
-            ..LocalWindow::basin()
-        };
-        self.refine(frame, base, &window, seed)
+        let evals = self.cfg.local_evals;
+        self.refine(
+            frame,
+            base,
+            &LocalWindow {
+                evals,
+                ..LocalWindow::basin()
+            },
+            seed,
+        )
     }
 
     /// The band IoU of `g` in frame `i` (the visible IoU without the ±[`DEFAULT_BAND_PX`]
@@ -1100,42 +1110,8 @@ pub fn track_observed(
         log.phase("global", &s);
     }
     log.all_poses(&poses);
-    if cfg.consistency_pass && n >= 2 {
-        consistency(
-            &s,
-            frames,
-            &mut poses,
-            &mut scores,
-            &vec![false; n],
-            &mut log,
-        )?;
-        log.phase("consistency", &s);
-        log.all_poses(&poses);
-    }
-    if cfg.sequence_choice && n >= 2 {
-        choose_sequence(
-            &s,
-            frames,
-            &mut poses,
-            &mut scores,
-            &vec![false; n],
-            &mut log,
-        )?;
-        log.phase("sequence choice", &s);
-        log.all_poses(&poses);
-    }
-    if cfg.appearance && n >= 2 {
-        appearance_pass(
-            &s,
-            frames,
-            &mut poses,
-            &mut scores,
-            &vec![false; n],
-            init,
-            &mut log,
-        );
-        log.phase("appearance", &s);
-    }
+    let fixed = vec![false; n];
+    after_propagation(&s, frames, &mut poses, &mut scores, &fixed, init, &mut log)?;
     log.phases_line();
     Ok(TrackResult {
         poses,
@@ -1144,6 +1120,37 @@ pub fn track_observed(
         log: log.lines,
         evaluations: s.evals.into_inner(),
     })
+}
+
+/// The passes over the whole sequence once every frame has a pose (from the propagation,
+/// or a warm start's), as the configuration asks for them: the consistency pass, the
+/// sequence-level choice and the last appearance pass (outward from `first`); `fixed` frames
+/// keep their poses. The observer gets the poses after each pass.
+fn after_propagation(
+    s: &Searcher<'_>,
+    frames: &[TrackFrame<'_>],
+    poses: &mut [GenPose],
+    scores: &mut [f64],
+    fixed: &[bool],
+    first: usize,
+    log: &mut Log<'_>,
+) -> Result<(), TrackError> {
+    let (cfg, n) = (&s.cfg, frames.len());
+    if cfg.consistency_pass && n >= 2 {
+        consistency(s, frames, poses, scores, fixed, log)?;
+        log.phase("consistency", s);
+        log.all_poses(poses);
+    }
+    if cfg.sequence_choice && n >= 2 {
+        choose_sequence(s, frames, poses, scores, fixed, log)?;
+        log.phase("sequence choice", s);
+        log.all_poses(poses);
+    }
+    if cfg.appearance && n >= 2 {
+        appearance_pass(s, frames, poses, scores, fixed, first, log);
+        log.phase("appearance", s);
+    }
+    Ok(())
 }
 
 /// Distinct hypotheses of a covering refined by a global search (and the initialisation).
@@ -1449,8 +1456,10 @@ const CHOICE_STEP_DEPTH: f64 = 0.2;
 const CHOICE_SCREEN: f64 = 0.15;
 const CHOICE_KEEP: f64 = 0.03;
 /// Rotation steps beyond this cost alike: a hand turns an object by 100–150° between
-/// keyframes, and of a pose and its half-turn twin the one nearer the carried pose is then
-/// the wrong one as often as not; past this the masks and colours decide.
+/// keyframes, and then the half-turn twin can be the nearer pose (printmug's first keyframe:
+/// a true step of 143°, its twin's 116°, so the quadratic cost chose the twin); past this
+/// the masks and colours decide. 120° put that keyframe back in its twin (hard suite,
+/// 2026-12-02).
 const CHOICE_STEP_CAP_DEG: f64 = 90.0;
 /// Frames scoring under this (the IoU gate) have every twin refined, in the wide window.
 const CHOICE_SUSPECT: f64 = agentstar_render::GATE_IOU;
@@ -1875,21 +1884,8 @@ pub fn track_from(
     }
     log.phase("warm start", &s);
     log.all_poses(&poses);
-    if cfg.consistency_pass && n >= 2 {
-        consistency(&s, frames, &mut poses, &mut scores, &fixed, &mut log)?;
-        log.phase("consistency", &s);
-        log.all_poses(&poses);
-    }
-    if cfg.sequence_choice && n >= 2 {
-        choose_sequence(&s, frames, &mut poses, &mut scores, &fixed, &mut log)?;
-        log.phase("sequence choice", &s);
-        log.all_poses(&poses);
-    }
-    if cfg.appearance && n >= 2 {
-        let first = anchors.first().copied().unwrap_or(0);
-        appearance_pass(&s, frames, &mut poses, &mut scores, &fixed, first, &mut log);
-        log.phase("appearance", &s);
-    }
+    let first = anchors.first().copied().unwrap_or(0);
+    after_propagation(&s, frames, &mut poses, &mut scores, &fixed, first, &mut log)?;
     log.phases_line();
     let init_frame = anchors.first().copied().unwrap_or_else(|| {
         (0..n)

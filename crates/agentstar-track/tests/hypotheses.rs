@@ -5,31 +5,14 @@
 use agentstar_geom::kinematics::{JointDef, JointKind};
 use agentstar_geom::pose::ObjectPose;
 use agentstar_geom::primitives::cuboid;
-use agentstar_geom::{
-    KinematicTree, ObjectModel, Part, PinholeCamera, Point3, UnitQuaternion, Vector3,
-};
-use agentstar_render::{PosedModel, ScoreTarget, SilhouetteRenderer};
+use agentstar_geom::{KinematicTree, ObjectModel, Part, Point3, UnitQuaternion, Vector3};
 use agentstar_track::hypotheses::{basins, refine_each, LocalWindow};
 use agentstar_track::objective::FrameProblem;
 use agentstar_track::update::{apply_object_rotation, flip, GenPose};
 
 mod common;
 use common::case::{case_model, truth};
-
-fn camera() -> PinholeCamera {
-    PinholeCamera::new(300.0, 300.0, 160.0, 120.0, 320, 240).expect("camera")
-}
-
-fn target_of(model: &ObjectModel, g: &GenPose, scale: f64) -> ScoreTarget {
-    let mut r = SilhouetteRenderer::new(320, 240);
-    let m = r
-        .render(
-            &camera(),
-            &PosedModel::new(model, &g.states, &g.pose.with_scale(scale)).instances,
-        )
-        .clone();
-    ScoreTarget::new(m, None).expect("target")
-}
+use common::view::{camera, target_of};
 
 fn tilt(deg: f64) -> UnitQuaternion {
     UnitQuaternion::from_axis_angle(

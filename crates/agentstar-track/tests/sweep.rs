@@ -2,8 +2,7 @@
 //! never worse than the starting pose.
 
 use agentstar_geom::pose::ObjectPose;
-use agentstar_geom::{ObjectModel, PinholeCamera, UnitQuaternion, Vector3};
-use agentstar_render::{PosedModel, ScoreTarget, SilhouetteRenderer};
+use agentstar_geom::{UnitQuaternion, Vector3};
 use agentstar_track::objective::FrameProblem;
 use agentstar_track::search::{sweep, SweepConfig};
 use agentstar_track::space::{parse_spec, Grammar};
@@ -11,21 +10,7 @@ use agentstar_track::update::GenPose;
 
 mod common;
 use common::case::{case_model, truth};
-
-fn camera() -> PinholeCamera {
-    PinholeCamera::new(300.0, 300.0, 160.0, 120.0, 320, 240).expect("camera")
-}
-
-fn target_of(model: &ObjectModel, g: &GenPose, scale: f64) -> ScoreTarget {
-    let mut r = SilhouetteRenderer::new(320, 240);
-    let m = r
-        .render(
-            &camera(),
-            &PosedModel::new(model, &g.states, &g.pose.with_scale(scale)).instances,
-        )
-        .clone();
-    ScoreTarget::new(m, None).expect("target")
-}
+use common::view::{camera, target_of};
 
 /// The true pose turned by `deg` about a tilted axis through the camera origin's view.
 fn off_by(gt: &GenPose, deg: f64) -> GenPose {

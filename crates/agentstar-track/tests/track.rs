@@ -2,46 +2,17 @@
 //! perturbed pose, and the tracker recovers an articulated sequence with rapid motion.
 
 use agentstar_geom::pose::ObjectPose;
-use agentstar_geom::{ObjectModel, PinholeCamera, UnitQuaternion, Vector3};
-use agentstar_render::{PosedModel, ScoreTarget, SilhouetteRenderer};
+use agentstar_geom::{UnitQuaternion, Vector3};
+use agentstar_render::ScoreTarget;
 use agentstar_track::objective::FrameProblem;
 use agentstar_track::search::{sweep, SweepConfig};
 use agentstar_track::space::{parse_spec, Grammar};
-use agentstar_track::tracker::{track, TrackConfig, TrackFrame};
+use agentstar_track::tracker::{track, TrackConfig};
 use agentstar_track::update::GenPose;
 
 mod common;
 use common::case::{case_model, truth};
-
-fn camera() -> PinholeCamera {
-    PinholeCamera::new(300.0, 300.0, 160.0, 120.0, 320, 240).expect("camera")
-}
-
-fn target_of(model: &ObjectModel, g: &GenPose, scale: f64) -> ScoreTarget {
-    let mut r = SilhouetteRenderer::new(320, 240);
-    let m = r
-        .render(
-            &camera(),
-            &PosedModel::new(model, &g.states, &g.pose.with_scale(scale)).instances,
-        )
-        .clone();
-    ScoreTarget::new(m, None).expect("target")
-}
-
-/// Keyframes named by their index, seen by [`camera`] from a static camera, masks only.
-fn frames_of(targets: &[ScoreTarget]) -> Vec<TrackFrame<'_>> {
-    targets
-        .iter()
-        .enumerate()
-        .map(|(k, t)| TrackFrame {
-            name: format!("{k:06}"),
-            camera: camera(),
-            target: t,
-            world_from_camera: None,
-            rgb: None,
-        })
-        .collect()
-}
+use common::view::{camera, frames_of, target_of};
 
 #[test]
 fn sweep_recovers_a_perturbed_pose() {

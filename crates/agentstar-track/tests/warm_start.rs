@@ -2,28 +2,14 @@
 //! left flipped end for end; the other frames are refined from where they were.
 
 use agentstar_geom::pose::ObjectPose;
-use agentstar_geom::{ObjectModel, PinholeCamera, UnitQuaternion, Vector3};
-use agentstar_render::{PosedModel, ScoreTarget, SilhouetteRenderer};
-use agentstar_track::tracker::{track_from, TrackConfig, TrackFrame};
+use agentstar_geom::{ObjectModel, UnitQuaternion, Vector3};
+use agentstar_render::ScoreTarget;
+use agentstar_track::tracker::{track_from, TrackConfig};
 use agentstar_track::update::{apply_object_rotation, flip, GenPose};
 
 mod common;
 use common::case::{case_model, truth};
-
-fn camera() -> PinholeCamera {
-    PinholeCamera::new(300.0, 300.0, 160.0, 120.0, 320, 240).expect("camera")
-}
-
-fn target_of(model: &ObjectModel, g: &GenPose, scale: f64) -> ScoreTarget {
-    let mut r = SilhouetteRenderer::new(320, 240);
-    let m = r
-        .render(
-            &camera(),
-            &PosedModel::new(model, &g.states, &g.pose.with_scale(scale)).instances,
-        )
-        .clone();
-    ScoreTarget::new(m, None).expect("target")
-}
+use common::view::{frames_of, target_of};
 
 /// Ten frames of the case turning in 30° steps, their true poses, and starting poses 3° off
 /// with frames 5–8 also flipped end for end (a block chained from one wrong frame).
@@ -53,20 +39,6 @@ fn flipped_block(
         })
         .collect();
     (gts, targets, start)
-}
-
-fn frames_of(targets: &[ScoreTarget]) -> Vec<TrackFrame<'_>> {
-    targets
-        .iter()
-        .enumerate()
-        .map(|(k, t)| TrackFrame {
-            name: format!("{k:06}"),
-            camera: camera(),
-            target: t,
-            world_from_camera: None,
-            rgb: None,
-        })
-        .collect()
 }
 
 fn assert_close(gts: &[GenPose], r: &agentstar_track::tracker::TrackResult) {

@@ -5,7 +5,7 @@
 use crate::common::{out_dir, print_json, select_frames, SessionArgs};
 use agentstar_agent::view_reports::{RenderFrame, RenderReport};
 use agentstar_data::images::{save_png_rgb, save_png_rgba};
-use agentstar_render::frames::{frame_view, FrameViewOptions, MAX_ZOOM};
+use agentstar_render::frames::{crop_box, frame_view, FrameViewOptions, MAX_ZOOM};
 use agentstar_render::sheet::{fit_to_limits, sheet_pages};
 use agentstar_render::views::{
     comparison_legend, id_color, overlay, part_id_view, shade, side_by_side, silhouette_comparison,
@@ -232,18 +232,24 @@ pub fn run(a: Args) -> Result<ExitCode> {
                 out.row.zoom = Some(v.zoom);
             }
             if let (true, Some(mask)) = (views.contains(&"side"), &mask) {
-                // The crop of the frame view (around the mask), the model opaque beside it.
-                let crop = frame_view(&frame_img, mask, hand.as_ref(), None, &frame_opts);
-                let [x0, y0, w, h] = crop.crop;
+                // Around the mask and the model's silhouette, so neither half is cut; the
+                // whole frame when both are empty.
+                let sil = buffers.silhouette();
+                let crop = crop_box(mask, Some(&sil), a.margin).unwrap_or([
+                    0,
+                    0,
+                    frame_img.width(),
+                    frame_img.height(),
+                ]);
+                let [x0, y0, w, h] = crop;
                 let background = Rgb([255, 255, 255]);
-                let img = fit_to_limits(side_by_side(
-                    &frame_img, &shaded, crop.crop, crop.zoom, background,
-                ));
+                let img =
+                    fit_to_limits(side_by_side(&frame_img, &shaded, crop, a.zoom, background));
                 let p = dir.join(format!("side_{}.png", f.stem));
                 save_png_rgb(&img, &p)?;
                 written.push(p);
                 let tile_zoom = (FRAME_TILE_PX as f64 / w.max(h).max(1) as f64).min(MAX_ZOOM);
-                let tile = side_by_side(&frame_img, &shaded, crop.crop, tile_zoom, background);
+                let tile = side_by_side(&frame_img, &shaded, crop, tile_zoom, background);
                 out.side_tile = Some((format!("{} at {x0},{y0} {w}x{h}", f.stem), tile));
             }
             out.row.files = written;

@@ -7,7 +7,7 @@ use crate::common::{
     open_capture, open_model, print_json, select_frames, write_tracked_version, Session, PASS_IOU,
 };
 use agentstar_agent::reports::TrackReport;
-use agentstar_data::posefile::PoseFile;
+use agentstar_data::posefile::{partial_path, PoseFile};
 use agentstar_render::ScoreTarget;
 use agentstar_track::tracker::{
     track_from, track_observed, TrackConfig, TrackFrame, TrackObserver,
@@ -226,11 +226,6 @@ pub fn run(a: Args) -> Result<ExitCode> {
         print_table(&scores, &summary, &[]);
     }
     Ok(ExitCode::SUCCESS)
-}
-
-/// Where a run keeps its poses while it runs: `pose.json` → `pose.partial.json`.
-pub fn partial_path(out: &std::path::Path) -> PathBuf {
-    out.with_extension("partial.json")
 }
 
 /// The command's observer: each log line on stderr (under the progress bar), and the poses
