@@ -1191,7 +1191,8 @@ const APPEARANCE_REFS: usize = 3;
 /// and about an axis of symmetry (a can's) a refinement turns the pose freely, so each frame
 /// is settled again ([`Searcher::settle`]) against up to [`APPEARANCE_REFS`] frames between
 /// it and the first tracked frame, settled before it in the same round (so a correction
-/// carries outward, and a block of frames turned alike cannot hold a frame at its edge).
+/// carries outward, and a block of frames turned alike cannot hold a frame at its edge),
+/// and the frames that see the same side of the object ([`covisible`]).
 fn appearance_pass(
     s: &Searcher<'_>,
     frames: &[TrackFrame<'_>],
