@@ -13,6 +13,7 @@ pub mod mesh;
 pub mod model;
 pub mod pose;
 pub mod primitives;
+pub mod simplify;
 pub mod truth;
 
 pub use camera::PinholeCamera;

@@ -233,13 +233,22 @@ impl Instance<'_> {
     }
 }
 
+/// A contour edge: upper and lower endpoints in pixels, winding direction, first and last
+/// rows it crosses.
+type ContourEdge = ([f64; 2], [f64; 2], i32, u32, u32);
+
 /// Scratch for the contour fill: per-face facing, contour edges, per-row crossings.
 #[derive(Default, Debug)]
 struct ContourScratch {
     front: Vec<bool>,
-    /// Contour edges as (upper endpoint, lower endpoint, winding direction) in pixels.
-    edges: Vec<([f64; 2], [f64; 2], i32)>,
+    /// Contour edges as (upper endpoint, lower endpoint, winding direction) in pixels, with
+    /// the first and last rows whose pixel centres they cross.
+    edges: Vec<ContourEdge>,
+    /// Per row r, at r + 1: the count of crossings, then (prefix sums) where row r's
+    /// crossings start. All zero between renders: only the rows a render used are summed
+    /// and cleared.
     row_start: Vec<u32>,
+    /// Where the next crossing of each row goes (read only on the rows in use).
     row_cursor: Vec<u32>,
     crossings: Vec<(f64, i32)>,
 }
@@ -417,8 +426,11 @@ fn fill_from_contour(
         );
         (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0]) < 0.0
     }));
-    cs.row_start.clear();
-    cs.row_start.resize(h as usize + 2, 0);
+    if cs.row_start.len() != h as usize + 2 {
+        cs.row_start.clear();
+        cs.row_start.resize(h as usize + 2, 0);
+        cs.row_cursor.resize(h as usize + 2, 0);
+    }
     cs.edges.clear();
     let (mut row_min, mut row_max) = (i64::MAX, i64::MIN);
     for e in edges {
@@ -450,23 +462,22 @@ fn fill_from_contour(
         for r in r0..=r1 {
             cs.row_start[r as usize + 1] += 1;
         }
-        cs.edges.push((top, bottom, dir));
+        cs.edges.push((top, bottom, dir, r0 as u32, r1 as u32));
     }
     if row_min > row_max {
         return;
     }
-    for r in 0..=h as usize {
+    let (used0, used1) = (row_min as usize, row_max as usize + 1);
+    // row_start[used0] is 0: no row before `row_min` counted a crossing.
+    for r in used0..used1 {
         cs.row_start[r + 1] += cs.row_start[r];
     }
-    let total = cs.row_start[h as usize + 1] as usize;
+    let total = cs.row_start[used1] as usize;
     cs.crossings.clear();
     cs.crossings.resize(total, (0.0, 0));
-    cs.row_cursor.clear();
-    cs.row_cursor.extend_from_slice(&cs.row_start);
-    for &(top, bottom, dir) in &cs.edges {
+    cs.row_cursor[used0..=used1].copy_from_slice(&cs.row_start[used0..=used1]);
+    for &(top, bottom, dir, r0, r1) in &cs.edges {
         let inv = (bottom[0] - top[0]) / (bottom[1] - top[1]);
-        let r0 = ceil_i64(top[1] - 0.5).max(0);
-        let r1 = (ceil_i64(bottom[1] - 0.5) - 1).min(h as i64 - 1);
         for r in r0..=r1 {
             let y = r as f64 + 0.5;
             let x = top[0] + (y - top[1]) * inv;
@@ -501,6 +512,7 @@ fn fill_from_contour(
             }
         }
     }
+    cs.row_start[used0..=used1].fill(0);
     dirty.0 = dirty.0.min(row_min as u32);
     dirty.1 = dirty.1.max(row_max as u32);
 }

@@ -39,6 +39,19 @@ impl LocalWindow {
         }
     }
 
+    /// Around a pose found on a simplified stand-in of the model ([`crate::standin`]), within
+    /// a fraction of a pixel of the model's optimum: 3°, 1% shift, 2% depth, 5° of joint,
+    /// 120 evaluations in the first pass (about 500 in all).
+    pub fn on_model() -> Self {
+        LocalWindow {
+            angle_deg: 3.0,
+            shift: 0.01,
+            depth: 0.02,
+            joint_deg: 5.0,
+            evals: 120,
+        }
+    }
+
     /// Around a candidate that may be a whole basin away from where it was placed (a flip,
     /// a covering rotation): 25°, 6% shift, 15% depth, 60° of joint.
     pub fn basin() -> Self {

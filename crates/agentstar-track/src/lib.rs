@@ -12,6 +12,7 @@ pub mod search;
 pub mod sequence;
 pub mod shape;
 pub mod space;
+pub mod standin;
 pub mod temporal;
 pub mod tracker;
 pub mod tracks;

@@ -859,8 +859,21 @@ pub fn track(
 }
 
 /// [`track`], calling `observe` with each line of the log as the tracker writes it (one per
-/// frame tracked, one per frame searched again).
+/// frame tracked, one per frame searched again). A dense model is searched on its stand-in
+/// ([`crate::standin`]) and every pose polished on the model at the end.
 pub fn track_observed(
+    model: &ObjectModel,
+    scale: f64,
+    frames: &[TrackFrame<'_>],
+    cfg: &TrackConfig,
+    observe: &dyn TrackObserver,
+) -> Result<TrackResult, TrackError> {
+    on_stand_in(model, scale, frames, cfg, &[], observe, |searched| {
+        track_on(searched, scale, frames, cfg, observe)
+    })
+}
+
+fn track_on(
     model: &ObjectModel,
     scale: f64,
     frames: &[TrackFrame<'_>],
@@ -1751,6 +1764,20 @@ pub fn track_from(
     cfg: &TrackConfig,
     observe: &dyn TrackObserver,
 ) -> Result<TrackResult, TrackError> {
+    on_stand_in(model, scale, frames, cfg, anchors, observe, |searched| {
+        track_from_on(searched, scale, frames, start, anchors, cfg, observe)
+    })
+}
+
+fn track_from_on(
+    model: &ObjectModel,
+    scale: f64,
+    frames: &[TrackFrame<'_>],
+    start: &[GenPose],
+    anchors: &[usize],
+    cfg: &TrackConfig,
+    observe: &dyn TrackObserver,
+) -> Result<TrackResult, TrackError> {
     let s = Searcher::new(model, scale, frames, cfg)?;
     let n = frames.len();
     if start.len() != n {
@@ -1916,6 +1943,19 @@ pub fn track_independent(
     evals_per_frame: usize,
     observe: &dyn TrackObserver,
 ) -> Result<TrackResult, TrackError> {
+    on_stand_in(model, scale, frames, cfg, &[], observe, |searched| {
+        track_independent_on(searched, scale, frames, cfg, evals_per_frame, observe)
+    })
+}
+
+fn track_independent_on(
+    model: &ObjectModel,
+    scale: f64,
+    frames: &[TrackFrame<'_>],
+    cfg: &TrackConfig,
+    evals_per_frame: usize,
+    observe: &dyn TrackObserver,
+) -> Result<TrackResult, TrackError> {
     let s = Searcher::new(model, scale, frames, cfg)?;
     let rest = model.tree.rest_states();
     let mut poses = Vec::with_capacity(frames.len());
@@ -2007,4 +2047,72 @@ pub fn track_independent(
         log: log.lines,
         evaluations: s.evals.into_inner(),
     })
+}
+
+/// Runs `search` on the stand-in of a dense `model` ([`crate::standin`]), or on the model
+/// itself when it needs none; with a stand-in, every frame but the `fixed` ones is then
+/// polished on the model ([`LocalWindow::on_model`]), kept where the polish does not score
+/// higher, and scored on the model.
+#[allow(clippy::too_many_arguments)]
+fn on_stand_in(
+    model: &ObjectModel,
+    scale: f64,
+    frames: &[TrackFrame<'_>],
+    cfg: &TrackConfig,
+    fixed: &[usize],
+    observe: &dyn TrackObserver,
+    search: impl FnOnce(&ObjectModel) -> Result<TrackResult, TrackError>,
+) -> Result<TrackResult, TrackError> {
+    let Some(standin) = crate::standin::stand_in(model, frames.iter().map(|f| f.target.mask()))
+    else {
+        return search(model);
+    };
+    let mut log = Log::new(observe);
+    log.push(standin.describe());
+    let mut result = search(&standin.model)?;
+    let t0 = std::time::Instant::now();
+    let s = Searcher::new(model, scale, frames, cfg)?;
+    let polished: Vec<(GenPose, f64)> = result
+        .poses
+        .par_iter()
+        .enumerate()
+        .map(|(i, g)| {
+            let problem =
+                FrameProblem::new(model, frames[i].camera, frames[i].target, scale, g.clone());
+            let here = problem.evaluator().combined(g);
+            if fixed.contains(&i) {
+                return Ok((g.clone(), here));
+            }
+            let (p, sc) = s.refine(
+                &frames[i],
+                g,
+                &LocalWindow::on_model(),
+                cfg.seed + 15_485_863 * (i as u64 + 1),
+            )?;
+            Ok(if sc > here {
+                (p, sc)
+            } else {
+                (g.clone(), here)
+            })
+        })
+        .collect::<Result<_, TrackError>>()?;
+    let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len().max(1) as f64;
+    let before = mean(&result.scores);
+    (result.poses, result.scores) = polished.into_iter().unzip();
+    let evals = s.evals.into_inner();
+    log.push(format!(
+        "polished on the model ({} triangles): IoU mean {before:.4} on the stand-in, {:.4} on the model, {:.1} s ({evals} evaluations)",
+        standin.report.triangles_before,
+        mean(&result.scores),
+        t0.elapsed().as_secs_f64(),
+    ));
+    log.all_poses(&result.poses);
+    let mut lines = std::mem::take(&mut log.lines);
+    // The stand-in's line first, as it was written; the polish's last.
+    let polish_line = lines.pop();
+    lines.append(&mut result.log);
+    lines.extend(polish_line);
+    result.log = lines;
+    result.evaluations += evals;
+    Ok(result)
 }

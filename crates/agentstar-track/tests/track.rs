@@ -2,11 +2,12 @@
 //! perturbed pose, and the tracker recovers an articulated sequence with rapid motion.
 
 use agentstar_geom::pose::ObjectPose;
-use agentstar_geom::{UnitQuaternion, Vector3};
+use agentstar_geom::{ObjectModel, Part, Point3, TriMesh, UnitQuaternion, Vector3};
 use agentstar_render::ScoreTarget;
 use agentstar_track::objective::FrameProblem;
 use agentstar_track::search::{sweep, SweepConfig};
 use agentstar_track::space::{parse_spec, Grammar};
+use agentstar_track::standin::{stand_in, STANDIN_DEVIATION_PX, STANDIN_MIN_TRIANGLES};
 use agentstar_track::tracker::{track, TrackConfig};
 use agentstar_track::update::GenPose;
 
@@ -150,4 +151,89 @@ fn a_frame_a_whole_turn_away_from_its_neighbour_is_found_by_the_global_search() 
             .any(|l| l.starts_with("000004 from 000003: global search")),
         "the jump was not met by the global search:\n{log}"
     );
+}
+
+/// `mesh` with every triangle cut into four at its edges' midpoints (shared between
+/// neighbours): the same surface, closed where it was, four times the triangles.
+fn subdivided(mesh: &TriMesh) -> TriMesh {
+    let mut positions = mesh.positions.clone();
+    let mut midpoints: std::collections::HashMap<(u32, u32), u32> = Default::default();
+    let mut mid = |a: u32, b: u32, positions: &mut Vec<Point3>| {
+        *midpoints.entry((a.min(b), a.max(b))).or_insert_with(|| {
+            positions.push(nalgebra::center(
+                &positions[a as usize],
+                &positions[b as usize],
+            ));
+            positions.len() as u32 - 1
+        })
+    };
+    let mut triangles = Vec::with_capacity(mesh.triangles.len() * 4);
+    for &[a, b, c] in &mesh.triangles {
+        let (ab, bc, ca) = (
+            mid(a, b, &mut positions),
+            mid(b, c, &mut positions),
+            mid(c, a, &mut positions),
+        );
+        triangles.extend([[a, ab, ca], [ab, b, bc], [ca, bc, c], [ab, bc, ca]]);
+    }
+    TriMesh::new(positions, triangles)
+}
+
+#[test]
+fn a_dense_model_is_searched_on_its_stand_in_and_scored_on_itself() {
+    let case = case_model();
+    let dense = ObjectModel {
+        parts: case
+            .parts
+            .iter()
+            .map(|p| {
+                Part::new(
+                    p.name.clone(),
+                    subdivided(&subdivided(&subdivided(&p.mesh))),
+                    p.color,
+                )
+            })
+            .collect(),
+        tree: case.tree.clone(),
+    };
+    assert!(dense.parts.iter().all(|p| p.watertight));
+    assert!(
+        dense.triangle_count() >= 4 * STANDIN_MIN_TRIANGLES,
+        "{}",
+        dense.triangle_count()
+    );
+    let scale = 0.5;
+    let n = 8;
+    let gts: Vec<GenPose> = (0..n).map(|k| truth(k as f64)).collect();
+    let targets: Vec<ScoreTarget> = gts.iter().map(|g| target_of(&dense, g, scale)).collect();
+    let frames = frames_of(&targets);
+    // The stand-in: a fraction of the triangles, every silhouette within a pixel or so.
+    let standin = stand_in(&dense, targets.iter().map(|t| t.mask())).expect("a stand-in");
+    assert!(standin.report.triangles_after * 4 <= dense.triangle_count());
+    assert!(standin.deviation_px <= STANDIN_DEVIATION_PX);
+    for (g, t) in gts.iter().zip(&targets) {
+        let (a, b) = (target_of(&standin.model, g, scale), t.mask().clone());
+        let iou = a.mask().and(&b).count() as f64 / a.mask().or(&b).count() as f64;
+        assert!(iou >= 0.99, "stand-in silhouette IoU {iou}");
+    }
+    // A small model has none.
+    assert!(stand_in(&case, targets.iter().map(|t| t.mask())).is_none());
+
+    let r = track(&dense, scale, &frames, &TrackConfig::default()).expect("track");
+    assert!(r.log[0].contains("stand-in"), "{}", r.log[0]);
+    assert!(r
+        .log
+        .last()
+        .is_some_and(|l| l.starts_with("polished on the model")));
+    for (k, (g, e)) in gts.iter().zip(&r.poses).enumerate() {
+        let rot = g.pose.rotation.angle_to(&e.pose.rotation).to_degrees();
+        let trans = (g.pose.translation - e.pose.translation).norm() / g.pose.translation.z;
+        let joint = (g.states[0] - e.states[0]).to_degrees().abs();
+        assert!(rot <= 2.0 && trans <= 0.01 && joint <= 3.0, "frame {k}: rotation {rot:.2}°, translation {:.2}% of depth, joint {joint:.2}° (IoU {:.4})\n{}", 100.0 * trans, r.scores[k], r.log.join("\n"));
+        // The reported score is the dense model's own.
+        let own = FrameProblem::new(&dense, camera(), &targets[k], scale, e.clone())
+            .evaluator()
+            .combined(e);
+        assert_eq!(own, r.scores[k], "frame {k}");
+    }
 }
