@@ -51,6 +51,20 @@ impl PinholeCamera {
         Ok(())
     }
 
+    /// The same camera at half the resolution: pixel (i, j) covers pixels 2i..2i+1 × 2j..2j+1
+    /// of this one, so its centre is their shared corner (`u / 2`: focal lengths and
+    /// principal point halved), the size rounded up.
+    pub fn halved(&self) -> PinholeCamera {
+        PinholeCamera {
+            fx: self.fx / 2.0,
+            fy: self.fy / 2.0,
+            cx: self.cx / 2.0,
+            cy: self.cy / 2.0,
+            width: self.width.div_ceil(2),
+            height: self.height.div_ceil(2),
+        }
+    }
+
     /// From a 3×3 intrinsics matrix `[[fx, 0, cx], [0, fy, cy], [0, 0, 1]]`.
     pub fn from_matrix(k: &Matrix3, width: u32, height: u32) -> Result<Self> {
         PinholeCamera::new(k[(0, 0)], k[(1, 1)], k[(0, 2)], k[(1, 2)], width, height)
@@ -126,6 +140,22 @@ pub fn look_at(eye: &Point3, target: &Point3, up_world: &Vector3) -> Rigid {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_halved_camera_projects_to_half_the_pixel_coordinates() {
+        let cam = PinholeCamera::new(520.0, 515.0, 338.0, 226.0, 641, 480).expect("valid");
+        let half = cam.halved();
+        assert_eq!((half.width, half.height), (321, 240));
+        let p = Point3::new(0.13, -0.07, 1.7);
+        let (u, v) = cam.project(&p).expect("in front");
+        let (hu, hv) = half.project(&p).expect("in front");
+        assert!((hu - u / 2.0).abs() < 1e-12 && (hv - v / 2.0).abs() < 1e-12);
+        // A half-resolution pixel centre is the corner of its four pixels.
+        assert_eq!(
+            half.ray_direction(10.5, 20.5),
+            cam.ray_direction(21.0, 41.0)
+        );
+    }
 
     #[test]
     fn projection_follows_the_pixel_centre_convention() {

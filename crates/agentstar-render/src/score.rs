@@ -110,6 +110,37 @@ impl ScoreTarget {
         self
     }
 
+    /// This target at half the resolution, for the coarse passes of a search (seen by
+    /// [`agentstar_geom::PinholeCamera::halved`]): each pixel's centre is the corner shared
+    /// by its four pixels here, and it is in the mask (and kept, outside the hands) when at
+    /// least two of them are. Scores no band.
+    pub fn halved(&self) -> ScoreTarget {
+        let half = |m: &BitMask| {
+            let (w, h) = (m.width(), m.height());
+            BitMask::from_fn(w.div_ceil(2), h.div_ceil(2), |x, y| {
+                let count = [(0, 0), (1, 0), (0, 1), (1, 1)]
+                    .iter()
+                    .filter(|&&(dx, dy)| {
+                        let (fx, fy) = (2 * x + dx, 2 * y + dy);
+                        fx < w && fy < h && m.get(fx, fy)
+                    })
+                    .count();
+                count >= 2
+            })
+        };
+        let mask = half(&self.mask);
+        let keep = self.keep.as_ref().map(half);
+        let mask_px = mask.count();
+        let visible_mask_px = keep.as_ref().map_or(mask_px, |k| mask.and(k).count());
+        ScoreTarget {
+            mask,
+            keep,
+            mask_px,
+            visible_mask_px,
+            band: None,
+        }
+    }
+
     /// The boundary band's half-width in pixels, when the target scores one.
     pub fn band_px(&self) -> Option<f64> {
         self.band.as_ref().map(|b| b.0)
@@ -341,6 +372,30 @@ pub fn combined_score(iou: f64, depth: Option<&DepthScore>, weight: f64) -> f64 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_halved_target_keeps_pixels_with_two_of_their_four() {
+        // Mask: columns 11..=28, rows 6..=17 of 41×25; hands over columns 0..=3.
+        let (w, h) = (41, 25);
+        let mask = BitMask::from_fn(w, h, |x, y| (11..=28).contains(&x) && (6..=17).contains(&y));
+        let hand = BitMask::from_fn(w, h, |x, _| x <= 3);
+        let t = ScoreTarget::new(mask, Some(hand))
+            .expect("sizes")
+            .with_band(2.0)
+            .halved();
+        assert_eq!((t.width(), t.height()), (21, 13));
+        // Column pairs (10, 11) and (28, 29) hold one masked column each: two of four
+        // pixels, in. Rows (6, 7) .. (16, 17) are whole.
+        let expected =
+            BitMask::from_fn(21, 13, |x, y| (5..=14).contains(&x) && (3..=8).contains(&y));
+        assert_eq!(t.mask(), &expected);
+        // Columns (2, 3) are all hand: not kept; (4, 5): kept; the last pixel column holds
+        // only column 40, whose two rows count as two.
+        let keep = t.keep().expect("hands");
+        assert!(!keep.get(1, 0) && keep.get(2, 0) && keep.get(20, 0));
+        assert_eq!(t.band_px(), None);
+        assert_eq!(t.score(&expected).iou_visible, Some(1.0));
+    }
 
     #[test]
     fn iou_visible_excludes_hands() {

@@ -145,8 +145,24 @@ pub fn refine_local(
     let mut best = base.clone();
     let mut best_score = f64::NEG_INFINITY;
     let mut n_evals = 0;
+    // The wide passes at half the resolution when the problem has it (a quarter of the
+    // pixels to fill and count); the narrow ones, and the score returned, at full resolution.
+    let coarse = problem.coarsened();
+    let start_score = match coarse {
+        Some(_) => problem.evaluator().combined(base),
+        None => f64::NEG_INFINITY,
+    };
     for (k, &(f, n, polish)) in passes.iter().enumerate() {
-        let mut p = problem.clone();
+        let level = match &coarse {
+            Some(c) if f >= COARSE_PASS => c,
+            _ => problem,
+        };
+        if coarse.is_some() && f < COARSE_PASS && k > 0 && passes[k - 1].0 >= COARSE_PASS {
+            // Scores of the two resolutions do not compare: the first fine pass starts from
+            // the coarse passes' best and keeps its own.
+            best_score = f64::NEG_INFINITY;
+        }
+        let mut p = level.clone();
         p.pivot = p.model.pivot(&best.states);
         p.base = best.clone();
         let space = local_space(
@@ -177,8 +193,16 @@ pub fn refine_local(
             best = top.pose;
         }
     }
-    Ok((best, best_score, n_evals))
+    if start_score > best_score {
+        // The coarse passes left the start's basin for a worse one at full resolution.
+        return Ok((base.clone(), start_score, n_evals + 1));
+    }
+    Ok((best, best_score, n_evals + usize::from(coarse.is_some())))
 }
+
+/// The passes of [`refine_local`] whose window is at least this share of the whole run at
+/// half the resolution when the problem has it ([`FrameProblem::with_coarse`]).
+const COARSE_PASS: f64 = 0.3;
 
 /// Every hypothesis refined in `window` (in parallel, seeds `seed + k`), in input order.
 /// Rank them by `score`, not `unrefined`.

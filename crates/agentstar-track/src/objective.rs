@@ -29,6 +29,9 @@ pub struct FrameProblem<'a> {
     pub base: GenPose,
     /// Canonical pivot (bounding-box centre of the posed parts at the base states), frozen.
     pub pivot: Point3,
+    /// The same frame at half the resolution ([`FrameProblem::with_coarse`]), for the wide
+    /// first passes of a local refinement; `None`: every pass at full resolution.
+    pub coarse: Option<(PinholeCamera, &'a ScoreTarget)>,
 }
 
 /// The figures of one candidate.
@@ -65,7 +68,29 @@ impl<'a> FrameProblem<'a> {
             scale,
             base,
             pivot,
+            coarse: None,
         }
+    }
+
+    /// This problem with `halved` (the target at half the resolution,
+    /// [`ScoreTarget::halved`]) for its coarse passes; ignored when depth is scored.
+    pub fn with_coarse(mut self, halved: &'a ScoreTarget) -> Self {
+        self.coarse = Some((self.camera.halved(), halved));
+        self
+    }
+
+    /// This problem at half the resolution, when it has one and scores no depth.
+    pub fn coarsened(&self) -> Option<FrameProblem<'a>> {
+        let (camera, target) = self.coarse?;
+        if self.depth.is_some() && self.depth_weight > 0.0 {
+            return None;
+        }
+        Some(FrameProblem {
+            camera,
+            target,
+            coarse: None,
+            ..self.clone()
+        })
     }
 
     /// The candidate a search vector stands for: pose DOFs are increments on the base pose

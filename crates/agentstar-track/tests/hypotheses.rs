@@ -6,7 +6,7 @@ use agentstar_geom::kinematics::{JointDef, JointKind};
 use agentstar_geom::pose::ObjectPose;
 use agentstar_geom::primitives::cuboid;
 use agentstar_geom::{KinematicTree, ObjectModel, Part, Point3, UnitQuaternion, Vector3};
-use agentstar_track::hypotheses::{basins, refine_each, LocalWindow};
+use agentstar_track::hypotheses::{basins, refine_each, refine_local, LocalWindow};
 use agentstar_track::objective::FrameProblem;
 use agentstar_track::update::{apply_object_rotation, flip, GenPose};
 
@@ -265,4 +265,39 @@ fn a_half_turn_about_a_principal_axis_keeps_the_outline_of_a_shape_heavy_at_one_
         let iou = ev.score(&twin).gate;
         assert!(iou > 0.99, "the half-turn about {axis:?} scores {iou}");
     }
+}
+
+#[test]
+fn coarse_passes_at_half_resolution_reach_the_full_resolution_optimum() {
+    let model = case_model();
+    let scale = 0.5;
+    let gt = truth(2.0);
+    let target = target_of(&model, &gt, scale);
+    let halved = target.halved();
+    let start = GenPose {
+        pose: ObjectPose::new(
+            tilt(14.0) * gt.pose.rotation,
+            gt.pose.translation + Vector3::new(0.02, -0.015, 0.05),
+        ),
+        states: vec![gt.states[0] + 0.2],
+    };
+    let problem = FrameProblem::new(&model, camera(), &target, scale, start.clone());
+    let full = refine_local(&problem, &start, &LocalWindow::polish(), 5).expect("refine");
+    let coarse_problem = problem.clone().with_coarse(&halved);
+    assert!(coarse_problem.coarsened().is_some());
+    let coarse = refine_local(&coarse_problem, &start, &LocalWindow::polish(), 5).expect("refine");
+    // The score returned is the full-resolution one of the pose returned.
+    let own = problem.evaluator().combined(&coarse.0);
+    assert_eq!(own, coarse.1);
+    assert!(coarse.1 >= 0.99, "coarse {} (full {})", coarse.1, full.1);
+    assert!(
+        coarse.1 >= full.1 - 0.003,
+        "coarse {} against full {}",
+        coarse.1,
+        full.1
+    );
+    assert!(rotation_error_deg(&coarse.0, &gt) < 2.0);
+    // Never worse than the start, whatever the coarse passes found.
+    let at_truth = refine_local(&coarse_problem, &gt, &LocalWindow::polish(), 9).expect("refine");
+    assert!(at_truth.1 >= problem.evaluator().combined(&gt));
 }
