@@ -97,6 +97,7 @@ fn gt_buffers(model: &ObjectModel, poses: &[ObjectPose], cam: &PinholeCamera) ->
             bounds: p.bounds,
             camera_from_mesh: Affine::from_similarity(&pose.with_scale(1.0)),
             edges: p.edges.as_deref().map(|e| e.as_slice()),
+            open_edges: p.open_edges.as_deref().map(|e| e.as_slice()),
             part_id: i as u16,
         })
         .collect();

@@ -53,6 +53,9 @@ impl Aabb {
     }
 }
 
+/// The face index of [`TriMesh::edge_incidence`] where an edge has no triangle of a kind.
+pub const NO_FACE: u32 = u32::MAX;
+
 /// An indexed triangle mesh in some named frame (the owner says which). Triangles are
 /// counter-clockwise seen from outside, so normals point out of closed solids.
 #[derive(Debug, Clone, Default, PartialEq)]
@@ -148,6 +151,55 @@ impl TriMesh {
             .collect();
         edges.sort_unstable();
         Some(edges)
+    }
+
+    /// Every (triangle, edge) incidence of any mesh (open, with borders, non-manifold) once,
+    /// as `[a, b, f, g]` with `a < b`: `f` a triangle that traverses `a → b`, `g` one that
+    /// traverses `b → a`, either [`NO_FACE`] when the edge has fewer of that kind. An edge
+    /// with more triangles takes several entries. Degenerate triangles' edges are left out.
+    /// Sorted, so the order does not depend on hashing.
+    pub fn edge_incidence(&self) -> Vec<[u32; 4]> {
+        let mut directed: Vec<(u32, u32, u32)> = Vec::with_capacity(self.triangles.len() * 3);
+        for (f, t) in self.triangles.iter().enumerate() {
+            if t[0] == t[1] || t[1] == t[2] || t[0] == t[2] {
+                continue;
+            }
+            for k in 0..3 {
+                directed.push((t[k], t[(k + 1) % 3], f as u32));
+            }
+        }
+        // Grouped by undirected edge: forward (a < b) traversals first, then backward.
+        directed.sort_unstable_by_key(|&(a, b, f)| (a.min(b), a.max(b), a > b, f));
+        let mut out = Vec::with_capacity(directed.len() / 2 + 1);
+        let mut i = 0;
+        while i < directed.len() {
+            let key = (
+                directed[i].0.min(directed[i].1),
+                directed[i].0.max(directed[i].1),
+            );
+            let mut j = i;
+            while j < directed.len()
+                && (
+                    directed[j].0.min(directed[j].1),
+                    directed[j].0.max(directed[j].1),
+                ) == key
+            {
+                j += 1;
+            }
+            let group = &directed[i..j];
+            let forward: Vec<u32> = group.iter().filter(|e| e.0 < e.1).map(|e| e.2).collect();
+            let backward: Vec<u32> = group.iter().filter(|e| e.0 > e.1).map(|e| e.2).collect();
+            for k in 0..forward.len().max(backward.len()) {
+                out.push([
+                    key.0,
+                    key.1,
+                    forward.get(k).copied().unwrap_or(NO_FACE),
+                    backward.get(k).copied().unwrap_or(NO_FACE),
+                ]);
+            }
+            i = j;
+        }
+        out
     }
 
     /// Applies `p -> linear * p + offset`; flips winding when the map mirrors.

@@ -21,6 +21,10 @@ pub struct Part {
     /// Edge–face adjacency of a watertight mesh (see [`TriMesh::manifold_edges`]), which
     /// lets renderers fill silhouettes from contour edges alone.
     pub edges: Option<Arc<Vec<[u32; 4]>>>,
+    /// Every edge's triangles of a mesh that is not watertight
+    /// ([`TriMesh::edge_incidence`]), which lets renderers fill its silhouette from the
+    /// outlines of its front and back faces; `None` when `edges` is set.
+    pub open_edges: Option<Arc<Vec<[u32; 4]>>>,
 }
 
 impl Part {
@@ -31,6 +35,7 @@ impl Part {
             None
         };
         let watertight = edges.is_some();
+        let open_edges = (!watertight).then(|| Arc::new(mesh.edge_incidence()));
         let bounds = mesh.bounds();
         Part {
             name: name.into(),
@@ -39,6 +44,7 @@ impl Part {
             watertight,
             bounds,
             edges,
+            open_edges,
         }
     }
 }

@@ -7,6 +7,7 @@
 //! share an edge compute bit-identical crossings and no pixel falls through a crack.
 //! Triangles crossing the near plane are clipped in camera space before projection.
 
+use agentstar_geom::mesh::NO_FACE;
 use agentstar_geom::pose::{Rigid, Similarity};
 use agentstar_geom::{Aabb, PinholeCamera, Point3, TriMesh};
 use agentstar_mask::BitMask;
@@ -70,6 +71,10 @@ pub struct Instance<'a> {
     /// Edge–face adjacency when the mesh is closed and outward (only front faces can form
     /// its silhouette, and the silhouette can be filled from contour edges alone).
     pub edges: Option<&'a [[u32; 4]]>,
+    /// Every edge's triangles when the mesh is not closed
+    /// (`agentstar_geom::TriMesh::edge_incidence`): its silhouette is filled from the
+    /// outlines of its front faces and of its back faces.
+    pub open_edges: Option<&'a [[u32; 4]]>,
     /// Written into the part-id buffer by the full renderer.
     pub part_id: u16,
 }
@@ -233,14 +238,24 @@ impl Instance<'_> {
     }
 }
 
-/// A contour edge: upper and lower endpoints in pixels, winding direction, first and last
-/// rows it crosses.
-type ContourEdge = ([f64; 2], [f64; 2], i32, u32, u32);
+/// A contour edge: upper and lower endpoints in pixels, its windings of the front faces'
+/// and of the back faces' outlines, first and last rows it crosses.
+type ContourEdge = ([f64; 2], [f64; 2], i32, i32, u32, u32);
+
+/// Which faces' outlines a contour fill follows.
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum Sides {
+    /// A closed mesh seen from outside: the front faces cover the silhouette.
+    Front,
+    /// Any mesh: front faces and back faces, each outline on its own.
+    Both,
+}
 
 /// Scratch for the contour fill: per-face facing, contour edges, per-row crossings.
 #[derive(Default, Debug)]
 struct ContourScratch {
-    front: Vec<bool>,
+    /// Per face: 1 front (negative signed area in pixels), -1 back, 0 edge-on.
+    facing: Vec<i8>,
     /// Contour edges as (upper endpoint, lower endpoint, winding direction) in pixels, with
     /// the first and last rows whose pixel centres they cross.
     edges: Vec<ContourEdge>,
@@ -250,7 +265,7 @@ struct ContourScratch {
     row_start: Vec<u32>,
     /// Where the next crossing of each row goes (read only on the rows in use).
     row_cursor: Vec<u32>,
-    crossings: Vec<(f64, i32)>,
+    crossings: Vec<(f64, i32, i32)>,
 }
 
 /// Renders silhouettes into a reusable bit mask.
@@ -291,18 +306,27 @@ impl SilhouetteRenderer {
             // Culling is only valid when the camera is outside the closed mesh; a camera
             // inside the mesh bounds disables it (cheap and conservative).
             let cull = inst.closed() && !camera_inside_bounds(inst);
-            if let (true, false, Some(edges)) = (cull, any_near, inst.edges) {
-                fill_from_contour(
-                    &mut self.mask,
-                    &mut self.contour,
-                    inst.mesh,
-                    edges,
-                    &self.scratch.screen,
-                    w,
-                    h,
-                    &mut dirty,
-                );
-                continue;
+            if !any_near {
+                // A closed mesh seen from outside by its front faces' outline; any other
+                // (open, or the camera inside its bounds) by both outlines.
+                let contour = match (cull, inst.edges, inst.open_edges) {
+                    (true, Some(edges), _) => Some((edges, Sides::Front)),
+                    (false, Some(edges), _) | (_, None, Some(edges)) => Some((edges, Sides::Both)),
+                    _ => None,
+                };
+                if let Some((edges, sides)) = contour {
+                    fill_from_contour(
+                        &mut self.mask,
+                        &mut self.contour,
+                        inst.mesh,
+                        (edges, sides),
+                        &self.scratch.screen,
+                        w,
+                        h,
+                        &mut dirty,
+                    );
+                    continue;
+                }
             }
             let screen = &self.scratch.screen;
             let cam = &self.scratch.cam;
@@ -401,30 +425,41 @@ fn may_cover_a_centre(a: [f64; 2], b: [f64; 2], c: [f64; 2], w: u32, h: u32) -> 
     ceil_i64(xmin - 0.5).max(0) <= floor_i64(xmax - 0.5).min(w as i64 - 1)
 }
 
-/// Fills the silhouette of a closed, outward mesh (all in front of the near plane, camera
-/// outside) from its contour edges: the edges between front and back faces, oriented as
-/// the front faces traverse them, have a winding number equal to minus the number of front
-/// layers over each point, so the nonzero rule gives exactly the union of the front faces.
+/// Fills the silhouette of a mesh (all in front of the near plane) from the outlines of its
+/// faces. The edges between front and back faces of a closed mesh seen from outside,
+/// oriented as the front faces traverse them, have a winding number equal to minus the
+/// number of front layers over each point, so the nonzero rule gives exactly the union of
+/// the front faces ([`Sides::Front`]). Any other mesh sums each edge's front faces and its
+/// back faces apart (an open mesh's borders, and the camera inside a closed one, show back
+/// faces): a pixel is covered where either winding is nonzero ([`Sides::Both`]).
 /// The cost grows with the outline, not with the number of triangles or their size.
 #[allow(clippy::too_many_arguments)]
 fn fill_from_contour(
     mask: &mut BitMask,
     cs: &mut ContourScratch,
     mesh: &TriMesh,
-    edges: &[[u32; 4]],
+    (edges, sides): (&[[u32; 4]], Sides),
     screen: &[[f64; 2]],
     w: u32,
     h: u32,
     dirty: &mut (u32, u32),
 ) {
-    cs.front.clear();
-    cs.front.extend(mesh.triangles.iter().map(|t| {
+    cs.facing.clear();
+    cs.facing.extend(mesh.triangles.iter().map(|t| {
         let (a, b, c) = (
             screen[t[0] as usize],
             screen[t[1] as usize],
             screen[t[2] as usize],
         );
-        (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0]) < 0.0
+        let area = (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0]);
+        if area < 0.0 {
+            1
+        } else if area > 0.0 || sides == Sides::Front {
+            // With front faces only, an edge-on face is a back face (as it always was).
+            -1
+        } else {
+            0
+        }
     }));
     if cs.row_start.len() != h as usize + 2 {
         cs.row_start.clear();
@@ -433,17 +468,25 @@ fn fill_from_contour(
     }
     cs.edges.clear();
     let (mut row_min, mut row_max) = (i64::MAX, i64::MIN);
+    let facing = |f: u32| -> i8 {
+        if f == NO_FACE {
+            0
+        } else {
+            cs.facing[f as usize]
+        }
+    };
     for e in edges {
-        let (f0, f1) = (cs.front[e[2] as usize], cs.front[e[3] as usize]);
-        if f0 == f1 {
+        let (f, g) = (facing(e[2]), facing(e[3]));
+        // Windings of a → b: the faces traversing it count +1, those traversing b → a −1.
+        let front = i32::from(f == 1) - i32::from(g == 1);
+        let back = match sides {
+            Sides::Front => 0,
+            Sides::Both => i32::from(f == -1) - i32::from(g == -1),
+        };
+        if front == 0 && back == 0 {
             continue;
         }
-        // Oriented as the front face traverses it.
-        let (p, q) = if f0 {
-            (screen[e[0] as usize], screen[e[1] as usize])
-        } else {
-            (screen[e[1] as usize], screen[e[0] as usize])
-        };
+        let (p, q) = (screen[e[0] as usize], screen[e[1] as usize]);
         let (top, bottom, dir) = if p[1] < q[1] {
             (p, q, 1)
         } else if q[1] < p[1] {
@@ -462,7 +505,8 @@ fn fill_from_contour(
         for r in r0..=r1 {
             cs.row_start[r as usize + 1] += 1;
         }
-        cs.edges.push((top, bottom, dir, r0 as u32, r1 as u32));
+        cs.edges
+            .push((top, bottom, dir * front, dir * back, r0 as u32, r1 as u32));
     }
     if row_min > row_max {
         return;
@@ -474,15 +518,15 @@ fn fill_from_contour(
     }
     let total = cs.row_start[used1] as usize;
     cs.crossings.clear();
-    cs.crossings.resize(total, (0.0, 0));
+    cs.crossings.resize(total, (0.0, 0, 0));
     cs.row_cursor[used0..=used1].copy_from_slice(&cs.row_start[used0..=used1]);
-    for &(top, bottom, dir, r0, r1) in &cs.edges {
+    for &(top, bottom, front, back, r0, r1) in &cs.edges {
         let inv = (bottom[0] - top[0]) / (bottom[1] - top[1]);
         for r in r0..=r1 {
             let y = r as f64 + 0.5;
             let x = top[0] + (y - top[1]) * inv;
             let slot = &mut cs.row_cursor[r as usize];
-            cs.crossings[*slot as usize] = (x, dir);
+            cs.crossings[*slot as usize] = (x, front, back);
             *slot += 1;
         }
     }
@@ -492,18 +536,24 @@ fn fill_from_contour(
             cs.row_start[r as usize + 1] as usize,
         );
         let row = &mut cs.crossings[s..e];
-        // Few crossings per row: insertion sort beats a general sort here.
-        for i in 1..row.len() {
-            let mut k = i;
-            while k > 0 && row[k - 1].0 > row[k].0 {
-                row.swap(k - 1, k);
-                k -= 1;
+        if row.len() <= 16 {
+            // Few crossings per row: insertion sort beats a general sort here.
+            for i in 1..row.len() {
+                let mut k = i;
+                while k > 0 && row[k - 1].0 > row[k].0 {
+                    row.swap(k - 1, k);
+                    k -= 1;
+                }
             }
+        } else {
+            // Many (an open mesh's borders, holes, folds): no quadratic sort.
+            row.sort_unstable_by(|a, b| a.0.total_cmp(&b.0));
         }
-        let mut winding = 0;
+        let (mut front, mut back) = (0, 0);
         for k in 0..row.len().saturating_sub(1) {
-            winding += row[k].1;
-            if winding != 0 {
+            front += row[k].1;
+            back += row[k].2;
+            if front != 0 || back != 0 {
                 let i0 = ceil_i64(row[k].0 - 0.5).max(0);
                 let i1 = floor_i64(row[k + 1].0 - 0.5).min(w as i64 - 1);
                 if i0 <= i1 {

@@ -67,6 +67,7 @@ fn place<'a>(
             bounds: part.bounds,
             camera_from_mesh: Affine::camera_from_part(camera_from_object, object_from_part),
             edges: part.edges.as_deref().map(|e| e.as_slice()),
+            open_edges: part.open_edges.as_deref().map(|e| e.as_slice()),
             part_id: i as u16,
         });
     }

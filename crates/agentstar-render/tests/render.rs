@@ -175,6 +175,116 @@ fn silhouette_is_exact_against_ray_casting_over_many_poses() {
     }
 }
 
+/// Meshes that are not closed: a box with its top face missing, a sphere with a cap cut off,
+/// two planes meeting in a T (an edge with three triangles), and a triangle soup (every
+/// triangle on its own vertices, as an STL file gives a mesh).
+fn open_model() -> ObjectModel {
+    let without = |mesh: TriMesh, keep: &dyn Fn(&[Point3; 3]) -> bool| {
+        let triangles = (0..mesh.triangles.len())
+            .filter(|&i| keep(&mesh.triangle(i)))
+            .map(|i| mesh.triangles[i])
+            .collect();
+        TriMesh::new(mesh.positions, triangles).compacted()
+    };
+    let open_box = without(cuboid(0.8, 0.5, 0.3).expect("box"), &|t| {
+        !t.iter().all(|p| (p.z - 0.15).abs() < 1e-9)
+    });
+    let cut_sphere = without(
+        uv_sphere(0.2, 16, 8)
+            .expect("sphere")
+            .translated(Vector3::new(0.55, 0.0, 0.0)),
+        &|t| t.iter().any(|p| p.z < 0.12),
+    );
+    let p = |x: f64, y: f64, z: f64| Point3::new(x, y, z);
+    let tee = TriMesh::new(
+        vec![
+            p(-0.6, -0.3, 0.2),
+            p(-0.2, -0.3, 0.2),
+            p(-0.2, 0.3, 0.2),
+            p(-0.6, 0.3, 0.2),
+            p(-0.4, -0.3, 0.2),
+            p(-0.4, 0.3, 0.2),
+            p(-0.4, 0.3, 0.5),
+            p(-0.4, -0.3, 0.5),
+        ],
+        vec![
+            [0, 4, 5],
+            [0, 5, 3],
+            [4, 1, 2],
+            [4, 2, 5],
+            [4, 5, 6],
+            [4, 6, 7],
+        ],
+    );
+    let cone_mesh = cone(0.15, 0.05, 0.3, 12)
+        .expect("cone")
+        .translated(Vector3::new(0.0, 0.4, -0.1));
+    let mut soup = TriMesh::default();
+    for i in 0..cone_mesh.triangles.len() {
+        let base = soup.positions.len() as u32;
+        soup.positions.extend(cone_mesh.triangle(i));
+        soup.triangles.push([base, base + 1, base + 2]);
+    }
+    let parts = vec![
+        Part::new("open box", open_box, [0.8, 0.2, 0.2]),
+        Part::new("cut sphere", cut_sphere, [0.2, 0.8, 0.2]),
+        Part::new("tee", tee, [0.2, 0.2, 0.8]),
+        Part::new("soup", soup, [0.8, 0.8, 0.2]),
+    ];
+    let names: Vec<String> = parts.iter().map(|p| p.name.clone()).collect();
+    ObjectModel {
+        tree: KinematicTree::new(vec![], &names).expect("tree"),
+        parts,
+    }
+}
+
+#[test]
+fn open_meshes_are_exact_against_ray_casting_and_the_per_triangle_path() {
+    let model = open_model();
+    assert!(model
+        .parts
+        .iter()
+        .all(|p| !p.watertight && p.open_edges.is_some()));
+    let camera = PinholeCamera::new(90.0, 90.0, 48.0, 36.0, 96, 72).expect("camera");
+    let mut rng = Rng(11);
+    let mut renderer = SilhouetteRenderer::new(96, 72);
+    for trial in 0..60 {
+        let pose = Similarity {
+            scale: rng.range(0.5, 1.5),
+            rotation: rng.rotation(),
+            translation: Vector3::new(
+                rng.range(-0.3, 0.3),
+                rng.range(-0.2, 0.2),
+                rng.range(1.5, 3.0),
+            ),
+        };
+        let posed = PosedModel::new(&model, &[], &pose);
+        let raster = renderer.render(&camera, &posed.instances).clone();
+        let (exact, _) = ray_cast(&posed_meshes(&model, &[], &pose), &camera);
+        assert!(exact.count() > 50, "trial {trial}: object not in view");
+        assert_eq!(
+            raster.and(&exact).count(),
+            raster.or(&exact).count(),
+            "trial {trial}: not the ray-cast silhouette"
+        );
+        // Triangle by triangle, as open meshes were filled before.
+        let by_triangle: Vec<_> = posed
+            .instances
+            .iter()
+            .map(|i| agentstar_render::Instance {
+                open_edges: None,
+                ..*i
+            })
+            .collect();
+        assert_eq!(
+            renderer.render(&camera, &by_triangle),
+            &raster,
+            "trial {trial}"
+        );
+        assert_eq!(render_full(&camera, &posed.instances).silhouette(), raster);
+    }
+}
+
 #[test]
 fn geometry_crossing_the_near_plane_is_clipped_not_dropped() {
     // A large plane through the camera: half of it is behind the camera.

@@ -388,6 +388,7 @@ pub fn synthesize_room_clip(cfg: &RoomConfig) -> Result<RoomClip, SynthError> {
             bounds: hand_part.bounds,
             camera_from_mesh: Affine::from_similarity(&hand_pose),
             edges: hand_part.edges.as_deref().map(|e| e.as_slice()),
+            open_edges: hand_part.open_edges.as_deref().map(|e| e.as_slice()),
             part_id: n_parts,
         });
         let buffers = render_full(&camera, &instances);

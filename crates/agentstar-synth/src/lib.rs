@@ -434,6 +434,7 @@ fn hand_instance<'a>(
         bounds: hand.bounds,
         camera_from_mesh: Affine::from_similarity(pose),
         edges: hand.edges.as_deref().map(|e| e.as_slice()),
+        open_edges: hand.open_edges.as_deref().map(|e| e.as_slice()),
         part_id,
     }
 }
