@@ -202,6 +202,82 @@ impl TriMesh {
         out
     }
 
+    /// The mesh with every hole whose rim is a simple loop (each rim vertex on one incoming
+    /// and one outgoing border edge) no longer than `max_rim` closed by a fan about the
+    /// rim's centroid, wound against the faces along the rim so the closed mesh keeps their
+    /// orientation; with how many holes it closed. Larger holes, open sheets' outer rims
+    /// longer than the bound, and non-manifold borders stay as they are.
+    pub fn with_small_holes_closed(&self, max_rim: f64) -> (TriMesh, usize) {
+        // Border edges, directed as their one face traverses them.
+        let borders: Vec<(u32, u32)> = self
+            .edge_incidence()
+            .iter()
+            .filter_map(|&[a, b, f, g]| match (f == NO_FACE, g == NO_FACE) {
+                (false, true) => Some((a, b)),
+                (true, false) => Some((b, a)),
+                _ => None,
+            })
+            .collect();
+        if borders.is_empty() || max_rim.is_nan() || max_rim <= 0.0 {
+            return (self.clone(), 0);
+        }
+        let mut outgoing: HashMap<u32, Vec<usize>> = HashMap::new();
+        let mut incoming: HashMap<u32, usize> = HashMap::new();
+        for (k, &(a, b)) in borders.iter().enumerate() {
+            outgoing.entry(a).or_default().push(k);
+            *incoming.entry(b).or_default() += 1;
+        }
+        let simple = |v: u32| {
+            outgoing.get(&v).map_or(0, Vec::len) == 1 && incoming.get(&v).copied() == Some(1)
+        };
+        let mut out = self.clone();
+        let mut visited = vec![false; borders.len()];
+        let mut closed = 0;
+        for start in 0..borders.len() {
+            if visited[start] {
+                continue;
+            }
+            let mut rim = Vec::new();
+            let mut k = start;
+            let is_loop = loop {
+                visited[k] = true;
+                rim.push(k);
+                let to = borders[k].1;
+                if !simple(to) || rim.len() > borders.len() {
+                    break false;
+                }
+                k = outgoing[&to][0];
+                if k == start {
+                    break true;
+                }
+                if visited[k] {
+                    break false;
+                }
+            };
+            if !is_loop || rim.len() < 3 {
+                continue;
+            }
+            let point = |v: u32| self.positions[v as usize];
+            let length: f64 = rim
+                .iter()
+                .map(|&k| (point(borders[k].1) - point(borders[k].0)).norm())
+                .sum();
+            if length > max_rim {
+                continue;
+            }
+            let centroid = rim
+                .iter()
+                .fold(Vector3::zeros(), |acc, &k| acc + point(borders[k].0).coords)
+                / rim.len() as f64;
+            let c = out.positions.len() as u32;
+            out.positions.push(Point3::from(centroid));
+            out.triangles
+                .extend(rim.iter().map(|&k| [borders[k].1, borders[k].0, c]));
+            closed += 1;
+        }
+        (out, closed)
+    }
+
     /// Applies `p -> linear * p + offset`; flips winding when the map mirrors.
     pub fn transform_affine(&mut self, linear: &Matrix3, offset: &Vector3) {
         for p in &mut self.positions {

@@ -3,9 +3,12 @@
 //! surface may move, so the stand-in's silhouette stays within a fraction of a pixel of the
 //! model's while its cost per render no longer grows with the model's triangle count.
 //!
-//! Open borders are locked (an open part's silhouette is bounded by its rim), coincident
-//! vertices are welded first (meshes from files repeat vertices along seams), and a part
-//! that would lose its closedness or every triangle keeps its own mesh.
+//! Coincident vertices are welded first (meshes from files repeat vertices along seams),
+//! holes whose rims are shorter than a bound are closed (a scan's or an export's pinholes:
+//! they would lock their rims and keep the stand-in dense; the silhouette changes only
+//! where such a hole lies on the outline, by at most half its rim), the remaining open
+//! borders are locked (an open part's silhouette is bounded by its rim), and a part that
+//! would lose its closedness or every triangle keeps its own mesh.
 
 use crate::mesh::TriMesh;
 use crate::model::{ObjectModel, Part};
@@ -19,22 +22,46 @@ pub struct SimplifyReport {
     pub deviation: f64,
     /// Parts kept as they were (too small to simplify, or simplification would open them).
     pub parts_kept: usize,
+    /// Holes closed before simplification, over the parts simplified.
+    pub holes_closed: usize,
+}
+
+/// One simplified mesh ([`simplify_mesh`]).
+#[derive(Debug, Clone)]
+pub struct SimplifiedMesh {
+    pub mesh: TriMesh,
+    /// The largest deviation the simplifier reports, in model units.
+    pub deviation: f64,
+    /// Holes closed before simplification ([`TriMesh::with_small_holes_closed`]).
+    pub holes_closed: usize,
 }
 
 /// `mesh` with at most about `target_triangles` triangles where the surface moves by no more
 /// than `max_deviation` (model units; the bound wins over the count), with the deviation
-/// reached. Borders of open meshes stay where they are.
+/// reached. Holes whose rims are at most `max_hole_rim` long are closed first (0: none);
+/// the borders of the others stay where they are.
 pub fn simplify_mesh(
     mesh: &TriMesh,
     max_deviation: f64,
     target_triangles: usize,
-) -> (TriMesh, f64) {
+    max_hole_rim: f64,
+) -> SimplifiedMesh {
     let extent = mesh.bounds().extent().norm();
     let positive = |v: f64| v.is_finite() && v > 0.0;
     if mesh.triangles.is_empty() || !positive(extent) || !positive(max_deviation) {
-        return (mesh.clone(), 0.0);
+        return SimplifiedMesh {
+            mesh: mesh.clone(),
+            deviation: 0.0,
+            holes_closed: 0,
+        };
     }
-    let welded = mesh.welded(extent * 1e-9);
+    let (welded, holes_closed) =
+        mesh.welded(extent * 1e-9)
+            .with_small_holes_closed(if positive(max_hole_rim) {
+                max_hole_rim
+            } else {
+                0.0
+            });
     // Single precision about the centre: the simplifier's own arithmetic.
     let centre = welded.bounds().center();
     let positions: Vec<[f32; 3]> = welded
@@ -56,20 +83,22 @@ pub fn simplify_mesh(
         Some(&mut deviation),
     );
     let triangles: Vec<[u32; 3]> = kept.chunks_exact(3).map(|t| [t[0], t[1], t[2]]).collect();
-    (
-        TriMesh::new(welded.positions, triangles).compacted(),
-        f64::from(deviation),
-    )
+    SimplifiedMesh {
+        mesh: TriMesh::new(welded.positions, triangles).compacted(),
+        deviation: f64::from(deviation),
+        holes_closed,
+    }
 }
 
 /// `model` with every part simplified ([`simplify_mesh`]) to within `max_deviation` model
-/// units, its parts sharing about `target_triangles` in proportion to their own counts; the
-/// kinematic tree, names and colours unchanged. A closed part whose simplified mesh is not
-/// closed, or that would vanish, keeps its mesh.
+/// units, its parts sharing about `target_triangles` in proportion to their own counts, holes
+/// with rims up to `max_hole_rim` closed; the kinematic tree, names and colours unchanged. A
+/// closed part whose simplified mesh is not closed, or that would vanish, keeps its mesh.
 pub fn simplified_model(
     model: &ObjectModel,
     max_deviation: f64,
     target_triangles: usize,
+    max_hole_rim: f64,
 ) -> (ObjectModel, SimplifyReport) {
     let before = model.triangle_count();
     let mut report = SimplifyReport {
@@ -77,6 +106,7 @@ pub fn simplified_model(
         triangles_after: 0,
         deviation: 0.0,
         parts_kept: 0,
+        holes_closed: 0,
     };
     let parts = model
         .parts
@@ -84,8 +114,8 @@ pub fn simplified_model(
         .map(|part| {
             let n = part.mesh.triangles.len();
             let share = (target_triangles as f64 * n as f64 / before.max(1) as f64).ceil() as usize;
-            let (mesh, deviation) = simplify_mesh(&part.mesh, max_deviation, share.max(4));
-            let simpler = Part::new(part.name.clone(), mesh, part.color);
+            let simplified = simplify_mesh(&part.mesh, max_deviation, share.max(4), max_hole_rim);
+            let simpler = Part::new(part.name.clone(), simplified.mesh, part.color);
             let keep = simpler.mesh.triangles.is_empty()
                 || simpler.mesh.triangles.len() >= n
                 || (part.watertight && !simpler.watertight);
@@ -95,7 +125,8 @@ pub fn simplified_model(
                 part.clone()
             } else {
                 report.triangles_after += simpler.mesh.triangles.len();
-                report.deviation = report.deviation.max(deviation);
+                report.deviation = report.deviation.max(simplified.deviation);
+                report.holes_closed += simplified.holes_closed;
                 simpler
             }
         })
@@ -112,13 +143,18 @@ pub fn simplified_model(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::mesh::NO_FACE;
     use crate::primitives;
 
     #[test]
     fn a_dense_sphere_becomes_coarse_within_its_bound() {
         let dense = primitives::uv_sphere(1.0, 256, 128).expect("sphere");
         assert!(dense.triangles.len() > 60_000);
-        let (coarse, deviation) = simplify_mesh(&dense, 0.002, 1000);
+        let SimplifiedMesh {
+            mesh: coarse,
+            deviation,
+            ..
+        } = simplify_mesh(&dense, 0.002, 1000, 0.0);
         assert!(
             coarse.triangles.len() < dense.triangles.len() / 10,
             "{}",
@@ -170,7 +206,7 @@ mod tests {
             }
         }
         let disc = TriMesh::new(positions, triangles);
-        let (coarse, _) = simplify_mesh(&disc, 0.01, 100);
+        let coarse = simplify_mesh(&disc, 0.01, 100, 0.0).mesh;
         assert!(coarse.triangles.len() < disc.triangles.len() / 4);
         // Every rim vertex is still used.
         let rim = coarse
@@ -192,8 +228,66 @@ mod tests {
             soup.positions.extend(dense.triangle(i));
             soup.triangles.push([base, base + 1, base + 2]);
         }
-        let (coarse, _) = simplify_mesh(&soup, 0.004, 500);
+        let coarse = simplify_mesh(&soup, 0.004, 500, 0.0).mesh;
         assert!(coarse.triangles.len() < dense.triangles.len() / 5);
         assert!(coarse.is_watertight());
+    }
+
+    #[test]
+    fn pinholes_are_closed_and_large_holes_kept() {
+        // A dense sphere with every 50th triangle missing (pinholes, rims about 0.17 long)
+        // and a cap cut away about its north pole (a rim of about 1.2).
+        let dense = primitives::uv_sphere(1.0, 128, 64).expect("sphere");
+        let z = |t: &[u32; 3]| t.map(|v| dense.positions[v as usize].z);
+        // Pinholes away from the poles: two missing triangles of a pole's fan leave a rim
+        // through the pole twice (not a simple loop, kept open).
+        let pinhole = |i: usize, t: &[u32; 3]| i % 50 == 7 && z(t).iter().all(|z| z.abs() < 0.9);
+        let in_cap = |t: &[u32; 3]| z(t).iter().all(|&z| z >= 0.98);
+        let pinholes = (dense.triangles.iter().enumerate())
+            .filter(|&(i, t)| pinhole(i, t))
+            .count();
+        let triangles: Vec<[u32; 3]> = (dense.triangles.iter().enumerate())
+            .filter(|&(i, t)| !pinhole(i, t) && !in_cap(t))
+            .map(|(_, t)| *t)
+            .collect();
+        let holey = TriMesh::new(dense.positions.clone(), triangles).compacted();
+        assert!(!holey.is_watertight());
+        let (closed, count) = holey.with_small_holes_closed(0.3);
+        // Pinholes next to each other merge into one rim; none stays open, the cap does.
+        assert!(
+            count > pinholes / 2 && count <= pinholes,
+            "{count} of {pinholes}"
+        );
+        let rims: Vec<[u32; 4]> = closed
+            .edge_incidence()
+            .into_iter()
+            .filter(|e| e[2] == NO_FACE || e[3] == NO_FACE)
+            .collect();
+        assert!(!rims.is_empty());
+        for e in &rims {
+            let (a, b) = (
+                closed.positions[e[0] as usize],
+                closed.positions[e[1] as usize],
+            );
+            assert!(
+                a.z > 0.97 && b.z > 0.97,
+                "an open edge off the cap's rim: {a} {b}"
+            );
+        }
+        // Nothing to close within a tiny bound; with a bound past the cap's rim, closed.
+        assert_eq!(holey.with_small_holes_closed(1e-4).1, 0);
+        let (whole, _) = holey.with_small_holes_closed(2.0);
+        assert!(whole.is_watertight(), "fans wound against their neighbours");
+        // Simplified with the pinholes closed, the stand-in is coarse; with them open, their
+        // locked rims keep it dense.
+        let with = simplify_mesh(&holey, 0.02, 200, 0.3);
+        let without = simplify_mesh(&holey, 0.02, 200, 0.0);
+        assert!(with.holes_closed > pinholes / 2);
+        assert!(
+            with.mesh.triangles.len() * 2 < without.mesh.triangles.len(),
+            "{} vs {}",
+            with.mesh.triangles.len(),
+            without.mesh.triangles.len()
+        );
     }
 }
