@@ -31,6 +31,18 @@ impl Rng {
         );
         UnitQuaternion::from_quaternion(q)
     }
+    /// A pose that keeps a unit-sized model in view of the tests' 96×72 camera.
+    fn pose_in_view(&mut self) -> Similarity {
+        Similarity {
+            scale: self.range(0.5, 1.5),
+            rotation: self.rotation(),
+            translation: Vector3::new(
+                self.range(-0.3, 0.3),
+                self.range(-0.2, 0.2),
+                self.range(1.5, 3.0),
+            ),
+        }
+    }
 }
 
 /// Möller–Trumbore from the camera centre, inclusive edges; nearest hit's planar depth.
@@ -134,15 +146,7 @@ fn silhouette_is_exact_against_ray_casting_over_many_poses() {
     let mut rng = Rng(7);
     let mut renderer = SilhouetteRenderer::new(96, 72);
     for trial in 0..60 {
-        let pose = Similarity {
-            scale: rng.range(0.5, 1.5),
-            rotation: rng.rotation(),
-            translation: Vector3::new(
-                rng.range(-0.3, 0.3),
-                rng.range(-0.2, 0.2),
-                rng.range(1.5, 3.0),
-            ),
-        };
+        let pose = rng.pose_in_view();
         let states = [rng.range(0.0, 2.0)];
         let posed = PosedModel::new(&model, &states, &pose);
         let raster = renderer.render(&camera, &posed.instances).clone();
@@ -249,15 +253,7 @@ fn open_meshes_are_exact_against_ray_casting_and_the_per_triangle_path() {
     let mut rng = Rng(11);
     let mut renderer = SilhouetteRenderer::new(96, 72);
     for trial in 0..60 {
-        let pose = Similarity {
-            scale: rng.range(0.5, 1.5),
-            rotation: rng.rotation(),
-            translation: Vector3::new(
-                rng.range(-0.3, 0.3),
-                rng.range(-0.2, 0.2),
-                rng.range(1.5, 3.0),
-            ),
-        };
+        let pose = rng.pose_in_view();
         let posed = PosedModel::new(&model, &[], &pose);
         let raster = renderer.render(&camera, &posed.instances).clone();
         let (exact, _) = ray_cast(&posed_meshes(&model, &[], &pose), &camera);
