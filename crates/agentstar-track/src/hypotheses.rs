@@ -135,8 +135,43 @@ pub fn refine_local(
     window: &LocalWindow,
     seed: u64,
 ) -> Result<(GenPose, f64, usize), TrackError> {
+    let (start_score, n_start) = start_score(problem, base);
+    let (pose, score, n) = refine_local_passes(
+        problem,
+        base,
+        window,
+        seed,
+        0..LOCAL_PASSES,
+        Some((base, start_score)),
+    )?;
+    Ok((pose, score, n + n_start))
+}
+
+/// The passes of [`refine_local`].
+const LOCAL_PASSES: usize = 4;
+
+/// The full-resolution score of `base` when the problem has a coarse level (whose passes
+/// may leave its basin for a worse one), with the evaluations spent; else nothing to keep.
+fn start_score(problem: &FrameProblem<'_>, base: &GenPose) -> (f64, usize) {
+    match problem.coarsened() {
+        Some(_) => (problem.evaluator().combined(base), 1),
+        None => (f64::NEG_INFINITY, 0),
+    }
+}
+
+/// The passes `range` of [`refine_local`] (the same windows, budgets and seeds) from `base`;
+/// the score returned is at full resolution, and `origin` (a pose and its score) is
+/// returned instead when it scores better.
+fn refine_local_passes(
+    problem: &FrameProblem<'_>,
+    base: &GenPose,
+    window: &LocalWindow,
+    seed: u64,
+    range: std::ops::Range<usize>,
+    origin: Option<(&GenPose, f64)>,
+) -> Result<(GenPose, f64, usize), TrackError> {
     let evals = window.evals;
-    let passes = [
+    let passes: [(f64, usize, usize); LOCAL_PASSES] = [
         (1.0, evals, 0usize),
         (0.3, evals / 2, 0),
         (0.1, evals / 3, 0),
@@ -148,16 +183,18 @@ pub fn refine_local(
     // The wide passes at half the resolution when the problem has it (a quarter of the
     // pixels to fill and count); the narrow ones, and the score returned, at full resolution.
     let coarse = problem.coarsened();
-    let start_score = match coarse {
-        Some(_) => problem.evaluator().combined(base),
-        None => f64::NEG_INFINITY,
-    };
+    let mut last_coarse = false;
     for (k, &(f, n, polish)) in passes.iter().enumerate() {
+        if !range.contains(&k) {
+            continue;
+        }
+        last_coarse = coarse.is_some() && f >= COARSE_PASS;
         let level = match &coarse {
             Some(c) if f >= COARSE_PASS => c,
             _ => problem,
         };
-        if coarse.is_some() && f < COARSE_PASS && k > 0 && passes[k - 1].0 >= COARSE_PASS {
+        if coarse.is_some() && f < COARSE_PASS && k > range.start && passes[k - 1].0 >= COARSE_PASS
+        {
             // Scores of the two resolutions do not compare: the first fine pass starts from
             // the coarse passes' best and keeps its own.
             best_score = f64::NEG_INFINITY;
@@ -193,12 +230,115 @@ pub fn refine_local(
             best = top.pose;
         }
     }
-    if start_score > best_score {
-        // The coarse passes left the start's basin for a worse one at full resolution.
-        return Ok((base.clone(), start_score, n_evals + 1));
+    if last_coarse {
+        // Stopped after a coarse pass: its score is at the other resolution.
+        best_score = problem.evaluator().combined(&best);
+        n_evals += 1;
     }
-    Ok((best, best_score, n_evals + usize::from(coarse.is_some())))
+    match origin {
+        // The coarse passes left the start's basin for a worse one at full resolution.
+        Some((origin, origin_score)) if origin_score > best_score => {
+            Ok((origin.clone(), origin_score, n_evals))
+        }
+        _ => Ok((best, best_score, n_evals)),
+    }
 }
+
+/// Like [`refine_each`], but a hypothesis whose score after the first (widest) pass is under
+/// `floor` stops there: its pose and score are that pass's. For callers that drop every
+/// hypothesis under a bound anyway (a floor that bound minus [`PRUNE_SLACK`]): the
+/// narrower passes would only polish a hypothesis that cannot be chosen.
+pub fn refine_each_above(
+    problem: &FrameProblem<'_>,
+    hypotheses: &[GenPose],
+    window: &LocalWindow,
+    seed: u64,
+    floor: f64,
+) -> Result<Vec<Refined>, TrackError> {
+    if floor == f64::NEG_INFINITY {
+        return refine_each(problem, hypotheses, window, seed);
+    }
+    hypotheses
+        .par_iter()
+        .enumerate()
+        .map(|(k, h)| {
+            let unrefined = problem.evaluator().score(h);
+            let (pose, evals) = refine_above(problem, h, window, seed + k as u64, floor)?;
+            let score = problem.evaluator().score(&pose);
+            Ok(Refined {
+                pose,
+                score,
+                unrefined,
+                evals,
+            })
+        })
+        .collect()
+}
+
+/// The first (widest) pass of [`refine_local`]: its best pose (which may score under
+/// `base`), that pose's full-resolution score and the evaluations spent. [`refine_rest`]
+/// from it finishes the refinement exactly as [`refine_local`] would have.
+pub fn refine_first_pass(
+    problem: &FrameProblem<'_>,
+    base: &GenPose,
+    window: &LocalWindow,
+    seed: u64,
+) -> Result<(GenPose, f64, usize), TrackError> {
+    refine_local_passes(problem, base, window, seed, 0..1, None)
+}
+
+/// The passes of [`refine_local`] after [`refine_first_pass`] (same window and seed) from
+/// its pose `first`; `base` (the pose the first pass started from) is returned instead
+/// where it scores better.
+pub fn refine_rest(
+    problem: &FrameProblem<'_>,
+    base: &GenPose,
+    first: &GenPose,
+    window: &LocalWindow,
+    seed: u64,
+) -> Result<(GenPose, f64, usize), TrackError> {
+    let (start_score, n_start) = start_score(problem, base);
+    let (pose, score, n) = refine_local_passes(
+        problem,
+        first,
+        window,
+        seed,
+        1..LOCAL_PASSES,
+        Some((base, start_score)),
+    )?;
+    Ok((pose, score, n + n_start))
+}
+
+/// [`refine_local`] that stops after its first pass when the score there (or `base`'s)
+/// is under `floor`, with the better of the two; the pose and the evaluations spent.
+/// Above the floor the result is [`refine_local`]'s.
+pub fn refine_above(
+    problem: &FrameProblem<'_>,
+    base: &GenPose,
+    window: &LocalWindow,
+    seed: u64,
+    floor: f64,
+) -> Result<(GenPose, usize), TrackError> {
+    let (first, first_score, n_first) = refine_first_pass(problem, base, window, seed)?;
+    if first_score < floor {
+        let (start_score, n_start) = start_score(problem, base);
+        if start_score < floor {
+            let pose = if start_score > first_score {
+                base.clone()
+            } else {
+                first
+            };
+            return Ok((pose, n_first + n_start));
+        }
+    }
+    let (pose, _, n_rest) = refine_rest(problem, base, &first, window, seed)?;
+    Ok((pose, n_first + n_rest))
+}
+
+/// How much the narrower passes of a local refinement may still add to the score of its
+/// first pass, for [`refine_each_above`]'s floors: a generous bound (they polish within a
+/// basin; 0.005-0.02 of IoU is typical).
+pub const PRUNE_SLACK: f64 = 0.05;
 
 /// The passes of [`refine_local`] whose window is at least this share of the whole run at
 /// half the resolution when the problem has it ([`FrameProblem::with_coarse`]).

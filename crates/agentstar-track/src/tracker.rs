@@ -10,7 +10,10 @@ use crate::appearance::{
     appearance_each, appearance_score, model_agreement, model_has_appearance, AppearanceConfig,
     AppearanceFrame, ReferenceView,
 };
-use crate::hypotheses::{principal_axes, refine_each, refine_local, twin_candidates, LocalWindow};
+use crate::hypotheses::{
+    principal_axes, refine_above, refine_each_above, refine_first_pass, refine_local, refine_rest,
+    twin_candidates, LocalWindow, PRUNE_SLACK,
+};
 use crate::objective::FrameProblem;
 use crate::search::{sweep, SweepConfig};
 use crate::sequence::cheapest_path;
@@ -321,6 +324,27 @@ impl<'m> Searcher<'m> {
         )
     }
 
+    /// [`Searcher::polish`] that stops after its first pass when it scores under `floor`
+    /// there (a seed that cannot beat the frame's pose).
+    fn polish_above(
+        &self,
+        frame: &TrackFrame<'_>,
+        base: &GenPose,
+        seed: u64,
+        floor: f64,
+    ) -> Result<(GenPose, f64), TrackError> {
+        let window = LocalWindow {
+            evals: self.cfg.local_evals / 2,
+            ..LocalWindow::polish()
+        };
+        let problem = self.problem_of(frame, Some(base));
+        let (pose, n) = refine_above(&problem, base, &window, seed, floor)?;
+        self.evals
+            .fetch_add(n + 1, std::sync::atomic::Ordering::Relaxed);
+        let score = problem.evaluator().combined(&pose);
+        Ok((pose, score))
+    }
+
     /// The refinement around a hypothesis that may be a whole basin away from where it was
     /// placed ([`LocalWindow::basin`]), with the whole local budget.
     fn basin(
@@ -353,49 +377,94 @@ impl<'m> Searcher<'m> {
 
     /// A search of the whole rotation space for one frame, as the initialisation does it:
     /// a covering of rotations and joint states placed on the mask, the best distinct
-    /// hypotheses refined in the basin window. Every refined hypothesis, best first (empty
-    /// when the mask is).
+    /// hypotheses refined in the basin window (those under `floor` after its first pass
+    /// left there: [`refine_above`]). Every refined hypothesis, best first (empty when the
+    /// mask is).
     fn global(
         &self,
         frame: &TrackFrame<'_>,
         rotations: &[UnitQuaternion],
         joint_sets: &[Vec<f64>],
         seed: u64,
+        floor: f64,
     ) -> Result<Vec<(GenPose, f64)>, TrackError> {
         let hyps = self.covering(frame, rotations, joint_sets);
         let top = diverse(&hyps, GLOBAL_KEEP, 30.0);
-        let mut refined: Vec<(GenPose, f64)> = top
+        let problem = self.problem_of(frame, None);
+        let window = LocalWindow {
+            evals: self.cfg.local_evals,
+            ..LocalWindow::basin()
+        };
+        let count = |n: usize| {
+            self.evals
+                .fetch_add(n, std::sync::atomic::Ordering::Relaxed)
+        };
+        // Every hypothesis through the widest pass first; only those that may still be
+        // chosen (within a tie and the narrower passes' reach of the best so far, and of
+        // `floor`) are refined further.
+        let first: Vec<(GenPose, f64)> = top
             .par_iter()
             .enumerate()
-            .map(|(k, g)| self.basin(frame, g, seed + 100 * k as u64))
+            .map(|(k, g)| {
+                let (pose, score, n) =
+                    refine_first_pass(&problem, g, &window, seed + 100 * k as u64)?;
+                count(n);
+                Ok::<_, TrackError>((pose, score))
+            })
+            .collect::<Result<_, _>>()?;
+        let best_first = first.iter().map(|x| x.1).fold(f64::NEG_INFINITY, f64::max);
+        let floor = floor.max(best_first - APPEARANCE_TIE - PRUNE_SLACK);
+        let mut refined: Vec<(GenPose, f64)> = first
+            .into_par_iter()
+            .zip(top.par_iter())
+            .enumerate()
+            .map(|(k, ((pose, score), start))| {
+                if score < floor {
+                    return Ok((pose, score));
+                }
+                let (pose, score, n) =
+                    refine_rest(&problem, start, &pose, &window, seed + 100 * k as u64)?;
+                count(n);
+                Ok::<_, TrackError>((pose, score))
+            })
             .collect::<Result<_, _>>()?;
         refined.sort_by(|a, b| b.1.total_cmp(&a.1));
         Ok(refined)
     }
 
-    /// The twins of `pose` ([`twin_candidates`]) refined in the basin window.
+    /// `frame`'s problem around `base` (the frame's target, at half resolution too).
+    fn problem_of<'s>(
+        &'s self,
+        frame: &TrackFrame<'s>,
+        base: Option<&GenPose>,
+    ) -> FrameProblem<'s> {
+        let base = base.cloned().unwrap_or_else(|| GenPose {
+            pose: ObjectPose::new(UnitQuaternion::identity(), Vector3::zeros()),
+            states: self.model.tree.rest_states(),
+        });
+        let problem = FrameProblem::new(self.model, frame.camera, frame.target, self.scale, base);
+        match self.halved_of(frame) {
+            Some(h) => problem.with_coarse(h),
+            None => problem,
+        }
+    }
+
+    /// The twins of `pose` ([`twin_candidates`]) refined in the basin window (those under
+    /// `floor` after its first pass left there).
     fn twins(
         &self,
         frame: &TrackFrame<'_>,
         pose: &GenPose,
         seed: u64,
+        floor: f64,
     ) -> Result<Vec<(GenPose, f64)>, TrackError> {
-        let problem = FrameProblem::new(
-            self.model,
-            frame.camera,
-            frame.target,
-            self.scale,
-            pose.clone(),
-        );
-        let problem = match self.halved_of(frame) {
-            Some(h) => problem.with_coarse(h),
-            None => problem,
-        };
-        let refined = refine_each(
+        let problem = self.problem_of(frame, Some(pose));
+        let refined = refine_each_above(
             &problem,
             &twin_candidates(self.model, self.scale, pose),
             &LocalWindow::basin(),
             seed,
+            floor,
         )?;
         Ok(refined
             .into_iter()
@@ -432,11 +501,14 @@ impl<'m> Searcher<'m> {
             }
             new
         });
-        let mut found = self.global(frame, rotations, &joint_sets, seeds.0)?;
+        // A hypothesis under the current pose's score by more than a tie cannot be picked
+        // ([`Searcher::pick`]): its refinement stops after the first pass.
+        let floor = current.1 - APPEARANCE_TIE - PRUNE_SLACK;
+        let mut found = self.global(frame, rotations, &joint_sets, seeds.0, floor)?;
         // The twins of the best basin found (flips, principal half-turns: a laptop's lid
         // and base swapped), refined, so that colours can choose between them.
         if let Some((best, _)) = found.first().cloned() {
-            found.extend(self.twins(frame, &best, seeds.1)?);
+            found.extend(self.twins(frame, &best, seeds.1, floor)?);
         }
         found.extend(extra);
         found.sort_by(|a, b| b.1.total_cmp(&a.1));
@@ -1455,10 +1527,12 @@ fn consistency(
                 .par_iter()
                 .enumerate()
                 .map(|(k, g)| {
-                    s.polish(
+                    // Only a seed that ends above this frame's score moves it.
+                    s.polish_above(
                         &frames[i],
                         g,
                         s.cfg.seed + 65537 * (i as u64 + 1) + 97 * round + k as u64,
+                        scores[i] - PRUNE_SLACK,
                     )
                 })
                 .collect();
@@ -1571,11 +1645,14 @@ fn choose_sequence(
             } else {
                 LocalWindow::polish()
             };
-            let refined = refine_each(
+            // Twins that end under the frame's score by more than CHOICE_KEEP are dropped
+            // below: their refinement stops after the first pass.
+            let refined = refine_each_above(
                 &problem,
                 &close,
                 &window,
                 s.cfg.seed + 3_000_017 * (i as u64 + 1),
+                scores[i] - CHOICE_KEEP - PRUNE_SLACK,
             )?;
             for r in refined {
                 s.evals

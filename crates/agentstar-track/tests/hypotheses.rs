@@ -6,7 +6,9 @@ use agentstar_geom::kinematics::{JointDef, JointKind};
 use agentstar_geom::pose::ObjectPose;
 use agentstar_geom::primitives::cuboid;
 use agentstar_geom::{KinematicTree, ObjectModel, Part, Point3, UnitQuaternion, Vector3};
-use agentstar_track::hypotheses::{basins, refine_each, refine_local, LocalWindow};
+use agentstar_track::hypotheses::{
+    basins, refine_above, refine_each, refine_first_pass, refine_local, refine_rest, LocalWindow,
+};
 use agentstar_track::objective::FrameProblem;
 use agentstar_track::update::{apply_object_rotation, flip, GenPose};
 
@@ -300,4 +302,40 @@ fn coarse_passes_at_half_resolution_reach_the_full_resolution_optimum() {
     // Never worse than the start, whatever the coarse passes found.
     let at_truth = refine_local(&coarse_problem, &gt, &LocalWindow::polish(), 9).expect("refine");
     assert!(at_truth.1 >= problem.evaluator().combined(&gt));
+}
+
+#[test]
+fn a_refinement_above_its_floor_is_the_whole_one_and_under_it_stops_after_one_pass() {
+    let model = case_model();
+    let scale = 0.5;
+    let gt = truth(1.0);
+    let target = target_of(&model, &gt, scale);
+    let halved = target.halved();
+    let problem =
+        FrameProblem::new(&model, camera(), &target, scale, gt.clone()).with_coarse(&halved);
+    let window = LocalWindow::polish();
+    // Near the truth: above any floor it can reach, exactly refine_local's pose.
+    let near = GenPose {
+        pose: ObjectPose::new(tilt(8.0) * gt.pose.rotation, gt.pose.translation * 1.02),
+        states: gt.states.clone(),
+    };
+    let (whole, whole_score, whole_evals) =
+        refine_local(&problem, &near, &window, 3).expect("refine");
+    let (above, above_evals) = refine_above(&problem, &near, &window, 3, 0.5).expect("refine");
+    assert_eq!(above, whole);
+    assert!(whole_score > 0.98, "{whole_score}");
+    // A floor over what the first pass reaches: it stops there, with about half the
+    // evaluations, never worse than where it started.
+    let (stopped, stopped_evals) = refine_above(&problem, &near, &window, 3, 1.01).expect("refine");
+    assert!(
+        stopped_evals * 10 < whole_evals * 7 && above_evals >= whole_evals,
+        "{stopped_evals} stopped, {whole_evals} whole, {above_evals} above"
+    );
+    let mut ev = problem.evaluator();
+    assert!(ev.combined(&stopped) >= ev.combined(&near));
+    // The same split by hand: the first pass, then the rest, is refine_local.
+    let (first, first_score, _) = refine_first_pass(&problem, &near, &window, 3).expect("first");
+    assert_eq!(first_score, ev.combined(&first));
+    let (rest, rest_score, _) = refine_rest(&problem, &near, &first, &window, 3).expect("rest");
+    assert_eq!((rest, rest_score), (whole, whole_score));
 }
