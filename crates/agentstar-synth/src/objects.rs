@@ -338,10 +338,14 @@ part("kettle", (body + knob + handle + spout).translate(0.0, 0, 0.045).color("#b
         symmetry: Symmetry::None,
         appearance: Appearance::Printed(paint_twinlaptop),
         script: r##"// A laptop whose base and lid are slabs of the same outline: keys and a touchpad on the
-// base, a screen inside the lid, a logo outside.
-part("base", box(1.0, 0.7, 0.03, 0.006).translate(0, 0, -0.016).color("#8d99ae"));
-part("lid", box(1.0, 0.7, 0.03, 0.006).translate(0, 0, 0.016).color("#8d99ae"));
-joint(#{ name: "hinge", type: "revolute", child: "lid", origin: [0, 0.35, 0.0], axis: [-1, 0, 0], limit: [0, 150] });
+// base, a screen inside the lid, a logo outside; the print is thin parts of their own colours.
+part("base", box(1.0, 0.7, 0.03, 0.006).translate(0, 0, -0.016).color("#737880"));
+part("lid", box(1.0, 0.7, 0.03, 0.006).translate(0, 0, 0.016).color("#737880"));
+part("keys", box(0.84, 0.36, 0.004).translate(0, 0.12, 0).color("#08080a"));
+part("touchpad", box(0.26, 0.19, 0.004).translate(0, -0.215, 0).color("#a6a8b3"));
+part("screen", box(0.9, 0.6, 0.004).translate(0, 0, 0).color("#04050a"));
+part("logo", cylinder(0.1, 0.004).translate(0, 0, 0.031).color("#e6e6eb"));
+joint(#{ name: "hinge", type: "revolute", child: ["lid", "screen", "logo"], origin: [0, 0.35, 0.0], axis: [-1, 0, 0], limit: [0, 150] });
 "##,
     },
     ObjectSpec {
@@ -457,9 +461,17 @@ fn paint_kettle(_part: usize, p: &Point3) -> [f64; 3] {
 }
 
 /// Laptop: keys and a touchpad on the base's top face, rubber feet under it; a black
-/// screen in a bezel inside the lid, a light logo outside; grey aluminium elsewhere.
+/// screen in a bezel inside the lid, a light logo outside; grey aluminium elsewhere. Parts:
+/// base, lid, keys, touchpad, screen, logo (the last four thin slabs over the first two).
 fn paint_twinlaptop(part: usize, p: &Point3) -> [f64; 3] {
     let alu = [0.45, 0.47, 0.5];
+    match part {
+        2 => return paint_twinlaptop(0, &Point3::new(p.x, p.y, p.z.max(-0.003))),
+        3 => return [0.65, 0.66, 0.7],
+        4 => return [0.015, 0.02, 0.03],
+        5 => return [0.9, 0.9, 0.92],
+        _ => {}
+    }
     if part == 0 {
         if p.z > -0.004 {
             if p.x.abs() < 0.42 && p.y > -0.06 && p.y < 0.3 {

@@ -203,6 +203,38 @@ fn hard_captures_have_big_steps_large_hands_and_an_off_centre_camera() {
         .norm();
     assert!(travel > 0.05, "the camera moved {travel} m");
     assert_eq!(s.id(), "twinlaptop-hard-held-s3");
+    // The known model carries the print that tells its slabs apart (as the can's label
+    // and the mug's badge): thin parts whose colours are the painted ones, the touchpad
+    // light on the base, the screen dark inside the lid, moving with it.
+    let laptop = agentstar_synth::ObjectSpec::find("twinlaptop").expect("laptop");
+    let agentstar_synth::Appearance::Printed(paint) = laptop.appearance else {
+        panic!("the laptop is printed")
+    };
+    let colour_of = |name: &str| {
+        let k = (s.model.parts.iter())
+            .position(|p| p.name == name)
+            .unwrap_or_else(|| panic!("no part {name}"));
+        (k, s.model.parts[k].color.map(f64::from))
+    };
+    let centre = agentstar_geom::Point3::new(0.0, -0.2, 0.0);
+    for name in ["touchpad", "screen", "logo", "keys"] {
+        let (k, colour) = colour_of(name);
+        let painted = paint(k, &centre);
+        if name != "keys" {
+            let diff: f64 = colour
+                .iter()
+                .zip(&painted)
+                .map(|(a, b)| (a - b).abs())
+                .sum();
+            assert!(diff < 0.1, "{name}: model {colour:?}, painted {painted:?}");
+        }
+    }
+    let (touchpad, screen) = (colour_of("touchpad").1, colour_of("screen").1);
+    assert!(touchpad[0] - screen[0] > 0.5, "{touchpad:?} vs {screen:?}");
+    let tree = &s.model.tree;
+    assert_eq!(tree.part_joint(colour_of("screen").0), Some(0));
+    assert_eq!(tree.part_joint(colour_of("lid").0), Some(0));
+    assert_eq!(tree.part_joint(colour_of("touchpad").0), None);
     let e = synthesize(&SynthConfig {
         principal_point: Some((500.0, 10.0)),
         ..cfg("box", None, 1)
