@@ -617,7 +617,10 @@ pub struct OsweepArgs {
     pub frames: Option<String>,
     /// A preset: `z:flip`, `z:quarters`, `z:octants`, `so3:24`.
     pub opreset: Option<String>,
-    /// Grid ranges over rx, ry, rz: `rz:-180,180,9;rx:-15,15,3`.
+    /// Grid ranges over rx, ry, rz (degrees) and joints: `rz:-180,180,9;rx:-15,15,3`, each
+    /// `dof:lower,upper,steps` with `steps` grid values from lower to upper, both included.
+    /// The grid is then refined around its best points (finer spacing) and every candidate
+    /// refined locally before ranking, so the angles reported fall between grid values.
     pub ranges: Option<String>,
 }
 

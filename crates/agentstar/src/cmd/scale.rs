@@ -74,7 +74,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
             }
             if inputs.is_empty() {
                 bail!(
-                    "{}: no keyframe has depth; use --from parallax (metric cameras that move) or --from size",
+                    "{}: no keyframe has depth; estimate from parallax instead (metric cameras that move: `--from parallax`, or method \"parallax\" in the agent's scale tool) or from a stated size (`--from size --metres M`, or method \"size\" with `metres`)",
                     a.session.capture.display()
                 );
             }
@@ -107,9 +107,9 @@ pub fn run(a: Args) -> Result<ExitCode> {
         Method::Size => {
             let metres = a
                 .metres
-                .ok_or_else(|| anyhow!("--from size needs --metres (the size along --axis)"))?;
+                .ok_or_else(|| anyhow!("the size method needs the object's size in metres (`--metres` here, `metres` in the agent's scale tool) along its axis (`--axis` / `axis`)"))?;
             if !(metres.is_finite() && metres > 0.0) {
-                bail!("--metres must be positive, got {metres}");
+                bail!("the size in metres (`--metres` / `metres`) must be positive, got {metres}");
             }
             let m = &s.model.model;
             let extent = m.posed_bounds(&m.tree.rest_states()).extent();
