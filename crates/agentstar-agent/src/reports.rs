@@ -517,6 +517,9 @@ pub struct TemporalUnits {
 #[serde(deny_unknown_fields)]
 pub struct Motion {
     pub rotation_deg: Option<f64>,
+    /// The rotation's axis in the model's frame (velocity only; steps of 1° or more).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub axis_model: Option<[f64; 3]>,
     pub translation_canon: Option<f64>,
     pub radial_canon: Option<f64>,
 }

@@ -1039,7 +1039,7 @@ tool!(
 );
 
 tool!(Temporal, "temporal", Diagnostic, Nothing, TemporalArgs,
-    "The temporal report: rotation, translation and radial velocity and acceleration from keyframe to keyframe (camera motion removed), joint velocities, and a plot. Large steps are either real or wrong poses (often flips): confirm them in the frames or fix them.",
+    "The temporal report: rotation (with the step's axis in the model's frame: `+z` is a spin about the model's z axis), translation and radial velocity and acceleration from keyframe to keyframe (camera motion removed), joint velocities, and a plot. Large steps are either real or wrong poses (often flips): confirm them in the frames or fix them.",
     |tb, a, step| {
         let out = tb.run.step_dir(step, Temporal::NAME);
         std::fs::create_dir_all(&out).map_err(|e| agentstar_data::DataError::io(&out, e))?;

@@ -36,6 +36,10 @@ pub struct Row {
     pub from: Option<String>,
     pub gap: Option<i64>,
     pub vel_rot_deg: Option<f64>,
+    /// The axis of the step's rotation in the model's own frame (unit; the sign makes the
+    /// turn positive), where the step turns by at least [`AXIS_MIN_DEG`]: a spin about the
+    /// model's long axis and an end-over-end turn of the same angle read apart here.
+    pub vel_axis: Option<[f64; 3]>,
     pub vel_trans: Option<f64>,
     pub vel_radial: Option<f64>,
     pub acc_rot_deg: Option<f64>,
@@ -54,6 +58,23 @@ pub struct Report {
 
 /// A rotation step between keyframes over this many degrees is warned about ([`report`]).
 pub const LARGE_STEP_DEG: f64 = 90.0;
+
+/// Steps that turn less than this report no axis (it would be noise).
+pub const AXIS_MIN_DEG: f64 = 1.0;
+
+/// A model-frame axis for people and models: `+z` (or `-x`, …) within 18° of a model axis,
+/// else its components.
+pub fn axis_label(axis: &[f64; 3]) -> String {
+    let (k, c) = (0..3)
+        .map(|k| (k, axis[k]))
+        .max_by(|a, b| a.1.abs().total_cmp(&b.1.abs()))
+        .unwrap_or((2, 1.0));
+    if c.abs() >= 0.95 {
+        format!("{}{}", if c < 0.0 { "-" } else { "+" }, ["x", "y", "z"][k])
+    } else {
+        format!("({:+.2},{:+.2},{:+.2})", axis[0], axis[1], axis[2])
+    }
+}
 
 /// Geodesic angle of a rotation in degrees, in [0, 180].
 pub fn angle_deg(q: &UnitQuaternion) -> f64 {
@@ -124,6 +145,11 @@ pub fn report(samples: &[Sample], scale: f64, tree: &KinematicTree) -> Report {
                 from: has_v.then(|| samples[i - 1].frame.clone()),
                 gap: has_v.then(|| samples[i].number as i64 - samples[i - 1].number as i64),
                 vel_rot_deg: has_v.then(|| angle_deg(&omega(i))),
+                vel_axis: has_v
+                    .then(|| omega(i))
+                    .filter(|q| angle_deg(q) >= AXIS_MIN_DEG)
+                    .and_then(|q| q.axis())
+                    .map(|a| [a.x, a.y, a.z]),
                 vel_trans: has_v.then(|| v(i).norm()),
                 vel_radial: if has_v && oriented {
                     uhat.map(|h| h.dot(&v(i)))
@@ -147,8 +173,12 @@ pub fn report(samples: &[Sample], scale: f64, tree: &KinematicTree) -> Report {
     for r in &rows {
         if let (Some(from), Some(deg)) = (&r.from, r.vel_rot_deg) {
             if deg > LARGE_STEP_DEG {
+                let about = r
+                    .vel_axis
+                    .map(|a| format!(" about the model's {}", axis_label(&a)))
+                    .unwrap_or_default();
                 warnings.push(format!(
-                    "step {from} -> {} turns the object by {deg:.0}° (over {LARGE_STEP_DEG:.0}°): a hand can, but a flip or part swap of either pose fits its mask as well; compare their twins by eye (oapply flips, render side)",
+                    "step {from} -> {} turns the object by {deg:.0}°{about} (over {LARGE_STEP_DEG:.0}°): a hand can, but a flip or part swap of either pose fits its mask as well; compare their twins by eye (oapply flips, render side)",
                     r.frame
                 ));
             }
@@ -302,6 +332,13 @@ mod tests {
         assert_eq!(r.rows[0].vel_rot_deg, None);
         assert!((r.rows[1].vel_rot_deg.expect("v") - 30.0).abs() < 1e-9);
         assert!((r.rows[2].vel_rot_deg.expect("v") - 60.0).abs() < 1e-9);
+        // Every step turns about the model's z axis (the 190° one as 170° about −z).
+        let axis = |k: usize| axis_label(&r.rows[k].vel_axis.expect("axis"));
+        assert_eq!(
+            (axis(1), axis(2), axis(3)),
+            ("+z".into(), "+z".into(), "-z".into())
+        );
+        assert_eq!(r.rows[0].vel_axis, None);
         assert!(
             (r.rows[3].vel_rot_deg.expect("v") - 170.0).abs() < 1e-9,
             "{:?}",
@@ -368,5 +405,49 @@ mod tests {
         let r = report(&s, 1.0, &tree());
         assert_eq!(r.warnings.len(), 1);
         assert!(r.warnings[0].contains("spans 15"));
+    }
+
+    #[test]
+    fn a_spin_and_an_end_over_end_turn_of_one_angle_have_different_axes() {
+        // The model turned 90° about its own x axis after a 40° turn about z: the step's
+        // axis is the model's x, whatever the pose it starts from.
+        let start = UnitQuaternion::from_axis_angle(&Vector3::z_axis(), 40f64.to_radians());
+        let about = |axis: nalgebra::Unit<Vector3>, deg: f64| {
+            start * UnitQuaternion::from_axis_angle(&axis, deg.to_radians())
+        };
+        let at = |k: u64, q: UnitQuaternion| Sample {
+            frame: format!("{k}"),
+            number: k,
+            pose: ObjectPose::new(q, Vector3::new(0.0, 0.0, 1.0)),
+            states: vec![0.0],
+            world_from_camera: None,
+        };
+        let s = vec![
+            at(0, start),
+            at(1, about(Vector3::x_axis(), 90.0)),
+            at(
+                2,
+                about(Vector3::x_axis(), 90.0)
+                    * UnitQuaternion::from_axis_angle(
+                        &nalgebra::Unit::new_normalize(Vector3::new(0.0, 1.0, 1.0)),
+                        0.9,
+                    ),
+            ),
+            at(
+                3,
+                about(Vector3::x_axis(), 90.0)
+                    * UnitQuaternion::from_axis_angle(
+                        &nalgebra::Unit::new_normalize(Vector3::new(0.0, 1.0, 1.0)),
+                        0.9,
+                    ),
+            ),
+        ];
+        let r = report(&s, 1.0, &tree());
+        assert_eq!(axis_label(&r.rows[1].vel_axis.expect("axis")), "+x");
+        assert_eq!(
+            axis_label(&r.rows[2].vel_axis.expect("axis")),
+            "(+0.00,+0.71,+0.71)"
+        );
+        assert_eq!(r.rows[3].vel_axis, None, "no turn, no axis");
     }
 }

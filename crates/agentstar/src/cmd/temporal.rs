@@ -161,8 +161,9 @@ pub fn run(a: Args) -> Result<ExitCode> {
         save_png_rgb(&plot_velocities(&rep.rows), plot)?;
     }
     if a.json {
-        let motion = |rot, trans, radial| Motion {
+        let motion = |rot, axis, trans, radial| Motion {
             rotation_deg: rot,
+            axis_model: axis,
             translation_canon: trans,
             radial_canon: radial,
         };
@@ -180,8 +181,8 @@ pub fn run(a: Args) -> Result<ExitCode> {
                     frame: r.frame.clone(),
                     from: r.from.clone(),
                     frame_gap: r.gap,
-                    velocity: motion(r.vel_rot_deg, r.vel_trans, r.vel_radial),
-                    acceleration: motion(r.acc_rot_deg, r.acc_trans, r.acc_radial),
+                    velocity: motion(r.vel_rot_deg, r.vel_axis, r.vel_trans, r.vel_radial),
+                    acceleration: motion(r.acc_rot_deg, None, r.acc_trans, r.acc_radial),
                     joints: r
                         .joints
                         .iter()
@@ -204,8 +205,8 @@ pub fn run(a: Args) -> Result<ExitCode> {
     let mut head = format!("{:<26} {:>4}", "step", "gap");
     if cols.iter().any(|c| c == "vel") {
         head.push_str(&format!(
-            " {:>8} {:>8} {:>8}",
-            "v.rot", "v.trans", "v.radial"
+            " {:>8} {:>20} {:>8} {:>8}",
+            "v.rot", "v.axis (model)", "v.trans", "v.radial"
         ));
     }
     if cols.iter().any(|c| c == "accel") {
@@ -241,8 +242,11 @@ pub fn run(a: Args) -> Result<ExitCode> {
         );
         if cols.iter().any(|c| c == "vel") {
             line.push_str(&format!(
-                " {:>8} {:>8} {:>8}",
+                " {:>8} {:>20} {:>8} {:>8}",
                 cell(r.vel_rot_deg),
+                r.vel_axis
+                    .as_ref()
+                    .map_or("-".into(), agentstar_track::temporal::axis_label),
                 cell(r.vel_trans),
                 cell(r.vel_radial)
             ));
