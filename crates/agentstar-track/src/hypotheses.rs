@@ -337,7 +337,8 @@ pub fn refine_above(
 
 /// How much the narrower passes of a local refinement may still add to the score of its
 /// first pass, for [`refine_each_above`]'s floors: a generous bound (they polish within a
-/// basin; 0.005-0.02 of IoU is typical).
+/// basin; 0.005-0.02 of IoU is typical: a twin laptop's half-turn twin under a hand went
+/// 0.859 -> 0.865).
 pub const PRUNE_SLACK: f64 = 0.05;
 
 /// The passes of [`refine_local`] whose window is at least this share of the whole run at

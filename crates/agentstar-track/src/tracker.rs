@@ -490,7 +490,7 @@ impl<'m> Searcher<'m> {
         extra: Vec<(GenPose, f64)>,
         refs: &[ReferenceView<'_>],
         seeds: (u64, u64),
-    ) -> Result<Option<(Scored, String)>, TrackError> {
+    ) -> Result<Rescue, TrackError> {
         // A rigid model's sets are all empty, and a state found here may be the neighbour's:
         // each set once, or the covering places the same hypotheses again.
         let mut seen: Vec<Vec<f64>> = Vec::with_capacity(joint_sets.len());
@@ -512,9 +512,22 @@ impl<'m> Searcher<'m> {
         }
         found.extend(extra);
         found.sort_by(|a, b| b.1.total_cmp(&a.1));
-        Ok(self
+        // Every distinct basin that explains the mask nearly as well, for the sequence-level
+        // choice: it may need one the colours of this frame alone turned down.
+        let top = found.first().map_or(current.1, |f| f.1.max(current.1));
+        let mut basins: Vec<(GenPose, f64)> = Vec::new();
+        for (g, sc) in &found {
+            let distinct = basins.iter().all(|(b, _)| {
+                angle_deg(&(b.pose.rotation * g.pose.rotation.inverse())) >= DISTINCT_DEG
+            });
+            if *sc >= top - CHOICE_KEEP && distinct {
+                basins.push((g.clone(), *sc));
+            }
+        }
+        let chosen = self
             .pick(frame, current, &found, refs)
-            .map(|(k, text)| (found.swap_remove(k), text)))
+            .map(|(k, text)| (found.swap_remove(k), text));
+        Ok(Rescue { chosen, basins })
     }
 
     /// Which of a global search's hypotheses (`found`, best first) replaces the pose found
@@ -1046,6 +1059,8 @@ fn track_on(
     let mut scores = vec![0.0; n];
     // The band IoUs of the frames tracked so far: what right poses score on this object.
     let mut bands = vec![s.band_iou(&frames[init], init, &g0)];
+    // The basins each frame's global search found, for the sequence-level choice.
+    let mut alternatives: Vec<Vec<Scored>> = vec![Vec::new(); n];
     poses[init] = Some(g0);
     scores[init] = s0;
     log.poses(&poses);
@@ -1141,13 +1156,13 @@ fn track_on(
                 cfg.seed + 104_729 * (i as u64 + 1),
                 cfg.seed + 7_727 * (i as u64 + 1),
             );
-            if let Some((r, text)) =
-                s.rescue(&frames[i], (&g, sc), &rotations, sets, vec![], &refs, seeds)?
-            {
+            let rescue = s.rescue(&frames[i], (&g, sc), &rotations, sets, vec![], &refs, seeds)?;
+            if let Some((r, text)) = rescue.chosen {
                 (g, sc) = r;
                 how = "global";
                 note = format!("; {text}");
             }
+            alternatives[i] = rescue.basins;
             log.phase("global", &s);
         }
         if cfg.appearance {
@@ -1207,7 +1222,7 @@ fn track_on(
             cfg.seed + 7_727 * (init as u64 + 1) + 1,
         );
         let current = (&poses[init], scores[init]);
-        if let Some((r, text)) = s.rescue(
+        let rescue = s.rescue(
             &frames[init],
             current,
             &rotations,
@@ -1215,18 +1230,28 @@ fn track_on(
             carried_wide,
             &refs,
             seeds,
-        )? {
+        )?;
+        if let Some((r, text)) = rescue.chosen {
             log.push(format!(
                 "{} (the first frame): global search again, IoU {:.4} → {:.4}; {text}",
                 frames[init].name, scores[init], r.1
             ));
             (poses[init], scores[init]) = r;
         }
+        alternatives[init] = rescue.basins;
         log.phase("global", &s);
     }
     log.all_poses(&poses);
     let fixed = vec![false; n];
-    after_propagation(&s, frames, &mut poses, &mut scores, &fixed, init, &mut log)?;
+    after_propagation(
+        &s,
+        frames,
+        (&mut poses, &mut scores),
+        &fixed,
+        &alternatives,
+        init,
+        &mut log,
+    )?;
     log.phases_line();
     Ok(TrackResult {
         poses,
@@ -1244,9 +1269,9 @@ fn track_on(
 fn after_propagation(
     s: &Searcher<'_>,
     frames: &[TrackFrame<'_>],
-    poses: &mut [GenPose],
-    scores: &mut [f64],
+    (poses, scores): (&mut [GenPose], &mut [f64]),
     fixed: &[bool],
+    alternatives: &[Vec<(GenPose, f64)>],
     first: usize,
     log: &mut Log<'_>,
 ) -> Result<(), TrackError> {
@@ -1257,7 +1282,7 @@ fn after_propagation(
         log.all_poses(poses);
     }
     if cfg.sequence_choice && n >= 2 {
-        choose_sequence(s, frames, poses, scores, fixed, log)?;
+        choose_sequence(s, frames, (poses, scores), fixed, alternatives, log)?;
         log.phase("sequence choice", s);
         log.all_poses(poses);
     }
@@ -1266,6 +1291,14 @@ fn after_propagation(
         log.phase("appearance", s);
     }
     Ok(())
+}
+
+/// What a global search of one frame ([`Searcher::rescue`]) found: the pose that replaces
+/// the current one and why, if any, and every distinct basin within [`CHOICE_KEEP`] of the
+/// best score, for the sequence-level choice.
+struct Rescue {
+    chosen: Option<(Scored, String)>,
+    basins: Vec<(GenPose, f64)>,
 }
 
 /// Distinct hypotheses of a covering refined by a global search (and the initialisation).
@@ -1615,9 +1648,9 @@ const CHOICE_SUSPECT: f64 = agentstar_render::GATE_IOU;
 fn choose_sequence(
     s: &Searcher<'_>,
     frames: &[TrackFrame<'_>],
-    poses: &mut [GenPose],
-    scores: &mut [f64],
+    (poses, scores): (&mut [GenPose], &mut [f64]),
     fixed: &[bool],
+    alternatives: &[Vec<(GenPose, f64)>],
     log: &mut Log<'_>,
 ) -> Result<(), TrackError> {
     let n = frames.len();
@@ -1662,6 +1695,16 @@ fn choose_sequence(
                 });
                 if distinct {
                     h.push((r.pose, r.score.combined));
+                }
+            }
+            // The basins a global search found at this frame during the propagation (its
+            // colours may have turned one down that the sequence needs).
+            for (g, sc) in alternatives.get(i).into_iter().flatten() {
+                let distinct = h
+                    .iter()
+                    .all(|(b, _)| angle_deg(&(b.pose.rotation * g.pose.rotation.inverse())) >= 5.0);
+                if distinct {
+                    h.push((g.clone(), *sc));
                 }
             }
             let best = h.iter().map(|x| x.1).fold(f64::NEG_INFINITY, f64::max);
@@ -2046,7 +2089,15 @@ fn track_from_on(
     log.phase("warm start", &s);
     log.all_poses(&poses);
     let first = anchors.first().copied().unwrap_or(0);
-    after_propagation(&s, frames, &mut poses, &mut scores, &fixed, first, &mut log)?;
+    after_propagation(
+        &s,
+        frames,
+        (&mut poses, &mut scores),
+        &fixed,
+        &vec![Vec::new(); n],
+        first,
+        &mut log,
+    )?;
     log.phases_line();
     let init_frame = anchors.first().copied().unwrap_or_else(|| {
         (0..n)
