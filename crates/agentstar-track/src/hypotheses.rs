@@ -135,13 +135,26 @@ pub fn refine_local(
     window: &LocalWindow,
     seed: u64,
 ) -> Result<(GenPose, f64, usize), TrackError> {
+    refine_passes_from(problem, base, base, window, seed, 0..LOCAL_PASSES)
+}
+
+/// The passes `range` of [`refine_local`] from `from`, never worse than `base` (with the
+/// evaluation that scores `base` counted).
+fn refine_passes_from(
+    problem: &FrameProblem<'_>,
+    base: &GenPose,
+    from: &GenPose,
+    window: &LocalWindow,
+    seed: u64,
+    range: std::ops::Range<usize>,
+) -> Result<(GenPose, f64, usize), TrackError> {
     let (start_score, n_start) = start_score(problem, base);
     let (pose, score, n) = refine_local_passes(
         problem,
-        base,
+        from,
         window,
         seed,
-        0..LOCAL_PASSES,
+        range,
         Some((base, start_score)),
     )?;
     Ok((pose, score, n + n_start))
@@ -297,16 +310,7 @@ pub fn refine_rest(
     window: &LocalWindow,
     seed: u64,
 ) -> Result<(GenPose, f64, usize), TrackError> {
-    let (start_score, n_start) = start_score(problem, base);
-    let (pose, score, n) = refine_local_passes(
-        problem,
-        first,
-        window,
-        seed,
-        1..LOCAL_PASSES,
-        Some((base, start_score)),
-    )?;
-    Ok((pose, score, n + n_start))
+    refine_passes_from(problem, base, first, window, seed, 1..LOCAL_PASSES)
 }
 
 /// [`refine_local`] that stops after its first pass when the score there (or `base`'s)
