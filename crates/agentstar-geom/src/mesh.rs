@@ -202,25 +202,19 @@ impl TriMesh {
         out
     }
 
-    /// The mesh with every hole whose rim is a simple loop (each rim vertex on one incoming
-    /// and one outgoing border edge) no longer than `max_rim` closed by a fan about the
-    /// rim's centroid, wound against the faces along the rim so the closed mesh keeps their
-    /// orientation; with how many holes it closed. Larger holes, open sheets' outer rims
-    /// longer than the bound, and non-manifold borders stay as they are.
+    /// The mesh with every hole whose rim is a simple loop no longer than `max_rim` closed by
+    /// a fan about the rim's centroid, wound against the faces along the rim so the closed
+    /// mesh keeps their orientation; with how many holes it closed. Holes that touch at a
+    /// vertex (a pinch: several rims through it) are one hole here: the vertex is split once
+    /// per fan of faces around it ([`TriMesh::with_pinches_split`]) and their rims join into
+    /// one loop through its copies. Larger holes and open sheets' outer rims longer than the
+    /// bound stay as they are; with nothing closed the mesh comes back unchanged.
     pub fn with_small_holes_closed(&self, max_rim: f64) -> (TriMesh, usize) {
-        // Border edges, directed as their one face traverses them.
-        let borders: Vec<(u32, u32)> = self
-            .edge_incidence()
-            .iter()
-            .filter_map(|&[a, b, f, g]| match (f == NO_FACE, g == NO_FACE) {
-                (false, true) => Some((a, b)),
-                (true, false) => Some((b, a)),
-                _ => None,
-            })
-            .collect();
-        if borders.is_empty() || max_rim.is_nan() || max_rim <= 0.0 {
+        if self.border_edges().is_empty() || max_rim.is_nan() || max_rim <= 0.0 {
             return (self.clone(), 0);
         }
+        let split = self.with_pinches_split();
+        let borders = split.border_edges();
         let mut outgoing: HashMap<u32, Vec<usize>> = HashMap::new();
         let mut incoming: HashMap<u32, usize> = HashMap::new();
         for (k, &(a, b)) in borders.iter().enumerate() {
@@ -230,7 +224,7 @@ impl TriMesh {
         let simple = |v: u32| {
             outgoing.get(&v).map_or(0, Vec::len) == 1 && incoming.get(&v).copied() == Some(1)
         };
-        let mut out = self.clone();
+        let mut out = split.clone();
         let mut visited = vec![false; borders.len()];
         let mut closed = 0;
         for start in 0..borders.len() {
@@ -257,7 +251,7 @@ impl TriMesh {
             if !is_loop || rim.len() < 3 {
                 continue;
             }
-            let point = |v: u32| self.positions[v as usize];
+            let point = |v: u32| split.positions[v as usize];
             let length: f64 = rim
                 .iter()
                 .map(|&k| (point(borders[k].1) - point(borders[k].0)).norm())
@@ -275,7 +269,102 @@ impl TriMesh {
                 .extend(rim.iter().map(|&k| [borders[k].1, borders[k].0, c]));
             closed += 1;
         }
+        if closed == 0 {
+            return (self.clone(), 0);
+        }
         (out, closed)
+    }
+
+    /// Border edges (one face only), directed as their face traverses them.
+    pub fn border_edges(&self) -> Vec<(u32, u32)> {
+        self.edge_incidence()
+            .iter()
+            .filter_map(|&[a, b, f, g]| match (f == NO_FACE, g == NO_FACE) {
+                (false, true) => Some((a, b)),
+                (true, false) => Some((b, a)),
+                _ => None,
+            })
+            .collect()
+    }
+
+    /// The mesh with every pinch vertex (more than one border edge leaving it: holes, or a
+    /// hole and an outer rim, touching there) split into one vertex per fan of faces around
+    /// it (faces sharing an edge through the vertex), so no vertex has more than one rim
+    /// leaving it (rims that met there join through its copies). Positions repeat at the
+    /// split vertices; faces keep their order.
+    pub fn with_pinches_split(&self) -> TriMesh {
+        let mut leaving: HashMap<u32, usize> = HashMap::new();
+        for (a, _) in self.border_edges() {
+            *leaving.entry(a).or_default() += 1;
+        }
+        let mut pinches: Vec<u32> = leaving
+            .into_iter()
+            .filter(|&(_, k)| k > 1)
+            .map(|(v, _)| v)
+            .collect();
+        pinches.sort_unstable();
+        if pinches.is_empty() {
+            return self.clone();
+        }
+        let mut around: HashMap<u32, Vec<usize>> =
+            pinches.iter().map(|&v| (v, Vec::new())).collect();
+        for (f, t) in self.triangles.iter().enumerate() {
+            for v in t {
+                if let Some(faces) = around.get_mut(v) {
+                    faces.push(f);
+                }
+            }
+        }
+        let mut out = self.clone();
+        for v in pinches {
+            let faces = &around[&v];
+            // Union-find over the faces around `v`: two are in one fan when they share
+            // another vertex (then the edge from `v` to it).
+            let mut parent: Vec<usize> = (0..faces.len()).collect();
+            fn root(parent: &mut [usize], mut k: usize) -> usize {
+                while parent[k] != k {
+                    parent[k] = parent[parent[k]];
+                    k = parent[k];
+                }
+                k
+            }
+            let mut first_with: HashMap<u32, usize> = HashMap::new();
+            for (k, &f) in faces.iter().enumerate() {
+                for &x in &self.triangles[f] {
+                    if x == v {
+                        continue;
+                    }
+                    match first_with.get(&x) {
+                        Some(&j) => {
+                            let (a, b) = (root(&mut parent, j), root(&mut parent, k));
+                            parent[a.max(b)] = a.min(b);
+                        }
+                        None => {
+                            first_with.insert(x, k);
+                        }
+                    }
+                }
+            }
+            // The fan of the first face keeps `v`; every other fan gets a copy.
+            let mut copy_of: HashMap<usize, u32> = HashMap::new();
+            let first_root = root(&mut parent, 0);
+            for (k, &f) in faces.iter().enumerate() {
+                let r = root(&mut parent, k);
+                if r == first_root {
+                    continue;
+                }
+                let copy = *copy_of.entry(r).or_insert_with(|| {
+                    out.positions.push(self.positions[v as usize]);
+                    (out.positions.len() - 1) as u32
+                });
+                for w in out.triangles[f].iter_mut() {
+                    if *w == v {
+                        *w = copy;
+                    }
+                }
+            }
+        }
+        out
     }
 
     /// Applies `p -> linear * p + offset`; flips winding when the map mirrors.

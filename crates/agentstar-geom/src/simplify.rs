@@ -290,4 +290,44 @@ mod tests {
             without.mesh.triangles.len()
         );
     }
+
+    #[test]
+    fn holes_that_touch_at_a_vertex_are_closed_together() {
+        // Two triangles of a sphere that share one vertex and no edge, removed: their rims
+        // pass through that vertex twice (a pinch). Split there, the two rims join into one
+        // loop through both copies of the vertex, closed as one hole.
+        let sphere = primitives::uv_sphere(1.0, 32, 16).expect("sphere");
+        let t = &sphere.triangles;
+        let first = t.len() / 2;
+        let shares_one =
+            |a: &[u32; 3], b: &[u32; 3]| a.iter().filter(|v| b.contains(v)).count() == 1;
+        let second = (0..t.len())
+            .find(|&k| k != first && shares_one(&t[first], &t[k]))
+            .expect("a triangle touching at one vertex");
+        let holey = TriMesh::new(
+            sphere.positions.clone(),
+            (t.iter().enumerate())
+                .filter(|&(k, _)| k != first && k != second)
+                .map(|(_, tri)| *tri)
+                .collect(),
+        );
+        let leaving = |m: &TriMesh| {
+            let mut count = std::collections::HashMap::new();
+            for (a, _) in m.border_edges() {
+                *count.entry(a).or_insert(0usize) += 1;
+            }
+            count.into_values().max().unwrap_or(0)
+        };
+        assert_eq!(leaving(&holey), 2, "a pinch: two rims leave one vertex");
+        let split = holey.with_pinches_split();
+        assert_eq!(leaving(&split), 1);
+        assert_eq!(split.positions.len(), holey.positions.len() + 1);
+        let (closed, count) = holey.with_small_holes_closed(2.0);
+        assert_eq!(count, 1);
+        assert!(closed.is_watertight());
+        // The joined rim is as long as both: under that, nothing is closed.
+        assert_eq!(holey.with_small_holes_closed(1.0).1, 0);
+        // Nothing to close within a tiny bound: the mesh comes back as it was.
+        assert_eq!(holey.with_small_holes_closed(1e-4).0, holey);
+    }
 }
