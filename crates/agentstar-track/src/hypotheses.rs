@@ -257,8 +257,9 @@ fn refine_local_passes(
     }
 }
 
-/// Like [`refine_each`], but a hypothesis whose score after the first (widest) pass is under
-/// `floor` stops there: its pose and score are that pass's. For callers that drop every
+/// Like [`refine_each`] (which is this with no floor, `f64::NEG_INFINITY`), but a
+/// hypothesis whose score after the first (widest) pass is under `floor` stops there: its
+/// pose and score are that pass's. For callers that drop every
 /// hypothesis under a bound anyway (a floor that bound minus [`PRUNE_SLACK`]): the
 /// narrower passes would only polish a hypothesis that cannot be chosen.
 pub fn refine_each_above(
@@ -268,15 +269,18 @@ pub fn refine_each_above(
     seed: u64,
     floor: f64,
 ) -> Result<Vec<Refined>, TrackError> {
-    if floor == f64::NEG_INFINITY {
-        return refine_each(problem, hypotheses, window, seed);
-    }
     hypotheses
         .par_iter()
         .enumerate()
         .map(|(k, h)| {
             let unrefined = problem.evaluator().score(h);
-            let (pose, evals) = refine_above(problem, h, window, seed + k as u64, floor)?;
+            let seed = seed + k as u64;
+            let (pose, evals) = if floor == f64::NEG_INFINITY {
+                let (pose, _, evals) = refine_local(problem, h, window, seed)?;
+                (pose, evals)
+            } else {
+                refine_above(problem, h, window, seed, floor)?
+            };
             let score = problem.evaluator().score(&pose);
             Ok(Refined {
                 pose,
@@ -357,21 +361,7 @@ pub fn refine_each(
     window: &LocalWindow,
     seed: u64,
 ) -> Result<Vec<Refined>, TrackError> {
-    hypotheses
-        .par_iter()
-        .enumerate()
-        .map(|(k, h)| {
-            let unrefined = problem.evaluator().score(h);
-            let (pose, _, evals) = refine_local(problem, h, window, seed + k as u64)?;
-            let score = problem.evaluator().score(&pose);
-            Ok(Refined {
-                pose,
-                score,
-                unrefined,
-                evals,
-            })
-        })
-        .collect()
+    refine_each_above(problem, hypotheses, window, seed, f64::NEG_INFINITY)
 }
 
 /// A sweep's ranked candidates each refined in `window` and ranked again by their refined
