@@ -169,35 +169,24 @@ impl TriMesh {
             }
         }
         // Grouped by undirected edge: forward (a < b) traversals first, then backward.
-        directed.sort_unstable_by_key(|&(a, b, f)| (a.min(b), a.max(b), a > b, f));
-        let mut out = Vec::with_capacity(directed.len() / 2 + 1);
-        let mut i = 0;
-        while i < directed.len() {
-            let key = (
-                directed[i].0.min(directed[i].1),
-                directed[i].0.max(directed[i].1),
-            );
-            let mut j = i;
-            while j < directed.len()
-                && (
-                    directed[j].0.min(directed[j].1),
-                    directed[j].0.max(directed[j].1),
-                ) == key
-            {
-                j += 1;
-            }
-            let group = &directed[i..j];
-            let forward: Vec<u32> = group.iter().filter(|e| e.0 < e.1).map(|e| e.2).collect();
-            let backward: Vec<u32> = group.iter().filter(|e| e.0 > e.1).map(|e| e.2).collect();
+        let mut keyed: Vec<(u32, u32, bool, u32)> = directed
+            .into_iter()
+            .map(|(a, b, f)| (a.min(b), a.max(b), a > b, f))
+            .collect();
+        keyed.sort_unstable();
+        let mut out = Vec::with_capacity(keyed.len() / 2 + 1);
+        for group in keyed.chunk_by(|x, y| (x.0, x.1) == (y.0, y.1)) {
+            let faces = |backward: bool| group.iter().filter(move |e| e.2 == backward).map(|e| e.3);
+            let (forward, backward): (Vec<u32>, Vec<u32>) =
+                (faces(false).collect(), faces(true).collect());
             for k in 0..forward.len().max(backward.len()) {
                 out.push([
-                    key.0,
-                    key.1,
+                    group[0].0,
+                    group[0].1,
                     forward.get(k).copied().unwrap_or(NO_FACE),
                     backward.get(k).copied().unwrap_or(NO_FACE),
                 ]);
             }
-            i = j;
         }
         out
     }
@@ -210,11 +199,14 @@ impl TriMesh {
     /// one loop through its copies. Larger holes and open sheets' outer rims longer than the
     /// bound stay as they are; with nothing closed the mesh comes back unchanged.
     pub fn with_small_holes_closed(&self, max_rim: f64) -> (TriMesh, usize) {
-        if self.border_edges().is_empty() || max_rim.is_nan() || max_rim <= 0.0 {
+        if max_rim.is_nan() || max_rim <= 0.0 {
             return (self.clone(), 0);
         }
         let split = self.with_pinches_split();
         let borders = split.border_edges();
+        if borders.is_empty() {
+            return (self.clone(), 0);
+        }
         let mut outgoing: HashMap<u32, Vec<usize>> = HashMap::new();
         let mut incoming: HashMap<u32, usize> = HashMap::new();
         for (k, &(a, b)) in borders.iter().enumerate() {

@@ -24,7 +24,7 @@ pub const STANDIN_DEVIATION_PX: f64 = 1.0;
 /// Holes whose rims are shorter than this (pixels at the same scale) are closed on the
 /// stand-in: a scan's or a broken export's pinholes would lock their rims and keep it dense.
 /// Such a hole changes the silhouette only where it lies on the outline, and by at most the
-/// area its rim encloses: L²/4π, 46 px² here (0.1% of a 200 px wide mask).
+/// area its rim encloses: L²/4π, 46 px² here (0.15% of a round mask 200 px across).
 pub const STANDIN_HOLE_RIM_PX: f64 = 24.0;
 
 /// A simplified model to search on, with what simplification did.

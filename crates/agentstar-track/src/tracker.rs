@@ -278,17 +278,7 @@ impl<'m> Searcher<'m> {
         window: &LocalWindow,
         seed: u64,
     ) -> Result<(GenPose, f64), TrackError> {
-        let problem = FrameProblem::new(
-            self.model,
-            frame.camera,
-            frame.target,
-            self.scale,
-            base.clone(),
-        );
-        let problem = match self.halved_of(frame) {
-            Some(h) => problem.with_coarse(h),
-            None => problem,
-        };
+        let problem = self.problem_of(frame, base);
         let (best, score, n) = refine_local(&problem, base, window, seed)?;
         self.evals
             .fetch_add(n, std::sync::atomic::Ordering::Relaxed);
@@ -312,16 +302,15 @@ impl<'m> Searcher<'m> {
         base: &GenPose,
         seed: u64,
     ) -> Result<(GenPose, f64), TrackError> {
-        let evals = self.cfg.local_evals / 2;
-        self.refine(
-            frame,
-            base,
-            &LocalWindow {
-                evals,
-                ..LocalWindow::polish()
-            },
-            seed,
-        )
+        self.refine(frame, base, &self.polish_window(), seed)
+    }
+
+    /// The polish's window: [`LocalWindow::polish`] with half the local budget.
+    fn polish_window(&self) -> LocalWindow {
+        LocalWindow {
+            evals: self.cfg.local_evals / 2,
+            ..LocalWindow::polish()
+        }
     }
 
     /// [`Searcher::polish`] that stops after its first pass when it scores under `floor`
@@ -333,12 +322,8 @@ impl<'m> Searcher<'m> {
         seed: u64,
         floor: f64,
     ) -> Result<(GenPose, f64), TrackError> {
-        let window = LocalWindow {
-            evals: self.cfg.local_evals / 2,
-            ..LocalWindow::polish()
-        };
-        let problem = self.problem_of(frame, Some(base));
-        let (pose, n) = refine_above(&problem, base, &window, seed, floor)?;
+        let problem = self.problem_of(frame, base);
+        let (pose, n) = refine_above(&problem, base, &self.polish_window(), seed, floor)?;
         self.evals
             .fetch_add(n + 1, std::sync::atomic::Ordering::Relaxed);
         let score = problem.evaluator().combined(&pose);
@@ -390,7 +375,9 @@ impl<'m> Searcher<'m> {
     ) -> Result<Vec<(GenPose, f64)>, TrackError> {
         let hyps = self.covering(frame, rotations, joint_sets);
         let top = diverse(&hyps, GLOBAL_KEEP, 30.0);
-        let problem = self.problem_of(frame, None);
+        let Some(problem) = top.first().map(|g| self.problem_of(frame, g)) else {
+            return Ok(vec![]);
+        };
         let window = LocalWindow {
             evals: self.cfg.local_evals,
             ..LocalWindow::basin()
@@ -433,16 +420,14 @@ impl<'m> Searcher<'m> {
     }
 
     /// `frame`'s problem around `base` (the frame's target, at half resolution too).
-    fn problem_of<'s>(
-        &'s self,
-        frame: &TrackFrame<'s>,
-        base: Option<&GenPose>,
-    ) -> FrameProblem<'s> {
-        let base = base.cloned().unwrap_or_else(|| GenPose {
-            pose: ObjectPose::new(UnitQuaternion::identity(), Vector3::zeros()),
-            states: self.model.tree.rest_states(),
-        });
-        let problem = FrameProblem::new(self.model, frame.camera, frame.target, self.scale, base);
+    fn problem_of<'s>(&'s self, frame: &TrackFrame<'s>, base: &GenPose) -> FrameProblem<'s> {
+        let problem = FrameProblem::new(
+            self.model,
+            frame.camera,
+            frame.target,
+            self.scale,
+            base.clone(),
+        );
         match self.halved_of(frame) {
             Some(h) => problem.with_coarse(h),
             None => problem,
@@ -458,7 +443,7 @@ impl<'m> Searcher<'m> {
         seed: u64,
         floor: f64,
     ) -> Result<Vec<(GenPose, f64)>, TrackError> {
-        let problem = self.problem_of(frame, Some(pose));
+        let problem = self.problem_of(frame, pose);
         let refined = refine_each_above(
             &problem,
             &twin_candidates(self.model, self.scale, pose),
@@ -1687,24 +1672,23 @@ fn choose_sequence(
                 s.cfg.seed + 3_000_017 * (i as u64 + 1),
                 scores[i] - CHOICE_KEEP - PRUNE_SLACK,
             )?;
-            for r in refined {
-                s.evals
-                    .fetch_add(r.evals, std::sync::atomic::Ordering::Relaxed);
-                let distinct = h.iter().all(|(g, _)| {
-                    angle_deg(&(g.pose.rotation * r.pose.pose.rotation.inverse())) >= 5.0
-                });
-                if distinct {
-                    h.push((r.pose, r.score.combined));
-                }
-            }
-            // The basins a global search found at this frame during the propagation (its
-            // colours may have turned one down that the sequence needs).
-            for (g, sc) in alternatives.get(i).into_iter().flatten() {
+            s.evals.fetch_add(
+                refined.iter().map(|r| r.evals).sum(),
+                std::sync::atomic::Ordering::Relaxed,
+            );
+            // The refined twins, then the basins a global search found at this frame during
+            // the propagation (its colours may have turned one down that the sequence needs),
+            // each unless within 5° of one already kept.
+            let found = refined
+                .into_iter()
+                .map(|r| (r.pose, r.score.combined))
+                .chain(alternatives.get(i).into_iter().flatten().cloned());
+            for (g, sc) in found {
                 let distinct = h
                     .iter()
                     .all(|(b, _)| angle_deg(&(b.pose.rotation * g.pose.rotation.inverse())) >= 5.0);
                 if distinct {
-                    h.push((g.clone(), *sc));
+                    h.push((g, sc));
                 }
             }
             let best = h.iter().map(|x| x.1).fold(f64::NEG_INFINITY, f64::max);
@@ -2094,7 +2078,7 @@ fn track_from_on(
         frames,
         (&mut poses, &mut scores),
         &fixed,
-        &vec![Vec::new(); n],
+        &[],
         first,
         &mut log,
     )?;
