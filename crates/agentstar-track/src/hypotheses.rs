@@ -65,6 +65,19 @@ impl LocalWindow {
     }
 }
 
+impl LocalWindow {
+    /// Around a neighbouring keyframe's pose carried into a frame: the rotation a whole
+    /// basin wide (25°), the position close (6% shift, 5% depth: a hand moves an object a few
+    /// centimetres between keyframes; a silhouette mostly under a hand would otherwise pull
+    /// it a fifth of the depth away), 60° of joint.
+    pub fn carried() -> Self {
+        LocalWindow {
+            depth: 0.05,
+            ..LocalWindow::basin()
+        }
+    }
+}
+
 /// The local search box around a pose: camera-frame increments and joints around their state.
 pub(crate) fn local_space(
     model: &ObjectModel,

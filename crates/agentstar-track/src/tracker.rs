@@ -1251,6 +1251,12 @@ fn track_on(
 /// or a warm start's), as the configuration asks for them: the consistency pass, the
 /// sequence-level choice and the last appearance pass (outward from `first`); `fixed` frames
 /// keep their poses. The observer gets the poses after each pass.
+///
+/// With colours, an appearance pass also runs before the choice: a can's poses come out of
+/// the consistency pass turned 15–130° about its axis (the masks cannot see that turn),
+/// and the choice's twins of such a pose match no neighbour's colours, so it kept a block of
+/// the can's keyframes upside down (hard suite labelcan, seed 17: 3.08 → 0.72 cm; seeds
+/// 18 and 19: 1.84 → 0.72 and 1.40 → 1.05 cm).
 fn after_propagation(
     s: &Searcher<'_>,
     frames: &[TrackFrame<'_>],
@@ -1267,6 +1273,10 @@ fn after_propagation(
         log.all_poses(poses);
     }
     if cfg.sequence_choice && n >= 2 {
+        if cfg.appearance {
+            appearance_pass(s, frames, poses, scores, fixed, first, log);
+            log.phase("appearance", s);
+        }
         choose_sequence(s, frames, (poses, scores), fixed, alternatives, log)?;
         log.phase("sequence choice", s);
         log.all_poses(poses);
@@ -1612,9 +1622,16 @@ fn consistency(
 /// translation. Alternatives placed within `CHOICE_SCREEN` of a frame's score are refined
 /// (all of them under the gate); refined ones within `CHOICE_KEEP` of the frame's best are
 /// kept as hypotheses.
+///
+/// The translation unit: a hand moves an object 6–7% of the depth between keyframes on the
+/// hard suite (at most 13%), a fraction of a unit; at 0.2 (its value before 2026-12-03) a
+/// plain bottle mostly under a hand was placed 18 cm deeper in one keyframe and 9 cm in the
+/// next, those poses' IoU 0.011 and 0.005 over the truth's outweighing the jumps.
+/// At 0.1 (and with the neighbours' poses carried in as hypotheses) both came back (0.36 and
+/// 1.55 cm off), and no other sequence of the suite changed.
 const CHOICE_IOU_UNIT: f64 = 0.005;
 const CHOICE_STEP_DEG: f64 = 60.0;
-const CHOICE_STEP_DEPTH: f64 = 0.2;
+const CHOICE_STEP_DEPTH: f64 = 0.1;
 const CHOICE_SCREEN: f64 = 0.15;
 const CHOICE_KEEP: f64 = 0.03;
 /// Rotation steps beyond this cost alike: a hand turns an object by 100–150° between
@@ -1625,6 +1642,19 @@ const CHOICE_KEEP: f64 = 0.03;
 const CHOICE_STEP_CAP_DEG: f64 = 90.0;
 /// Frames scoring under this (the IoU gate) have every twin refined, in the wide window.
 const CHOICE_SUSPECT: f64 = agentstar_render::GATE_IOU;
+
+/// A neighbour's pose carried into a frame is searched as a hypothesis of its own when the
+/// frame's pose lies this share of the depth away from it, or turned past
+/// [`CHOICE_STEP_CAP_DEG`]: a hand moves an object a few centimetres between keyframes at
+/// half a metre (the hard suite's steps: 2–6% of the depth), not a tenth of the depth.
+const CHOICE_FAR_SHIFT: f64 = 0.1;
+
+/// Whether `to` lies far from `from` (both in one frame's camera): see [`CHOICE_FAR_SHIFT`].
+fn far_step(from: &GenPose, to: &GenPose) -> bool {
+    let depth = from.pose.translation.z.abs().max(1e-9);
+    (to.pose.translation - from.pose.translation).norm() / depth > CHOICE_FAR_SHIFT
+        || angle_deg(&(to.pose.rotation * from.pose.rotation.inverse())) > CHOICE_STEP_CAP_DEG
+}
 
 /// One hypothesis per frame for the whole sequence: every frame's current pose and its twins
 /// ([`twin_candidates`]: flips, principal half-turns) that place close enough to matter,
@@ -1676,11 +1706,36 @@ fn choose_sequence(
                 refined.iter().map(|r| r.evals).sum(),
                 std::sync::atomic::Ordering::Relaxed,
             );
-            // The refined twins, then the basins a global search found at this frame during
-            // the propagation (its colours may have turned one down that the sequence needs),
-            // each unless within 5° of one already kept.
+            // A frame placed far from a neighbour (a jump in depth, a turn past the cap)
+            // may have been chained from a wrong pose, or its silhouette, mostly under a
+            // hand, fits a wrong pose slightly better: the neighbour's pose carried here,
+            // refined, is a hypothesis the step cost can prefer.
+            let from_neighbours: Vec<GenPose> = [i.checked_sub(1), (i + 1 < n).then_some(i + 1)]
+                .into_iter()
+                .flatten()
+                .map(|j| GenPose {
+                    pose: transfer(&poses[j].pose, &frames[j], &frames[i]),
+                    states: poses[j].states.clone(),
+                })
+                .filter(|c| far_step(c, &poses[i]))
+                .collect();
+            let carried = refine_each_above(
+                &problem,
+                &from_neighbours,
+                &LocalWindow::carried(),
+                s.cfg.seed + 3_500_017 * (i as u64 + 1),
+                scores[i] - CHOICE_KEEP - PRUNE_SLACK,
+            )?;
+            s.evals.fetch_add(
+                carried.iter().map(|r| r.evals).sum(),
+                std::sync::atomic::Ordering::Relaxed,
+            );
+            // The refined twins, the neighbours' poses carried here, then the basins a global
+            // search found at this frame during the propagation (its colours may have turned
+            // one down that the sequence needs), each unless within 5° of one already kept.
             let found = refined
                 .into_iter()
+                .chain(carried)
                 .map(|r| (r.pose, r.score.combined))
                 .chain(alternatives.get(i).into_iter().flatten().cloned());
             for (g, sc) in found {
