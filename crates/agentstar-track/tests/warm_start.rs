@@ -121,3 +121,50 @@ fn the_sequence_choice_takes_a_chained_block_out_of_its_wrong_basin() {
     let r = track_from(&model, scale, &frames, &start, &[], &cfg, &|_: &str| {}).expect("track");
     assert_close(&gts, &r);
 }
+
+#[test]
+fn the_sequence_choice_carries_a_neighbours_pose_into_a_frame_placed_far_too_deep() {
+    let model = case_model();
+    let scale = 0.5;
+    let gts: Vec<GenPose> = (0..10).map(|k| truth(0.4 * k as f64)).collect();
+    let targets: Vec<ScoreTarget> = gts.iter().map(|g| target_of(&model, g, scale)).collect();
+    let frames = frames_of(&targets);
+    // Frame 5 pushed 30% deeper along its line of sight (as a frame mostly under a hand can
+    // come out): a twin of it, refined, stays far too deep; only a neighbour's pose
+    // carried into the frame reaches the truth.
+    let mut start = gts.clone();
+    start[5].pose.translation *= 1.3;
+    let cfg = TrackConfig {
+        consistency_pass: false,
+        sequence_choice: true,
+        ..TrackConfig::default()
+    };
+    let r = track_from(&model, scale, &frames, &start, &[], &cfg, &|_: &str| {}).expect("track");
+    let log = r.log.join("\n");
+    let choice = r
+        .log
+        .iter()
+        .find(|l| l.starts_with("sequence choice:"))
+        .expect("the choice is logged");
+    assert!(choice.contains("000005"), "{log}");
+    let shift =
+        (r.poses[5].pose.translation - gts[5].pose.translation).norm() / gts[5].pose.translation.z;
+    let rot = gts[5]
+        .pose
+        .rotation
+        .angle_to(&r.poses[5].pose.rotation)
+        .to_degrees();
+    assert!(
+        shift < 0.02 && rot < 5.0,
+        "{shift:.3} of the depth, {rot:.2}°\n{log}"
+    );
+    // The other frames stay where they were.
+    let keep: Vec<usize> = (0..10).filter(|&k| k != 5).collect();
+    let got = agentstar_track::tracker::TrackResult {
+        poses: keep.iter().map(|&k| r.poses[k].clone()).collect(),
+        scores: keep.iter().map(|&k| r.scores[k]).collect(),
+        ..r.clone()
+    };
+    let truths: Vec<GenPose> = keep.iter().map(|&k| gts[k].clone()).collect();
+    assert_close(&truths, &got);
+}
