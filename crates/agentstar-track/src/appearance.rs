@@ -849,6 +849,32 @@ pub(crate) mod tests {
         model
     }
 
+    /// The real can's paint: the label of [`labelled_model`] (cream) on red.
+    fn painted_label(p: &Point3) -> [f64; 3] {
+        if p.z.abs() < 0.3 && p.y.atan2(p.x).abs() < 1.5 {
+            [0.85, 0.8, 0.6]
+        } else {
+            [0.6, 0.05, 0.05]
+        }
+    }
+
+    impl<'a> AppearanceFrame<'a> {
+        fn new(camera: &'a PinholeCamera, rgb: &'a [u8], mask: &'a BitMask) -> Self {
+            AppearanceFrame { camera, rgb, mask }
+        }
+    }
+
+    /// `pose` turned by `deg` about the can's own axis.
+    fn spun(pose: &GenPose, deg: f64) -> GenPose {
+        let mut g = pose.clone();
+        g.pose.rotation *= UnitQuaternion::from_axis_angle(&Vector3::z_axis(), deg.to_radians());
+        g
+    }
+
+    fn label_camera() -> PinholeCamera {
+        PinholeCamera::new(300.0, 300.0, 168.0, 112.0, 320, 240).expect("camera")
+    }
+
     #[test]
     fn the_models_own_colours_tell_a_label_facing_from_a_turned_can_without_other_frames() {
         let labelled = labelled_model();
@@ -857,30 +883,14 @@ pub(crate) mod tests {
         assert!(!model_has_appearance(&plain));
         // Frames of the real can (its label painted on): the label faces the camera
         // in the true pose; the twin is turned half way about the axis.
-        let label = |p: &Point3| -> [f64; 3] {
-            if p.z.abs() < 0.3 && p.y.atan2(p.x).abs() < 1.5 {
-                [0.85, 0.8, 0.6]
-            } else {
-                [0.6, 0.05, 0.05]
-            }
-        };
         let scale = 0.12;
-        let cam = PinholeCamera::new(300.0, 300.0, 168.0, 112.0, 320, 240).expect("camera");
+        let cam = label_camera();
         // Spun so that +X (the label's middle) looks at the camera, a little to the side.
         let truth = pose(Vector3::y(), 0.0, -100.0);
-        let (rgb, mask) = shoot(&plain, scale, &cam, &truth, &label);
-        let frame = AppearanceFrame {
-            camera: &cam,
-            rgb: &rgb,
-            mask: &mask,
-        };
+        let (rgb, mask) = shoot(&plain, scale, &cam, &truth, &painted_label);
+        let frame = AppearanceFrame::new(&cam, &rgb, &mask);
         let cfg = AppearanceConfig::default();
-        let at = |deg: f64| {
-            let mut g = truth.clone();
-            g.pose.rotation *=
-                UnitQuaternion::from_axis_angle(&Vector3::z_axis(), deg.to_radians());
-            model_agreement(&labelled, scale, &frame, &g, &cfg)
-        };
+        let at = |deg: f64| model_agreement(&labelled, scale, &frame, &spun(&truth, deg), &cfg);
         let (right, turned, twin) = (at(0.0), at(60.0), at(180.0));
         let r = right.ncc.expect("the label is seen");
         assert!(r > 0.7, "{right:?}");
@@ -912,30 +922,14 @@ pub(crate) mod tests {
     fn a_plain_frame_agrees_with_a_pose_that_hides_the_models_print_and_not_with_one_showing_it() {
         let labelled = labelled_model();
         let plain = cylinder_model();
-        let label = |p: &Point3| -> [f64; 3] {
-            if p.z.abs() < 0.3 && p.y.atan2(p.x).abs() < 1.5 {
-                [0.85, 0.8, 0.6]
-            } else {
-                [0.6, 0.05, 0.05]
-            }
-        };
         let scale = 0.12;
-        let cam = PinholeCamera::new(300.0, 300.0, 168.0, 112.0, 320, 240).expect("camera");
+        let cam = label_camera();
         // The label turned away from the camera: the frame shows plain red, shaded.
         let truth = pose(Vector3::y(), 0.0, 80.0);
-        let (rgb, mask) = shoot(&plain, scale, &cam, &truth, &label);
-        let frame = AppearanceFrame {
-            camera: &cam,
-            rgb: &rgb,
-            mask: &mask,
-        };
+        let (rgb, mask) = shoot(&plain, scale, &cam, &truth, &painted_label);
+        let frame = AppearanceFrame::new(&cam, &rgb, &mask);
         let cfg = AppearanceConfig::default();
-        let at = |deg: f64| {
-            let mut g = truth.clone();
-            g.pose.rotation *=
-                UnitQuaternion::from_axis_angle(&Vector3::z_axis(), deg.to_radians());
-            g
-        };
+        let at = |deg: f64| spun(&truth, deg);
         let right = model_agreement(&labelled, scale, &frame, &at(0.0), &cfg);
         let twin = model_agreement(&labelled, scale, &frame, &at(180.0), &cfg);
         // No print in view at the true pose, and none in the frame: agreement, though a

@@ -1702,10 +1702,6 @@ fn choose_sequence(
                 s.cfg.seed + 3_000_017 * (i as u64 + 1),
                 scores[i] - CHOICE_KEEP - PRUNE_SLACK,
             )?;
-            s.evals.fetch_add(
-                refined.iter().map(|r| r.evals).sum(),
-                std::sync::atomic::Ordering::Relaxed,
-            );
             // A frame placed far from a neighbour (a jump in depth, a turn past the cap)
             // may have been chained from a wrong pose, or its silhouette, mostly under a
             // hand, fits a wrong pose slightly better: the neighbour's pose carried here,
@@ -1727,7 +1723,7 @@ fn choose_sequence(
                 scores[i] - CHOICE_KEEP - PRUNE_SLACK,
             )?;
             s.evals.fetch_add(
-                carried.iter().map(|r| r.evals).sum(),
+                refined.iter().chain(&carried).map(|r| r.evals).sum(),
                 std::sync::atomic::Ordering::Relaxed,
             );
             // The refined twins, the neighbours' poses carried here, then the basins a global
