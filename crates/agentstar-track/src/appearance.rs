@@ -204,9 +204,7 @@ impl Group {
         }
         Some((cov / (va * vb).sqrt()).clamp(-1.0, 1.0))
     }
-}
 
-impl Group {
     /// How much of the frame's colours `a` the model's albedo `b` leaves unexplained: the
     /// least-squares residual of `a ≈ G·b` with one gain per channel (exposure and white
     /// balance; no offset, so a flat albedo predicts a flat frame), over `Σ a²`. In [0, 1];

@@ -1255,8 +1255,8 @@ fn track_on(
 /// With colours, an appearance pass also runs before the choice: a can's poses come out of
 /// the consistency pass turned 15–130° about its axis (the masks cannot see that turn),
 /// and the choice's twins of such a pose match no neighbour's colours, so it kept a block of
-/// the can's keyframes upside down (hard suite labelcan, seed 17: 3.08 → 0.72 cm; seeds
-/// 18 and 19: 1.84 → 0.72 and 1.40 → 1.05 cm).
+/// the can's keyframes upside down (hard suite labelcan, seeds 17, 18, 19: 3.08, 1.47, 1.40
+/// cm before this session's changes, 0.72, 0.72, 1.05 after them together).
 fn after_propagation(
     s: &Searcher<'_>,
     frames: &[TrackFrame<'_>],
@@ -1478,12 +1478,8 @@ fn consistency(
 ) -> Result<(), TrackError> {
     let n = frames.len();
     let tree = &s.model.tree;
-    let carried = |poses: &[GenPose], from: usize, to: usize| GenPose {
-        pose: transfer(&poses[from].pose, &frames[from], &frames[to]),
-        states: poses[from].states.clone(),
-    };
     let step = |poses: &[GenPose], a: usize, b: usize| {
-        angle_deg(&(poses[b].pose.rotation * carried(poses, a, b).pose.rotation.inverse()))
+        angle_deg(&(poses[b].pose.rotation * carried(frames, poses, a, b).pose.rotation.inverse()))
     };
     // Three rounds of narrow searches, and more (up to one per frame, so a good pose can
     // travel the whole sequence) while wide searches from better neighbours still move poses.
@@ -1515,24 +1511,29 @@ fn consistency(
             if fixed[i] || !stale[i] || (!outlier && scores[i] >= best_neighbour - 0.001) {
                 continue;
             }
-            let mut seeds: Vec<GenPose> =
-                neighbours.iter().map(|&j| carried(poses, j, i)).collect();
+            let mut seeds: Vec<GenPose> = neighbours
+                .iter()
+                .map(|&j| carried(frames, poses, j, i))
+                .collect();
             if i >= 2 {
                 seeds.push(extrapolate(
-                    &carried(poses, i - 2, i),
-                    &carried(poses, i - 1, i),
+                    &carried(frames, poses, i - 2, i),
+                    &carried(frames, poses, i - 1, i),
                     tree,
                 ));
             }
             if i + 2 < n {
                 seeds.push(extrapolate(
-                    &carried(poses, i + 2, i),
-                    &carried(poses, i + 1, i),
+                    &carried(frames, poses, i + 2, i),
+                    &carried(frames, poses, i + 1, i),
                     tree,
                 ));
             }
             if i >= 1 && i + 1 < n {
-                let (l, r) = (carried(poses, i - 1, i), carried(poses, i + 1, i));
+                let (l, r) = (
+                    carried(frames, poses, i - 1, i),
+                    carried(frames, poses, i + 1, i),
+                );
                 let mut states: Vec<f64> = l
                     .states
                     .iter()
@@ -1584,7 +1585,7 @@ fn consistency(
                     && s.band_iou(&frames[j], j, &poses[j]) >= RESCUE_BAND
             };
             if best_neighbour > here + FAR_MARGIN || (best_neighbour > here && band_gap()) {
-                let from = carried(poses, j, i);
+                let from = carried(frames, poses, j, i);
                 let seed = s.cfg.seed + 65537 * (i as u64 + 1) + 97 * round + 50;
                 let wide = s.wide(&frames[i], &from, &from, (seed, seed))?;
                 if let Some(w) = wide.filter(|w| found.as_ref().is_none_or(|f| w.1 > f.1)) {
@@ -1646,8 +1647,26 @@ const CHOICE_SUSPECT: f64 = agentstar_render::GATE_IOU;
 /// A neighbour's pose carried into a frame is searched as a hypothesis of its own when the
 /// frame's pose lies this share of the depth away from it, or turned past
 /// [`CHOICE_STEP_CAP_DEG`]: a hand moves an object a few centimetres between keyframes at
-/// half a metre (the hard suite's steps: 2–6% of the depth), not a tenth of the depth.
+/// half a metre (the hard suite's steps: 6–7% of the depth on average, 13% at most).
 const CHOICE_FAR_SHIFT: f64 = 0.1;
+
+/// Frame `from`'s pose carried into frame `to` through the cameras (the object held still
+/// between them), with its joint states.
+fn carried(frames: &[TrackFrame<'_>], poses: &[GenPose], from: usize, to: usize) -> GenPose {
+    GenPose {
+        pose: transfer(&poses[from].pose, &frames[from], &frames[to]),
+        states: poses[from].states.clone(),
+    }
+}
+
+/// Two hypotheses of one frame are different basins for the sequence choice when they are
+/// turned 5° apart or placed 2% of the depth apart: a neighbour's pose carried in to
+/// correct a frame's depth may keep its rotation.
+fn distinct_hypotheses(a: &GenPose, b: &GenPose) -> bool {
+    let depth = a.pose.translation.z.abs().max(1e-9);
+    angle_deg(&(a.pose.rotation * b.pose.rotation.inverse())) >= 5.0
+        || (a.pose.translation - b.pose.translation).norm() / depth >= 0.02
+}
 
 /// Whether `to` lies far from `from` (both in one frame's camera): see [`CHOICE_FAR_SHIFT`].
 fn far_step(from: &GenPose, to: &GenPose) -> bool {
@@ -1709,10 +1728,7 @@ fn choose_sequence(
             let from_neighbours: Vec<GenPose> = [i.checked_sub(1), (i + 1 < n).then_some(i + 1)]
                 .into_iter()
                 .flatten()
-                .map(|j| GenPose {
-                    pose: transfer(&poses[j].pose, &frames[j], &frames[i]),
-                    states: poses[j].states.clone(),
-                })
+                .map(|j| carried(frames, poses, j, i))
                 .filter(|c| far_step(c, &poses[i]))
                 .collect();
             let carried = refine_each_above(
@@ -1728,17 +1744,15 @@ fn choose_sequence(
             );
             // The refined twins, the neighbours' poses carried here, then the basins a global
             // search found at this frame during the propagation (its colours may have turned
-            // one down that the sequence needs), each unless within 5° of one already kept.
+            // one down that the sequence needs), each unless one already kept is the same
+            // ([`distinct_hypotheses`]).
             let found = refined
                 .into_iter()
                 .chain(carried)
                 .map(|r| (r.pose, r.score.combined))
                 .chain(alternatives.get(i).into_iter().flatten().cloned());
             for (g, sc) in found {
-                let distinct = h
-                    .iter()
-                    .all(|(b, _)| angle_deg(&(b.pose.rotation * g.pose.rotation.inverse())) >= 5.0);
-                if distinct {
+                if h.iter().all(|(b, _)| distinct_hypotheses(b, &g)) {
                     h.push((g, sc));
                 }
             }
