@@ -264,18 +264,25 @@ pub fn run_sequence_observed(
         .map(|f| ScoreTarget::new(f.mask.clone(), f.hand.clone()))
         .collect::<Result<_, _>>()
         .map_err(|e| BenchError::Invalid(format!("{id}: {e}")))?;
+    // Track the cameras as the written capture stores them, so the figures are what
+    // `agentstar track` gets from the files.
     let frames: Vec<TrackFrame<'_>> = capture
         .frames
         .iter()
         .zip(&targets)
-        .map(|(f, t)| TrackFrame {
-            name: f.name.clone(),
-            camera: capture.camera,
-            target: t,
-            world_from_camera: Some(f.world_from_camera),
-            rgb: cfg.appearance.then(|| f.rgb.as_raw().as_slice()),
+        .map(|(f, t)| {
+            let (camera, world_from_camera) =
+                agentstar_data::capture_writer::as_stored(&capture.camera, &f.world_from_camera)
+                    .map_err(|e| BenchError::Invalid(format!("{id}: {e}")))?;
+            Ok(TrackFrame {
+                name: f.name.clone(),
+                camera,
+                target: t,
+                world_from_camera: Some(world_from_camera),
+                rgb: cfg.appearance.then(|| f.rgb.as_raw().as_slice()),
+            })
         })
-        .collect();
+        .collect::<Result<_, BenchError>>()?;
     let tcfg = TrackConfig {
         seed: cfg.seed,
         local_evals: cfg.local_evals,

@@ -34,6 +34,36 @@ pub struct CaptureInfo {
     pub source: Option<serde_json::Value>,
 }
 
+/// A camera's `c2w` (row-major 4×4) and intrinsics (row-major 3×3) as `tracking/cameras.npz`
+/// stores them: float32, as the format says.
+fn stored_camera_rows(camera: &PinholeCamera, world_from_camera: &Rigid) -> ([f32; 16], [f32; 9]) {
+    let m = world_from_camera.to_homogeneous();
+    let k = camera.matrix();
+    (
+        std::array::from_fn(|i| m[(i / 4, i % 4)] as f32),
+        std::array::from_fn(|i| k[(i / 3, i % 3)] as f32),
+    )
+}
+
+/// The camera and its pose exactly as a reader of the written capture gets them: rounded to
+/// float32 as [`write_capture`] stores them, then parsed as [`crate::capture`] parses them.
+/// A benchmark that tracks in memory uses these so that it measures what `track` on the
+/// written files gets (the search is sensitive to perturbations of 1e-7).
+pub fn as_stored(
+    camera: &PinholeCamera,
+    world_from_camera: &Rigid,
+) -> Result<(PinholeCamera, Rigid)> {
+    let (c2w, k) = stored_camera_rows(camera, world_from_camera);
+    let c2w = agentstar_geom::Matrix4::from_row_slice(&c2w.map(f64::from));
+    let k = agentstar_geom::Matrix3::from_row_slice(&k.map(f64::from));
+    let bad = |e: agentstar_geom::GeomError| {
+        DataError::invalid(Path::new("tracking/cameras.npz"), e.to_string())
+    };
+    let rigid = agentstar_geom::pose::rigid_from_matrix(&c2w).map_err(bad)?;
+    let camera = PinholeCamera::from_matrix(&k, camera.width, camera.height).map_err(bad)?;
+    Ok((camera, rigid))
+}
+
 /// Writes a capture to `dir` (which must not exist yet, or be empty): every file goes into a
 /// temporary sibling directory that is renamed to `dir` once complete. `extra` writes more
 /// files (ground truth, a model) into the temporary directory before the rename.
@@ -120,18 +150,9 @@ pub fn write_capture(
                 &[],
             )?;
         }
-        let m = f.world_from_camera.to_homogeneous();
-        for r in 0..4 {
-            for c in 0..4 {
-                c2w.push(m[(r, c)] as f32);
-            }
-        }
-        let k = f.camera.matrix();
-        for r in 0..3 {
-            for c in 0..3 {
-                ks.push(k[(r, c)] as f32);
-            }
-        }
+        let (c2w_rows, k_rows) = stored_camera_rows(f.camera, f.world_from_camera);
+        c2w.extend(c2w_rows);
+        ks.extend(k_rows);
         keyframes.push(Keyframe {
             view,
             frame_index: f.frame_index,

@@ -746,3 +746,58 @@ fn urdf_loops_duplicates_and_zero_axes_are_named() {
         assert!(e.contains("r.urdf") && e.contains(expect), "{expect}: {e}");
     }
 }
+
+/// `as_stored` is exactly what a reader of a written capture gets (the bench relies on it to
+/// measure what `track` gets from the files), and it does round: float32 is not float64.
+#[test]
+fn a_written_captures_cameras_read_back_exactly_as_as_stored_says() {
+    use agentstar_data::capture_writer::{as_stored, write_capture, CaptureInfo, FrameOut};
+    use agentstar_geom::pose::Rigid;
+    use agentstar_geom::PinholeCamera;
+    use agentstar_mask::BitMask;
+    use nalgebra::Translation3;
+    let dir = tempfile::tempdir().expect("tmp");
+    let camera = PinholeCamera::new(611.123456789, 612.987654321, 338.3, 229.7, W, H).expect("cam");
+    let poses: Vec<Rigid> = (0..3)
+        .map(|k| {
+            let k = f64::from(k);
+            Rigid::from_parts(
+                Translation3::new(0.1 + k / 3.0, -0.2 / 7.0, 0.35 + k / 11.0),
+                UnitQuaternion::from_euler_angles(0.3 + k, -1.1 / 3.0, 2.0 * k / 7.0),
+            )
+        })
+        .collect();
+    let rgb = RgbImage::from_pixel(W, H, image::Rgb([90, 90, 90]));
+    let mask = BitMask::from_fn(W, H, |x, _| x < 20);
+    let names: Vec<String> = (0..3).map(|k| format!("{:06}.png", k * 10)).collect();
+    let frames: Vec<FrameOut<'_>> = poses
+        .iter()
+        .zip(&names)
+        .enumerate()
+        .map(|(k, (pose, name))| FrameOut {
+            name,
+            frame_index: Some(10 * k as i64),
+            time_s: None,
+            camera: &camera,
+            world_from_camera: pose,
+            rgb: &rgb,
+            mask: &mask,
+            hand: None,
+            depth_m: None,
+        })
+        .collect();
+    let out = dir.path().join("cap");
+    write_capture(&out, &frames, &CaptureInfo::default(), |_| Ok(())).expect("write");
+    let capture = Capture::open(&out).expect("open");
+    for (frame, pose) in capture.frames.iter().zip(&poses) {
+        let (stored_camera, stored_pose) = as_stored(&camera, pose).expect("as stored");
+        assert_eq!(frame.camera, stored_camera, "{}", frame.name);
+        assert_eq!(frame.world_from_camera, stored_pose, "{}", frame.name);
+        assert_ne!(
+            stored_pose, *pose,
+            "{}: float32 must round this pose",
+            frame.name
+        );
+    }
+    assert_ne!(capture.frames[0].camera.fx, camera.fx, "float32 rounds fx");
+}
