@@ -1689,6 +1689,8 @@ fn choose_sequence(
 ) -> Result<(), TrackError> {
     let n = frames.len();
     let mut hyps: Vec<Vec<(GenPose, f64)>> = Vec::with_capacity(n);
+    // Whether each frame's first hypothesis is still its own pose.
+    let mut keeps_own = vec![true; n];
     for i in 0..n {
         let mut h = vec![(poses[i].clone(), scores[i])];
         if !fixed[i] {
@@ -1757,14 +1759,22 @@ fn choose_sequence(
                 }
             }
             let best = h.iter().map(|x| x.1).fold(f64::NEG_INFINITY, f64::max);
+            // The frame's own pose (first) may be dropped here: then the first one kept is
+            // another basin, and choosing it changes the frame.
+            keeps_own[i] = h[0].1 >= best - CHOICE_KEEP;
             h.retain(|x| x.1 >= best - CHOICE_KEEP);
             if h.is_empty() {
                 h.push((poses[i].clone(), scores[i]));
+                keeps_own[i] = true;
             }
         }
         hyps.push(h);
     }
-    let alternatives: usize = hyps.iter().map(|h| h.len() - 1).sum();
+    let alternatives: usize = hyps
+        .iter()
+        .zip(&keeps_own)
+        .map(|(h, &own)| h.len() - usize::from(own))
+        .sum();
     if alternatives == 0 {
         log.push("sequence choice: no twin explains any frame as well; poses kept".into());
         return Ok(());
@@ -1841,7 +1851,7 @@ fn choose_sequence(
     }
     let mut changed = Vec::new();
     for (i, &k) in path.iter().enumerate() {
-        if k != 0 {
+        if k != 0 || !keeps_own[i] {
             // Then polish: the twin was refined in a window centred where it was placed.
             let (g, sc) = hyps[i][k].clone();
             let seed = s.cfg.seed + 5_000_011 * (i as u64 + 1);
@@ -2348,4 +2358,140 @@ fn on_stand_in(
     result.log = lines;
     result.evaluations += evals;
     Ok(result)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use agentstar_geom::primitives::cuboid;
+    use agentstar_geom::{KinematicTree, Part};
+    use agentstar_render::{PosedModel, SilhouetteRenderer};
+
+    /// An L of two boxes: no rotation maps its outline onto itself.
+    fn ell() -> ObjectModel {
+        let long = cuboid(1.0, 0.3, 0.3).expect("box");
+        let foot = cuboid(0.3, 0.6, 0.3)
+            .expect("box")
+            .translated(Vector3::new(0.35, 0.45, 0.0));
+        ObjectModel {
+            tree: KinematicTree::rigid(2),
+            parts: vec![
+                Part::new("long", long, [0.6, 0.6, 0.6]),
+                Part::new("foot", foot, [0.6, 0.6, 0.6]),
+            ],
+        }
+    }
+
+    fn camera() -> PinholeCamera {
+        PinholeCamera::new(300.0, 300.0, 160.0, 120.0, 320, 240).expect("camera")
+    }
+
+    fn truth(k: usize) -> GenPose {
+        let spin = UnitQuaternion::from_axis_angle(
+            &agentstar_geom::nalgebra::Unit::new_normalize(Vector3::new(0.3, 1.0, 0.2)),
+            (25.0 * k as f64).to_radians(),
+        );
+        GenPose {
+            pose: ObjectPose::new(spin, Vector3::new(0.0, 0.0, 1.2)),
+            states: vec![],
+        }
+    }
+
+    /// Frame 2 left 60° off about an oblique axis (a wrong basin whose twins are as far from
+    /// the truth), every other frame true; the chosen poses, with and without the truth among
+    /// the basins frame 2's global search found.
+    fn choice_with(alternatives_of_2: Vec<(GenPose, f64)>) -> (Vec<GenPose>, Vec<String>) {
+        let model = ell();
+        let scale = 0.5;
+        let truths: Vec<GenPose> = (0..5).map(truth).collect();
+        let targets: Vec<ScoreTarget> = truths
+            .iter()
+            .map(|g| {
+                let mut r = SilhouetteRenderer::new(320, 240);
+                let posed = PosedModel::new(&model, &g.states, &g.pose.with_scale(scale));
+                ScoreTarget::new(r.render(&camera(), &posed.instances).clone(), None)
+                    .expect("target")
+            })
+            .collect();
+        let frames: Vec<TrackFrame<'_>> = targets
+            .iter()
+            .enumerate()
+            .map(|(k, t)| TrackFrame {
+                name: format!("{k:06}"),
+                camera: camera(),
+                target: t,
+                world_from_camera: None,
+                rgb: None,
+            })
+            .collect();
+        let cfg = TrackConfig::default();
+        let s = Searcher::new(&model, scale, &frames, &cfg).expect("searcher");
+        let mut poses = truths.clone();
+        let off = UnitQuaternion::from_axis_angle(
+            &agentstar_geom::nalgebra::Unit::new_normalize(Vector3::new(1.0, -0.4, 0.7)),
+            60f64.to_radians(),
+        );
+        poses[2].pose.rotation = off * poses[2].pose.rotation;
+        let mut scores: Vec<f64> = poses
+            .iter()
+            .zip(&frames)
+            .map(|(g, f)| {
+                FrameProblem::new(&model, f.camera, f.target, scale, g.clone())
+                    .evaluator()
+                    .combined(g)
+            })
+            .collect();
+        let mut alternatives = vec![Vec::new(); 5];
+        alternatives[2] = alternatives_of_2;
+        let observe = |_: &str| {};
+        let mut log = Log::new(&observe);
+        choose_sequence(
+            &s,
+            &frames,
+            (&mut poses, &mut scores),
+            &[false; 5],
+            &alternatives,
+            &mut log,
+        )
+        .expect("choice");
+        (poses, log.lines)
+    }
+
+    #[test]
+    fn the_sequence_choice_takes_a_basin_the_frames_global_search_found() {
+        let truth_2 = truth(2);
+        let (poses, log) = choice_with(vec![(truth_2.clone(), 1.0)]);
+        let error = |g: &GenPose| angle_deg(&(g.pose.rotation * truth_2.pose.rotation.inverse()));
+        assert!(
+            error(&poses[2]) < 1.0,
+            "{:.1}°\n{}",
+            error(&poses[2]),
+            log.join("\n")
+        );
+        assert!(
+            log.iter().any(|l| l.contains("changed basin: 000002")),
+            "{}",
+            log.join("\n")
+        );
+        // The other frames keep their (true) poses.
+        for k in [0, 1, 3, 4] {
+            assert!(
+                error_of(&poses[k], &truth(k)) < 1.0,
+                "frame {k}\n{}",
+                log.join("\n")
+            );
+        }
+        // Without that basin, no twin of the wrong pose reaches the truth.
+        let (poses, log) = choice_with(vec![]);
+        assert!(
+            error(&poses[2]) > 30.0,
+            "{:.1}°\n{}",
+            error(&poses[2]),
+            log.join("\n")
+        );
+    }
+
+    fn error_of(a: &GenPose, b: &GenPose) -> f64 {
+        angle_deg(&(a.pose.rotation * b.pose.rotation.inverse()))
+    }
 }
