@@ -629,7 +629,9 @@ pub struct OsweepArgs {
 pub struct OapplyArgs {
     #[schemars(description = FRAMES)]
     pub frames: Option<String>,
-    /// `flips`, or candidates separated by `|`, terms by `;`: `identity|flip:x|rz:90;rx:10`.
+    /// `flips`, `swaps` (for each hinge, the half-turn that puts its two sides in each
+    /// other's place: a laptop's lid and base), or candidates separated by `|`, terms by `;`:
+    /// `identity|flip:x|rz:90;rx:10|swaps`.
     pub set: Option<String>,
 }
 
@@ -1001,7 +1003,7 @@ tool!(Osweep, "osweep", Pose, Nothing, OsweepArgs,
     });
 
 tool!(Oapply, "oapply", Pose, Nothing, OapplyArgs,
-    "Score a set of object-frame rotations on each keyframe, default `flips` (identity and the 180° flips about x, y, z). The flip check for near-symmetric objects: a flipped pose can score as well as the right one, so look at the sheet.",
+    "Score a set of object-frame rotations on each keyframe, default `flips|swaps` (identity, the 180° flips about x, y, z, and for each hinge the half-turn that swaps its two sides: lid and base), each refined before ranking. The flip check for near-symmetric objects: a flipped or swapped pose can score as well as the right one, so look at the sheet.",
     |tb, a, step| {
         let extra = [flag(&a.frames, "--frames"), flag(&a.set, "--set")].concat();
         tb.search(SearchVerb::Oapply, a.frames.as_deref(), extra, step)

@@ -494,9 +494,87 @@ pub fn principal_axes(model: &ObjectModel, states: &[f64]) -> Option<(Point3, [V
     Some((Point3::from(middle), axes))
 }
 
+/// The half-turns that swap the two sides of each hinge of the model at `states`: for a
+/// revolute joint, the turn of half a revolution about the line through the hinge that
+/// bisects the directions from it to the parts it moves and to the parts of its parent
+/// (the joint's axis reversed, the states kept). Where the two sides have the same outline
+/// (a laptop's lid and base, a notebook's covers, the blades of shears) it puts each side
+/// where the other was: a twin no turn about the object's own axes or principal axes reaches
+/// unless the sides are equal and the hinge half open. `(joint, rotation, centre)` in the
+/// object's canonical frame, one per revolute joint whose two sides lie off its axis.
+pub fn hinge_swaps(model: &ObjectModel, states: &[f64]) -> Vec<(usize, UnitQuaternion, Point3)> {
+    let tree = &model.tree;
+    let joint_tfs = tree.joint_transforms(states);
+    let part_tfs = tree.part_transforms(states);
+    // Each part's vertex mean, placed.
+    let centres: Vec<Option<Point3>> = model
+        .parts
+        .iter()
+        .zip(&part_tfs)
+        .map(|(part, t)| {
+            let n = part.mesh.positions.len();
+            (n > 0).then(|| {
+                let sum = part
+                    .mesh
+                    .positions
+                    .iter()
+                    .fold(Vector3::zeros(), |acc, p| acc + p.coords);
+                t * Point3::from(sum / n as f64)
+            })
+        })
+        .collect();
+    let mut out = Vec::new();
+    for (j, joint) in tree.joints().iter().enumerate() {
+        if !matches!(
+            joint.kind,
+            agentstar_geom::kinematics::JointKind::Revolute
+                | agentstar_geom::kinematics::JointKind::Continuous
+        ) {
+            continue;
+        }
+        let parent = joint.parent.as_deref().and_then(|p| tree.joint_index(p));
+        let parent_tf = parent.map_or_else(agentstar_geom::pose::Rigid::identity, |p| joint_tfs[p]);
+        let axis = parent_tf.rotation * tree.unit_axis(j).into_inner();
+        let origin = parent_tf * Point3::from(joint.origin);
+        // The direction from the hinge to the mean of one side's part centres, across the
+        // axis; `None` when that side has no part or lies on the axis.
+        let side = |carried_by: Option<usize>| -> Option<Vector3> {
+            let points: Vec<Point3> = (0..model.parts.len())
+                .filter(|&k| tree.part_joint(k) == carried_by)
+                .filter_map(|k| centres[k])
+                .collect();
+            if points.is_empty() {
+                return None;
+            }
+            let mean =
+                points.iter().fold(Vector3::zeros(), |a, p| a + p.coords) / points.len() as f64;
+            let d = mean - origin.coords;
+            let across = d - axis * axis.dot(&d);
+            (across.norm() > 1e-9).then(|| across.normalize())
+        };
+        let (Some(moved), Some(fixed)) = (side(Some(j)), side(parent)) else {
+            continue;
+        };
+        let bisector = moved + fixed;
+        // Opposite sides (a hinge opened flat): the half-turn about the normal of their plane.
+        let bisector = if bisector.norm() > 1e-6 {
+            bisector
+        } else {
+            axis.cross(&fixed)
+        };
+        out.push((
+            j,
+            UnitQuaternion::from_axis_angle(&Unit::new_normalize(bisector), std::f64::consts::PI),
+            origin,
+        ));
+    }
+    out
+}
+
 /// The twins of a pose that every comparison of basins should include: its 180° flips about
-/// the object's axes through the pivot, and the half-turns about the model's principal axes
-/// through its centroid (lid ↔ base swaps and the symmetries of box-like shapes).
+/// the object's axes through the pivot, the half-turns about the model's principal axes
+/// through its centroid (lid ↔ base swaps and the symmetries of box-like shapes), and the
+/// half-turns that swap the sides of each hinge ([`hinge_swaps`]).
 pub fn twin_candidates(model: &ObjectModel, scale: f64, around: &GenPose) -> Vec<GenPose> {
     let pivot = model.pivot(&around.states);
     let mut moves: Vec<(UnitQuaternion, Point3)> = ['x', 'y', 'z']
@@ -512,6 +590,11 @@ pub fn twin_candidates(model: &ObjectModel, scale: f64, around: &GenPose) -> Vec
             )
         }));
     }
+    moves.extend(
+        hinge_swaps(model, &around.states)
+            .into_iter()
+            .map(|(_, q, c)| (q, c)),
+    );
     moves
         .iter()
         .map(|(q, c)| GenPose {
@@ -646,5 +729,126 @@ mod tests {
         assert!(off_axis < 0.005, "centre {centre:?}");
         let tilt = axes[0].dot(&Vector3::z()).abs().acos().to_degrees();
         assert!(tilt < 1.0, "longest axis {:?} is {tilt:.2}° off Z", axes[0]);
+    }
+
+    /// Two slabs of one outline hinged along an edge (a notebook's covers, a laptop's lid
+    /// and base), at `deg`, the back 1.5 times as thick as the cover.
+    fn hinged_slabs() -> ObjectModel {
+        use agentstar_geom::kinematics::{JointDef, JointKind};
+        use agentstar_geom::primitives::cuboid;
+        use agentstar_geom::{KinematicTree, Part};
+        let back = cuboid(1.0, 0.7, 0.03)
+            .expect("box")
+            .translated(Vector3::new(0.0, 0.0, -0.015));
+        let cover = cuboid(1.0, 0.7, 0.02)
+            .expect("box")
+            .translated(Vector3::new(0.0, 0.0, 0.01));
+        let hinge = JointDef {
+            name: "spine".into(),
+            kind: JointKind::Revolute,
+            parent: None,
+            child: vec!["cover".into()],
+            origin: Vector3::new(-0.5, 0.0, 0.0),
+            axis: -Vector3::y(),
+            limit: Some((0.0, 180.0)),
+        };
+        ObjectModel {
+            tree: KinematicTree::new(vec![hinge], &["back".to_string(), "cover".to_string()])
+                .expect("tree"),
+            parts: vec![
+                Part::new("back", back, [0.2, 0.6, 0.5]),
+                Part::new("cover", cover, [0.9, 0.8, 0.4]),
+            ],
+        }
+    }
+
+    /// The placed vertex mean of `part` under `states`, turned by `swap` (about its centre).
+    fn placed_centre(
+        model: &ObjectModel,
+        states: &[f64],
+        part: usize,
+        swap: Option<&(usize, UnitQuaternion, Point3)>,
+    ) -> Point3 {
+        let t = model.tree.part_transforms(states)[part];
+        let m = &model.parts[part].mesh;
+        let mean = m
+            .positions
+            .iter()
+            .fold(Vector3::zeros(), |a, p| a + p.coords)
+            / m.positions.len() as f64;
+        let p = t * Point3::from(mean);
+        match swap {
+            Some((_, q, c)) => c + q * (p - c),
+            None => p,
+        }
+    }
+
+    #[test]
+    fn a_hinge_swap_puts_each_side_where_the_other_was() {
+        let model = hinged_slabs();
+        for deg in [30.0f64, 95.0, 160.0, 180.0] {
+            let states = [deg.to_radians()];
+            let swaps = hinge_swaps(&model, &states);
+            assert_eq!(swaps.len(), 1, "{deg}°: one revolute joint, one swap");
+            let swap = &swaps[0];
+            // The cover's centre goes where the back's was, and the back's where the cover's
+            // was (both lie half a slab from the hinge; their thicknesses differ by 0.005).
+            let back = placed_centre(&model, &states, 0, None);
+            let cover = placed_centre(&model, &states, 1, None);
+            let cover_swapped = placed_centre(&model, &states, 1, Some(swap));
+            let back_swapped = placed_centre(&model, &states, 0, Some(swap));
+            assert!(
+                (cover_swapped - back).norm() < 0.01,
+                "{deg}°: {cover_swapped:?} vs {back:?}"
+            );
+            assert!(
+                (back_swapped - cover).norm() < 0.01,
+                "{deg}°: {back_swapped:?} vs {cover:?}"
+            );
+            // A half-turn: its axis is perpendicular to the hinge, which it reverses.
+            assert_eq!(swap.0, 0, "{deg}°: the spine");
+            assert!((swap.1.angle() - std::f64::consts::PI).abs() < 1e-9);
+            let hinge_axis = swap.1 * Vector3::y();
+            assert!(
+                (hinge_axis + Vector3::y()).norm() < 1e-9,
+                "{deg}°: {hinge_axis:?}"
+            );
+        }
+        // A model without joints has no hinge to swap.
+        let rigid = ObjectModel {
+            tree: agentstar_geom::KinematicTree::rigid(1),
+            parts: vec![model.parts[0].clone()],
+        };
+        assert!(hinge_swaps(&rigid, &[]).is_empty());
+    }
+
+    #[test]
+    fn the_twins_of_an_open_hinged_pose_include_the_swap_of_its_sides() {
+        // Without the hinge swap no twin puts the cover where the back is: the flips and the
+        // principal half-turns keep the back on its own side of the hinge.
+        let model = hinged_slabs();
+        let states = vec![70f64.to_radians()];
+        let pose = GenPose {
+            pose: agentstar_geom::pose::ObjectPose::new(
+                UnitQuaternion::identity(),
+                Vector3::new(0.0, 0.0, 2.0),
+            ),
+            states: states.clone(),
+        };
+        let back = placed_centre(&model, &states, 0, None);
+        let found = twin_candidates(&model, 1.0, &pose).iter().any(|g| {
+            // The twin's cover centre in the original pose's object frame.
+            let t = model.tree.part_transforms(&g.states)[1];
+            let m = &model.parts[1].mesh;
+            let mean = m
+                .positions
+                .iter()
+                .fold(Vector3::zeros(), |a, p| a + p.coords)
+                / m.positions.len() as f64;
+            let in_camera = g.pose.rotation * (t * Point3::from(mean)).coords + g.pose.translation;
+            let in_object = pose.pose.rotation.inverse() * (in_camera - pose.pose.translation);
+            (Point3::from(in_object) - back).norm() < 0.01
+        });
+        assert!(found, "no twin puts the cover where the back is");
     }
 }

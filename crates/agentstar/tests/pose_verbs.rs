@@ -28,15 +28,23 @@ fn pose_verbs_track_commit_and_diagnose() {
         ]
     };
 
-    // A flip panel: every frame ranks identity first, every candidate is on the sheet.
+    // A flip panel: every frame ranks identity first, every candidate is on the sheet: the
+    // four flips and the swap of the hinge's two sides (the example is articulated).
     let mut args = common("oapply", "oapply");
     args.extend(["--frames".into(), "000000,000005".into(), "--json".into()]);
     let o = agentstar(&args.iter().map(String::as_str).collect::<Vec<_>>());
     assert!(o.status.success(), "{}", text(&o));
     let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("json");
     for f in v["frames"].as_array().expect("frames") {
-        assert_eq!(f["ranked"].as_array().expect("ranked").len(), 4);
-        assert_eq!(f["ranked"][0]["label"], "identity");
+        let ranked = f["ranked"].as_array().expect("ranked");
+        assert_eq!(ranked.len(), 5, "{f}");
+        assert_eq!(ranked[0]["label"], "identity");
+        assert!(
+            ranked
+                .iter()
+                .any(|r| r["label"].as_str().is_some_and(|l| l.starts_with("swap:"))),
+            "{f}"
+        );
     }
 
     // Apply a bad order, commit it, see it in the history, restore the original.

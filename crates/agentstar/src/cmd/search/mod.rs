@@ -17,7 +17,7 @@ use agentstar_render::frames::crop_box;
 use agentstar_render::sheet::sheet_pages;
 use agentstar_render::views::{overlay, shade, silhouette_comparison, ShadeOptions};
 use agentstar_render::{render_full, BitMask, PosedModel};
-use agentstar_track::hypotheses::{refine_each, refine_ranked, LocalWindow};
+use agentstar_track::hypotheses::{hinge_swaps, refine_each, refine_ranked, LocalWindow};
 use agentstar_track::objective::{CandidateScore, FrameProblem};
 use agentstar_track::search::{sweep, Strategy, SweepConfig, SweepResult};
 use agentstar_track::space::{

@@ -47,10 +47,13 @@ pub struct OapplyArgs {
     #[arg(long)]
     frames: Option<String>,
     /// Candidates separated by `|`, terms by `;`: `identity|flip:x|rz:90;rx:10|flip:y;rz:30`,
-    /// or `flips`. rx/ry/rz terms make one rotation vector (degrees); a flip splits a
+    /// `flips` or `swaps`. rx/ry/rz terms make one rotation vector (degrees); a flip splits a
     /// candidate into factors applied left to right about the turned object axes. Each
     /// candidate turns the object about its box centre (at the frame's joint states).
-    #[arg(long, default_value = "flips")]
+    /// `swaps`: for each revolute joint, the half-turn through the hinge that puts each of
+    /// its two sides where the other was (a laptop's lid and base, a notebook's covers),
+    /// labelled `swap:JOINT`; none for a rigid model.
+    #[arg(long, default_value = "flips|swaps")]
     set: String,
     /// Rank the candidates as placed, without refining each locally first.
     #[arg(long)]
@@ -213,20 +216,35 @@ pub fn run_osweep(a: OsweepArgs) -> Result<ExitCode> {
     )
 }
 
-/// Parses a candidate set: `identity|flip:x|rz:90;rx:10`, `flips`.
-fn rotation_set(spec: &str) -> Result<Vec<(String, UnitQuaternion)>> {
+/// A parsed candidate set: rotations about the box centre, and whether the hinge swaps
+/// (`swaps`) are in it.
+struct RotationSet {
+    rotations: Vec<(String, UnitQuaternion)>,
+    swaps: bool,
+}
+
+/// Parses a candidate set: `identity|flip:x|rz:90;rx:10`, `flips`, `swaps`.
+fn rotation_set(spec: &str) -> Result<RotationSet> {
     let expanded = spec.replace("flips", "identity|flip:x|flip:y|flip:z");
     let mut out: Vec<(String, UnitQuaternion)> = Vec::new();
+    let mut swaps = false;
     for cand in expanded.split('|').map(str::trim).filter(|c| !c.is_empty()) {
+        if cand == "swaps" {
+            swaps = true;
+            continue;
+        }
         let q = parse_rotation(cand)?;
         if !out.iter().any(|(_, o)| o.angle_to(&q) < 1e-9) {
             out.push((cand.to_string(), q));
         }
     }
-    if out.is_empty() {
+    if out.is_empty() && !swaps {
         bail!("the candidate set is empty; e.g. `identity|flip:x|rz:90`");
     }
-    Ok(out)
+    Ok(RotationSet {
+        rotations: out,
+        swaps,
+    })
 }
 
 /// One candidate rotation: `identity`, `flip:x|y|z` (180°), `rx`/`ry`/`rz` terms in degrees,
@@ -306,10 +324,30 @@ pub fn run_oapply(a: OapplyArgs) -> Result<ExitCode> {
         let inputs = s.target(i)?;
         let p = problem_for(&s, i, &inputs, a.common.depth_weight, s.gen_pose(i));
         let mut ev = p.evaluator();
-        let mut rows: Vec<Row> = set
+        // The rotations about the box centre, then the hinge swaps about their hinges.
+        let mut moves: Vec<(String, UnitQuaternion, Point3)> = set
+            .rotations
             .iter()
-            .map(|(label, q)| {
-                let pose = apply_object_rotation(&p.base.pose, s.scale(), &p.pivot, q);
+            .map(|(label, q)| (label.clone(), *q, p.pivot))
+            .collect();
+        if set.swaps {
+            let tree = &s.model.model.tree;
+            moves.extend(
+                hinge_swaps(&s.model.model, &p.base.states)
+                    .into_iter()
+                    .map(|(j, q, c)| (format!("swap:{}", tree.joints()[j].name), q, c)),
+            );
+        }
+        if moves.is_empty() {
+            bail!(
+                "`{}`: the model has no revolute joint to swap the sides of, and the set names no other rotation; e.g. `flips|swaps`",
+                a.set
+            );
+        }
+        let mut rows: Vec<Row> = moves
+            .iter()
+            .map(|(label, q, centre)| {
+                let pose = apply_object_rotation(&p.base.pose, s.scale(), centre, q);
                 let g = GenPose {
                     pose,
                     states: p.base.states.clone(),
@@ -432,10 +470,16 @@ mod tests {
         // A whole set with flips inside compounds.
         let set = rotation_set("identity|flip:x;rz:15|flips").expect("set");
         assert_eq!(
-            set.len(),
+            set.rotations.len(),
             5,
             "{:?}",
-            set.iter().map(|s| &s.0).collect::<Vec<_>>()
+            set.rotations.iter().map(|s| &s.0).collect::<Vec<_>>()
         );
+        assert!(!set.swaps);
+        // The hinge swaps alone are a set (of none for a rigid model: the run says so).
+        let set = rotation_set("swaps").expect("set");
+        assert!(set.swaps && set.rotations.is_empty());
+        let set = rotation_set("flips|swaps").expect("set");
+        assert!(set.swaps && set.rotations.len() == 4);
     }
 }
