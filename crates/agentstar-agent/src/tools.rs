@@ -620,7 +620,8 @@ pub struct OsweepArgs {
     /// Grid ranges over rx, ry, rz (degrees) and joints: `rz:-180,180,9;rx:-15,15,3`, each
     /// `dof:lower,upper,steps` with `steps` grid values from lower to upper, both included.
     /// The grid is then refined around its best points (finer spacing) and every candidate
-    /// refined locally before ranking, so the angles reported fall between grid values.
+    /// refined locally before ranking: each row names its grid start and, after `→`, the
+    /// rotation (one rotation vector, as `oapply` reads it) and joint states it was refined to.
     pub ranges: Option<String>,
 }
 

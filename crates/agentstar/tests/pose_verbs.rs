@@ -47,6 +47,37 @@ fn pose_verbs_track_commit_and_diagnose() {
         );
     }
 
+    // An object-frame grid: each row names its grid start and where refinement took it; from
+    // the tracked (right) pose the best row ends within a few degrees of no turn at all,
+    // whatever grid value it started from.
+    let mut args = common("osweep", "osweep");
+    args.extend([
+        "--frames".into(),
+        "000005".into(),
+        "--ranges".into(),
+        "rz:-60,60,3".into(),
+        "--json".into(),
+    ]);
+    let o = agentstar(&args.iter().map(String::as_str).collect::<Vec<_>>());
+    assert!(o.status.success(), "{}", text(&o));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("json");
+    let ranked = v["frames"][0]["ranked"].as_array().expect("ranked");
+    for r in ranked {
+        let label = r["label"].as_str().expect("label");
+        assert!(label.contains(" → rx:"), "{label}");
+    }
+    let best = ranked[0]["label"].as_str().expect("label");
+    let turn: Vec<f64> = best
+        .split(" → ")
+        .nth(1)
+        .expect("refined")
+        .split(';')
+        .take(3)
+        .map(|t| t.split_once(':').expect("term").1.parse().expect("deg"))
+        .collect();
+    let norm = turn.iter().map(|d| d * d).sum::<f64>().sqrt();
+    assert!(norm < 3.0, "{best}");
+
     // Apply a bad order, commit it, see it in the history, restore the original.
     let mut args = common("apply", "apply");
     args.extend([

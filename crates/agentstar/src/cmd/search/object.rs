@@ -199,9 +199,16 @@ pub fn run_osweep(a: OsweepArgs) -> Result<ExitCode> {
         if !a.no_refine {
             r = refine_ranked(&p, r, &LocalWindow::basin(), 17)?;
         }
+        let mut rows = rows_from(r, &space, tree);
+        if !a.no_refine {
+            // Each row names its grid start and where the refinement took it.
+            for row in &mut rows {
+                row.label = format!("{} → {}", row.label, refined_to(&p.base, &row.pose, tree));
+            }
+        }
         outputs.push(FrameOutput {
             frame: s.capture.frames[i].name.clone(),
-            rows: rows_from(r, &space, tree),
+            rows,
             extra: json!({"method": "osweep", "space": space_json(&space, tree)}),
             notes: space.notes.clone(),
         });
@@ -214,6 +221,20 @@ pub fn run_osweep(a: OsweepArgs) -> Result<ExitCode> {
         outputs,
         json!({}),
     )
+}
+
+/// Where a refined candidate ended, relative to the frame's pose: its object-frame rotation
+/// as one rotation vector (`rx:…;ry:…;rz:…`, degrees, as `oapply` reads it) and its joint
+/// states (interface units).
+fn refined_to(base: &GenPose, pose: &GenPose, tree: &KinematicTree) -> String {
+    let turn = (base.pose.rotation.inverse() * pose.pose.rotation)
+        .scaled_axis()
+        .map(f64::to_degrees);
+    let mut out = format!("rx:{:.1};ry:{:.1};rz:{:.1}", turn.x, turn.y, turn.z);
+    for (name, value) in tree.states_to_interface(&pose.states) {
+        out.push_str(&format!(";{name}:{value:.1}"));
+    }
+    out
 }
 
 /// A parsed candidate set: rotations about the box centre, and whether the hinge swaps
