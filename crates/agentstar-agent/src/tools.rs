@@ -555,8 +555,10 @@ pub struct KeyframesArgs {
 #[serde(deny_unknown_fields)]
 pub struct TurntableArgs {
     /// Joint states to show: `representative` (each joint's min, median and max over the
-    /// keyframes; the default), `all` (every distinct state: many sheets), or keyframes in
-    /// the frame grammar (`000010,000040`).
+    /// keyframes; the default), `all` (every distinct state: many sheets), keyframes in
+    /// the frame grammar (`000010,000040`), or states given outright (degrees, canonical
+    /// units; joints not named at rest): `hinge:90|hinge:0;drawer:0.2`, one sheet each, also
+    /// before any pose is tracked.
     #[schemars(length(min = 1, max = 4000))]
     pub states: Option<String>,
 }

@@ -193,6 +193,43 @@ fn example_and_every_subcommand_on_it() {
     let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("json");
     assert_eq!(v["states"].as_array().expect("states").len(), 6);
     assert!(tt.join("turntable_000000_az000_el+20.png").is_file());
+    // States given outright, without poses (a shape checked before tracking); a state past
+    // its joint's limit is refused, naming the joint.
+    let tt_given = dir.path().join("tt_given");
+    let given = |states: &str| {
+        agentstar(&[
+            "turntable",
+            "--model",
+            &model,
+            "--out",
+            tt_given.to_str().expect("utf8"),
+            "--size",
+            "96",
+            "--states",
+            states,
+            "--json",
+        ])
+    };
+    let o = given("hinge:30|hinge:90");
+    assert!(o.status.success(), "{}", text(&o));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("json");
+    let shown: Vec<f64> = v["states"]
+        .as_array()
+        .expect("states")
+        .iter()
+        .map(|s| s["joints"]["hinge"].as_f64().expect("state"))
+        .collect();
+    assert_eq!(shown.len(), 2, "{v}");
+    assert!(
+        (shown[0] - 30.0).abs() < 1e-9 && (shown[1] - 90.0).abs() < 1e-9,
+        "{v}"
+    );
+    let o = given("hinge:1000");
+    assert!(
+        !o.status.success() && text(&o).contains("hinge") && text(&o).contains("limit"),
+        "{}",
+        text(&o)
+    );
 
     let glb = dir.path().join("object.glb");
     let o = agentstar(&[

@@ -7,7 +7,7 @@ use crate::common::{open_capture, open_model, out_dir, print_json};
 use agentstar_agent::view_reports::{TurntableReport, TurntableState};
 use agentstar_data::images::save_png_rgb;
 use agentstar_data::posefile::PoseFile;
-use agentstar_geom::{ObjectModel, UnitQuaternion};
+use agentstar_geom::{KinematicTree, ObjectModel, UnitQuaternion};
 use agentstar_render::sheet::sheet_pages;
 use agentstar_render::views::{
     flatten, shade, sphere8, turntable_camera, turntable_pose, ShadeOptions, TurntableView,
@@ -46,8 +46,10 @@ pub struct Args {
     #[arg(long)]
     out: PathBuf,
     /// Joint states: `representative` (each joint's min, median and max over the
-    /// keyframes; the default), `all` (every distinct state, one sheet each), or keyframes
-    /// (the frame grammar: names, stems, numbers, `a..b`).
+    /// keyframes; the default), `all` (every distinct state, one sheet each), keyframes
+    /// (the frame grammar: names, stems, numbers, `a..b`), or states given outright, one
+    /// sheet each, in interface units (degrees, canonical units), joints not named at rest:
+    /// `hinge:90|hinge:0;drawer:0.2` (needs no poses: check a shape before tracking).
     #[arg(long, default_value = "representative")]
     states: String,
     /// Orientation of the object: upright (canonical +Z up) or as in the reference keyframe.
@@ -112,6 +114,46 @@ pub fn turntable_tiles(
 
 /// Each joint's minimum, median and maximum over `frames` (internal units), as up to three
 /// distinct states labelled `min`, `median`, `max`.
+/// States given outright: `hinge:90|hinge:0;drawer:0.2`, one sheet per `|`-separated set,
+/// interface units, the joints not named at rest; each checked against the joints' names
+/// and limits. `(label, source, internal states)`.
+fn explicit_states(spec: &str, tree: &KinematicTree) -> Result<Vec<(String, String, Vec<f64>)>> {
+    let mut out = Vec::new();
+    for set in spec.split('|').map(str::trim).filter(|s| !s.is_empty()) {
+        let mut named = tree.states_to_interface(&tree.rest_states());
+        for term in set.split(';').map(str::trim).filter(|t| !t.is_empty()) {
+            let (name, value) = term
+                .split_once(':')
+                .ok_or_else(|| anyhow!("`{term}`: expected `joint:value`, e.g. `hinge:90`"))?;
+            let value: f64 = value
+                .trim()
+                .parse()
+                .ok()
+                .filter(|v: &f64| v.is_finite())
+                .ok_or_else(|| anyhow!("`{term}`: `{}` is not a number", value.trim()))?;
+            named.insert(name.trim().to_string(), value);
+        }
+        let states = tree
+            .states_from_interface(&named)
+            .map_err(|e| anyhow!("--states `{set}`: {e}"))?;
+        let label: String = set
+            .chars()
+            .map(|c| {
+                if c.is_ascii_alphanumeric() || c == '.' || c == '-' {
+                    c
+                } else {
+                    '_'
+                }
+            })
+            .collect();
+        out.push((label, set.to_string(), states));
+    }
+    if out.is_empty() {
+        bail!("--states `{spec}`: no joint states; e.g. `hinge:90|hinge:0`");
+    }
+    Ok(out)
+}
+
 fn representative(frames: &[Vec<f64>], n_joints: usize) -> Vec<(String, Vec<f64>)> {
     let pick = |q: f64| -> Vec<f64> {
         (0..n_joints)
@@ -152,7 +194,12 @@ pub fn run(a: Args) -> Result<ExitCode> {
     let mut rotation = upright();
     let mut states: Vec<(String, String, Vec<f64>)> = Vec::new();
     let mut warnings = tree.limit_warnings();
+    let explicit = a.states.contains(':');
+    if explicit {
+        states = explicit_states(a.states.trim(), tree)?;
+    }
     match (&a.poses, &a.capture) {
+        _ if explicit && a.orient == Orient::Upright => {}
         (Some(p), Some(c)) => {
             let capture = open_capture(c)?;
             let pf = PoseFile::read(p)?;
@@ -166,6 +213,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
             let names: Vec<String> = capture.frames.iter().map(|f| f.name.clone()).collect();
             warnings.extend(tree.at_limit_warnings(&all, &names));
             match a.states.trim() {
+                _ if explicit => {}
                 "representative" | "" => {
                     let r = representative(&all, tree.joints().len());
                     if r.len() == 1 {
