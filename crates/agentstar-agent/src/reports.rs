@@ -270,6 +270,12 @@ pub struct FrameAppearance {
     pub ncc: Option<f64>,
     /// Colour pairs compared.
     pub pairs: usize,
+    /// The frame's colours against the model's own part colours alone at the pose
+    /// (`agentstar_track::appearance::model_agreement`; part of `ncc`): does the pose put
+    /// the model's print (a label part, a badge) where the frame shows it? `None` for a
+    /// model of one colour or a frame without an image.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub model_ncc: Option<f64>,
 }
 
 /// What `track --json` prints.

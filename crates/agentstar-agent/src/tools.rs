@@ -906,7 +906,7 @@ tool!(Keyframes, "frames", Diagnostic, Nothing, KeyframesArgs,
     });
 
 tool!(Score, "score", Diagnostic, Nothing, FramesArgs,
-    "Per keyframe: band IoU (the visible IoU without ±2 px around the mask's outline, where segmenters err: the gate is 0.98 on it), visible IoU (hands excluded), raw IoU, pixel counts, depth error when the capture has depth, and the appearance figure (colour agreement with the neighbouring keyframes and, where the model's parts differ in colour, with the model's own colours). Lists the keyframes under the gate.",
+    "Per keyframe: band IoU (the visible IoU without ±2 px around the mask's outline, where segmenters err: the gate is 0.98 on it), visible IoU (hands excluded), raw IoU, pixel counts, depth error when the capture has depth, and the appearance figure (colour agreement with the neighbouring keyframes and, where the model's parts differ in colour, with the model's own colours, pooled), with the agreement with the model's own colours alone beside it (`model_ncc`: does the pose put the model's print where the frame shows it). Lists the keyframes under the gate.",
     |tb, a, _step| {
         let report = tb.score_report(a.frames.as_deref())?;
         let mut o = ToolOutput::default();

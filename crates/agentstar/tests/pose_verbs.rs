@@ -14,6 +14,13 @@ fn pose_verbs_track_commit_and_diagnose() {
     let v: TrackReport = track_known(&cap, &model, &poses, &tracked);
     assert!(v.sequence.min_iou_visible >= 0.98, "{:?}", v.sequence);
     let tracked = tracked.to_str().expect("utf8").to_string();
+    // The example's parts differ in colour: beside the pooled appearance figure, each frame
+    // reports how its colours agree with the model's own at the (right) tracked pose.
+    let v: ScoreReport = score_of(&cap, &model, &tracked, None);
+    assert_eq!(v.appearance.len(), v.frames.len());
+    for a in &v.appearance {
+        assert!(a.model_ncc.is_some_and(|n| n > 0.5), "{a:?}");
+    }
     let common = |verb: &str, out: &str| -> Vec<String> {
         vec![
             verb.into(),

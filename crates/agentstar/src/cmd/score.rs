@@ -3,7 +3,9 @@
 use crate::common::{print_json, select_frames, FrameScore, SessionArgs, PASS_IOU};
 use agentstar_agent::reports::{FrameAppearance, ScoreReport, SequenceScore};
 use agentstar_render::DEFAULT_BAND_PX;
-use agentstar_track::appearance::{neighbour_consistency, AppearanceConfig, AppearanceFrame};
+use agentstar_track::appearance::{
+    model_agreement, neighbour_consistency, AppearanceConfig, AppearanceFrame,
+};
 use anyhow::{bail, Result};
 use rayon::prelude::*;
 use std::process::ExitCode;
@@ -121,10 +123,14 @@ fn appearance(s: &crate::common::Session, selected: &[usize]) -> Result<Vec<Fram
         .par_iter()
         .map(|&i| {
             let a = neighbour_consistency(&s.model.model, s.scale(), &frames, &poses, i, &cfg);
+            let model_ncc = frames[i]
+                .as_ref()
+                .and_then(|f| model_agreement(&s.model.model, s.scale(), f, &poses[i], &cfg).ncc);
             FrameAppearance {
                 frame: cap.frames[i].name.clone(),
                 ncc: a.ncc,
                 pairs: a.pairs,
+                model_ncc,
             }
         })
         .collect())
@@ -145,8 +151,12 @@ pub fn print_table(scores: &[FrameScore], summary: &SequenceScore, appearance: &
         print!(" {:>10} {:>9}", "depth_canon", "combined");
     }
     let has_appearance = appearance.len() == scores.len();
+    let has_model = has_appearance && appearance.iter().any(|a| a.model_ncc.is_some());
     if has_appearance {
         print!(" {:>6}", "ncc");
+    }
+    if has_model {
+        print!(" {:>6}", "model");
     }
     println!();
     for (k, s) in scores.iter().enumerate() {
@@ -183,6 +193,14 @@ pub fn print_table(scores: &[FrameScore], summary: &SequenceScore, appearance: &
                 " {:>6}",
                 appearance[k]
                     .ncc
+                    .map_or("n/a".into(), |v| format!("{v:.2}"))
+            );
+        }
+        if has_model {
+            print!(
+                " {:>6}",
+                appearance[k]
+                    .model_ncc
                     .map_or("n/a".into(), |v| format!("{v:.2}"))
             );
         }
