@@ -1247,20 +1247,30 @@ fn pngs(dir: &Path) -> Vec<PathBuf> {
 pub fn search_text(report: &SearchReport, path: &Path) -> String {
     let mut t = String::new();
     for f in &report.frames {
+        let with_model = f.ranked.iter().any(|c| c.model_ncc.is_some());
         t.push_str(&format!(
-            "{} {}\n{:<5} {:>8} {:>8} {:>8} {:>8}  order\n",
+            "{} {}\n{:<5} {:>8} {:>8} {:>8} {:>8}{}  order\n",
             report.verb.stem(),
             f.frame,
             "rank",
             "score",
             "iou_band",
             "iou_vis",
-            "iou_raw"
+            "iou_raw",
+            if with_model { "    model" } else { "" }
         ));
         let or_na = |v: Option<f64>| v.map_or("n/a".into(), |v| format!("{v:.4}"));
         for c in &f.ranked {
+            let model = if with_model {
+                format!(
+                    " {:>8}",
+                    c.model_ncc.map_or("n/a".into(), |v| format!("{v:.2}"))
+                )
+            } else {
+                String::new()
+            };
             t.push_str(&format!(
-                "{:<5} {:>8.4} {:>8} {:>8} {:>8.4}  {}\n",
+                "{:<5} {:>8.4} {:>8} {:>8} {:>8.4}{model}  {}\n",
                 c.rank,
                 c.gate,
                 or_na(c.iou_band),
@@ -1268,6 +1278,9 @@ pub fn search_text(report: &SearchReport, path: &Path) -> String {
                 c.iou_raw,
                 c.label
             ));
+        }
+        if with_model {
+            t.push_str("model: the frame's colours against the model's own part colours at the candidate (NCC, −1..1): where candidates tie in IoU (a flipped or swapped twin), the higher one puts the model's print where the frame shows it.\n");
         }
         for n in &f.notes {
             t.push_str(&format!("note: {n}\n"));
@@ -2687,6 +2700,7 @@ mod tests {
                     gate: 0.97,
                     depth_canon: None,
                     combined: 0.97,
+                    model_ncc: None,
                     extra: json!({}),
                 }],
             }],

@@ -193,6 +193,7 @@ fn run_candidates(a: &SweepArgs, s: &Session, list: &str) -> Result<ExitCode> {
                     pose,
                     score,
                     extra: json!({"candidate": k}),
+                    model_ncc: None,
                 }
             })
             .collect();

@@ -62,6 +62,43 @@ struct Row {
     pose: GenPose,
     score: CandidateScore,
     extra: Value,
+    /// The frame's colours against the model's own part colours at this pose
+    /// ([`with_model_agreement`]); `None` for a model of one colour.
+    model_ncc: Option<f64>,
+}
+
+/// Fills each row's agreement of frame `i`'s colours with the model's own part colours
+/// (`model_agreement`): where the outlines tie (a lid and base swapped, a can turned half
+/// way), the figure that tells them apart, shown beside the IoU. Nothing for a model of one
+/// colour or a frame whose image does not match its camera.
+fn with_model_agreement(s: &Session, i: usize, rows: &mut [Row]) -> Result<()> {
+    use agentstar_track::appearance::{
+        model_agreement, model_has_appearance, AppearanceConfig, AppearanceFrame,
+    };
+    let model = &s.model.model;
+    if !model_has_appearance(model) {
+        return Ok(());
+    }
+    let cap = &s.capture;
+    let camera = &cap.frames[i].camera;
+    let image = cap.load_frame(i)?;
+    if (image.width(), image.height()) != (camera.width, camera.height) {
+        return Ok(());
+    }
+    let mask = match cap.load_hand(i)? {
+        Some(hand) => cap.load_mask(i)?.and_not(&hand),
+        None => cap.load_mask(i)?,
+    };
+    let frame = AppearanceFrame {
+        camera,
+        rgb: image.as_raw(),
+        mask: &mask,
+    };
+    let cfg = AppearanceConfig::default();
+    for r in rows {
+        r.model_ncc = model_agreement(model, s.scale(), &frame, &r.pose, &cfg).ncc;
+    }
+    Ok(())
 }
 
 fn order_string(space: &SearchSpace, x: &[f64], tree: &KinematicTree) -> String {
@@ -101,6 +138,7 @@ fn candidate(r: &Row, scale: f64, tree: &KinematicTree) -> Candidate {
         gate: r.score.gate,
         depth_canon: r.score.depth_canon,
         combined: r.score.combined,
+        model_ncc: r.model_ncc,
         extra: r.extra.clone(),
     }
 }
@@ -184,13 +222,19 @@ fn text_report(
     report_path: &Path,
     poses: &Path,
 ) -> String {
+    let with_model = rows.iter().any(|r| r.model_ncc.is_some());
     let mut t = format!(
-        "{verb} {frame}\n{:<5} {:>8} {:>8} {:>8} {:>9}  order\n",
-        "rank", "combined", "iou_vis", "iou_raw", "dp_canon"
+        "{verb} {frame}\n{:<5} {:>8} {:>8} {:>8} {:>9}{}  order\n",
+        "rank",
+        "combined",
+        "iou_vis",
+        "iou_raw",
+        "dp_canon",
+        if with_model { "    model" } else { "" }
     );
     for r in rows {
         t.push_str(&format!(
-            "{:<5} {:>8.4} {:>8} {:>8.4} {:>9}  {}\n",
+            "{:<5} {:>8.4} {:>8} {:>8.4} {:>9}{}  {}\n",
             r.rank,
             r.score.combined,
             r.score
@@ -200,6 +244,14 @@ fn text_report(
             r.score
                 .depth_canon
                 .map_or("-".into(), |v| format!("{v:.4}")),
+            if with_model {
+                format!(
+                    " {:>8}",
+                    r.model_ncc.map_or("n/a".into(), |v| format!("{v:.2}"))
+                )
+            } else {
+                String::new()
+            },
             r.label
         ));
     }
@@ -347,6 +399,7 @@ fn rows_from(result: SweepResult, space: &SearchSpace, tree: &KinematicTree) -> 
             extra: json!({"restart": c.restart, "seed": c.seed, "pass": c.pass, "x": c.x, "kept_start": c.kept_start, "unrefined": c.unrefined.map(|u| u.combined)}),
             pose: c.pose,
             score: c.score,
+            model_ncc: None,
         })
         .collect()
 }

@@ -200,6 +200,7 @@ pub fn run_osweep(a: OsweepArgs) -> Result<ExitCode> {
             r = refine_ranked(&p, r, &LocalWindow::basin(), 17)?;
         }
         let mut rows = rows_from(r, &space, tree);
+        with_model_agreement(&s, i, &mut rows)?;
         if !a.no_refine {
             // Each row names its grid start and where the refinement took it.
             for row in &mut rows {
@@ -380,6 +381,7 @@ pub fn run_oapply(a: OapplyArgs) -> Result<ExitCode> {
                     pose: g,
                     score,
                     extra: json!({}),
+                    model_ncc: None,
                 }
             })
             .collect();
@@ -397,6 +399,7 @@ pub fn run_oapply(a: OapplyArgs) -> Result<ExitCode> {
         for (k, r) in rows.iter_mut().enumerate() {
             r.rank = k;
         }
+        with_model_agreement(&s, i, &mut rows)?;
         outputs.push(FrameOutput {
             frame: s.capture.frames[i].name.clone(),
             rows,
@@ -437,6 +440,7 @@ pub fn run_oapply_all(a: OapplyAllArgs) -> Result<ExitCode> {
                 pose: g,
                 score,
                 extra: json!({}),
+                model_ncc: None,
             }],
             extra: json!({"method": "oapply_all"}),
             notes: vec![],
