@@ -492,6 +492,12 @@ fn check_size_array(data: &[f64]) -> std::result::Result<[u32; 2], String> {
     Ok([data[0] as u32, data[1] as u32])
 }
 
+/// A `c2w` row of `tracking/cameras.*` as the reader takes it: a rigid camera-to-world
+/// transform (bottom row `[0, 0, 0, 1]`, orthonormal rotation).
+pub(crate) fn rigid_from_c2w(m: &Matrix4) -> std::result::Result<Rigid, String> {
+    check_bottom_row(m).and_then(|()| rigid_from_matrix(m).map_err(|e| e.to_string()))
+}
+
 /// The bottom row of a `c2w` matrix must be `[0, 0, 0, 1]`.
 fn check_bottom_row(m: &Matrix4) -> std::result::Result<(), String> {
     let row = [m[(3, 0)], m[(3, 1)], m[(3, 2)], m[(3, 3)]];
@@ -656,9 +662,7 @@ fn open_inner(dir: &Path, c: &mut Collector, check_files: bool) -> Option<Captur
     let mut notes = Vec::new();
     let mut cameras = Vec::with_capacity(c2w.len());
     for (i, (m, k)) in c2w.iter().zip(&ks).enumerate() {
-        let rigid = match check_bottom_row(m)
-            .and_then(|()| rigid_from_matrix(m).map_err(|e| e.to_string()))
-        {
+        let rigid = match rigid_from_c2w(m) {
             Ok(r) => Some(r),
             Err(e) => {
                 c.add(&cam_path, format!("c2w[{i}]: {e}"));

@@ -56,11 +56,10 @@ pub fn as_stored(
     let (c2w, k) = stored_camera_rows(camera, world_from_camera);
     let c2w = agentstar_geom::Matrix4::from_row_slice(&c2w.map(f64::from));
     let k = agentstar_geom::Matrix3::from_row_slice(&k.map(f64::from));
-    let bad = |e: agentstar_geom::GeomError| {
-        DataError::invalid(Path::new("tracking/cameras.npz"), e.to_string())
-    };
-    let rigid = agentstar_geom::pose::rigid_from_matrix(&c2w).map_err(bad)?;
-    let camera = PinholeCamera::from_matrix(&k, camera.width, camera.height).map_err(bad)?;
+    let bad = |e: String| DataError::invalid(Path::new("tracking/cameras.npz"), e);
+    let rigid = crate::capture::rigid_from_c2w(&c2w).map_err(bad)?;
+    let camera = PinholeCamera::from_matrix(&k, camera.width, camera.height)
+        .map_err(|e| bad(e.to_string()))?;
     Ok((camera, rigid))
 }
 

@@ -512,22 +512,11 @@ pub fn hinge_swaps(model: &ObjectModel, states: &[f64]) -> Vec<(usize, UnitQuate
     let tree = &model.tree;
     let joint_tfs = tree.joint_transforms(states);
     let part_tfs = tree.part_transforms(states);
-    // Each part's vertex mean, placed.
     let centres: Vec<Option<Point3>> = model
         .parts
         .iter()
         .zip(&part_tfs)
-        .map(|(part, t)| {
-            let n = part.mesh.positions.len();
-            (n > 0).then(|| {
-                let sum = part
-                    .mesh
-                    .positions
-                    .iter()
-                    .fold(Vector3::zeros(), |acc, p| acc + p.coords);
-                t * Point3::from(sum / n as f64)
-            })
-        })
+        .map(|(part, t)| vertex_mean(&part.mesh).map(|c| t * c))
         .collect();
     let mut out = Vec::new();
     for (j, joint) in tree.joints().iter().enumerate() {
@@ -542,37 +531,31 @@ pub fn hinge_swaps(model: &ObjectModel, states: &[f64]) -> Vec<(usize, UnitQuate
         let parent_tf = parent.map_or_else(agentstar_geom::pose::Rigid::identity, |p| joint_tfs[p]);
         let axis = parent_tf.rotation * tree.unit_axis(j).into_inner();
         let origin = parent_tf * Point3::from(joint.origin);
-        // The direction from the hinge to the mean of one side's part centres, across the
-        // axis; `None` when that side has no part or lies on the axis.
+        // A point's offset from the hinge's axis, across it.
         let across = |p: &Point3| {
             let d = p - origin;
             d - axis * axis.dot(&d)
         };
         // One side's direction from the hinge (to the mean of its part centres) and its
-        // reach (the farthest of its vertices from the hinge's axis).
+        // reach (the farthest of its vertices from the hinge's axis); `None` when the side
+        // has no part or lies on the axis.
         let side = |carried_by: Option<usize>| -> Option<(Vector3, f64)> {
-            let parts: Vec<usize> = (0..model.parts.len())
+            let parts: Vec<(usize, Point3)> = (0..model.parts.len())
                 .filter(|&k| tree.part_joint(k) == carried_by)
-                .filter(|&k| centres[k].is_some())
+                .filter_map(|k| Some((k, centres[k]?)))
                 .collect();
-            if parts.is_empty() {
-                return None;
-            }
-            let mean = parts
-                .iter()
-                .filter_map(|&k| centres[k])
-                .fold(Vector3::zeros(), |a, p| a + p.coords)
-                / parts.len() as f64;
+            let mean =
+                parts.iter().map(|(_, c)| c.coords).sum::<Vector3>() / parts.len().max(1) as f64;
             let direction = across(&Point3::from(mean));
             let reach = parts
                 .iter()
-                .flat_map(|&k| {
+                .flat_map(|&(k, _)| {
                     let t = part_tfs[k];
                     model.parts[k].mesh.positions.iter().map(move |v| t * v)
                 })
                 .map(|v| across(&v).norm())
                 .fold(0.0, f64::max);
-            (direction.norm() > 1e-9).then(|| (direction.normalize(), reach))
+            (!parts.is_empty() && direction.norm() > 1e-9).then(|| (direction.normalize(), reach))
         };
         let (Some((moved, moved_reach)), Some((fixed, fixed_reach))) =
             (side(Some(j)), side(parent))
@@ -626,19 +609,29 @@ pub fn twin_candidates(model: &ObjectModel, scale: f64, around: &GenPose) -> Vec
     let mut twins: Vec<GenPose> = moves.iter().map(place).collect();
     // A hinge swap that a principal half-turn already nearly makes (two like slabs: the
     // bisector through the hinge is about a principal axis through the centroid) is not
-    // searched twice: within 5° and 2% of the depth, one refinement reaches both.
+    // searched twice: one refinement reaches both.
     for swap in hinge_swaps(model, &around.states) {
         let g = place(&(swap.1, swap.2));
-        let depth = g.pose.translation.z.abs().max(1e-9);
-        let same = |t: &GenPose| {
-            t.pose.rotation.angle_to(&g.pose.rotation) < 5f64.to_radians()
-                && (t.pose.translation - g.pose.translation).norm() < 0.02 * depth
-        };
-        if !twins.iter().any(same) {
+        if !twins.iter().any(|t| same_basin(t, &g)) {
             twins.push(g);
         }
     }
     twins
+}
+
+/// Two poses of one frame lie in the same basin (one refinement reaches both) when they are
+/// turned under 5° and placed under 2% of the depth apart.
+pub(crate) fn same_basin(a: &GenPose, b: &GenPose) -> bool {
+    let depth = a.pose.translation.z.abs().max(1e-9);
+    a.pose.rotation.angle_to(&b.pose.rotation) < 5f64.to_radians()
+        && (a.pose.translation - b.pose.translation).norm() < 0.02 * depth
+}
+
+/// The mean of a mesh's vertices; `None` for a mesh without any.
+fn vertex_mean(mesh: &agentstar_geom::TriMesh) -> Option<Point3> {
+    let n = mesh.positions.len();
+    (n > 0)
+        .then(|| Point3::from(mesh.positions.iter().map(|p| p.coords).sum::<Vector3>() / n as f64))
 }
 
 /// Distinct basins of one frame around a pose: the pose itself, its 180° flips about the
@@ -807,13 +800,7 @@ mod tests {
         swap: Option<&(usize, UnitQuaternion, Point3)>,
     ) -> Point3 {
         let t = model.tree.part_transforms(states)[part];
-        let m = &model.parts[part].mesh;
-        let mean = m
-            .positions
-            .iter()
-            .fold(Vector3::zeros(), |a, p| a + p.coords)
-            / m.positions.len() as f64;
-        let p = t * Point3::from(mean);
+        let p = t * vertex_mean(&model.parts[part].mesh).expect("vertices");
         match swap {
             Some((_, q, c)) => c + q * (p - c),
             None => p,
@@ -885,14 +872,8 @@ mod tests {
         let back = placed_centre(&model, &states, 0, None);
         let found = twin_candidates(&model, 1.0, &pose).iter().any(|g| {
             // The twin's cover centre in the original pose's object frame.
-            let t = model.tree.part_transforms(&g.states)[1];
-            let m = &model.parts[1].mesh;
-            let mean = m
-                .positions
-                .iter()
-                .fold(Vector3::zeros(), |a, p| a + p.coords)
-                / m.positions.len() as f64;
-            let in_camera = g.pose.rotation * (t * Point3::from(mean)).coords + g.pose.translation;
+            let cover = placed_centre(&model, &g.states, 1, None);
+            let in_camera = g.pose.rotation * cover.coords + g.pose.translation;
             let in_object = pose.pose.rotation.inverse() * (in_camera - pose.pose.translation);
             (Point3::from(in_object) - back).norm() < 0.01
         });

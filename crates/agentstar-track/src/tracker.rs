@@ -12,7 +12,7 @@ use crate::appearance::{
 };
 use crate::hypotheses::{
     principal_axes, refine_above, refine_each_above, refine_first_pass, refine_local, refine_rest,
-    twin_candidates, LocalWindow, PRUNE_SLACK,
+    same_basin, twin_candidates, LocalWindow, PRUNE_SLACK,
 };
 use crate::objective::FrameProblem;
 use crate::search::{sweep, SweepConfig};
@@ -1659,15 +1659,6 @@ fn carried(frames: &[TrackFrame<'_>], poses: &[GenPose], from: usize, to: usize)
     }
 }
 
-/// Two hypotheses of one frame are different basins for the sequence choice when they are
-/// turned 5° apart or placed 2% of the depth apart: a neighbour's pose carried in to
-/// correct a frame's depth may keep its rotation.
-fn distinct_hypotheses(a: &GenPose, b: &GenPose) -> bool {
-    let depth = a.pose.translation.z.abs().max(1e-9);
-    angle_deg(&(a.pose.rotation * b.pose.rotation.inverse())) >= 5.0
-        || (a.pose.translation - b.pose.translation).norm() / depth >= 0.02
-}
-
 /// Whether `to` lies far from `from` (both in one frame's camera): see [`CHOICE_FAR_SHIFT`].
 fn far_step(from: &GenPose, to: &GenPose) -> bool {
     let depth = from.pose.translation.z.abs().max(1e-9);
@@ -1689,8 +1680,6 @@ fn choose_sequence(
 ) -> Result<(), TrackError> {
     let n = frames.len();
     let mut hyps: Vec<Vec<(GenPose, f64)>> = Vec::with_capacity(n);
-    // Whether each frame's first hypothesis is still its own pose.
-    let mut keeps_own = vec![true; n];
     for i in 0..n {
         let mut h = vec![(poses[i].clone(), scores[i])];
         if !fixed[i] {
@@ -1747,33 +1736,32 @@ fn choose_sequence(
             // The refined twins, the neighbours' poses carried here, then the basins a global
             // search found at this frame during the propagation (its colours may have turned
             // one down that the sequence needs), each unless one already kept is the same
-            // ([`distinct_hypotheses`]).
+            // ([`same_basin`]: a neighbour's pose carried in to correct a frame's depth may
+            // keep its rotation).
             let found = refined
                 .into_iter()
                 .chain(carried)
                 .map(|r| (r.pose, r.score.combined))
                 .chain(alternatives.get(i).into_iter().flatten().cloned());
             for (g, sc) in found {
-                if h.iter().all(|(b, _)| distinct_hypotheses(b, &g)) {
+                if !h.iter().any(|(b, _)| same_basin(b, &g)) {
                     h.push((g, sc));
                 }
             }
             let best = h.iter().map(|x| x.1).fold(f64::NEG_INFINITY, f64::max);
-            // The frame's own pose (first) may be dropped here: then the first one kept is
-            // another basin, and choosing it changes the frame.
-            keeps_own[i] = h[0].1 >= best - CHOICE_KEEP;
+            // The frame's own pose (first) may be dropped here: then every hypothesis kept is
+            // another basin.
             h.retain(|x| x.1 >= best - CHOICE_KEEP);
             if h.is_empty() {
                 h.push((poses[i].clone(), scores[i]));
-                keeps_own[i] = true;
             }
         }
         hyps.push(h);
     }
     let alternatives: usize = hyps
         .iter()
-        .zip(&keeps_own)
-        .map(|(h, &own)| h.len() - usize::from(own))
+        .zip(poses.iter())
+        .map(|(h, own)| h.iter().filter(|(g, _)| g != own).count())
         .sum();
     if alternatives == 0 {
         log.push("sequence choice: no twin explains any frame as well; poses kept".into());
@@ -1851,7 +1839,7 @@ fn choose_sequence(
     }
     let mut changed = Vec::new();
     for (i, &k) in path.iter().enumerate() {
-        if k != 0 || !keeps_own[i] {
+        if hyps[i][k].0 != poses[i] {
             // Then polish: the twin was refined in a window centred where it was placed.
             let (g, sc) = hyps[i][k].clone();
             let seed = s.cfg.seed + 5_000_011 * (i as u64 + 1);
@@ -2460,8 +2448,10 @@ mod tests {
     #[test]
     fn the_sequence_choice_takes_a_basin_the_frames_global_search_found() {
         let truth_2 = truth(2);
+        // The truth as a global search would have found it, with its IoU (1: the mask is its
+        // silhouette).
         let (poses, log) = choice_with(vec![(truth_2.clone(), 1.0)]);
-        let error = |g: &GenPose| angle_deg(&(g.pose.rotation * truth_2.pose.rotation.inverse()));
+        let error = |g: &GenPose| error_of(g, &truth_2);
         assert!(
             error(&poses[2]) < 1.0,
             "{:.1}°\n{}",

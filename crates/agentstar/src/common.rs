@@ -151,6 +151,25 @@ impl Session {
     }
 }
 
+/// Frame `i`'s colour image and its visible object mask (hands removed), what the
+/// appearance term reads; `None` when the image cannot be read or is not its camera's size
+/// (the frame then has no appearance figure; its masks' errors are errors).
+pub fn appearance_inputs(
+    cap: &agentstar_data::capture::Capture,
+    i: usize,
+) -> Result<Option<(image::RgbImage, agentstar_render::BitMask)>> {
+    let camera = &cap.frames[i].camera;
+    let image = match cap.load_frame(i) {
+        Ok(img) if (img.width(), img.height()) == (camera.width, camera.height) => img,
+        _ => return Ok(None),
+    };
+    let mask = match cap.load_hand(i)? {
+        Some(hand) => cap.load_mask(i)?.and_not(&hand),
+        None => cap.load_mask(i)?,
+    };
+    Ok(Some((image, mask)))
+}
+
 /// One frame's score from the renderer's scores (the report type is shared with the tools).
 pub fn frame_score(
     frame: &str,

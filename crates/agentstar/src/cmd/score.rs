@@ -89,19 +89,7 @@ fn appearance(s: &crate::common::Session, selected: &[usize]) -> Result<Vec<Fram
     let cap = &s.capture;
     let inputs: Vec<Option<(image::RgbImage, agentstar_render::BitMask)>> = (0..cap.frames.len())
         .into_par_iter()
-        .map(|i| -> Result<_> {
-            let cam = &cap.frames[i].camera;
-            Ok(match cap.load_frame(i) {
-                Ok(img) if img.width() == cam.width && img.height() == cam.height => {
-                    let mask = match cap.load_hand(i)? {
-                        Some(hand) => cap.load_mask(i)?.and_not(&hand),
-                        None => cap.load_mask(i)?,
-                    };
-                    Some((img, mask))
-                }
-                _ => None,
-            })
-        })
+        .map(|i| crate::common::appearance_inputs(cap, i))
         .collect::<Result<_>>()?;
     if inputs.iter().all(Option::is_none) {
         return Ok(vec![]);

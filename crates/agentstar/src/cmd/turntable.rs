@@ -112,8 +112,6 @@ pub fn turntable_tiles(
         .collect()
 }
 
-/// Each joint's minimum, median and maximum over `frames` (internal units), as up to three
-/// distinct states labelled `min`, `median`, `max`.
 /// States given outright: `hinge:90|hinge:0;drawer:0.2`, one sheet per `|`-separated set,
 /// interface units, the joints not named at rest; each checked against the joints' names
 /// and limits. `(label, source, internal states)`.
@@ -154,6 +152,8 @@ fn explicit_states(spec: &str, tree: &KinematicTree) -> Result<Vec<(String, Stri
     Ok(out)
 }
 
+/// Each joint's minimum, median and maximum over `frames` (internal units), as up to three
+/// distinct states labelled `min`, `median`, `max`.
 fn representative(frames: &[Vec<f64>], n_joints: usize) -> Vec<(String, Vec<f64>)> {
     let pick = |q: f64| -> Vec<f64> {
         (0..n_joints)

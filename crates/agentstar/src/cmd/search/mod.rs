@@ -79,18 +79,11 @@ fn with_model_agreement(s: &Session, i: usize, rows: &mut [Row]) -> Result<()> {
     if !model_has_appearance(model) {
         return Ok(());
     }
-    let cap = &s.capture;
-    let camera = &cap.frames[i].camera;
-    let image = cap.load_frame(i)?;
-    if (image.width(), image.height()) != (camera.width, camera.height) {
+    let Some((image, mask)) = crate::common::appearance_inputs(&s.capture, i)? else {
         return Ok(());
-    }
-    let mask = match cap.load_hand(i)? {
-        Some(hand) => cap.load_mask(i)?.and_not(&hand),
-        None => cap.load_mask(i)?,
     };
     let frame = AppearanceFrame {
-        camera,
+        camera: &s.capture.frames[i].camera,
         rgb: image.as_raw(),
         mask: &mask,
     };
