@@ -588,7 +588,7 @@ pub(crate) mod tests {
 
     /// Renders a frame as the synthesiser does: albedo from canonical coordinates times a
     /// Lambert term with a light fixed to the camera, plus ambient.
-    fn shoot(
+    pub(crate) fn shoot(
         model: &ObjectModel,
         scale: f64,
         cam: &PinholeCamera,
@@ -624,7 +624,7 @@ pub(crate) mod tests {
         (rgb, b.silhouette())
     }
 
-    fn pose(axis: Vector3, deg: f64, spin_deg: f64) -> GenPose {
+    pub(crate) fn pose(axis: Vector3, deg: f64, spin_deg: f64) -> GenPose {
         // Upright can tilted toward the camera, spun about its own axis.
         let r = UnitQuaternion::from_axis_angle(
             &agentstar_geom::nalgebra::Unit::new_normalize(axis),
@@ -848,7 +848,7 @@ pub(crate) mod tests {
     }
 
     /// The real can's paint: the label of [`labelled_model`] (cream) on red.
-    fn painted_label(p: &Point3) -> [f64; 3] {
+    pub(crate) fn painted_label(p: &Point3) -> [f64; 3] {
         if p.z.abs() < 0.3 && p.y.atan2(p.x).abs() < 1.5 {
             [0.85, 0.8, 0.6]
         } else {

@@ -180,8 +180,58 @@ fn place(
     let radius = (half_diagonal * scale).max(1e-9);
     let (cx, cy, area) = stats;
     let r_px = (area / std::f64::consts::PI).sqrt().max(1.0);
-    let mut z = cam.fx * radius / r_px;
-    let mut centre = (cx, cy);
+    let z = cam.fx * radius / r_px;
+    align(
+        model,
+        frame,
+        scale,
+        (rotation, states),
+        stats,
+        pivot,
+        (z, (cx, cy)),
+    )
+}
+
+/// Moves `pose` onto the mask as [`place`] does (its pivot's image onto the mask centroid,
+/// its depth by the ratio of areas), starting from where the pose puts it: a turn about an
+/// axis off the object's outline (a mug's, through a centroid the handle pulls aside) shifts
+/// the outline, and this brings it back without a search. Returns the pose and its score.
+fn realign(
+    model: &ObjectModel,
+    frame: &TrackFrame<'_>,
+    scale: f64,
+    pose: &GenPose,
+    stats: (f64, f64, f64),
+    pivot: Point3,
+) -> (GenPose, f64) {
+    let cam = &frame.camera;
+    let c = pose.pose.rotation * (pivot.coords * scale) + pose.pose.translation;
+    let z = c.z.max(1e-9);
+    let centre = (cam.fx * c.x / z + cam.cx, cam.fy * c.y / z + cam.cy);
+    let rotation = pose.pose.rotation;
+    align(
+        model,
+        frame,
+        scale,
+        (rotation, &pose.states),
+        stats,
+        pivot,
+        (z, centre),
+    )
+}
+
+/// Two corrections of a pose given by its rotation, its pivot's depth `z` and image point
+/// `centre`: the render's centroid (outside the hands) onto the mask's, the areas matched.
+fn align(
+    model: &ObjectModel,
+    frame: &TrackFrame<'_>,
+    scale: f64,
+    (rotation, states): (UnitQuaternion, &[f64]),
+    (cx, cy, area): (f64, f64, f64),
+    pivot: Point3,
+    (mut z, mut centre): (f64, (f64, f64)),
+) -> (GenPose, f64) {
+    let cam = &frame.camera;
     let problem_pose = |z: f64, centre: (f64, f64)| {
         let c_cam = Vector3::new(
             (centre.0 - cam.cx) / cam.fx * z,
@@ -628,10 +678,14 @@ impl<'m> Searcher<'m> {
     }
 
     /// Appearance among silhouette twins: the turns of `pose` about the model's principal
-    /// axes through its centroid (every [`TURN_STEP_DEG`]) that explain the mask as well (within
-    /// [`APPEARANCE_TIE`] of `score`, unrefined: a turn about a symmetry axis keeps the
-    /// outline), scored by photometric consistency with `refs` (frames already tracked); the
-    /// best is taken when its NCC beats the pose's own by the appearance margin, then turned
+    /// axes through its centroid (every [`TURN_STEP_DEG`]) that explain the mask as well
+    /// (within [`APPEARANCE_TIE`] of `score`, as turned or moved back onto the mask by
+    /// [`realign`], without a search: a turn about a symmetry axis keeps the outline), scored
+    /// by photometric consistency with `refs` (frames already tracked). A turn that comes
+    /// within [`SETTLE_NEAR`] only (a mug turned about its body with the handle under a hand:
+    /// the principal axis is tilted a few degrees off the body's) and whose colours beat
+    /// every placed one is refined on the masks first, and counts if it then ties. The best
+    /// is taken when its NCC beats the pose's own by the appearance margin, then turned
     /// finely (10°, 5° and 2.5° steps) about the same axis while its NCC improves and its
     /// outline holds. Without such a winner, a pose on an axis of continuous symmetry (every
     /// turn ties) is turned finely about it while its NCC gains [`CONTINUOUS_GAIN`] a step.
@@ -656,9 +710,9 @@ impl<'m> Searcher<'m> {
             self.scale,
             pose.clone(),
         );
-        let turn = |axis: &Vector3, deg: f64| GenPose {
+        let turn = |from: &GenPose, axis: &Vector3, deg: f64| GenPose {
             pose: apply_object_rotation(
-                &pose.pose,
+                &from.pose,
                 self.scale,
                 &centre,
                 &UnitQuaternion::from_axis_angle(
@@ -666,61 +720,122 @@ impl<'m> Searcher<'m> {
                     deg.to_radians(),
                 ),
             ),
-            states: pose.states.clone(),
+            states: from.states.clone(),
         };
         let cfg = AppearanceConfig::default();
         let ncc = |g: &GenPose| appearance_score(self.model, self.scale, &app, g, refs, &cfg).ncc;
+        let mut ev = problem.evaluator();
+        // A turn as it best explains the mask: as turned, or else moved back onto the mask
+        // ([`realign`]: the axes pass through the centroid, which a handle pulls off the
+        // axis of the body's outline).
+        let stats = mask_stats(frame.target);
+        let pivot = posed_extent(self.model, &pose.states).0;
+        let mut aligned = |g: GenPose| -> (GenPose, f64) {
+            let raw = ev.combined(&g);
+            self.evals
+                .fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+            match stats {
+                Some(stats) if raw < score - APPEARANCE_TIE => {
+                    let (moved, sc) = realign(self.model, frame, self.scale, &g, stats, pivot);
+                    self.evals
+                        .fetch_add(3, std::sync::atomic::Ordering::Relaxed);
+                    if sc > raw {
+                        (moved, sc)
+                    } else {
+                        (g, raw)
+                    }
+                }
+                _ => (g, raw),
+            }
+        };
         let steps = (360.0 / TURN_STEP_DEG).round() as usize;
         let turns: Vec<(usize, f64)> = (0..3)
             .flat_map(|k| (1..steps).map(move |m| (k, m as f64 * TURN_STEP_DEG)))
             .collect();
-        let mut ev = problem.evaluator();
-        let placed: Vec<(usize, f64, GenPose, f64)> = turns
-            .iter()
-            .filter_map(|&(k, deg)| {
-                let g = turn(&axes[k], deg);
-                let sc = ev.combined(&g);
-                (sc >= score - APPEARANCE_TIE).then_some((k, deg, g, sc))
-            })
-            .collect();
-        self.evals
-            .fetch_add(turns.len(), std::sync::atomic::Ordering::Relaxed);
-        if placed.is_empty() {
+        let mut placed: Vec<(usize, f64, GenPose, f64)> = Vec::new();
+        let mut near: Vec<(usize, f64, GenPose, f64)> = Vec::new();
+        for &(k, deg) in &turns {
+            let (g, sc) = aligned(turn(pose, &axes[k], deg));
+            if sc >= score - APPEARANCE_TIE {
+                placed.push((k, deg, g, sc));
+            } else if sc >= score - SETTLE_NEAR {
+                near.push((k, deg, g, sc));
+            }
+        }
+        // The near turns best on the masks, NEAR_PER_AXIS per axis: each is scored in colour
+        // (a full render), and a box's twins can put most turns near.
+        near.sort_by(|a, b| b.3.total_cmp(&a.3));
+        let mut per_axis = [0usize; 3];
+        near.retain(|c| {
+            per_axis[c.0] += 1;
+            per_axis[c.0] <= NEAR_PER_AXIS
+        });
+        if placed.is_empty() && near.is_empty() {
             return None;
         }
         let own = ncc(pose)?;
-        let scored: Vec<Option<f64>> = placed.par_iter().map(|(_, _, g, _)| ncc(g)).collect();
-        let (best, best_ncc) = scored
-            .iter()
-            .enumerate()
-            .filter_map(|(i, n)| n.map(|n| (i, n)))
-            .max_by(|a, b| a.1.total_cmp(&b.1))?;
+        let best_by_ncc = |cands: &[(usize, f64, GenPose, f64)]| -> Option<(usize, f64)> {
+            let scored: Vec<Option<f64>> = cands.par_iter().map(|(_, _, g, _)| ncc(g)).collect();
+            scored
+                .iter()
+                .enumerate()
+                .filter_map(|(i, n)| n.map(|n| (i, n)))
+                .max_by(|a, b| a.1.total_cmp(&b.1))
+        };
+        let mut best = best_by_ncc(&placed).map(|(i, n)| (placed[i].clone(), n));
+        // A turn near the outline (a handle under a hand, a few degrees of tilt between the
+        // principal axis and the body's) whose colours beat every placed turn's: refined on
+        // the masks, it is a twin if it then explains them as well and its colours still win
+        // by the margin. Refined by the polish, or else in a narrow window: about the hidden
+        // axis the masks are flat, and the polish's 12° can drift back along it.
+        let beaten = best.as_ref().map_or(own, |b| b.1.max(own));
+        if let Some((i, near_ncc)) = best_by_ncc(&near) {
+            if near_ncc > beaten {
+                let (k, deg, g, _) = &near[i];
+                let seed = self.cfg.seed + 8_191 * (*k as u64 + 1) + deg.round() as u64;
+                let narrow = LocalWindow {
+                    angle_deg: NEAR_REFINE_DEG,
+                    ..LocalWindow::on_model()
+                };
+                // The polish first; the narrow window where the polish drifted back.
+                let refined: Vec<Option<(GenPose, f64, f64)>> = [self.polish_window(), narrow]
+                    .par_iter()
+                    .map(|window| {
+                        let (r, rsc) = self.refine(frame, g, window, seed).ok()?;
+                        let rn = ncc(&r)?;
+                        (rsc >= score - APPEARANCE_TIE && rn > beaten + cfg.margin)
+                            .then_some((r, rsc, rn))
+                    })
+                    .collect();
+                if let Some((r, rsc, rn)) = refined.into_iter().flatten().next() {
+                    best = Some(((*k, *deg, r, rsc), rn));
+                }
+            }
+        }
         // A turn clearly better in colour than the pose, or else (about an axis of
         // continuous symmetry, where every turn keeps the outline: a can, a bottle) the pose
         // itself, whose angle about that axis only the colours fix: it is turned finely
         // too, by at least CONTINUOUS_GAIN of NCC a step, so that the small error of each
         // frame does not add up along the sequence.
-        let continuous = best_ncc - own <= cfg.margin;
+        let continuous = best.as_ref().is_none_or(|b| b.1 - own <= cfg.margin);
         let (axis, mut deg, mut g, mut sc, mut n_best) = if continuous {
             let axis = (0..3).find(|&k| placed.iter().filter(|p| p.0 == k).count() + 1 == steps)?;
             (axis, 0.0, pose.clone(), score, own)
         } else {
-            let (axis, deg, g, sc) = placed[best].clone();
-            (axis, deg, g, sc, best_ncc)
+            let ((axis, deg, g, sc), n) = best?;
+            (axis, deg, g, sc, n)
         };
         let gain = if continuous { CONTINUOUS_GAIN } else { 0.0 };
         for step in [10.0, 5.0, 2.5] {
+            let from = g.clone();
             for dir in [-1.0, 1.0] {
-                let d = deg + dir * step;
-                let cand = turn(&axes[axis], d);
-                let csc = ev.combined(&cand);
-                self.evals
-                    .fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                let (cand, csc) = aligned(turn(&from, &axes[axis], dir * step));
                 if csc < score - APPEARANCE_TIE {
                     continue;
                 }
                 if let Some(cn) = ncc(&cand).filter(|&cn| cn > n_best + gain) {
-                    (deg, g, sc, n_best) = (d, cand, csc, cn);
+                    (g, sc, n_best) = (cand, csc, cn);
+                    deg += dir * step;
                 }
             }
         }
@@ -1338,6 +1453,17 @@ const APPEARANCE_TIE: f64 = 0.005;
 const CONTINUOUS_GAIN: f64 = 0.01;
 /// The turns about the principal axes that [`Searcher::settle`] compares.
 const TURN_STEP_DEG: f64 = 30.0;
+/// A turn that explains the mask within this of the pose's IoU (after [`realign`]) but not
+/// within [`APPEARANCE_TIE`] is refined by [`Searcher::settle`] when its colours win.
+const SETTLE_NEAR: f64 = 0.05;
+/// The near turns per principal axis that [`Searcher::settle`] scores in colour, best on the
+/// masks first.
+const NEAR_PER_AXIS: usize = 2;
+/// A narrow rotation window in which such a near turn is refined (besides the polish's):
+/// enough for the tilt a turn about a principal axis a few degrees off the body's gives it,
+/// not enough to turn it back (about the hidden axis the masks are flat, and the polish's
+/// 12° window drifts with them).
+const NEAR_REFINE_DEG: f64 = 4.0;
 
 /// How much better a neighbour must score for the consistency pass to search from it with
 /// the tracking step's window rather than the narrow polish.
@@ -2479,6 +2605,156 @@ mod tests {
             error(&poses[2]),
             log.join("\n")
         );
+    }
+
+    #[test]
+    fn realign_brings_a_shifted_pose_back_onto_its_mask() {
+        let model = ell();
+        let scale = 0.5;
+        let g = truth(3);
+        let mut r = SilhouetteRenderer::new(320, 240);
+        let posed = PosedModel::new(&model, &g.states, &g.pose.with_scale(scale));
+        let target =
+            ScoreTarget::new(r.render(&camera(), &posed.instances).clone(), None).expect("target");
+        let frame = TrackFrame {
+            name: "ell".into(),
+            camera: camera(),
+            target: &target,
+            world_from_camera: None,
+            rgb: None,
+        };
+        let iou = |g: &GenPose| {
+            FrameProblem::new(&model, camera(), &target, scale, g.clone())
+                .evaluator()
+                .combined(g)
+        };
+        // 4 cm aside, 3 cm up and 10 cm deeper: a sixth of the object's width off.
+        let mut off = g.clone();
+        off.pose.translation += Vector3::new(0.04, -0.03, 0.1);
+        let before = iou(&off);
+        assert!(before < 0.8, "{before}");
+        let pivot = posed_extent(&model, &g.states).0;
+        let stats = mask_stats(&target).expect("a mask");
+        let (back, after) = realign(&model, &frame, scale, &off, stats, pivot);
+        assert!(after > 0.95, "IoU {before:.3} → {after:.3}");
+        assert_eq!(back.pose.rotation, off.pose.rotation);
+        let miss = (back.pose.translation - g.pose.translation).norm();
+        assert!(miss < 0.01, "{miss} m from the truth");
+    }
+
+    /// A mug: the labelled can of the appearance tests (its label at +X) with a handle high
+    /// on its back (−X), which pulls the principal axis a few degrees off the body's.
+    fn mug() -> ObjectModel {
+        let mut model = crate::appearance::tests::labelled_model();
+        let handle = cuboid(0.2, 0.12, 0.45)
+            .expect("box")
+            .translated(Vector3::new(-0.4, 0.0, 0.25));
+        model
+            .parts
+            .push(Part::new("handle", handle, [0.6, 0.05, 0.05]));
+        model.tree = KinematicTree::rigid(3);
+        model
+    }
+
+    #[test]
+    fn a_mug_turned_about_its_body_with_the_handle_under_a_hand_is_turned_back_by_its_colours() {
+        use crate::appearance::tests::{painted_label, pose, shoot};
+        use agentstar_render::render_full;
+        let model = mug();
+        let scale = 0.12;
+        let cam = PinholeCamera::new(300.0, 300.0, 168.0, 112.0, 320, 240).expect("camera");
+        // The label toward the camera, turned a little more in each frame.
+        let truths: Vec<GenPose> = [-100.0, -75.0, -125.0]
+            .iter()
+            .map(|&spin| pose(Vector3::y(), 0.0, spin))
+            .collect();
+        let spin = |g: &GenPose, deg: f64| {
+            let mut g = g.clone();
+            g.pose.rotation *=
+                UnitQuaternion::from_axis_angle(&Vector3::z_axis(), deg.to_radians());
+            g
+        };
+        // Frame 0 left 80° off about the body's axis; a hand over wherever the handle is
+        // between the two poses, so the masks cannot tell them apart.
+        let wrong = spin(&truths[0], 40.0);
+        let mut hand = BitMask::new(320, 240);
+        for deg in (0..=4).map(|k| 10.0 * k as f64) {
+            let g = &spin(&truths[0], deg);
+            let b = render_full(
+                &cam,
+                &PosedModel::new(&model, &g.states, &g.pose.with_scale(scale)).instances,
+            );
+            let (mut x0, mut y0, mut x1, mut y1) = (u32::MAX, u32::MAX, 0, 0);
+            for y in 0..240u32 {
+                for x in 0..320u32 {
+                    if b.part[(y * 320 + x) as usize] == 2 {
+                        (x0, y0, x1, y1) = (x0.min(x), y0.min(y), x1.max(x), y1.max(y));
+                    }
+                }
+            }
+            assert!(x0 <= x1, "the handle is in view");
+            for y in y0.saturating_sub(3)..(y1 + 4).min(240) {
+                for x in x0.saturating_sub(3)..(x1 + 4).min(320) {
+                    hand.set(x, y);
+                }
+            }
+        }
+        // Printed all round: the label, and bands of colour of pseudo-random width above it.
+        let print = |p: &Point3| -> [f64; 3] {
+            let cell = (p.y.atan2(p.x) / 0.35).floor() as i64;
+            match (p.z > 0.32, (cell * 7919).rem_euclid(5)) {
+                (true, 0) => [0.1, 0.3, 0.8],
+                (true, 1 | 2) => [0.9, 0.9, 0.2],
+                (true, _) => [0.2, 0.6, 0.2],
+                (false, _) => painted_label(p),
+            }
+        };
+        let shots: Vec<(Vec<u8>, BitMask)> = truths
+            .iter()
+            .map(|g| shoot(&model, scale, &cam, g, &print))
+            .collect();
+        let target = ScoreTarget::new(shots[0].1.and_not(&hand), Some(hand)).expect("target");
+        let frames = [TrackFrame {
+            name: "mug".into(),
+            camera: cam,
+            target: &target,
+            world_from_camera: None,
+            rgb: Some(&shots[0].0),
+        }];
+        let refs: Vec<ReferenceView<'_>> = (1..3)
+            .map(|k| {
+                let frame = AppearanceFrame {
+                    camera: &cam,
+                    rgb: &shots[k].0,
+                    mask: &shots[k].1,
+                };
+                ReferenceView::new(&model, scale, frame, &truths[k]).expect("view")
+            })
+            .collect();
+        let cfg = TrackConfig::default();
+        let s = Searcher::new(&model, scale, &frames, &cfg).expect("searcher");
+        let iou = |g: &GenPose| {
+            FrameProblem::new(&model, cam, &target, scale, g.clone())
+                .evaluator()
+                .combined(g)
+        };
+        // The masks barely tell them apart (the label's shell stands a little proud of the
+        // can and turns with it): a search on them stops at the wrong pose.
+        let score = iou(&wrong);
+        assert!(
+            score > 0.98 && iou(&truths[0]) - score < 0.02,
+            "the masks tell them apart: {} against {score}",
+            iou(&truths[0])
+        );
+        let (g, sc, text) = s
+            .settle(&frames[0], &wrong, score, &refs)
+            .expect("the colours turn the mug");
+        assert!(
+            error_of(&g, &truths[0]) < 8.0,
+            "{:.1}° off after {text}",
+            error_of(&g, &truths[0])
+        );
+        assert!(sc >= score - APPEARANCE_TIE, "{text}");
     }
 
     fn error_of(a: &GenPose, b: &GenPose) -> f64 {
