@@ -13,6 +13,9 @@ use std::path::Path;
 
 pub const FRAME_CONVENTION: &str = "camera_opencv (+X right, +Y down, +Z forward)";
 pub const CANONICAL: &str = "+Z up, centred at origin, longest side ~1";
+/// How `object_pose` reads, stated in every file we write: a play-test agent had to guess the
+/// quaternion's order.
+pub const POSE_CONVENTION: &str = "quaternion [w, x, y, z] (scalar first) and translation (m) take canonical points (parts placed by the frame's joints), times scale, into the camera frame: p_cam = R(q) (scale p) + t";
 
 #[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
@@ -82,6 +85,9 @@ pub struct PoseFile {
     pub frame_convention: String,
     #[serde(default = "canonical")]
     pub canonical: String,
+    /// [`POSE_CONVENTION`]; files without it (the reference harness's) read the same.
+    #[serde(default = "pose_convention")]
+    pub pose_convention: String,
     pub scale: f64,
     pub reference_frame: String,
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -96,6 +102,9 @@ fn frame_convention() -> String {
 }
 fn canonical() -> String {
     CANONICAL.into()
+}
+fn pose_convention() -> String {
+    POSE_CONVENTION.into()
 }
 
 /// The generalised pose of one frame, resolved: internal-unit joint states.
@@ -240,6 +249,7 @@ impl PoseFile {
         PoseFile {
             frame_convention: FRAME_CONVENTION.into(),
             canonical: CANONICAL.into(),
+            pose_convention: POSE_CONVENTION.into(),
             scale,
             reference_frame: ref_name,
             parts: None,

@@ -279,6 +279,87 @@ fn pose_file_resolution_seeds_through_cameras_and_checks_joints() {
 }
 
 #[test]
+fn a_pose_file_states_its_quaternion_order_and_means_it() {
+    let dir = tempfile::tempdir().expect("tmp");
+    write_capture(dir.path(), 2, vec![identity(), translated(0.1)]);
+    let cap = Capture::open(dir.path()).expect("open");
+    std::fs::write(dir.path().join("scene.rhai"), LID_SCENE).expect("w");
+    let model = load_model(&dir.path().join("scene.rhai"))
+        .expect("model")
+        .model;
+    let pose = ObjectPose::new(
+        UnitQuaternion::from_axis_angle(
+            &agentstar_geom::nalgebra::Unit::new_normalize(Vector3::new(0.3, -0.5, 0.8)),
+            1.1,
+        ),
+        Vector3::new(0.05, -0.02, 0.7),
+    );
+    let scale = 0.25;
+    let p = dir.path().join("pose.json");
+    PoseFile::initial(&cap, &model.tree, scale, &pose)
+        .write(&p)
+        .expect("write");
+    // The file says how to read it...
+    let raw: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&p).expect("read")).expect("json");
+    let said = raw["pose_convention"]
+        .as_str()
+        .expect("a stated convention");
+    assert!(
+        said.contains("[w, x, y, z]") && said.contains("scalar first"),
+        "{said}"
+    );
+    // ... and a reader that follows it word for word puts a canonical point where we do.
+    let object_pose = &raw["frames"][raw["reference_frame"].as_str().expect("ref")]["object_pose"];
+    let q: Vec<f64> = (0..4)
+        .map(|k| object_pose["quaternion"][k].as_f64().expect("q"))
+        .collect();
+    let t: Vec<f64> = (0..3)
+        .map(|k| object_pose["translation"][k].as_f64().expect("t"))
+        .collect();
+    let (w, x, y, z) = (q[0], q[1], q[2], q[3]);
+    let rotated = |v: [f64; 3]| -> [f64; 3] {
+        // R(q) v for a unit quaternion w + xi + yj + zk.
+        let r = [
+            [
+                1.0 - 2.0 * (y * y + z * z),
+                2.0 * (x * y - w * z),
+                2.0 * (x * z + w * y),
+            ],
+            [
+                2.0 * (x * y + w * z),
+                1.0 - 2.0 * (x * x + z * z),
+                2.0 * (y * z - w * x),
+            ],
+            [
+                2.0 * (x * z - w * y),
+                2.0 * (y * z + w * x),
+                1.0 - 2.0 * (x * x + y * y),
+            ],
+        ];
+        [0, 1, 2].map(|i| r[i][0] * v[0] + r[i][1] * v[1] + r[i][2] * v[2])
+    };
+    let canonical = [0.4, -0.2, 0.1];
+    let by_hand = rotated(canonical.map(|c| c * scale));
+    let ours = pose.with_scale(scale).transform_point(&Point3::new(
+        canonical[0],
+        canonical[1],
+        canonical[2],
+    ));
+    for i in 0..3 {
+        assert!((by_hand[i] + t[i] - ours[i]).abs() < 1e-6, "axis {i}");
+    }
+    // A file of the reference harness's, without the field, reads under the same convention.
+    let mut old = raw.clone();
+    old.as_object_mut()
+        .expect("object")
+        .remove("pose_convention");
+    std::fs::write(&p, old.to_string()).expect("w");
+    let back = PoseFile::read(&p).expect("read");
+    assert_eq!(back.pose_convention, said);
+}
+
+#[test]
 fn malformed_pose_files_are_explained() {
     let dir = tempfile::tempdir().expect("tmp");
     let p = dir.path().join("pose.json");
