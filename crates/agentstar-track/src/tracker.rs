@@ -2157,39 +2157,50 @@ fn track_from_on(
         }
     }
     let mut log = Log::new(observe);
-    let polished: Vec<Result<(GenPose, f64), TrackError>> = (0..n)
+    // Each frame's score at its starting pose, and its polished pose (anchors kept).
+    let polished: Vec<Result<(f64, GenPose, f64), TrackError>> = (0..n)
         .into_par_iter()
         .map(|i| {
+            let p = FrameProblem::new(
+                model,
+                frames[i].camera,
+                frames[i].target,
+                scale,
+                start[i].clone(),
+            );
+            let at_start = p.evaluator().combined(&start[i]);
             if fixed[i] {
-                let p = FrameProblem::new(
-                    model,
-                    frames[i].camera,
-                    frames[i].target,
-                    scale,
-                    start[i].clone(),
-                );
-                let sc = p.evaluator().combined(&start[i]);
-                Ok((start[i].clone(), sc))
+                Ok((at_start, start[i].clone(), at_start))
             } else {
-                s.polish(&frames[i], &start[i], cfg.seed + 7919 * i as u64)
+                let (g, sc) = s.polish(&frames[i], &start[i], cfg.seed + 7919 * i as u64)?;
+                Ok((at_start, g, sc))
             }
         })
         .collect();
     let mut poses = Vec::with_capacity(n);
     let mut scores = Vec::with_capacity(n);
+    let mut unmoved = 0;
     for (i, r) in polished.into_iter().enumerate() {
-        let (g, sc) = r?;
-        log.push(format!(
-            "{}: {}, IoU {sc:.4}",
-            frames[i].name,
-            if fixed[i] {
-                "anchor, kept"
-            } else {
-                "refined from its pose"
-            }
-        ));
+        let (at_start, g, sc) = r?;
+        let turned = angle_deg(&(g.pose.rotation * start[i].pose.rotation.inverse()));
+        let shifted_mm = 1000.0 * (g.pose.translation - start[i].pose.translation).norm();
+        if fixed[i] {
+            log.push(format!("{}: anchor, kept, IoU {sc:.4}", frames[i].name));
+        } else if turned < 0.05 && shifted_mm < 0.05 {
+            unmoved += 1;
+        } else {
+            log.push(format!(
+                "{}: refined from its pose, IoU {at_start:.4} → {sc:.4}, turned {turned:.1}°, moved {shifted_mm:.1} mm",
+                frames[i].name
+            ));
+        }
         poses.push(g);
         scores.push(sc);
+    }
+    if unmoved > 0 {
+        log.push(format!(
+            "{unmoved} frame(s) kept their starting pose: the polish found nothing better"
+        ));
     }
     // Outward from every anchor, nearest frames first, each frame from its neighbour on the
     // side of its nearest anchor.

@@ -94,6 +94,30 @@ fn track_from_keeps_anchors_and_repairs_a_flipped_block_of_frames() {
     assert_eq!(r.poses[0], start[0], "anchor 0 moved");
     assert_eq!(r.poses[4], start[4], "anchor 4 moved");
     assert_close(&gts, &r);
+    // The log says what the warm start did to each frame: anchors kept; a frame 3° off
+    // refined, with how far it turned and its IoU before and after.
+    let log = r.log.join("\n");
+    let line = |name: &str| {
+        r.log
+            .iter()
+            .find(|l| l.starts_with(name))
+            .unwrap_or_else(|| panic!("no line for {name}\n{log}"))
+            .clone()
+    };
+    assert!(line("000000").contains("anchor, kept"), "{log}");
+    for name in ["000001", "000002", "000003"] {
+        let l = line(name);
+        let turned: f64 = l
+            .split("turned ")
+            .nth(1)
+            .and_then(|t| t.split('°').next())
+            .and_then(|t| t.parse().ok())
+            .unwrap_or_else(|| panic!("{l}"));
+        assert!(
+            l.contains("refined from its pose, IoU") && (1.0..6.0).contains(&turned),
+            "{l}"
+        );
+    }
 }
 
 #[test]
