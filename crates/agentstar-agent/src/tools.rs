@@ -658,6 +658,10 @@ pub struct PoseCommitArgs {
     /// The candidate's rank in a search report (0 = best).
     #[schemars(range(min = 0))]
     pub rank: Option<u64>,
+    /// Instead of `rank`: the candidate's label in a search report (`swap:hinge`, `flip:x`;
+    /// for osweep the grid start before `→`), the same candidate in every frame whatever its
+    /// rank there.
+    pub label: Option<String>,
     /// Only these frames of the report (same grammar as `frames`).
     pub frames: Option<String>,
 }
@@ -1020,7 +1024,7 @@ tool!(OapplyAll, "oapply_all", Pose, Nothing, OapplyAllArgs,
     });
 
 tool!(PoseCommit, "pose_commit", Pose, Poses, PoseCommitArgs,
-    "Put poses into pose.json (atomically, as a new pose version). `report` is the path a search returned (then `rank` picks the candidate), a pose file (a track's pose.json) or a history version file; `frames` limits it to some keyframes.",
+    "Put poses into pose.json (atomically, as a new pose version). `report` is the path a search returned (then `rank` picks the candidate, or `label` the same candidate in every frame, e.g. `swap:hinge`), a pose file (a track's pose.json) or a history version file; `frames` limits it to some keyframes.",
     |tb, a, _step| tb.pose_commit(&a));
 
 tool!(
@@ -1297,7 +1301,7 @@ pub fn search_text(report: &SearchReport, path: &Path) -> String {
             "Ranked by score (the visible IoU the search optimises, with depth where weighted); the gate ({GATE_IOU}) is on iou_band, the visible IoU without the mask's uncertain outline.\n"
         ));
         t.push_str(&format!(
-            "To keep a candidate, look at its tiles on the sheet first (a flipped twin can score as high), then call `pose_commit` with report = \"{}\" and its rank (0 = best){}. Nothing is changed until you commit.\n",
+            "To keep a candidate, look at its tiles on the sheet first (a flipped twin can score as high), then call `pose_commit` with report = \"{}\" and its rank (0 = best) or, for the same candidate in every frame, its label{}. Nothing is changed until you commit.\n",
             path.display(),
             if frames.len() > 1 {
                 format!("; add frames = \"…\" to commit only some of {}", frames.join(", "))
@@ -1627,10 +1631,22 @@ impl Toolbox {
             self.run.poses.display().to_string(),
             "--report".into(),
             report.display().to_string(),
-            "--rank".into(),
-            a.rank.unwrap_or(0).to_string(),
             "--json".into(),
         ];
+        let label = a.label.as_deref().map(str::trim).filter(|l| !l.is_empty());
+        match (label, a.rank) {
+            (Some(_), Some(_)) => {
+                return Ok(ToolOutput::error(
+                    "pose_commit: give `rank` or `label`, not both".to_string(),
+                ))
+            }
+            (Some(l), None) => args.extend(["--label".to_string(), l.to_string()]),
+            (None, rank) => args.extend(["--rank".to_string(), rank.unwrap_or(0).to_string()]),
+        }
+        let which = match label {
+            Some(l) => format!("candidate `{l}`"),
+            None => format!("candidate rank {}", a.rank.unwrap_or(0)),
+        };
         args.extend(flag(&a.frames, "--frames"));
         let (ok, stdout, stderr) = self.exec(&args)?;
         if !ok {
@@ -1643,8 +1659,7 @@ impl Toolbox {
         })?;
         Ok(ToolOutput {
             text: format!(
-                "committed candidate rank {} in each of {} frame(s) ({}) to pose.json as version {}",
-                a.rank.unwrap_or(0),
+                "committed {which} in each of {} frame(s) ({}) to pose.json as version {}",
                 r.committed.len(),
                 r.committed.join(", "),
                 r.version

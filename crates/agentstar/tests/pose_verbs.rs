@@ -58,6 +58,66 @@ fn pose_verbs_track_commit_and_diagnose() {
             "{f}"
         );
     }
+    // The swap committed by its label in both frames (into a copy: this file's history stays
+    // as the test below counts it): each frame gets the candidate of that label, whatever its
+    // rank there.
+    let swapped = dir.path().join("swapped.json");
+    std::fs::copy(&tracked, &swapped).expect("copy");
+    let swapped = swapped.display().to_string();
+    let report = dir.path().join("oapply/oapply.json").display().to_string();
+    let swap_label = v["frames"][0]["ranked"]
+        .as_array()
+        .expect("ranked")
+        .iter()
+        .filter_map(|r| r["label"].as_str())
+        .find(|l| l.starts_with("swap:"))
+        .expect("a swap")
+        .to_string();
+    let o = agentstar(&[
+        "pose",
+        "commit",
+        "--poses",
+        &swapped,
+        "--report",
+        &report,
+        "--label",
+        &swap_label,
+    ]);
+    assert!(o.status.success(), "{}", text(&o));
+    let committed: agentstar_data::posefile::PoseFile =
+        serde_json::from_str(&std::fs::read_to_string(&swapped).expect("read")).expect("json");
+    for f in v["frames"].as_array().expect("frames") {
+        let name = f["frame"].as_str().expect("name");
+        let cand = f["ranked"]
+            .as_array()
+            .expect("ranked")
+            .iter()
+            .find(|r| r["label"] == swap_label.as_str())
+            .expect("the swap");
+        let got = committed.frames[name].object_pose.as_ref().expect("pose");
+        for k in 0..4 {
+            let want = cand["pose"]["quaternion"][k].as_f64().expect("q");
+            assert!(
+                (got.quaternion[k] - want).abs() < 1e-9,
+                "{name}: {got:?} against {cand}"
+            );
+        }
+    }
+    // A label no frame has names the labels there; a rank beside a label is refused.
+    let o = agentstar(&[
+        "pose", "commit", "--poses", &swapped, "--report", &report, "--label", "flip:w",
+    ]);
+    assert!(!o.status.success());
+    assert!(
+        text(&o).contains("no candidate labelled `flip:w`") && text(&o).contains(&swap_label),
+        "{}",
+        text(&o)
+    );
+    let o = agentstar(&[
+        "pose", "commit", "--poses", &swapped, "--report", &report, "--label", "identity",
+        "--rank", "1",
+    ]);
+    assert!(!o.status.success(), "{}", text(&o));
 
     // An object-frame grid: each row names its grid start and where refinement took it; from
     // the tracked (right) pose the best row ends within a few degrees of no turn at all,

@@ -8,7 +8,8 @@
 use crate::common::{open_capture, open_model, print_json};
 use agentstar_agent::history::{command_line, PoseHistory};
 use agentstar_agent::reports::{
-    CommitReport, FrameHistoryReport, HistoryReport, PoseSource, RestoreReport,
+    Candidate, CommitReport, FrameHistoryReport, HistoryReport, PoseSource, RestoreReport,
+    SearchFrame,
 };
 use agentstar_agent::run::RunFile;
 use agentstar_agent::AgentError;
@@ -25,7 +26,7 @@ pub enum PoseCommand {
     /// Put poses into pose.json from a search report (a ranked candidate: sweep, apply,
     /// osweep, oapply, oapply-all), a pose file (a track's pose.json) or a history version.
     #[command(
-        after_help = "Examples:\n  agentstar pose commit --poses run/pose.json --report reports/oapply.json --rank 1 --frames 000010\n  agentstar pose commit --poses run/pose.json --report tracked/pose.json --frames 000040..000060\n  agentstar pose commit --poses run/pose.json --report run/.agentstar/history/pose/000012.json --frames 000010"
+        after_help = "Examples:\n  agentstar pose commit --poses run/pose.json --report reports/oapply.json --rank 1 --frames 000010\n  agentstar pose commit --poses run/pose.json --report reports/oapply.json --label swap:hinge --frames 000010..000020\n  agentstar pose commit --poses run/pose.json --report tracked/pose.json --frames 000040..000060\n  agentstar pose commit --poses run/pose.json --report run/.agentstar/history/pose/000012.json --frames 000010"
     )]
     Commit {
         #[arg(long)]
@@ -34,8 +35,13 @@ pub enum PoseCommand {
         #[arg(long, visible_alias = "from")]
         report: PathBuf,
         /// The candidate's rank in a search report (0 = best; only for search reports).
-        #[arg(long)]
+        #[arg(long, conflicts_with = "label")]
         rank: Option<usize>,
+        /// The candidate's label in a search report (`swap:hinge`, `flip:x`; for `osweep`
+        /// the grid start before `→`): the same candidate in every frame, whatever its rank
+        /// there.
+        #[arg(long)]
+        label: Option<String>,
         /// Only these frames (the frame grammar: names, stems, numbers, `a..b`); default
         /// every frame the source has a pose for.
         #[arg(long)]
@@ -139,10 +145,15 @@ pub fn run(cmd: PoseCommand) -> Result<ExitCode> {
             poses,
             report,
             rank,
+            label,
             frames,
             capture,
             json: as_json,
         } => {
+            let pick = match label {
+                Some(l) => Pick::Label(l),
+                None => Pick::Rank(rank),
+            };
             let source = PoseSource::read(&report)?;
             let hint = match &source {
                 PoseSource::Search(r) => Some(r.capture.clone()),
@@ -157,7 +168,7 @@ pub fn run(cmd: PoseCommand) -> Result<ExitCode> {
             };
             let (committed, v) = PoseHistory::new(&poses)
                 .update(&command_line(), |pf| {
-                    commit(pf, &source, rank, wanted.as_deref())
+                    commit(pf, &source, &pick, wanted.as_deref())
                         .map_err(|e| AgentError::Invalid(format!("{}: {e}", report.display())))
                 })
                 .map_err(|e| anyhow!("{e}"))?;
@@ -266,30 +277,64 @@ pub fn run(cmd: PoseCommand) -> Result<ExitCode> {
 /// One frame of a commit's source: its name, pose and joint states.
 type SourceFrame = (String, PoseJson, BTreeMap<String, f64>);
 
-/// Writes the wanted frames of `source` into `pf` (rank `rank` of a search report);
-/// returns the frames written.
+/// Which candidate of a search report a commit takes in each frame.
+enum Pick {
+    /// By rank (0, the best, when not given).
+    Rank(Option<usize>),
+    /// By label: the label itself, or (an `osweep` row, `start → where it ended`) its start.
+    Label(String),
+}
+
+impl Pick {
+    fn find<'c>(&self, frame: &'c SearchFrame) -> std::result::Result<&'c Candidate, String> {
+        match self {
+            Pick::Rank(rank) => {
+                let rank = rank.unwrap_or(0);
+                frame.ranked.iter().find(|c| c.rank == rank).ok_or_else(|| {
+                    format!(
+                        "frame {}: no candidate of rank {rank} (ranks 0..{})",
+                        frame.frame,
+                        frame.ranked.len().saturating_sub(1)
+                    )
+                })
+            }
+            Pick::Label(label) => {
+                let label = label.trim();
+                frame
+                    .ranked
+                    .iter()
+                    .find(|c| c.label == label || c.label.split(" → ").next() == Some(label))
+                    .ok_or_else(|| {
+                        let labels: Vec<&str> =
+                            frame.ranked.iter().map(|c| c.label.as_str()).collect();
+                        format!(
+                            "frame {}: no candidate labelled `{label}` (its labels: {})",
+                            frame.frame,
+                            labels.join(", ")
+                        )
+                    })
+            }
+        }
+    }
+}
+
+/// Writes the wanted frames of `source` into `pf` (the candidate `pick` names in each frame
+/// of a search report); returns the frames written.
 fn commit(
     pf: &mut PoseFile,
     source: &PoseSource,
-    rank: Option<usize>,
+    pick: &Pick,
     wanted: Option<&[String]>,
 ) -> std::result::Result<Vec<String>, String> {
     // The frames of the source, each with its pose and joints.
     let (scale, what, frames): (f64, String, Vec<SourceFrame>) = match source {
         PoseSource::Search(rep) => {
-            let rank = rank.unwrap_or(0);
             let mut v = Vec::new();
             for fr in &rep.frames {
                 if wanted.is_some_and(|w| !w.contains(&fr.frame)) {
                     continue;
                 }
-                let cand = fr.ranked.iter().find(|c| c.rank == rank).ok_or_else(|| {
-                    format!(
-                        "frame {}: no candidate of rank {rank} (ranks 0..{})",
-                        fr.frame,
-                        fr.ranked.len().saturating_sub(1)
-                    )
-                })?;
+                let cand = pick.find(fr)?;
                 let pose = PoseJson {
                     quaternion: cand.pose.quaternion,
                     translation: cand.pose.translation,
@@ -304,11 +349,20 @@ fn commit(
             )
         }
         PoseSource::Poses(_) | PoseSource::Version(_) => {
-            if rank.is_some_and(|r| r != 0) {
-                return Err(format!(
-                    "--rank applies to search reports; this is a {}",
-                    source.describe()
-                ));
+            match pick {
+                Pick::Rank(Some(r)) if *r != 0 => {
+                    return Err(format!(
+                        "--rank applies to search reports; this is a {}",
+                        source.describe()
+                    ))
+                }
+                Pick::Label(_) => {
+                    return Err(format!(
+                        "--label applies to search reports; this is a {}",
+                        source.describe()
+                    ))
+                }
+                Pick::Rank(_) => {}
             }
             let src: &PoseFile = match source {
                 PoseSource::Poses(p) => p.as_ref(),
