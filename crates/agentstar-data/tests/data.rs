@@ -232,19 +232,22 @@ part("lid", box(1, 0.6, 0.05).translate(0, 0, 0.125));
 joint(#{ name: "hinge", type: "revolute", child: "lid", origin: [0, 0.3, 0.1], axis: [1, 0, 0], limit: [0, 120] });
 "#;
 
+/// A capture in `dir` with one frame per camera, and the lid model of [`LID_SCENE`].
+fn lid_capture(dir: &Path, cameras: Vec<[[f64; 4]; 4]>) -> (Capture, agentstar_geom::ObjectModel) {
+    write_capture(dir, cameras.len(), cameras);
+    let cap = Capture::open(dir).expect("open");
+    std::fs::write(dir.join("scene.rhai"), LID_SCENE).expect("w");
+    let model = load_model(&dir.join("scene.rhai")).expect("model").model;
+    (cap, model)
+}
+
 #[test]
 fn pose_file_resolution_seeds_through_cameras_and_checks_joints() {
     let dir = tempfile::tempdir().expect("tmp");
-    write_capture(
+    let (cap, model) = lid_capture(
         dir.path(),
-        3,
         vec![identity(), translated(0.1), translated(0.2)],
     );
-    let cap = Capture::open(dir.path()).expect("open");
-    std::fs::write(dir.path().join("scene.rhai"), LID_SCENE).expect("w");
-    let model = load_model(&dir.path().join("scene.rhai"))
-        .expect("model")
-        .model;
     let pose = ObjectPose::new(
         UnitQuaternion::from_axis_angle(&Vector3::x_axis(), 0.4),
         Vector3::new(0.0, 0.0, 2.0),
@@ -281,12 +284,7 @@ fn pose_file_resolution_seeds_through_cameras_and_checks_joints() {
 #[test]
 fn a_pose_file_states_its_quaternion_order_and_means_it() {
     let dir = tempfile::tempdir().expect("tmp");
-    write_capture(dir.path(), 2, vec![identity(), translated(0.1)]);
-    let cap = Capture::open(dir.path()).expect("open");
-    std::fs::write(dir.path().join("scene.rhai"), LID_SCENE).expect("w");
-    let model = load_model(&dir.path().join("scene.rhai"))
-        .expect("model")
-        .model;
+    let (cap, model) = lid_capture(dir.path(), vec![identity(), translated(0.1)]);
     let pose = ObjectPose::new(
         UnitQuaternion::from_axis_angle(
             &agentstar_geom::nalgebra::Unit::new_normalize(Vector3::new(0.3, -0.5, 0.8)),
