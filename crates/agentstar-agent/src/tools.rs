@@ -294,7 +294,7 @@ fn fit_saves_nothing(report: &crate::fit::FitReport) -> Option<&'static str> {
         .iter()
         .any(|p| (p.after - p.before).abs() > 1e-3 * (p.max - p.min));
     if !moved {
-        Some("No parameter moved: the silhouettes ask for no other shape at these poses. The scene and pose.json are unchanged (no version saved).\n")
+        Some("No parameter moved: at these poses (held, refined only locally) no change of the parameters raises the IoU. That does not make the shape right: poses fitted to a wrong shape hold it where it is, and any rise of the mean above came from refining the poses alone. The scene and pose.json are unchanged (no version saved). If the silhouettes still disagree, change the shape by hand (scene_write), track from pose.json, then fit again.\n")
     } else if report.iou_mean_after <= report.iou_mean_before + 1e-4 {
         Some("The fit did not raise the mean IoU: the scene and pose.json are unchanged.\n")
     } else {

@@ -636,8 +636,18 @@ impl<'m> Searcher<'m> {
             return None;
         }
         let k = tied[0];
-        (found[k].1 > current.1 + RESCUE_MARGIN)
-            .then(|| (k, format!("{} twins tie; the best IoU taken", tied.len())))
+        (found[k].1 > current.1 + RESCUE_MARGIN).then(|| {
+            let why = match tied.len() {
+                1 => format!(
+                    "its best basin scores IoU {:.4} above the pose from the neighbour",
+                    found[k].1 - current.1
+                ),
+                n => format!(
+                    "{n} basins tie within {APPEARANCE_TIE} IoU and colours do not tell them apart; the best IoU taken"
+                ),
+            };
+            (k, why)
+        })
     }
 
     /// The wide search after a drop: the 180° flips of the best pose so far, and a covering
@@ -844,7 +854,8 @@ impl<'m> Searcher<'m> {
         }
         let deg = deg.rem_euclid(360.0);
         let note = format!(
-            "appearance: turned {deg:.0}° about principal axis {axis} (NCC {own:.2} → {n_best:.2}, IoU {score:.4} → {sc:.4})"
+            "appearance: turned {deg:.0}° about the model's {} (principal axis {axis}; NCC {own:.2} → {n_best:.2}, IoU {score:.4} → {sc:.4})",
+            crate::temporal::axis_label(&[axes[axis].x, axes[axis].y, axes[axis].z])
         );
         Some((g, sc, note))
     }
