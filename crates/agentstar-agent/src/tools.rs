@@ -284,6 +284,53 @@ fn read_capped_to(mut r: impl std::io::Read, cap: usize) -> String {
     text
 }
 
+/// A track's result as an MCP client reads it: the summary first, then what the tracker
+/// did (its log), then one line per frame; the whole report is the structured content. (The
+/// report's JSON as text buried the summary under the per-frame figures: a play-test agent
+/// ran `track` again to read its log.)
+fn track_text(r: &TrackReport) -> String {
+    let q = &r.sequence;
+    let mut text = format!(
+        "tracked {} frame(s) in {:.1} s ({} evaluations), initialised on {}\n",
+        q.frames, r.seconds, r.evaluations, r.init_frame
+    );
+    match (q.band_px, q.mean_iou_band, q.min_iou_band) {
+        (Some(px), Some(mean), Some(min)) => text.push_str(&format!(
+            "band IoU (±{px} px boundary excluded, the gate {}) mean {mean:.4}, min {min:.4}; ",
+            q.pass_iou
+        )),
+        _ => text.push_str(&format!("gate {} on the visible IoU; ", q.pass_iou)),
+    }
+    text.push_str(&format!(
+        "visible IoU mean {:.4}, min {:.4} ({})\n",
+        q.mean_iou_visible, q.min_iou_visible, q.worst_frame
+    ));
+    if q.below_gate.is_empty() {
+        text.push_str("every frame passes the gate\n");
+    } else {
+        text.push_str(&format!(
+            "under the gate, worst first: {}\n",
+            q.below_gate.join(", ")
+        ));
+    }
+    text.push_str("\nwhat the tracker did:\n");
+    for line in &r.log {
+        text.push_str(&format!("  {line}\n"));
+    }
+    text.push_str("\nframe        iou_band  iou_visible\n");
+    for f in &r.frames {
+        let band = f
+            .iou_band
+            .map_or("     -".to_string(), |b| format!("{b:.4}"));
+        let visible = f
+            .iou_visible
+            .map_or("     -".to_string(), |v| format!("{v:.4}"));
+        text.push_str(&format!("{:<12} {band:>8}  {visible:>11}\n", f.frame));
+    }
+    text.push('\n');
+    text
+}
+
 /// Why a shape fit's result is not saved, if it is not: no parameter moved by more than a
 /// thousandth of its range (the gain, if any, came from refining the poses alone: play-test,
 /// 2026-12-02, a fit from wrong poses saved an unchanged scene as a new version), or the
@@ -1747,8 +1794,8 @@ impl Toolbox {
         scores.insert("iou_mean".into(), report.sequence.mean_iou_visible);
         Ok(ToolOutput {
             text: format!(
-                "{}\npose.json is version {version}; the earlier versions are in pose_history.",
-                stdout.trim()
+                "{}pose.json is version {version}; the earlier versions are in pose_history.",
+                track_text(&report)
             ),
             pose_changed: true,
             pose_version: Some(version),
@@ -2468,6 +2515,46 @@ impl Toolbox {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_tracks_text_leads_with_its_summary_then_its_log_then_the_frames() {
+        let frame = |name: &str, visible: f64| crate::reports::FrameScore {
+            frame: name.into(),
+            iou_visible: Some(visible),
+            iou_raw: visible,
+            render_px: 100,
+            mask_px: 100,
+            hand_px: 0,
+            depth_mae: None,
+            depth_mae_canon: None,
+            depth_bias: None,
+            combined: visible,
+            band_px: None,
+            iou_band: None,
+        };
+        let frames = vec![frame("000000.png", 0.99), frame("000005.png", 0.95)];
+        let report = TrackReport {
+            poses: "run/pose.json".into(),
+            seconds: 4.0,
+            evaluations: 1000,
+            init_frame: "000000.png".into(),
+            log: vec!["000005.png: refined from its pose, IoU 0.9400 → 0.9500".into()],
+            sequence: crate::reports::SequenceScore::of(&frames, GATE_IOU),
+            frames,
+            pose_version: Some(3),
+        };
+        let text = track_text(&report);
+        assert!(text.starts_with("tracked 2 frame(s) in 4.0 s"), "{text}");
+        assert!(
+            text.contains("under the gate, worst first: 000005.png"),
+            "{text}"
+        );
+        let log = text.find("refined from its pose").expect("the log");
+        let table = text.find("frame        iou_band").expect("the table");
+        assert!(log < table, "{text}");
+        // No JSON: the report is the structured content.
+        assert!(!text.contains('{'), "{text}");
+    }
     use serde_json::json;
 
     #[test]
