@@ -132,6 +132,10 @@ pub struct ScaleReport {
     /// Pixels (depth), frames (parallax) or 1 (size).
     pub samples: usize,
     pub notes: Vec<String>,
+    /// True when the estimate's own checks warn (frames that disagree, a short baseline, an
+    /// object that wanders in the world): the notes say which.
+    #[serde(default)]
+    pub weak: bool,
     /// The rescaled pose file (`--out`), when one was written.
     pub poses: Option<PathBuf>,
     /// True when the rescaled poses were written over the input (`--write`).

@@ -2010,9 +2010,13 @@ impl Toolbox {
         scores.insert("scale".to_string(), report.scale_after);
         let structured = serde_json::to_value(&report).ok();
         if !apply {
-            text.push_str(
-                "pose.json is unchanged; call scale again with `apply: true` to rescale it.\n",
-            );
+            text.push_str(if !report.weak {
+                "pose.json is unchanged; call scale again with `apply: true` to rescale it.\n"
+            } else {
+                // A play-test agent was offered a parallax estimate of an object moving in
+                // the world (spread 61%) with the same line as a sound one.
+                "pose.json is unchanged. The notes above say this estimate is weak: apply it only if you can rule them out. Otherwise state a size you can judge in the frames (method `size` with `axis` and `metres`), or use depth where the capture has it.\n"
+            });
             return Ok(ToolOutput {
                 text,
                 scores,

@@ -335,6 +335,47 @@ fn scale_comes_back_from_depth_parallax_and_a_stated_size() {
         (size.scale_after - truth / longest).abs() < 1e-9,
         "{size:?}"
     );
+    // Sound estimates are not flagged weak.
+    for e in [&depth, &parallax, &size] {
+        assert!(!e.weak, "{e:?}");
+    }
+    // An object turned in a hand moves in the world: parallax is weak there, and says why.
+    let held = dir.path().join("held");
+    let o = agentstar(&[
+        "synth",
+        &s(&held),
+        "--object",
+        "box",
+        "--motion",
+        "handheld",
+        "--frames",
+        "6",
+        "--size",
+        "160x120",
+        "--no-hands",
+        "--seed",
+        "2",
+    ]);
+    assert!(o.status.success(), "{}", text(&o));
+    let o = agentstar(&[
+        "scale",
+        "--capture",
+        &s(&held),
+        "--model",
+        &s(&held.join("model/scene.rhai")),
+        "--poses",
+        &s(&held.join("model/pose.json")),
+        "--from",
+        "parallax",
+        "--json",
+    ]);
+    assert!(o.status.success(), "{}", text(&o));
+    let r: agentstar_agent::fit::ScaleReport =
+        serde_json::from_slice(&o.stdout).unwrap_or_else(|_| panic!("{}", text(&o)));
+    assert!(
+        r.weak && r.notes.iter().any(|n| n.contains("moves in the world")),
+        "{r:?}"
+    );
     // Rescaling in place keeps every silhouette: the IoU is what it was.
     let before = score(&cap, &model, &wrong);
     let o = agentstar(&[

@@ -63,7 +63,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
     let s = a.session.open()?;
     let indices = select_frames(&s.capture, a.frames.as_deref())?;
     let scale = s.scale();
-    let (method, estimate) = match a.method {
+    let (method, estimate, weak) = match a.method {
         Method::Depth => {
             let mut inputs = vec![];
             for &i in &indices {
@@ -87,7 +87,9 @@ pub fn run(a: Args) -> Result<ExitCode> {
                     target: t,
                 })
                 .collect();
-            (ScaleMethod::Depth, ratio_from_depth(&frames)?)
+            let e = ratio_from_depth(&frames)?;
+            let weak = !e.notes.is_empty();
+            (ScaleMethod::Depth, e, weak)
         }
         Method::Parallax => {
             let frames: Vec<ParallaxFrame> = indices
@@ -99,10 +101,13 @@ pub fn run(a: Args) -> Result<ExitCode> {
                 })
                 .collect();
             let mut e = ratio_from_parallax(&frames)?;
+            // The estimate's own notes are its warnings (a short baseline, an object that
+            // wanders); the assumption below holds for every parallax estimate.
+            let weak = !e.notes.is_empty();
             e.notes.push(
                 "parallax assumes the cameras are metric (COLMAP without --background-depth-m is not) and the object stays put in the world".into(),
             );
-            (ScaleMethod::Parallax, e)
+            (ScaleMethod::Parallax, e, weak)
         }
         Method::Size => {
             let metres = a
@@ -135,6 +140,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
                         a.axis
                     )],
                 },
+                false,
             )
         }
     };
@@ -160,6 +166,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
         spread: estimate.spread,
         samples: estimate.samples,
         notes: estimate.notes,
+        weak,
         poses: a.out.clone(),
         written: false,
     };
