@@ -807,17 +807,14 @@ impl<'m> Searcher<'m> {
                     angle_deg: NEAR_REFINE_DEG,
                     ..LocalWindow::on_model()
                 };
-                // The polish first; the narrow window where the polish drifted back.
-                let refined: Vec<Option<(GenPose, f64, f64)>> = [self.polish_window(), narrow]
-                    .par_iter()
-                    .map(|window| {
-                        let (r, rsc) = self.refine(frame, g, window, seed).ok()?;
-                        let rn = ncc(&r)?;
-                        (rsc >= score - APPEARANCE_TIE && rn > beaten + cfg.margin)
-                            .then_some((r, rsc, rn))
-                    })
-                    .collect();
-                if let Some((r, rsc, rn)) = refined.into_iter().flatten().next() {
+                // The polish first; the narrow window only where the polish drifted back.
+                let refined = [self.polish_window(), narrow].iter().find_map(|window| {
+                    let (r, rsc) = self.refine(frame, g, window, seed).ok()?;
+                    let rn = ncc(&r)?;
+                    (rsc >= score - APPEARANCE_TIE && rn > beaten + cfg.margin)
+                        .then_some((r, rsc, rn))
+                });
+                if let Some((r, rsc, rn)) = refined {
                     best = Some(((*k, *deg, r, rsc), rn));
                 }
             }
@@ -2706,19 +2703,12 @@ mod tests {
                 &cam,
                 &PosedModel::new(&model, &g.states, &g.pose.with_scale(scale)).instances,
             );
-            let (mut x0, mut y0, mut x1, mut y1) = (u32::MAX, u32::MAX, 0, 0);
-            for y in 0..240u32 {
-                for x in 0..320u32 {
-                    if b.part[(y * 320 + x) as usize] == 2 {
-                        (x0, y0, x1, y1) = (x0.min(x), y0.min(y), x1.max(x), y1.max(y));
-                    }
-                }
-            }
-            assert!(x0 <= x1, "the handle is in view");
+            let (x0, y0, x1, y1) =
+                BitMask::from_fn(320, 240, |x, y| b.part[(y * 320 + x) as usize] == 2)
+                    .bbox()
+                    .expect("the handle is in view");
             for y in y0.saturating_sub(3)..(y1 + 4).min(240) {
-                for x in x0.saturating_sub(3)..(x1 + 4).min(320) {
-                    hand.set(x, y);
-                }
+                hand.set_span(y, x0.saturating_sub(3), (x1 + 3).min(319));
             }
         }
         // Printed all round: the label, and bands of colour of pseudo-random width above it.
