@@ -285,22 +285,28 @@ fn scale_comes_back_from_depth_parallax_and_a_stated_size() {
     let model = cap.join("model/scene.rhai");
     let wrong = dir.path().join("wrong.json");
     let truth = rescaled(&cap.join("model/pose.json"), 0.8, &wrong);
-    let estimate = |extra: &[&str]| -> agentstar_agent::fit::ScaleReport {
+    // `agentstar scale` on a capture, its model and poses.
+    let scale_cli = |cap: &Path, model: &Path, poses: &Path, extra: &[&str]| {
         let mut args = vec![
             "scale".to_string(),
             "--capture".into(),
-            s(&cap),
+            s(cap),
             "--model".into(),
-            s(&model),
+            s(model),
             "--poses".into(),
-            s(&wrong),
-            "--json".into(),
+            s(poses),
         ];
         args.extend(extra.iter().map(|a| a.to_string()));
-        let args: Vec<&str> = args.iter().map(String::as_str).collect();
-        let o = agentstar(&args);
+        agentstar(&args.iter().map(String::as_str).collect::<Vec<_>>())
+    };
+    let report_of = |o: std::process::Output| -> agentstar_agent::fit::ScaleReport {
         assert!(o.status.success(), "{}", text(&o));
         serde_json::from_slice(&o.stdout).unwrap_or_else(|_| panic!("{}", text(&o)))
+    };
+    let estimate = |extra: &[&str]| {
+        let mut extra = extra.to_vec();
+        extra.push("--json");
+        report_of(scale_cli(&cap, &model, &wrong, &extra))
     };
     let depth = estimate(&["--from", "depth"]);
     assert!(
@@ -358,39 +364,20 @@ fn scale_comes_back_from_depth_parallax_and_a_stated_size() {
         "2",
     ]);
     assert!(o.status.success(), "{}", text(&o));
-    let o = agentstar(&[
-        "scale",
-        "--capture",
-        &s(&held),
-        "--model",
-        &s(&held.join("model/scene.rhai")),
-        "--poses",
-        &s(&held.join("model/pose.json")),
-        "--from",
-        "parallax",
-        "--json",
-    ]);
-    assert!(o.status.success(), "{}", text(&o));
-    let r: agentstar_agent::fit::ScaleReport =
-        serde_json::from_slice(&o.stdout).unwrap_or_else(|_| panic!("{}", text(&o)));
+    let (held_model, held_poses) = (held.join("model/scene.rhai"), held.join("model/pose.json"));
+    let r = report_of(scale_cli(
+        &held,
+        &held_model,
+        &held_poses,
+        &["--from", "parallax", "--json"],
+    ));
     assert!(
         r.weak && r.notes.iter().any(|n| n.contains("moves in the world")),
         "{r:?}"
     );
     // Rescaling in place keeps every silhouette: the IoU is what it was.
     let before = score(&cap, &model, &wrong);
-    let o = agentstar(&[
-        "scale",
-        "--capture",
-        &s(&cap),
-        "--model",
-        &s(&model),
-        "--poses",
-        &s(&wrong),
-        "--from",
-        "depth",
-        "--write",
-    ]);
+    let o = scale_cli(&cap, &model, &wrong, &["--from", "depth", "--write"]);
     assert!(o.status.success(), "{}", text(&o));
     let after = score(&cap, &model, &wrong);
     for (b, a) in before.iter().zip(&after) {
@@ -400,17 +387,7 @@ fn scale_comes_back_from_depth_parallax_and_a_stated_size() {
         serde_json::from_slice(&std::fs::read(&wrong).expect("read")).expect("json");
     assert!((v["scale"].as_f64().expect("scale") / truth - 1.0).abs() < 0.03);
     // A capture without depth (the hand-held box's) says what to use instead.
-    let o = agentstar(&[
-        "scale",
-        "--capture",
-        &s(&held),
-        "--model",
-        &s(&held.join("model/scene.rhai")),
-        "--poses",
-        &s(&held.join("model/pose.json")),
-        "--from",
-        "depth",
-    ]);
+    let o = scale_cli(&held, &held_model, &held_poses, &["--from", "depth"]);
     assert!(
         !o.status.success() && text(&o).contains("no keyframe has depth"),
         "{}",
