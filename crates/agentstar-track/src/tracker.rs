@@ -400,6 +400,30 @@ impl<'m> Searcher<'m> {
         )
     }
 
+    /// [`Searcher::basin`] that stops after its first pass when it scores under `floor`
+    /// there ([`refine_above`]; with `f64::NEG_INFINITY`, exactly [`Searcher::basin`]).
+    fn basin_above(
+        &self,
+        frame: &TrackFrame<'_>,
+        base: &GenPose,
+        seed: u64,
+        floor: f64,
+    ) -> Result<(GenPose, f64), TrackError> {
+        if floor == f64::NEG_INFINITY {
+            return self.basin(frame, base, seed);
+        }
+        let problem = self.problem_of(frame, base);
+        let window = LocalWindow {
+            evals: self.cfg.local_evals,
+            ..LocalWindow::basin()
+        };
+        let (pose, n) = refine_above(&problem, base, &window, seed, floor)?;
+        self.evals
+            .fetch_add(n + 1, std::sync::atomic::Ordering::Relaxed);
+        let score = problem.evaluator().combined(&pose);
+        Ok((pose, score))
+    }
+
     /// The band IoU of `g` in frame `i` (the visible IoU without the ±[`DEFAULT_BAND_PX`]
     /// boundary band of the observed mask, as the gate reads it): true poses on masks with
     /// a segmenter's 1–2 px boundary errors score 0.995–1.0 on it, poses a few degrees off
@@ -652,13 +676,16 @@ impl<'m> Searcher<'m> {
 
     /// The wide search after a drop: the 180° flips of the best pose so far, and a covering
     /// of rotations within 120° of the seed with the joint grid, placed on the mask; the
-    /// best four refined.
+    /// best four refined in the basin window, those under `floor` after its first pass left
+    /// there ([`refine_above`]: callers keep the result only above a score, and `floor` is
+    /// that score less [`PRUNE_SLACK`], or `f64::NEG_INFINITY` to refine all four fully).
     fn wide(
         &self,
         frame: &TrackFrame<'_>,
         best: &GenPose,
         seed_pose: &GenPose,
         (rotation_seed, seed): (u64, u64),
+        floor: f64,
     ) -> Result<Option<(GenPose, f64)>, TrackError> {
         let pivot = self.model.pivot(&best.states);
         let mut rots: Vec<UnitQuaternion> = ['x', 'y', 'z']
@@ -682,7 +709,7 @@ impl<'m> Searcher<'m> {
             .map(|(k, h)| (k, h.0.clone()))
             .collect::<Vec<_>>()
             .par_iter()
-            .map(|(k, h)| self.basin(frame, h, seed + *k as u64))
+            .map(|(k, h)| self.basin_above(frame, h, seed + *k as u64, floor))
             .collect();
         best_of(wide)
     }
@@ -734,38 +761,45 @@ impl<'m> Searcher<'m> {
         };
         let cfg = AppearanceConfig::default();
         let ncc = |g: &GenPose| appearance_score(self.model, self.scale, &app, g, refs, &cfg).ncc;
-        let mut ev = problem.evaluator();
         // A turn as it best explains the mask: as turned, or else moved back onto the mask
         // ([`realign`]: the axes pass through the centroid, which a handle pulls off the
         // axis of the body's outline).
         let stats = mask_stats(frame.target);
         let pivot = posed_extent(self.model, &pose.states).0;
-        let mut aligned = |g: GenPose| -> (GenPose, f64) {
-            let raw = ev.combined(&g);
-            self.evals
-                .fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-            match stats {
-                Some(stats) if raw < score - APPEARANCE_TIE => {
-                    let (moved, sc) = realign(self.model, frame, self.scale, &g, stats, pivot);
-                    self.evals
-                        .fetch_add(3, std::sync::atomic::Ordering::Relaxed);
-                    if sc > raw {
-                        (moved, sc)
-                    } else {
-                        (g, raw)
+        let aligned =
+            |ev: &mut crate::objective::Evaluator<'_, '_>, g: GenPose| -> (GenPose, f64) {
+                let raw = ev.combined(&g);
+                self.evals
+                    .fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                match stats {
+                    Some(stats) if raw < score - APPEARANCE_TIE => {
+                        let (moved, sc) = realign(self.model, frame, self.scale, &g, stats, pivot);
+                        self.evals
+                            .fetch_add(3, std::sync::atomic::Ordering::Relaxed);
+                        if sc > raw {
+                            (moved, sc)
+                        } else {
+                            (g, raw)
+                        }
                     }
+                    _ => (g, raw),
                 }
-                _ => (g, raw),
-            }
-        };
+            };
         let steps = (360.0 / TURN_STEP_DEG).round() as usize;
         let turns: Vec<(usize, f64)> = (0..3)
             .flat_map(|k| (1..steps).map(move |m| (k, m as f64 * TURN_STEP_DEG)))
             .collect();
+        // Each turn placed independently (an evaluator per thread).
+        let turned: Vec<(GenPose, f64)> = turns
+            .par_iter()
+            .map_init(
+                || problem.evaluator(),
+                |ev, &(k, deg)| aligned(ev, turn(pose, &axes[k], deg)),
+            )
+            .collect();
         let mut placed: Vec<(usize, f64, GenPose, f64)> = Vec::new();
         let mut near: Vec<(usize, f64, GenPose, f64)> = Vec::new();
-        for &(k, deg) in &turns {
-            let (g, sc) = aligned(turn(pose, &axes[k], deg));
+        for (&(k, deg), (g, sc)) in turns.iter().zip(turned) {
             if sc >= score - APPEARANCE_TIE {
                 placed.push((k, deg, g, sc));
             } else if sc >= score - SETTLE_NEAR {
@@ -833,10 +867,11 @@ impl<'m> Searcher<'m> {
             (axis, deg, g, sc, n)
         };
         let gain = if continuous { CONTINUOUS_GAIN } else { 0.0 };
+        let mut ev = problem.evaluator();
         for step in [10.0, 5.0, 2.5] {
             let from = g.clone();
             for dir in [-1.0, 1.0] {
-                let (cand, csc) = aligned(turn(&from, &axes[axis], dir * step));
+                let (cand, csc) = aligned(&mut ev, turn(&from, &axes[axis], dir * step));
                 if csc < score - APPEARANCE_TIE {
                     continue;
                 }
@@ -1223,6 +1258,7 @@ fn track_on(
                     &g,
                     &seeds[0],
                     (cfg.seed + i as u64, cfg.seed + 31 * i as u64),
+                    sc - PRUNE_SLACK,
                 )?
                 .filter(|r| r.1 > sc)
             {
@@ -1313,7 +1349,13 @@ fn track_on(
                 states: poses[k].states.clone(),
             };
             let seed = cfg.seed + 65_537 * (k as u64 + 1) + 3;
-            carried_wide.extend(s.wide(&frames[init], &carried, &carried, (seed, seed))?);
+            carried_wide.extend(s.wide(
+                &frames[init],
+                &carried,
+                &carried,
+                (seed, seed),
+                f64::NEG_INFINITY,
+            )?);
         }
         let refs: Vec<ReferenceView<'_>> = if cfg.appearance {
             neighbours
@@ -1721,7 +1763,9 @@ fn consistency(
             if best_neighbour > here + FAR_MARGIN || (best_neighbour > here && band_gap()) {
                 let from = carried(frames, poses, j, i);
                 let seed = s.cfg.seed + 65537 * (i as u64 + 1) + 97 * round + 50;
-                let wide = s.wide(&frames[i], &from, &from, (seed, seed))?;
+                // Only a pose above this frame's score (and the narrow searches') moves it.
+                let floor = here - PRUNE_SLACK;
+                let wide = s.wide(&frames[i], &from, &from, (seed, seed), floor)?;
                 if let Some(w) = wide.filter(|w| found.as_ref().is_none_or(|f| w.1 > f.1)) {
                     found = Some(w);
                     wide_won = true;
@@ -2262,7 +2306,13 @@ fn track_from_on(
         if reached.max(scores[i]) < scores[prev_i] - FAR_MARGIN {
             let seed = cfg.seed + 65537 * (i as u64 + 1);
             if let Some(w) = s
-                .wide(&frames[i], &carried, &carried, (seed, seed))?
+                .wide(
+                    &frames[i],
+                    &carried,
+                    &carried,
+                    (seed, seed),
+                    reached.max(scores[i] - CARRY_TIE) - PRUNE_SLACK,
+                )?
                 .filter(|w| w.1 > reached)
             {
                 found = Some(w);
