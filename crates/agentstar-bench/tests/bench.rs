@@ -343,6 +343,7 @@ fn a_full_sequence_matches_an_independent_numpy_implementation() {
                 camera_from_mesh: Affine::from_similarity(&p.with_scale(1.0)),
                 edges: None,
                 open_edges: None,
+                planes: None,
                 part_id: i as u16,
             })
             .collect();

@@ -98,6 +98,7 @@ fn gt_buffers(model: &ObjectModel, poses: &[ObjectPose], cam: &PinholeCamera) ->
             camera_from_mesh: Affine::from_similarity(&pose.with_scale(1.0)),
             edges: p.edges.as_deref().map(|e| e.as_slice()),
             open_edges: p.open_edges.as_deref().map(|e| e.as_slice()),
+            planes: p.planes.as_deref().map(|q| q.as_slice()),
             part_id: i as u16,
         })
         .collect();

@@ -130,6 +130,20 @@ impl TriMesh {
             .all(|(&(a, b), &n)| n == 1 && directed.get(&(b, a)) == Some(&1))
     }
 
+    /// Each triangle's plane as `[n.x, n.y, n.z, n·a]` with `n = (b − a) × (c − a)` (not
+    /// normalised; outward on an outward-oriented mesh): the triangle faces a point `p`
+    /// when `n·p > n·a`.
+    pub fn face_planes(&self) -> Vec<[f64; 4]> {
+        self.triangles
+            .iter()
+            .map(|t| {
+                let [a, b, c] = t.map(|i| self.positions[i as usize]);
+                let n = (b - a).cross(&(c - a));
+                [n.x, n.y, n.z, n.dot(&a.coords)]
+            })
+            .collect()
+    }
+
     /// For a closed, consistently oriented mesh, every undirected edge once as
     /// `[a, b, f0, f1]`: triangle `f0` traverses `a → b` and triangle `f1` traverses `b → a`.
     /// `None` when the mesh is not watertight. Sorted by `(a, b)`.

@@ -25,6 +25,11 @@ pub struct Part {
     /// ([`TriMesh::edge_incidence`]), which lets renderers fill its silhouette from the
     /// outlines of its front and back faces; `None` when `edges` is set.
     pub open_edges: Option<Arc<Vec<[u32; 4]>>>,
+    /// The plane of each triangle of a watertight mesh, `[n, n·a]` with `n = (b − a) × (c − a)`
+    /// (outward, not normalised): a triangle faces a viewpoint `p` when `n·p > n·a`, so
+    /// renderers tell front faces from back ones without projecting every vertex. `None`
+    /// when `edges` is.
+    pub planes: Option<Arc<Vec<[f64; 4]>>>,
 }
 
 impl Part {
@@ -37,6 +42,7 @@ impl Part {
         let watertight = edges.is_some();
         let open_edges = (!watertight).then(|| Arc::new(mesh.edge_incidence()));
         let bounds = mesh.bounds();
+        let planes = watertight.then(|| Arc::new(mesh.face_planes()));
         Part {
             name: name.into(),
             mesh: Arc::new(mesh),
@@ -45,6 +51,7 @@ impl Part {
             bounds,
             edges,
             open_edges,
+            planes,
         }
     }
 }

@@ -33,6 +33,7 @@ pub fn render_parts_mask(camera: &PinholeCamera, parts: &[(&TriMesh, Rigid)]) ->
             camera_from_mesh: Affine::from_similarity(&Similarity::from_rigid(camera_from_part)),
             edges: None,
             open_edges: None,
+            planes: None,
             part_id: i as u16,
         })
         .collect();

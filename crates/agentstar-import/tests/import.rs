@@ -67,6 +67,7 @@ fn write_bop_scene(
             camera_from_mesh: Affine::from_similarity(&p.with_scale(1.0)),
             edges: None,
             open_edges: None,
+            planes: None,
             part_id: id,
         };
         let m_box: &'static agentstar_geom::TriMesh = Box::leak(Box::new(m_box.clone()));
@@ -188,6 +189,7 @@ fn a_bop_scene_imports_with_metres_occluders_depth_and_ground_truth() {
         camera_from_mesh: agentstar_render::raster::Affine::from_similarity(&p.with_scale(1.0)),
         edges: None,
         open_edges: None,
+        planes: None,
         part_id: 0,
     };
     let sil = agentstar_render::render_full(&cam, &[inst]).silhouette();

@@ -75,6 +75,10 @@ pub struct Instance<'a> {
     /// (`agentstar_geom::TriMesh::edge_incidence`): its silhouette is filled from the
     /// outlines of its front faces and of its back faces.
     pub open_edges: Option<&'a [[u32; 4]]>,
+    /// With `edges`: each triangle's plane in the mesh frame (`agentstar_geom::Part::planes`),
+    /// so a closed mesh's front faces are found without projecting every vertex; `None`
+    /// projects them all.
+    pub planes: Option<&'a [[f64; 4]]>,
     /// Written into the part-id buffer by the full renderer.
     pub part_id: u16,
 }
@@ -168,6 +172,10 @@ fn ceil_i64(a: f64) -> i64 {
 pub(crate) struct VertexScratch {
     pub cam: Vec<[f64; 3]>,
     pub screen: Vec<[f64; 2]>,
+    /// For [`VertexScratch::screen_of`]: the render in which each vertex was last
+    /// projected, and the current one's number.
+    stamp: Vec<u32>,
+    render: u32,
 }
 
 impl VertexScratch {
@@ -193,6 +201,40 @@ impl VertexScratch {
             }
         }
         any_near
+    }
+
+    /// Starts a render whose vertices [`VertexScratch::screen_of`] projects on demand.
+    fn begin_lazy(&mut self, vertices: usize) {
+        self.screen.resize(vertices, [0.0; 2]);
+        self.stamp.resize(vertices, 0);
+        self.render = self.render.wrapping_add(1);
+        if self.render == 0 {
+            self.stamp.fill(0);
+            self.render = 1;
+        }
+    }
+
+    /// Vertex `v`'s pixel position, projected once per render (every vertex in front of the
+    /// near plane: the caller checked the mesh's bounds).
+    #[inline(always)]
+    fn screen_of(
+        &mut self,
+        mesh: &TriMesh,
+        t: &Affine,
+        camera: &PinholeCamera,
+        v: u32,
+    ) -> [f64; 2] {
+        let v = v as usize;
+        if self.stamp[v] != self.render {
+            self.stamp[v] = self.render;
+            let c = t.apply(&mesh.positions[v]);
+            let iz = 1.0 / c[2];
+            self.screen[v] = [
+                camera.fx * c[0] * iz + camera.cx,
+                camera.fy * c[1] * iz + camera.cy,
+            ];
+        }
+        self.screen[v]
     }
 }
 
@@ -300,12 +342,44 @@ impl SilhouetteRenderer {
         let (w, h) = (camera.width, camera.height);
         let mut dirty = (u32::MAX, 0u32);
         for inst in instances {
+            let camera_in_mesh = inst.camera_from_mesh.camera_in_mesh();
+            // Culling is only valid when the camera is outside the closed mesh; a camera
+            // inside the mesh bounds disables it (cheap and conservative).
+            let cull = inst.closed() && !camera_in_bounds(inst, camera_in_mesh);
+            // A closed mesh seen from outside, wholly in front of the camera: its front faces
+            // from their planes, and only the vertices of its contour projected.
+            if let (true, Some(edges), Some(planes), Some(eye)) =
+                (cull, inst.edges, inst.planes, camera_in_mesh)
+            {
+                if camera.fx * camera.fy > 0.0
+                    && planes.len() == inst.mesh.triangles.len()
+                    && bounds_in_front(inst)
+                {
+                    self.contour.facing.clear();
+                    self.contour.facing.extend(planes.iter().map(|q| {
+                        if q[0] * eye.x + q[1] * eye.y + q[2] * eye.z > q[3] {
+                            1
+                        } else {
+                            -1
+                        }
+                    }));
+                    self.scratch.begin_lazy(inst.mesh.positions.len());
+                    let scratch = &mut self.scratch;
+                    fill_contour(
+                        &mut self.mask,
+                        &mut self.contour,
+                        (edges, Sides::Front),
+                        |v| scratch.screen_of(inst.mesh, &inst.camera_from_mesh, camera, v),
+                        w,
+                        h,
+                        &mut dirty,
+                    );
+                    continue;
+                }
+            }
             let any_near = self
                 .scratch
                 .project(inst.mesh, &inst.camera_from_mesh, camera);
-            // Culling is only valid when the camera is outside the closed mesh; a camera
-            // inside the mesh bounds disables it (cheap and conservative).
-            let cull = inst.closed() && !camera_inside_bounds(inst);
             if !any_near {
                 // A closed mesh seen from outside by its front faces' outline; any other
                 // (open, or the camera inside its bounds) by both outlines.
@@ -385,7 +459,12 @@ impl SilhouetteRenderer {
 }
 
 pub(crate) fn camera_inside_bounds(inst: &Instance<'_>) -> bool {
-    match inst.camera_from_mesh.camera_in_mesh() {
+    camera_in_bounds(inst, inst.camera_from_mesh.camera_in_mesh())
+}
+
+/// [`camera_inside_bounds`] given the camera's centre in the mesh frame.
+fn camera_in_bounds(inst: &Instance<'_>, camera_in_mesh: Option<Point3>) -> bool {
+    match camera_in_mesh {
         Some(c) => {
             let b = &inst.bounds;
             let pad = b.extent().max() * 1e-6;
@@ -393,6 +472,20 @@ pub(crate) fn camera_inside_bounds(inst: &Instance<'_>) -> bool {
         }
         None => true,
     }
+}
+
+/// True when every corner of the mesh's bounds lies in front of the near plane, and so
+/// every vertex (depth is affine in the mesh frame).
+fn bounds_in_front(inst: &Instance<'_>) -> bool {
+    let (lo, hi) = (inst.bounds.min, inst.bounds.max);
+    (0..8).all(|k| {
+        let p = Point3::new(
+            if k & 1 == 0 { lo.x } else { hi.x },
+            if k & 2 == 0 { lo.y } else { hi.y },
+            if k & 4 == 0 { lo.z } else { hi.z },
+        );
+        inst.camera_from_mesh.apply(&p)[2] > NEAR_Z
+    })
 }
 
 #[inline(always)]
@@ -461,6 +554,28 @@ fn fill_from_contour(
             0
         }
     }));
+    fill_contour(
+        mask,
+        cs,
+        (edges, sides),
+        |v| screen[v as usize],
+        w,
+        h,
+        dirty,
+    );
+}
+
+/// The fill of [`fill_from_contour`] once `cs.facing` holds every face's facing; `screen`
+/// gives a vertex's pixel position (called only for the contour's vertices).
+fn fill_contour(
+    mask: &mut BitMask,
+    cs: &mut ContourScratch,
+    (edges, sides): (&[[u32; 4]], Sides),
+    mut screen: impl FnMut(u32) -> [f64; 2],
+    w: u32,
+    h: u32,
+    dirty: &mut (u32, u32),
+) {
     if cs.row_start.len() != h as usize + 2 {
         cs.row_start.clear();
         cs.row_start.resize(h as usize + 2, 0);
@@ -486,7 +601,7 @@ fn fill_from_contour(
         if front == 0 && back == 0 {
             continue;
         }
-        let (p, q) = (screen[e[0] as usize], screen[e[1] as usize]);
+        let (p, q) = (screen(e[0]), screen(e[1]));
         let (top, bottom, dir) = if p[1] < q[1] {
             (p, q, 1)
         } else if q[1] < p[1] {

@@ -68,6 +68,7 @@ fn place<'a>(
             camera_from_mesh: Affine::camera_from_part(camera_from_object, object_from_part),
             edges: part.edges.as_deref().map(|e| e.as_slice()),
             open_edges: part.open_edges.as_deref().map(|e| e.as_slice()),
+            planes: part.planes.as_deref().map(|q| q.as_slice()),
             part_id: i as u16,
         });
     }

@@ -160,6 +160,19 @@ fn silhouette_is_exact_against_ray_casting_over_many_poses() {
             "trial {trial}: IoU {} ≠ 1",
             inter as f64 / union as f64
         );
+        // Front faces found from their planes (only the contour's vertices projected) and
+        // from every vertex projected give the same silhouette.
+        assert!(posed.instances.iter().all(|i| i.planes.is_some()));
+        let projected: Vec<_> = posed
+            .instances
+            .iter()
+            .map(|i| agentstar_render::Instance { planes: None, ..*i })
+            .collect();
+        assert_eq!(
+            renderer.render(&camera, &projected),
+            &raster,
+            "trial {trial}: the planes' and the projected faces' silhouettes differ"
+        );
         // The full renderer covers the same pixels and its depth is the ray-cast depth.
         let full = render_full(&camera, &posed.instances);
         assert_eq!(
@@ -269,6 +282,7 @@ fn open_meshes_are_exact_against_ray_casting_and_the_per_triangle_path() {
             .iter()
             .map(|i| agentstar_render::Instance {
                 open_edges: None,
+                planes: None,
                 ..*i
             })
             .collect();

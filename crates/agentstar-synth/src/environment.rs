@@ -389,6 +389,7 @@ pub fn synthesize_room_clip(cfg: &RoomConfig) -> Result<RoomClip, SynthError> {
             camera_from_mesh: Affine::from_similarity(&hand_pose),
             edges: hand_part.edges.as_deref().map(|e| e.as_slice()),
             open_edges: hand_part.open_edges.as_deref().map(|e| e.as_slice()),
+            planes: hand_part.planes.as_deref().map(|q| q.as_slice()),
             part_id: n_parts,
         });
         let buffers = render_full(&camera, &instances);

@@ -435,6 +435,7 @@ fn hand_instance<'a>(
         camera_from_mesh: Affine::from_similarity(pose),
         edges: hand.edges.as_deref().map(|e| e.as_slice()),
         open_edges: hand.open_edges.as_deref().map(|e| e.as_slice()),
+        planes: hand.planes.as_deref().map(|q| q.as_slice()),
         part_id,
     }
 }
