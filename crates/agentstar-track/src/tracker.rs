@@ -1857,85 +1857,89 @@ fn choose_sequence(
     log: &mut Log<'_>,
 ) -> Result<(), TrackError> {
     let n = frames.len();
-    let mut hyps: Vec<Vec<(GenPose, f64)>> = Vec::with_capacity(n);
-    for i in 0..n {
-        let mut h = vec![(poses[i].clone(), scores[i])];
-        if !fixed[i] {
-            let problem = FrameProblem::new(
-                s.model,
-                frames[i].camera,
-                frames[i].target,
-                s.scale,
-                poses[i].clone(),
-            );
-            let mut ev = problem.evaluator();
-            // A frame under the gate may sit in a wrong basin: all its twins, refined in the
-            // wide window (a twin of a pose refined in the wrong basin lands off the mask).
-            let suspect = scores[i] < CHOICE_SUSPECT;
-            let close: Vec<GenPose> = twin_candidates(s.model, s.scale, &poses[i])
-                .into_iter()
-                .filter(|g| suspect || ev.combined(g) >= scores[i] - CHOICE_SCREEN)
-                .collect();
-            let window = if suspect {
-                LocalWindow::basin()
-            } else {
-                LocalWindow::polish()
-            };
-            // Twins that end under the frame's score by more than CHOICE_KEEP are dropped
-            // below: their refinement stops after the first pass.
-            let refined = refine_each_above(
-                &problem,
-                &close,
-                &window,
-                s.cfg.seed + 3_000_017 * (i as u64 + 1),
-                scores[i] - CHOICE_KEEP - PRUNE_SLACK,
-            )?;
-            // A frame placed far from a neighbour (a jump in depth, a turn past the cap)
-            // may have been chained from a wrong pose, or its silhouette, mostly under a
-            // hand, fits a wrong pose slightly better: the neighbour's pose carried here,
-            // refined, is a hypothesis the step cost can prefer.
-            let from_neighbours: Vec<GenPose> = [i.checked_sub(1), (i + 1 < n).then_some(i + 1)]
-                .into_iter()
-                .flatten()
-                .map(|j| carried(frames, poses, j, i))
-                .filter(|c| far_step(c, &poses[i]))
-                .collect();
-            let carried = refine_each_above(
-                &problem,
-                &from_neighbours,
-                &LocalWindow::carried(),
-                s.cfg.seed + 3_500_017 * (i as u64 + 1),
-                scores[i] - CHOICE_KEEP - PRUNE_SLACK,
-            )?;
-            s.evals.fetch_add(
-                refined.iter().chain(&carried).map(|r| r.evals).sum(),
-                std::sync::atomic::Ordering::Relaxed,
-            );
-            // The refined twins, the neighbours' poses carried here, then the basins a global
-            // search found at this frame during the propagation (its colours may have turned
-            // one down that the sequence needs), each unless one already kept is the same
-            // ([`same_basin`]: a neighbour's pose carried in to correct a frame's depth may
-            // keep its rotation).
-            let found = refined
-                .into_iter()
-                .chain(carried)
-                .map(|r| (r.pose, r.score.combined))
-                .chain(alternatives.get(i).into_iter().flatten().cloned());
-            for (g, sc) in found {
-                if !h.iter().any(|(b, _)| same_basin(b, &g)) {
-                    h.push((g, sc));
+    // Each frame's hypotheses on their own (their seeds depend on the frame alone).
+    let hyps: Vec<Vec<(GenPose, f64)>> = (0..n)
+        .into_par_iter()
+        .map(|i| -> Result<Vec<(GenPose, f64)>, TrackError> {
+            let mut h = vec![(poses[i].clone(), scores[i])];
+            if !fixed[i] {
+                let problem = FrameProblem::new(
+                    s.model,
+                    frames[i].camera,
+                    frames[i].target,
+                    s.scale,
+                    poses[i].clone(),
+                );
+                let mut ev = problem.evaluator();
+                // A frame under the gate may sit in a wrong basin: all its twins, refined in the
+                // wide window (a twin of a pose refined in the wrong basin lands off the mask).
+                let suspect = scores[i] < CHOICE_SUSPECT;
+                let close: Vec<GenPose> = twin_candidates(s.model, s.scale, &poses[i])
+                    .into_iter()
+                    .filter(|g| suspect || ev.combined(g) >= scores[i] - CHOICE_SCREEN)
+                    .collect();
+                let window = if suspect {
+                    LocalWindow::basin()
+                } else {
+                    LocalWindow::polish()
+                };
+                // Twins that end under the frame's score by more than CHOICE_KEEP are dropped
+                // below: their refinement stops after the first pass.
+                let refined = refine_each_above(
+                    &problem,
+                    &close,
+                    &window,
+                    s.cfg.seed + 3_000_017 * (i as u64 + 1),
+                    scores[i] - CHOICE_KEEP - PRUNE_SLACK,
+                )?;
+                // A frame placed far from a neighbour (a jump in depth, a turn past the cap)
+                // may have been chained from a wrong pose, or its silhouette, mostly under a
+                // hand, fits a wrong pose slightly better: the neighbour's pose carried here,
+                // refined, is a hypothesis the step cost can prefer.
+                let from_neighbours: Vec<GenPose> =
+                    [i.checked_sub(1), (i + 1 < n).then_some(i + 1)]
+                        .into_iter()
+                        .flatten()
+                        .map(|j| carried(frames, poses, j, i))
+                        .filter(|c| far_step(c, &poses[i]))
+                        .collect();
+                let carried = refine_each_above(
+                    &problem,
+                    &from_neighbours,
+                    &LocalWindow::carried(),
+                    s.cfg.seed + 3_500_017 * (i as u64 + 1),
+                    scores[i] - CHOICE_KEEP - PRUNE_SLACK,
+                )?;
+                s.evals.fetch_add(
+                    refined.iter().chain(&carried).map(|r| r.evals).sum(),
+                    std::sync::atomic::Ordering::Relaxed,
+                );
+                // The refined twins, the neighbours' poses carried here, then the basins a global
+                // search found at this frame during the propagation (its colours may have turned
+                // one down that the sequence needs), each unless one already kept is the same
+                // ([`same_basin`]: a neighbour's pose carried in to correct a frame's depth may
+                // keep its rotation).
+                let found = refined
+                    .into_iter()
+                    .chain(carried)
+                    .map(|r| (r.pose, r.score.combined))
+                    .chain(alternatives.get(i).into_iter().flatten().cloned());
+                for (g, sc) in found {
+                    if !h.iter().any(|(b, _)| same_basin(b, &g)) {
+                        h.push((g, sc));
+                    }
+                }
+                let best = h.iter().map(|x| x.1).fold(f64::NEG_INFINITY, f64::max);
+                // The frame's own pose (first) may be dropped here: then every hypothesis kept is
+                // another basin.
+                h.retain(|x| x.1 >= best - CHOICE_KEEP);
+                if h.is_empty() {
+                    h.push((poses[i].clone(), scores[i]));
                 }
             }
-            let best = h.iter().map(|x| x.1).fold(f64::NEG_INFINITY, f64::max);
-            // The frame's own pose (first) may be dropped here: then every hypothesis kept is
-            // another basin.
-            h.retain(|x| x.1 >= best - CHOICE_KEEP);
-            if h.is_empty() {
-                h.push((poses[i].clone(), scores[i]));
-            }
-        }
-        hyps.push(h);
-    }
+            Ok(h)
+        })
+        .collect::<Result<_, _>>()?;
     let alternatives: usize = hyps
         .iter()
         .zip(poses.iter())
