@@ -15,7 +15,7 @@ pub mod text;
 pub mod views;
 
 pub use agentstar_mask::{BitMask, DepthObservation};
-pub use full::{render_full, RenderBuffers, NO_PART};
+pub use full::{render_full, FullRenderer, RenderBuffers, NO_PART};
 pub use raster::{Affine, Instance, SilhouetteRenderer};
 pub use scene::PosedModel;
 pub use score::{boundary_band, IouScore, ScoreTarget, DEFAULT_BAND_PX, GATE_IOU};

@@ -364,6 +364,30 @@ fn renderer_reuse_clears_previous_frames() {
     assert_eq!(r.mask().count(), 0);
 }
 
+#[test]
+fn a_reused_full_renderer_gives_what_a_fresh_one_gives() {
+    let model = test_model();
+    let camera = PinholeCamera::new(90.0, 90.0, 48.0, 36.0, 96, 72).expect("camera");
+    let mut rng = Rng(11);
+    let mut reused = agentstar_render::FullRenderer::default();
+    // Near and far poses in turn: a large render, then a small one in other rows.
+    for trial in 0..12 {
+        let mut pose = rng.pose_in_view();
+        if trial % 2 == 1 {
+            pose.translation.z *= 3.0;
+            pose.translation.y += 0.3;
+        }
+        let states = [rng.range(0.0, 2.0)];
+        let posed = PosedModel::new(&model, &states, &pose);
+        let fresh = render_full(&camera, &posed.instances);
+        let again = reused.render(&camera, &posed.instances);
+        assert!(fresh.part.iter().any(|&p| p != agentstar_render::NO_PART));
+        assert_eq!(again.part, fresh.part, "trial {trial}");
+        assert_eq!(again.depth, fresh.depth, "trial {trial}");
+        assert_eq!(again.normal, fresh.normal, "trial {trial}");
+    }
+}
+
 /// Compares against a small committed golden image with explicit tolerances. Run with
 /// `AGENTSTAR_BLESS=1` to rewrite the golden after an intended change, then look at it.
 fn assert_golden(name: &str, img: &image::RgbImage) {

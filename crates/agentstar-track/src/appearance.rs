@@ -44,7 +44,7 @@
 use crate::update::GenPose;
 use agentstar_geom::pose::Similarity;
 use agentstar_geom::{ObjectModel, PinholeCamera, Point3};
-use agentstar_render::{render_full, BitMask, PosedModel, RenderBuffers, NO_PART};
+use agentstar_render::{render_full, BitMask, FullRenderer, PosedModel, RenderBuffers, NO_PART};
 
 /// One keyframe's observation: camera, colour image (RGB, 8 bits, row-major, as
 /// `image::RgbImage::as_raw`) and the observed object mask (hands excluded).
@@ -298,7 +298,27 @@ fn gather(
 ) -> Gathered {
     let cam = frame.camera;
     let posed = PosedModel::new(model, &candidate.states, &candidate.pose.with_scale(scale));
-    let buffers = render_full(cam, &posed.instances);
+    // One renderer per thread: the search loops score hundreds of candidates.
+    thread_local! {
+        static FULL: std::cell::RefCell<FullRenderer> = std::cell::RefCell::default();
+    }
+    FULL.with_borrow_mut(|full| {
+        let buffers = full.render(cam, &posed.instances);
+        gather_from(model, scale, frame, candidate, buffers, references, cfg)
+    })
+}
+
+/// [`gather`] given the candidate's render.
+fn gather_from(
+    model: &ObjectModel,
+    scale: f64,
+    frame: &AppearanceFrame<'_>,
+    candidate: &GenPose,
+    buffers: &RenderBuffers,
+    references: &[ReferenceView<'_>],
+    cfg: &AppearanceConfig,
+) -> Gathered {
+    let cam = frame.camera;
     let part_from_camera: Vec<Similarity> = camera_from_parts(model, scale, candidate)
         .iter()
         .map(|s| s.inverse())
