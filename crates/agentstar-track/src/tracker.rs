@@ -372,8 +372,20 @@ impl<'m> Searcher<'m> {
         seed: u64,
         floor: f64,
     ) -> Result<(GenPose, f64), TrackError> {
+        self.refine_above(frame, base, &self.polish_window(), seed, floor)
+    }
+
+    /// [`refine_above`] in `window`, counting its evaluations; the pose with its score.
+    fn refine_above(
+        &self,
+        frame: &TrackFrame<'_>,
+        base: &GenPose,
+        window: &LocalWindow,
+        seed: u64,
+        floor: f64,
+    ) -> Result<(GenPose, f64), TrackError> {
         let problem = self.problem_of(frame, base);
-        let (pose, n) = refine_above(&problem, base, &self.polish_window(), seed, floor)?;
+        let (pose, n) = refine_above(&problem, base, window, seed, floor)?;
         self.evals
             .fetch_add(n + 1, std::sync::atomic::Ordering::Relaxed);
         let score = problem.evaluator().combined(&pose);
@@ -388,16 +400,15 @@ impl<'m> Searcher<'m> {
         base: &GenPose,
         seed: u64,
     ) -> Result<(GenPose, f64), TrackError> {
-        let evals = self.cfg.local_evals;
-        self.refine(
-            frame,
-            base,
-            &LocalWindow {
-                evals,
-                ..LocalWindow::basin()
-            },
-            seed,
-        )
+        self.refine(frame, base, &self.basin_window(), seed)
+    }
+
+    /// The basin's window: [`LocalWindow::basin`] with the whole local budget.
+    fn basin_window(&self) -> LocalWindow {
+        LocalWindow {
+            evals: self.cfg.local_evals,
+            ..LocalWindow::basin()
+        }
     }
 
     /// [`Searcher::basin`] that stops after its first pass when it scores under `floor`
@@ -412,16 +423,7 @@ impl<'m> Searcher<'m> {
         if floor == f64::NEG_INFINITY {
             return self.basin(frame, base, seed);
         }
-        let problem = self.problem_of(frame, base);
-        let window = LocalWindow {
-            evals: self.cfg.local_evals,
-            ..LocalWindow::basin()
-        };
-        let (pose, n) = refine_above(&problem, base, &window, seed, floor)?;
-        self.evals
-            .fetch_add(n + 1, std::sync::atomic::Ordering::Relaxed);
-        let score = problem.evaluator().combined(&pose);
-        Ok((pose, score))
+        self.refine_above(frame, base, &self.basin_window(), seed, floor)
     }
 
     /// The band IoU of `g` in frame `i` (the visible IoU without the ±[`DEFAULT_BAND_PX`]
@@ -452,10 +454,7 @@ impl<'m> Searcher<'m> {
         let Some(problem) = top.first().map(|g| self.problem_of(frame, g)) else {
             return Ok(vec![]);
         };
-        let window = LocalWindow {
-            evals: self.cfg.local_evals,
-            ..LocalWindow::basin()
-        };
+        let window = self.basin_window();
         let count = |n: usize| {
             self.evals
                 .fetch_add(n, std::sync::atomic::Ordering::Relaxed)
