@@ -147,7 +147,7 @@ impl<'a> FrameProblem<'a> {
     pub fn evaluator(&self) -> Evaluator<'_, 'a> {
         Evaluator {
             problem: self,
-            renderer: SilhouetteRenderer::new(self.camera.width, self.camera.height),
+            renderer: pooled_renderer(self.camera.width, self.camera.height),
             builder: InstanceBuilder::default(),
             instances: Vec::new(),
         }
@@ -176,6 +176,42 @@ pub struct Evaluator<'p, 'a> {
     renderer: SilhouetteRenderer,
     builder: InstanceBuilder,
     instances: Vec<Instance<'a>>,
+}
+
+/// Renderers no evaluator holds, per thread: searches make evaluators by the thousand (one
+/// per refinement, per placed hypothesis), and a fresh 640×480 renderer is a zeroed
+/// allocation that the allocator may hand back to the system and fault in again.
+const RENDERER_POOL: usize = 8;
+
+thread_local! {
+    static RENDERERS: std::cell::RefCell<Vec<SilhouetteRenderer>> =
+        const { std::cell::RefCell::new(Vec::new()) };
+}
+
+/// A renderer from this thread's pool (a render clears what its last one drew), or a new
+/// one; give it back with [`return_renderer`].
+pub(crate) fn pooled_renderer(width: u32, height: u32) -> SilhouetteRenderer {
+    RENDERERS
+        .with_borrow_mut(|pool| pool.pop())
+        .unwrap_or_else(|| SilhouetteRenderer::new(width, height))
+}
+
+/// Puts a renderer back in this thread's pool (up to [`RENDERER_POOL`] are kept).
+pub(crate) fn return_renderer(renderer: SilhouetteRenderer) {
+    RENDERERS.with_borrow_mut(|pool| {
+        if pool.len() < RENDERER_POOL {
+            pool.push(renderer);
+        }
+    });
+}
+
+impl Drop for Evaluator<'_, '_> {
+    fn drop(&mut self) {
+        return_renderer(std::mem::replace(
+            &mut self.renderer,
+            SilhouetteRenderer::new(0, 0),
+        ));
+    }
 }
 
 impl Evaluator<'_, '_> {

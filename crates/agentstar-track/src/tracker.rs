@@ -246,7 +246,7 @@ fn align(
     };
     let problem = FrameProblem::new(model, *cam, frame.target, scale, base);
     let mut ev = problem.evaluator();
-    let mut r = agentstar_render::SilhouetteRenderer::new(cam.width, cam.height);
+    let mut r = crate::objective::pooled_renderer(cam.width, cam.height);
     for _ in 0..2 {
         let pose = problem_pose(z, centre);
         let inst = agentstar_render::PosedModel::new(model, states, &pose.with_scale(scale));
@@ -261,6 +261,7 @@ fn align(
         centre = (centre.0 + (cx - rx), centre.1 + (cy - ry));
         z *= (rendered / area).sqrt();
     }
+    crate::objective::return_renderer(r);
     let g = GenPose {
         pose: problem_pose(z, centre),
         states: states.to_vec(),
