@@ -890,7 +890,7 @@ tool!(
 );
 
 tool!(Render, "render", Diagnostic, Nothing, RenderArgs,
-    "Render the posed model into keyframes: `overlay` (shaded model over the frame) and `compare` (silhouette comparison: green model and mask agree, magenta mask not covered by the model, yellow model outside the mask, grey hand (ignored), blue model under the hand, on a near-black background; the legend is on each image), `ids` (parts in flat colours, visible pixels each). With `overlay`, also a contact sheet of the overlays. For the raw keyframes without the model, use `frames`.",
+    "Render the posed model into keyframes: `overlay` (shaded model over the frame) and `compare` (silhouette comparison: green model and mask agree, magenta mask not covered by the model, yellow model outside the mask, grey hand (ignored), blue model under the hand, on a near-black background; the legend is on each image), `ids` (parts in flat colours, visible pixels each). With `overlay`, also a contact sheet of the overlays; with `compare`, a sheet of every frame's comparison cropped around mask and model. For the raw keyframes without the model, use `frames`.",
     |tb, a, step| {
         let views = a.views.clone().filter(|v| !v.trim().is_empty()).unwrap_or_else(|| "overlay,compare".into());
         let (mut o, out, _) = tb.cli(

@@ -92,9 +92,25 @@ fn example_and_every_subcommand_on_it() {
         .collect();
     assert_eq!(
         sheets,
-        ["sheet_frames.png", "sheet_side.png"].map(|n| fv.join(n).display().to_string())
+        ["sheet_compare.png", "sheet_frames.png", "sheet_side.png"]
+            .map(|n| fv.join(n).display().to_string())
     );
     assert!(!fv.join("sheet_overlay.png").exists());
+    // The compare sheet's crops keep the comparison's colours (nearest-neighbour zoom): the
+    // agreement and the background, and no blend of them.
+    let sheet = image::open(fv.join("sheet_compare.png"))
+        .expect("png")
+        .to_rgb8();
+    let count = |c: image::Rgb<u8>| sheet.pixels().filter(|p| **p == c).count();
+    let (both, background) = (
+        agentstar_render::views::BOTH,
+        agentstar_render::views::BACKGROUND,
+    );
+    assert!(count(both) > 2_000, "{} agreeing pixels", count(both));
+    assert!(count(background) > 2_000);
+    let halfway =
+        image::Rgb([0, 1, 2].map(|k| ((both[k] as u16 + background[k] as u16) / 2) as u8));
+    assert_eq!(count(halfway), 0, "the crops were filtered");
     for f in v["frames"].as_array().expect("frames") {
         for p in f["files"].as_array().expect("files") {
             assert!(Path::new(p.as_str().expect("path")).is_file(), "{p}");

@@ -121,8 +121,20 @@ fn every_tool_runs_over_stdio_with_schema_arguments_and_typed_results() {
             legend = task_legend(&body);
         }
         if name == "render" {
-            let compare = images.first().expect("the compare image");
+            // The compare sheet first (one frame's crop), then the frame's comparison.
+            assert_eq!(images.len(), 2, "{body}");
+            let compare = &images[1];
             assert_compare_colours_are_the_legend(compare, &legend, (160, 120));
+            let legend_colours: BTreeSet<[u8; 3]> = legend.iter().map(|l| l.1).collect();
+            let on_sheet: BTreeSet<[u8; 3]> = images[0].pixels().map(|p| p.0).collect();
+            assert!(
+                legend_colours
+                    .iter()
+                    .filter(|c| on_sheet.contains(*c))
+                    .count()
+                    >= 2,
+                "the sheet shows the comparison's colours"
+            );
         }
         let structured = result.get("structuredContent").cloned();
         match name {

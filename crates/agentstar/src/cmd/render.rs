@@ -80,7 +80,43 @@ struct FrameViews {
     overlay_tile: Option<(String, RgbImage)>,
     frame_tile: Option<(String, RgbImage)>,
     side_tile: Option<(String, RgbImage)>,
+    compare_tile: Option<(String, RgbImage)>,
+    /// The frame has a hand mask (the compare legend then names the hand's colours).
+    has_hand: bool,
     note: Option<String>,
+}
+
+/// The silhouette comparison cropped around the mask and the model's silhouette (the whole
+/// frame when both are empty), its long side brought to [`FRAME_TILE_PX`] by whole pixels
+/// (nearest neighbour: the tile keeps the legend's exact colours).
+fn compare_tile(
+    img: &RgbImage,
+    mask: &agentstar_render::BitMask,
+    sil: &agentstar_render::BitMask,
+    margin: f64,
+) -> RgbImage {
+    let [x0, y0, w, h] =
+        crop_box(mask, Some(sil), margin).unwrap_or([0, 0, img.width(), img.height()]);
+    let crop = image::imageops::crop_imm(img, x0, y0, w, h).to_image();
+    let factor = (FRAME_TILE_PX as f64 / w.max(h).max(1) as f64).min(MAX_ZOOM);
+    let (tw, th) = (
+        ((w as f64 * factor).round() as u32).max(1),
+        ((h as f64 * factor).round() as u32).max(1),
+    );
+    image::imageops::resize(&crop, tw, th, image::imageops::FilterType::Nearest)
+}
+
+/// The compare sheet's title: what it shows and the legend's colours by name.
+fn compare_sheet_title(has_hand: bool) -> String {
+    let legend: Vec<String> = agentstar_render::views::COMPARE_LEGEND
+        .iter()
+        .filter(|e| e.swatch && (has_hand || !e.hand_only))
+        .map(|e| format!("{} {}", e.name, e.label))
+        .collect();
+    format!(
+        "compare, cropped around mask and model: {}",
+        legend.join(", ")
+    )
 }
 
 fn sheet_path(dir: &Path, stem: &str, page: usize) -> PathBuf {
@@ -148,6 +184,8 @@ pub fn run(a: Args) -> Result<ExitCode> {
                 overlay_tile: None,
                 frame_tile: None,
                 side_tile: None,
+                compare_tile: None,
+                has_hand: false,
                 note: None,
             };
             if views.contains(&"overlay") {
@@ -185,6 +223,12 @@ pub fn run(a: Args) -> Result<ExitCode> {
                     &p,
                 )?;
                 written.push(p);
+                let label = match score.iou_visible {
+                    Some(v) => format!("{} IoU {v:.3}", f.stem),
+                    None => f.stem.clone(),
+                };
+                out.compare_tile = Some((label, compare_tile(&img, mask, &sil, a.margin)));
+                out.has_hand = hand.is_some();
             }
             if views.contains(&"ids") {
                 let (img, vis) = part_id_view(&buffers, &names);
@@ -261,6 +305,8 @@ pub fn run(a: Args) -> Result<ExitCode> {
     let mut overlay_tiles = Vec::new();
     let mut frame_tiles = Vec::new();
     let mut side_tiles = Vec::new();
+    let mut compare_tiles = Vec::new();
+    let mut has_hand = false;
     let mut notes = Vec::new();
     for r in results {
         let r = r?;
@@ -275,12 +321,16 @@ pub fn run(a: Args) -> Result<ExitCode> {
         }
         frame_tiles.extend(r.frame_tile);
         side_tiles.extend(r.side_tile);
+        compare_tiles.extend(r.compare_tile);
+        has_hand |= r.has_hand;
         notes.extend(r.note);
         rows.push(r.row);
     }
     let mut sheets = Vec::new();
+    let compare_title = compare_sheet_title(has_hand);
     for (tiles, stem, title) in [
         (&overlay_tiles, "sheet_overlay", "render over frame"),
+        (&compare_tiles, "sheet_compare", compare_title.as_str()),
         (
             &frame_tiles,
             "sheet_frames",
