@@ -714,3 +714,82 @@ fn the_mcp_server_returns_images_progress_and_readable_errors() {
     assert_eq!(bad["result"]["isError"], true, "{bad}");
     assert_eq!(ledger_tools(&p("run")), ["init", "render", "scene_write"]);
 }
+
+#[test]
+fn pose_commit_by_label_over_mcp_takes_that_candidate_in_every_frame() {
+    let dir = tempfile::tempdir().expect("tmp");
+    let run = dir.path().join("run");
+    small_run(dir.path(), 3, true);
+    let (cap, model, poses) = (
+        dir.path().join("cap"),
+        run.join("scene.rhai"),
+        run.join("pose.json"),
+    );
+    let reports = run.join("reports");
+    let o = agentstar(&[
+        "oapply",
+        "--capture",
+        &s(&cap),
+        "--model",
+        &s(&model),
+        "--poses",
+        &s(&poses),
+        "--out",
+        &s(&reports),
+        "--frames",
+        "000000..000010",
+        "--set",
+        "identity|flip:z",
+    ]);
+    assert!(o.status.success(), "{}", text(&o));
+    let report_path = reports.join("oapply.json");
+    let report: Value =
+        serde_json::from_str(&std::fs::read_to_string(&report_path).expect("report"))
+            .expect("json");
+    let (mut c, _) = McpClient::initialised(&run);
+    // A label no candidate has is refused and the message names the labels there.
+    c.call(
+        2,
+        "pose_commit",
+        json!({"report": s(&report_path), "label": "flip:w"}),
+    );
+    let (r, _) = c.response(2);
+    assert_eq!(r["result"]["isError"], true, "{r}");
+    let refused = McpClient::text_of(&r);
+    assert!(
+        refused.contains("flip:w") && refused.contains("flip:z"),
+        "{refused}"
+    );
+    // By label: each frame gets its `flip:z` candidate, whatever its rank there.
+    c.call(
+        3,
+        "pose_commit",
+        json!({"report": s(&report_path), "label": "flip:z"}),
+    );
+    let (r, _) = c.response(3);
+    assert_eq!(r["result"]["isError"], false, "{r}");
+    let committed: Value =
+        serde_json::from_str(&std::fs::read_to_string(&poses).expect("poses")).expect("json");
+    let frames = report["frames"].as_array().expect("frames");
+    assert!(frames.len() >= 2);
+    for f in frames {
+        let name = f["frame"].as_str().expect("frame");
+        let flipped = f["ranked"]
+            .as_array()
+            .expect("ranked")
+            .iter()
+            .find(|c| c["label"] == "flip:z")
+            .expect("a flip:z candidate");
+        let got = &committed["frames"][name]["object_pose"];
+        for key in ["quaternion", "translation"] {
+            let (a, b) = (
+                got[key].as_array().expect(key),
+                flipped["pose"][key].as_array().expect(key),
+            );
+            for (x, y) in a.iter().zip(b) {
+                let (x, y) = (x.as_f64().expect("number"), y.as_f64().expect("number"));
+                assert!((x - y).abs() < 1e-9, "{name} {key}: {x} against {y}");
+            }
+        }
+    }
+}
