@@ -45,7 +45,16 @@ pub struct SweepConfig {
     pub min_generations: usize,
     /// SciPy's relative tolerance, `std ≤ tol_relative · |mean|`, added to `tol_iou` (0 = off).
     pub tol_relative: f64,
+    /// DE: up to this many other basins the search passed through, ranked beside the
+    /// restarts' results: the best evaluated points turned at least [`RUNNER_UP_DEG`] (or a
+    /// joint that far) from every candidate kept, as evaluated (not refined). 0 keeps none
+    /// and records nothing (the tracker's refinements).
+    pub runners_up: usize,
 }
+
+/// How far a runner-up of a DE sweep ([`SweepConfig::runners_up`]) lies from every
+/// candidate kept: in rotation, or in any joint (degrees; radians' worth for a slider).
+pub const RUNNER_UP_DEG: f64 = 10.0;
 
 impl Default for SweepConfig {
     fn default() -> Self {
@@ -62,6 +71,7 @@ impl Default for SweepConfig {
             tol_iou: 1e-3,
             min_generations: 10,
             tol_relative: 0.0,
+            runners_up: 0,
         }
     }
 }
@@ -96,6 +106,9 @@ pub struct Candidate {
     /// The score where the candidate was placed, when it was refined before ranking
     /// ([`crate::hypotheses::refine_ranked`]); `x` is then the placed candidate's vector.
     pub unrefined: Option<CandidateScore>,
+    /// A point a DE restart evaluated on its way, in another basin than the candidates
+    /// kept, not refined ([`SweepConfig::runners_up`]).
+    pub runner_up: bool,
 }
 
 /// What one DE restart did.
@@ -145,6 +158,7 @@ fn keep_start(problem: &FrameProblem<'_>, space: &SearchSpace, cands: &mut Vec<C
             pass: 0,
             kept_start: true,
             unrefined: None,
+            runner_up: false,
         });
     }
 }
@@ -165,6 +179,53 @@ fn distinct_poses(cands: Vec<Candidate>) -> Vec<Candidate> {
             });
         if !repeat {
             out.push(c);
+        }
+    }
+    out
+}
+
+/// Up to `n` of the `seen` points (search vectors with their scores), best first, each
+/// turned at least [`RUNNER_UP_DEG`] (or a joint that far) from every candidate in `kept`
+/// and from each other, scored in full.
+fn runners_up(
+    problem: &FrameProblem<'_>,
+    space: &SearchSpace,
+    kept: &[Candidate],
+    mut seen: Vec<(Vec<f64>, f64)>,
+    n: usize,
+) -> Vec<Candidate> {
+    if n == 0 {
+        return vec![];
+    }
+    seen.sort_by(|a, b| b.1.total_cmp(&a.1));
+    let apart = |a: &GenPose, b: &GenPose| {
+        a.pose.rotation.angle_to(&b.pose.rotation) >= RUNNER_UP_DEG.to_radians()
+            || a.states
+                .iter()
+                .zip(&b.states)
+                .any(|(p, q)| (p - q).abs() >= RUNNER_UP_DEG.to_radians())
+    };
+    let mut ev = problem.evaluator();
+    let mut out: Vec<Candidate> = Vec::new();
+    for (x, _) in seen {
+        if out.len() >= n {
+            break;
+        }
+        let pose = problem.candidate(space, &x);
+        if kept.iter().chain(&out).all(|c| apart(&c.pose, &pose)) {
+            let score = ev.score(&pose);
+            out.push(Candidate {
+                rank: 0,
+                x,
+                pose,
+                score,
+                restart: None,
+                seed: None,
+                pass: 0,
+                kept_start: false,
+                unrefined: None,
+                runner_up: true,
+            });
         }
     }
     out
@@ -227,6 +288,7 @@ pub fn sweep(
                         pass: 0,
                         kept_start: false,
                         unrefined: None,
+                        runner_up: false,
                     }
                 })
                 .collect();
@@ -305,6 +367,7 @@ pub fn sweep(
                         pass: p.pass,
                         kept_start: false,
                         unrefined: None,
+                        runner_up: false,
                     }
                 })
                 .collect();
@@ -321,11 +384,15 @@ pub fn sweep(
             let per = (cfg.total_evals / restarts).max(5);
             let polish = cfg.polish_evals / restarts;
             let x0 = problem.start_vector(space);
-            let runs: Vec<Result<(Candidate, RestartRecord), TrackError>> = (0..restarts)
+            type Run = (Candidate, RestartRecord, Vec<(Vec<f64>, f64)>);
+            let runs: Vec<Result<Run, TrackError>> = (0..restarts)
                 .into_par_iter()
                 .map(|i| {
                     let seed = cfg.seed + i as u64;
                     let mut ev = problem.evaluator();
+                    // Every point evaluated, when runners-up are asked for.
+                    let mut seen: Vec<(Vec<f64>, f64)> = Vec::new();
+                    let record = cfg.runners_up > 0;
                     let de = DeConfig {
                         popsize: cfg.popsize,
                         mutation: cfg.mutation,
@@ -338,7 +405,13 @@ pub fn sweep(
                         polish_evals: polish,
                     };
                     let r = differential_evolution(
-                        &mut |x| -ev.combined(&problem.candidate(space, x)),
+                        &mut |x| {
+                            let f = ev.combined(&problem.candidate(space, x));
+                            if record {
+                                seen.push((x.to_vec(), f));
+                            }
+                            -f
+                        },
                         &bounds,
                         Some(&x0),
                         &de,
@@ -368,22 +441,29 @@ pub fn sweep(
                             pass: 0,
                             kept_start: false,
                             unrefined: None,
+                            runner_up: false,
                         },
                         rec,
+                        seen,
                     ))
                 })
                 .collect();
             let mut cands = Vec::new();
             let mut records = Vec::new();
+            let mut seen = Vec::new();
             for r in runs {
-                let (c, rec) = r?;
+                let (c, rec, s) = r?;
                 cands.push(c);
                 records.push(rec);
+                seen.extend(s);
             }
             let n_evals = records.iter().map(|r| r.nfev + r.polish_nfev).sum();
             keep_start(problem, space, &mut cands);
+            let mut cands = distinct_poses(cands);
+            let kept = cands.len();
+            cands.extend(runners_up(problem, space, &cands, seen, cfg.runners_up));
             Ok(SweepResult {
-                ranked: rank(distinct_poses(cands), restarts + 1),
+                ranked: rank(cands, kept + cfg.runners_up),
                 restarts: records,
                 n_evals,
                 score_field: None,

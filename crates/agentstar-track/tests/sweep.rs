@@ -153,3 +153,60 @@ fn a_de_sweep_lists_each_pose_once() {
         problem.evaluator().score(&problem.base).combined
     );
 }
+
+/// Play-test, 2026-12-03: a DE sweep from a pose that nothing near beats returned one row,
+/// the start; the other basins it passed through were lost. With runners-up asked for, the
+/// best points it evaluated at least 10° from every kept candidate (and from each other) are
+/// ranked too, flagged, scored as evaluated; without, none.
+#[test]
+fn a_de_sweep_ranks_other_basins_it_passed_through() {
+    use agentstar_track::search::RUNNER_UP_DEG;
+    let model = case_model();
+    let scale = 0.5;
+    let gt = truth(2.0);
+    let target = target_of(&model, &gt, scale);
+    let problem = FrameProblem::new(&model, camera(), &target, scale, gt.clone());
+    let space = parse_spec("yaw:-60,60;pitch:-60,60", &model.tree, Grammar::Camera).expect("space");
+    let cfg = SweepConfig {
+        total_evals: 1200,
+        ..SweepConfig::default()
+    };
+    let plain = sweep(&problem, &space, &cfg).expect("sweep");
+    assert!(plain.ranked.iter().all(|c| !c.runner_up));
+    let r = sweep(
+        &problem,
+        &space,
+        &SweepConfig {
+            runners_up: 3,
+            ..cfg
+        },
+    )
+    .expect("sweep");
+    let (others, kept): (Vec<_>, Vec<_>) = r.ranked.iter().partition(|c| c.runner_up);
+    assert_eq!(
+        others.len(),
+        3,
+        "{:?}",
+        r.ranked.iter().map(|c| &c.x).collect::<Vec<_>>()
+    );
+    assert_eq!(kept.len(), plain.ranked.len());
+    let mut ev = problem.evaluator();
+    for (i, o) in others.iter().enumerate() {
+        for c in kept.iter().chain(&others[..i]) {
+            let deg = c
+                .pose
+                .pose
+                .rotation
+                .angle_to(&o.pose.pose.rotation)
+                .to_degrees();
+            assert!(deg >= RUNNER_UP_DEG - 1e-9, "{deg}° from another candidate");
+        }
+        assert_eq!(o.score.combined, ev.score(&o.pose).combined);
+        assert!(o.score.combined < r.ranked[0].score.combined);
+    }
+    // Ranked by score, the runners-up among them.
+    assert!(r
+        .ranked
+        .windows(2)
+        .all(|w| w[0].score.combined >= w[1].score.combined));
+}

@@ -46,6 +46,11 @@ pub struct SweepArgs {
     /// Ranked candidates kept (grid).
     #[arg(long, default_value_t = 10)]
     topk: usize,
+    /// DE: other basins the search passed through, ranked beside the restarts' results (the
+    /// best points it evaluated at least 10° from every candidate kept, not refined; their
+    /// label starts with `seen`).
+    #[arg(long, default_value_t = 3)]
+    runners_up: usize,
     /// Apply this order before searching, so the window centres on the shifted pose.
     #[arg(long)]
     start_shift: Option<String>,
@@ -103,6 +108,7 @@ pub fn run_sweep(a: SweepArgs) -> Result<ExitCode> {
         seed: a.seed,
         polish_evals: a.polish,
         topk: a.topk,
+        runners_up: a.runners_up,
         ..SweepConfig::default()
     };
     let frames = default_frame(&s, a.frames.as_deref())?;

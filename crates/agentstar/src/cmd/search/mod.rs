@@ -386,10 +386,12 @@ fn rows_from(result: SweepResult, space: &SearchSpace, tree: &KinematicTree) -> 
             rank: c.rank,
             label: if c.kept_start {
                 agentstar_agent::reports::KEPT_START.into()
+            } else if c.runner_up {
+                format!("seen {}", order_string(space, &c.x, tree))
             } else {
                 order_string(space, &c.x, tree)
             },
-            extra: json!({"restart": c.restart, "seed": c.seed, "pass": c.pass, "x": c.x, "kept_start": c.kept_start, "unrefined": c.unrefined.map(|u| u.combined)}),
+            extra: json!({"restart": c.restart, "seed": c.seed, "pass": c.pass, "x": c.x, "kept_start": c.kept_start, "runner_up": c.runner_up, "unrefined": c.unrefined.map(|u| u.combined)}),
             pose: c.pose,
             score: c.score,
             model_ncc: None,
