@@ -113,10 +113,7 @@ fn compare_sheet_title(has_hand: bool) -> String {
         .filter(|e| e.swatch && (has_hand || !e.hand_only))
         .map(|e| format!("{} {}", e.name, e.label))
         .collect();
-    format!(
-        "compare, cropped around mask and model: {}",
-        legend.join(", ")
-    )
+    format!("compare (cropped): {}", legend.join(", "))
 }
 
 fn sheet_path(dir: &Path, stem: &str, page: usize) -> PathBuf {
@@ -205,16 +202,18 @@ pub fn run(a: Args) -> Result<ExitCode> {
             };
             if let (true, Some(mask)) = (views.contains(&"compare"), &mask) {
                 let sil = buffers.silhouette();
-                let score =
-                    agentstar_render::ScoreTarget::new(mask.clone(), hand.clone())?.score(&sil);
+                // With the boundary band: the gate reads the band IoU.
+                let score = agentstar_render::ScoreTarget::new(mask.clone(), hand.clone())?
+                    .with_band(agentstar_render::DEFAULT_BAND_PX)
+                    .score(&sil);
                 iou = score.iou_visible;
                 let (img, _) = silhouette_comparison(&sil, mask, hand.as_ref());
+                let shown = |v: Option<f64>| v.map_or("n/a".into(), |v| format!("{v:.4}"));
                 let title = format!(
-                    "{}  IoU visible {}  raw {:.4}",
+                    "{}  IoU band {}  visible {}  raw {:.4}",
                     f.name,
-                    score
-                        .iou_visible
-                        .map_or("n/a".into(), |v| format!("{v:.4}")),
+                    shown(score.iou_band),
+                    shown(score.iou_visible),
                     score.iou_raw
                 );
                 let p = dir.join(format!("compare_{}.png", f.stem));
@@ -223,9 +222,11 @@ pub fn run(a: Args) -> Result<ExitCode> {
                     &p,
                 )?;
                 written.push(p);
-                let label = match score.iou_visible {
-                    Some(v) => format!("{} IoU {v:.3}", f.stem),
-                    None => f.stem.clone(),
+                // The gated figure first, as `score` names it.
+                let label = match (score.iou_band, score.iou_visible) {
+                    (Some(b), Some(v)) => format!("{} band {b:.3} vis {v:.3}", f.stem),
+                    (None, Some(v)) => format!("{} vis {v:.3}", f.stem),
+                    _ => f.stem.clone(),
                 };
                 out.compare_tile = Some((label, compare_tile(&img, mask, &sil, a.margin)));
                 out.has_hand = hand.is_some();
