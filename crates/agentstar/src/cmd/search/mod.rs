@@ -217,9 +217,10 @@ fn text_report(
 ) -> String {
     let with_model = rows.iter().any(|r| r.model_ncc.is_some());
     let mut t = format!(
-        "{verb} {frame}\n{:<5} {:>8} {:>8} {:>8} {:>9}{}  order\n",
+        "{verb} {frame}\n{:<5} {:>8} {:>8} {:>8} {:>8} {:>9}{}  order\n",
         "rank",
         "combined",
+        "iou_band",
         "iou_vis",
         "iou_raw",
         "dp_canon",
@@ -227,9 +228,12 @@ fn text_report(
     );
     for r in rows {
         t.push_str(&format!(
-            "{:<5} {:>8.4} {:>8} {:>8.4} {:>9}{}  {}\n",
+            "{:<5} {:>8.4} {:>8} {:>8} {:>8.4} {:>9}{}  {}\n",
             r.rank,
             r.score.combined,
+            r.score
+                .iou_band
+                .map_or("n/a".into(), |v| format!("{v:.4}")),
             r.score
                 .iou_visible
                 .map_or("n/a".into(), |v| format!("{v:.4}")),
