@@ -210,6 +210,23 @@ fn pose_verbs_track_commit_and_diagnose() {
     ] {
         assert!(dir.path().join("sweep").join(f).is_file(), "missing {f}");
     }
+    // The table names the gated figure: each row's band IoU, as the JSON report gives it.
+    let table = std::fs::read_to_string(dir.path().join("sweep/sweep.txt")).expect("txt");
+    let report: serde_json::Value = serde_json::from_str(
+        &std::fs::read_to_string(dir.path().join("sweep/sweep.json")).expect("json"),
+    )
+    .expect("json");
+    let mut lines = table.lines().skip(1);
+    let header: Vec<&str> = lines.next().expect("header").split_whitespace().collect();
+    let column = header
+        .iter()
+        .position(|h| *h == "iou_band")
+        .expect("iou_band column");
+    let first: Vec<&str> = lines.next().expect("row").split_whitespace().collect();
+    let band = report["frames"][0]["ranked"][0]["iou_band"]
+        .as_f64()
+        .expect("iou_band");
+    assert_eq!(first[column], format!("{band:.4}"), "{table}");
 
     // Temporal diagnostics and pose differences.
     let o = agentstar(&[

@@ -231,9 +231,7 @@ fn text_report(
             "{:<5} {:>8.4} {:>8} {:>8} {:>8.4} {:>9}{}  {}\n",
             r.rank,
             r.score.combined,
-            r.score
-                .iou_band
-                .map_or("n/a".into(), |v| format!("{v:.4}")),
+            r.score.iou_band.map_or("n/a".into(), |v| format!("{v:.4}")),
             r.score
                 .iou_visible
                 .map_or("n/a".into(), |v| format!("{v:.4}")),
