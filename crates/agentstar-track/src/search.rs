@@ -111,6 +111,24 @@ pub struct Candidate {
     pub runner_up: bool,
 }
 
+impl Candidate {
+    /// A candidate scored where its search vector puts it: not a restart's, not refined.
+    fn evaluated(x: Vec<f64>, pose: GenPose, score: CandidateScore) -> Candidate {
+        Candidate {
+            rank: 0,
+            x,
+            pose,
+            score,
+            restart: None,
+            seed: None,
+            pass: 0,
+            kept_start: false,
+            unrefined: None,
+            runner_up: false,
+        }
+    }
+}
+
 /// What one DE restart did.
 #[derive(Debug, Clone, PartialEq)]
 pub struct RestartRecord {
@@ -215,16 +233,8 @@ fn runners_up(
         if kept.iter().chain(&out).all(|c| apart(&c.pose, &pose)) {
             let score = ev.score(&pose);
             out.push(Candidate {
-                rank: 0,
-                x,
-                pose,
-                score,
-                restart: None,
-                seed: None,
-                pass: 0,
-                kept_start: false,
-                unrefined: None,
                 runner_up: true,
+                ..Candidate::evaluated(x, pose, score)
             });
         }
     }
@@ -278,18 +288,7 @@ pub fn sweep(
                 .map(|x| {
                     let pose = problem.candidate(space, x);
                     let score = problem.evaluator().score(&pose);
-                    Candidate {
-                        rank: 0,
-                        x: x.clone(),
-                        pose,
-                        score,
-                        restart: None,
-                        seed: None,
-                        pass: 0,
-                        kept_start: false,
-                        unrefined: None,
-                        runner_up: false,
-                    }
+                    Candidate::evaluated(x.clone(), pose, score)
                 })
                 .collect();
             let n = cands.len();
@@ -358,16 +357,8 @@ pub fn sweep(
                     let pose = problem.candidate(space, &p.x);
                     let score = problem.evaluator().score(&pose);
                     Candidate {
-                        rank: 0,
-                        x: p.x.clone(),
-                        pose,
-                        score,
-                        restart: None,
-                        seed: None,
                         pass: p.pass,
-                        kept_start: false,
-                        unrefined: None,
-                        runner_up: false,
+                        ..Candidate::evaluated(p.x.clone(), pose, score)
                     }
                 })
                 .collect();

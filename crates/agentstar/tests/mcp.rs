@@ -10,7 +10,7 @@ use agentstar_agent::reports::{
 };
 use serde_json::{json, Value};
 use std::collections::{BTreeMap, BTreeSet};
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use support::{agentstar, ledger, ledger_tools, s, small_run, text, McpClient};
 
 /// A valid value for each argument a test call gives, by tool and property. The report
@@ -455,17 +455,16 @@ fn walk(dir: &Path) -> Vec<std::path::PathBuf> {
     out
 }
 
-#[test]
-fn overlapping_writers_over_mcp_and_the_cli_lose_nothing() {
-    let dir = tempfile::tempdir().expect("tmp");
-    let run = dir.path().join("run");
-    small_run(dir.path(), 3, true);
+/// A small run in `dir` and a flip panel (identity and flip:z in frames 000000..000010)
+/// reported inside it: the run, its scene, its pose.json and the report.
+fn run_with_flip_report(dir: &Path) -> (PathBuf, PathBuf, PathBuf, PathBuf) {
+    let run = dir.join("run");
+    small_run(dir, 3, true);
     let (cap, model, poses) = (
-        dir.path().join("cap"),
+        dir.join("cap"),
         run.join("scene.rhai"),
         run.join("pose.json"),
     );
-    // One flip report inside the run to commit from both sides.
     let reports = run.join("reports");
     let o = agentstar(&[
         "oapply",
@@ -483,7 +482,14 @@ fn overlapping_writers_over_mcp_and_the_cli_lose_nothing() {
         "identity|flip:z",
     ]);
     assert!(o.status.success(), "{}", text(&o));
-    let report = reports.join("oapply.json");
+    (run, model, poses, reports.join("oapply.json"))
+}
+
+#[test]
+fn overlapping_writers_over_mcp_and_the_cli_lose_nothing() {
+    let dir = tempfile::tempdir().expect("tmp");
+    // One flip report inside the run to commit from both sides.
+    let (run, model, poses, report) = run_with_flip_report(dir.path());
     let scene = std::fs::read_to_string(&model).expect("scene");
     let (mut c, _) = McpClient::initialised(&run);
     // Overlapping requests: three scene writes, three commits, the tracker.
@@ -718,31 +724,7 @@ fn the_mcp_server_returns_images_progress_and_readable_errors() {
 #[test]
 fn pose_commit_by_label_over_mcp_takes_that_candidate_in_every_frame() {
     let dir = tempfile::tempdir().expect("tmp");
-    let run = dir.path().join("run");
-    small_run(dir.path(), 3, true);
-    let (cap, model, poses) = (
-        dir.path().join("cap"),
-        run.join("scene.rhai"),
-        run.join("pose.json"),
-    );
-    let reports = run.join("reports");
-    let o = agentstar(&[
-        "oapply",
-        "--capture",
-        &s(&cap),
-        "--model",
-        &s(&model),
-        "--poses",
-        &s(&poses),
-        "--out",
-        &s(&reports),
-        "--frames",
-        "000000..000010",
-        "--set",
-        "identity|flip:z",
-    ]);
-    assert!(o.status.success(), "{}", text(&o));
-    let report_path = reports.join("oapply.json");
+    let (run, _, poses, report_path) = run_with_flip_report(dir.path());
     let report: Value =
         serde_json::from_str(&std::fs::read_to_string(&report_path).expect("report"))
             .expect("json");
