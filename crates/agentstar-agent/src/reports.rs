@@ -623,6 +623,144 @@ pub struct CheckReport {
     pub printed: Vec<String>,
 }
 
+/// The score table a person reads (the CLI's `score`, the MCP tool's text): one row per
+/// frame (visible, band and raw IoU, pixel counts, depth, appearance; `<` under the gate),
+/// the sequence's summary and the appearance line.
+pub fn score_table(
+    scores: &[FrameScore],
+    summary: &SequenceScore,
+    appearance: &[FrameAppearance],
+) -> String {
+    use std::fmt::Write as _;
+    let mut t = String::new();
+    let has_depth = scores.iter().any(|s| s.depth_mae.is_some());
+    let band = summary.band_px;
+    write!(t, "{:<14} {:>11}", "frame", "iou_visible").ok();
+    if band.is_some() {
+        write!(t, " {:>9}", "iou_band").ok();
+    }
+    write!(
+        t,
+        " {:>8} {:>9} {:>9} {:>8}",
+        "iou_raw", "render_px", "mask_px", "hand_px"
+    )
+    .ok();
+    if has_depth {
+        write!(t, " {:>10} {:>9}", "depth_canon", "combined").ok();
+    }
+    let has_appearance = appearance.len() == scores.len();
+    let has_model = has_appearance && appearance.iter().any(|a| a.model_ncc.is_some());
+    if has_appearance {
+        write!(t, " {:>6}", "ncc").ok();
+    }
+    if has_model {
+        write!(t, " {:>6}", "model").ok();
+    }
+    writeln!(t).ok();
+    for (k, s) in scores.iter().enumerate() {
+        let mark = if s.gate() < summary.pass_iou {
+            "  <"
+        } else {
+            ""
+        };
+        write!(
+            t,
+            "{:<14} {:>11}",
+            s.frame,
+            s.iou_visible.map_or("n/a".into(), |v| format!("{v:.4}"))
+        )
+        .ok();
+        if band.is_some() {
+            write!(
+                t,
+                " {:>9}",
+                s.iou_band.map_or("n/a".into(), |v| format!("{v:.4}"))
+            )
+            .ok();
+        }
+        write!(
+            t,
+            " {:>8.4} {:>9} {:>9} {:>8}",
+            s.iou_raw, s.render_px, s.mask_px, s.hand_px
+        )
+        .ok();
+        if has_depth {
+            write!(
+                t,
+                " {:>10} {:>9.4}",
+                s.depth_mae_canon
+                    .map_or("n/a".into(), |v| format!("{v:.4}")),
+                s.combined
+            )
+            .ok();
+        }
+        if has_appearance {
+            write!(
+                t,
+                " {:>6}",
+                appearance[k]
+                    .ncc
+                    .map_or("n/a".into(), |v| format!("{v:.2}"))
+            )
+            .ok();
+        }
+        if has_model {
+            write!(
+                t,
+                " {:>6}",
+                appearance[k]
+                    .model_ncc
+                    .map_or("n/a".into(), |v| format!("{v:.2}"))
+            )
+            .ok();
+        }
+        writeln!(t, "{mark}").ok();
+    }
+    let band_text = match (band, summary.mean_iou_band, summary.min_iou_band) {
+        (Some(px), Some(mean), Some(min)) => {
+            format!(
+                "; band IoU (±{px} px boundary excluded, the gate) mean {mean:.4}, min {min:.4}"
+            )
+        }
+        _ => String::new(),
+    };
+    writeln!(
+        t,
+        "sequence: {} frames, IoU visible mean {:.4}, median {:.4}, min {:.4} ({}){band_text}; {} below {:.2}",
+        summary.frames,
+        summary.mean_iou_visible,
+        summary.median_iou_visible,
+        summary.min_iou_visible,
+        summary.worst_frame,
+        summary.below_gate.len(),
+        summary.pass_iou
+    )
+    .ok();
+    let with: Vec<&FrameAppearance> = appearance.iter().filter(|a| a.ncc.is_some()).collect();
+    if let Some(low) = with
+        .iter()
+        .min_by(|a, b| a.ncc.unwrap_or(0.0).total_cmp(&b.ncc.unwrap_or(0.0)))
+    {
+        let mean = with.iter().filter_map(|a| a.ncc).sum::<f64>() / with.len() as f64;
+        writeln!(
+        t,
+            "appearance: NCC of each frame's colours with its neighbouring keyframes' at these poses, mean {mean:.2}, lowest {:.2} ({}).ok(); {} of {} frames with evidence",
+            low.ncc.unwrap_or(0.0),
+            low.frame,
+            with.len(),
+            appearance.len()
+        )
+        .ok();
+    } else if !appearance.is_empty() {
+        writeln!(
+            t,
+            "appearance: no evidence (no frame's colours vary enough on the model to compare)"
+        )
+        .ok();
+    }
+    t
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

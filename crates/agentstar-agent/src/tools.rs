@@ -979,7 +979,11 @@ tool!(Score, "score", Diagnostic, Nothing, FramesArgs,
                 if below.is_empty() { "none".to_string() } else { below.join(", ") }
             ));
         }
-        o.text = format!("{head}\n{}", to_pretty(&report));
+        // The table a person reads; the report's numbers are the structured content.
+        o.text = format!(
+            "{head}\n{}",
+            crate::reports::score_table(&report.frames, &report.sequence, &report.appearance)
+        );
         o.structured = serde_json::to_value(&report).ok();
         Ok(o)
     });
@@ -1246,10 +1250,6 @@ impl ToolOutput {
             ..Default::default()
         }
     }
-}
-
-fn to_pretty<T: serde::Serialize>(v: &T) -> String {
-    serde_json::to_string_pretty(v).unwrap_or_default()
 }
 
 /// A critic: asked about one keyframe with its images, returns JSON text.

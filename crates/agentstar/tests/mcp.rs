@@ -143,6 +143,15 @@ fn every_tool_runs_over_stdio_with_schema_arguments_and_typed_results() {
                     serde_json::from_value(structured.expect("score report")).expect("score");
                 assert_eq!(r.frames.len(), 1);
                 assert_eq!(r.frames[0].frame, "000000.png");
+                // The text is the table a person reads (the numbers are the structured
+                // content): the frame's row with its band IoU, no JSON.
+                assert!(!body.contains('{'), "{body}");
+                let band = r.frames[0].iou_band.expect("band");
+                let row = body
+                    .lines()
+                    .find(|l| l.starts_with("000000.png"))
+                    .unwrap_or_else(|| panic!("no row: {body}"));
+                assert!(row.contains(&format!("{band:.4}")), "{row}");
             }
             "track" => {
                 let r: TrackReport =

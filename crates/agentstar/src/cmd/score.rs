@@ -1,7 +1,7 @@
 //! `agentstar score`: per-frame and per-sequence scores of the posed model.
 
 use crate::common::{print_json, select_frames, FrameScore, SessionArgs, PASS_IOU};
-use agentstar_agent::reports::{FrameAppearance, ScoreReport, SequenceScore};
+use agentstar_agent::reports::{score_table, FrameAppearance, ScoreReport, SequenceScore};
 use agentstar_render::DEFAULT_BAND_PX;
 use agentstar_track::appearance::{
     model_agreement, neighbour_consistency, AppearanceConfig, AppearanceFrame,
@@ -125,109 +125,5 @@ fn appearance(s: &crate::common::Session, selected: &[usize]) -> Result<Vec<Fram
 }
 
 pub fn print_table(scores: &[FrameScore], summary: &SequenceScore, appearance: &[FrameAppearance]) {
-    let has_depth = scores.iter().any(|s| s.depth_mae.is_some());
-    let band = summary.band_px;
-    print!("{:<14} {:>11}", "frame", "iou_visible");
-    if band.is_some() {
-        print!(" {:>9}", "iou_band");
-    }
-    print!(
-        " {:>8} {:>9} {:>9} {:>8}",
-        "iou_raw", "render_px", "mask_px", "hand_px"
-    );
-    if has_depth {
-        print!(" {:>10} {:>9}", "depth_canon", "combined");
-    }
-    let has_appearance = appearance.len() == scores.len();
-    let has_model = has_appearance && appearance.iter().any(|a| a.model_ncc.is_some());
-    if has_appearance {
-        print!(" {:>6}", "ncc");
-    }
-    if has_model {
-        print!(" {:>6}", "model");
-    }
-    println!();
-    for (k, s) in scores.iter().enumerate() {
-        let mark = if s.gate() < summary.pass_iou {
-            "  <"
-        } else {
-            ""
-        };
-        print!(
-            "{:<14} {:>11}",
-            s.frame,
-            s.iou_visible.map_or("n/a".into(), |v| format!("{v:.4}"))
-        );
-        if band.is_some() {
-            print!(
-                " {:>9}",
-                s.iou_band.map_or("n/a".into(), |v| format!("{v:.4}"))
-            );
-        }
-        print!(
-            " {:>8.4} {:>9} {:>9} {:>8}",
-            s.iou_raw, s.render_px, s.mask_px, s.hand_px
-        );
-        if has_depth {
-            print!(
-                " {:>10} {:>9.4}",
-                s.depth_mae_canon
-                    .map_or("n/a".into(), |v| format!("{v:.4}")),
-                s.combined
-            );
-        }
-        if has_appearance {
-            print!(
-                " {:>6}",
-                appearance[k]
-                    .ncc
-                    .map_or("n/a".into(), |v| format!("{v:.2}"))
-            );
-        }
-        if has_model {
-            print!(
-                " {:>6}",
-                appearance[k]
-                    .model_ncc
-                    .map_or("n/a".into(), |v| format!("{v:.2}"))
-            );
-        }
-        println!("{mark}");
-    }
-    let band_text = match (band, summary.mean_iou_band, summary.min_iou_band) {
-        (Some(px), Some(mean), Some(min)) => {
-            format!(
-                "; band IoU (±{px} px boundary excluded, the gate) mean {mean:.4}, min {min:.4}"
-            )
-        }
-        _ => String::new(),
-    };
-    println!(
-        "sequence: {} frames, IoU visible mean {:.4}, median {:.4}, min {:.4} ({}){band_text}; {} below {:.2}",
-        summary.frames,
-        summary.mean_iou_visible,
-        summary.median_iou_visible,
-        summary.min_iou_visible,
-        summary.worst_frame,
-        summary.below_gate.len(),
-        summary.pass_iou
-    );
-    let with: Vec<&FrameAppearance> = appearance.iter().filter(|a| a.ncc.is_some()).collect();
-    if let Some(low) = with
-        .iter()
-        .min_by(|a, b| a.ncc.unwrap_or(0.0).total_cmp(&b.ncc.unwrap_or(0.0)))
-    {
-        let mean = with.iter().filter_map(|a| a.ncc).sum::<f64>() / with.len() as f64;
-        println!(
-            "appearance: NCC of each frame's colours with its neighbouring keyframes' at these poses, mean {mean:.2}, lowest {:.2} ({}); {} of {} frames with evidence",
-            low.ncc.unwrap_or(0.0),
-            low.frame,
-            with.len(),
-            appearance.len()
-        );
-    } else if !appearance.is_empty() {
-        println!(
-            "appearance: no evidence (no frame's colours vary enough on the model to compare)"
-        );
-    }
+    print!("{}", score_table(scores, summary, appearance));
 }
