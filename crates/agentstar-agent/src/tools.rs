@@ -1032,7 +1032,7 @@ tool!(Track, "track", Pose, Poses, TrackArgs,
     |tb, a, step| tb.track(&a, step));
 
 tool!(Sweep, "sweep", Pose, Nothing, SweepArgs,
-    "Search a bounded region around the current pose of each given keyframe by silhouette IoU (differential evolution, 6 seeded restarts) and return the ranked candidates with a candidate sheet; rows labelled `seen` are other basins the search passed through (at least 10° from the rest, not refined: refine one with a narrower sweep around it). Ranges are camera-frame increments and absolute joint states, e.g. `yaw:-30,30;pitch:-20,20;tz:-0.1,0.1;lid_hinge:0,90`. Commit a candidate with pose_commit (the result names its report).",
+    "Search a bounded region around the current pose of each given keyframe by silhouette IoU (differential evolution, 6 seeded restarts) and return the ranked candidates with a candidate sheet; rows labelled `seen` are other places the search passed through (at least 10° from the rest, not refined; another basin where the box holds one, else the slope of the same one: refine one with a narrower sweep around it). Ranges are camera-frame increments and absolute joint states, e.g. `yaw:-30,30;pitch:-20,20;tz:-0.1,0.1;lid_hinge:0,90`. Commit a candidate with pose_commit (the result names its report).",
     |tb, a, step| {
         let extra = [
             vec!["--frames".into(), a.frames.clone()],

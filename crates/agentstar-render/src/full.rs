@@ -61,6 +61,7 @@ pub struct FullRenderer {
     buffers: RenderBuffers,
     /// Rows (inclusive) the last render may have drawn.
     dirty: Option<(u32, u32)>,
+    scratch: VertexScratch,
 }
 
 impl Default for FullRenderer {
@@ -68,6 +69,7 @@ impl Default for FullRenderer {
         FullRenderer {
             buffers: RenderBuffers::new(0, 0),
             dirty: None,
+            scratch: VertexScratch::default(),
         }
     }
 }
@@ -84,7 +86,7 @@ impl FullRenderer {
             self.buffers.part[range.clone()].fill(NO_PART);
             self.buffers.normal[range].fill([0.0; 3]);
         }
-        self.dirty = draw_full(camera, instances, &mut self.buffers);
+        self.dirty = draw_full(camera, instances, &mut self.buffers, &mut self.scratch);
         &self.buffers
     }
 }
@@ -94,10 +96,10 @@ fn draw_full(
     camera: &PinholeCamera,
     instances: &[Instance<'_>],
     out: &mut RenderBuffers,
+    scratch: &mut VertexScratch,
 ) -> Option<(u32, u32)> {
     let (w, h) = (camera.width, camera.height);
     let mut rows = (u32::MAX, 0u32);
-    let mut scratch = VertexScratch::default();
     for inst in instances {
         let any_near = scratch.project(inst.mesh, &inst.camera_from_mesh, camera);
         let cull = inst.closed() && !camera_inside_bounds(inst);

@@ -166,9 +166,20 @@ fn ceil_i64(a: f64) -> i64 {
     t + ((a > t as f64) as i64)
 }
 
+/// A camera-space point in front of the near plane in pixels, as every vertex path
+/// projects it (one reciprocal: both vertex paths must give bit-identical positions).
+#[inline(always)]
+fn to_screen(c: &[f64; 3], camera: &PinholeCamera) -> [f64; 2] {
+    let iz = 1.0 / c[2];
+    [
+        camera.fx * c[0] * iz + camera.cx,
+        camera.fy * c[1] * iz + camera.cy,
+    ]
+}
+
 /// Per-thread scratch for projecting vertices; reused across evaluations so the hot path
 /// does not allocate once it has seen the largest mesh.
-#[derive(Default, Debug)]
+#[derive(Default, Debug, Clone)]
 pub(crate) struct VertexScratch {
     pub cam: Vec<[f64; 3]>,
     pub screen: Vec<[f64; 2]>,
@@ -191,11 +202,7 @@ impl VertexScratch {
             let c = t.apply(p);
             self.cam[i] = c;
             if c[2] > NEAR_Z {
-                let iz = 1.0 / c[2];
-                self.screen[i] = [
-                    camera.fx * c[0] * iz + camera.cx,
-                    camera.fy * c[1] * iz + camera.cy,
-                ];
+                self.screen[i] = to_screen(&c, camera);
             } else {
                 any_near = true;
             }
@@ -227,12 +234,7 @@ impl VertexScratch {
         let v = v as usize;
         if self.stamp[v] != self.render {
             self.stamp[v] = self.render;
-            let c = t.apply(&mesh.positions[v]);
-            let iz = 1.0 / c[2];
-            self.screen[v] = [
-                camera.fx * c[0] * iz + camera.cx,
-                camera.fy * c[1] * iz + camera.cy,
-            ];
+            self.screen[v] = to_screen(&t.apply(&mesh.positions[v]), camera);
         }
         self.screen[v]
     }

@@ -188,11 +188,18 @@ thread_local! {
         const { std::cell::RefCell::new(Vec::new()) };
 }
 
-/// A renderer from this thread's pool (a render clears what its last one drew), or a new
-/// one; give it back with [`return_renderer`].
+/// A renderer of this size from this thread's pool (a render clears what its last one
+/// drew), or a new one; give it back with [`return_renderer`]. By size: local searches
+/// alternate full- and half-resolution problems, and a renderer of the other size would be
+/// reallocated on every render.
 pub(crate) fn pooled_renderer(width: u32, height: u32) -> SilhouetteRenderer {
     RENDERERS
-        .with_borrow_mut(|pool| pool.pop())
+        .with_borrow_mut(|pool| {
+            let k = pool
+                .iter()
+                .rposition(|r| (r.mask().width(), r.mask().height()) == (width, height))?;
+            Some(pool.swap_remove(k))
+        })
         .unwrap_or_else(|| SilhouetteRenderer::new(width, height))
 }
 

@@ -45,10 +45,11 @@ pub struct SweepConfig {
     pub min_generations: usize,
     /// SciPy's relative tolerance, `std ≤ tol_relative · |mean|`, added to `tol_iou` (0 = off).
     pub tol_relative: f64,
-    /// DE: up to this many other basins the search passed through, ranked beside the
+    /// DE: up to this many other places the search passed through, ranked beside the
     /// restarts' results: the best evaluated points turned at least [`RUNNER_UP_DEG`] (or a
-    /// joint that far) from every candidate kept, as evaluated (not refined). 0 keeps none
-    /// and records nothing (the tracker's refinements).
+    /// joint that far) from every candidate kept, as evaluated (not refined). Where the box
+    /// holds another basin they show it; where it holds one, they are its slope 10° out.
+    /// 0 keeps none and records nothing (the tracker's refinements).
     pub runners_up: usize,
 }
 
@@ -106,13 +107,14 @@ pub struct Candidate {
     /// The score where the candidate was placed, when it was refined before ranking
     /// ([`crate::hypotheses::refine_ranked`]); `x` is then the placed candidate's vector.
     pub unrefined: Option<CandidateScore>,
-    /// A point a DE restart evaluated on its way, in another basin than the candidates
-    /// kept, not refined ([`SweepConfig::runners_up`]).
+    /// A point a DE restart evaluated on its way, at least [`RUNNER_UP_DEG`] from the
+    /// candidates kept, not refined ([`SweepConfig::runners_up`]).
     pub runner_up: bool,
 }
 
 impl Candidate {
-    /// A candidate scored where its search vector puts it: not a restart's, not refined.
+    /// A candidate scored where its search vector puts it, with nothing else set (no
+    /// restart, not the kept start, not refined, not a runner-up).
     fn evaluated(x: Vec<f64>, pose: GenPose, score: CandidateScore) -> Candidate {
         Candidate {
             rank: 0,
@@ -167,16 +169,8 @@ fn keep_start(problem: &FrameProblem<'_>, space: &SearchSpace, cands: &mut Vec<C
     let score = problem.evaluator().score(&problem.base);
     if cands.iter().all(|c| c.score.combined < score.combined) {
         cands.push(Candidate {
-            rank: 0,
-            x: problem.start_vector(space),
-            pose: problem.base.clone(),
-            score,
-            restart: None,
-            seed: None,
-            pass: 0,
             kept_start: true,
-            unrefined: None,
-            runner_up: false,
+            ..Candidate::evaluated(problem.start_vector(space), problem.base.clone(), score)
         });
     }
 }
@@ -423,16 +417,9 @@ pub fn sweep(
                     };
                     Ok((
                         Candidate {
-                            rank: 0,
-                            x: r.x,
-                            pose,
-                            score,
                             restart: Some(i),
                             seed: Some(seed),
-                            pass: 0,
-                            kept_start: false,
-                            unrefined: None,
-                            runner_up: false,
+                            ..Candidate::evaluated(r.x, pose, score)
                         },
                         rec,
                         seen,

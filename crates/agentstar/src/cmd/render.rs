@@ -86,6 +86,11 @@ struct FrameViews {
     note: Option<String>,
 }
 
+/// The zoom that brings a `w`×`h` crop's long side to [`FRAME_TILE_PX`] on a sheet.
+fn tile_zoom(w: u32, h: u32) -> f64 {
+    (FRAME_TILE_PX as f64 / w.max(h).max(1) as f64).min(MAX_ZOOM)
+}
+
 /// The silhouette comparison cropped around the mask and the model's silhouette (the whole
 /// frame when both are empty), its long side brought to [`FRAME_TILE_PX`] by whole pixels
 /// (nearest neighbour: the tile keeps the legend's exact colours).
@@ -98,7 +103,7 @@ fn compare_tile(
     let [x0, y0, w, h] =
         crop_box(mask, Some(sil), margin).unwrap_or([0, 0, img.width(), img.height()]);
     let crop = image::imageops::crop_imm(img, x0, y0, w, h).to_image();
-    let factor = (FRAME_TILE_PX as f64 / w.max(h).max(1) as f64).min(MAX_ZOOM);
+    let factor = tile_zoom(w, h);
     let (tw, th) = (
         ((w as f64 * factor).round() as u32).max(1),
         ((h as f64 * factor).round() as u32).max(1),
@@ -267,7 +272,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
                 let [x0, y0, w, h] = v.crop;
                 // The sheet's tile drawn at its own size, so its outlines are not shrunk away.
                 let tile_opts = FrameViewOptions {
-                    zoom: (FRAME_TILE_PX as f64 / w.max(h).max(1) as f64).min(MAX_ZOOM),
+                    zoom: tile_zoom(w, h),
                     ..frame_opts
                 };
                 let tile =
@@ -293,8 +298,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
                 let p = dir.join(format!("side_{}.png", f.stem));
                 save_png_rgb(&img, &p)?;
                 written.push(p);
-                let tile_zoom = (FRAME_TILE_PX as f64 / w.max(h).max(1) as f64).min(MAX_ZOOM);
-                let tile = side_by_side(&frame_img, &shaded, crop, tile_zoom, background);
+                let tile = side_by_side(&frame_img, &shaded, crop, tile_zoom(w, h), background);
                 out.side_tile = Some((format!("{} at {x0},{y0} {w}x{h}", f.stem), tile));
             }
             out.row.files = written;

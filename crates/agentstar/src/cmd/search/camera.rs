@@ -46,9 +46,9 @@ pub struct SweepArgs {
     /// Ranked candidates kept (grid).
     #[arg(long, default_value_t = 10)]
     topk: usize,
-    /// DE: other basins the search passed through, ranked beside the restarts' results (the
+    /// DE: other places the search passed through, ranked beside the restarts' results (the
     /// best points it evaluated at least 10° from every candidate kept, not refined; their
-    /// label starts with `seen`).
+    /// label starts with `seen`): another basin where the box holds one.
     #[arg(long, default_value_t = 3)]
     runners_up: usize,
     /// Apply this order before searching, so the window centres on the shifted pose.
