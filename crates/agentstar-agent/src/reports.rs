@@ -743,8 +743,8 @@ pub fn score_table(
     {
         let mean = with.iter().filter_map(|a| a.ncc).sum::<f64>() / with.len() as f64;
         writeln!(
-        t,
-            "appearance: NCC of each frame's colours with its neighbouring keyframes' at these poses, mean {mean:.2}, lowest {:.2} ({}).ok(); {} of {} frames with evidence",
+            t,
+            "appearance: NCC of each frame's colours with its neighbouring keyframes' at these poses, mean {mean:.2}, lowest {:.2} ({}); {} of {} frames with evidence",
             low.ncc.unwrap_or(0.0),
             low.frame,
             with.len(),
@@ -821,5 +821,44 @@ mod tests {
         assert_eq!(s.min_iou_visible, 0.97);
         assert_eq!(s.min_iou_band, Some(0.96));
         assert_eq!(s.band_px, Some(2.0));
+    }
+
+    #[test]
+    fn the_score_table_closes_with_the_appearance_line() {
+        let row = |name: &str, iou: f64| FrameScore {
+            frame: name.into(),
+            iou_visible: Some(iou),
+            iou_raw: iou,
+            render_px: 10,
+            mask_px: 10,
+            hand_px: 0,
+            depth_mae: None,
+            depth_mae_canon: None,
+            depth_bias: None,
+            combined: iou,
+            band_px: None,
+            iou_band: None,
+        };
+        let scores = [row("a.png", 0.99), row("b.png", 0.97)];
+        let summary = SequenceScore::of(&scores, GATE_IOU);
+        let look = |frame: &str, ncc: Option<f64>| FrameAppearance {
+            frame: frame.into(),
+            ncc,
+            pairs: 40,
+            model_ncc: None,
+        };
+        let table = score_table(
+            &scores,
+            &summary,
+            &[look("a.png", Some(0.6)), look("b.png", Some(0.2))],
+        );
+        let last = table.lines().last().expect("lines");
+        assert_eq!(
+            last,
+            "appearance: NCC of each frame's colours with its neighbouring keyframes' at these poses, mean 0.40, lowest 0.20 (b.png); 2 of 2 frames with evidence"
+        );
+        assert!(table.lines().any(|l| l.starts_with("b.png") && l.ends_with('<')));
+        let none = score_table(&scores, &summary, &[look("a.png", None)]);
+        assert!(none.ends_with("appearance: no evidence (no frame's colours vary enough on the model to compare)\n"));
     }
 }
