@@ -7,7 +7,6 @@
 //! share an edge compute bit-identical crossings and no pixel falls through a crack.
 //! Triangles crossing the near plane are clipped in camera space before projection.
 
-use agentstar_geom::mesh::NO_FACE;
 use agentstar_geom::pose::{Rigid, Similarity};
 use agentstar_geom::{Aabb, PinholeCamera, Point3, TriMesh};
 use agentstar_mask::BitMask;
@@ -303,9 +302,10 @@ struct ContourScratch {
     /// Contour edges as (upper endpoint, lower endpoint, winding direction) in pixels, with
     /// the first and last rows whose pixel centres they cross.
     edges: Vec<ContourEdge>,
-    /// Per row r, at r + 1: the count of crossings, then (prefix sums) where row r's
-    /// crossings start. All zero between renders: only the rows a render used are summed
-    /// and cleared.
+    /// Per row r, at r + 1: the change in the count of crossings from row r − 1 (edges
+    /// starting minus edges that ended), then (summed twice) where row r's crossings
+    /// start. All zero between renders: only the rows a render used are summed and
+    /// cleared.
     row_start: Vec<u32>,
     /// Where the next crossing of each row goes (read only on the rows in use).
     row_cursor: Vec<u32>,
@@ -583,17 +583,13 @@ fn fill_contour(
         cs.row_start.resize(h as usize + 2, 0);
         cs.row_cursor.resize(h as usize + 2, 0);
     }
+    // A face index past the faces ([`agentstar_geom::mesh::NO_FACE`]) has facing 0.
+    let facing = &cs.facing;
+    let of = |f: u32| -> i8 { facing.get(f as usize).copied().unwrap_or(0) };
     cs.edges.clear();
     let (mut row_min, mut row_max) = (i64::MAX, i64::MIN);
-    let facing = |f: u32| -> i8 {
-        if f == NO_FACE {
-            0
-        } else {
-            cs.facing[f as usize]
-        }
-    };
     for e in edges {
-        let (f, g) = (facing(e[2]), facing(e[3]));
+        let (f, g) = (of(e[2]), of(e[3]));
         // Windings of a → b: the faces traversing it count +1, those traversing b → a −1.
         let front = i32::from(f == 1) - i32::from(g == 1);
         let back = match sides {
@@ -619,9 +615,11 @@ fn fill_contour(
         }
         row_min = row_min.min(r0);
         row_max = row_max.max(r1);
-        for r in r0..=r1 {
-            cs.row_start[r as usize + 1] += 1;
-        }
+        // Counted as differences: +1 at the first row, −1 after the last.
+        // (u32 wrapping: an entry may hold a net −1, read back as i32 below).
+        let (a, b) = (r0 as usize + 1, r1 as usize + 2);
+        cs.row_start[a] = cs.row_start[a].wrapping_add(1);
+        cs.row_start[b] = cs.row_start[b].wrapping_sub(1);
         cs.edges
             .push((top, bottom, dir * front, dir * back, r0 as u32, r1 as u32));
     }
@@ -629,13 +627,21 @@ fn fill_contour(
         return;
     }
     let (used0, used1) = (row_min as usize, row_max as usize + 1);
-    // row_start[used0] is 0: no row before `row_min` counted a crossing.
-    for r in used0..used1 {
-        cs.row_start[r + 1] += cs.row_start[r];
+    // row_start[used0] is 0: no row before `row_min` counted a crossing. One pass turns the
+    // differences into counts and the counts into where each row's crossings start.
+    let (mut count, mut start) = (0i64, 0i64);
+    for idx in used0 + 1..=used1 {
+        count += i64::from(cs.row_start[idx] as i32);
+        start += count;
+        cs.row_start[idx] = start as u32;
     }
+    // The −1 after the last row (every edge's difference is summed above).
+    cs.row_start[used1 + 1] = 0;
     let total = cs.row_start[used1] as usize;
-    cs.crossings.clear();
-    cs.crossings.resize(total, (0.0, 0, 0));
+    // Every slot below `total` is written below, exactly once.
+    if cs.crossings.len() < total {
+        cs.crossings.resize(total, (0.0, 0, 0));
+    }
     cs.row_cursor[used0..=used1].copy_from_slice(&cs.row_start[used0..=used1]);
     for &(top, bottom, front, back, r0, r1) in &cs.edges {
         let inv = (bottom[0] - top[0]) / (bottom[1] - top[1]);
