@@ -8,7 +8,7 @@
 //! give the camera trajectory when present, else the camera is static; depth PNGs keep their
 //! values converted to metres with each image's `depth_scale` (written as point maps); discrete and
 //! continuous symmetries of `models_info.json` become `gt.json` symmetries (continuous ones
-//! sampled every 30°).
+//! discretised as the BOP toolkit does: [`agentstar_geom::truth::continuous_symmetry`]).
 
 use crate::import_common::{write_rows, GtModel, Row};
 use agentstar_data::capture_writer::CaptureInfo;
@@ -103,10 +103,11 @@ fn symmetries(models: &Path, obj_id: u32) -> Result<Vec<[f64; 4]>> {
                 let a = agentstar_geom::nalgebra::Unit::new_normalize(Vector3::new(
                     axis[0], axis[1], axis[2],
                 ));
-                for k in 1..12 {
-                    let q = UnitQuaternion::from_axis_angle(&a, (30.0 * k as f64).to_radians());
-                    out.push(quat_to_wxyz(&q));
-                }
+                out.extend(
+                    agentstar_geom::truth::continuous_symmetry(&a)
+                        .iter()
+                        .map(quat_to_wxyz),
+                );
             }
         }
     }

@@ -43,7 +43,7 @@ fn write_bop_scene(
     std::fs::write(models.join("obj_000003.ply"), ply).expect("ply");
     std::fs::write(
         models.join("models_info.json"),
-        r#"{"3": {"diameter": 78.1, "symmetries_discrete": [[-1, 0, 0, 0, 0, -1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1]]}}"#,
+        r#"{"3": {"diameter": 78.1, "symmetries_discrete": [[-1, 0, 0, 0, 0, -1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1]], "symmetries_continuous": [{"axis": [0, 1, 0], "offset": [0, 0, 0]}]}}"#,
     )
     .expect("info");
     let cam = agentstar_geom::PinholeCamera::new(300.0, 300.0, 80.0, 60.0, 160, 120).expect("cam");
@@ -177,11 +177,16 @@ fn a_bop_scene_imports_with_metres_occluders_depth_and_ground_truth() {
     let p = gt.pose("000004.png", "object").expect("pose");
     assert!((p.translation - poses[2].translation).norm() < 1e-9);
     assert!(p.rotation.angle_to(&poses[2].rotation) < 1e-6);
-    assert_eq!(gt.file.symmetries.len(), 1);
+    // The discrete half turn, then the continuous turn about Y as BOP discretises it
+    // (⌈π / 0.01⌉ = 315 turns, identity left out).
+    assert_eq!(gt.file.symmetries.len(), 1 + 314);
     assert!(
         gt.file.symmetries[0][3].abs() > 0.999,
         "a half turn about Z"
     );
+    let first = gt.file.symmetries[1];
+    let half = (std::f64::consts::PI / 315.0).sin();
+    assert!((first[2] - half).abs() < 1e-9 && first[1].abs() < 1e-12 && first[3].abs() < 1e-12);
     // Rendering the ground truth gives back the visible mask outside the occluder.
     let inst = agentstar_render::Instance {
         mesh: &gt.meshes["object"],

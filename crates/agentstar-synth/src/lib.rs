@@ -406,11 +406,7 @@ pub fn synthesize(cfg: &SynthConfig) -> Result<SynthCapture, SynthError> {
     }
     let symmetries = match spec.symmetry {
         Symmetry::None => vec![],
-        Symmetry::ContinuousZ => (1..12)
-            .map(|i| {
-                UnitQuaternion::from_axis_angle(&Vector3::z_axis(), (30.0 * i as f64).to_radians())
-            })
-            .collect(),
+        Symmetry::ContinuousZ => agentstar_geom::truth::continuous_symmetry(&Vector3::z_axis()),
     };
     Ok(SynthCapture {
         object: spec,

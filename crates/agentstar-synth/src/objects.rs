@@ -29,7 +29,8 @@ impl Family {
 pub enum Symmetry {
     /// None known.
     None,
-    /// Any rotation about canonical +Z (listed in `gt.json` as rotations every 30°).
+    /// Any rotation about canonical +Z (listed in `gt.json` as BOP discretises it:
+    /// [`agentstar_geom::truth::continuous_symmetry`], 315 turns 1.14° apart).
     ContinuousZ,
 }
 
