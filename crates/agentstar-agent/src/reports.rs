@@ -857,8 +857,12 @@ mod tests {
             last,
             "appearance: NCC of each frame's colours with its neighbouring keyframes' at these poses, mean 0.40, lowest 0.20 (b.png); 2 of 2 frames with evidence"
         );
-        assert!(table.lines().any(|l| l.starts_with("b.png") && l.ends_with('<')));
+        assert!(table
+            .lines()
+            .any(|l| l.starts_with("b.png") && l.ends_with('<')));
         let none = score_table(&scores, &summary, &[look("a.png", None)]);
-        assert!(none.ends_with("appearance: no evidence (no frame's colours vary enough on the model to compare)\n"));
+        assert!(none.ends_with(
+            "appearance: no evidence (no frame's colours vary enough on the model to compare)\n"
+        ));
     }
 }

@@ -664,13 +664,14 @@ pub struct ApplyArgs {
 pub struct OsweepArgs {
     #[schemars(description = FRAMES)]
     pub frames: Option<String>,
-    /// A preset: `z:flip`, `z:quarters`, `z:octants`, `so3:24`.
+    /// A preset: `z:flip`, `z:quarters`, `z:octants`, `so3:24`. Give this or `ranges`.
     pub opreset: Option<String>,
     /// Grid ranges over rx, ry, rz (degrees) and joints: `rz:-180,180,9;rx:-15,15,3`, each
     /// `dof:lower,upper,steps` with `steps` grid values from lower to upper, both included.
     /// The grid is then refined around its best points (finer spacing) and every candidate
     /// refined locally before ranking: each row names its grid start and, after `→`, the
     /// rotation (one rotation vector, as `oapply` reads it) and joint states it was refined to.
+    /// Give this or `opreset`.
     pub ranges: Option<String>,
 }
 
@@ -1056,6 +1057,16 @@ tool!(Apply, "apply", Pose, Nothing, ApplyArgs,
 tool!(Osweep, "osweep", Pose, Nothing, OsweepArgs,
     "Search object-frame rotations per keyframe: a preset (`z:flip`, `z:quarters`, `z:octants`, `so3:24`) or grid ranges (`rz:-180,180,9;rx:-15,15,3`). For objects that look alike from several sides.",
     |tb, a, step| {
+        // The region is the agent's decision: no silent default grid, and not two at once.
+        match (&a.opreset, &a.ranges) {
+            (None, None) => return Ok(ToolOutput::error(
+                "osweep needs a region and searched nothing: give `opreset` (`z:flip`, `z:quarters`, `z:octants`, `so3:24`) or `ranges` (`rz:-180,180,9;rx:-15,15,3`), and `frames` (default: every keyframe)",
+            )),
+            (Some(_), Some(_)) => return Ok(ToolOutput::error(
+                "osweep takes `opreset` or `ranges`, not both: nothing was searched",
+            )),
+            _ => {}
+        }
         let extra = [flag(&a.frames, "--frames"), flag(&a.opreset, "--opreset"), flag(&a.ranges, "--ranges")].concat();
         tb.search(SearchVerb::Osweep, a.frames.as_deref(), extra, step)
     });

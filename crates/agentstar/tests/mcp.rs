@@ -731,6 +731,62 @@ fn the_mcp_server_returns_images_progress_and_readable_errors() {
 }
 
 #[test]
+fn osweep_without_a_region_or_with_two_is_refused_and_searches_nothing() {
+    let dir = tempfile::tempdir().expect("tmp");
+    let (run, _, _, _) = run_with_flip_report(dir.path());
+    // Files named osweep* anywhere under the run (a search writes its report and sheet).
+    fn osweep_files(dir: &Path) -> usize {
+        std::fs::read_dir(dir)
+            .into_iter()
+            .flatten()
+            .flatten()
+            .map(|e| {
+                let path = e.path();
+                if path.is_dir() {
+                    osweep_files(&path)
+                } else {
+                    usize::from(e.file_name().to_string_lossy().starts_with("osweep"))
+                }
+            })
+            .sum()
+    }
+    let before = osweep_files(&run);
+    let (mut c, _) = McpClient::initialised(&run);
+    c.call(2, "osweep", json!({}));
+    let (r, _) = c.response(2);
+    assert_eq!(r["result"]["isError"], true, "{r}");
+    let text = McpClient::text_of(&r);
+    assert!(
+        text.contains("`opreset`")
+            && text.contains("`ranges`")
+            && text.contains("searched nothing"),
+        "{text}"
+    );
+    c.call(
+        3,
+        "osweep",
+        json!({"frames": "000005", "opreset": "z:flip", "ranges": "rz:-30,30,3"}),
+    );
+    let (r, _) = c.response(3);
+    assert_eq!(r["result"]["isError"], true, "{r}");
+    assert!(McpClient::text_of(&r).contains("not both"), "{r}");
+    assert_eq!(
+        osweep_files(&run),
+        before,
+        "a refused search writes no report"
+    );
+    // With one region it searches and writes its report.
+    c.call(
+        4,
+        "osweep",
+        json!({"frames": "000005", "opreset": "z:flip"}),
+    );
+    let (r, _) = c.response(4);
+    assert_eq!(r["result"]["isError"], false, "{r}");
+    assert!(osweep_files(&run) > before);
+}
+
+#[test]
 fn pose_commit_by_label_over_mcp_takes_that_candidate_in_every_frame() {
     let dir = tempfile::tempdir().expect("tmp");
     let (run, _, poses, report_path) = run_with_flip_report(dir.path());

@@ -122,6 +122,15 @@ fn pose_verbs_track_commit_and_diagnose() {
     // An object-frame grid: each row names its grid start and where refinement took it; from
     // the tracked (right) pose the best row ends within a few degrees of no turn at all,
     // whatever grid value it started from.
+    // Without a region (a preset or grid ranges) it searches nothing and says what it needs.
+    let bare = common("osweep", "osweep");
+    let o = agentstar(&bare.iter().map(String::as_str).collect::<Vec<_>>());
+    assert!(!o.status.success());
+    assert!(
+        text(&o).contains("--ranges <RANGES>|--opreset <OPRESET>"),
+        "{}",
+        text(&o)
+    );
     let mut args = common("osweep", "osweep");
     args.extend([
         "--frames".into(),

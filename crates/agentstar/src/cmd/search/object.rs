@@ -5,7 +5,8 @@ use super::*;
 
 #[derive(clap::Args)]
 #[command(
-    after_help = "Example:\n  agentstar osweep --capture cap --model run/scene.rhai --poses run/pose.json --out reports --frames 000010 --opreset z:flip"
+    after_help = "Example:\n  agentstar osweep --capture cap --model run/scene.rhai --poses run/pose.json --out reports --frames 000010 --opreset z:flip",
+    group(clap::ArgGroup::new("region").required(true).args(["ranges", "opreset"]))
 )]
 pub struct OsweepArgs {
     #[command(flatten)]
@@ -13,10 +14,10 @@ pub struct OsweepArgs {
     /// Frames: names, stems or `a..b` ranges, comma separated (default: all).
     #[arg(long)]
     frames: Option<String>,
-    /// Grid ranges over rx, ry, rz (and joints): `rz:-180,180,9;rx:-15,15,3`.
+    /// Grid ranges over rx, ry, rz (and joints): `rz:-180,180,9;rx:-15,15,3` (this or `--opreset`).
     #[arg(long)]
     ranges: Option<String>,
-    /// Preset rotations: `z:flip`, `z:quarters`, `z:octants`, `z:full`, `z:0,90,180`, `z:large`, or `so3:N` (identity plus N uniform rotations).
+    /// Preset rotations: `z:flip`, `z:quarters`, `z:octants`, `z:full`, `z:0,90,180`, `z:large`, or `so3:N` (identity plus N uniform rotations) (this or `--ranges`).
     #[arg(long)]
     opreset: Option<String>,
     /// Grid steps for axes whose range gives none.
