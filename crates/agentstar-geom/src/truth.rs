@@ -20,10 +20,7 @@ pub fn continuous_symmetry(axis: &nalgebra::Unit<Vector3>) -> Vec<UnitQuaternion
     let turns = (std::f64::consts::PI / BOP_MAX_SYM_DISC_STEP).ceil() as usize;
     (1..turns)
         .map(|k| {
-            UnitQuaternion::from_axis_angle(
-                axis,
-                std::f64::consts::TAU * k as f64 / turns as f64,
-            )
+            UnitQuaternion::from_axis_angle(axis, std::f64::consts::TAU * k as f64 / turns as f64)
         })
         .collect()
 }
