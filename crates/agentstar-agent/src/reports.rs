@@ -623,6 +623,95 @@ pub struct CheckReport {
     pub printed: Vec<String>,
 }
 
+/// A model check as a model reads it (`scene_read`, `scene_write`): one line per part and per
+/// joint, the canonical frame, what the script printed, and the warnings. With `previous`
+/// (the warnings of the scene it replaces), a warning that was already there is not
+/// repeated in full: the agent saw it, and may keep the model that way on purpose.
+pub fn check_text(report: &CheckReport, previous: Option<&[String]>) -> String {
+    use std::fmt::Write as _;
+    let mut t = String::new();
+    let v3 = |v: &[f64; 3]| format!("({:.3}, {:.3}, {:.3})", v[0], v[1], v[2]);
+    writeln!(t, "parts ({}):", report.parts.len()).ok();
+    for p in &report.parts {
+        let c = p.color.map(|x| (x.clamp(0.0, 1.0) * 255.0).round() as u8);
+        writeln!(
+            t,
+            "- {}: {} triangles, {}, bounds {} to {}, colour #{:02x}{:02x}{:02x}",
+            p.name,
+            p.triangles,
+            match p.volume {
+                Some(v) if p.watertight => format!("watertight, volume {v:.4}"),
+                _ => "not watertight".to_string(),
+            },
+            v3(&p.bbox_min),
+            v3(&p.bbox_max),
+            c[0],
+            c[1],
+            c[2]
+        )
+        .ok();
+    }
+    if report.joints.is_empty() {
+        writeln!(t, "joints: none (one rigid body)").ok();
+    } else {
+        writeln!(t, "joints ({}):", report.joints.len()).ok();
+        for j in &report.joints {
+            let child = match &j.child {
+                agentstar_data::posefile::ChildSpec::One(c) => c.clone(),
+                agentstar_data::posefile::ChildSpec::Many(c) => c.join(", "),
+            };
+            writeln!(
+                t,
+                "- {} ({}): {} → {}, origin {}, axis {}{}",
+                j.name,
+                j.kind,
+                j.parent.as_deref().unwrap_or("(root part)"),
+                child,
+                v3(&j.origin),
+                v3(&j.axis),
+                j.limit
+                    .map(|[lo, hi]| format!(", limit [{lo}, {hi}]"))
+                    .unwrap_or_default()
+            )
+            .ok();
+        }
+    }
+    let c = &report.canonical;
+    writeln!(
+        t,
+        "canonical frame: extent {:.3} × {:.3} × {:.3}, centre {}, longest side {:.3}, {} triangles",
+        c.extent[0],
+        c.extent[1],
+        c.extent[2],
+        v3(&c.center),
+        c.longest_side,
+        c.triangles
+    )
+    .ok();
+    for line in &report.printed {
+        writeln!(t, "printed: {line}").ok();
+    }
+    let (kept, new): (Vec<&String>, Vec<&String>) = report
+        .warnings
+        .iter()
+        .partition(|w| previous.is_some_and(|p| p.contains(w)));
+    for w in &new {
+        writeln!(t, "warning: {w}").ok();
+    }
+    if !kept.is_empty() {
+        writeln!(
+            t,
+            "{} warning(s) as in the scene this replaced, not repeated (`scene_read` lists them)",
+            kept.len()
+        )
+        .ok();
+    }
+    if report.warnings.is_empty() {
+        writeln!(t, "no warnings").ok();
+    }
+    t
+}
+
 /// The score table a person reads (the CLI's `score`, the MCP tool's text): one row per
 /// frame (visible, band and raw IoU, pixel counts, depth, appearance; `<` under the gate),
 /// the sequence's summary and the appearance line.
@@ -864,5 +953,50 @@ mod tests {
         assert!(none.ends_with(
             "appearance: no evidence (no frame's colours vary enough on the model to compare)\n"
         ));
+    }
+
+    #[test]
+    fn a_check_reads_as_lines_and_a_warning_already_shown_is_not_repeated() {
+        let report = CheckReport {
+            model: "scene.rhai".into(),
+            parts: vec![CheckPart {
+                name: "body".into(),
+                triangles: 12,
+                watertight: true,
+                volume: Some(0.5),
+                bbox_min: [-0.5, -0.5, -0.25],
+                bbox_max: [0.5, 0.5, 0.25],
+                color: [1.0, 0.0, 0.0],
+            }],
+            joints: vec![],
+            canonical: CheckCanonical {
+                bbox_min: [-0.5, -0.5, -0.25],
+                bbox_max: [0.5, 0.5, 0.25],
+                extent: [1.0, 1.0, 0.5],
+                center: [0.2, 0.0, 0.0],
+                longest_side: 1.0,
+                triangles: 12,
+            },
+            warnings: vec!["off centre".into(), "not at rest".into()],
+            printed: vec!["hello".into()],
+        };
+        let fresh = check_text(&report, None);
+        assert!(fresh.contains(
+            "- body: 12 triangles, watertight, volume 0.5000, bounds (-0.500, -0.500, -0.250) to (0.500, 0.500, 0.250), colour #ff0000"
+        ), "{fresh}");
+        assert!(fresh.contains("joints: none"), "{fresh}");
+        assert!(fresh.contains("centre (0.200, 0.000, 0.000)"), "{fresh}");
+        assert!(fresh.contains("printed: hello"), "{fresh}");
+        assert!(fresh.contains("warning: off centre") && fresh.contains("warning: not at rest"));
+        // After a scene that had the first warning: only the second in full.
+        let again = check_text(&report, Some(&["off centre".to_string()]));
+        assert!(!again.contains("warning: off centre"), "{again}");
+        assert!(again.contains("warning: not at rest"), "{again}");
+        assert!(again.contains("1 warning(s) as in the scene this replaced, not repeated"));
+        let clean = CheckReport {
+            warnings: vec![],
+            ..report
+        };
+        assert!(check_text(&clean, Some(&[])).contains("no warnings"));
     }
 }

@@ -1873,14 +1873,17 @@ impl Toolbox {
             self.run.scene.display().to_string(),
             "--json".into(),
         ])?;
-        // The check's report, typed (absent when the scene does not build).
+        // The check's report, typed (absent when the scene does not build: then its error).
         let report: Option<CheckReport> = serde_json::from_str(&check).ok();
         Ok(ToolOutput {
             text: format!(
                 "scene.rhai (versions saved: {:?}):\n```rhai\n{}\n```\ncheck:\n{}{}",
                 self.run.list_scene_versions(),
                 script.trim_end(),
-                check.trim(),
+                report
+                    .as_ref()
+                    .map(|r| crate::reports::check_text(r, None))
+                    .unwrap_or_default(),
                 stderr.trim()
             ),
             structured: report.and_then(|r| serde_json::to_value(&r).ok()),
@@ -1926,6 +1929,18 @@ impl Toolbox {
                 .as_file()
                 .set_permissions(std::fs::Permissions::from_mode(0o644));
         }
+        let mut report: CheckReport = serde_json::from_str(&check)
+            .map_err(|e| AgentError::Tool(format!("check printed no check report ({e})")))?;
+        report.model = self.run.scene.clone();
+        // The warnings of the scene this replaces (none when it does not build).
+        let (_, before_check, _) = self.exec(&[
+            "check".into(),
+            self.run.scene.display().to_string(),
+            "--json".into(),
+        ])?;
+        let before_warnings = serde_json::from_str::<CheckReport>(&before_check)
+            .map(|r| r.warnings)
+            .unwrap_or_default();
         // The model the poses were made for: a moved origin is compensated against it.
         let before = agentstar_data::scenefile::load_model(&self.run.scene)
             .ok()
@@ -1952,8 +1967,9 @@ impl Toolbox {
                 } else {
                     format!(" pose.json: {}.", joints.join("; "))
                 },
-                check.trim()
+                crate::reports::check_text(&report, Some(&before_warnings))
             ),
+            structured: serde_json::to_value(&report).ok(),
             scene_version: Some(version),
             pose_changed: pose_version.is_some(),
             pose_version,

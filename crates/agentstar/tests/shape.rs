@@ -234,6 +234,29 @@ fn a_scene_edit_that_moves_the_centre_keeps_every_keyframes_iou() {
         .map(|(b, a)| b - a)
         .fold(0.0, f64::max);
     assert!(worst > 0.05, "{stale:?}");
+    // The edit left the model off centre and the check said so; writing it again (a comment
+    // added) does not repeat that warning, and says one is kept.
+    assert!(body.contains("warning: bounding-box centre"), "{body}");
+    c.call(
+        3,
+        "scene_write",
+        json!({"script": format!("// again\n{edited}")}),
+    );
+    let (resp, _) = c.response(3);
+    let again = McpClient::text_of(&resp);
+    assert_eq!(resp["result"]["isError"], false, "{resp}");
+    assert!(!again.contains("warning: bounding-box centre"), "{again}");
+    assert!(
+        again.contains("1 warning(s) as in the scene this replaced, not repeated"),
+        "{again}"
+    );
+    assert_eq!(
+        resp["result"]["structuredContent"]["warnings"]
+            .as_array()
+            .map(Vec::len),
+        Some(1),
+        "{resp}"
+    );
 }
 
 /// `pose.json` with its scale (and every translation) multiplied by `k`: the same
