@@ -141,12 +141,20 @@ fn chars_per_line(width: u32) -> usize {
     (width.saturating_sub(4) / (8 * LABEL_SCALE)).max(3) as usize
 }
 
+/// The most lines a sheet's title wraps to: enough for a legend named in words over a
+/// narrow sheet (a title of two lines cut the compare sheet's legend off).
+const MAX_TITLE_LINES: usize = 8;
+
 /// Lines of a title over a sheet `width` wide.
 fn title_lines(title: &str, width: u32) -> Vec<String> {
     if title.is_empty() {
         vec![]
     } else {
-        wrap_label(title, chars_per_line(width.saturating_sub(2 * PAD)), 2)
+        wrap_label(
+            title,
+            chars_per_line(width.saturating_sub(2 * PAD)),
+            MAX_TITLE_LINES,
+        )
     }
 }
 
@@ -177,7 +185,10 @@ pub fn sheet_layout(tiles: &[(String, RgbImage)], columns: usize, title: &str) -
             .max(1);
         let label_h = label_lines as u32 * line_height() + LABEL_SCALE * 2;
         let width = columns as u32 * (tw + PAD) + PAD;
-        let title_h = title_lines(title, width).len() as u32 * line_height()
+        // Room for the page number a page of several adds to the title.
+        let title_h = title_lines(&format!("{title} (page 00/00)"), width).len() as u32
+            * line_height()
+            * u32::from(!title.is_empty())
             + if title.is_empty() { 0 } else { 2 * PAD };
         let row_h = th + label_h + PAD;
         let rows_total = n.div_ceil(columns);
@@ -386,5 +397,20 @@ mod tests {
         for p in &pages {
             assert!(within_limits(p.width(), p.height()), "{p:?}");
         }
+    }
+
+    #[test]
+    fn a_legend_in_the_title_of_a_narrow_sheet_is_wrapped_whole() {
+        let title = "compare (cropped): green both, yellow render only, magenta mask only, grey hand, blue render under the hand";
+        let lines = title_lines(title, 320);
+        assert!(lines.len() > 2, "{lines:?}");
+        assert!(lines.iter().all(|l| !l.ends_with("..")), "{lines:?}");
+        assert_eq!(lines.join(" "), title);
+        // The sheet holds them: its height grows with the title's lines.
+        let tiles = tiles(1, 300, 200, "000001");
+        let short = sheet_pages(&tiles, 1, "compare");
+        let long = sheet_pages(&tiles, 1, title);
+        assert_eq!(long.len(), 1);
+        assert!(long[0].height() > short[0].height());
     }
 }
