@@ -178,8 +178,8 @@ pub fn report(samples: &[Sample], scale: f64, tree: &KinematicTree) -> Report {
                     .map(|a| format!(" about the model's {}", axis_label(&a)))
                     .unwrap_or_default();
                 warnings.push(format!(
-                    "step {from} -> {} turns the object by {deg:.0}°{about} (over {LARGE_STEP_DEG:.0}°): a hand can, but a flip or part swap of either pose fits its mask as well; compare their twins by eye (oapply flips, render side)",
-                    r.frame
+                    "step {from} -> {} turns the object by {deg:.0}°{about} (over {LARGE_STEP_DEG:.0}°): a hand can, or one of the two poses is a flip or part swap of the right one; `oapply` on {} scores its flips and swaps, each refined: if none comes within about 0.01 of its IoU, the step is real, else compare the close ones by eye (render side)",
+                    r.frame, r.frame
                 ));
             }
         }
@@ -360,6 +360,12 @@ mod tests {
         assert_eq!(r.warnings.len(), 1, "{:?}", r.warnings);
         assert!(
             r.warnings[0].starts_with("step 000010.jpg -> 000015.jpg turns the object by 170°"),
+            "{:?}",
+            r.warnings
+        );
+        // It names the check that settles it, on the later frame, without claiming a twin fits.
+        assert!(
+            r.warnings[0].contains("`oapply` on 000015.jpg scores its flips and swaps"),
             "{:?}",
             r.warnings
         );
