@@ -112,7 +112,9 @@ Call `finish` only when all of these hold; it checks them and tells you what is 
    given to `finish` in one of its categories, each checked: `occlusion` (more of the object
    hidden than the run's threshold, 30% by default), `mask_error` (name an image that shows
    it), `truncated` (cut by the frame border), `out_of_reach` (what the model cannot do, in a
-   note). At most a quarter of the keyframes may be under the gate, reasons or not.
+   note). At most a quarter of the keyframes may be under the gate, reasons or not. For
+   example: `{"unreachable": {"000050": {"category": "out_of_reach", "note": "the lid bends
+   here; the model's lid is rigid"}}}`.
 2. `turntable` was looked at after the last shape change, and the shape is coherent in every
    joint state.
 3. `temporal` was looked at after the last pose change, and every large step is either

@@ -471,8 +471,132 @@ pub fn check_bounds(tool: &str, schema: &Value, args: &Value) -> std::result::Re
     Ok(())
 }
 
+/// A JSON schema's type as an agent reads it: `list of string`, `integer 1–10`,
+/// `{category: "out_of_reach", note: string}`, `map of key → …`, alternatives with `|`.
+fn schema_type(s: &Value) -> String {
+    if let Some(c) = s.get("const") {
+        return c.to_string();
+    }
+    if let Some(Value::Array(values)) = s.get("enum") {
+        return values
+            .iter()
+            .map(Value::to_string)
+            .collect::<Vec<_>>()
+            .join(" | ");
+    }
+    for key in ["oneOf", "anyOf"] {
+        if let Some(Value::Array(branches)) = s.get(key) {
+            return branches
+                .iter()
+                .filter(|b| b["type"] != "null")
+                .map(schema_type)
+                .collect::<Vec<_>>()
+                .join(" | ");
+        }
+    }
+    let kind = match s.get("type") {
+        Some(Value::String(t)) => t.as_str(),
+        Some(Value::Array(ts)) => ts
+            .iter()
+            .filter_map(Value::as_str)
+            .find(|t| *t != "null")
+            .unwrap_or("any"),
+        _ => "any",
+    };
+    let bound = |k: &str| s.get(k).and_then(Value::as_f64);
+    match kind {
+        "array" => format!(
+            "list of {}",
+            s.get("items").map_or("any".to_string(), schema_type)
+        ),
+        "integer" | "number" => match (bound("minimum"), bound("maximum")) {
+            (Some(lo), Some(hi)) => format!("{kind} {lo}–{hi}"),
+            (Some(lo), None) => format!("{kind} ≥ {lo}"),
+            (None, Some(hi)) => format!("{kind} ≤ {hi}"),
+            (None, None) => kind.to_string(),
+        },
+        "object" => {
+            if let Some(props) = s.get("properties").and_then(Value::as_object) {
+                let required = required_of(s);
+                let fields: Vec<String> = props
+                    .iter()
+                    .map(|(k, v)| {
+                        let mark = if required.contains(&k.as_str()) {
+                            ""
+                        } else {
+                            "?"
+                        };
+                        format!("{k}{mark}: {}", schema_type(v))
+                    })
+                    .collect();
+                format!("{{{}}}", fields.join(", "))
+            } else if let Some(values) = s.get("additionalProperties").filter(|v| v.is_object()) {
+                format!("map of key → {}", schema_type(values))
+            } else {
+                "object".to_string()
+            }
+        }
+        other => other.to_string(),
+    }
+}
+
+fn required_of(s: &Value) -> Vec<&str> {
+    s.get("required")
+        .and_then(Value::as_array)
+        .map(|r| r.iter().filter_map(Value::as_str).collect())
+        .unwrap_or_default()
+}
+
+/// What a tool takes, one line per argument (name, required or not, type, the first
+/// sentence of its description): appended to a bad call's error, for agents that do not
+/// read the schema.
+pub fn arguments_help(tool: &str, schema: &Value) -> String {
+    let Some(props) = schema.get("properties").and_then(Value::as_object) else {
+        return String::new();
+    };
+    if props.is_empty() {
+        return format!("{tool} takes no arguments: call it with {{}}");
+    }
+    let required = required_of(schema);
+    let mut out = format!("{tool} takes:");
+    for (name, s) in props {
+        let first = s
+            .get("description")
+            .and_then(Value::as_str)
+            .map(|d| {
+                let sentence = d.split(". ").next().unwrap_or(d).trim_end_matches('.');
+                let short: String = sentence.chars().take(140).collect();
+                if short.len() < sentence.len() {
+                    format!(": {short}…")
+                } else {
+                    format!(": {short}")
+                }
+            })
+            .unwrap_or_default();
+        out.push_str(&format!(
+            "\n- `{name}` ({}{}){first}",
+            if required.contains(&name.as_str()) {
+                "required, "
+            } else {
+                ""
+            },
+            schema_type(s)
+        ));
+    }
+    out
+}
+
 fn call_typed<T: Tool>(tb: &Toolbox, args: &Value, step: u64) -> Result<ToolOutput> {
-    let a: T::Args = parse_args(T::NAME, args)?;
+    let a: T::Args = parse_args(T::NAME, args).map_err(|e| {
+        AgentError::Tool(format!(
+            "{}\n{}",
+            match e {
+                AgentError::Tool(m) => m,
+                other => other.to_string(),
+            },
+            arguments_help(T::NAME, &schema_of::<T::Args>())
+        ))
+    })?;
     check_bounds(T::NAME, &schema_of::<T::Args>(), args).map_err(AgentError::Tool)?;
     T::run(tb, a, step)
 }
@@ -2961,5 +3085,30 @@ mod tests {
         }
         let o = t.call("pose_commit", &json!({"report": "/etc/passwd"}), 1);
         assert!(o.is_error && o.text.contains("outside"), "{}", o.text);
+    }
+
+    #[test]
+    fn a_bad_call_is_answered_with_what_the_tool_takes() {
+        let fit = arguments_help("fit_shape", &schema_of::<FitShapeArgs>());
+        assert!(fit.starts_with("fit_shape takes:"), "{fit}");
+        assert!(
+            fit.contains("- `params` (required, list of string): The parameters to fit"),
+            "{fit}"
+        );
+        assert!(fit.contains("- `rounds` (integer 1–10)"), "{fit}");
+        // A nested argument shows its shape: each category with its own fields.
+        let finish = arguments_help("finish", &schema_of::<FinishArgs>());
+        assert!(
+            finish.contains("- `unreachable` (map of key → {category: \"occlusion\", percent: number} | {category: \"mask_error\", image: string, note?: string}"),
+            "{finish}"
+        );
+        assert!(
+            finish.contains("{category: \"out_of_reach\", note: string}"),
+            "{finish}"
+        );
+        assert_eq!(
+            arguments_help("task", &schema_of::<NoArgs>()),
+            "task takes no arguments: call it with {}"
+        );
     }
 }

@@ -775,6 +775,15 @@ fn osweep_without_a_region_or_with_two_is_refused_and_searches_nothing() {
         before,
         "a refused search writes no report"
     );
+    // Arguments of the wrong shape: the error says what the tool takes.
+    c.call(5, "fit_shape", json!({"params": "a,b"}));
+    let (r, _) = c.response(5);
+    assert_eq!(r["result"]["isError"], true, "{r}");
+    let text = McpClient::text_of(&r);
+    assert!(
+        text.contains("fit_shape takes:") && text.contains("- `params` (required, list of string)"),
+        "{text}"
+    );
     // With one region it searches and writes its report.
     c.call(
         4,
