@@ -2661,15 +2661,7 @@ mod tests {
             60f64.to_radians(),
         );
         poses[2].pose.rotation = off * poses[2].pose.rotation;
-        let mut scores: Vec<f64> = poses
-            .iter()
-            .zip(&frames)
-            .map(|(g, f)| {
-                FrameProblem::new(&model, f.camera, f.target, scale, g.clone())
-                    .evaluator()
-                    .combined(g)
-            })
-            .collect();
+        let mut scores = scores_of(&model, scale, &frames, &poses);
         let mut alternatives = vec![Vec::new(); 5];
         alternatives[2] = alternatives_of_2;
         let observe = |_: &str| {};
@@ -2901,19 +2893,9 @@ mod tests {
         let cfg = TrackConfig::default();
         let s = Searcher::new(&model, scale, &frames, &cfg).expect("searcher");
         let start: Vec<GenPose> = vec![wrong.clone(), truths[1].clone(), truths[2].clone()];
-        let scores_of = |poses: &[GenPose]| -> Vec<f64> {
-            poses
-                .iter()
-                .zip(&frames)
-                .map(|(g, f)| {
-                    FrameProblem::new(&model, cam, f.target, scale, g.clone())
-                        .evaluator()
-                        .combined(g)
-                })
-                .collect()
-        };
         let run = |rejected: &[Vec<GenPose>]| {
-            let (mut poses, mut scores) = (start.clone(), scores_of(&start));
+            let (mut poses, mut scores) =
+                (start.clone(), scores_of(&model, scale, &frames, &start));
             let observe = |_: &str| {};
             let mut log = Log::new(&observe);
             appearance_pass(
@@ -2946,6 +2928,24 @@ mod tests {
         let elsewhere = spin_about_z(&truths[0], 180.0);
         let (free, _) = run(&[vec![elsewhere], vec![], vec![]]);
         assert!(error_of(&free[0], &truths[0]) < 8.0);
+    }
+
+    /// Each frame's score at its pose, as the tracker computes it.
+    fn scores_of(
+        model: &ObjectModel,
+        scale: f64,
+        frames: &[TrackFrame<'_>],
+        poses: &[GenPose],
+    ) -> Vec<f64> {
+        poses
+            .iter()
+            .zip(frames)
+            .map(|(g, f)| {
+                FrameProblem::new(model, f.camera, f.target, scale, g.clone())
+                    .evaluator()
+                    .combined(g)
+            })
+            .collect()
     }
 
     fn spin_about_z(g: &GenPose, deg: f64) -> GenPose {
