@@ -1471,6 +1471,9 @@ pub fn search_text(report: &SearchReport, path: &Path) -> String {
         for n in &f.notes {
             t.push_str(&format!("note: {n}\n"));
         }
+        if f.ranked.iter().any(|c| c.label.starts_with("seen ")) {
+            t.push_str("seen: a place the search passed through, at least 10° from every row above it and not refined: another basin where the region holds one, else the slope of the same one (refine one with a narrow `sweep` around its order before trusting its score).\n");
+        }
         if let [only] = &f.ranked[..] {
             if only.label.starts_with(crate::reports::KEPT_START) {
                 t.push_str("note: nothing the search evaluated in this region scored above the start. Either the start is already the best pose here (a sharp optimum: `apply` single small steps to see the surface), or a better pose lies outside the region (widen it, or try the flips with `osweep`).\n");
@@ -2984,6 +2987,12 @@ mod tests {
             t.contains("nothing the search evaluated in this region scored above the start"),
             "{t}"
         );
+        assert!(!t.contains("seen: a place"), "{t}");
+        // A runner-up row is explained where it appears (play-test 5: `seen` was a mystery).
+        let mut seen = report.clone();
+        seen.frames[0].ranked[0].label = "seen yaw:40".into();
+        let t = search_text(&seen, Path::new("run/images/x/sweep.json"));
+        assert!(t.contains("seen: a place the search passed through"), "{t}");
     }
 
     #[test]
