@@ -70,6 +70,20 @@ pub fn crop_box(mask: &BitMask, extra: Option<&BitMask>, margin: f64) -> Option<
     Some([cx0, cy0, cx1 - cx0 + 1, cy1 - cy0 + 1])
 }
 
+/// The `crop` (x0, y0, width, height) of `img`, its long side brought to `long_side_px` by
+/// nearest-neighbour scaling (at most [`MAX_ZOOM`]): a comparison tile keeps its legend's
+/// exact colours.
+pub fn crop_zoomed(img: &RgbImage, crop: [u32; 4], long_side_px: u32) -> RgbImage {
+    let [x0, y0, w, h] = crop;
+    let sub = image::imageops::crop_imm(img, x0, y0, w, h).to_image();
+    let factor = (long_side_px as f64 / w.max(h).max(1) as f64).min(MAX_ZOOM);
+    let (tw, th) = (
+        ((w as f64 * factor).round() as u32).max(1),
+        ((h as f64 * factor).round() as u32).max(1),
+    );
+    image::imageops::resize(&sub, tw, th, image::imageops::FilterType::Nearest)
+}
+
 /// Pixels of `m` inside the crop with a neighbour outside `m` (4-connected).
 fn boundary(m: &BitMask, x: u32, y: u32) -> bool {
     if !m.get(x, y) {
@@ -224,5 +238,26 @@ mod tests {
         );
         assert!(v.empty_mask && v.crop == [0, 0, 1920, 1080]);
         assert!(within_limits(v.image.width(), v.image.height()));
+    }
+
+    #[test]
+    fn a_zoomed_crop_keeps_exact_colours_and_its_long_side() {
+        let mut img = RgbImage::from_pixel(640, 480, Rgb([0, 0, 0]));
+        for y in 200..240 {
+            for x in 300..320 {
+                img.put_pixel(x, y, Rgb([40, 190, 70]));
+            }
+        }
+        // A 40 × 60 crop around the patch, its long side brought to 300 (×5).
+        let tile = crop_zoomed(&img, [290, 190, 40, 60], 300);
+        assert_eq!(tile.dimensions(), (200, 300));
+        // Nearest neighbour: only the two colours, the patch where it was.
+        assert!(tile
+            .pixels()
+            .all(|p| *p == Rgb([0, 0, 0]) || *p == Rgb([40, 190, 70])));
+        assert_eq!(*tile.get_pixel(100, 150), Rgb([40, 190, 70]));
+        assert_eq!(*tile.get_pixel(5, 5), Rgb([0, 0, 0]));
+        // A tiny crop stops at the largest zoom.
+        assert_eq!(crop_zoomed(&img, [0, 0, 10, 5], 400).dimensions(), (80, 40));
     }
 }

@@ -5,7 +5,7 @@
 use crate::common::{out_dir, print_json, select_frames, SessionArgs};
 use agentstar_agent::view_reports::{RenderFrame, RenderReport};
 use agentstar_data::images::{save_png_rgb, save_png_rgba};
-use agentstar_render::frames::{crop_box, frame_view, FrameViewOptions, MAX_ZOOM};
+use agentstar_render::frames::{crop_box, crop_zoomed, frame_view, FrameViewOptions, MAX_ZOOM};
 use agentstar_render::sheet::{fit_to_limits, sheet_pages};
 use agentstar_render::views::{
     comparison_legend, id_color, overlay, part_id_view, shade, side_by_side, silhouette_comparison,
@@ -100,15 +100,8 @@ fn compare_tile(
     sil: &agentstar_render::BitMask,
     margin: f64,
 ) -> RgbImage {
-    let [x0, y0, w, h] =
-        crop_box(mask, Some(sil), margin).unwrap_or([0, 0, img.width(), img.height()]);
-    let crop = image::imageops::crop_imm(img, x0, y0, w, h).to_image();
-    let factor = tile_zoom(w, h);
-    let (tw, th) = (
-        ((w as f64 * factor).round() as u32).max(1),
-        ((h as f64 * factor).round() as u32).max(1),
-    );
-    image::imageops::resize(&crop, tw, th, image::imageops::FilterType::Nearest)
+    let crop = crop_box(mask, Some(sil), margin).unwrap_or([0, 0, img.width(), img.height()]);
+    crop_zoomed(img, crop, FRAME_TILE_PX)
 }
 
 /// The compare sheet's title: what it shows and the legend's colours by name.
