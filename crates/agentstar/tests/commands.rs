@@ -108,6 +108,24 @@ fn example_and_every_subcommand_on_it() {
     );
     assert!(count(both) > 2_000, "{} agreeing pixels", count(both));
     assert!(count(background) > 2_000);
+    // A frame's own compare image is cropped around the object too: the agreement fills a
+    // larger share of it than the mask fills of the frame.
+    let single = image::open(fv.join("compare_000005.png"))
+        .expect("png")
+        .to_rgb8();
+    let share = |img: &image::RgbImage| {
+        img.pixels().filter(|p| **p == both).count() as f64 / img.pixels().len() as f64
+    };
+    let mask = image::open(Path::new(&cap).join("mask_object/000005.png"))
+        .expect("mask")
+        .to_luma8();
+    let mask_share =
+        mask.pixels().filter(|p| p.0[0] > 127).count() as f64 / mask.pixels().len() as f64;
+    assert!(
+        share(&single) > 1.3 * mask_share,
+        "{} against {mask_share}",
+        share(&single)
+    );
     let halfway =
         image::Rgb([0, 1, 2].map(|k| ((both[k] as u16 + background[k] as u16) / 2) as u8));
     assert_eq!(count(halfway), 0, "the crops were filtered");

@@ -23,6 +23,8 @@ pub const VIEWS: [&str; 7] = [
 
 /// Long side of a keyframe crop on the frames sheet before the sheet's own layout.
 const FRAME_TILE_PX: u32 = 400;
+/// Long side of a frame's own compare image (cropped around the mask and the model).
+const COMPARE_LONG_SIDE_PX: u32 = 640;
 
 /// What the frames view outlines.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
@@ -207,6 +209,14 @@ pub fn run(a: Args) -> Result<ExitCode> {
                 iou = score.iou_visible;
                 let (img, _) = silhouette_comparison(&sil, mask, hand.as_ref());
                 let shown = |v: Option<f64>| v.map_or("n/a".into(), |v| format!("{v:.4}"));
+                // Cropped around the mask and the model, zoomed by whole pixels: the object,
+                // not the frame (play-test 5 could not judge a lid's edge on whole frames).
+                let crop = crop_box(mask, Some(&sil), a.margin).unwrap_or([
+                    0,
+                    0,
+                    img.width(),
+                    img.height(),
+                ]);
                 let title = format!(
                     "{}  IoU band {}  visible {}  raw {:.4}",
                     f.name,
@@ -216,7 +226,11 @@ pub fn run(a: Args) -> Result<ExitCode> {
                 );
                 let p = dir.join(format!("compare_{}.png", f.stem));
                 save_png_rgb(
-                    &with_legend(&img, &title, &comparison_legend(hand.is_some())),
+                    &with_legend(
+                        &crop_zoomed(&img, crop, COMPARE_LONG_SIDE_PX),
+                        &title,
+                        &comparison_legend(hand.is_some()),
+                    ),
                     &p,
                 )?;
                 written.push(p);
