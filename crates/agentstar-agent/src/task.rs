@@ -65,6 +65,9 @@ Alternate two kinds of steps; **each step changes the shape or the poses, never 
 
 ## Reading the images
 
+The tool `render` draws these views (`views`, e.g. `"compare,side"`; default overlay and
+compare; compare and side are cropped around the object, overlay shows the whole frame):
+
 - **compare** (the silhouette comparison; each image carries the same legend):
 {COMPARE_LEGEND}
 - **overlay**: the shaded model over the frame, part colours as in the scene.
