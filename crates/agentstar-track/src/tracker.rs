@@ -1191,8 +1191,13 @@ fn track_on(
     }
     log.phase("init", &s);
     log.push(format!(
-        "init {}: covering of {} hypotheses, best placed {:.3}, refined {:.4}{chosen}",
+        "init {} ({}): covering of {} hypotheses, best placed {:.3}, refined {:.4}{chosen}",
         frames[init].name,
+        if cfg.init_frame == Some(init) {
+            "as asked"
+        } else {
+            "the keyframe with the most of the object in view, after hands"
+        },
         hyps.len(),
         hyps[0].1,
         s0
