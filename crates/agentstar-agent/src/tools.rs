@@ -1472,7 +1472,7 @@ pub fn search_text(report: &SearchReport, path: &Path) -> String {
             t.push_str(&format!("note: {n}\n"));
         }
         if f.ranked.iter().any(|c| c.label.starts_with("seen ")) {
-            t.push_str("seen: a place the search passed through, at least 10° from every row above it and not refined: another basin where the region holds one, else the slope of the same one (refine one with a narrow `sweep` around its order before trusting its score).\n");
+            t.push_str("seen: a place the search passed through, at least 10° in rotation or in a joint from every row above it, and not refined: another basin where the region holds one, else the slope of the same one (refine one with a narrow `sweep` around its order before trusting its score).\n");
         }
         if let [only] = &f.ranked[..] {
             if only.label.starts_with(crate::reports::KEPT_START) {
@@ -2056,9 +2056,14 @@ impl Toolbox {
                 .as_file()
                 .set_permissions(std::fs::Permissions::from_mode(0o644));
         }
-        let mut report: CheckReport = serde_json::from_str(&check)
-            .map_err(|e| AgentError::Tool(format!("check printed no check report ({e})")))?;
-        report.model = self.run.scene.clone();
+        // The check passed; its report typed (its raw text shown should it not parse).
+        let report: Option<CheckReport> =
+            serde_json::from_str::<CheckReport>(&check)
+                .ok()
+                .map(|mut r| {
+                    r.model = self.run.scene.clone();
+                    r
+                });
         // The warnings of the scene this replaces (none when it does not build).
         let (_, before_check, _) = self.exec(&[
             "check".into(),
@@ -2094,9 +2099,12 @@ impl Toolbox {
                 } else {
                     format!(" pose.json: {}.", joints.join("; "))
                 },
-                crate::reports::check_text(&report, Some(&before_warnings))
+                report.as_ref().map_or_else(
+                    || check.trim().to_string(),
+                    |r| crate::reports::check_text(r, Some(&before_warnings))
+                )
             ),
-            structured: serde_json::to_value(&report).ok(),
+            structured: report.as_ref().and_then(|r| serde_json::to_value(r).ok()),
             scene_version: Some(version),
             pose_changed: pose_version.is_some(),
             pose_version,

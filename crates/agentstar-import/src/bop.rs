@@ -7,8 +7,9 @@
 //! masks (`mask_hand/`), as hands are; millimetres become metres; `cam_R_w2c`/`cam_t_w2c`
 //! give the camera trajectory when present, else the camera is static; depth PNGs keep their
 //! values converted to metres with each image's `depth_scale` (written as point maps); discrete and
-//! continuous symmetries of `models_info.json` become `gt.json` symmetries (continuous ones
-//! discretised as the BOP toolkit does: [`agentstar_geom::truth::continuous_symmetry`]).
+//! continuous symmetries of `models_info.json` become `gt.json` symmetries as the BOP toolkit
+//! lists them (continuous ones in its steps, [`agentstar_geom::truth::continuous_symmetry`],
+//! alone and after each discrete one).
 
 use crate::import_common::{write_rows, GtModel, Row};
 use agentstar_data::capture_writer::CaptureInfo;
@@ -77,7 +78,7 @@ fn symmetries(models: &Path, obj_id: u32) -> Result<Vec<[f64; 4]>> {
     let v: serde_json::Value = serde_json::from_str(&read_text(&info)?)
         .map_err(|e| DataError::invalid(&info, format!("invalid JSON: {e}")))?;
     let o = &v[obj_id.to_string()];
-    let mut out = vec![];
+    let mut discrete: Vec<UnitQuaternion> = vec![];
     if let Some(list) = o["symmetries_discrete"].as_array() {
         for m in list {
             let vals: Vec<f64> = m
@@ -89,10 +90,11 @@ fn symmetries(models: &Path, obj_id: u32) -> Result<Vec<[f64; 4]>> {
                     vals[0], vals[1], vals[2], vals[4], vals[5], vals[6], vals[8], vals[9],
                     vals[10],
                 ];
-                out.push(quat_to_wxyz(&rotation(&r, &info, "a discrete symmetry")?));
+                discrete.push(rotation(&r, &info, "a discrete symmetry")?);
             }
         }
     }
+    let mut continuous: Vec<UnitQuaternion> = vec![];
     if let Some(list) = o["symmetries_continuous"].as_array() {
         for s in list {
             let axis: Vec<f64> = s["axis"]
@@ -103,13 +105,16 @@ fn symmetries(models: &Path, obj_id: u32) -> Result<Vec<[f64; 4]>> {
                 let a = agentstar_geom::nalgebra::Unit::new_normalize(Vector3::new(
                     axis[0], axis[1], axis[2],
                 ));
-                out.extend(
-                    agentstar_geom::truth::continuous_symmetry(&a)
-                        .iter()
-                        .map(quat_to_wxyz),
-                );
+                continuous.extend(agentstar_geom::truth::continuous_symmetry(&a));
             }
         }
+    }
+    // As the BOP toolkit lists them: every discrete one, every continuous turn, and each
+    // turn after each discrete one (a flip, then a turn about the axis).
+    let mut out: Vec<[f64; 4]> = discrete.iter().map(quat_to_wxyz).collect();
+    out.extend(continuous.iter().map(quat_to_wxyz));
+    for c in &continuous {
+        out.extend(discrete.iter().map(|d| quat_to_wxyz(&(c * d))));
     }
     Ok(out)
 }

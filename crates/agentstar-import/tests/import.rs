@@ -178,8 +178,16 @@ fn a_bop_scene_imports_with_metres_occluders_depth_and_ground_truth() {
     assert!((p.translation - poses[2].translation).norm() < 1e-9);
     assert!(p.rotation.angle_to(&poses[2].rotation) < 1e-6);
     // The discrete half turn, then the continuous turn about Y as BOP discretises it
-    // (⌈π / 0.01⌉ = 315 turns, identity left out).
-    assert_eq!(gt.file.symmetries.len(), 1 + 314);
+    // (⌈π / 0.01⌉ = 315 turns, identity left out), then each turn after the half turn.
+    assert_eq!(gt.file.symmetries.len(), 1 + 314 + 314);
+    let last = gt.file.symmetries[1 + 314 + 313];
+    let q = |w: [f64; 4]| {
+        agentstar_geom::UnitQuaternion::from_quaternion(agentstar_geom::nalgebra::Quaternion::new(
+            w[0], w[1], w[2], w[3],
+        ))
+    };
+    let expected = q(gt.file.symmetries[1 + 313]) * q(gt.file.symmetries[0]);
+    assert!(q(last).angle_to(&expected) < 1e-9);
     assert!(
         gt.file.symmetries[0][3].abs() > 0.999,
         "a half turn about Z"

@@ -198,7 +198,8 @@ pub fn with_legend(img: &RgbImage, title: &str, entries: &[(Rgb<u8>, String)]) -
         let titles = if title.is_empty() {
             vec![]
         } else {
-            wrap_label(title, ((width - 4 * scale) / (8 * scale)) as usize, 2)
+            // Up to 4 lines: a cropped image can be narrow, and its title carries the figures.
+            wrap_label(title, ((width - 4 * scale) / (8 * scale)) as usize, 4)
         };
         let bar = (rows.len() as u32 + titles.len() as u32) * (line + 2 * scale) + 2 * scale;
         (rows, titles, bar)

@@ -1545,7 +1545,8 @@ const APPEARANCE_REFS: usize = 3;
 ///
 /// After the sequence choice, `rejected` holds per frame the basins it weighed and did not
 /// take: a turn that lands in one of those lying [`REJECTED_BASIN_DEG`] or more from the
-/// frame's pose (within half that of it, and nearer it than the pose) is not taken. The choice judged that basin on the
+/// frame's pose as the pass began (within half that of it, and nearer it than that pose)
+/// is not taken. The choice judged that basin on the
 /// colours of both neighbouring steps, the model's own colours and the motion; one frame's
 /// colours against a few references are weaker evidence (hard suite labelcan, seeds 18
 /// and 19: the final pass turned the choice's keyframes 85 and 90 upside down again on NCC
@@ -1560,6 +1561,10 @@ fn appearance_pass(
     log: &mut Log<'_>,
 ) {
     let n = frames.len();
+    // The rotations the pass starts from (the sequence choice's, when `rejected` is given):
+    // the distance to a rejected basin is measured from these, so that two turns in two
+    // rounds cannot walk a frame into one.
+    let chosen: Vec<UnitQuaternion> = poses.iter().map(|g| g.pose.rotation).collect();
     let mut order: Vec<usize> = (0..n).collect();
     order.sort_by_key(|&i| (i.abs_diff(init), i));
     for _ in 0..APPEARANCE_ROUNDS {
@@ -1596,13 +1601,13 @@ fn appearance_pass(
                 })
                 .collect();
             if let Some((g, sc, text)) = s.settle(&frames[i], &poses[i], scores[i], &refs) {
-                let from = poses[i].pose.rotation;
-                let turned = g.pose.rotation.angle_to(&from);
+                let from = chosen[i];
+                let away = g.pose.rotation.angle_to(&from);
                 let weighed = rejected.get(i).into_iter().flatten().find(|r| {
                     let r = r.pose.rotation;
                     r.angle_to(&from) >= REJECTED_BASIN_DEG.to_radians()
                         && g.pose.rotation.angle_to(&r)
-                            < turned.min(0.5 * REJECTED_BASIN_DEG.to_radians())
+                            < away.min(0.5 * REJECTED_BASIN_DEG.to_radians())
                 });
                 if let Some(r) = weighed {
                     log.push(format!(

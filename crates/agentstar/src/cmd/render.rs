@@ -23,7 +23,8 @@ pub const VIEWS: [&str; 7] = [
 
 /// Long side of a keyframe crop on the frames sheet before the sheet's own layout.
 const FRAME_TILE_PX: u32 = 400;
-/// Long side of a frame's own compare image (cropped around the mask and the model).
+/// Long side of a frame's own compare image (cropped around the mask and the model), at
+/// least: a larger crop keeps its pixels.
 const COMPARE_LONG_SIDE_PX: u32 = 640;
 
 /// What the frames view outlines.
@@ -227,7 +228,9 @@ pub fn run(a: Args) -> Result<ExitCode> {
                 let p = dir.join(format!("compare_{}.png", f.stem));
                 save_png_rgb(
                     &with_legend(
-                        &crop_zoomed(&img, crop, COMPARE_LONG_SIDE_PX),
+                        // Enlarged to COMPARE_LONG_SIDE_PX, never shrunk: nearest-neighbour
+                        // shrinking would drop the 1–2 px slivers this view exists to show.
+                        &crop_zoomed(&img, crop, COMPARE_LONG_SIDE_PX.max(crop[2].max(crop[3]))),
                         &title,
                         &comparison_legend(hand.is_some()),
                     ),
