@@ -783,25 +783,12 @@ pub fn score_table(
             )
             .ok();
         }
+        let ncc = |v: Option<f64>| v.map_or("n/a".into(), |v| format!("{v:.2}"));
         if has_appearance {
-            write!(
-                t,
-                " {:>6}",
-                appearance[k]
-                    .ncc
-                    .map_or("n/a".into(), |v| format!("{v:.2}"))
-            )
-            .ok();
+            write!(t, " {:>6}", ncc(appearance[k].ncc)).ok();
         }
         if has_model {
-            write!(
-                t,
-                " {:>6}",
-                appearance[k]
-                    .model_ncc
-                    .map_or("n/a".into(), |v| format!("{v:.2}"))
-            )
-            .ok();
+            write!(t, " {:>6}", ncc(appearance[k].model_ncc)).ok();
         }
         writeln!(t, "{mark}").ok();
     }
@@ -871,9 +858,9 @@ mod tests {
         assert_eq!(SearchVerb::OapplyAll.command(), "oapply-all");
     }
 
-    #[test]
-    fn the_summary_lists_frames_under_the_gate_worst_first() {
-        let f = |name: &str, iou: Option<f64>| FrameScore {
+    /// A frame's score with `iou` visible (and raw, and combined), no depth and no band.
+    fn frame_score(name: &str, iou: Option<f64>) -> FrameScore {
+        FrameScore {
             frame: name.into(),
             iou_visible: iou,
             iou_raw: iou.unwrap_or(0.0),
@@ -886,7 +873,12 @@ mod tests {
             combined: iou.unwrap_or(0.0),
             band_px: None,
             iou_band: None,
-        };
+        }
+    }
+
+    #[test]
+    fn the_summary_lists_frames_under_the_gate_worst_first() {
+        let f = frame_score;
         let s = SequenceScore::of(
             &[f("a", Some(0.99)), f("b", Some(0.5)), f("c", None)],
             GATE_IOU,
@@ -914,21 +906,10 @@ mod tests {
 
     #[test]
     fn the_score_table_closes_with_the_appearance_line() {
-        let row = |name: &str, iou: f64| FrameScore {
-            frame: name.into(),
-            iou_visible: Some(iou),
-            iou_raw: iou,
-            render_px: 10,
-            mask_px: 10,
-            hand_px: 0,
-            depth_mae: None,
-            depth_mae_canon: None,
-            depth_bias: None,
-            combined: iou,
-            band_px: None,
-            iou_band: None,
-        };
-        let scores = [row("a.png", 0.99), row("b.png", 0.97)];
+        let scores = [
+            frame_score("a.png", Some(0.99)),
+            frame_score("b.png", Some(0.97)),
+        ];
         let summary = SequenceScore::of(&scores, GATE_IOU);
         let look = |frame: &str, ncc: Option<f64>| FrameAppearance {
             frame: frame.into(),
