@@ -563,8 +563,27 @@ pub struct TemporalReport {
     /// `oriented` (camera motion removed) or `camera`.
     pub pose_frame: String,
     pub units: TemporalUnits,
+    /// A step turning the object by more than this (degrees) is large: a hand can make
+    /// it, or one of its two poses is a flip or a part swap; `finish` asks for each to be
+    /// checked.
+    pub large_step_deg: f64,
     pub warnings: Vec<String>,
     pub frames: Vec<TemporalRow>,
+}
+
+impl TemporalReport {
+    /// The steps turning the object by more than [`TemporalReport::large_step_deg`]: (from,
+    /// to, degrees), in the report's order.
+    pub fn large_steps(&self) -> Vec<(String, String, f64)> {
+        self.frames
+            .iter()
+            .filter_map(|r| {
+                let from = r.from.as_ref()?;
+                let deg = r.velocity.rotation_deg?;
+                (deg > self.large_step_deg).then(|| (from.clone(), r.frame.clone(), deg))
+            })
+            .collect()
+    }
 }
 
 /// What `pose-diff` prints: the residual between two keyframes' poses.

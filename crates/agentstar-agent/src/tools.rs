@@ -875,6 +875,11 @@ pub struct FinishArgs {
     /// Keyframes (a name, stem, number or `a..b` range) → why they cannot reach the gate,
     /// one of the categories.
     pub unreachable: Option<BTreeMap<String, Unreachable>>,
+    /// Each large step of the `temporal` report (over 90°) you checked: `A->B` (the step as
+    /// `temporal` prints it; names or stems) → what you found, e.g. `oapply on B: no twin
+    /// within 0.01`. The step's frames must have been looked at (`oapply`, `osweep`,
+    /// `render` or `frames` on either).
+    pub steps_checked: Option<BTreeMap<String, String>>,
     #[schemars(length(max = 4000))]
     pub summary: Option<String>,
 }
@@ -1305,7 +1310,7 @@ tool!(Scale, "scale", Pose, Poses, ScaleArgs,
     |tb, a, step| tb.scale(&a, step));
 
 tool!(Finish, "finish", Diagnostic, Nothing, FinishArgs,
-    "Check the gates and end the run when they hold: every keyframe's band IoU (the gate `score` reports) ≥ 0.98 or a checked reason for it in `unreachable` (categories: occlusion over the run's threshold, a mask error shown on an image, truncated by the frame border, out of the model's reach with a note); at most a quarter of the keyframes (the run's `finish.max_share_under_gate`) under the gate even with reasons; a turntable after the last shape change; a temporal report after the last change of the poses (a commit, track, restore, fit or rescale; searches that were not committed do not count). Returns what is missing otherwise.",
+    "Check the gates and end the run when they hold: every keyframe's band IoU (the gate `score` reports) ≥ 0.98 or a checked reason for it in `unreachable` (categories: occlusion over the run's threshold, a mask error shown on an image, truncated by the frame border, out of the model's reach with a note); at most a quarter of the keyframes (the run's `finish.max_share_under_gate`) under the gate even with reasons; a turntable after the last shape change; a temporal report after the last change of the poses (a commit, track, restore, fit or rescale; searches that were not committed do not count); every large step of the current poses (over 90°, as `temporal` warns) named in `steps_checked` with what you found, after looking at one of its frames (`oapply`, `osweep`, `render` or `frames`). Returns what is missing otherwise.",
     |tb, a, _step| tb.finish(&a));
 
 /// Every tool, in the order offered.
@@ -2549,8 +2554,119 @@ impl Toolbox {
         })
     }
 
+    /// `agentstar temporal --json` over every keyframe, as its report.
+    pub fn temporal_report(&self) -> Result<crate::reports::TemporalReport> {
+        let mut a: Vec<String> = vec!["temporal".into()];
+        a.extend(self.session_args());
+        a.push("--json".into());
+        let (ok, stdout, stderr) = self.exec(&a)?;
+        if !ok {
+            return Err(AgentError::Tool(stderr.trim().to_string()));
+        }
+        serde_json::from_str(&stdout)
+            .map_err(|e| AgentError::Tool(format!("temporal printed no report ({e})")))
+    }
+
+    /// What `finish` still needs about the large steps of the current poses: each one named
+    /// in `checked` with a note, and one of its two frames looked at with a tool that shows
+    /// or scores its twins (`entries`: the ledger). A name in `checked` that is no large step
+    /// is reported too (a typo would otherwise pass for a check).
+    fn unchecked_steps(
+        &self,
+        checked: Option<&BTreeMap<String, String>>,
+        entries: &[agentstar_data::ledger::LedgerEntry],
+    ) -> Vec<String> {
+        let report = match self.temporal_report() {
+            Ok(r) => r,
+            Err(e) => return vec![format!("the temporal report could not be made: {e}")],
+        };
+        let large = report.large_steps();
+        let mut missing = Vec::new();
+        // The steps named, resolved to frame names.
+        let mut named: Vec<(String, String, &str)> = Vec::new();
+        for (key, note) in checked.into_iter().flatten() {
+            let Some((a, b)) = key.split_once("->") else {
+                missing.push(format!(
+                    "`steps_checked` key `{key}` is not a step: write it `A->B`, as `temporal` prints it"
+                ));
+                continue;
+            };
+            let one = |spec: &str| -> std::result::Result<String, String> {
+                match self.frame_names(Some(spec.trim())) {
+                    Ok(v) if v.len() == 1 => Ok(v[0].clone()),
+                    Ok(v) => Err(format!(
+                        "`{}` names {} keyframes, not one",
+                        spec.trim(),
+                        v.len()
+                    )),
+                    Err(e) => Err(e.to_string()),
+                }
+            };
+            match (one(a), one(b)) {
+                (Ok(a), Ok(b)) => {
+                    if !large
+                        .iter()
+                        .any(|(f, t, _)| (f, t) == (&a, &b) || (f, t) == (&b, &a))
+                    {
+                        missing.push(format!(
+                            "`steps_checked` names {a} -> {b}, which is no large step of the current poses (the large ones: {})",
+                            if large.is_empty() {
+                                "none".to_string()
+                            } else {
+                                large
+                                    .iter()
+                                    .map(|(f, t, _)| format!("{f}->{t}"))
+                                    .collect::<Vec<_>>()
+                                    .join(", ")
+                            }
+                        ));
+                    } else if note.trim().is_empty() {
+                        missing.push(format!(
+                            "`steps_checked` {a}->{b} has no note: say what you checked and found"
+                        ));
+                    } else {
+                        named.push((a, b, note.as_str()));
+                    }
+                }
+                (Err(e), _) | (_, Err(e)) => {
+                    missing.push(format!("`steps_checked` key `{key}`: {e}"));
+                }
+            }
+        }
+        // A call that scores or shows a frame's twins, or shows the frame, over `name`.
+        let looked_at = |name: &str| {
+            entries.iter().any(|e| {
+                matches!(e.tool.as_str(), "oapply" | "osweep" | "render" | "frames")
+                    && !e.scores.contains_key("error")
+                    && match e.args.get("frames").and_then(|f| f.as_str()) {
+                        None => true,
+                        Some(spec) => self
+                            .frame_names(Some(spec))
+                            .is_ok_and(|v| v.iter().any(|n| n == name)),
+                    }
+            })
+        };
+        for (from, to, deg) in &large {
+            let done = named
+                .iter()
+                .any(|(a, b, _)| (a, b) == (from, to) || (a, b) == (to, from));
+            if !done {
+                missing.push(format!(
+                    "step {from} -> {to} turns the object by {deg:.0}° (over {:.0}°): check it (`oapply` on {to} scores its flips and swaps, each refined; a twin within about 0.01 IoU means look by eye) and name it in `steps_checked`, e.g. {{\"steps_checked\": {{\"{from}->{to}\": \"oapply on {to}: no twin within 0.01\"}}}}",
+                    report.large_step_deg
+                ));
+            } else if !looked_at(from) && !looked_at(to) {
+                missing.push(format!(
+                    "step {from} -> {to} is named in `steps_checked`, but neither frame was looked at: run `oapply` (or `osweep`, `render`, `frames`) on {to}"
+                ));
+            }
+        }
+        missing
+    }
+
     /// The gates: IoU (or reasons), a turntable after the last shape change, a temporal
-    /// report after the last pose change (both read from the ledger).
+    /// report after the last pose change (both read from the ledger), and each large step
+    /// of the poses checked ([`Toolbox::unchecked_steps`]).
     fn finish(&self, args: &FinishArgs) -> Result<ToolOutput> {
         let summary = args.summary.as_deref().unwrap_or("");
         if let Some(window) = &self.window {
@@ -2654,6 +2770,7 @@ impl Toolbox {
         if temporal.is_none_or(|t| t < pose) {
             missing.push("review the `temporal` report after the last pose change".into());
         }
+        missing.extend(self.unchecked_steps(args.steps_checked.as_ref(), &entries));
         let passed = missing.is_empty();
         let mut o = ToolOutput {
             text: if passed {

@@ -414,6 +414,63 @@ fn finish_takes_categorised_reasons_and_refuses_too_many_frames_under_the_gate()
 }
 
 #[test]
+fn finish_asks_for_each_large_step_to_be_checked_and_named() {
+    let dir = tempfile::tempdir().expect("tmp");
+    small_run(dir.path(), 4, true);
+    let (cap, run) = (dir.path().join("cap"), dir.path().join("run"));
+    let mut c = Session::new(&run);
+    let r = c.call("track", json!({"from": s(&cap.join("model/pose.json"))}));
+    assert_eq!(r["result"]["isError"], false, "{r}");
+    // The first keyframe turned far from its neighbour and committed (off the gate, with a
+    // reason below): a large step 000000 -> 000005.
+    let r = c.call("apply", json!({"frame": "000000", "order": "yaw:130"}));
+    let path = McpClient::text_of(&r)
+        .lines()
+        .find_map(|l| l.strip_prefix("report: ").map(str::to_string))
+        .expect("report path");
+    let r = c.call("pose_commit", json!({"report": path}));
+    assert_eq!(r["result"]["isError"], false, "{r}");
+    c.call("temporal", json!({}));
+    c.call("turntable", json!({}));
+    let reason = json!({"000000": {"category": "out_of_reach", "note": "the lid bends here; the model's lid is rigid"}});
+    let finish = |c: &mut Session, checked: serde_json::Value| {
+        let r = c.call(
+            "finish",
+            json!({"unreachable": reason, "steps_checked": checked}),
+        );
+        McpClient::text_of(&r)
+    };
+    let body = finish(&mut c, json!({}));
+    assert!(
+        body.starts_with("Not finished")
+            && body.contains("step 000000.png -> 000005.png turns the object by")
+            && body.contains("steps_checked"),
+        "{body}"
+    );
+    // Named, but neither frame looked at.
+    let named = json!({"000000->000005": "oapply on 000005: no twin within 0.01"});
+    let body = finish(&mut c, named.clone());
+    assert!(body.contains("neither frame was looked at"), "{body}");
+    // A key that is no step, a step that is not large, an empty note: each named.
+    for (checked, says) in [
+        (json!({"000000-000005": "x"}), "is not a step"),
+        (json!({"000005->000010": "x"}), "no large step"),
+        (json!({"000000->000005": " "}), "has no note"),
+    ] {
+        let body = finish(&mut c, checked.clone());
+        assert!(
+            body.starts_with("Not finished") && body.contains(says),
+            "{checked}: {body}"
+        );
+    }
+    // After the flips of one of its frames were scored, the named step passes.
+    let r = c.call("oapply", json!({"frames": "000005", "set": "flips"}));
+    assert_eq!(r["result"]["isError"], false, "{r}");
+    let body = finish(&mut c, named);
+    assert!(body.starts_with("All gates hold"), "{body}");
+}
+
+#[test]
 fn two_mcp_servers_on_one_run_never_give_a_scene_version_twice() {
     let dir = tempfile::tempdir().expect("tmp");
     let run = dir.path().join("run");

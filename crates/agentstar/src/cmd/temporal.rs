@@ -174,6 +174,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
                 translation: "object units per step".into(),
                 joints: "deg or canonical units per step".into(),
             },
+            large_step_deg: agentstar_track::temporal::LARGE_STEP_DEG,
             warnings: rep.warnings.clone(),
             frames: rows
                 .iter()
