@@ -418,6 +418,8 @@ pub struct FrameHistoryReport {
 /// The label of the start pose a search keeps when nothing it found beat it (the search
 /// commands write it; the search text explains it).
 pub const KEPT_START: &str = "start (no search result beat it)";
+/// What a [`KEPT_START`] label adds when the start lies outside the region searched.
+pub const OUTSIDE_REGION: &str = "outside the region";
 
 /// What `pose commit --json` prints.
 #[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]

@@ -287,8 +287,10 @@ fn read_capped_to(mut r: impl std::io::Read, cap: usize) -> String {
 /// A track's result as an MCP client reads it: the summary first, then what the tracker
 /// did (its log), then one line per frame; the whole report is the structured content. (The
 /// report's JSON as text buried the summary under the per-frame figures: a play-test agent
-/// ran `track` again to read its log.)
-fn track_text(r: &TrackReport) -> String {
+/// ran `track` again to read its log.) With the pose file it wrote, each frame's line ends
+/// with its joint states (pose.json's units: degrees or metres): play-test 6 read pose.json
+/// in a shell to see how far a lid had opened.
+fn track_text(r: &TrackReport, poses: Option<&agentstar_data::posefile::PoseFile>) -> String {
     let q = &r.sequence;
     let mut text = format!(
         "tracked {} frame(s) in {:.1} s ({} evaluations), initialised on {}\n",
@@ -317,7 +319,15 @@ fn track_text(r: &TrackReport) -> String {
     for line in &r.log {
         text.push_str(&format!("  {line}\n"));
     }
-    text.push_str("\nframe        iou_band  iou_visible\n");
+    let joints_of = |frame: &str| poses.and_then(|p| p.frames.get(frame)).map(|e| &e.joints);
+    let with_joints = r
+        .frames
+        .iter()
+        .any(|f| joints_of(&f.frame).is_some_and(|j| !j.is_empty()));
+    text.push_str(&format!(
+        "\nframe        iou_band  iou_visible{}\n",
+        if with_joints { "  joints" } else { "" }
+    ));
     for f in &r.frames {
         let band = f
             .iou_band
@@ -325,7 +335,15 @@ fn track_text(r: &TrackReport) -> String {
         let visible = f
             .iou_visible
             .map_or("     -".to_string(), |v| format!("{v:.4}"));
-        text.push_str(&format!("{:<12} {band:>8}  {visible:>11}\n", f.frame));
+        let joints: String = joints_of(&f.frame)
+            .into_iter()
+            .flatten()
+            .map(|(name, v)| format!("  {name} {v:.1}"))
+            .collect();
+        text.push_str(&format!(
+            "{:<12} {band:>8}  {visible:>11}{joints}\n",
+            f.frame
+        ));
     }
     text.push('\n');
     text
@@ -1479,6 +1497,15 @@ pub fn search_text(report: &SearchReport, path: &Path) -> String {
         if f.ranked.iter().any(|c| c.label.starts_with("seen ")) {
             t.push_str("seen: a place the search passed through, at least 10° in rotation or in a joint from every row above it, and not refined: another basin where the region holds one, else the slope of the same one (refine one with a narrow `sweep` around its order before trusting its score).\n");
         }
+        if let Some(first) = f.ranked.first().filter(|c| {
+            c.label.starts_with(crate::reports::KEPT_START)
+                && c.label.contains(crate::reports::OUTSIDE_REGION)
+        }) {
+            t.push_str(&format!(
+                "note: rank 0 is the start, which lies outside the region you named ({}): it is first only because nothing inside the region scored higher; the region's best is rank 1.\n",
+                first.label.rsplit(": ").next().unwrap_or("")
+            ));
+        }
         if let [only] = &f.ranked[..] {
             if only.label.starts_with(crate::reports::KEPT_START) {
                 t.push_str("note: nothing the search evaluated in this region scored above the start. Either the start is already the best pose here (a sharp optimum: `apply` single small steps to see the surface), or a better pose lies outside the region (widen it, or try the flips with `osweep`).\n");
@@ -1938,7 +1965,12 @@ impl Toolbox {
         Ok(ToolOutput {
             text: format!(
                 "{}pose.json is version {version}; the earlier versions are in pose_history.",
-                track_text(&report)
+                track_text(
+                    &report,
+                    agentstar_data::posefile::PoseFile::read(&report.poses)
+                        .ok()
+                        .as_ref()
+                )
             ),
             pose_changed: true,
             pose_version: Some(version),
@@ -2826,7 +2858,7 @@ mod tests {
             frames,
             pose_version: Some(3),
         };
-        let text = track_text(&report);
+        let text = track_text(&report, None);
         assert!(text.starts_with("tracked 2 frame(s) in 4.0 s"), "{text}");
         assert!(
             text.contains("under the gate, worst first: 000005.png"),
@@ -2837,6 +2869,24 @@ mod tests {
         assert!(log < table, "{text}");
         // No JSON: the report is the structured content.
         assert!(!text.contains('{'), "{text}");
+        assert!(!text.contains("joints"), "a rigid model's table: {text}");
+        // With the pose file: each frame's joint states end its line.
+        let poses: agentstar_data::posefile::PoseFile = serde_json::from_value(json!({
+            "scale": 0.2,
+            "reference_frame": "000000.png",
+            "frames": {
+                "000000.png": {"joints": {"lid_hinge": 0.5}},
+                "000005.png": {"joints": {"lid_hinge": 195.25}}
+            }
+        }))
+        .expect("a pose file");
+        let text = track_text(&report, Some(&poses));
+        assert!(text.contains("iou_visible  joints\n"), "{text}");
+        let line = text
+            .lines()
+            .find(|l| l.starts_with("000005.png"))
+            .expect("the frame's line");
+        assert!(line.ends_with("0.9500  lid_hinge 195.2"), "{line}");
     }
     use serde_json::json;
 
@@ -3113,6 +3163,19 @@ mod tests {
             "{t}"
         );
         assert!(!t.contains("seen: a place"), "{t}");
+        assert!(!t.contains("outside the region you named"), "{t}");
+        // A start outside the region named is first only for want of better (play-test 6
+        // took it for the region's best).
+        kept.frames[0].ranked[0].label = format!(
+            "{}, {}: hinge 10 not in 100..120",
+            crate::reports::KEPT_START,
+            crate::reports::OUTSIDE_REGION
+        );
+        let t = search_text(&kept, Path::new("run/images/x/sweep.json"));
+        assert!(
+            t.contains("rank 0 is the start, which lies outside the region you named (hinge 10 not in 100..120)"),
+            "{t}"
+        );
         // A runner-up row is explained where it appears (play-test 5: `seen` was a mystery).
         let mut seen = report.clone();
         seen.frames[0].ranked[0].label = "seen yaw:40".into();

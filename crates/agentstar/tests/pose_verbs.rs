@@ -236,6 +236,30 @@ fn pose_verbs_track_commit_and_diagnose() {
         .as_f64()
         .expect("iou_band");
     assert_eq!(first[column], format!("{band:.4}"), "{table}");
+    // A region that leaves the start out: the start stays first (nothing in the region beats
+    // it), labelled with where it lies.
+    let mut args = common("sweep", "sweep-out");
+    args.extend([
+        "--frames".into(),
+        "000000".into(),
+        "--ranges".into(),
+        "hinge:100,120,3".into(),
+        "--strategy".into(),
+        "grid".into(),
+        "--json".into(),
+    ]);
+    let o = agentstar(&args.iter().map(String::as_str).collect::<Vec<_>>());
+    assert!(o.status.success(), "{}", text(&o));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("json");
+    let label = v["frames"][0]["ranked"][0]["label"]
+        .as_str()
+        .expect("label");
+    assert!(
+        label.starts_with(agentstar_agent::reports::KEPT_START)
+            && label.contains("outside the region: hinge 10.")
+            && label.ends_with(" not in 100..120"),
+        "{label}"
+    );
 
     // Temporal diagnostics and pose differences.
     let o = agentstar(&[

@@ -387,7 +387,16 @@ fn rows_from(result: SweepResult, space: &SearchSpace, tree: &KinematicTree) -> 
         .map(|c| Row {
             rank: c.rank,
             label: if c.kept_start {
-                agentstar_agent::reports::KEPT_START.into()
+                let outside = outside_region(space, &c.pose, tree);
+                if outside.is_empty() {
+                    agentstar_agent::reports::KEPT_START.into()
+                } else {
+                    format!(
+                        "{}, {}: {outside}",
+                        agentstar_agent::reports::KEPT_START,
+                        agentstar_agent::reports::OUTSIDE_REGION
+                    )
+                }
             } else if c.runner_up {
                 format!("seen {}", order_string(space, &c.x, tree))
             } else {
@@ -399,6 +408,33 @@ fn rows_from(result: SweepResult, space: &SearchSpace, tree: &KinematicTree) -> 
             model_ncc: None,
         })
         .collect()
+}
+
+/// Where the start `pose` lies outside the region `space` names (an increment of 0, or its
+/// joint state, not within a range): `lid_hinge 67 not in 100..125`, joined by `, `; empty
+/// inside. A kept start outside the region is rank 0 only because nothing in the region
+/// beat it (play-test 6 read it as the region's best).
+fn outside_region(space: &SearchSpace, pose: &GenPose, tree: &KinematicTree) -> String {
+    space
+        .ranges
+        .iter()
+        .filter_map(|r| {
+            let v = match r.dof {
+                Dof::Joint(j) => tree.joints()[j].to_interface(*pose.states.get(j)?),
+                _ => 0.0,
+            };
+            (v < r.lo - 1e-9 || v > r.hi + 1e-9).then(|| {
+                format!(
+                    "{} {} not in {}..{}",
+                    r.dof.name(tree),
+                    fmt6(v),
+                    fmt6(r.lo),
+                    fmt6(r.hi)
+                )
+            })
+        })
+        .collect::<Vec<_>>()
+        .join(", ")
 }
 
 fn default_frame(s: &Session, spec: Option<&str>) -> Result<Vec<usize>> {
