@@ -13,7 +13,7 @@ use agentstar_agent::reports::{Candidate, CandidatePose, SearchFrame, SearchRepo
 use agentstar_data::images::save_png_rgb;
 use agentstar_data::posefile::pose_json;
 use agentstar_geom::{KinematicTree, Point3, UnitQuaternion};
-use agentstar_render::frames::crop_box;
+use agentstar_render::frames::{crop_box, crop_zoomed, widened};
 use agentstar_render::sheet::sheet_pages;
 use agentstar_render::views::{overlay, shade, silhouette_comparison, ShadeOptions};
 use agentstar_render::{render_full, BitMask, PosedModel};
@@ -187,7 +187,11 @@ fn candidate_sheet(
         frame.width(),
         frame.height(),
     ]);
-    let cut = |img: &RgbImage| image::imageops::crop_imm(img, x0, y0, w, h).to_image();
+    // At least 4:3 and 320 px on its long side, so that each tile's label (the order) has
+    // room under it.
+    let crop = widened([x0, y0, w, h], TILE_ASPECT, frame.width());
+    let long = crop[2].max(crop[3]);
+    let cut = |img: &RgbImage| crop_zoomed(img, crop, long.max(TILE_LONG_SIDE_PX));
     let mut tiles = Vec::new();
     for ((r, buffers), sil) in shown.iter().zip(&silhouettes) {
         let over = overlay(
@@ -204,6 +208,11 @@ fn candidate_sheet(
     }
     Ok(sheet_pages(&tiles, 4, title))
 }
+
+/// The least width over height of a sweep sheet's tile, and the long side its crop is
+/// enlarged to (never shrunk).
+const TILE_ASPECT: f64 = 4.0 / 3.0;
+const TILE_LONG_SIDE_PX: u32 = 320;
 
 /// The text a person reads at a shell: the ranked table, notes, and how to keep a
 /// candidate (the numbers are in the JSON report, never to be typed into pose.json).
