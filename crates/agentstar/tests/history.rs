@@ -246,17 +246,38 @@ impl Session {
         self.client.call(self.id, name, args);
         self.client.response(self.id).0
     }
+
+    /// `apply` of one order to one keyframe, committed; the search's report.
+    fn commit_order(&mut self, frame: &str, order: &str) -> SearchReport {
+        let r = self.call("apply", json!({"frame": frame, "order": order}));
+        let rep: SearchReport =
+            serde_json::from_value(r["result"]["structuredContent"].clone()).expect("apply");
+        let path = McpClient::text_of(&r)
+            .lines()
+            .find_map(|l| l.strip_prefix("report: ").map(str::to_string))
+            .expect("report path");
+        let r = self.call("pose_commit", json!({"report": path}));
+        assert_eq!(r["result"]["isError"], false, "{r}");
+        rep
+    }
+}
+
+/// A 4-keyframe run with the known scene, an MCP session on it, and the tracker's answer
+/// over MCP, warm-started from the true poses (pose version 1).
+fn tracked_from_truth(dir: &Path) -> (std::path::PathBuf, Session, serde_json::Value) {
+    small_run(dir, 4, true);
+    let (cap, run) = (dir.join("cap"), dir.join("run"));
+    let mut c = Session::new(&run);
+    let r = c.call("track", json!({"from": s(&cap.join("model/pose.json"))}));
+    assert_eq!(r["result"]["isError"], false, "{r}");
+    (run, c, r)
 }
 
 #[test]
 fn finish_takes_categorised_reasons_and_refuses_too_many_frames_under_the_gate() {
     let dir = tempfile::tempdir().expect("tmp");
-    small_run(dir.path(), 4, true);
-    let (cap, run) = (dir.path().join("cap"), dir.path().join("run"));
-    let mut c = Session::new(&run);
     // The tracker over MCP, warm-started from the true poses: a pose version.
-    let r = c.call("track", json!({"from": s(&cap.join("model/pose.json"))}));
-    assert_eq!(r["result"]["isError"], false, "{r}");
+    let (run, mut c, r) = tracked_from_truth(dir.path());
     let t: TrackReport =
         serde_json::from_value(r["result"]["structuredContent"].clone()).expect("track");
     assert_eq!(t.pose_version, Some(1));
@@ -275,16 +296,8 @@ fn finish_takes_categorised_reasons_and_refuses_too_many_frames_under_the_gate()
 
     // One keyframe turned off the gate.
     let spoil = |c: &mut Session, frame: &str| {
-        let r = c.call("apply", json!({"frame": frame, "order": "yaw:35"}));
-        let rep: SearchReport =
-            serde_json::from_value(r["result"]["structuredContent"].clone()).expect("apply");
+        let rep = c.commit_order(frame, "yaw:35");
         assert!(rep.frames[0].ranked[0].gate < 0.9, "{rep:?}");
-        let path = McpClient::text_of(&r)
-            .lines()
-            .find_map(|l| l.strip_prefix("report: ").map(str::to_string))
-            .expect("report path");
-        let r = c.call("pose_commit", json!({"report": path}));
-        assert_eq!(r["result"]["isError"], false, "{r}");
         c.call("temporal", json!({}));
     };
     spoil(&mut c, "000000");
@@ -416,20 +429,10 @@ fn finish_takes_categorised_reasons_and_refuses_too_many_frames_under_the_gate()
 #[test]
 fn finish_asks_for_each_large_step_to_be_checked_and_named() {
     let dir = tempfile::tempdir().expect("tmp");
-    small_run(dir.path(), 4, true);
-    let (cap, run) = (dir.path().join("cap"), dir.path().join("run"));
-    let mut c = Session::new(&run);
-    let r = c.call("track", json!({"from": s(&cap.join("model/pose.json"))}));
-    assert_eq!(r["result"]["isError"], false, "{r}");
+    let (_run, mut c, _) = tracked_from_truth(dir.path());
     // The first keyframe turned far from its neighbour and committed (off the gate, with a
     // reason below): a large step 000000 -> 000005.
-    let r = c.call("apply", json!({"frame": "000000", "order": "yaw:130"}));
-    let path = McpClient::text_of(&r)
-        .lines()
-        .find_map(|l| l.strip_prefix("report: ").map(str::to_string))
-        .expect("report path");
-    let r = c.call("pose_commit", json!({"report": path}));
-    assert_eq!(r["result"]["isError"], false, "{r}");
+    c.commit_order("000000", "yaw:130");
     c.call("temporal", json!({}));
     c.call("turntable", json!({}));
     let reason = json!({"000000": {"category": "out_of_reach", "note": "the lid bends here; the model's lid is rigid"}});
