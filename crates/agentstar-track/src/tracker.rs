@@ -897,8 +897,8 @@ impl<'m> Searcher<'m> {
         if (continuous && deg == 0.0) || in_barred(&g) {
             return None;
         }
-        // Signed, the short way round: −58°, not 302° (play-test 6).
-        let deg = (deg + 180.0).rem_euclid(360.0) - 180.0;
+        // Signed, the short way round, in (−180°, 180°]: −58°, not 302° (play-test 6).
+        let deg = 180.0 - (180.0 - deg).rem_euclid(360.0);
         let note = format!(
             "appearance: turned {deg:+.0}° about the model's {} (principal axis {axis}; NCC {own:.2} → {n_best:.2}, IoU {score:.4} → {sc:.4})",
             crate::temporal::axis_label(&[axes[axis].x, axes[axis].y, axes[axis].z])
