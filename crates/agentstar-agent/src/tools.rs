@@ -824,7 +824,8 @@ pub struct OapplyArgs {
     pub frames: Option<String>,
     /// `flips`, `swaps` (for each hinge, the half-turn that puts its two sides in each
     /// other's place: a laptop's lid and base), or candidates separated by `|`, terms by `;`:
-    /// `identity|flip:x|rz:90;rx:10|swaps`.
+    /// `identity|flip:x|rz:90;rx:10|swaps`; a term `JOINT:value` sets a joint in that
+    /// candidate (degrees, or canonical units for a prismatic joint): `flip:x;hinge:115`.
     pub set: Option<String>,
 }
 

@@ -196,6 +196,32 @@ fn pose_verbs_track_commit_and_diagnose() {
     let v: ScoreReport = score_of(&cap, &model, &tracked, Some("000005"));
     assert!(v.frames[0].iou_visible.expect("iou") >= 0.98, "{v:?}");
 
+    // A candidate may set a joint beside its rotation: as placed, it carries that state.
+    let mut args = common("oapply", "oapply-joint");
+    args.extend([
+        "--frames".into(),
+        "000005".into(),
+        "--set".into(),
+        "identity|flip:x;hinge:60".into(),
+        "--no-refine".into(),
+        "--json".into(),
+    ]);
+    let o = agentstar(&args.iter().map(String::as_str).collect::<Vec<_>>());
+    assert!(o.status.success(), "{}", text(&o));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("json");
+    let ranked = v["frames"][0]["ranked"].as_array().expect("ranked");
+    let set = ranked
+        .iter()
+        .find(|r| r["label"] == "flip:x;hinge:60")
+        .unwrap_or_else(|| panic!("{v}"));
+    let hinge = set["joints"]["hinge"].as_f64().expect("hinge");
+    assert!((hinge - 60.0).abs() < 1e-9, "{set}");
+    let identity = ranked
+        .iter()
+        .find(|r| r["label"] == "identity")
+        .expect("identity");
+    assert!((identity["joints"]["hinge"].as_f64().expect("hinge") - 60.0).abs() > 1.0);
+
     // A sweep with a bad range spec shows the grammar; a good one writes its three outputs.
     let mut args = common("sweep", "sweep");
     args.extend(["--ranges".into(), "yaw:-10".into()]);

@@ -50,7 +50,9 @@ pub struct OapplyArgs {
     /// Candidates separated by `|`, terms by `;`: `identity|flip:x|rz:90;rx:10|flip:y;rz:30`,
     /// `flips` or `swaps`. rx/ry/rz terms make one rotation vector (degrees); a flip splits a
     /// candidate into factors applied left to right about the turned object axes. Each
-    /// candidate turns the object about its box centre (at the frame's joint states).
+    /// candidate turns the object about its box centre (at the frame's joint states). A term
+    /// `JOINT:value` sets that joint in the candidate (degrees, or canonical units for a
+    /// prismatic joint): `flip:x;hinge:115`.
     /// `swaps`: for each revolute joint, the half-turn through the hinge that puts each of
     /// its two sides where the other was (a laptop's lid and base, a notebook's covers),
     /// labelled `swap:JOINT`; none for a rigid model.
@@ -239,26 +241,34 @@ fn refined_to(base: &GenPose, pose: &GenPose, tree: &KinematicTree) -> String {
     out
 }
 
-/// A parsed candidate set: rotations about the box centre, and whether the hinge swaps
-/// (`swaps`) are in it.
+/// One candidate of a set: its label, the rotation about the box centre, and the joint
+/// states it sets (joint index, internal units).
+type SetCandidate = (String, UnitQuaternion, Vec<(usize, f64)>);
+
+/// A parsed candidate set: rotations about the box centre (each with the joint states it
+/// sets), and whether the hinge swaps (`swaps`) are in it.
 struct RotationSet {
-    rotations: Vec<(String, UnitQuaternion)>,
+    rotations: Vec<SetCandidate>,
     swaps: bool,
 }
 
-/// Parses a candidate set: `identity|flip:x|rz:90;rx:10`, `flips`, `swaps`.
-fn rotation_set(spec: &str) -> Result<RotationSet> {
+/// Parses a candidate set of the model with joints `tree`: `identity|flip:x|rz:90;rx:10`,
+/// `flips`, `swaps`, and joint terms in a candidate (`flip:x;hinge:115`).
+fn rotation_set(spec: &str, tree: &KinematicTree) -> Result<RotationSet> {
     let expanded = spec.replace("flips", "identity|flip:x|flip:y|flip:z");
-    let mut out: Vec<(String, UnitQuaternion)> = Vec::new();
+    let mut out: Vec<SetCandidate> = Vec::new();
     let mut swaps = false;
     for cand in expanded.split('|').map(str::trim).filter(|c| !c.is_empty()) {
         if cand == "swaps" {
             swaps = true;
             continue;
         }
-        let q = parse_rotation(cand)?;
-        if !out.iter().any(|(_, o)| o.angle_to(&q) < 1e-9) {
-            out.push((cand.to_string(), q));
+        let (q, joints) = parse_candidate(cand, tree)?;
+        if !out
+            .iter()
+            .any(|(_, o, j)| o.angle_to(&q) < 1e-9 && *j == joints)
+        {
+            out.push((cand.to_string(), q, joints));
         }
     }
     if out.is_empty() && !swaps {
@@ -268,6 +278,53 @@ fn rotation_set(spec: &str) -> Result<RotationSet> {
         rotations: out,
         swaps,
     })
+}
+
+/// One candidate of `oapply`: a rotation ([`parse_rotation`]) with terms `JOINT:value` among
+/// its terms that set a joint of `tree` (interface units: degrees, or canonical units for a
+/// prismatic joint; within its limits): `flip:x;hinge:115` is the flip about x with the hinge
+/// at 115°, `hinge:40` the pose as it is with the hinge at 40°. The joint states come back
+/// in internal units, by joint index.
+fn parse_candidate(
+    cand: &str,
+    tree: &KinematicTree,
+) -> Result<(UnitQuaternion, Vec<(usize, f64)>)> {
+    let mut joints: Vec<(usize, f64)> = Vec::new();
+    let mut rotation_terms: Vec<&str> = Vec::new();
+    for term in cand.split(';').map(str::trim).filter(|t| !t.is_empty()) {
+        let joint = term.split_once(':').and_then(|(k, v)| {
+            let j = tree.joint_index(k.trim())?;
+            Some((j, k.trim(), v.trim()))
+        });
+        let Some((j, name, v)) = joint else {
+            rotation_terms.push(term);
+            continue;
+        };
+        let def = &tree.joints()[j];
+        if !def.kind.has_state() {
+            bail!("`{term}`: joint `{name}` is fixed; it has no state to set");
+        }
+        let value = v
+            .parse::<f64>()
+            .ok()
+            .filter(|x| x.is_finite())
+            .ok_or_else(|| anyhow!("`{term}`: `{v}` is not a joint state"))?;
+        if let Some((lo, hi)) = def.limit {
+            if value < lo || value > hi {
+                bail!("`{term}`: {value} is outside joint `{name}`'s limit [{lo}, {hi}]");
+            }
+        }
+        if joints.iter().any(|(k, _)| *k == j) {
+            bail!("`{cand}`: joint `{name}` is set twice");
+        }
+        joints.push((j, def.to_internal(value)));
+    }
+    let q = if rotation_terms.is_empty() {
+        UnitQuaternion::identity()
+    } else {
+        parse_rotation(&rotation_terms.join(";"))?
+    };
+    Ok((q, joints))
 }
 
 /// One candidate rotation: `identity`, `flip:x|y|z` (180°), `rx`/`ry`/`rz` terms in degrees,
@@ -340,7 +397,7 @@ fn parse_rotation(cand: &str) -> Result<UnitQuaternion> {
 
 pub fn run_oapply(a: OapplyArgs) -> Result<ExitCode> {
     let s = a.common.session.open()?;
-    let set = rotation_set(&a.set)?;
+    let set = rotation_set(&a.set, &s.model.model.tree)?;
     let frames = select_frames(&s.capture, a.frames.as_deref())?;
     let mut outputs = Vec::new();
     for &i in progress(frames.len(), "oapply").wrap_iter(frames.iter()) {
@@ -348,17 +405,17 @@ pub fn run_oapply(a: OapplyArgs) -> Result<ExitCode> {
         let p = problem_for(&s, i, &inputs, a.common.depth_weight, s.gen_pose(i));
         let mut ev = p.evaluator();
         // The rotations about the box centre, then the hinge swaps about their hinges.
-        let mut moves: Vec<(String, UnitQuaternion, Point3)> = set
+        let mut moves: Vec<(String, UnitQuaternion, Point3, Vec<(usize, f64)>)> = set
             .rotations
             .iter()
-            .map(|(label, q)| (label.clone(), *q, p.pivot))
+            .map(|(label, q, joints)| (label.clone(), *q, p.pivot, joints.clone()))
             .collect();
         if set.swaps {
             let tree = &s.model.model.tree;
             moves.extend(
                 hinge_swaps(&s.model.model, &p.base.states)
                     .into_iter()
-                    .map(|(j, q, c)| (format!("swap:{}", tree.joints()[j].name), q, c)),
+                    .map(|(j, q, c)| (format!("swap:{}", tree.joints()[j].name), q, c, vec![])),
             );
         }
         if moves.is_empty() {
@@ -369,12 +426,13 @@ pub fn run_oapply(a: OapplyArgs) -> Result<ExitCode> {
         }
         let mut rows: Vec<Row> = moves
             .iter()
-            .map(|(label, q, centre)| {
+            .map(|(label, q, centre, joints)| {
                 let pose = apply_object_rotation(&p.base.pose, s.scale(), centre, q);
-                let g = GenPose {
-                    pose,
-                    states: p.base.states.clone(),
-                };
+                let mut states = p.base.states.clone();
+                for &(j, v) in joints {
+                    states[j] = v;
+                }
+                let g = GenPose { pose, states };
                 let score = ev.score(&g);
                 Row {
                     rank: 0,
@@ -494,7 +552,8 @@ mod tests {
             assert!(parse_rotation(bad).is_err(), "{bad}");
         }
         // A whole set with flips inside compounds.
-        let set = rotation_set("identity|flip:x;rz:15|flips").expect("set");
+        let rigid = KinematicTree::rigid(1);
+        let set = rotation_set("identity|flip:x;rz:15|flips", &rigid).expect("set");
         assert_eq!(
             set.rotations.len(),
             5,
@@ -503,9 +562,50 @@ mod tests {
         );
         assert!(!set.swaps);
         // The hinge swaps alone are a set (of none for a rigid model: the run says so).
-        let set = rotation_set("swaps").expect("set");
+        let set = rotation_set("swaps", &rigid).expect("set");
         assert!(set.swaps && set.rotations.is_empty());
-        let set = rotation_set("flips|swaps").expect("set");
+        let set = rotation_set("flips|swaps", &rigid).expect("set");
         assert!(set.swaps && set.rotations.len() == 4);
+        // A joint name is not a rotation of a rigid model.
+        assert!(rotation_set("flip:x;hinge:115", &rigid).is_err());
+    }
+
+    /// A box with a lid on a hinge limited to [0, 120]°.
+    fn hinged() -> KinematicTree {
+        let def = agentstar_geom::JointDef {
+            name: "hinge".into(),
+            kind: agentstar_geom::JointKind::Revolute,
+            parent: None,
+            child: vec!["lid".into()],
+            origin: agentstar_geom::Vector3::zeros(),
+            axis: agentstar_geom::Vector3::x(),
+            limit: Some((0.0, 120.0)),
+        };
+        KinematicTree::new(vec![def], &["base".into(), "lid".into()]).expect("tree")
+    }
+
+    #[test]
+    fn a_candidate_sets_joint_states_beside_its_rotation() {
+        let tree = hinged();
+        let (q, joints) = parse_candidate("flip:x;hinge:115", &tree).expect("parses");
+        assert!(q.angle_to(&flip('x').expect("axis")) < 1e-9);
+        assert_eq!(joints.len(), 1);
+        assert_eq!(joints[0].0, 0);
+        assert!((joints[0].1 - 115f64.to_radians()).abs() < 1e-12);
+        // A joint alone keeps the rotation.
+        let (q, joints) = parse_candidate("hinge:40", &tree).expect("parses");
+        assert!(q.angle_to(&UnitQuaternion::identity()) < 1e-12 && joints.len() == 1);
+        // The same rotation with two joint states is two candidates.
+        let set = rotation_set("identity|hinge:40|hinge:80|identity", &tree).expect("set");
+        assert_eq!(set.rotations.len(), 3);
+        for (bad, says) in [
+            ("flip:x;hinge:150", "outside joint `hinge`'s limit [0, 120]"),
+            ("hinge:40;hinge:50", "set twice"),
+            ("hinge:wide", "is not a joint state"),
+            ("lid:40", "not an object-frame axis"),
+        ] {
+            let e = parse_candidate(bad, &tree).expect_err(bad).to_string();
+            assert!(e.contains(says), "{bad}: {e}");
+        }
     }
 }
