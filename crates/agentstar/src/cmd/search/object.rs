@@ -405,17 +405,14 @@ pub fn run_oapply(a: OapplyArgs) -> Result<ExitCode> {
         let p = problem_for(&s, i, &inputs, a.common.depth_weight, s.gen_pose(i));
         let mut ev = p.evaluator();
         // The rotations about the box centre, then the hinge swaps about their hinges.
-        let mut moves: Vec<(String, UnitQuaternion, Point3, Vec<(usize, f64)>)> = set
-            .rotations
-            .iter()
-            .map(|(label, q, joints)| (label.clone(), *q, p.pivot, joints.clone()))
-            .collect();
+        let mut moves: Vec<(SetCandidate, Point3)> =
+            set.rotations.iter().map(|c| (c.clone(), p.pivot)).collect();
         if set.swaps {
             let tree = &s.model.model.tree;
             moves.extend(
                 hinge_swaps(&s.model.model, &p.base.states)
                     .into_iter()
-                    .map(|(j, q, c)| (format!("swap:{}", tree.joints()[j].name), q, c, vec![])),
+                    .map(|(j, q, c)| ((format!("swap:{}", tree.joints()[j].name), q, vec![]), c)),
             );
         }
         if moves.is_empty() {
@@ -426,7 +423,7 @@ pub fn run_oapply(a: OapplyArgs) -> Result<ExitCode> {
         }
         let mut rows: Vec<Row> = moves
             .iter()
-            .map(|(label, q, centre, joints)| {
+            .map(|((label, q, joints), centre)| {
                 let pose = apply_object_rotation(&p.base.pose, s.scale(), centre, q);
                 let mut states = p.base.states.clone();
                 for &(j, v) in joints {
