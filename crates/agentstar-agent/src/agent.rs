@@ -275,12 +275,13 @@ fn drop_old_images(messages: &mut [Message], keep: usize) {
     }
 }
 
-/// The tools a loop offers: the catalogue (minus `task`, which is in the system prompt),
-/// plus `delegate_pose` for the orchestrator.
-fn offered(orchestrator: bool) -> Vec<ToolSpec> {
+/// The tools a loop offers: the catalogue as `toolbox` can serve it ([`Toolbox::offers`]:
+/// no `critic` without a critic model), minus `task` (in the system prompt), plus
+/// `delegate_pose` for the orchestrator.
+fn offered(toolbox: &Toolbox, orchestrator: bool) -> Vec<ToolSpec> {
     let mut v: Vec<ToolSpec> = catalogue()
         .into_iter()
-        .filter(|t| t.name != "task")
+        .filter(|t| t.name != "task" && toolbox.offers(t.name))
         .collect();
     if orchestrator {
         v.push(ToolSpec {
@@ -328,7 +329,7 @@ pub fn run_agent(
     label: &str,
 ) -> Result<Outcome> {
     let orchestrator = brief.is_none();
-    let tools = offered(orchestrator);
+    let tools = offered(toolbox, orchestrator);
     let mut messages: Vec<Message> = vec![Message::User(match brief {
         None => opening(&toolbox.run)?,
         Some(_) => vec![Part::Text(format!(

@@ -177,6 +177,16 @@ pub fn task_document() -> String {
 }
 
 /// What an MCP client shows its model when it connects.
+/// [`MCP_INSTRUCTIONS`] as a server without a critic model gives them: `critic` is not
+/// among the tools it lists, so the instructions do not name it.
+pub fn mcp_instructions(with_critic: bool) -> String {
+    if with_critic {
+        MCP_INSTRUCTIONS.to_string()
+    } else {
+        MCP_INSTRUCTIONS.replace(", pose_diff, critic.", ", pose_diff.")
+    }
+}
+
 pub const MCP_INSTRUCTIONS: &str = "agentstar fits an object model written as code (scene.rhai) and its pose in every keyframe of a video to the object's masks. Read TASK.md in the run directory first (the tool `task` returns it): it explains the loop (each step changes the shape or the poses, never both), how to read the images, and the gates `finish` checks. Shape tools: scene_read, scene_write, scene_restore, fit_shape, scale, turntable. Pose tools: track, sweep, apply, osweep, oapply, oapply_all, pose_commit, pose_history, pose_restore. Diagnostics: frames (the raw keyframes, cropped around the mask), render, score, temporal, pose_diff, critic. Images come back inline and as files under the run's images/ directory.";
 
 #[cfg(test)]
@@ -217,6 +227,13 @@ mod tests {
     fn the_task_document_holds_the_gates_and_the_whole_scene_api() {
         let t = task_document();
         assert!(t.contains("0.98") && t.contains("finish"));
+        // Without a critic model the instructions do not name the critic.
+        assert!(mcp_instructions(true).contains("pose_diff, critic."));
+        let without = mcp_instructions(false);
+        assert!(
+            !without.contains("critic") && without.contains("pose_diff."),
+            "{without}"
+        );
         assert!(t.contains("A worked articulated example"));
         assert!(t.contains("joint("));
         // Short enough to read whole: under ~5,000 words.

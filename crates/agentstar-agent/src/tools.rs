@@ -1981,6 +1981,12 @@ impl Toolbox {
         })
     }
 
+    /// Whether this toolbox serves the tool called `name`: every tool but `critic`, which
+    /// needs a critic model (play-tests 5 and 6 found it listed and unusable).
+    pub fn offers(&self, name: &str) -> bool {
+        name != Critic::NAME || self.critic.is_some()
+    }
+
     fn critic(&self, frame: &str, step: u64) -> Result<ToolOutput> {
         let Some(critic) = &self.critic else {
             return Ok(ToolOutput::text(

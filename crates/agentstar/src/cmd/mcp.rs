@@ -11,7 +11,7 @@
 use crate::cmd::agent::{mcp_config_json, mcp_config_toml};
 use agentstar_agent::agent::{record_step, StepRecord};
 use agentstar_agent::run::RunDir;
-use agentstar_agent::task::MCP_INSTRUCTIONS;
+use agentstar_agent::task::mcp_instructions;
 use agentstar_agent::tools::{catalogue, find, with_activity, Activity, Toolbox};
 use anyhow::{bail, Context, Result};
 use base64::Engine;
@@ -63,7 +63,7 @@ struct Server {
 impl ServerHandler for Server {
     fn get_info(&self) -> ServerConfig {
         ServerConfig::new(ServerCapabilities::builder().enable_tools().build())
-            .with_instructions(MCP_INSTRUCTIONS)
+            .with_instructions(&mcp_instructions(self.toolbox.offers("critic")))
             .with_server_info(Implementation::new("agentstar", env!("CARGO_PKG_VERSION")))
     }
 
@@ -72,7 +72,12 @@ impl ServerHandler for Server {
         _request: Option<PaginatedRequestParams>,
         _context: RequestContext<RoleServer>,
     ) -> Result<ListToolsResult, ErrorData> {
-        Ok(ListToolsResult::with_all_items(mcp_tools()))
+        Ok(ListToolsResult::with_all_items(
+            mcp_tools()
+                .into_iter()
+                .filter(|t| self.toolbox.offers(&t.name))
+                .collect(),
+        ))
     }
 
     async fn call_tool(
