@@ -222,6 +222,45 @@ fn pose_verbs_track_commit_and_diagnose() {
         .expect("identity");
     assert!((identity["joints"]["hinge"].as_f64().expect("hinge") - 60.0).abs() > 1.0);
 
+    // A sweep that comes back to its start says so; one that moves does not.
+    let converged = |shift: Option<&str>| -> bool {
+        let mut args = vec![
+            "sweep".to_string(),
+            "--capture".into(),
+            cap.clone(),
+            "--model".into(),
+            model.clone(),
+            "--poses".into(),
+            poses.clone(),
+            "--out".into(),
+            dir.path()
+                .join(format!("sweep-back-{}", shift.is_some()))
+                .display()
+                .to_string(),
+            "--frames".into(),
+            "000005".into(),
+            "--ranges".into(),
+            "yaw:-20,20;pitch:-10,10".into(),
+            "--json".into(),
+        ];
+        if let Some(sh) = shift {
+            args.extend(["--start-shift".into(), sh.into()]);
+        }
+        let o = agentstar(&args.iter().map(String::as_str).collect::<Vec<_>>());
+        assert!(o.status.success(), "{}", text(&o));
+        let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("json");
+        v["frames"][0]["notes"]
+            .as_array()
+            .expect("notes")
+            .iter()
+            .any(|n| {
+                n.as_str()
+                    .is_some_and(|n| n.starts_with("the search came back to its start"))
+            })
+    };
+    assert!(converged(None));
+    assert!(!converged(Some("yaw:12")));
+
     // A sweep with a bad range spec shows the grammar; a good one writes its three outputs.
     let mut args = common("sweep", "sweep");
     args.extend(["--ranges".into(), "yaw:-10".into()]);

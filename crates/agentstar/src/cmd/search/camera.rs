@@ -130,6 +130,12 @@ pub fn run_sweep(a: SweepArgs) -> Result<ExitCode> {
             "score_field": r.score_field.as_ref().map(|f| json!({"dofs": [space.ranges[0].dof.name(tree), space.ranges[1].dof.name(tree)], "a_values": f.a, "b_values": f.b, "scores": f.scores})),
         });
         let mut notes = space.notes.clone();
+        if r.ranked
+            .first()
+            .is_some_and(|c| !c.kept_start && converged_to(&c.pose, &p.base))
+        {
+            notes.push(CONVERGED_NOTE.to_string());
+        }
         if let Some(f) = &r.score_field {
             notes.push(heat_map(f, &space, tree));
             let img = agentstar_render::views::heat_map(
@@ -260,6 +266,24 @@ fn parse_spec_values(order: &str, tree: &KinematicTree) -> Result<(SearchSpace, 
     let space = parse_spec(&spec.join(";"), tree, Grammar::Camera)?;
     let x = space.ranges.iter().map(|r| r.lo).collect();
     Ok((space, x))
+}
+
+/// What a sweep says when its best is the start it began from (play-test 7 read a rank 0 of
+/// zero increments above rows of `seen` as a failed search).
+const CONVERGED_NOTE: &str = "the search came back to its start: rank 0 is the start pose (within 0.5° and 0.5% of its depth, every joint within 0.5°), so nothing in this region scores higher and the start is its optimum. To look elsewhere, widen the region or try the flips (`osweep`).";
+
+/// Whether `best` is `start` to within 0.5° of rotation, 0.5% of the depth and 0.5° (or
+/// 0.005 units) in every joint.
+fn converged_to(best: &GenPose, start: &GenPose) -> bool {
+    let depth = start.pose.translation.z.abs().max(1e-9);
+    best.pose.rotation.angle_to(&start.pose.rotation) <= 0.5f64.to_radians()
+        && (best.pose.translation - start.pose.translation).norm() <= 0.005 * depth
+        && best.states.len() == start.states.len()
+        && best
+            .states
+            .iter()
+            .zip(&start.states)
+            .all(|(a, b)| (a - b).abs() <= 0.5f64.to_radians().max(0.005))
 }
 
 pub fn run_apply(a: ApplyArgs) -> Result<ExitCode> {
