@@ -349,15 +349,35 @@ fn track_text(r: &TrackReport, poses: Option<&agentstar_data::posefile::PoseFile
     text
 }
 
+/// Whether a fitted parameter moved by more than a thousandth of its range.
+fn param_moved(p: &crate::fit::FitParam) -> bool {
+    (p.after - p.before).abs() > 1e-3 * (p.max - p.min)
+}
+
+/// The line a fit adds when some parameters moved and others did not (play-test 7: 9 of
+/// 10 stayed at their values, and one restarted elsewhere by hand gained 0.05 IoU); `None`
+/// when all moved or none did (then [`fit_saves_nothing`] says why).
+fn unmoved_line(report: &crate::fit::FitReport) -> Option<String> {
+    let unmoved: Vec<&str> = report
+        .params
+        .iter()
+        .filter(|p| !param_moved(p))
+        .map(|p| p.name.as_str())
+        .collect();
+    (!unmoved.is_empty() && unmoved.len() < report.params.len()).then(|| {
+        format!(
+            "did not move: {}. Along these the IoU is flat or at a local optimum at these poses; where the silhouettes still disagree there, set another value in the script (scene_write) and fit them again, alone.\n",
+            unmoved.join(", ")
+        )
+    })
+}
+
 /// Why a shape fit's result is not saved, if it is not: no parameter moved by more than a
 /// thousandth of its range (the gain, if any, came from refining the poses alone: play-test,
 /// 2026-12-02, a fit from wrong poses saved an unchanged scene as a new version), or the
 /// mean IoU did not rise.
 fn fit_saves_nothing(report: &crate::fit::FitReport) -> Option<&'static str> {
-    let moved = report
-        .params
-        .iter()
-        .any(|p| (p.after - p.before).abs() > 1e-3 * (p.max - p.min));
+    let moved = report.params.iter().any(param_moved);
     if !moved {
         Some("No parameter moved: at these poses (held, refined only locally) no change of the parameters raises the IoU. That does not make the shape right: poses fitted to a wrong shape hold it where it is, and any rise of the mean above came from refining the poses alone. The scene and pose.json are unchanged (no version saved). If the silhouettes still disagree, change the shape by hand (scene_write), track from pose.json, then fit again.\n")
     } else if report.iou_mean_after <= report.iou_mean_before + 1e-4 {
@@ -2047,8 +2067,11 @@ impl Toolbox {
         // The check's report, typed (absent when the scene does not build: then its error).
         let report: Option<CheckReport> = serde_json::from_str(&check).ok();
         Ok(ToolOutput {
+            // The file's path: a coding agent edits the script there and passes it back
+            // whole (play-test 7 cut the script out of this text to edit it).
             text: format!(
-                "scene.rhai (versions saved: {:?}):\n```rhai\n{}\n```\ncheck:\n{}{}",
+                "scene.rhai ({}; versions saved: {:?}):\n```rhai\n{}\n```\ncheck:\n{}{}",
+                self.run.scene.display(),
                 self.run.list_scene_versions(),
                 script.trim_end(),
                 report
@@ -2308,6 +2331,9 @@ impl Toolbox {
             report.iou_min_before,
             report.iou_min_after
         );
+        if let Some(line) = unmoved_line(&report) {
+            text.push_str(&line);
+        }
         if !report.held.is_empty() {
             text.push_str(&format!(
                 "held as they are: {}\n",
@@ -2940,6 +2966,17 @@ mod tests {
         let why = fit_saves_nothing(&report(1.0, 1.05, 0.99, 0.99)).expect("not saved");
         assert!(why.contains("did not raise"), "{why}");
         assert_eq!(fit_saves_nothing(&report(1.0, 1.05, 0.93, 0.99)), None);
+        // One parameter: it moved or not, nothing to single out.
+        assert_eq!(unmoved_line(&report(1.0, 1.05, 0.93, 0.99)), None);
+        assert_eq!(unmoved_line(&report(1.0, 1.0002, 0.93, 0.99)), None);
+        // Of two, the one that stayed is named.
+        let mut two = report(1.0, 1.05, 0.93, 0.99);
+        let mut depth = two.params[0].clone();
+        depth.name = "depth".into();
+        depth.after = depth.before;
+        two.params.push(depth);
+        let line = unmoved_line(&two).expect("a line");
+        assert!(line.starts_with("did not move: depth."), "{line}");
     }
 
     /// Every schema, at every depth: no `null` types (optional fields are left out) and no
