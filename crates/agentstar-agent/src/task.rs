@@ -88,7 +88,7 @@ compare; compare and side are cropped around the object, overlay shows the whole
 
 ## What the tools cannot see
 
-Every score here compares silhouettes. Three kinds of error leave the silhouette unchanged,
+Every score here compares silhouettes. Four kinds of error leave the silhouette unchanged,
 so a high IoU does not rule them out:
 
 - **Symmetric twins.** An object that looks alike from two sides (a box, a bottle, a mug
@@ -101,6 +101,11 @@ so a high IoU does not rule them out:
   Check: limit joints to the range they really move (the scene check warns about full
   turns); look at `turntable` at the joint's min, median and max (it warns when many
   keyframes sit at a limit) and at `frames` where the part is visible.
+- **A mirror-image model.** A model built the mirror image of the object (a handle, a ring
+  or a part on the wrong side; two blades layered the wrong way round) fits most
+  silhouettes, and no pose, flip or swap can fix it: a reflection is not a turn. Check:
+  `frames` with the model's outline, or `render` views `side`, where the parts' order or
+  sides show; mirror the script (negate the coordinate across the plane) if it is.
 - **Scale.** A larger object farther away casts the same silhouette: the IoU cannot tell
   the scale from the distance. Check: use depth when the capture has it (the depth error
   in `score`), a size you know ("the laptop is 30 cm wide"), or a moving camera's
