@@ -106,6 +106,10 @@ pub struct Candidate {
     /// (a lid and base swapped), the figure that tells them apart.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub model_ncc: Option<f64>,
+    /// Where a kept start lies outside the region searched, one entry per coordinate
+    /// (`hinge 10 not in 100..120`); empty inside it and for every other row.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub outside_region: Vec<String>,
     /// Search diagnostics (restart, seed, pass, raw vector).
     pub extra: Value,
 }
@@ -418,8 +422,6 @@ pub struct FrameHistoryReport {
 /// The label of the start pose a search keeps when nothing it found beat it (the search
 /// commands write it; the search text explains it).
 pub const KEPT_START: &str = "start (no search result beat it)";
-/// What a [`KEPT_START`] label adds when the start lies outside the region searched.
-pub const OUTSIDE_REGION: &str = "outside the region";
 
 /// What `pose commit --json` prints.
 #[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
@@ -566,26 +568,22 @@ pub struct TemporalReport {
     pub pose_frame: String,
     pub units: TemporalUnits,
     /// A step turning the object by more than this (degrees) is large: a hand can make
-    /// it, or one of its two poses is a flip or a part swap; `finish` asks for each to be
-    /// checked.
+    /// it, or one of its two poses is a flip or a part swap.
     pub large_step_deg: f64,
+    /// Those steps over the whole sequence (whatever `--frames` shows), in order: `finish`
+    /// asks for each to be checked.
+    pub large_steps: Vec<TemporalLargeStep>,
     pub warnings: Vec<String>,
     pub frames: Vec<TemporalRow>,
 }
 
-impl TemporalReport {
-    /// The steps turning the object by more than [`TemporalReport::large_step_deg`]: (from,
-    /// to, degrees), in the report's order.
-    pub fn large_steps(&self) -> Vec<(String, String, f64)> {
-        self.frames
-            .iter()
-            .filter_map(|r| {
-                let from = r.from.as_ref()?;
-                let deg = r.velocity.rotation_deg?;
-                (deg > self.large_step_deg).then(|| (from.clone(), r.frame.clone(), deg))
-            })
-            .collect()
-    }
+/// One of [`TemporalReport::large_steps`].
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TemporalLargeStep {
+    pub from: String,
+    pub to: String,
+    pub rotation_deg: f64,
 }
 
 /// What `pose-diff` prints: the residual between two keyframes' poses.

@@ -181,7 +181,6 @@ pub fn task_document() -> String {
     s
 }
 
-/// What an MCP client shows its model when it connects.
 /// [`MCP_INSTRUCTIONS`] as a server without a critic model gives them: `critic` is not
 /// among the tools it lists, so the instructions do not name it.
 pub fn mcp_instructions(with_critic: bool) -> String {
@@ -192,6 +191,8 @@ pub fn mcp_instructions(with_critic: bool) -> String {
     }
 }
 
+/// What an MCP client shows its model when it connects (with a critic model: see
+/// [`mcp_instructions`]).
 pub const MCP_INSTRUCTIONS: &str = "agentstar fits an object model written as code (scene.rhai) and its pose in every keyframe of a video to the object's masks. Read TASK.md in the run directory first (the tool `task` returns it): it explains the loop (each step changes the shape or the poses, never both), how to read the images, and the gates `finish` checks. Shape tools: scene_read, scene_write, scene_restore, fit_shape, scale, turntable. Pose tools: track, sweep, apply, osweep, oapply, oapply_all, pose_commit, pose_history, pose_restore. Diagnostics: frames (the raw keyframes, cropped around the mask), render, score, temporal, pose_diff, critic. Images come back inline and as files under the run's images/ directory.";
 
 #[cfg(test)]

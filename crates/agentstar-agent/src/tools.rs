@@ -916,11 +916,20 @@ pub struct FinishArgs {
     pub unreachable: Option<BTreeMap<String, Unreachable>>,
     /// Each large step of the `temporal` report (over 90°) you checked: `A->B` (the step as
     /// `temporal` prints it; names or stems) → what you found, e.g. `oapply on B: no twin
-    /// within 0.01`. The step's frames must have been looked at (`oapply`, `osweep`,
-    /// `render` or `frames` on either).
+    /// within 0.01`. One of the step's frames must have been looked at (`oapply`, `osweep`,
+    /// `render` or `frames`) since the poses last changed. A step that is no longer large is
+    /// ignored.
     pub steps_checked: Option<BTreeMap<String, String>>,
     #[schemars(length(max = 4000))]
     pub summary: Option<String>,
+}
+
+/// The frames a ledger entry's arguments name (`frames`; all when absent): what `finish`
+/// reads back of the calls that looked at a large step's frames.
+#[derive(Debug, Deserialize)]
+struct FramesOf {
+    #[serde(default)]
+    frames: Option<String>,
 }
 
 #[derive(Debug, Deserialize, JsonSchema)]
@@ -1518,13 +1527,15 @@ pub fn search_text(report: &SearchReport, path: &Path) -> String {
         if f.ranked.iter().any(|c| c.label.starts_with("seen ")) {
             t.push_str("seen: a place the search passed through, at least 10° in rotation or in a joint from every row above it, and not refined: another basin where the region holds one, else the slope of the same one (refine one with a narrow `sweep` around its order before trusting its score).\n");
         }
-        if let Some(first) = f.ranked.first().filter(|c| {
-            c.label.starts_with(crate::reports::KEPT_START)
-                && c.label.contains(crate::reports::OUTSIDE_REGION)
-        }) {
+        if let Some(first) = f.ranked.first().filter(|c| !c.outside_region.is_empty()) {
             t.push_str(&format!(
-                "note: rank 0 is the start, which lies outside the region you named ({}): it is first only because nothing inside the region scored higher; the region's best is rank 1.\n",
-                first.label.rsplit(": ").next().unwrap_or("")
+                "note: rank 0 is the start, which lies outside the region you named ({}): it is first only because nothing inside the region scored higher{}.\n",
+                first.outside_region.join(", "),
+                if f.ranked.len() > 1 {
+                    "; the region's best is rank 1"
+                } else {
+                    ""
+                }
             ));
         }
         if let [only] = &f.ranked[..] {
@@ -2640,12 +2651,17 @@ impl Toolbox {
         &self,
         checked: Option<&BTreeMap<String, String>>,
         entries: &[agentstar_data::ledger::LedgerEntry],
+        pose_step: u64,
     ) -> Vec<String> {
         let report = match self.temporal_report() {
             Ok(r) => r,
             Err(e) => return vec![format!("the temporal report could not be made: {e}")],
         };
-        let large = report.large_steps();
+        let large: Vec<(String, String, f64)> = report
+            .large_steps
+            .iter()
+            .map(|s| (s.from.clone(), s.to.clone(), s.rotation_deg))
+            .collect();
         let mut missing = Vec::new();
         // The steps named, resolved to frame names.
         let mut named: Vec<(String, String, &str)> = Vec::new();
@@ -2669,23 +2685,15 @@ impl Toolbox {
             };
             match (one(a), one(b)) {
                 (Ok(a), Ok(b)) => {
+                    // A step that is no longer large (fixed since) is no gate: nothing to
+                    // check there.
                     if !large
                         .iter()
                         .any(|(f, t, _)| (f, t) == (&a, &b) || (f, t) == (&b, &a))
                     {
-                        missing.push(format!(
-                            "`steps_checked` names {a} -> {b}, which is no large step of the current poses (the large ones: {})",
-                            if large.is_empty() {
-                                "none".to_string()
-                            } else {
-                                large
-                                    .iter()
-                                    .map(|(f, t, _)| format!("{f}->{t}"))
-                                    .collect::<Vec<_>>()
-                                    .join(", ")
-                            }
-                        ));
-                    } else if note.trim().is_empty() {
+                        continue;
+                    }
+                    if note.trim().is_empty() {
                         missing.push(format!(
                             "`steps_checked` {a}->{b} has no note: say what you checked and found"
                         ));
@@ -2698,16 +2706,21 @@ impl Toolbox {
                 }
             }
         }
-        // A call that scores or shows a frame's twins, or shows the frame, over `name`.
+        // A call that scores or shows a frame's twins, or shows the frame, over `name`,
+        // after the last change of the poses (a look at poses since replaced is no check of
+        // these).
+        let looks = [Oapply::NAME, Osweep::NAME, Render::NAME, Keyframes::NAME];
         let looked_at = |name: &str| {
             entries.iter().any(|e| {
-                matches!(e.tool.as_str(), "oapply" | "osweep" | "render" | "frames")
+                e.step > pose_step
+                    && looks.contains(&e.tool.as_str())
                     && !e.scores.contains_key("error")
-                    && match e.args.get("frames").and_then(|f| f.as_str()) {
-                        None => true,
-                        Some(spec) => self
-                            .frame_names(Some(spec))
+                    && match serde_json::from_value::<FramesOf>(e.args.clone()) {
+                        Ok(FramesOf { frames: None }) => true,
+                        Ok(FramesOf { frames: Some(spec) }) => self
+                            .frame_names(Some(&spec))
                             .is_ok_and(|v| v.iter().any(|n| n == name)),
+                        Err(_) => false,
                     }
             })
         };
@@ -2722,7 +2735,7 @@ impl Toolbox {
                 ));
             } else if !looked_at(from) && !looked_at(to) {
                 missing.push(format!(
-                    "step {from} -> {to} is named in `steps_checked`, but neither frame was looked at: run `oapply` (or `osweep`, `render`, `frames`) on {to}"
+                    "step {from} -> {to} is named in `steps_checked`, but neither frame was looked at since the poses last changed: run `oapply` (or `osweep`, `render`, `frames`) on {to}"
                 ));
             }
         }
@@ -2835,7 +2848,7 @@ impl Toolbox {
         if temporal.is_none_or(|t| t < pose) {
             missing.push("review the `temporal` report after the last pose change".into());
         }
-        missing.extend(self.unchecked_steps(args.steps_checked.as_ref(), &entries));
+        missing.extend(self.unchecked_steps(args.steps_checked.as_ref(), &entries, pose));
         let passed = missing.is_empty();
         let mut o = ToolOutput {
             text: if passed {
@@ -3180,6 +3193,7 @@ mod tests {
                     depth_canon: None,
                     combined: 0.97,
                     model_ncc: None,
+                    outside_region: vec![],
                     extra: json!({}),
                 }],
             }],
@@ -3210,16 +3224,21 @@ mod tests {
         assert!(!t.contains("outside the region you named"), "{t}");
         // A start outside the region named is first only for want of better (play-test 6
         // took it for the region's best).
-        kept.frames[0].ranked[0].label = format!(
-            "{}, {}: hinge 10 not in 100..120",
-            crate::reports::KEPT_START,
-            crate::reports::OUTSIDE_REGION
-        );
+        kept.frames[0].ranked[0].outside_region = vec!["hinge 10 not in 100..120".into()];
         let t = search_text(&kept, Path::new("run/images/x/sweep.json"));
         assert!(
-            t.contains("rank 0 is the start, which lies outside the region you named (hinge 10 not in 100..120)"),
+            t.contains("rank 0 is the start, which lies outside the region you named (hinge 10 not in 100..120): it is first only because nothing inside the region scored higher."),
             "{t}"
         );
+        // With a row after it, that row is the region's best.
+        let mut two = kept.clone();
+        let mut second = two.frames[0].ranked[0].clone();
+        second.rank = 1;
+        second.outside_region.clear();
+        second.label = "hinge:120".into();
+        two.frames[0].ranked.push(second);
+        let t = search_text(&two, Path::new("run/images/x/sweep.json"));
+        assert!(t.contains("; the region's best is rank 1."), "{t}");
         // A runner-up row is explained where it appears (play-test 5: `seen` was a mystery).
         let mut seen = report.clone();
         seen.frames[0].ranked[0].label = "seen yaw:40".into();

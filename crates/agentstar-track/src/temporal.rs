@@ -54,6 +54,17 @@ pub struct Report {
     pub pose_frame: &'static str,
     pub rows: Vec<Row>,
     pub warnings: Vec<String>,
+    /// The steps over [`LARGE_STEP_DEG`], in order (each also warned about).
+    pub large_steps: Vec<LargeStep>,
+}
+
+/// A step turning the object by more than [`LARGE_STEP_DEG`]: a hand can make it, or one of
+/// its two poses is a flip or a part swap of the right one.
+#[derive(Debug, Clone, PartialEq)]
+pub struct LargeStep {
+    pub from: String,
+    pub to: String,
+    pub rotation_deg: f64,
 }
 
 /// A rotation step between keyframes over this many degrees is warned about ([`report`]).
@@ -170,9 +181,15 @@ pub fn report(samples: &[Sample], scale: f64, tree: &KinematicTree) -> Report {
     // A turn of more than a quarter between keyframes: hands do make them, but then a twin of
     // one of the two poses (a flip, a part swap) is as near as the pose itself, and every
     // gate passes either.
+    let mut large_steps = Vec::new();
     for r in &rows {
         if let (Some(from), Some(deg)) = (&r.from, r.vel_rot_deg) {
             if deg > LARGE_STEP_DEG {
+                large_steps.push(LargeStep {
+                    from: from.clone(),
+                    to: r.frame.clone(),
+                    rotation_deg: deg,
+                });
                 let about = r
                     .vel_axis
                     .map(|a| format!(" about the model's {}", axis_label(&a)))
@@ -201,6 +218,7 @@ pub fn report(samples: &[Sample], scale: f64, tree: &KinematicTree) -> Report {
         pose_frame: if oriented { "oriented" } else { "camera" },
         rows,
         warnings,
+        large_steps,
     }
 }
 

@@ -897,8 +897,7 @@ impl<'m> Searcher<'m> {
         if (continuous && deg == 0.0) || in_barred(&g) {
             return None;
         }
-        // Signed, the short way round, in (−180°, 180°]: −58°, not 302° (play-test 6).
-        let deg = 180.0 - (180.0 - deg).rem_euclid(360.0);
+        let deg = signed_deg(deg);
         let note = format!(
             "appearance: turned {deg:+.0}° about the model's {} (principal axis {axis}; NCC {own:.2} → {n_best:.2}, IoU {score:.4} → {sc:.4})",
             crate::temporal::axis_label(&[axes[axis].x, axes[axis].y, axes[axis].z])
@@ -1535,6 +1534,11 @@ const NEAR_PER_AXIS: usize = 2;
 /// not enough to turn it back (about the hidden axis the masks are flat, and the polish's
 /// 12° window drifts with them).
 const NEAR_REFINE_DEG: f64 = 4.0;
+
+/// An angle the short way round, in (−180°, 180°]: −58°, not 302° (play-test 6).
+fn signed_deg(deg: f64) -> f64 {
+    180.0 - (180.0 - deg).rem_euclid(360.0)
+}
 
 /// How much better a neighbour must score for the consistency pass to search from it with
 /// the tracking step's window rather than the narrow polish.
@@ -2730,6 +2734,25 @@ mod tests {
             error(&poses[2]),
             log.join("\n")
         );
+    }
+
+    #[test]
+    fn turns_read_the_short_way_round() {
+        for (deg, signed) in [
+            (302.0, -58.0),
+            (180.0, 180.0),
+            (-180.0, 180.0),
+            (0.0, 0.0),
+            (360.0, 0.0),
+            (15.0, 15.0),
+            (-190.0, 170.0),
+        ] {
+            assert!(
+                (signed_deg(deg) - signed).abs() < 1e-9,
+                "{deg} → {}",
+                signed_deg(deg)
+            );
+        }
     }
 
     #[test]

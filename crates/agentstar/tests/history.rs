@@ -454,10 +454,13 @@ fn finish_asks_for_each_large_step_to_be_checked_and_named() {
     let named = json!({"000000->000005": "oapply on 000005: no twin within 0.01"});
     let body = finish(&mut c, named.clone());
     assert!(body.contains("neither frame was looked at"), "{body}");
-    // A key that is no step, a step that is not large, an empty note: each named.
+    // A key that is no step, a frame that is no keyframe, an empty note: each named.
     for (checked, says) in [
         (json!({"000000-000005": "x"}), "is not a step"),
-        (json!({"000005->000010": "x"}), "no large step"),
+        (
+            json!({"000000->000999": "x"}),
+            "`steps_checked` key `000000->000999`",
+        ),
         (json!({"000000->000005": " "}), "has no note"),
     ] {
         let body = finish(&mut c, checked.clone());
@@ -466,8 +469,26 @@ fn finish_asks_for_each_large_step_to_be_checked_and_named() {
             "{checked}: {body}"
         );
     }
-    // After the flips of one of its frames were scored, the named step passes.
+    // After the flips of one of its frames were scored, the named step passes, in either
+    // order; a step that is not large (no longer, or never) is no gate.
     let r = c.call("oapply", json!({"frames": "000005", "set": "flips"}));
+    assert_eq!(r["result"]["isError"], false, "{r}");
+    let body = finish(&mut c, named.clone());
+    assert!(body.starts_with("All gates hold"), "{body}");
+    let body = finish(
+        &mut c,
+        json!({"000005->000000": "oapply on 000005: no twin within 0.01", "000005->000010": "x"}),
+    );
+    assert!(body.starts_with("All gates hold"), "{body}");
+    // A look at poses since replaced is no check of the new ones.
+    c.commit_order("000000", "yaw:1");
+    c.call("temporal", json!({}));
+    let body = finish(&mut c, named.clone());
+    assert!(
+        body.contains("neither frame was looked at since the poses last changed"),
+        "{body}"
+    );
+    let r = c.call("frames", json!({"frames": "000000"}));
     assert_eq!(r["result"]["isError"], false, "{r}");
     let body = finish(&mut c, named);
     assert!(body.starts_with("All gates hold"), "{body}");

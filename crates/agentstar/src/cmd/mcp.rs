@@ -63,7 +63,9 @@ struct Server {
 impl ServerHandler for Server {
     fn get_info(&self) -> ServerConfig {
         ServerConfig::new(ServerCapabilities::builder().enable_tools().build())
-            .with_instructions(mcp_instructions(self.toolbox.offers("critic")))
+            .with_instructions(mcp_instructions(self.toolbox.offers(
+                <agentstar_agent::tools::Critic as agentstar_agent::tools::Tool>::NAME,
+            )))
             .with_server_info(Implementation::new("agentstar", env!("CARGO_PKG_VERSION")))
     }
 

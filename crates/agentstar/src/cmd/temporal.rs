@@ -3,7 +3,8 @@
 
 use crate::common::{print_json, select_frames, Session, SessionArgs};
 use agentstar_agent::reports::{
-    JointMotion, Motion, PoseDiffReport, TemporalReport, TemporalRow, TemporalUnits,
+    JointMotion, Motion, PoseDiffReport, TemporalLargeStep, TemporalReport, TemporalRow,
+    TemporalUnits,
 };
 use agentstar_data::images::save_png_rgb;
 use agentstar_render::text::{draw_text, fill_rect};
@@ -175,6 +176,15 @@ pub fn run(a: Args) -> Result<ExitCode> {
                 joints: "deg or canonical units per step".into(),
             },
             large_step_deg: agentstar_track::temporal::LARGE_STEP_DEG,
+            large_steps: rep
+                .large_steps
+                .iter()
+                .map(|s| TemporalLargeStep {
+                    from: s.from.clone(),
+                    to: s.to.clone(),
+                    rotation_deg: s.rotation_deg,
+                })
+                .collect(),
             warnings: rep.warnings.clone(),
             frames: rows
                 .iter()

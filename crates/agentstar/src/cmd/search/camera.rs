@@ -132,7 +132,7 @@ pub fn run_sweep(a: SweepArgs) -> Result<ExitCode> {
         let mut notes = space.notes.clone();
         if r.ranked
             .first()
-            .is_some_and(|c| !c.kept_start && converged_to(&c.pose, &p.base))
+            .is_some_and(|c| !c.kept_start && converged_to(&c.pose, &p.base, tree))
         {
             notes.push(CONVERGED_NOTE.to_string());
         }
@@ -206,6 +206,7 @@ fn run_candidates(a: &SweepArgs, s: &Session, list: &str) -> Result<ExitCode> {
                     score,
                     extra: json!({"candidate": k}),
                     model_ncc: None,
+                    outside_region: vec![],
                 }
             })
             .collect();
@@ -272,9 +273,9 @@ fn parse_spec_values(order: &str, tree: &KinematicTree) -> Result<(SearchSpace, 
 /// zero increments above rows of `seen` as a failed search).
 const CONVERGED_NOTE: &str = "the search came back to its start: rank 0 is the start pose (within 0.5° and 0.5% of its depth, every joint within 0.5°), so nothing in this region scores higher and the start is its optimum. To look elsewhere, widen the region or try the flips (`osweep`).";
 
-/// Whether `best` is `start` to within 0.5° of rotation, 0.5% of the depth and 0.5° (or
-/// 0.005 units) in every joint.
-fn converged_to(best: &GenPose, start: &GenPose) -> bool {
+/// Whether `best` is `start` to within 0.5° of rotation, 0.5% of the depth and, in every
+/// joint of `tree`, 0.5° (revolute) or 0.005 canonical units (prismatic).
+fn converged_to(best: &GenPose, start: &GenPose, tree: &KinematicTree) -> bool {
     let depth = start.pose.translation.z.abs().max(1e-9);
     best.pose.rotation.angle_to(&start.pose.rotation) <= 0.5f64.to_radians()
         && (best.pose.translation - start.pose.translation).norm() <= 0.005 * depth
@@ -283,7 +284,15 @@ fn converged_to(best: &GenPose, start: &GenPose) -> bool {
             .states
             .iter()
             .zip(&start.states)
-            .all(|(a, b)| (a - b).abs() <= 0.5f64.to_radians().max(0.005))
+            .zip(tree.joints())
+            .all(|((a, b), j)| {
+                let tolerance = if j.kind.is_angular() {
+                    0.5f64.to_radians()
+                } else {
+                    0.005
+                };
+                (a - b).abs() <= tolerance
+            })
 }
 
 pub fn run_apply(a: ApplyArgs) -> Result<ExitCode> {

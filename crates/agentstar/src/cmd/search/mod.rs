@@ -65,6 +65,8 @@ struct Row {
     /// The frame's colours against the model's own part colours at this pose
     /// ([`with_model_agreement`]); `None` for a model of one colour.
     model_ncc: Option<f64>,
+    /// Where a kept start lies outside the region ([`outside_region`]).
+    outside_region: Vec<String>,
 }
 
 /// Fills each row's agreement of frame `i`'s colours with the model's own part colours
@@ -132,6 +134,7 @@ fn candidate(r: &Row, scale: f64, tree: &KinematicTree) -> Candidate {
         depth_canon: r.score.depth_canon,
         combined: r.score.combined,
         model_ncc: r.model_ncc,
+        outside_region: r.outside_region.clone(),
         extra: r.extra.clone(),
     }
 }
@@ -393,17 +396,22 @@ fn rows_from(result: SweepResult, space: &SearchSpace, tree: &KinematicTree) -> 
     result
         .ranked
         .into_iter()
-        .map(|c| Row {
+        .map(|c| {
+            let outside = if c.kept_start {
+                outside_region(space, &c.pose, tree)
+            } else {
+                vec![]
+            };
+            Row {
             rank: c.rank,
             label: if c.kept_start {
-                let outside = outside_region(space, &c.pose, tree);
                 if outside.is_empty() {
                     agentstar_agent::reports::KEPT_START.into()
                 } else {
                     format!(
-                        "{}, {}: {outside}",
+                        "{}, outside the region: {}",
                         agentstar_agent::reports::KEPT_START,
-                        agentstar_agent::reports::OUTSIDE_REGION
+                        outside.join(", ")
                     )
                 }
             } else if c.runner_up {
@@ -415,15 +423,17 @@ fn rows_from(result: SweepResult, space: &SearchSpace, tree: &KinematicTree) -> 
             pose: c.pose,
             score: c.score,
             model_ncc: None,
+            outside_region: outside,
+        }
         })
         .collect()
 }
 
 /// Where the start `pose` lies outside the region `space` names (an increment of 0, or its
-/// joint state, not within a range): `lid_hinge 67 not in 100..125`, joined by `, `; empty
-/// inside. A kept start outside the region is rank 0 only because nothing in the region
-/// beat it (play-test 6 read it as the region's best).
-fn outside_region(space: &SearchSpace, pose: &GenPose, tree: &KinematicTree) -> String {
+/// joint state, not within a range): `lid_hinge 67 not in 100..125`, one per coordinate;
+/// empty inside. A kept start outside the region is rank 0 only because nothing in the
+/// region beat it (play-test 6 read it as the region's best).
+fn outside_region(space: &SearchSpace, pose: &GenPose, tree: &KinematicTree) -> Vec<String> {
     space
         .ranges
         .iter()
@@ -442,8 +452,7 @@ fn outside_region(space: &SearchSpace, pose: &GenPose, tree: &KinematicTree) -> 
                 )
             })
         })
-        .collect::<Vec<_>>()
-        .join(", ")
+        .collect()
 }
 
 fn default_frame(s: &Session, spec: Option<&str>) -> Result<Vec<usize>> {

@@ -319,6 +319,29 @@ fn parse_candidate(
         }
         joints.push((j, def.to_internal(value)));
     }
+    // A term that is neither a rotation nor a joint: say which joints there are.
+    for term in &rotation_terms {
+        let key = term.split_once(':').map_or(*term, |(k, _)| k).trim();
+        // (Camera-frame increments get parse_rotation's own hint.)
+        let known = ["identity", "flip", "rx", "ry", "rz"];
+        let camera = ["roll", "yaw", "pitch", "dpx", "dpy", "tz"];
+        if !known.contains(&key) && !camera.contains(&key) {
+            let joints: Vec<&str> = tree
+                .joints()
+                .iter()
+                .filter(|j| j.kind.has_state())
+                .map(|j| j.name.as_str())
+                .collect();
+            bail!(
+                "`{term}`: `{key}` is not an object-frame rotation (identity, flip:x|y|z, rx, ry, rz) or a joint ({})",
+                if joints.is_empty() {
+                    "the model has none".to_string()
+                } else {
+                    joints.join(", ")
+                }
+            );
+        }
+    }
     let q = if rotation_terms.is_empty() {
         UnitQuaternion::identity()
     } else {
@@ -438,6 +461,7 @@ pub fn run_oapply(a: OapplyArgs) -> Result<ExitCode> {
                     score,
                     extra: json!({}),
                     model_ncc: None,
+                    outside_region: vec![],
                 }
             })
             .collect();
@@ -497,6 +521,7 @@ pub fn run_oapply_all(a: OapplyAllArgs) -> Result<ExitCode> {
                 score,
                 extra: json!({}),
                 model_ncc: None,
+                outside_region: vec![],
             }],
             extra: json!({"method": "oapply_all"}),
             notes: vec![],
@@ -599,7 +624,8 @@ mod tests {
             ("flip:x;hinge:150", "outside joint `hinge`'s limit [0, 120]"),
             ("hinge:40;hinge:50", "set twice"),
             ("hinge:wide", "is not a joint state"),
-            ("lid:40", "not an object-frame axis"),
+            ("lid:40", "or a joint (hinge)"),
+            ("yaw:10", "camera-frame increment"),
         ] {
             let e = parse_candidate(bad, &tree).expect_err(bad).to_string();
             assert!(e.contains(says), "{bad}: {e}");
