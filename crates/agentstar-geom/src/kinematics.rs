@@ -261,6 +261,16 @@ impl KinematicTree {
         &self.joints
     }
 
+    /// The names of the joints with a state (every kind but fixed), in order: what a search
+    /// or a candidate may set.
+    pub fn moving_joint_names(&self) -> Vec<&str> {
+        self.joints
+            .iter()
+            .filter(|j| j.kind.has_state())
+            .map(|j| j.name.as_str())
+            .collect()
+    }
+
     pub fn joint_index(&self, name: &str) -> Option<usize> {
         self.joints.iter().position(|j| j.name == name)
     }

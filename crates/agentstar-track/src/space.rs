@@ -140,12 +140,7 @@ fn parse_dof(name: &str, tree: &KinematicTree, grammar: Grammar) -> Result<Dof, 
                 )))
             }
             None => {
-                let joints: Vec<&str> = tree
-                    .joints()
-                    .iter()
-                    .filter(|j| j.kind.has_state())
-                    .map(|j| j.name.as_str())
-                    .collect();
+                let joints = tree.moving_joint_names();
                 return Err(TrackError::Spec(format!(
                     "unknown degree of freedom `{other}`; joints are {}. {GRAMMAR}",
                     if joints.is_empty() {

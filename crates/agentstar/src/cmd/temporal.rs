@@ -110,10 +110,9 @@ pub fn run(a: Args) -> Result<ExitCode> {
         .model
         .model
         .tree
-        .joints()
-        .iter()
-        .filter(|j| j.kind.has_state())
-        .map(|j| j.name.clone())
+        .moving_joint_names()
+        .into_iter()
+        .map(str::to_string)
         .collect();
     let cols: Vec<String> = a
         .columns

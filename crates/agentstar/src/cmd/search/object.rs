@@ -326,12 +326,7 @@ fn parse_candidate(
         let known = ["identity", "flip", "rx", "ry", "rz"];
         let camera = ["roll", "yaw", "pitch", "dpx", "dpy", "tz"];
         if !known.contains(&key) && !camera.contains(&key) {
-            let joints: Vec<&str> = tree
-                .joints()
-                .iter()
-                .filter(|j| j.kind.has_state())
-                .map(|j| j.name.as_str())
-                .collect();
+            let joints = tree.moving_joint_names();
             bail!(
                 "`{term}`: `{key}` is not an object-frame rotation (identity, flip:x|y|z, rx, ry, rz) or a joint ({})",
                 if joints.is_empty() {
