@@ -185,9 +185,22 @@ pub struct FrameScore {
     /// errors do not count); `None` without a band or when that region is empty.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub iou_band: Option<f64>,
+    /// The share of the visible observed mask inside the boundary band: over
+    /// [`THIN_BAND_SHARE`] the object is thin in view and the band IoU judges little of it.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub band_share: Option<f64>,
 }
 
+/// A frame whose boundary band holds more than this share of its visible mask is thin in
+/// view (an edge-on blade, a cable): `score` marks it, since its band IoU judges little.
+pub const THIN_BAND_SHARE: f64 = 0.5;
+
 impl FrameScore {
+    /// Whether the band excludes most of this frame's visible mask ([`THIN_BAND_SHARE`]).
+    pub fn thin_in_view(&self) -> bool {
+        self.band_share.is_some_and(|s| s > THIN_BAND_SHARE)
+    }
+
     /// The score a gate compares: the boundary-band IoU where one was scored, else the
     /// visible IoU; 0 where nothing is visible.
     pub fn gate(&self) -> f64 {
@@ -853,6 +866,20 @@ pub fn score_table(
         )
         .ok();
     }
+    let thin: Vec<String> = scores
+        .iter()
+        .filter(|s| s.thin_in_view())
+        .map(|s| format!("{} ({:.0}%)", s.frame, 100.0 * s.band_share.unwrap_or(0.0)))
+        .collect();
+    if !thin.is_empty() {
+        writeln!(
+            t,
+            "thin in view (the boundary band holds over {:.0}% of the visible mask, so the band IoU judges little there; read iou_visible and the compare image): {}",
+            100.0 * THIN_BAND_SHARE,
+            thin.join(", ")
+        )
+        .ok();
+    }
     t
 }
 
@@ -892,6 +919,7 @@ mod tests {
             combined: iou.unwrap_or(0.0),
             band_px: None,
             iou_band: None,
+            band_share: None,
         }
     }
 
@@ -953,6 +981,29 @@ mod tests {
         assert!(none.ends_with(
             "appearance: no evidence (no frame's colours vary enough on the model to compare)\n"
         ));
+        assert!(!table.contains("thin in view"), "{table}");
+        // A frame whose band holds most of its visible mask is named after it.
+        let thin = [
+            FrameScore {
+                band_px: Some(2.0),
+                iou_band: Some(1.0),
+                band_share: Some(0.93),
+                ..frame_score("edge.png", Some(0.889))
+            },
+            FrameScore {
+                band_px: Some(2.0),
+                iou_band: Some(0.999),
+                band_share: Some(0.2),
+                ..frame_score("face.png", Some(0.97))
+            },
+        ];
+        let table = score_table(&thin, &SequenceScore::of(&thin, GATE_IOU), &[]);
+        let last = table.lines().last().expect("lines");
+        assert!(
+            last.starts_with("thin in view (the boundary band holds over 50% of the visible mask")
+                && last.ends_with(": edge.png (93%)"),
+            "{table}"
+        );
     }
 
     #[test]

@@ -2892,6 +2892,7 @@ mod tests {
             combined: visible,
             band_px: None,
             iou_band: None,
+            band_share: None,
         };
         let frames = vec![frame("000000.png", 0.99), frame("000005.png", 0.95)];
         let report = TrackReport {

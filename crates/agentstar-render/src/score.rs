@@ -32,6 +32,8 @@ pub struct ScoreTarget {
     visible_mask_px: u64,
     /// The boundary band's half-width and `K` without the band, when a band is scored.
     band: Option<(f64, BitMask)>,
+    /// The share of the visible mask (`M ∩ K`) inside the band, when a band is scored.
+    band_share: Option<f64>,
 }
 
 /// IoU figures of one render against one target.
@@ -50,6 +52,10 @@ pub struct IouScore {
     /// IoU outside the hands and outside the boundary band of the observed mask; `None`
     /// when the target scores no band, or when that region holds neither render nor mask.
     pub iou_band: Option<f64>,
+    /// The share of the visible observed mask that the band excludes, when a band is scored:
+    /// near 1 where the object is thin in view (an edge-on blade), and the band IoU then
+    /// judges almost nothing (play-test 7: 1.0000 against a visible IoU of 0.889).
+    pub band_share: Option<f64>,
 }
 
 impl IouScore {
@@ -90,6 +96,7 @@ impl ScoreTarget {
             mask_px,
             visible_mask_px,
             band: None,
+            band_share: None,
         })
     }
 
@@ -106,6 +113,10 @@ impl ScoreTarget {
                 None => band.not(),
             };
             (band_px, keep)
+        });
+        self.band_share = self.band.as_ref().map(|(_, keep)| {
+            let interior = self.mask.and(keep).count();
+            1.0 - ratio(interior, self.visible_mask_px.max(1)).min(1.0)
         });
         self
     }
@@ -138,6 +149,7 @@ impl ScoreTarget {
             mask_px,
             visible_mask_px,
             band: None,
+            band_share: None,
         }
     }
 
@@ -246,6 +258,7 @@ impl ScoreTarget {
             union_px: union,
             hand_px,
             iou_band,
+            band_share: self.band_share,
         }
     }
 }
@@ -471,8 +484,19 @@ mod tests {
         // Without a band nothing changes, and the band never enters the search gate.
         let plain = ScoreTarget::new(mask, None).expect("target");
         assert_eq!(plain.score(&noisy).iou_band, None);
+        assert_eq!(plain.score(&noisy).band_share, None);
         assert_eq!(plain.gate(&noisy), t.gate(&noisy));
         assert_eq!(plain.with_band(0.0).band_px(), None);
+        // The 24 px square keeps its 20 px interior outside the ±2 px band (2 px of the
+        // band lie inside the mask): the band holds 1 − 20²/24² of it.
+        let share = t.score(&noisy).band_share.expect("share");
+        assert!((share - (1.0 - 400.0 / 576.0)).abs() < 1e-9, "{share}");
+        // A bar 4 px wide lies wholly in its own band: the band IoU judges nothing of it.
+        let bar = BitMask::from_fn(w, h, |x, y| (30..34).contains(&x) && (10..50).contains(&y));
+        let thin = ScoreTarget::new(bar.clone(), None)
+            .expect("target")
+            .with_band(2.0);
+        assert_eq!(thin.score(&bar).band_share, Some(1.0));
     }
 
     #[test]

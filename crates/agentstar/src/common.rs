@@ -191,6 +191,7 @@ pub fn frame_score(
         combined,
         band_px,
         iou_band: s.iou_band,
+        band_share: s.band_share,
     }
 }
 
