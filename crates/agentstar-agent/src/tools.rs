@@ -1995,15 +1995,19 @@ impl Toolbox {
         scores.insert("iou_min".into(), report.sequence.min_iou_visible);
         scores.insert("iou_mean".into(), report.sequence.mean_iou_visible);
         Ok(ToolOutput {
-            text: format!(
-                "{}pose.json is version {version}; the earlier versions are in pose_history.",
-                track_text(
-                    &report,
-                    agentstar_data::posefile::PoseFile::read(&report.poses)
-                        .ok()
-                        .as_ref()
+            text: {
+                // The joint states come from the pose file the tracker wrote; should it not
+                // read, the table says so rather than losing its column unannounced.
+                let poses = agentstar_data::posefile::PoseFile::read(&report.poses);
+                let unread = match &poses {
+                    Err(e) => format!("(joint states not shown: {e})\n"),
+                    Ok(_) => String::new(),
+                };
+                format!(
+                    "{}{unread}pose.json is version {version}; the earlier versions are in pose_history.",
+                    track_text(&report, poses.ok().as_ref())
                 )
-            ),
+            },
             pose_changed: true,
             pose_version: Some(version),
             scores,

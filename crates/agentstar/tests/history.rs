@@ -278,6 +278,10 @@ fn finish_takes_categorised_reasons_and_refuses_too_many_frames_under_the_gate()
     let dir = tempfile::tempdir().expect("tmp");
     // The tracker over MCP, warm-started from the true poses: a pose version.
     let (run, mut c, r) = tracked_from_truth(dir.path());
+    // The box's lid: each frame's line ends with its hinge state.
+    let text = McpClient::text_of(&r);
+    assert!(text.contains("iou_visible  joints\n"), "{text}");
+    assert!(!text.contains("joint states not shown"), "{text}");
     let t: TrackReport =
         serde_json::from_value(r["result"]["structuredContent"].clone()).expect("track");
     assert_eq!(t.pose_version, Some(1));
