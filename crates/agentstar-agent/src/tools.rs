@@ -917,8 +917,8 @@ pub struct FinishArgs {
     /// Each large step of the `temporal` report (over 90°) you checked: `A->B` (the step as
     /// `temporal` prints it; names or stems) → what you found, e.g. `oapply on B: no twin
     /// within 0.01`. One of the step's frames must have been looked at (`oapply`, `osweep`,
-    /// `render` or `frames`) since the poses last changed. A step that is no longer large is
-    /// ignored.
+    /// `render` or `frames`) since either frame's pose last changed. A step that is no longer
+    /// large is ignored.
     pub steps_checked: Option<BTreeMap<String, String>>,
     #[schemars(length(max = 4000))]
     pub summary: Option<String>,
@@ -2655,7 +2655,6 @@ impl Toolbox {
         &self,
         checked: Option<&BTreeMap<String, String>>,
         entries: &[agentstar_data::ledger::LedgerEntry],
-        pose_step: u64,
     ) -> Vec<String> {
         let report = match self.temporal_report() {
             Ok(r) => r,
@@ -2710,22 +2709,34 @@ impl Toolbox {
                 }
             }
         }
-        // A call that scores or shows a frame's twins, or shows the frame, over `name`,
-        // after the last change of the poses (a look at poses since replaced is no check of
-        // these).
+        // Whether a ledger entry's `frames` (all when absent) name `name`; `unknown` when its
+        // arguments do not read.
+        let names = |e: &agentstar_data::ledger::LedgerEntry, name: &str, unknown: bool| {
+            match serde_json::from_value::<FramesOf>(e.args.clone()) {
+                Ok(FramesOf { frames: None }) => true,
+                Ok(FramesOf { frames: Some(spec) }) => self
+                    .frame_names(Some(&spec))
+                    .is_ok_and(|v| v.iter().any(|n| n == name)),
+                Err(_) => unknown,
+            }
+        };
+        let ok = |e: &agentstar_data::ledger::LedgerEntry| !e.scores.contains_key("error");
+        // A step is checked by a call that scores or shows the twins of one of its frames,
+        // or shows the frame, when no pose change of either frame came after it (a look at
+        // poses since replaced is no check of these; play-test 8: a change elsewhere did
+        // not need new looks here).
         let looks = [Oapply::NAME, Osweep::NAME, Render::NAME, Keyframes::NAME];
-        let looked_at = |name: &str| {
-            entries.iter().any(|e| {
-                e.step > pose_step
-                    && looks.contains(&e.tool.as_str())
-                    && !e.scores.contains_key("error")
-                    && match serde_json::from_value::<FramesOf>(e.args.clone()) {
-                        Ok(FramesOf { frames: None }) => true,
-                        Ok(FramesOf { frames: Some(spec) }) => self
-                            .frame_names(Some(&spec))
-                            .is_ok_and(|v| v.iter().any(|n| n == name)),
-                        Err(_) => false,
-                    }
+        let checked_since = |from: &str, to: &str| {
+            entries.iter().any(|look| {
+                looks.contains(&look.tool.as_str())
+                    && ok(look)
+                    && (names(look, from, false) || names(look, to, false))
+                    && !entries.iter().any(|change| {
+                        change.step > look.step
+                            && change.pose_version.is_some()
+                            && ok(change)
+                            && (names(change, from, true) || names(change, to, true))
+                    })
             })
         };
         for (from, to, deg) in &large {
@@ -2737,9 +2748,9 @@ impl Toolbox {
                     "step {from} -> {to} turns the object by {deg:.0}° (over {:.0}°): check it (`oapply` on {to} scores its flips and swaps, each refined; a twin within about 0.01 IoU means look by eye) and name it in `steps_checked`, e.g. {{\"steps_checked\": {{\"{from}->{to}\": \"oapply on {to}: no twin within 0.01\"}}}}",
                     report.large_step_deg
                 ));
-            } else if !looked_at(from) && !looked_at(to) {
+            } else if !checked_since(from, to) {
                 missing.push(format!(
-                    "step {from} -> {to} is named in `steps_checked`, but neither frame was looked at since the poses last changed: run `oapply` (or `osweep`, `render`, `frames`) on {to}"
+                    "step {from} -> {to} is named in `steps_checked`, but neither frame was looked at since their poses last changed: run `oapply` (or `osweep`, `render`, `frames`) on {to}"
                 ));
             }
         }
@@ -2852,7 +2863,7 @@ impl Toolbox {
         if temporal.is_none_or(|t| t < pose) {
             missing.push("review the `temporal` report after the last pose change".into());
         }
-        missing.extend(self.unchecked_steps(args.steps_checked.as_ref(), &entries, pose));
+        missing.extend(self.unchecked_steps(args.steps_checked.as_ref(), &entries));
         let passed = missing.is_empty();
         let mut o = ToolOutput {
             text: if passed {

@@ -21,7 +21,7 @@ pub const LABEL_SCALE: u32 = 2;
 /// Tiles are not shrunk below this long side to fit one page; the sheet is paged instead.
 pub const MIN_TILE_LONG_SIDE_PX: u32 = 240;
 /// Lines a tile label may wrap to; the rest is cut with `..`.
-pub const MAX_LABEL_LINES: usize = 5;
+pub const MAX_LABEL_LINES: usize = 7;
 
 /// Background of sheets and label bars.
 pub const SHEET_BACKGROUND: Rgb<u8> = Rgb([235, 235, 235]);

@@ -489,11 +489,18 @@ fn finish_asks_for_each_large_step_to_be_checked_and_named() {
     c.call("temporal", json!({}));
     let body = finish(&mut c, named.clone());
     assert!(
-        body.contains("neither frame was looked at since the poses last changed"),
+        body.contains("neither frame was looked at since their poses last changed"),
         "{body}"
     );
     let r = c.call("frames", json!({"frames": "000000"}));
     assert_eq!(r["result"]["isError"], false, "{r}");
+    let body = finish(&mut c, named.clone());
+    assert!(body.starts_with("All gates hold"), "{body}");
+    // A change of another frame's pose leaves the look standing (play-test 8: restoring one
+    // frame asked for new looks at steps it was not part of).
+    let r = c.call("pose_restore", json!({"version": 1, "frames": "000015"}));
+    assert_eq!(r["result"]["isError"], false, "{r}");
+    c.call("temporal", json!({}));
     let body = finish(&mut c, named);
     assert!(body.starts_with("All gates hold"), "{body}");
 }
