@@ -1256,7 +1256,7 @@ tool!(Oapply, "oapply", Pose, Nothing, OapplyArgs,
     });
 
 tool!(OapplyAll, "oapply_all", Pose, Nothing, OapplyAllArgs,
-    "Apply one object-frame rotation to every keyframe (`rz:90` or `flip:x`): for a model built the wrong way round.",
+    "Apply one object-frame rotation to every keyframe (`rz:90` or `flip:x`): for a model built the wrong way round; or to a block of keyframes (`frames`), to try a twin for a run of frames chained from a wrong pose: where the block meets the other frames, each frame's note gives the temporal step before and after the rotation. Nothing changes until `pose_commit`.",
     |tb, a, step| {
         let extra = [vec!["--rotation".into(), a.rotation.clone()], flag(&a.frames, "--frames")].concat();
         tb.search(SearchVerb::OapplyAll, a.frames.as_deref(), extra, step)

@@ -222,6 +222,37 @@ fn pose_verbs_track_commit_and_diagnose() {
         .expect("identity");
     assert!((identity["joints"]["hinge"].as_f64().expect("hinge") - 60.0).abs() > 1.0);
 
+    // One rotation over a block of frames names the steps at the block's edges, before and
+    // after: a flip of the middle frames makes both edges turns of about 180°.
+    let mut args = common("oapply-all", "oapply-all-block");
+    args.extend([
+        "--rotation".into(),
+        "flip:z".into(),
+        "--frames".into(),
+        "000010..000015".into(),
+        "--json".into(),
+    ]);
+    let o = agentstar(&args.iter().map(String::as_str).collect::<Vec<_>>());
+    assert!(o.status.success(), "{}", text(&o));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("json");
+    let edges: Vec<(f64, f64)> = v["frames"]
+        .as_array()
+        .expect("frames")
+        .iter()
+        .flat_map(|f| f["notes"].as_array().cloned().unwrap_or_default())
+        .filter_map(|n| {
+            let n = n.as_str()?.to_string();
+            let (_, rest) = n.split_once(": ")?;
+            let (was, rest) = rest.split_once("° now, ")?;
+            let (now, _) = rest.split_once('°')?;
+            Some((was.parse().ok()?, now.parse().ok()?))
+        })
+        .collect();
+    assert_eq!(edges.len(), 2, "{v}");
+    for (was, now) in edges {
+        assert!(was < 45.0 && now > 150.0, "{was} -> {now}");
+    }
+
     // A sweep that comes back to its start says so; one that moves does not.
     let converged = |shift: Option<&str>| -> bool {
         let mut args = vec![

@@ -497,6 +497,9 @@ pub fn run_oapply_all(a: OapplyAllArgs) -> Result<ExitCode> {
     let q = parse_rotation(a.rotation.trim()).context("--rotation")?;
     let frames = select_frames(&s.capture, a.frames.as_deref())?;
     let mut outputs = Vec::new();
+    // The temporal steps before the rotation, and the samples it will change.
+    let before = crate::cmd::temporal::samples(&s);
+    let mut after = before.clone();
     for &i in progress(frames.len(), "oapply-all").wrap_iter(frames.iter()) {
         let inputs = s.target(i)?;
         let p = problem_for(&s, i, &inputs, a.common.depth_weight, s.gen_pose(i));
@@ -507,6 +510,7 @@ pub fn run_oapply_all(a: OapplyAllArgs) -> Result<ExitCode> {
             states: p.base.states.clone(),
         };
         let score = p.evaluator().score(&g);
+        after[i].pose = g.pose;
         outputs.push(FrameOutput {
             frame: s.capture.frames[i].name.clone(),
             rows: vec![Row {
@@ -521,6 +525,32 @@ pub fn run_oapply_all(a: OapplyAllArgs) -> Result<ExitCode> {
             extra: json!({"method": "oapply_all"}),
             notes: vec![],
         });
+    }
+    // Where the rotated frames meet the others, the step before and after it: turning a
+    // block of frames moves a large step to its edges, or removes it (play-test 8 committed
+    // and restored by hand to see this).
+    let tree = &s.model.model.tree;
+    let rows_before = agentstar_track::temporal::report(&before, s.scale(), tree).rows;
+    let rows_after = agentstar_track::temporal::report(&after, s.scale(), tree).rows;
+    let chosen: Vec<bool> = (0..s.capture.frames.len())
+        .map(|i| frames.contains(&i))
+        .collect();
+    for k in 1..chosen.len() {
+        if chosen[k] == chosen[k - 1] {
+            continue;
+        }
+        let (Some(was), Some(now)) = (rows_before[k].vel_rot_deg, rows_after[k].vel_rot_deg) else {
+            continue;
+        };
+        let inside = if chosen[k] { k } else { k - 1 };
+        let name = &s.capture.frames[inside].name;
+        if let Some(o) = outputs.iter_mut().find(|o| &o.frame == name) {
+            o.notes.push(format!(
+                "step {} -> {}: {was:.0}° now, {now:.0}° with this rotation",
+                s.capture.frames[k - 1].name,
+                s.capture.frames[k].name
+            ));
+        }
     }
     let r = q.scaled_axis().map(f64::to_degrees);
     write_outputs(
