@@ -1539,7 +1539,10 @@ pub fn search_text(report: &SearchReport, path: &Path) -> String {
             ));
         }
         if let [only] = &f.ranked[..] {
-            if only.label.starts_with(crate::reports::KEPT_START) {
+            // (A start outside the region has its own note above: it may well not be the
+            // best pose here.)
+            if only.label.starts_with(crate::reports::KEPT_START) && only.outside_region.is_empty()
+            {
                 t.push_str("note: nothing the search evaluated in this region scored above the start. Either the start is already the best pose here (a sharp optimum: `apply` single small steps to see the surface), or a better pose lies outside the region (widen it, or try the flips with `osweep`).\n");
             }
         }
@@ -2649,8 +2652,9 @@ impl Toolbox {
 
     /// What `finish` still needs about the large steps of the current poses: each one named
     /// in `checked` with a note, and one of its two frames looked at with a tool that shows
-    /// or scores its twins (`entries`: the ledger). A name in `checked` that is no large step
-    /// is reported too (a typo would otherwise pass for a check).
+    /// or scores its twins (`entries`: the ledger) since either frame's pose last changed.
+    /// A key that does not read as a step of two keyframes is reported; one naming a step
+    /// that is not large (fixed since) is ignored.
     fn unchecked_steps(
         &self,
         checked: Option<&BTreeMap<String, String>>,
@@ -2666,8 +2670,8 @@ impl Toolbox {
             .map(|s| (s.from.clone(), s.to.clone(), s.rotation_deg))
             .collect();
         let mut missing = Vec::new();
-        // The steps named, resolved to frame names.
-        let mut named: Vec<(String, String, &str)> = Vec::new();
+        // The large steps named with a note, resolved to frame names.
+        let mut named: Vec<(String, String)> = Vec::new();
         for (key, note) in checked.into_iter().flatten() {
             let Some((a, b)) = key.split_once("->") else {
                 missing.push(format!(
@@ -2701,7 +2705,7 @@ impl Toolbox {
                             "`steps_checked` {a}->{b} has no note: say what you checked and found"
                         ));
                     } else {
-                        named.push((a, b, note.as_str()));
+                        named.push((a, b));
                     }
                 }
                 (Err(e), _) | (_, Err(e)) => {
@@ -2742,7 +2746,7 @@ impl Toolbox {
         for (from, to, deg) in &large {
             let done = named
                 .iter()
-                .any(|(a, b, _)| (a, b) == (from, to) || (a, b) == (to, from));
+                .any(|(a, b)| (a, b) == (from, to) || (a, b) == (to, from));
             if !done {
                 missing.push(format!(
                     "step {from} -> {to} turns the object by {deg:.0}° (over {:.0}°): check it (`oapply` on {to} scores its flips and swaps, each refined; a twin within about 0.01 IoU means look by eye) and name it in `steps_checked`, e.g. {{\"steps_checked\": {{\"{from}->{to}\": \"oapply on {to}: no twin within 0.01\"}}}}",
@@ -3246,6 +3250,8 @@ mod tests {
             t.contains("rank 0 is the start, which lies outside the region you named (hinge 10 not in 100..120): it is first only because nothing inside the region scored higher."),
             "{t}"
         );
+        // Not also the note that calls such a start the best pose here.
+        assert!(!t.contains("nothing the search evaluated"), "{t}");
         // With a row after it, that row is the region's best.
         let mut two = kept.clone();
         let mut second = two.frames[0].ranked[0].clone();

@@ -369,24 +369,36 @@ impl KinematicTree {
                         .into(),
                 });
             };
-            if !v.is_finite() {
-                return Err(GeomError::InvalidJoint {
-                    joint: j.name.clone(),
-                    reason: format!("state {v} is not finite"),
-                });
-            }
-            if let Some((lo, hi)) = j.limit {
-                let tol = 1e-6 * (hi - lo).abs().max(1.0);
-                if v < lo - tol || v > hi + tol {
-                    return Err(GeomError::InvalidJoint {
-                        joint: j.name.clone(),
-                        reason: format!("state {v} is outside its limit [{lo}, {hi}]"),
-                    });
-                }
-            }
-            states[i] = j.to_internal(v);
+            states[i] = self.state_from_interface(i, v)?;
         }
         Ok(states)
+    }
+
+    /// Joint `joint`'s internal-unit state from an interface-unit value: finite, within its
+    /// limit (to a millionth of its range), and the joint not fixed.
+    pub fn state_from_interface(&self, joint: usize, v: f64) -> Result<f64> {
+        let j = self.joints.get(joint).ok_or_else(|| {
+            GeomError::InvalidTree(format!("no joint {joint} of {}", self.joints.len()))
+        })?;
+        let invalid = |reason: String| GeomError::InvalidJoint {
+            joint: j.name.clone(),
+            reason,
+        };
+        if !j.kind.has_state() {
+            return Err(invalid("the joint is fixed: it has no state".into()));
+        }
+        if !v.is_finite() {
+            return Err(invalid(format!("state {v} is not finite")));
+        }
+        if let Some((lo, hi)) = j.limit {
+            let tol = 1e-6 * (hi - lo).abs().max(1.0);
+            if v < lo - tol || v > hi + tol {
+                return Err(invalid(format!(
+                    "state {v} is outside its limit [{lo}, {hi}]"
+                )));
+            }
+        }
+        Ok(j.to_internal(v))
     }
 
     /// Interface-unit values by name (sorted), for writing.
@@ -612,6 +624,17 @@ mod tests {
         let s = tree.states_from_interface(&m).expect("ok");
         assert!((s[0] - std::f64::consts::FRAC_PI_2).abs() < 1e-12);
         assert_eq!(tree.states_to_interface(&s)["hinge"], 90.0);
+        // One joint at a time, as a candidate sets it: the same checks.
+        assert!((tree.state_from_interface(0, 90.0).expect("ok") - s[0]).abs() < 1e-12);
+        assert!(tree.state_from_interface(0, 120.0 + 1e-9).is_ok());
+        for (v, says) in [(150.0, "outside its limit"), (f64::NAN, "not finite")] {
+            let e = tree
+                .state_from_interface(0, v)
+                .expect_err("bad")
+                .to_string();
+            assert!(e.contains(says), "{e}");
+        }
+        assert!(tree.state_from_interface(1, 0.0).is_err());
     }
 
     proptest! {

@@ -114,10 +114,15 @@ impl ScoreTarget {
             };
             (band_px, keep)
         });
-        self.band_share = self.band.as_ref().map(|(_, keep)| {
-            let interior = self.mask.and(keep).count();
-            1.0 - ratio(interior, self.visible_mask_px.max(1)).min(1.0)
-        });
+        // (None where nothing of the mask is visible: no share to speak of.)
+        self.band_share =
+            self.band
+                .as_ref()
+                .filter(|_| self.visible_mask_px > 0)
+                .map(|(_, keep)| {
+                    let interior = self.mask.and(keep).count();
+                    1.0 - ratio(interior, self.visible_mask_px).min(1.0)
+                });
         self
     }
 

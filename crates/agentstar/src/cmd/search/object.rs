@@ -300,24 +300,16 @@ fn parse_candidate(
             rotation_terms.push(term);
             continue;
         };
-        let def = &tree.joints()[j];
-        if !def.kind.has_state() {
-            bail!("`{term}`: joint `{name}` is fixed; it has no state to set");
-        }
         let value = v
             .parse::<f64>()
-            .ok()
-            .filter(|x| x.is_finite())
-            .ok_or_else(|| anyhow!("`{term}`: `{v}` is not a joint state"))?;
-        if let Some((lo, hi)) = def.limit {
-            if value < lo || value > hi {
-                bail!("`{term}`: {value} is outside joint `{name}`'s limit [{lo}, {hi}]");
-            }
-        }
+            .map_err(|_| anyhow!("`{term}`: `{v}` is not a joint state"))?;
+        let internal = tree
+            .state_from_interface(j, value)
+            .map_err(|e| anyhow!("`{term}`: {e}"))?;
         if joints.iter().any(|(k, _)| *k == j) {
             bail!("`{cand}`: joint `{name}` is set twice");
         }
-        joints.push((j, def.to_internal(value)));
+        joints.push((j, internal));
     }
     // A term that is neither a rotation nor a joint: say which joints there are.
     for term in &rotation_terms {
@@ -646,7 +638,11 @@ mod tests {
         let set = rotation_set("identity|hinge:40|hinge:80|identity", &tree).expect("set");
         assert_eq!(set.rotations.len(), 3);
         for (bad, says) in [
-            ("flip:x;hinge:150", "outside joint `hinge`'s limit [0, 120]"),
+            (
+                "flip:x;hinge:150",
+                "invalid joint `hinge`: state 150 is outside its limit [0, 120]",
+            ),
+            ("hinge:NaN", "state NaN is not finite"),
             ("hinge:40;hinge:50", "set twice"),
             ("hinge:wide", "is not a joint state"),
             ("lid:40", "or a joint (hinge)"),
