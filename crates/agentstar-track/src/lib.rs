@@ -5,6 +5,7 @@
 //! diagnostics, and an automatic tracker for a known model. No file I/O.
 
 pub mod appearance;
+pub mod axis;
 pub mod hypotheses;
 pub mod objective;
 pub mod scale;

@@ -10,6 +10,7 @@ use crate::appearance::{
     appearance_each, appearance_score, model_agreement, model_has_appearance, AppearanceConfig,
     AppearanceFrame, ReferenceView,
 };
+use crate::axis::{choose_turns, continuous_axis, AngleGrid};
 use crate::hypotheses::{
     principal_axes, refine_above, refine_each_above, refine_first_pass, refine_local, refine_rest,
     same_basin, twin_candidates, LocalWindow, PRUNE_SLACK,
@@ -41,7 +42,7 @@ pub struct TrackFrame<'a> {
 
 impl TrackFrame<'_> {
     /// The frame as the appearance term sees it, when it has a colour image.
-    fn appearance(&self) -> Option<AppearanceFrame<'_>> {
+    pub(crate) fn appearance(&self) -> Option<AppearanceFrame<'_>> {
         self.rgb.map(|rgb| AppearanceFrame {
             camera: &self.camera,
             rgb,
@@ -1469,8 +1470,90 @@ fn after_propagation(
     if cfg.appearance && n >= 2 {
         appearance_pass(s, frames, (poses, scores), fixed, first, &rejected, log);
         log.phase("appearance", s);
+        if axis_pass(s, frames, (poses, scores), fixed, log)? {
+            log.phase("axis", s);
+        }
     }
     Ok(())
+}
+
+/// The grid steps of [`axis_pass`]: round the circle, then around the coarse choice.
+const AXIS_COARSE_DEG: f64 = 10.0;
+const AXIS_FINE_DEG: f64 = 2.0;
+
+/// Where every turn about one of the model's principal axes keeps its outline in every frame
+/// (a can, a bottle: [`continuous_axis`]) and the model has colours of its own
+/// ([`model_has_appearance`]: a label part), the angle about it chosen for all frames together
+/// by their colours ([`choose_turns`]): every [`AXIS_COARSE_DEG`] round the circle, then
+/// every [`AXIS_FINE_DEG`] around that. A turn is taken where it keeps the frame's IoU
+/// within [`APPEARANCE_TIE`] (as turned, or polished). `fixed` frames keep their pose.
+/// Whether the pass ran (the model has such an axis).
+fn axis_pass(
+    s: &Searcher<'_>,
+    frames: &[TrackFrame<'_>],
+    (poses, scores): (&mut [GenPose], &mut [f64]),
+    fixed: &[bool],
+    log: &mut Log<'_>,
+) -> Result<bool, TrackError> {
+    if !model_has_appearance(s.model) {
+        return Ok(false);
+    }
+    let cameras: Vec<&PinholeCamera> = frames.iter().map(|f| &f.camera).collect();
+    let Some(axis) = continuous_axis(s.model, s.scale, &cameras, poses) else {
+        return Ok(false);
+    };
+    let colours: Vec<Option<AppearanceFrame<'_>>> =
+        frames.iter().map(TrackFrame::appearance).collect();
+    let mut turned = vec![0.0; frames.len()];
+    for grid in [
+        AngleGrid::circle(AXIS_COARSE_DEG),
+        AngleGrid::around(AXIS_FINE_DEG, AXIS_COARSE_DEG),
+    ] {
+        let turns = choose_turns(s.model, s.scale, &colours, poses, fixed, &axis, &grid);
+        let taken: Vec<Option<(GenPose, f64)>> = turns
+            .par_iter()
+            .enumerate()
+            .map(|(i, &deg)| -> Result<Option<(GenPose, f64)>, TrackError> {
+                if deg == 0.0 || fixed[i] {
+                    return Ok(None);
+                }
+                let g = axis.turn(&poses[i], s.scale, deg);
+                let problem = s.problem_of(&frames[i], &g);
+                let sc = problem.evaluator().combined(&g);
+                s.evals.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                if sc >= scores[i] - APPEARANCE_TIE {
+                    return Ok(Some((g, sc)));
+                }
+                let seed = s.cfg.seed + 7_000_003 * (i as u64 + 1);
+                let (p, psc) = s.polish(&frames[i], &g, seed)?;
+                Ok((psc >= scores[i] - APPEARANCE_TIE).then_some((p, psc)))
+            })
+            .collect::<Result<_, _>>()?;
+        for (i, t) in taken.into_iter().enumerate() {
+            if let Some((g, sc)) = t {
+                poses[i] = g;
+                scores[i] = sc;
+                turned[i] += turns[i];
+            }
+        }
+    }
+    let moved: Vec<String> = turned
+        .iter()
+        .enumerate()
+        .filter(|(_, &deg)| signed_deg(deg).abs() > 0.5 * AXIS_FINE_DEG)
+        .map(|(i, &deg)| format!("{} {:+.0}°", frames[i].name, signed_deg(deg)))
+        .collect();
+    log.push(format!(
+        "axis: every turn about the model's {} keeps the outline; the angles about it chosen by colour over all frames: {}",
+        crate::temporal::axis_label(&[axis.axis.x, axis.axis.y, axis.axis.z]),
+        if moved.is_empty() {
+            "every frame kept".to_string()
+        } else {
+            format!("turned {}", moved.join(", "))
+        }
+    ));
+    log.all_poses(poses);
+    Ok(true)
 }
 
 /// What a global search of one frame ([`Searcher::rescue`]) found: the pose that replaces
