@@ -44,7 +44,8 @@ Alternate two kinds of steps; **each step changes the shape or the poses, never 
 
 1. **Shape step.** Look at the keyframes (`frames`: the raw input, cropped and zoomed) and
    the comparisons, then rewrite `scene.rhai` with
-   `scene_write` (the whole script). It is checked before it replaces the current one: on a
+   `scene_write` (the whole script, as `script` or as `path`: a file you wrote in the run
+   directory, e.g. `draft.rhai`). It is checked before it replaces the current one: on a
    syntax or geometry error you get the message and nothing changes. Check the result with
    `turntable` in every joint state: the 3-D shape must be coherent from every side, not only
    from the camera. Proportions you are unsure of (a depth, a handle's height) are better

@@ -665,9 +665,52 @@ pub struct NoArgs {}
 #[derive(Debug, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct SceneWriteArgs {
-    /// The whole scene script (Rhai).
+    /// The whole scene script (Rhai). Or give `path` instead.
     #[schemars(length(min = 1, max = 262144))]
-    pub script: String,
+    pub script: Option<String>,
+    /// A text file holding the whole script (at most 256 KiB), in the run directory or
+    /// relative to it (e.g. `draft.rhai`, written with your own editor): no escaping of the
+    /// script into a JSON string. Give `script` or `path`, not both.
+    #[schemars(length(min = 1))]
+    pub path: Option<String>,
+}
+
+/// The longest scene script `scene_write` takes, in bytes (its schema's bound on `script`).
+const SCENE_SCRIPT_MAX_BYTES: usize = 262_144;
+
+impl SceneWriteArgs {
+    /// The script given, or read from the file given (inside the run directory or the
+    /// capture, bounded).
+    fn script(&self, tb: &Toolbox) -> Result<String> {
+        match (&self.script, &self.path) {
+            (Some(script), None) => Ok(script.clone()),
+            (None, Some(path)) => {
+                let file = tb.confine(path).map_err(AgentError::Tool)?;
+                let len = std::fs::metadata(&file)
+                    .map_err(|e| agentstar_data::DataError::io(&file, e))?
+                    .len();
+                if len > SCENE_SCRIPT_MAX_BYTES as u64 {
+                    return Err(AgentError::Tool(format!(
+                        "`{path}` holds {len} bytes; a scene script may have at most {SCENE_SCRIPT_MAX_BYTES}"
+                    )));
+                }
+                let script = agentstar_data::read_text(&file)?;
+                if script.trim().is_empty() {
+                    return Err(AgentError::Tool(format!(
+                        "`{path}` is empty; the scene was not changed"
+                    )));
+                }
+                Ok(script)
+            }
+            (Some(_), Some(_)) => Err(AgentError::Tool(
+                "give `script` or `path`, not both; the scene was not changed".into(),
+            )),
+            (None, None) => Err(AgentError::Tool(
+                "give `script` (the whole scene script) or `path` (a file in the run directory holding it)"
+                    .into(),
+            )),
+        }
+    }
 }
 
 #[derive(Debug, Deserialize, JsonSchema)]
@@ -1041,8 +1084,8 @@ tool!(SceneRead, "scene_read", Diagnostic, Nothing, NoArgs,
     |tb, _a, _step| tb.scene_read());
 
 tool!(SceneWrite, "scene_write", Shape, Scene, SceneWriteArgs,
-    "Replace scene.rhai with a whole new script (a shape step). The script is built in the sandbox first: on an error you get the message with its line and nothing changes. On success a new scene version is saved and pose.json gains new joints at rest (removed joints are dropped). Check the shape with `turntable` afterwards.",
-    |tb, a, step| tb.scene_write(&a.script, step));
+    "Replace scene.rhai with a whole new script (a shape step), given as `script` or as `path` (a file in the run directory holding it). The script is built in the sandbox first: on an error you get the message with its line and nothing changes. On success a new scene version is saved and pose.json gains new joints at rest (removed joints are dropped). Check the shape with `turntable` afterwards.",
+    |tb, a, step| tb.scene_write(&a.script(tb)?, step));
 
 tool!(
     SceneRestore,

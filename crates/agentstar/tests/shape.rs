@@ -417,3 +417,41 @@ fn scale_comes_back_from_depth_parallax_and_a_stated_size() {
         text(&o)
     );
 }
+
+#[test]
+fn scene_write_reads_a_script_from_a_file_in_the_run_and_nowhere_else() {
+    let dir = tempfile::tempdir().expect("tmp");
+    let original = box_script("1.0", "0.7", "0.48");
+    let (_cap, run) = run_with(dir.path(), 2, &original);
+    let edited = box_script("1.1", "0.7", "0.48");
+    std::fs::write(run.join("draft.rhai"), &edited).expect("draft");
+    let outside = dir.path().join("outside.rhai");
+    std::fs::write(&outside, &edited).expect("outside");
+    std::fs::write(run.join("empty.rhai"), "  \n").expect("empty");
+    let (mut c, _) = McpClient::initialised(&run);
+    // Refused, and the scene left as it was: a file outside the run, both arguments,
+    // neither, an empty file, a missing one.
+    let refused = [
+        (json!({"path": s(&outside)}), "outside the run"),
+        (json!({"path": "draft.rhai", "script": edited}), "not both"),
+        (json!({}), "give `script`"),
+        (json!({"path": "empty.rhai"}), "is empty"),
+        (json!({"path": "nowhere.rhai"}), "no such file"),
+    ];
+    for (id, (args, says)) in refused.iter().enumerate() {
+        let id = id as u64 + 2;
+        c.call(id, "scene_write", args.clone());
+        let (resp, _) = c.response(id);
+        let body = McpClient::text_of(&resp);
+        assert_eq!(resp["result"]["isError"], true, "{args}: {resp}");
+        assert!(body.contains(says), "{args}: {body}");
+        let scene = std::fs::read_to_string(run.join("scene.rhai")).expect("scene");
+        assert_eq!(scene, original, "{args} changed the scene");
+    }
+    // Relative to the run directory: the scene becomes the file's script.
+    c.call(20, "scene_write", json!({"path": "draft.rhai"}));
+    let (resp, _) = c.response(20);
+    assert_eq!(resp["result"]["isError"], false, "{resp}");
+    let scene = std::fs::read_to_string(run.join("scene.rhai")).expect("scene");
+    assert_eq!(scene, edited);
+}
