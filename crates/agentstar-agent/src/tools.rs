@@ -1161,9 +1161,14 @@ tool!(Keyframes, "frames", Diagnostic, Nothing, KeyframesArgs,
         let sheets = report.sheets.len();
         o.images.truncate(MAX_IMAGES_RETURNED);
         let mut text = format!(
-            "frames: {crops} keyframe crop(s) and {sheets} sheet(s) in {}; {} image(s) returned (sheets first)",
+            "frames: {crops} keyframe crop(s) and {sheets} sheet(s) in {}; {} image(s) returned (sheets first){}",
             out.display(),
-            o.images.len()
+            o.images.len(),
+            if crops + sheets > o.images.len() {
+                "; the rest are files there"
+            } else {
+                ""
+            }
         );
         for f in &report.frames {
             if let (Some([x, y, w, h]), Some(z)) = (f.crop, f.zoom) {

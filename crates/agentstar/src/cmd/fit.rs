@@ -267,7 +267,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
                 after: v,
                 min: p.min,
                 max: p.max,
-                at_bound: (v - p.min).min(p.max - v) < 0.005 * (p.max - p.min),
+                at_bound: (v - p.min).min(p.max - v) < AT_BOUND_SHARE * (p.max - p.min),
             })
             .collect(),
         held: declared
@@ -407,3 +407,7 @@ fn print_summary(r: &FitReport) {
         }
     );
 }
+
+/// A fitted value within this share of its range from a bound is reported at the bound
+/// ([`agentstar_agent::fit::FitParam::at_bound`]).
+const AT_BOUND_SHARE: f64 = 0.02;

@@ -231,14 +231,35 @@ pub fn run_osweep(a: OsweepArgs) -> Result<ExitCode> {
 /// as one rotation vector (`rx:…;ry:…;rz:…`, degrees, as `oapply` reads it) and its joint
 /// states (interface units).
 fn refined_to(base: &GenPose, pose: &GenPose, tree: &KinematicTree) -> String {
-    let turn = (base.pose.rotation.inverse() * pose.pose.rotation)
-        .scaled_axis()
-        .map(f64::to_degrees);
+    let q = base.pose.rotation.inverse() * pose.pose.rotation;
+    let turn = q.scaled_axis().map(f64::to_degrees);
     let mut out = format!("rx:{:.1};ry:{:.1};rz:{:.1}", turn.x, turn.y, turn.z);
     for (name, value) in tree.states_to_interface(&pose.states) {
         out.push_str(&format!(";{name}:{value:.1}"));
     }
+    if let Some((name, deg)) = nearest_named_turn(&q) {
+        out.push_str(&format!(" (≈ {name}, {deg:.0}° from it)"));
+    }
     out
+}
+
+/// A refined candidate within this of the identity or of a half-turn about a canonical axis
+/// is labelled with it (play-test 9 worked out by hand which `so3:24` row was the flip).
+const NAMED_TURN_DEG: f64 = 20.0;
+
+/// The named turn (`identity`, `flip:x`, `flip:y`, `flip:z`) nearest `turn`, and how far
+/// from it, if within [`NAMED_TURN_DEG`].
+fn nearest_named_turn(turn: &UnitQuaternion) -> Option<(&'static str, f64)> {
+    [
+        ("identity", UnitQuaternion::identity()),
+        ("flip:x", flip('x')?),
+        ("flip:y", flip('y')?),
+        ("flip:z", flip('z')?),
+    ]
+    .into_iter()
+    .map(|(name, q)| (name, q.angle_to(turn).to_degrees()))
+    .filter(|&(_, deg)| deg <= NAMED_TURN_DEG)
+    .min_by(|a, b| a.1.total_cmp(&b.1))
 }
 
 /// One candidate of a set: its label, the rotation about the box centre, and the joint
@@ -651,5 +672,25 @@ mod tests {
             let e = parse_candidate(bad, &tree).expect_err(bad).to_string();
             assert!(e.contains(says), "{bad}: {e}");
         }
+    }
+
+    #[test]
+    fn a_refined_turn_near_a_flip_is_named_and_a_far_one_is_not() {
+        use agentstar_geom::Vector3;
+        let about = |axis: Vector3, deg: f64| {
+            UnitQuaternion::from_axis_angle(
+                &agentstar_geom::nalgebra::Unit::new_normalize(axis),
+                deg.to_radians(),
+            )
+        };
+        let (name, deg) = nearest_named_turn(&about(Vector3::x(), 172.0)).expect("named");
+        assert_eq!(name, "flip:x");
+        assert!((deg - 8.0).abs() < 1e-6, "{deg}");
+        let near_identity = about(Vector3::new(1.0, 1.0, 0.0), 5.0);
+        assert_eq!(
+            nearest_named_turn(&near_identity).map(|n| n.0),
+            Some("identity")
+        );
+        assert_eq!(nearest_named_turn(&about(Vector3::z(), 90.0)), None);
     }
 }
