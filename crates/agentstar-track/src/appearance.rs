@@ -848,10 +848,16 @@ pub(crate) mod tests {
     /// The can of [`cylinder_model`] with its label as a second part: a shell over the side
     /// at +X (|θ| < 1.5 rad, |z| < 0.3), just outside the can's surface, painted cream.
     pub(crate) fn labelled_model() -> ObjectModel {
+        label_of_half_width(1.5)
+    }
+
+    /// [`cylinder_model`] with a label part over `half_width_rad` either side of +X
+    /// (standing 0.001–0.006 proud of the side, 0.6 high), cream.
+    pub(crate) fn label_of_half_width(half_width_rad: f64) -> ObjectModel {
         let arc = |r: f64| -> Vec<(f64, f64)> {
             (0..=24)
                 .map(|k| {
-                    let t = -1.5 + 3.0 * k as f64 / 24.0;
+                    let t = half_width_rad * (-1.0 + 2.0 * k as f64 / 24.0);
                     (r * t.cos(), r * t.sin())
                 })
                 .collect()

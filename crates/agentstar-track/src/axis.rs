@@ -318,7 +318,9 @@ pub fn choose_turns(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::appearance::tests::{cylinder_model, labelled_model, pose, shoot};
+    use crate::appearance::tests::{
+        cylinder_model, label_of_half_width, labelled_model, pose, shoot,
+    };
     use agentstar_geom::{primitives, KinematicTree, Part};
 
     #[test]
@@ -384,22 +386,6 @@ mod tests {
     /// every view shows both colours (the model's colours against a frame that shows only
     /// the label's, shaded, score as a print missing; not what this test is about).
     fn quarter_label() -> (ObjectModel, impl Fn(&Point3) -> [f64; 3]) {
-        let arc = |r: f64| -> Vec<(f64, f64)> {
-            (0..=12)
-                .map(|k| {
-                    let t = -0.8 + 1.6 * k as f64 / 12.0;
-                    (r * t.cos(), r * t.sin())
-                })
-                .collect()
-        };
-        let mut outline = arc(0.306);
-        outline.extend(arc(0.301).into_iter().rev());
-        let label = primitives::extrude(&outline, &[], 0.6).expect("label");
-        let mut model = cylinder_model();
-        model
-            .parts
-            .push(Part::new("label", label, [0.85, 0.8, 0.6]));
-        model.tree = KinematicTree::rigid(2);
         let paint = |p: &Point3| {
             if p.z.abs() < 0.3 && p.y.atan2(p.x).abs() < 0.8 {
                 [0.85, 0.8, 0.6]
@@ -407,7 +393,7 @@ mod tests {
                 [0.6, 0.05, 0.05]
             }
         };
-        (model, paint)
+        (label_of_half_width(0.8), paint)
     }
 
     /// The spin error about the can's axis, in degrees (the axis itself is never moved).
