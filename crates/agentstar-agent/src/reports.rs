@@ -216,6 +216,10 @@ pub struct SequenceScore {
     pub mean_iou_visible: f64,
     pub median_iou_visible: f64,
     pub min_iou_visible: f64,
+    /// The frame with the lowest visible IoU.
+    #[serde(default)]
+    pub min_visible_frame: String,
+    /// The frame lowest on the gate (the band IoU where frames have one, else the visible).
     pub worst_frame: String,
     pub pass_iou: f64,
     /// Frames under the gate, worst first.
@@ -247,6 +251,11 @@ impl SequenceScore {
         let band_min = bands.iter().copied().reduce(f64::min);
         let n = gates.len().max(1);
         let worst = scores.iter().min_by(|a, b| a.gate().total_cmp(&b.gate()));
+        let lowest_visible = scores.iter().min_by(|a, b| {
+            a.iou_visible
+                .unwrap_or(0.0)
+                .total_cmp(&b.iou_visible.unwrap_or(0.0))
+        });
         let mut below: Vec<&FrameScore> = scores.iter().filter(|s| s.gate() < pass_iou).collect();
         below.sort_by(|a, b| a.gate().total_cmp(&b.gate()).then(a.frame.cmp(&b.frame)));
         SequenceScore {
@@ -258,6 +267,7 @@ impl SequenceScore {
                 gates[gates.len() / 2]
             },
             min_iou_visible: gates.first().copied().unwrap_or(0.0),
+            min_visible_frame: lowest_visible.map(|w| w.frame.clone()).unwrap_or_default(),
             worst_frame: worst.map(|w| w.frame.clone()).unwrap_or_default(),
             pass_iou,
             below_gate: below.iter().map(|s| s.frame.clone()).collect(),
@@ -827,7 +837,8 @@ pub fn score_table(
     let band_text = match (band, summary.mean_iou_band, summary.min_iou_band) {
         (Some(px), Some(mean), Some(min)) => {
             format!(
-                "; band IoU (±{px} px boundary excluded, the gate) mean {mean:.4}, min {min:.4}"
+                "; band IoU (±{px} px boundary excluded, the gate) mean {mean:.4}, min {min:.4} ({})",
+                summary.worst_frame
             )
         }
         _ => String::new(),
@@ -839,7 +850,7 @@ pub fn score_table(
         summary.mean_iou_visible,
         summary.median_iou_visible,
         summary.min_iou_visible,
-        summary.worst_frame,
+        summary.min_visible_frame,
         summary.below_gate.len(),
         summary.pass_iou
     )
@@ -949,6 +960,12 @@ mod tests {
         assert_eq!(s.min_iou_visible, 0.97);
         assert_eq!(s.min_iou_band, Some(0.96));
         assert_eq!(s.band_px, Some(2.0));
+        // Each minimum names its own frame (play-test 10 read the band's worst frame beside
+        // the visible minimum).
+        assert_eq!(
+            (s.min_visible_frame.as_str(), s.worst_frame.as_str()),
+            ("a", "b")
+        );
     }
 
     #[test]

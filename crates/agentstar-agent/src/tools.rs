@@ -298,14 +298,14 @@ fn track_text(r: &TrackReport, poses: Option<&agentstar_data::posefile::PoseFile
     );
     match (q.band_px, q.mean_iou_band, q.min_iou_band) {
         (Some(px), Some(mean), Some(min)) => text.push_str(&format!(
-            "band IoU (±{px} px boundary excluded, the gate {}) mean {mean:.4}, min {min:.4}; ",
-            q.pass_iou
+            "band IoU (±{px} px boundary excluded, the gate {}) mean {mean:.4}, min {min:.4} ({}); ",
+            q.pass_iou, q.worst_frame
         )),
         _ => text.push_str(&format!("gate {} on the visible IoU; ", q.pass_iou)),
     }
     text.push_str(&format!(
         "visible IoU mean {:.4}, min {:.4} ({})\n",
-        q.mean_iou_visible, q.min_iou_visible, q.worst_frame
+        q.mean_iou_visible, q.min_iou_visible, q.min_visible_frame
     ));
     if q.below_gate.is_empty() {
         text.push_str("every frame passes the gate\n");

@@ -23,8 +23,7 @@ use crate::hypotheses::principal_axes;
 use crate::sequence::cheapest_path;
 use crate::update::{apply_object_rotation, GenPose};
 use agentstar_geom::nalgebra::Unit;
-use agentstar_geom::{ObjectModel, PinholeCamera, Point3, UnitQuaternion, Vector3};
-use agentstar_render::{BitMask, PosedModel, ScoreTarget, SilhouetteRenderer};
+use agentstar_geom::{ObjectModel, Point3, UnitQuaternion, Vector3};
 use rayon::prelude::*;
 
 /// An axis of the model (canonical frame) about which every turn keeps the outline, and a
@@ -53,78 +52,286 @@ impl SymmetryAxis {
 /// Turns that test an axis: not a multiple of 360°/n for small n, so a box's 90° or a
 /// hexagon's 60° symmetry does not pass for a continuous one.
 const TEST_TURNS_DEG: [f64; 4] = [50.0, 130.0, 230.0, 310.0];
-/// A turn keeps the outline when the turned rendering's IoU with the unturned one is at
-/// least this and their outlines lie within [`SYMMETRY_SHIFT_PX`] of each other on average
-/// (the pixels that differ over the outline's length). The hard suite's labelled can (a
-/// label sleeve 2% proud of one half of its side, 26k px) turned 230° keeps IoU 0.990 and
-/// moves its outline 0.4 px; a mug's handle turned away moves it by the handle's area over
-/// the outline (several pixels), a box turned 50° by far more.
-const SYMMETRY_IOU: f64 = 0.97;
-const SYMMETRY_SHIFT_PX: f64 = 0.75;
+/// Cells across the model's footprint along an axis ([`body_axis`]): for the axis's
+/// centre and score, and while its direction is searched.
+const FOOTPRINT_CELLS: usize = 64;
+const COARSE_CELLS: usize = 32;
+/// A footprint this far under [`BODY_IOU`] along a principal axis is not searched for a
+/// tilt (a mug's, 6° off its body's, scores 0.84; a square's 0.71).
+const TILT_SEARCH_BELOW: f64 = 0.1;
+/// A principal axis whose footprint keeps this IoU is the body's axis as it is, not tilted.
+const ROUND_IOU: f64 = 0.95;
+/// A footprint whose turns about its best centre keep at least this IoU with it (mean over
+/// [`TEST_TURNS_DEG`]) is a round body: a can's disc keeps 0.97–1.0; a mug's, its handle
+/// sticking out, about 0.9; a square's 0.71 (at 45°); a box with a lid or a laptop less.
+const BODY_IOU: f64 = 0.85;
 
-/// The pixels of `mask` with a 4-neighbour outside it (or on the image's edge): the length
-/// of its outline in pixels.
-fn boundary_pixels(mask: &BitMask) -> u64 {
-    let (w, h) = (mask.width(), mask.height());
-    let mut n = 0;
-    for y in 0..h {
-        for x in 0..w {
-            if mask.get(x, y)
-                && (x == 0
-                    || y == 0
-                    || x + 1 == w
-                    || y + 1 == h
-                    || !mask.get(x - 1, y)
-                    || !mask.get(x + 1, y)
-                    || !mask.get(x, y - 1)
-                    || !mask.get(x, y + 1))
-            {
-                n += 1;
-            }
-        }
-    }
-    n
+/// The model's footprint along an axis: every triangle projected orthographically onto the
+/// plane across it, filled on a square grid over their extent.
+struct Footprint {
+    /// Cells along each side.
+    n: usize,
+    filled: Vec<bool>,
+    /// Plane coordinates of cell (0, 0)'s corner, and the cell's side.
+    origin: (f64, f64),
+    cell: f64,
 }
 
-/// The principal axis of the model about which every turn keeps its silhouette in every
-/// frame (each frame's camera at its pose), if one does. `None` for a model that moves a
-/// joint between frames (the axis would not be one rigid turn), or whose outline changes.
-pub fn continuous_axis(
-    model: &ObjectModel,
-    scale: f64,
-    cameras: &[&PinholeCamera],
-    poses: &[GenPose],
-) -> Option<SymmetryAxis> {
-    let first = poses.first()?;
-    if cameras.len() != poses.len() || poses.iter().any(|g| g.states != first.states) {
-        return None;
-    }
-    let (centre, axes) = principal_axes(model, &first.states)?;
-    let mut renderer = SilhouetteRenderer::new(1, 1);
-    axes.iter().find_map(|&axis| {
-        let candidate = SymmetryAxis { centre, axis };
-        let keeps = cameras.iter().zip(poses).all(|(camera, pose)| {
-            let posed = PosedModel::new(model, &pose.states, &pose.pose.with_scale(scale));
-            let own = renderer.render(camera, &posed.instances).clone();
-            if own.count() == 0 {
-                return true;
+impl Footprint {
+    fn new(points: &[(f64, f64)], triangles: &[[usize; 3]], n: usize) -> Option<Self> {
+        let (mut lo, mut hi) = (
+            (f64::INFINITY, f64::INFINITY),
+            (f64::NEG_INFINITY, f64::NEG_INFINITY),
+        );
+        for &(u, v) in points {
+            lo = (lo.0.min(u), lo.1.min(v));
+            hi = (hi.0.max(u), hi.1.max(v));
+        }
+        let side = (hi.0 - lo.0).max(hi.1 - lo.1);
+        if !(side.is_finite() && side > 0.0) {
+            return None;
+        }
+        let cell = side / n as f64;
+        let mut filled = vec![false; n * n];
+        for t in triangles {
+            let [a, b, c] = t.map(|k| points[k]);
+            let area = (b.0 - a.0) * (c.1 - a.1) - (b.1 - a.1) * (c.0 - a.0);
+            if area.abs() < 1e-18 {
+                continue;
             }
-            let Ok(target) = ScoreTarget::new(own, None) else {
-                return false;
+            let cells = |x: f64, y: f64| {
+                (
+                    ((x - lo.0) / cell).floor().clamp(0.0, (n - 1) as f64) as usize,
+                    ((y - lo.1) / cell).floor().clamp(0.0, (n - 1) as f64) as usize,
+                )
             };
-            let area = target.mask().count() as f64;
-            let perimeter = boundary_pixels(target.mask()) as f64;
-            TEST_TURNS_DEG.iter().all(|&deg| {
-                let turned = candidate.turn(pose, scale, deg);
-                let posed = PosedModel::new(model, &turned.states, &turned.pose.with_scale(scale));
-                let iou = target.gate(renderer.render(camera, &posed.instances));
-                // |A ∆ B| from the IoU, for two outlines of about the same area.
-                let moved = 2.0 * area * (1.0 - iou) / (1.0 + iou);
-                iou >= SYMMETRY_IOU && moved <= SYMMETRY_SHIFT_PX * perimeter
+            let (x0, y0) = cells(a.0.min(b.0).min(c.0), a.1.min(b.1).min(c.1));
+            let (x1, y1) = cells(a.0.max(b.0).max(c.0), a.1.max(b.1).max(c.1));
+            for y in y0..=y1 {
+                for x in x0..=x1 {
+                    let p = (
+                        lo.0 + (x as f64 + 0.5) * cell,
+                        lo.1 + (y as f64 + 0.5) * cell,
+                    );
+                    let edge = |p0: (f64, f64), p1: (f64, f64)| {
+                        ((p1.0 - p0.0) * (p.1 - p0.1) - (p1.1 - p0.1) * (p.0 - p0.0))
+                            * area.signum()
+                    };
+                    if edge(a, b) >= 0.0 && edge(b, c) >= 0.0 && edge(c, a) >= 0.0 {
+                        filled[y * n + x] = true;
+                    }
+                }
+            }
+        }
+        Some(Footprint {
+            n,
+            filled,
+            origin: lo,
+            cell,
+        })
+    }
+
+    fn get(&self, u: f64, v: f64) -> bool {
+        let n = self.n as f64;
+        let x = ((u - self.origin.0) / self.cell).floor();
+        let y = ((v - self.origin.1) / self.cell).floor();
+        x >= 0.0 && y >= 0.0 && x < n && y < n && self.filled[y as usize * self.n + x as usize]
+    }
+
+    /// Mean IoU of the footprint with itself turned by each of [`TEST_TURNS_DEG`] about
+    /// `centre` (plane coordinates), over the filled cells' centres (`cells`).
+    fn turned_iou(&self, cells: &[(f64, f64)], centre: (f64, f64)) -> f64 {
+        if cells.is_empty() {
+            return 0.0;
+        }
+        let area = cells.len() as f64;
+        let mut sum = 0.0;
+        for deg in TEST_TURNS_DEG {
+            let (sin, cos) = deg.to_radians().sin_cos();
+            let inter = cells
+                .iter()
+                .filter(|&&(u, v)| {
+                    let (du, dv) = (u - centre.0, v - centre.1);
+                    self.get(
+                        centre.0 + cos * du - sin * dv,
+                        centre.1 + sin * du + cos * dv,
+                    )
+                })
+                .count() as f64;
+            sum += inter / (2.0 * area - inter);
+        }
+        sum / TEST_TURNS_DEG.len() as f64
+    }
+
+    /// The centres of the filled cells (plane coordinates).
+    fn cells(&self) -> Vec<(f64, f64)> {
+        let n = self.n;
+        (0..n * n)
+            .filter(|&k| self.filled[k])
+            .map(|k| {
+                (
+                    self.origin.0 + ((k % n) as f64 + 0.5) * self.cell,
+                    self.origin.1 + ((k / n) as f64 + 0.5) * self.cell,
+                )
             })
-        });
-        keeps.then_some(candidate)
-    })
+            .collect()
+    }
+}
+
+/// The axis of the model's round body, if it has one: of its principal axes (at `states`),
+/// the one along which its footprint stays most alike under turns, through the footprint's
+/// centre of turning (found by search: a mug's handle pulls the principal axes' centre off
+/// its body's axis), when that footprint keeps [`BODY_IOU`]. A can's or a bottle's is its
+/// axis; a mug's or a kettle's the axis of its body, about which only turns that hide the
+/// handle keep the outline; a box has none.
+pub fn body_axis(model: &ObjectModel, states: &[f64]) -> Option<SymmetryAxis> {
+    let (centre, axes) = principal_axes(model, states)?;
+    let transforms = model.tree.part_transforms(states);
+    let mut positions: Vec<Point3> = Vec::new();
+    let mut triangles: Vec<[usize; 3]> = Vec::new();
+    for (part, t) in model.parts.iter().zip(&transforms) {
+        let base = positions.len();
+        positions.extend(part.mesh.positions.iter().map(|p| t * p));
+        triangles.extend(
+            part.mesh
+                .triangles
+                .iter()
+                .map(|tri| tri.map(|k| base + k as usize)),
+        );
+    }
+    let mut best: Option<(f64, SymmetryAxis)> = None;
+    for principal in axes {
+        // The axis itself: from the principal axis, tilted by a pattern search (a hollow
+        // mug's handle tilts its principal axes 6° off its body's).
+        // The tilt is searched on a coarse footprint; a footprint far from round there
+        // (a box's: 0.71) is not searched.
+        let Some(found) = round_along(&positions, &triangles, &principal, COARSE_CELLS) else {
+            continue;
+        };
+        if found.0 < BODY_IOU - TILT_SEARCH_BELOW {
+            continue;
+        }
+        let mut axis = principal;
+        let Some((mut score, mut at)) =
+            round_along(&positions, &triangles, &principal, FOOTPRINT_CELLS)
+        else {
+            continue;
+        };
+        // Coarse steps on the coarse footprint, then fine ones on the fine footprint (a
+        // tilt of 2° moves a mug's rim by less than a coarse cell); none where the principal
+        // axis is already round (a can: exact moments beat a raster, which a label part
+        // standing proud of half the side tilts by a fraction of a degree).
+        let tilts: &[(usize, f64, f64)] = if score >= ROUND_IOU {
+            &[]
+        } else {
+            &[
+                (COARSE_CELLS, AXIS_TILT_STEP_DEG, 1.0),
+                (FOOTPRINT_CELLS, 1.0, AXIS_TILT_MIN_DEG),
+            ]
+        };
+        for &(cells, first_deg, last_deg) in tilts {
+            let Some(mut here) = round_along(&positions, &triangles, &axis, cells) else {
+                break;
+            };
+            let mut step = first_deg;
+            while step >= last_deg {
+                let (u, v) = plane_basis(&axis);
+                let better = [(u, step), (u, -step), (v, step), (v, -step)]
+                    .iter()
+                    .filter_map(|(about, deg)| {
+                        let tilted = UnitQuaternion::from_axis_angle(
+                            &Unit::new_normalize(*about),
+                            deg.to_radians(),
+                        ) * axis;
+                        if tilted.dot(&principal).clamp(-1.0, 1.0).acos().to_degrees()
+                            > AXIS_TILT_MAX_DEG
+                        {
+                            return None;
+                        }
+                        Some((tilted, round_along(&positions, &triangles, &tilted, cells)?))
+                    })
+                    .max_by(|a, b| a.1 .0.total_cmp(&b.1 .0))
+                    .filter(|b| b.1 .0 > here.0);
+                match better {
+                    Some((tilted, r)) => (axis, here) = (tilted, r),
+                    None => step /= 2.0,
+                }
+            }
+            (score, at) = here;
+        }
+        let (cu, cv) = at;
+        if score >= BODY_IOU && best.as_ref().is_none_or(|b| score > b.0) {
+            let (u, v) = plane_basis(&axis);
+            let along = centre.coords.dot(&axis);
+            best = Some((
+                score,
+                SymmetryAxis {
+                    centre: Point3::from(u * cu + v * cv + axis * along),
+                    axis,
+                },
+            ));
+        }
+    }
+    best.map(|b| b.1)
+}
+
+/// The first tilt of [`body_axis`]'s search for the axis, the least, and the most from the
+/// principal axis it starts at.
+const AXIS_TILT_STEP_DEG: f64 = 4.0;
+const AXIS_TILT_MIN_DEG: f64 = 0.25;
+const AXIS_TILT_MAX_DEG: f64 = 20.0;
+
+/// Two unit vectors spanning the plane across `axis`.
+fn plane_basis(axis: &Vector3) -> (Vector3, Vector3) {
+    let helper = if axis.x.abs() < 0.9 {
+        Vector3::x()
+    } else {
+        Vector3::y()
+    };
+    let u = axis.cross(&helper).normalize();
+    let v = axis.cross(&u);
+    (u, v)
+}
+
+/// How round the model's footprint along `axis` is: its mean IoU with itself turned about
+/// its best centre of turning, and that centre (plane coordinates along
+/// [`plane_basis`]). The centre is found from the footprint's centroid by a pattern search
+/// (a step each way along both plane axes, halved when none gains) down to half a cell.
+fn round_along(
+    positions: &[Point3],
+    triangles: &[[usize; 3]],
+    axis: &Vector3,
+    cells_across: usize,
+) -> Option<(f64, (f64, f64))> {
+    let (u, v) = plane_basis(axis);
+    let points: Vec<(f64, f64)> = positions
+        .iter()
+        .map(|p| (p.coords.dot(&u), p.coords.dot(&v)))
+        .collect();
+    let footprint = Footprint::new(&points, triangles, cells_across)?;
+    let cells = footprint.cells();
+    let n_cells = cells.len().max(1) as f64;
+    let mut at = cells.iter().fold((0.0, 0.0), |a, c| {
+        (a.0 + c.0 / n_cells, a.1 + c.1 / n_cells)
+    });
+    let mut score = footprint.turned_iou(&cells, at);
+    let mut step = footprint.cell * cells_across as f64 / 8.0;
+    while step >= 0.5 * footprint.cell {
+        let moves = [(step, 0.0), (-step, 0.0), (0.0, step), (0.0, -step)];
+        let better = moves
+            .iter()
+            .map(|m| {
+                let c = (at.0 + m.0, at.1 + m.1);
+                (c, footprint.turned_iou(&cells, c))
+            })
+            .max_by(|a, b| a.1.total_cmp(&b.1))
+            .filter(|b| b.1 > score);
+        match better {
+            Some((c, sc)) => (at, score) = (c, sc),
+            None => step /= 2.0,
+        }
+    }
+    Some((score, at))
 }
 
 /// The grid of one choice: angles (degrees) relative to each frame's current pose, the
@@ -176,7 +383,9 @@ const MODEL_WEIGHT: f64 = 2.0;
 /// The turn of every frame (degrees, one of `grid`'s) that best explains the colours: the
 /// most total NCC of each frame against the model's own colours and of each pair of
 /// neighbouring frames against each other (both directions, averaged), a frame or a step
-/// without evidence counting alike at every turn. `fixed` frames keep their angle (0).
+/// without evidence counting alike at every turn. Frame `i` takes only its own angle (0) and
+/// the turns `allowed[i]` marks (a mug's turns that keep its handle hidden; the tracker marks
+/// those that keep the frame's IoU, and none for a frame it keeps fixed).
 /// `frames[i]` is `None` for a frame without colours. Every turn is 0 when nothing has
 /// evidence, and for a model of one colour ([`model_has_appearance`]): without the model's
 /// own colours the angle is a free choice of the whole sequence (a plain bottle's shading
@@ -186,14 +395,15 @@ pub fn choose_turns(
     scale: f64,
     frames: &[Option<AppearanceFrame<'_>>],
     poses: &[GenPose],
-    fixed: &[bool],
+    allowed: &[Vec<bool>],
     axis: &SymmetryAxis,
     grid: &AngleGrid,
 ) -> Vec<f64> {
     let n = frames.len();
     if n == 0
         || poses.len() != n
-        || fixed.len() != n
+        || allowed.len() != n
+        || allowed.iter().any(|a| a.len() != grid.angles_deg.len())
         || grid.angles_deg.is_empty()
         || !model_has_appearance(model)
     {
@@ -201,13 +411,19 @@ pub fn choose_turns(
     }
     let cfg = AppearanceConfig::default();
     let angles = &grid.angles_deg;
-    // Each frame's own colours against the model's, at each turn.
+    // The turns each frame may take: its own angle and those `allowed` marks.
+    let takes = |i: usize, k: usize| k == 0 || allowed[i][k];
+    // Each frame's own colours against the model's, at each turn it may take.
     let unary: Vec<Vec<Option<f64>>> = (0..n)
         .into_par_iter()
         .map(|i| match frames[i] {
             Some(app) => angles
                 .iter()
-                .map(|&deg| {
+                .enumerate()
+                .map(|(k, &deg)| {
+                    if !takes(i, k) {
+                        return None;
+                    }
                     let g = axis.turn(&poses[i], scale, deg);
                     model_agreement(model, scale, &app, &g, &cfg).ncc
                 })
@@ -215,30 +431,34 @@ pub fn choose_turns(
             None => vec![None; angles.len()],
         })
         .collect();
-    // The differences of turns a step can take.
-    let mut diffs: Vec<i64> = angles
-        .iter()
-        .flat_map(|a| angles.iter().map(move |b| key(b - a)))
-        .collect();
-    diffs.sort_unstable();
-    diffs.dedup();
-    // pair[i][d]: frame i turned by d against frame i − 1 as it is, and frame i − 1 turned
-    // by −d against frame i as it is; averaged where both have evidence.
-    let pair: Vec<Vec<Option<f64>>> = (0..n)
+    // pair[i]: per difference d of turns the step from frame i − 1 to i can take (sorted by
+    // `key`), frame i turned by d against frame i − 1 as it is and frame i − 1 turned by −d
+    // against frame i as it is, averaged where both have evidence.
+    let pair: Vec<Vec<(i64, Option<f64>)>> = (0..n)
         .into_par_iter()
         .map(|i| {
-            let none = vec![None; diffs.len()];
             if i == 0 {
-                return none;
+                return vec![];
             }
+            let mut diffs: Vec<i64> = (0..angles.len())
+                .filter(|&a| takes(i - 1, a))
+                .flat_map(|a| {
+                    (0..angles.len())
+                        .filter(move |&b| takes(i, b))
+                        .map(move |b| key(angles[b] - angles[a]))
+                })
+                .collect();
+            diffs.sort_unstable();
+            diffs.dedup();
+            let none = || diffs.iter().map(|&d| (d, None)).collect();
             let (Some(fa), Some(fb)) = (frames[i - 1], frames[i]) else {
-                return none;
+                return none();
             };
             let (Some(va), Some(vb)) = (
                 ReferenceView::new(model, scale, fa, &poses[i - 1]),
                 ReferenceView::new(model, scale, fb, &poses[i]),
             ) else {
-                return none;
+                return none();
             };
             diffs
                 .iter()
@@ -262,50 +482,60 @@ pub fn choose_turns(
                         &cfg,
                     )[0]
                     .ncc;
-                    match (forward, backward) {
+                    let ncc = match (forward, backward) {
                         (Some(f), Some(b)) => Some(0.5 * (f + b)),
                         (f, b) => f.or(b),
-                    }
+                    };
+                    (d, ncc)
                 })
                 .collect()
         })
         .collect();
-    let evidence = unary.iter().chain(&pair).flatten().any(Option::is_some);
+    let evidence = unary
+        .iter()
+        .flatten()
+        .chain(pair.iter().flatten().map(|(_, v)| v))
+        .any(Option::is_some);
     if !evidence {
         return vec![0.0; n];
     }
     // Costs to minimise: 1 − NCC (a turn without evidence where others have some counts
     // as uncorrelated), plus the tie-break toward the current angle.
-    let cost_of = |row: &[Option<f64>], k: usize| -> f64 {
-        if row.iter().all(Option::is_none) {
-            0.0
+    let cost_of = |evidence: bool, value: Option<f64>| -> f64 {
+        if evidence {
+            1.0 - value.unwrap_or(0.0)
         } else {
-            1.0 - row[k].unwrap_or(0.0)
+            0.0
         }
     };
+    let unary_evidence: Vec<bool> = unary
+        .iter()
+        .map(|r| r.iter().any(Option::is_some))
+        .collect();
+    let pair_evidence: Vec<bool> = pair
+        .iter()
+        .map(|r| r.iter().any(|e| e.1.is_some()))
+        .collect();
     let unary_cost: Vec<Vec<f64>> = (0..n)
         .map(|i| {
-            if fixed[i] {
-                // Only the current angle (index 0, turn 0).
-                let mut row = vec![f64::INFINITY; angles.len()];
-                row[0] = cost_of(&unary[i], 0);
-                return row;
-            }
             angles
                 .iter()
                 .enumerate()
                 .map(|(k, &deg)| {
-                    MODEL_WEIGHT * cost_of(&unary[i], k)
+                    if !takes(i, k) {
+                        return f64::INFINITY;
+                    }
+                    MODEL_WEIGHT * cost_of(unary_evidence[i], unary[i][k])
                         + MOVE_COST_PER_HALF_TURN * (key(deg) as f64 / 1000.0).abs() / 180.0
                 })
                 .collect()
         })
         .collect();
-    let index_of = |d: i64| diffs.binary_search(&d).ok();
     let step = |i: usize, a: usize, b: usize| -> f64 {
-        match index_of(key(angles[b] - angles[a])) {
-            Some(k) => cost_of(&pair[i], k),
-            None => 0.0,
+        let row = &pair[i];
+        match row.binary_search_by_key(&key(angles[b] - angles[a]), |e| e.0) {
+            Ok(k) => cost_of(pair_evidence[i], row[k].1),
+            Err(_) => 0.0,
         }
     };
     let path = cheapest_path(&unary_cost, &step);
@@ -321,7 +551,8 @@ mod tests {
     use crate::appearance::tests::{
         cylinder_model, label_of_half_width, labelled_model, pose, shoot,
     };
-    use agentstar_geom::{primitives, KinematicTree, Part};
+    use agentstar_geom::{primitives, KinematicTree, Part, PinholeCamera};
+    use agentstar_render::BitMask;
 
     #[test]
     fn grids_start_at_no_turn_and_keys_read_the_short_way_round() {
@@ -354,23 +585,38 @@ mod tests {
     }
 
     #[test]
-    fn a_can_has_a_continuous_axis_and_a_can_with_a_handle_or_a_box_has_none() {
-        let cam = camera();
-        let poses = truths();
-        let cameras = vec![&cam; poses.len()];
+    fn a_can_and_a_mug_have_a_body_axis_through_their_body_and_a_box_has_none() {
         let can = labelled_model();
-        let axis = continuous_axis(&can, 0.12, &cameras, &poses).expect("the can's axis");
+        let axis = body_axis(&can, &[]).expect("the can's axis");
         assert!(axis.axis.z.abs() > 0.999, "axis {:?}", axis.axis);
-        // A handle on the side: the outline turns with it.
-        let mut mug = labelled_model();
-        let handle = primitives::cuboid(0.08, 0.12, 0.5)
+        // Through the can's axis (x = y = 0), within a cell of the footprint.
+        let off = (axis.centre.x.powi(2) + axis.centre.y.powi(2)).sqrt();
+        assert!(off < 0.01, "centre {:?}", axis.centre);
+        // A handle on the side pulls the principal axes' centre off the body's axis, and,
+        // high on the side, tilts them off it; the body's axis is found all the same.
+        let body = primitives::cylinder(0.3, 0.6, 48).expect("body");
+        let handle = primitives::cuboid(0.12, 0.12, 0.2)
             .expect("handle")
-            .translated(Vector3::new(0.36, 0.0, 0.0));
+            .translated(Vector3::new(0.36, 0.0, 0.2));
+        let mut mug = ObjectModel {
+            tree: KinematicTree::rigid(1),
+            parts: vec![Part::new("body", body, [0.6, 0.1, 0.1])],
+        };
         mug.parts
             .push(Part::new("handle", handle, [0.85, 0.8, 0.6]));
-        mug.tree = KinematicTree::rigid(3);
-        assert_eq!(continuous_axis(&mug, 0.12, &cameras, &poses), None);
-        // A square box: 90° turns keep its outline, 50° turns do not.
+        mug.tree = KinematicTree::rigid(2);
+        let (principal_centre, principal) = principal_axes(&mug, &[]).expect("axes");
+        assert!(principal_centre.x > 0.02, "{principal_centre:?}");
+        let tilt = |a: &Vector3| a.z.abs().clamp(0.0, 1.0).acos().to_degrees();
+        assert!(
+            principal.iter().map(tilt).fold(f64::INFINITY, f64::min) > 2.0,
+            "{principal:?}"
+        );
+        let axis = body_axis(&mug, &[]).expect("the mug's body axis");
+        assert!(tilt(&axis.axis) < 1.0, "axis {:?}", axis.axis);
+        let off = (axis.centre.x.powi(2) + axis.centre.y.powi(2)).sqrt();
+        assert!(off < 0.015, "centre {:?}", axis.centre);
+        // A square box: 90° turns keep its footprint, 50° turns do not.
         let square = ObjectModel {
             tree: KinematicTree::rigid(1),
             parts: vec![Part::new(
@@ -379,7 +625,7 @@ mod tests {
                 [0.5, 0.5, 0.5],
             )],
         };
-        assert_eq!(continuous_axis(&square, 0.12, &cameras, &poses), None);
+        assert_eq!(body_axis(&square, &[]), None);
     }
 
     /// A can with a label over a quarter of its side (±0.8 rad about +X), and its paint:
@@ -423,8 +669,7 @@ mod tests {
                 })
             })
             .collect();
-        let cameras = vec![&cam; truths.len()];
-        let axis = continuous_axis(&can, scale, &cameras, &truths).expect("axis");
+        let axis = body_axis(&can, &[]).expect("axis");
         // Frames 2–4 turned alike by 40° (they agree with one another), frame 5 by −90°.
         let offsets = [0.0, 0.0, 40.0, 40.0, 40.0, -90.0];
         let mut poses: Vec<GenPose> = truths
@@ -432,9 +677,10 @@ mod tests {
             .zip(offsets)
             .map(|(t, deg)| axis.turn(t, scale, deg))
             .collect();
-        let fixed = vec![false; poses.len()];
+        // Every turn keeps a can's outline.
+        let every = |grid: &AngleGrid| vec![vec![true; grid.angles_deg.len()]; truths.len()];
         for grid in [AngleGrid::circle(10.0), AngleGrid::around(2.0, 10.0)] {
-            let turns = choose_turns(&can, scale, &frames, &poses, &fixed, &axis, &grid);
+            let turns = choose_turns(&can, scale, &frames, &poses, &every(&grid), &axis, &grid);
             for (g, deg) in poses.iter_mut().zip(turns) {
                 *g = axis.turn(g, scale, deg);
             }
@@ -446,24 +692,27 @@ mod tests {
                 spin_error(g, t)
             );
         }
-        // A fixed frame keeps its angle, even turned wrong.
-        let mut pinned = fixed.clone();
-        pinned[5] = true;
+        // A frame allowed no turn keeps its angle, even turned wrong (a fixed frame; a mug's
+        // handle in view).
         let wrong: Vec<GenPose> = truths
             .iter()
             .zip(offsets)
             .map(|(t, deg)| axis.turn(t, scale, deg))
             .collect();
-        let turns = choose_turns(
-            &can,
-            scale,
-            &frames,
-            &wrong,
-            &pinned,
-            &axis,
-            &AngleGrid::circle(10.0),
-        );
-        assert_eq!(turns[5], 0.0);
+        let circle = AngleGrid::circle(10.0);
+        let mut allowed = every(&circle);
+        for k in [3, 5] {
+            allowed[k] = vec![false; circle.angles_deg.len()];
+        }
+        let turns = choose_turns(&can, scale, &frames, &wrong, &allowed, &axis, &circle);
+        assert_eq!((turns[3], turns[5]), (0.0, 0.0), "{turns:?}");
+        // The others still turn back (frames 2 and 4 by about −40°).
+        for k in [2, 4] {
+            assert!(
+                (key(turns[k]) as f64 / 1000.0 + 40.0).abs() <= 10.0,
+                "{turns:?}"
+            );
+        }
         // A model of one colour cannot fix the angle: nothing turns.
         let plain = cylinder_model();
         let turns = choose_turns(
@@ -471,9 +720,9 @@ mod tests {
             scale,
             &frames,
             &wrong,
-            &fixed,
+            &every(&circle),
             &axis,
-            &AngleGrid::circle(10.0),
+            &circle,
         );
         assert!(turns.iter().all(|&d| d == 0.0), "{turns:?}");
     }

@@ -10,7 +10,7 @@ use crate::appearance::{
     appearance_each, appearance_score, model_agreement, model_has_appearance, AppearanceConfig,
     AppearanceFrame, ReferenceView,
 };
-use crate::axis::{choose_turns, continuous_axis, AngleGrid};
+use crate::axis::{body_axis, choose_turns, AngleGrid};
 use crate::hypotheses::{
     principal_axes, refine_above, refine_each_above, refine_first_pass, refine_local, refine_rest,
     same_basin, twin_candidates, LocalWindow, PRUNE_SLACK,
@@ -1481,13 +1481,14 @@ fn after_propagation(
 const AXIS_COARSE_DEG: f64 = 10.0;
 const AXIS_FINE_DEG: f64 = 2.0;
 
-/// Where every turn about one of the model's principal axes keeps its outline in every frame
-/// (a can, a bottle: [`continuous_axis`]) and the model has colours of its own
-/// ([`model_has_appearance`]: a label part), the angle about it chosen for all frames together
-/// by their colours ([`choose_turns`]): every [`AXIS_COARSE_DEG`] round the circle, then
-/// every [`AXIS_FINE_DEG`] around that. A turn is taken where it keeps the frame's IoU
-/// within [`APPEARANCE_TIE`] (as turned, or polished). `fixed` frames keep their pose.
-/// Whether the pass ran (the model has such an axis).
+/// Where the model has a round body ([`body_axis`]: a can, a bottle, a mug's body) and colours
+/// of its own ([`model_has_appearance`]: a label part, a badge), the angle about the body's
+/// axis chosen for all frames together by their colours ([`choose_turns`]): every
+/// [`AXIS_COARSE_DEG`] round the circle, then every [`AXIS_FINE_DEG`] around that. Each frame
+/// takes only the turns that keep its IoU within [`APPEARANCE_TIE`] (a can: every turn; a
+/// mug: those that keep its handle where the mask has it, or hidden). `fixed` frames keep
+/// their pose. Whether the pass ran (the model has such an axis, the same joint states in
+/// every frame, and some frame could turn).
 fn axis_pass(
     s: &Searcher<'_>,
     frames: &[TrackFrame<'_>],
@@ -1495,47 +1496,74 @@ fn axis_pass(
     fixed: &[bool],
     log: &mut Log<'_>,
 ) -> Result<bool, TrackError> {
-    if !model_has_appearance(s.model) {
+    let Some(first) = poses.first() else {
+        return Ok(false);
+    };
+    if !model_has_appearance(s.model) || poses.iter().any(|g| g.states != first.states) {
         return Ok(false);
     }
-    let cameras: Vec<&PinholeCamera> = frames.iter().map(|f| &f.camera).collect();
-    let Some(axis) = continuous_axis(s.model, s.scale, &cameras, poses) else {
+    let Some(axis) = body_axis(s.model, &first.states) else {
         return Ok(false);
     };
     let colours: Vec<Option<AppearanceFrame<'_>>> =
         frames.iter().map(TrackFrame::appearance).collect();
     let mut turned = vec![0.0; frames.len()];
+    let mut could_turn = false;
     for grid in [
         AngleGrid::circle(AXIS_COARSE_DEG),
         AngleGrid::around(AXIS_FINE_DEG, AXIS_COARSE_DEG),
     ] {
-        let turns = choose_turns(s.model, s.scale, &colours, poses, fixed, &axis, &grid);
-        let taken: Vec<Option<(GenPose, f64)>> = turns
-            .par_iter()
-            .enumerate()
-            .map(|(i, &deg)| -> Result<Option<(GenPose, f64)>, TrackError> {
-                if deg == 0.0 || fixed[i] {
-                    return Ok(None);
-                }
-                let g = axis.turn(&poses[i], s.scale, deg);
-                let problem = s.problem_of(&frames[i], &g);
-                let sc = problem.evaluator().combined(&g);
-                s.evals.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-                if sc >= scores[i] - APPEARANCE_TIE {
-                    return Ok(Some((g, sc)));
-                }
-                let seed = s.cfg.seed + 7_000_003 * (i as u64 + 1);
-                let (p, psc) = s.polish(&frames[i], &g, seed)?;
-                Ok((psc >= scores[i] - APPEARANCE_TIE).then_some((p, psc)))
+        // Every turn of every frame on the masks: which keep its IoU, and their scores.
+        let placed: Vec<Vec<f64>> = (0..frames.len())
+            .into_par_iter()
+            .map(|i| {
+                let problem = s.problem_of(&frames[i], &poses[i]);
+                let mut ev = problem.evaluator();
+                grid.angles_deg
+                    .iter()
+                    .map(|&deg| {
+                        if deg == 0.0 || fixed[i] {
+                            scores[i]
+                        } else {
+                            ev.combined(&axis.turn(&poses[i], s.scale, deg))
+                        }
+                    })
+                    .collect()
             })
-            .collect::<Result<_, _>>()?;
-        for (i, t) in taken.into_iter().enumerate() {
-            if let Some((g, sc)) = t {
-                poses[i] = g;
-                scores[i] = sc;
-                turned[i] += turns[i];
-            }
+            .collect();
+        s.evals.fetch_add(
+            frames.len() * grid.angles_deg.len(),
+            std::sync::atomic::Ordering::Relaxed,
+        );
+        let allowed: Vec<Vec<bool>> = placed
+            .iter()
+            .zip(scores.iter())
+            .zip(fixed)
+            .map(|((row, &own), &fixed)| {
+                row.iter()
+                    .map(|&sc| !fixed && sc >= own - APPEARANCE_TIE)
+                    .collect()
+            })
+            .collect();
+        if allowed.iter().all(|row| row.iter().skip(1).all(|&a| !a)) {
+            continue;
         }
+        could_turn = true;
+        let turns = choose_turns(s.model, s.scale, &colours, poses, &allowed, &axis, &grid);
+        for (i, &deg) in turns.iter().enumerate() {
+            let Some(k) = grid.angles_deg.iter().position(|&a| a == deg) else {
+                continue;
+            };
+            if k == 0 || fixed[i] || !allowed[i][k] {
+                continue;
+            }
+            poses[i] = axis.turn(&poses[i], s.scale, deg);
+            scores[i] = placed[i][k];
+            turned[i] += deg;
+        }
+    }
+    if !could_turn {
+        return Ok(false);
     }
     let moved: Vec<String> = turned
         .iter()
@@ -1544,7 +1572,7 @@ fn axis_pass(
         .map(|(i, &deg)| format!("{} {:+.0}°", frames[i].name, signed_deg(deg)))
         .collect();
     log.push(format!(
-        "axis: every turn about the model's {} keeps the outline; the angles about it chosen by colour over all frames: {}",
+        "axis: the model's round body turns about its {}; the angles about it chosen by colour over all frames: {}",
         crate::temporal::axis_label(&[axis.axis.x, axis.axis.y, axis.axis.z]),
         if moved.is_empty() {
             "every frame kept".to_string()
