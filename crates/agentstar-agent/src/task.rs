@@ -75,9 +75,9 @@ compare; compare and side are cropped around the object, overlay shows the whole
 - **frames**: the raw keyframe itself, cropped around its mask (optionally zoomed, with the
   mask's boundary in magenta, the hand's in cyan, the model's in yellow): the only view of
   the input without the model over it; use it to judge thin parts, print and texture.
-- **candidate sheet** (sweeps): two candidates a row, each as the render over the frame and
-  its comparison, cropped around the object, ranked, labelled with rank, IoU and the order
-  that produced it.
+- **candidate sheet** (sweeps): one candidate a row, as the render over the frame, the
+  model opaque on the frame (its print against the frame's), and its comparison, cropped
+  around the object, ranked, labelled with rank, IoU and the order that produced it.
 - **turntable**: eight views around the upright model (canonical +Z up) on a light
   background, one sheet per joint state (each joint's min, median and max over the
   keyframes unless you ask for others); look for parts floating, intersecting, or missing

@@ -196,20 +196,24 @@ fn candidate_sheet(
     let long = crop[2].max(crop[3]);
     let cut = |img: &RgbImage| crop_zoomed(img, crop, long.max(TILE_LONG_SIDE_PX));
     let mut tiles = Vec::new();
+    // Per candidate: the model over the frame (its outline against the frame's), the model
+    // opaque (its print against the frame's, as `render side` shows it: play-tests 8 and 10
+    // could not tell the model's print from the frame's under the translucent overlay), and
+    // the silhouette comparison.
     for ((r, buffers), sil) in shown.iter().zip(&silhouettes) {
-        let over = overlay(
-            &frame,
-            &shade(buffers, &colors, ShadeOptions::default()),
-            0.6,
-        );
+        let shaded = shade(buffers, &colors, ShadeOptions::default());
         let (cmp, _) = silhouette_comparison(sil, target.mask(), hand.as_ref());
         tiles.push((
             format!("#{} IoU {:.4} {}", r.rank, r.score.gate, r.label),
-            cut(&over),
+            cut(&overlay(&frame, &shaded, 0.6)),
+        ));
+        tiles.push((
+            format!("#{} model (opaque)", r.rank),
+            cut(&overlay(&frame, &shaded, 1.0)),
         ));
         tiles.push((format!("#{} compare", r.rank), cut(&cmp)));
     }
-    Ok(sheet_pages(&tiles, 4, title))
+    Ok(sheet_pages(&tiles, 3, title))
 }
 
 /// The least width over height of a sweep sheet's tile, and the long side its crop is
