@@ -849,7 +849,8 @@ pub struct SweepArgs {
     pub ranges: String,
     pub strategy: Option<Strategy>,
     /// Evaluations over all restarts (default 3600, or for DE 20 generations of its
-    /// population, 8 per searched dimension, where that is more: 6720 for 7 dimensions).
+    /// population, 8 per searched dimension, where that is more, at most 20000: 6720 for 7
+    /// dimensions).
     #[schemars(range(min = 50, max = 50000))]
     pub evals: Option<u64>,
 }

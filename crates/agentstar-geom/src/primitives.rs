@@ -272,6 +272,29 @@ pub fn cylinder(radius: f64, height: f64, segs: i64) -> Result<TriMesh> {
     )
 }
 
+/// A pie-slice prism along Z centred at the origin: the sector of a disc of `radius` from
+/// −`angle_deg`/2 to +`angle_deg`/2 about +X (0 < angle < 360), `height` tall, the arc in
+/// `segs` pieces. With `intersection` it cuts a part of a turn from a solid: a label over 195°
+/// of a can's side is `intersection(sleeve, sector(1, 1, 195))`.
+pub fn sector(radius: f64, height: f64, angle_deg: f64, segs: i64) -> Result<TriMesh> {
+    positive("sector", "radius", radius)?;
+    positive("sector", "height", height)?;
+    if !(angle_deg.is_finite() && angle_deg > 0.0 && angle_deg < 360.0) {
+        return Err(invalid(
+            "sector",
+            format!("`angle_deg` must lie strictly between 0 and 360, got {angle_deg}"),
+        ));
+    }
+    let n = segments("sector", "segments", segs, 1)? as usize;
+    let half = angle_deg.to_radians() / 2.0;
+    let mut outline = vec![(0.0, 0.0)];
+    outline.extend((0..=n).map(|k| {
+        let t = -half + 2.0 * half * k as f64 / n as f64;
+        (radius * t.cos(), radius * t.sin())
+    }));
+    extrude(&outline, &[], height)
+}
+
 /// A truncated cone: `radius_bottom` at z = −height/2, `radius_top` at +height/2 (0 for a point).
 pub fn cone(radius_bottom: f64, radius_top: f64, height: f64, segs: i64) -> Result<TriMesh> {
     non_negative("cone", "radius_bottom", radius_bottom)?;
@@ -594,6 +617,26 @@ mod tests {
             volume
         );
         assert!(close(m.area(), area, rel), "area {} vs {}", m.area(), area);
+    }
+
+    #[test]
+    fn a_sector_is_the_share_of_the_disc_its_angle_says_and_refuses_a_full_turn() {
+        for (angle, segs) in [(90.0, 12), (195.0, 48), (300.0, 60)] {
+            let m = sector(0.5, 0.2, angle, segs).expect("sector");
+            assert!(m.is_watertight(), "{angle}");
+            // The polygon inscribed in the arc: n triangles of the arc's chords.
+            let piece = angle.to_radians() / segs as f64;
+            let area = 0.5 * 0.25 * piece.sin() * segs as f64;
+            assert!(
+                close(m.volume(), area * 0.2, 1e-9),
+                "{angle}: {}",
+                m.volume()
+            );
+        }
+        for bad in [0.0, 360.0, -10.0, f64::NAN] {
+            assert!(sector(0.5, 0.2, bad, 12).is_err(), "{bad}");
+        }
+        assert!(sector(-0.5, 0.2, 90.0, 12).is_err());
     }
 
     #[test]

@@ -360,7 +360,7 @@ mod tests {
         );
         assert_eq!(two.pages, pages.len());
         assert!(two.pages * two.rows_per_page * two.columns >= 12);
-        // In four columns (two candidates a row) they fit one page with larger tiles.
+        // In four columns they fit one page with larger tiles.
         let four = sheet_layout(&t, 4, "sweep 000010.png");
         let one = sheet_pages(&t, 4, "sweep 000010.png");
         assert_eq!((one.len(), four.pages), (1, 1), "{four:?}");

@@ -25,6 +25,7 @@ pub struct ApiEntry {
 pub const API: &[ApiEntry] = &[
     ApiEntry { name: "box", forms: &["box(size_x, size_y, size_z)", "box(size_x, size_y, size_z, bevel)", "box(size_x, size_y, size_z, bevel, segments)"], doc: "Axis-aligned box centred at the origin with full extents; `bevel` rounds the edges with that radius (segments = 1 chamfers)." },
     ApiEntry { name: "cylinder", forms: &["cylinder(radius, height)", "cylinder(radius, height, segments)"], doc: "Cylinder along Z centred at the origin (default 48 segments)." },
+    ApiEntry { name: "sector", forms: &["sector(radius, height, angle_deg)", "sector(radius, height, angle_deg, segments)"], doc: "Pie-slice prism along Z centred at the origin, the sector from −angle/2 to +angle/2 about +X (0 < angle < 360; default 48 segments); with intersection it keeps part of a turn: a label over 195° of a side is intersection(sleeve, sector(1, 1, 195))." },
     ApiEntry { name: "cone", forms: &["cone(radius_bottom, radius_top, height)", "cone(radius_bottom, radius_top, height, segments)"], doc: "Truncated cone along Z, bottom at z = −height/2; a radius of 0 makes a point." },
     ApiEntry { name: "sphere", forms: &["sphere(radius)", "sphere(radius, segments, rings)"], doc: "UV sphere centred at the origin, poles on Z (default 32 × 16)." },
     ApiEntry { name: "ico_sphere", forms: &["ico_sphere(radius)", "ico_sphere(radius, subdivisions)"], doc: "Subdivided icosahedron (default 2 subdivisions, at most 6)." },
@@ -443,6 +444,18 @@ fn register(engine: &mut Engine, state: &Shared, meshes: Arc<dyn MeshSource>) {
         num(&r, "cylinder", "radius")?,
         num(&h, "cylinder", "height")?,
         int(&n, "cylinder", "segments")?
+    ))?);
+    prim!("sector", |r, h, a| geom(prim::sector(
+        num(&r, "sector", "radius")?,
+        num(&h, "sector", "height")?,
+        num(&a, "sector", "angle_deg")?,
+        48
+    ))?);
+    prim!("sector", |r, h, a, n| geom(prim::sector(
+        num(&r, "sector", "radius")?,
+        num(&h, "sector", "height")?,
+        num(&a, "sector", "angle_deg")?,
+        int(&n, "sector", "segments")?
     ))?);
     prim!("cone", |a, b, h| geom(prim::cone(
         num(&a, "cone", "radius_bottom")?,

@@ -248,6 +248,7 @@ fn every_primitive_is_reachable() {
         part("k", lathe([[0, 0], [0.1, 0], [0.05, 0.2], [0, 0.2]]));
         part("l", intersection(sphere(0.1), box(0.15, 0.15, 0.15)).mirror("x").rotate_euler(10, 20, 30).rotate_y(5).rotate_z(5));
         part("m", union_all([box(0.1, 0.1, 0.1), sphere(0.06).translate(0.05, 0, 0)]).scale(1, 2, 1));
+        part("n", intersection(cylinder(0.1, 0.2) - cylinder(0.09, 0.3), sector(0.3, 0.3, 195)));
         let s = box(0.1, 0.2, 0.3);
         print(s.size());
         print(s.bounds());
@@ -255,9 +256,19 @@ fn every_primitive_is_reachable() {
         print(s.triangle_count());
     "#;
     let b = build(src).expect("all primitives");
-    assert_eq!(b.model.parts.len(), 13);
+    assert_eq!(b.model.parts.len(), 14);
     assert_eq!(b.printed.len(), 4);
     assert!(b.model.parts[9].watertight);
+    // A shell cut to 195° of a turn: closed, and its volume 195/360 of the whole shell's
+    // (within the polygons' 2%).
+    let label = &b.model.parts[13];
+    assert!(label.watertight);
+    let shell = std::f64::consts::PI * (0.1f64.powi(2) - 0.09f64.powi(2)) * 0.2;
+    let share = label.mesh.volume() / shell;
+    assert!(
+        (share - 195.0 / 360.0).abs() < 0.02 * 195.0 / 360.0,
+        "{share}"
+    );
 }
 
 #[test]

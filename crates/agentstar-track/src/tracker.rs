@@ -72,8 +72,9 @@ pub struct TrackConfig {
     /// on the hard suite it took mean rotation errors down on 5 of 7 sequences
     /// (bench/hard-2026-12-02c-sequence-choice.md), and the quick suite is unchanged.
     pub sequence_choice: bool,
-    /// Let the frames' colours enter the sequence-level choice (photometric consistency
-    /// between hypotheses of neighbouring frames; frames without an image use the masks alone).
+    /// Let the frames' colours enter the tracking: the sequence-level choice (photometric
+    /// consistency between hypotheses of neighbouring frames), the appearance passes and the
+    /// axis pass about a round body's axis; frames without an image use the masks alone.
     pub appearance: bool,
 }
 
@@ -1433,8 +1434,14 @@ fn track_on(
 
 /// The passes over the whole sequence once every frame has a pose (from the propagation,
 /// or a warm start's), as the configuration asks for them: the consistency pass, the
-/// sequence-level choice and the last appearance pass (outward from `first`); `fixed` frames
-/// keep their poses. The observer gets the poses after each pass.
+/// sequence-level choice, the last appearance pass (outward from `first`) and the axis pass
+/// ([`axis_pass`]); `fixed` frames keep their poses. The observer gets the poses after each
+/// pass.
+///
+/// The axis pass may turn a frame about a round body's axis into a basin the sequence
+/// choice weighed and did not take (a half-turn about a can's axis is one of its twins): its
+/// evidence, every frame's colours against the model's and every step's, is the choice's own,
+/// on a finer grid of turns.
 ///
 /// With colours, an appearance pass also runs before the choice: a can's poses come out of
 /// the consistency pass turned 15–130° about its axis (the masks cannot see that turn),
@@ -1507,8 +1514,14 @@ fn axis_pass(
     };
     let colours: Vec<Option<AppearanceFrame<'_>>> =
         frames.iter().map(TrackFrame::appearance).collect();
+    if colours.iter().all(Option::is_none) {
+        return Ok(false);
+    }
     let mut turned = vec![0.0; frames.len()];
     let mut could_turn = false;
+    // Each frame's IoU as the pass began: every grid's turns are held within the tie of it,
+    // not of the last grid's choice (which may already have spent the tie).
+    let began: Vec<f64> = scores.to_vec();
     for grid in [
         AngleGrid::circle(AXIS_COARSE_DEG),
         AngleGrid::around(AXIS_FINE_DEG, AXIS_COARSE_DEG),
@@ -1531,13 +1544,12 @@ fn axis_pass(
                     .collect()
             })
             .collect();
-        s.evals.fetch_add(
-            frames.len() * grid.angles_deg.len(),
-            std::sync::atomic::Ordering::Relaxed,
-        );
+        let evaluated = fixed.iter().filter(|&&f| !f).count() * (grid.angles_deg.len() - 1);
+        s.evals
+            .fetch_add(evaluated, std::sync::atomic::Ordering::Relaxed);
         let allowed: Vec<Vec<bool>> = placed
             .iter()
-            .zip(scores.iter())
+            .zip(began.iter())
             .zip(fixed)
             .map(|((row, &own), &fixed)| {
                 row.iter()
@@ -3073,6 +3085,75 @@ mod tests {
         let elsewhere = spin_about_z(&truths[0], 180.0);
         let (free, _) = run(&[vec![elsewhere], vec![], vec![]]);
         assert!(error_of(&free[0], &truths[0]) < 8.0);
+    }
+
+    #[test]
+    fn the_axis_pass_turns_a_can_back_about_its_axis_by_its_label_and_keeps_anchors() {
+        use crate::appearance::tests::{label_of_half_width, pose, shoot};
+        // A can with a label over a quarter of its side, seen from three directions with
+        // the label in view; frame 1 left 40° off about the can's axis.
+        let model = label_of_half_width(0.8);
+        let paint = |p: &Point3| {
+            if p.z.abs() < 0.3 && p.y.atan2(p.x).abs() < 0.8 {
+                [0.85, 0.8, 0.6]
+            } else {
+                [0.6, 0.05, 0.05]
+            }
+        };
+        let (scale, cam) = (0.12, camera());
+        let truths: Vec<GenPose> = [(-110.0, 0.0), (-90.0, 20.0), (-70.0, -15.0)]
+            .iter()
+            .map(|&(spin, tilt)| pose(Vector3::new(0.3, 1.0, 0.1), tilt, spin))
+            .collect();
+        let shots: Vec<(Vec<u8>, BitMask)> = truths
+            .iter()
+            .map(|t| shoot(&model, scale, &cam, t, &paint))
+            .collect();
+        let targets: Vec<ScoreTarget> = shots
+            .iter()
+            .map(|(_, m)| ScoreTarget::new(m.clone(), None).expect("target"))
+            .collect();
+        let frames: Vec<TrackFrame<'_>> = targets
+            .iter()
+            .zip(&shots)
+            .enumerate()
+            .map(|(k, (target, (rgb, _)))| TrackFrame {
+                name: format!("{k:06}.png"),
+                camera: cam,
+                target,
+                world_from_camera: None,
+                rgb: Some(rgb),
+            })
+            .collect();
+        let cfg = TrackConfig::default();
+        let s = Searcher::new(&model, scale, &frames, &cfg).expect("searcher");
+        let wrong = spin_about_z(&truths[1], 40.0);
+        let start: Vec<GenPose> = vec![truths[0].clone(), wrong.clone(), truths[2].clone()];
+        let began = scores_of(&model, scale, &frames, &start);
+        let run = |fixed: &[bool]| {
+            let (mut poses, mut scores) = (start.clone(), began.clone());
+            let observe = |_: &str| {};
+            let mut log = Log::new(&observe);
+            let ran = axis_pass(&s, &frames, (&mut poses, &mut scores), fixed, &mut log)
+                .expect("axis pass");
+            (ran, poses, scores, log.lines)
+        };
+        let (ran, poses, scores, lines) = run(&[false, false, false]);
+        assert!(ran, "{lines:?}");
+        for (k, (g, t)) in poses.iter().zip(&truths).enumerate() {
+            assert!(
+                error_of(g, t) < 5.0,
+                "frame {k}: {:.1}° off: {lines:?}",
+                error_of(g, t)
+            );
+        }
+        // Every turn held within the IoU tie of where the frame began.
+        for (k, (sc, b)) in scores.iter().zip(&began).enumerate() {
+            assert!(*sc >= b - APPEARANCE_TIE - 1e-9, "frame {k}: {b} -> {sc}");
+        }
+        // An anchor keeps its pose exactly.
+        let (_, pinned, _, _) = run(&[false, true, false]);
+        assert_eq!(pinned[1], wrong);
     }
 
     /// Each frame's score at its pose, as the tracker computes it.

@@ -36,7 +36,7 @@ pub struct SweepArgs {
     restarts: usize,
     /// Objective evaluations over all restarts (split evenly). Default: 3600, or for DE
     /// enough for 20 generations of every restart's population (8 per searched dimension)
-    /// where that is more: 6720 for 7 dimensions.
+    /// where that is more, at most 20000: 6720 for 7 dimensions.
     #[arg(long)]
     evals: Option<usize>,
     /// Seed of the first restart.
@@ -281,13 +281,16 @@ fn default_evals(strategy: &Strategy, dims: usize, restarts: usize) -> usize {
     match strategy {
         Strategy::De => {
             let population = (SweepConfig::default().popsize * dims).max(5);
-            DEFAULT_EVALS.max(restarts.max(1) * population * DE_GENERATIONS)
+            (restarts.max(1) * population * DE_GENERATIONS).clamp(DEFAULT_EVALS, MAX_DEFAULT_EVALS)
         }
         _ => DEFAULT_EVALS,
     }
 }
 const DEFAULT_EVALS: usize = 3600;
 const DE_GENERATIONS: usize = 20;
+/// The most a sweep takes without being asked: 20 generations of a model with many joints
+/// would be (12 dimensions: 11,520; 30: 28,800).
+const MAX_DEFAULT_EVALS: usize = 20_000;
 
 /// What a sweep says when its best is the start it began from (play-test 7 read a rank 0 of
 /// zero increments above rows of `seen` as a failed search).
@@ -365,5 +368,7 @@ mod tests {
             shrink: 0.5,
         };
         assert_eq!(default_evals(&grid, 7, 6), DEFAULT_EVALS);
+        // Many joints: capped.
+        assert_eq!(default_evals(&Strategy::De, 40, 6), MAX_DEFAULT_EVALS);
     }
 }

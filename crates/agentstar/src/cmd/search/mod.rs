@@ -152,7 +152,8 @@ fn space_json(space: &SearchSpace, tree: &KinematicTree) -> Value {
 const SHEET_MARGIN: f64 = 0.15;
 
 /// The candidate sheet of one frame, as pages within the image limits: per finalist, the
-/// render over the frame and the silhouette comparison (two finalists a row), cropped to
+/// render over the frame, the render opaque on the frame and the silhouette comparison (one
+/// finalist a row), cropped to
 /// the mask and every finalist's silhouette with a margin (the same crop for all, so they
 /// compare), labelled with rank, score and order.
 fn candidate_sheet(

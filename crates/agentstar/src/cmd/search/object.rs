@@ -229,7 +229,8 @@ pub fn run_osweep(a: OsweepArgs) -> Result<ExitCode> {
 
 /// Where a refined candidate ended, relative to the frame's pose: its object-frame rotation
 /// as one rotation vector (`rx:…;ry:…;rz:…`, degrees, as `oapply` reads it) and its joint
-/// states (interface units).
+/// states (interface units), then in brackets the named turn it is near, if any (not part
+/// of the order: copy up to the bracket).
 fn refined_to(base: &GenPose, pose: &GenPose, tree: &KinematicTree) -> String {
     let q = base.pose.rotation.inverse() * pose.pose.rotation;
     let turn = q.scaled_axis().map(f64::to_degrees);
@@ -238,7 +239,7 @@ fn refined_to(base: &GenPose, pose: &GenPose, tree: &KinematicTree) -> String {
         out.push_str(&format!(";{name}:{value:.1}"));
     }
     if let Some((name, deg)) = nearest_named_turn(&q) {
-        out.push_str(&format!(" (≈ {name}, {deg:.0}° from it)"));
+        out.push_str(&format!(" [≈ {name}, {deg:.0}° from it]"));
     }
     out
 }
