@@ -428,15 +428,18 @@ fn scene_write_reads_a_script_from_a_file_in_the_run_and_nowhere_else() {
     let outside = dir.path().join("outside.rhai");
     std::fs::write(&outside, &edited).expect("outside");
     std::fs::write(run.join("empty.rhai"), "  \n").expect("empty");
+    // Over the 256 KiB a script may hold (a comment line repeated).
+    std::fs::write(run.join("huge.rhai"), "// padding\n".repeat(30_000)).expect("huge");
     let (mut c, _) = McpClient::initialised(&run);
     // Refused, and the scene left as it was: a file outside the run, both arguments,
-    // neither, an empty file, a missing one.
+    // neither, an empty file, a missing one, one too long.
     let refused = [
         (json!({"path": s(&outside)}), "outside the run"),
         (json!({"path": "draft.rhai", "script": edited}), "not both"),
         (json!({}), "give `script`"),
         (json!({"path": "empty.rhai"}), "is empty"),
         (json!({"path": "nowhere.rhai"}), "no such file"),
+        (json!({"path": "huge.rhai"}), "at most 262144"),
     ];
     for (id, (args, says)) in refused.iter().enumerate() {
         let id = id as u64 + 2;
