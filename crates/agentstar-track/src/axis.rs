@@ -1,7 +1,9 @@
-//! The angle about an axis of continuous symmetry, chosen for the whole sequence at once.
+//! The angle about a round body's axis, chosen for the whole sequence at once.
 //!
 //! A can, a bottle, a jar: every turn about the axis of the outline keeps the silhouette,
-//! so the masks fix everything but that one angle, and only the colours fix it. One frame's
+//! so the masks fix everything but that one angle, and only the colours fix it; a mug's
+//! body too, in the frames whose turns keep its handle where the mask has it (or hidden).
+//! The axis is found from the model's footprint along it ([`body_axis`]). One frame's
 //! colours fix it weakly (a label seen face on has its edges at the limbs), while two
 //! neighbouring frames' colours fix their *relative* angle well (the print carried from one
 //! into the other) and say nothing of the absolute one: a block of frames turned alike
@@ -21,13 +23,14 @@ use crate::appearance::{
 };
 use crate::hypotheses::principal_axes;
 use crate::sequence::cheapest_path;
+use crate::temporal::signed_deg;
 use crate::update::{apply_object_rotation, GenPose};
 use agentstar_geom::nalgebra::Unit;
 use agentstar_geom::{ObjectModel, Point3, UnitQuaternion, Vector3};
 use rayon::prelude::*;
 
-/// An axis of the model (canonical frame) about which every turn keeps the outline, and a
-/// point on it.
+/// An axis of the model (canonical frame) and a point on it: a round body's
+/// ([`body_axis`]), or one the caller names (the tracker's turns about principal axes).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct SymmetryAxis {
     pub centre: Point3,
@@ -377,8 +380,7 @@ impl AngleGrid {
 
 /// An angle in (−180°, 180°], in thousandths of a degree: the key of a difference of turns.
 fn key(deg: f64) -> i64 {
-    let d = 180.0 - (180.0 - deg).rem_euclid(360.0);
-    (d * 1000.0).round() as i64
+    (signed_deg(deg) * 1000.0).round() as i64
 }
 
 /// A turn away from the current pose costs this much NCC per 180° in the choice: only a
@@ -445,6 +447,11 @@ pub fn choose_turns(
             None => vec![None; angles.len()],
         })
         .collect();
+    // Each frame as it is, rendered once for both of its steps.
+    let views: Vec<Option<ReferenceView<'_>>> = (0..n)
+        .into_par_iter()
+        .map(|i| ReferenceView::new(model, scale, frames[i]?, &poses[i]))
+        .collect();
     // pair[i]: per difference d of turns the step from frame i − 1 to i can take (sorted by
     // `key`), frame i turned by d against frame i − 1 as it is and frame i − 1 turned by −d
     // against frame i as it is, averaged where both have evidence.
@@ -465,13 +472,9 @@ pub fn choose_turns(
             diffs.sort_unstable();
             diffs.dedup();
             let none = || diffs.iter().map(|&d| (d, None)).collect();
-            let (Some(fa), Some(fb)) = (frames[i - 1], frames[i]) else {
-                return none();
-            };
-            let (Some(va), Some(vb)) = (
-                ReferenceView::new(model, scale, fa, &poses[i - 1]),
-                ReferenceView::new(model, scale, fb, &poses[i]),
-            ) else {
+            let (Some(fa), Some(fb), Some(va), Some(vb)) =
+                (frames[i - 1], frames[i], &views[i - 1], &views[i])
+            else {
                 return none();
             };
             diffs
@@ -483,7 +486,7 @@ pub fn choose_turns(
                         scale,
                         &fb,
                         &axis.turn(&poses[i], scale, deg),
-                        std::slice::from_ref(&va),
+                        std::slice::from_ref(va),
                         &cfg,
                     )[0]
                     .ncc;
@@ -492,7 +495,7 @@ pub fn choose_turns(
                         scale,
                         &fa,
                         &axis.turn(&poses[i - 1], scale, -deg),
-                        std::slice::from_ref(&vb),
+                        std::slice::from_ref(vb),
                         &cfg,
                     )[0]
                     .ncc;

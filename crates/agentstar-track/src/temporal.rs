@@ -87,6 +87,11 @@ pub fn axis_label(axis: &[f64; 3]) -> String {
     }
 }
 
+/// An angle the short way round, in (−180°, 180°]: −58°, not 302° (play-test 6).
+pub fn signed_deg(deg: f64) -> f64 {
+    180.0 - (180.0 - deg).rem_euclid(360.0)
+}
+
 /// Geodesic angle of a rotation in degrees, in [0, 180].
 pub fn angle_deg(q: &UnitQuaternion) -> f64 {
     q.angle().to_degrees()

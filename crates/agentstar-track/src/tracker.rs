@@ -10,7 +10,7 @@ use crate::appearance::{
     appearance_each, appearance_score, model_agreement, model_has_appearance, AppearanceConfig,
     AppearanceFrame, ReferenceView,
 };
-use crate::axis::{body_axis, choose_turns, AngleGrid};
+use crate::axis::{body_axis, choose_turns, AngleGrid, SymmetryAxis};
 use crate::hypotheses::{
     principal_axes, refine_above, refine_each_above, refine_first_pass, refine_local, refine_rest,
     same_basin, twin_candidates, LocalWindow, PRUNE_SLACK,
@@ -19,7 +19,7 @@ use crate::objective::FrameProblem;
 use crate::search::{sweep, SweepConfig};
 use crate::sequence::cheapest_path;
 use crate::space::{joint_default, Dof, DofRange, SearchSpace};
-use crate::temporal::angle_deg;
+use crate::temporal::{angle_deg, signed_deg};
 use crate::update::{apply_object_rotation, flip, GenPose};
 use crate::TrackError;
 use agentstar_geom::pose::{ObjectPose, Rigid};
@@ -759,17 +759,12 @@ impl<'m> Searcher<'m> {
             self.scale,
             pose.clone(),
         );
-        let turn = |from: &GenPose, axis: &Vector3, deg: f64| GenPose {
-            pose: apply_object_rotation(
-                &from.pose,
-                self.scale,
-                &centre,
-                &UnitQuaternion::from_axis_angle(
-                    &agentstar_geom::nalgebra::Unit::new_normalize(*axis),
-                    deg.to_radians(),
-                ),
-            ),
-            states: from.states.clone(),
+        let turn = |from: &GenPose, axis: &Vector3, deg: f64| {
+            SymmetryAxis {
+                centre,
+                axis: *axis,
+            }
+            .turn(from, self.scale, deg)
         };
         let cfg = AppearanceConfig::default();
         let ncc = |g: &GenPose| appearance_score(self.model, self.scale, &app, g, refs, &cfg).ncc;
@@ -1657,11 +1652,6 @@ const NEAR_PER_AXIS: usize = 2;
 /// not enough to turn it back (about the hidden axis the masks are flat, and the polish's
 /// 12° window drifts with them).
 const NEAR_REFINE_DEG: f64 = 4.0;
-
-/// An angle the short way round, in (−180°, 180°]: −58°, not 302° (play-test 6).
-fn signed_deg(deg: f64) -> f64 {
-    180.0 - (180.0 - deg).rem_euclid(360.0)
-}
 
 /// How much better a neighbour must score for the consistency pass to search from it with
 /// the tracking step's window rather than the narrow polish.
@@ -3042,18 +3032,7 @@ mod tests {
             .iter()
             .map(|(_, m)| ScoreTarget::new(m.clone(), None).expect("target"))
             .collect();
-        let frames: Vec<TrackFrame<'_>> = std::iter::once(&target0)
-            .chain(&targets)
-            .zip(&shots)
-            .enumerate()
-            .map(|(k, (target, (rgb, _)))| TrackFrame {
-                name: format!("{k:06}.png"),
-                camera: cam,
-                target,
-                world_from_camera: None,
-                rgb: Some(rgb),
-            })
-            .collect();
+        let frames = coloured_frames(&cam, std::iter::once(&target0).chain(&targets), &shots);
         let cfg = TrackConfig::default();
         let s = Searcher::new(&model, scale, &frames, &cfg).expect("searcher");
         let start: Vec<GenPose> = vec![wrong.clone(), truths[1].clone(), truths[2].clone()];
@@ -3113,18 +3092,7 @@ mod tests {
             .iter()
             .map(|(_, m)| ScoreTarget::new(m.clone(), None).expect("target"))
             .collect();
-        let frames: Vec<TrackFrame<'_>> = targets
-            .iter()
-            .zip(&shots)
-            .enumerate()
-            .map(|(k, (target, (rgb, _)))| TrackFrame {
-                name: format!("{k:06}.png"),
-                camera: cam,
-                target,
-                world_from_camera: None,
-                rgb: Some(rgb),
-            })
-            .collect();
+        let frames = coloured_frames(&cam, &targets, &shots);
         let cfg = TrackConfig::default();
         let s = Searcher::new(&model, scale, &frames, &cfg).expect("searcher");
         let wrong = spin_about_z(&truths[1], 40.0);
@@ -3154,6 +3122,26 @@ mod tests {
         // An anchor keeps its pose exactly.
         let (_, pinned, _, _) = run(&[false, true, false]);
         assert_eq!(pinned[1], wrong);
+    }
+
+    /// Frames `000000.png`, … of one camera: each target with its shot's colours.
+    fn coloured_frames<'a>(
+        cam: &PinholeCamera,
+        targets: impl IntoIterator<Item = &'a ScoreTarget>,
+        shots: &'a [(Vec<u8>, BitMask)],
+    ) -> Vec<TrackFrame<'a>> {
+        targets
+            .into_iter()
+            .zip(shots)
+            .enumerate()
+            .map(|(k, (target, (rgb, _)))| TrackFrame {
+                name: format!("{k:06}.png"),
+                camera: *cam,
+                target,
+                world_from_camera: None,
+                rgb: Some(rgb),
+            })
+            .collect()
     }
 
     /// Each frame's score at its pose, as the tracker computes it.
