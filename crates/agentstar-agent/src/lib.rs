@@ -1,7 +1,7 @@
 //! The agent harness: a run directory and its ledger (`run`), the task document (`task`),
-//! the tool registry and its execution (`tools`), the typed reports commands write and
-//! tools read (`reports`, and `view_reports` for the image commands), pose file versions under one lock (`history`), keeping `pose.json` in step with the
-//! scene (`poses`), model clients for OpenAI-compatible servers and Anthropic (`llm`), and
+//! the tool registry and its execution (`tools`; the typed reports the commands write and
+//! the tools read are `agentstar-reports`, pose file versions and keeping `pose.json` in
+//! step with the scene are `agentstar_data::{history, poses}`), model clients for OpenAI-compatible servers and Anthropic (`llm`), and
 //! the agent loop with pose sub-agents (`agent`). The critic is a model call made through
 //! `llm` (`critic`).
 //!
@@ -10,21 +10,18 @@
 
 pub mod agent;
 pub mod critic;
-pub mod fit;
-pub mod history;
 pub mod llm;
-pub mod poses;
-pub mod reports;
 pub mod run;
 pub mod task;
 pub mod tools;
-pub mod view_reports;
 
 /// What can go wrong in the harness.
 #[derive(Debug, thiserror::Error)]
 pub enum AgentError {
     #[error("{0}")]
     Data(#[from] agentstar_data::DataError),
+    #[error("{0}")]
+    History(#[from] agentstar_data::history::HistoryError),
     #[error("{0}")]
     Invalid(String),
     #[error("{0}")]

@@ -14,77 +14,10 @@
 
 use crate::{AgentError, Result};
 use agentstar_data::ledger::{self, LedgerEntry};
-use serde::{Deserialize, Serialize};
+
 use std::path::{Path, PathBuf};
 
-/// `run.json`: where a run's inputs are. Relative paths are relative to the run directory.
-#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
-pub struct RunFile {
-    pub capture: PathBuf,
-    #[serde(default = "default_model")]
-    pub model: PathBuf,
-    #[serde(default = "default_poses")]
-    pub poses: PathBuf,
-    /// What `finish` accepts.
-    #[serde(default)]
-    pub finish: FinishPolicy,
-}
-
-/// What the `finish` tool accepts (`run.json`'s `finish`; every field optional).
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-#[serde(default, deny_unknown_fields)]
-pub struct FinishPolicy {
-    /// The largest share of keyframes that may be under the IoU gate, even with reasons.
-    pub max_share_under_gate: f64,
-    /// An `occlusion` reason is accepted when at least this share of the rendered model
-    /// is hidden, percent.
-    pub min_occlusion_percent: f64,
-}
-
-impl Default for FinishPolicy {
-    fn default() -> Self {
-        FinishPolicy {
-            max_share_under_gate: 0.25,
-            min_occlusion_percent: 30.0,
-        }
-    }
-}
-
-fn default_model() -> PathBuf {
-    "scene.rhai".into()
-}
-fn default_poses() -> PathBuf {
-    "pose.json".into()
-}
-
-impl RunFile {
-    /// Reads `RUN/run.json` with its paths resolved against the run directory.
-    pub fn read(run: &Path) -> Result<Option<RunFile>> {
-        let p = run.join("run.json");
-        if !p.is_file() {
-            return Ok(None);
-        }
-        let mut rf: RunFile = serde_json::from_str(&agentstar_data::read_text(&p)?)
-            .map_err(|e| AgentError::Invalid(format!("{}: not a run file: {e}", p.display())))?;
-        let f = rf.finish;
-        if !(0.0..=1.0).contains(&f.max_share_under_gate)
-            || !(0.0..=100.0).contains(&f.min_occlusion_percent)
-        {
-            return Err(AgentError::Invalid(format!(
-                "{}: finish.max_share_under_gate must be in [0, 1] and finish.min_occlusion_percent in [0, 100] (they are {} and {})",
-                p.display(),
-                f.max_share_under_gate,
-                f.min_occlusion_percent
-            )));
-        }
-        for path in [&mut rf.capture, &mut rf.model, &mut rf.poses] {
-            if path.is_relative() {
-                *path = run.join(&*path);
-            }
-        }
-        Ok(Some(rf))
-    }
-}
+pub use agentstar_data::runfile::{default_model, default_poses, FinishPolicy, RunFile};
 
 /// The starting scene of a new run: one box, to be replaced.
 pub const STARTING_SCENE: &str = r##"// The model of the object, as code: replace this box (see TASK.md for the API).
@@ -150,8 +83,10 @@ impl RunDir {
     /// Takes the run's scene lock (`.agentstar/scene.lock`), held while the scene and its
     /// versions change, across processes: two servers on one run never give one version
     /// twice.
-    pub fn lock_scene(&self) -> Result<crate::history::PoseLock> {
-        crate::history::lock_file(&self.dir.join(".agentstar").join("scene.lock"))
+    pub fn lock_scene(&self) -> Result<agentstar_data::history::PoseLock> {
+        Ok(agentstar_data::history::lock_file(
+            &self.dir.join(".agentstar").join("scene.lock"),
+        )?)
     }
     /// The output directory of step `step` of `tool`.
     pub fn step_dir(&self, step: u64, tool: &str) -> PathBuf {

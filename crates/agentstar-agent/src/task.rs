@@ -2,7 +2,7 @@
 //! shows its model.
 
 /// The gate on every keyframe's visible-region IoU (defined once, in `reports`).
-pub use crate::reports::GATE_IOU;
+pub use agentstar_render::GATE_IOU;
 
 const TASK: &str = r#"# Your task
 

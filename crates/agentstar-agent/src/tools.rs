@@ -19,16 +19,17 @@
 //! diagnostics run in parallel. Pose files change only through [`PoseHistory`], which
 //! also serialises against `agentstar pose commit` run from a shell.
 
-use crate::history::PoseHistory;
-use crate::reports::{
-    CheckReport, CommitReport, FrameHistoryReport, HistoryReport, PoseDiffReport, RestoreReport,
-    ScoreReport, SearchReport, SearchVerb, TrackReport, GATE_IOU,
-};
 use crate::run::RunDir;
 use crate::task::task_document;
-use crate::view_reports::{RenderReport, TurntableReport};
 use crate::{AgentError, Result};
+use agentstar_data::history::PoseHistory;
 use agentstar_data::posefile::PoseFile;
+use agentstar_render::GATE_IOU;
+use agentstar_reports::view::{RenderReport, TurntableReport};
+use agentstar_reports::{
+    CheckReport, CommitReport, FrameHistoryReport, HistoryReport, PoseDiffReport, RestoreReport,
+    ScoreReport, SearchReport, SearchVerb, TrackReport,
+};
 use schemars::JsonSchema;
 use serde::de::DeserializeOwned;
 use serde::Deserialize;
@@ -350,14 +351,14 @@ fn track_text(r: &TrackReport, poses: Option<&agentstar_data::posefile::PoseFile
 }
 
 /// Whether a fitted parameter moved by more than a thousandth of its range.
-fn param_moved(p: &crate::fit::FitParam) -> bool {
+fn param_moved(p: &agentstar_reports::fit::FitParam) -> bool {
     (p.after - p.before).abs() > 1e-3 * (p.max - p.min)
 }
 
 /// The line a fit adds when some parameters moved and others did not (play-test 7: 9 of
 /// 10 stayed at their values, and one restarted elsewhere by hand gained 0.05 IoU); `None`
 /// when all moved or none did (then [`fit_saves_nothing`] says why).
-fn unmoved_line(report: &crate::fit::FitReport) -> Option<String> {
+fn unmoved_line(report: &agentstar_reports::fit::FitReport) -> Option<String> {
     let unmoved: Vec<&str> = report
         .params
         .iter()
@@ -376,7 +377,7 @@ fn unmoved_line(report: &crate::fit::FitReport) -> Option<String> {
 /// thousandth of its range (the gain, if any, came from refining the poses alone: play-test,
 /// 2026-12-02, a fit from wrong poses saved an unchanged scene as a new version), or the
 /// mean IoU did not rise.
-fn fit_saves_nothing(report: &crate::fit::FitReport) -> Option<&'static str> {
+fn fit_saves_nothing(report: &agentstar_reports::fit::FitReport) -> Option<&'static str> {
     let moved = report.params.iter().any(param_moved);
     if !moved {
         Some("No parameter moved: at these poses (held, refined only locally) no change of the parameters raises the IoU. That does not make the shape right: poses fitted to a wrong shape hold it where it is, and any rise of the mean above came from refining the poses alone. The scene and pose.json are unchanged (no version saved). If the silhouettes still disagree, change the shape by hand (scene_write), track from pose.json, then fit again.\n")
@@ -1007,7 +1008,7 @@ pub enum SizeAxis {
 #[serde(deny_unknown_fields)]
 pub struct ScaleArgs {
     /// `depth` (the capture's depth against the render), `parallax` (metric cameras moving around an object that stays put) or `size` (give `axis` and `metres`).
-    pub method: crate::fit::ScaleMethod,
+    pub method: agentstar_reports::fit::ScaleMethod,
     /// With `size`: the model axis the size is along (default the longest side).
     pub axis: Option<SizeAxis>,
     /// With `size`: the object's size along `axis`, metres ("the laptop is 30 cm wide": axis x, metres 0.3).
@@ -1210,7 +1211,7 @@ tool!(Score, "score", Diagnostic, Nothing, FramesArgs,
         // The table a person reads; the report's numbers are the structured content.
         o.text = format!(
             "{head}\n{}",
-            crate::reports::score_table(&report.frames, &report.sequence, &report.appearance)
+            agentstar_reports::score_table(&report.frames, &report.sequence, &report.appearance)
         );
         o.structured = serde_json::to_value(&report).ok();
         Ok(o)
@@ -1591,7 +1592,8 @@ pub fn search_text(report: &SearchReport, path: &Path) -> String {
         if let [only] = &f.ranked[..] {
             // (A start outside the region has its own note above: it may well not be the
             // best pose here.)
-            if only.label.starts_with(crate::reports::KEPT_START) && only.outside_region.is_empty()
+            if only.label.starts_with(agentstar_reports::KEPT_START)
+                && only.outside_region.is_empty()
             {
                 t.push_str("note: nothing the search evaluated in this region scored above the start. Either the start is already the best pose here (a sharp optimum: `apply` single small steps to see the surface), or a better pose lies outside the region (widen it, or try the flips with `osweep`).\n");
             }
@@ -2144,7 +2146,7 @@ impl Toolbox {
                 script.trim_end(),
                 report
                     .as_ref()
-                    .map(|r| crate::reports::check_text(r, None))
+                    .map(|r| agentstar_reports::check_text(r, None))
                     .unwrap_or_default(),
                 stderr.trim()
             ),
@@ -2220,7 +2222,7 @@ impl Toolbox {
             .map_err(|e| agentstar_data::DataError::io(&self.run.scene, e.error))?;
         let version = self.run.list_scene_versions().last().copied().unwrap_or(0) + 1;
         self.run.save_scene_version(version)?;
-        let (joints, pose_version) = crate::poses::reconcile(
+        let (joints, pose_version) = agentstar_data::poses::reconcile(
             &self.run.scene,
             &self.run.poses,
             before.as_ref(),
@@ -2236,7 +2238,7 @@ impl Toolbox {
                 },
                 report.as_ref().map_or_else(
                     || check.trim().to_string(),
-                    |r| crate::reports::check_text(r, Some(&before_warnings))
+                    |r| agentstar_reports::check_text(r, Some(&before_warnings))
                 )
             ),
             structured: report.as_ref().and_then(|r| serde_json::to_value(r).ok()),
@@ -2259,9 +2261,9 @@ impl Toolbox {
         std::fs::create_dir_all(&out).map_err(|e| agentstar_data::DataError::io(&out, e))?;
         let scaled = out.join("scaled_pose.json");
         let method = match a.method {
-            crate::fit::ScaleMethod::Depth => "depth",
-            crate::fit::ScaleMethod::Parallax => "parallax",
-            crate::fit::ScaleMethod::Size => "size",
+            agentstar_reports::fit::ScaleMethod::Depth => "depth",
+            agentstar_reports::fit::ScaleMethod::Parallax => "parallax",
+            agentstar_reports::fit::ScaleMethod::Size => "size",
         };
         let mut args: Vec<String> = vec!["scale".into()];
         args.extend(self.session_args());
@@ -2289,9 +2291,10 @@ impl Toolbox {
         if !ok {
             return Ok(ToolOutput::error(stderr.trim().to_string()));
         }
-        let report: crate::fit::ScaleReport = serde_json::from_str(&stdout).map_err(|e| {
-            AgentError::Tool(format!("scale printed no scale report ({e}): {stdout}"))
-        })?;
+        let report: agentstar_reports::fit::ScaleReport =
+            serde_json::from_str(&stdout).map_err(|e| {
+                AgentError::Tool(format!("scale printed no scale report ({e}): {stdout}"))
+            })?;
         let mut text = format!(
             "scale from {method}: {} → {:.6} m per model unit (translations × {:.4}; spread {:.2}%, {} sample(s))\n",
             report.scale_before,
@@ -2372,9 +2375,10 @@ impl Toolbox {
         if o.is_error {
             return Ok(o);
         }
-        let report: crate::fit::FitReport = serde_json::from_str(&stdout).map_err(|e| {
-            AgentError::Tool(format!("fit-shape printed no fit report ({e}): {stdout}"))
-        })?;
+        let report: agentstar_reports::fit::FitReport =
+            serde_json::from_str(&stdout).map_err(|e| {
+                AgentError::Tool(format!("fit-shape printed no fit report ({e}): {stdout}"))
+            })?;
         let values: Vec<String> = report
             .params
             .iter()
@@ -2485,7 +2489,7 @@ impl Toolbox {
     fn check_reason(
         &self,
         i: usize,
-        f: &crate::reports::FrameScore,
+        f: &agentstar_reports::FrameScore,
         why: &Unreachable,
     ) -> std::result::Result<(), String> {
         match why {
@@ -2688,7 +2692,7 @@ impl Toolbox {
     }
 
     /// `agentstar temporal --json` over every keyframe, as its report.
-    pub fn temporal_report(&self) -> Result<crate::reports::TemporalReport> {
+    pub fn temporal_report(&self) -> Result<agentstar_reports::TemporalReport> {
         let mut a: Vec<String> = vec!["temporal".into()];
         a.extend(self.session_args());
         a.push("--json".into());
@@ -2851,7 +2855,7 @@ impl Toolbox {
         match self.score_report(None) {
             Ok(report) => {
                 let n = report.frames.len();
-                let under: Vec<(usize, &crate::reports::FrameScore)> = report
+                let under: Vec<(usize, &agentstar_reports::FrameScore)> = report
                     .frames
                     .iter()
                     .enumerate()
@@ -2948,7 +2952,7 @@ mod tests {
 
     #[test]
     fn a_tracks_text_leads_with_its_summary_then_its_log_then_the_frames() {
-        let frame = |name: &str, visible: f64| crate::reports::FrameScore {
+        let frame = |name: &str, visible: f64| agentstar_reports::FrameScore {
             frame: name.into(),
             iou_visible: Some(visible),
             iou_raw: visible,
@@ -2970,7 +2974,7 @@ mod tests {
             evaluations: 1000,
             init_frame: "000000.png".into(),
             log: vec!["000005.png: refined from its pose, IoU 0.9400 → 0.9500".into()],
-            sequence: crate::reports::SequenceScore::of(&frames, GATE_IOU),
+            sequence: agentstar_reports::SequenceScore::of(&frames, GATE_IOU),
             frames,
             pose_version: Some(3),
         };
@@ -3017,9 +3021,9 @@ mod tests {
 
     #[test]
     fn a_fit_is_saved_only_when_a_parameter_moved_and_the_iou_rose() {
-        let report =
-            |before: f64, after: f64, iou_before: f64, iou_after: f64| crate::fit::FitReport {
-                params: vec![crate::fit::FitParam {
+        let report = |before: f64, after: f64, iou_before: f64, iou_after: f64| {
+            agentstar_reports::fit::FitReport {
+                params: vec![agentstar_reports::fit::FitParam {
                     name: "width".into(),
                     before,
                     after,
@@ -3042,7 +3046,8 @@ mod tests {
                 evaluations: 1,
                 seconds: 0.0,
                 written: false,
-            };
+            }
+        };
         // The play-test's case: the IoU rose (the poses were refined) but the width stayed.
         let why = fit_saves_nothing(&report(1.0, 1.0002, 0.93, 0.99)).expect("not saved");
         assert!(why.contains("No parameter moved"), "{why}");
@@ -3242,15 +3247,15 @@ mod tests {
             poses: "p.json".into(),
             scale: 0.2,
             depth_weight: 0.0,
-            frames: vec![crate::reports::SearchFrame {
+            frames: vec![agentstar_reports::SearchFrame {
                 frame: "000000.png".into(),
                 sheet: "run/images/x/oapply_sheet_000000.png".into(),
                 notes: vec![],
                 search: json!({}),
-                ranked: vec![crate::reports::Candidate {
+                ranked: vec![agentstar_reports::Candidate {
                     rank: 0,
                     label: "flip:y;rz:30".into(),
-                    pose: crate::reports::CandidatePose {
+                    pose: agentstar_reports::CandidatePose {
                         quaternion: [0.5, 0.5, 0.5, 0.5],
                         translation: [0.1, 0.2, 0.9],
                         scale: 0.2,
@@ -3284,7 +3289,7 @@ mod tests {
         // A search that kept only its start says so, and what to try (play-test 2026-12-02:
         // three sweeps came back with the start alone and the agent could not tell why).
         let mut kept = report.clone();
-        kept.frames[0].ranked[0].label = crate::reports::KEPT_START.into();
+        kept.frames[0].ranked[0].label = agentstar_reports::KEPT_START.into();
         let t = search_text(&kept, Path::new("run/images/x/sweep.json"));
         assert!(
             t.contains("nothing the search evaluated in this region scored above the start"),

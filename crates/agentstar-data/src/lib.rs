@@ -11,12 +11,15 @@ pub mod capture;
 pub mod capture_writer;
 pub mod export;
 pub mod gt;
+pub mod history;
 pub mod images;
 pub mod jpeg_scan;
 pub mod ledger;
 pub mod meshio;
 pub mod npz;
 pub mod posefile;
+pub mod poses;
+pub mod runfile;
 pub mod scenefile;
 pub mod urdf;
 

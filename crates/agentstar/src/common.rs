@@ -1,7 +1,6 @@
 //! Shared wiring of the subcommands: loading a capture, a model and poses; frame selection;
 //! rendering one frame; printing results.
 
-pub use agentstar_agent::reports::FrameScore;
 use agentstar_data::capture::Capture;
 use agentstar_data::posefile::{FramePose, PoseFile};
 use agentstar_data::scenefile::{load_model, LoadedModel};
@@ -9,6 +8,7 @@ use agentstar_render::score::{combined_score, depth_score, DepthScore, DEFAULT_B
 use agentstar_render::{
     render_full, IouScore, PosedModel, RenderBuffers, ScoreTarget, SilhouetteRenderer,
 };
+pub use agentstar_reports::FrameScore;
 use anyhow::{anyhow, Context, Result};
 use serde::Serialize;
 use std::path::{Path, PathBuf};
@@ -216,7 +216,7 @@ pub fn write_tracked_poses(
 }
 
 /// Like [`write_tracked_poses`], but the file is written as a version of its history
-/// (`agentstar_agent::history`) with this process's command: what `track` does. Returns
+/// (`agentstar_data::history`) with this process's command: what `track` does. Returns
 /// the version too.
 pub fn write_tracked_version(
     capture: &Capture,
@@ -226,8 +226,8 @@ pub fn write_tracked_version(
     path: &Path,
 ) -> Result<(PoseFile, Vec<FramePose>, u64)> {
     let (pf, frames) = tracked_pose_file(capture, tree, scale, poses)?;
-    let version = agentstar_agent::history::PoseHistory::new(path)
-        .write(&pf, &agentstar_agent::history::command_line())?;
+    let version = agentstar_data::history::PoseHistory::new(path)
+        .write(&pf, &agentstar_data::history::command_line())?;
     Ok((pf, frames, version))
 }
 
@@ -269,7 +269,7 @@ pub fn out_dir(dir: &Path) -> Result<PathBuf> {
 }
 
 /// The gate every keyframe must reach (defined once, with the reports).
-pub use agentstar_agent::reports::GATE_IOU as PASS_IOU;
+pub use agentstar_render::GATE_IOU as PASS_IOU;
 
 /// A progress bar on stderr (drawn only when stderr is a terminal, so logs and pipes stay
 /// clean) for `len` steps of `what`.

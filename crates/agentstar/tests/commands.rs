@@ -3,7 +3,7 @@
 
 mod support;
 
-use agentstar_agent::reports::ScoreReport;
+use agentstar_reports::ScoreReport;
 use std::path::Path;
 use support::{agentstar, example, score_of, text};
 

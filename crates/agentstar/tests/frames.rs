@@ -4,7 +4,7 @@
 
 mod support;
 
-use agentstar_agent::reports::ScoreReport;
+use agentstar_reports::ScoreReport;
 use support::{agentstar, s, small_run, text};
 
 #[test]

@@ -6,10 +6,10 @@
 
 mod support;
 
-use agentstar_agent::reports::{
+use agentstar_data::posefile::PoseFile;
+use agentstar_reports::{
     CommitReport, FrameHistoryReport, HistoryReport, RestoreReport, SearchReport, TrackReport,
 };
-use agentstar_data::posefile::PoseFile;
 use serde_json::json;
 use std::collections::BTreeSet;
 use std::path::Path;

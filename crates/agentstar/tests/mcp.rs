@@ -5,7 +5,7 @@
 
 mod support;
 
-use agentstar_agent::reports::{
+use agentstar_reports::{
     CommitReport, HistoryEntry, HistoryRow, ScoreReport, SearchReport, SearchVerb, TrackReport,
 };
 use serde_json::{json, Value};
@@ -241,14 +241,14 @@ fn every_tool_runs_over_stdio_with_schema_arguments_and_typed_results() {
                 assert!(legend.len() >= 5, "{legend:?}");
             }
             "scale" => {
-                let r: agentstar_agent::fit::ScaleReport =
+                let r: agentstar_reports::fit::ScaleReport =
                     serde_json::from_value(structured.expect("scale report")).expect("scale");
                 // The box is 1.0 unit long: 0.24 m makes the scale 0.24 m per unit.
                 assert!((r.scale_after - 0.24).abs() < 1e-9, "{r:?}");
                 assert!(!r.written);
             }
             "fit_shape" => {
-                let r: agentstar_agent::fit::FitReport =
+                let r: agentstar_reports::fit::FitReport =
                     serde_json::from_value(structured.expect("fit report")).expect("fit");
                 assert_eq!(r.params[0].name, "lid_thickness");
                 assert!((0.05..=0.07).contains(&r.params[0].after), "{r:?}");

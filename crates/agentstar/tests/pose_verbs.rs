@@ -3,7 +3,7 @@
 
 mod support;
 
-use agentstar_agent::reports::{ScoreReport, TrackReport};
+use agentstar_reports::{ScoreReport, TrackReport};
 use support::{agentstar, example, score_of, text, track_known};
 
 #[test]
@@ -183,8 +183,7 @@ fn pose_verbs_track_commit_and_diagnose() {
     let v: ScoreReport = score_of(&cap, &model, &tracked, Some("000005"));
     assert!(v.frames[0].iou_visible.expect("iou") < 0.95, "{v:?}");
     let o = agentstar(&["pose", "history", "--poses", &tracked, "--json"]);
-    let h: agentstar_agent::reports::HistoryReport =
-        serde_json::from_slice(&o.stdout).expect("json");
+    let h: agentstar_reports::HistoryReport = serde_json::from_slice(&o.stdout).expect("json");
     // The tracker's file (version 0) and the commit.
     assert_eq!(h.total, 2);
     assert!(
@@ -351,7 +350,7 @@ fn pose_verbs_track_commit_and_diagnose() {
         .as_str()
         .expect("label");
     assert!(
-        label.starts_with(agentstar_agent::reports::KEPT_START)
+        label.starts_with(agentstar_reports::KEPT_START)
             && label.contains("outside the region: hinge 10.")
             && label.ends_with(" not in 100..120"),
         "{label}"

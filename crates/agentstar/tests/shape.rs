@@ -4,8 +4,8 @@
 
 mod support;
 
-use agentstar_agent::fit::FitReport;
-use agentstar_agent::reports::ScoreReport;
+use agentstar_reports::fit::FitReport;
+use agentstar_reports::ScoreReport;
 use serde_json::json;
 use std::path::Path;
 use support::{agentstar, s, score_of, text, McpClient};
@@ -322,7 +322,7 @@ fn scale_comes_back_from_depth_parallax_and_a_stated_size() {
         args.extend(extra.iter().map(|a| a.to_string()));
         agentstar(&args.iter().map(String::as_str).collect::<Vec<_>>())
     };
-    let report_of = |o: std::process::Output| -> agentstar_agent::fit::ScaleReport {
+    let report_of = |o: std::process::Output| -> agentstar_reports::fit::ScaleReport {
         assert!(o.status.success(), "{}", text(&o));
         serde_json::from_slice(&o.stdout).unwrap_or_else(|_| panic!("{}", text(&o)))
     };

@@ -2,7 +2,7 @@
 
 mod support;
 
-use agentstar_agent::reports::{EvalReport, ScoreReport, TrackReport};
+use agentstar_reports::{EvalReport, ScoreReport, TrackReport};
 use support::{agentstar, eval_of, example, score_of, text, track_known};
 
 #[test]
@@ -113,7 +113,7 @@ fn synth_writes_a_valid_capture_whose_truth_scores_perfectly() {
         "--json",
     ]);
     assert!(o.status.success(), "{}", text(&o));
-    let b: agentstar_agent::reports::EvalBatchReport =
+    let b: agentstar_reports::EvalBatchReport =
         serde_json::from_slice(&o.stdout).expect("batch report");
     let mut single = v.clone();
     assert_eq!(b.results.len(), 2);

@@ -2,8 +2,8 @@
 //! holds: parts, joints, the canonical-frame measurement and warnings.
 
 use crate::common::print_json;
-use agentstar_agent::reports::{CheckCanonical, CheckPart, CheckReport};
 use agentstar_data::scenefile::load_model;
+use agentstar_reports::{CheckCanonical, CheckPart, CheckReport};
 use anyhow::Result;
 use std::path::PathBuf;
 use std::process::ExitCode;

@@ -93,7 +93,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
     // The run's record: where its capture is, a ledger of what was done, the report.
     agentstar_data::atomic::write_atomic(
         &run_dir.join("run.json"),
-        serde_json::to_string_pretty(&agentstar_agent::run::RunFile {
+        serde_json::to_string_pretty(&agentstar_data::runfile::RunFile {
             capture: "../capture".into(),
             model: "scene.rhai".into(),
             poses: "pose.json".into(),

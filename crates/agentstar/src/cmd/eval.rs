@@ -2,11 +2,11 @@
 //! `--batch`, many runs at once and the paper's tables.
 
 use crate::common::{print_json, Session, SessionArgs};
-use agentstar_agent::reports::{EvalBatchReport, EvalJoint, EvalReport};
 use agentstar_bench::table::{result_table, tables};
 use agentstar_bench::{RunInfo, SequenceResult};
 use agentstar_data::gt::GroundTruth;
 use agentstar_eval::sequence::{evaluate, EvalConfig, PredSequence, SequenceMetrics};
+use agentstar_reports::{EvalBatchReport, EvalJoint, EvalReport};
 use anyhow::{bail, Context, Result};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};

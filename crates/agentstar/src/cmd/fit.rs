@@ -4,8 +4,7 @@
 //! silhouette comparisons.
 
 use crate::common::{out_dir, print_json, select_frames, SessionArgs};
-use agentstar_agent::fit::{FitFrame, FitParam, FitReport, FitRoundRow, HeldParam};
-use agentstar_agent::history::PoseHistory;
+use agentstar_data::history::PoseHistory;
 use agentstar_data::images::save_png_rgb;
 use agentstar_data::posefile::{joint_json, pose_json, PoseFile};
 use agentstar_data::scenefile::ScriptDirMeshes;
@@ -13,6 +12,7 @@ use agentstar_geom::ObjectModel;
 use agentstar_render::frames::{crop_box, crop_zoomed};
 use agentstar_render::views::{contact_sheet, silhouette_comparison};
 use agentstar_render::{PosedModel, ScoreTarget, SilhouetteRenderer};
+use agentstar_reports::fit::{FitFrame, FitParam, FitReport, FitRoundRow, HeldParam};
 use agentstar_scene::{build_scene_with, set_param_values, Limits, ParamDecl};
 use agentstar_track::shape::{fit_shape, ShapeFitConfig, ShapeFrame, ShapeParam};
 use agentstar_track::GenPose;
@@ -191,7 +191,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
     let fitted_source =
         set_param_values(&source, &values).map_err(|e| anyhow!("{}: {e}", model_path.display()))?;
     let mut pf: PoseFile = s.pose_file.clone();
-    agentstar_agent::poses::carry_origin(&s.model.model, &fit.model, &mut pf);
+    agentstar_data::poses::carry_origin(&s.model.model, &fit.model, &mut pf);
     let tree = &fit.model.tree;
     pf.joint_defs = tree.joints().iter().map(joint_json).collect();
     for (&i, g) in indices.iter().zip(&fit.poses) {
@@ -409,5 +409,5 @@ fn print_summary(r: &FitReport) {
 }
 
 /// A fitted value within this share of its range from a bound is reported at the bound
-/// ([`agentstar_agent::fit::FitParam::at_bound`]).
+/// ([`agentstar_reports::fit::FitParam::at_bound`]).
 const AT_BOUND_SHARE: f64 = 0.02;

@@ -2,20 +2,20 @@
 //! (a track's `pose.json`) or a history version into `pose.json` atomically; list the
 //! versions, or one frame's pose and score in every version; restore a version, whole or
 //! for chosen frames. Every change holds the pose file's lock and is recorded as a version
-//! with its command (`agentstar_agent::history`), so concurrent commits from shells and
+//! with its command (`agentstar_data::history`), so concurrent commits from shells and
 //! agents all land.
 
 use crate::common::{open_capture, open_model, print_json};
-use agentstar_agent::history::{command_line, PoseHistory};
-use agentstar_agent::reports::{
+use agentstar_data::capture::Capture;
+use agentstar_data::history::HistoryError;
+use agentstar_data::history::{command_line, PoseHistory};
+use agentstar_data::posefile::{FrameEntry, PoseFile, PoseJson};
+use agentstar_data::runfile::RunFile;
+use agentstar_render::{PosedModel, ScoreTarget, SilhouetteRenderer};
+use agentstar_reports::{
     Candidate, CommitReport, FrameHistoryReport, HistoryReport, PoseSource, RestoreReport,
     SearchFrame,
 };
-use agentstar_agent::run::RunFile;
-use agentstar_agent::AgentError;
-use agentstar_data::capture::Capture;
-use agentstar_data::posefile::{FrameEntry, PoseFile, PoseJson};
-use agentstar_render::{PosedModel, ScoreTarget, SilhouetteRenderer};
 use anyhow::{anyhow, bail, Result};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -169,7 +169,7 @@ pub fn run(cmd: PoseCommand) -> Result<ExitCode> {
             let (committed, v) = PoseHistory::new(&poses)
                 .update(&command_line(), |pf| {
                     commit(pf, &source, &pick, wanted.as_deref())
-                        .map_err(|e| AgentError::Invalid(format!("{}: {e}", report.display())))
+                        .map_err(|e| HistoryError::Invalid(format!("{}: {e}", report.display())))
                 })
                 .map_err(|e| anyhow!("{e}"))?;
             if as_json {

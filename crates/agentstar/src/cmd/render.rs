@@ -3,7 +3,6 @@
 //! `agentstar_render::sheet`, sheets paged.
 
 use crate::common::{out_dir, print_json, select_frames, SessionArgs};
-use agentstar_agent::view_reports::{RenderFrame, RenderReport};
 use agentstar_data::images::{save_png_rgb, save_png_rgba};
 use agentstar_render::frames::{crop_box, crop_zoomed, frame_view, FrameViewOptions, MAX_ZOOM};
 use agentstar_render::sheet::{fit_to_limits, sheet_pages};
@@ -11,6 +10,7 @@ use agentstar_render::views::{
     comparison_legend, id_color, overlay, part_id_view, shade, side_by_side, silhouette_comparison,
     with_legend, ShadeOptions,
 };
+use agentstar_reports::view::{RenderFrame, RenderReport};
 use anyhow::{bail, Result};
 use image::{Rgb, RgbImage};
 use rayon::prelude::*;

@@ -352,7 +352,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
     if a.max_width < 64 {
         bail!("--max-width {}: at least 64 pixels", a.max_width);
     }
-    let rf = agentstar_agent::run::RunFile::read(&a.run)?;
+    let rf = agentstar_data::runfile::RunFile::read(&a.run)?;
     let capture = a
         .capture
         .clone()

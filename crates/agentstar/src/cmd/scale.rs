@@ -3,8 +3,8 @@
 //! the poses rescaled to it (rotations kept, translations scaled, so every silhouette stays).
 
 use crate::common::{print_json, select_frames, SessionArgs};
-use agentstar_agent::fit::{ScaleFrame, ScaleMethod, ScaleReport};
-use agentstar_agent::history::PoseHistory;
+use agentstar_data::history::PoseHistory;
+use agentstar_reports::fit::{ScaleFrame, ScaleMethod, ScaleReport};
 use agentstar_track::scale::{
     ratio_from_depth, ratio_from_parallax, DepthFrame, ParallaxFrame, ScaleEstimate,
 };
@@ -146,7 +146,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
     };
     let new_scale = scale * estimate.ratio;
     let mut pf = s.pose_file.clone();
-    agentstar_agent::poses::rescale(&mut pf, new_scale).map_err(|e| anyhow!(e))?;
+    agentstar_data::poses::rescale(&mut pf, new_scale).map_err(|e| anyhow!(e))?;
     if let Some(out) = &a.out {
         pf.write(out)?;
     }

@@ -1,8 +1,8 @@
 //! `agentstar score`: per-frame and per-sequence scores of the posed model.
 
 use crate::common::{print_json, select_frames, FrameScore, SessionArgs, PASS_IOU};
-use agentstar_agent::reports::{score_table, FrameAppearance, ScoreReport, SequenceScore};
 use agentstar_render::DEFAULT_BAND_PX;
+use agentstar_reports::{score_table, FrameAppearance, ScoreReport, SequenceScore};
 use agentstar_track::appearance::{
     model_agreement, neighbour_consistency, AppearanceConfig, AppearanceFrame,
 };

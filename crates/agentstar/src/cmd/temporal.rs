@@ -2,12 +2,12 @@
 //! `agentstar pose-diff` (the residual between two frames).
 
 use crate::common::{print_json, select_frames, Session, SessionArgs};
-use agentstar_agent::reports::{
+use agentstar_data::images::save_png_rgb;
+use agentstar_render::text::{draw_text, fill_rect};
+use agentstar_reports::{
     JointMotion, Motion, PoseDiffReport, TemporalLargeStep, TemporalReport, TemporalRow,
     TemporalUnits,
 };
-use agentstar_data::images::save_png_rgb;
-use agentstar_render::text::{draw_text, fill_rect};
 use agentstar_track::temporal::{pair_diff, report, Row, Sample};
 use anyhow::{bail, Result};
 use image::{Rgb, RgbImage};

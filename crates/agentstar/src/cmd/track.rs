@@ -6,9 +6,9 @@ use crate::cmd::score::{print_table, summarise};
 use crate::common::{
     open_capture, open_model, print_json, select_frames, write_tracked_version, Session, PASS_IOU,
 };
-use agentstar_agent::reports::TrackReport;
 use agentstar_data::posefile::{partial_path, PoseFile};
 use agentstar_render::ScoreTarget;
+use agentstar_reports::TrackReport;
 use agentstar_track::tracker::{
     track_from, track_observed, TrackConfig, TrackFrame, TrackObserver,
 };

@@ -4,7 +4,6 @@
 //! state within the image limits.
 
 use crate::common::{open_capture, open_model, out_dir, print_json};
-use agentstar_agent::view_reports::{TurntableReport, TurntableState};
 use agentstar_data::images::save_png_rgb;
 use agentstar_data::posefile::PoseFile;
 use agentstar_geom::{KinematicTree, ObjectModel, UnitQuaternion};
@@ -14,6 +13,7 @@ use agentstar_render::views::{
     TURNTABLE_BACKGROUND,
 };
 use agentstar_render::{render_full, PosedModel};
+use agentstar_reports::view::{TurntableReport, TurntableState};
 use anyhow::{anyhow, bail, Result};
 use image::RgbImage;
 use std::path::PathBuf;

@@ -9,7 +9,6 @@
 use crate::common::{
     out_dir, print_json, progress, select_frames, FrameInputs, Session, SessionArgs,
 };
-use agentstar_agent::reports::{Candidate, CandidatePose, SearchFrame, SearchReport, SearchVerb};
 use agentstar_data::images::save_png_rgb;
 use agentstar_data::posefile::pose_json;
 use agentstar_geom::{KinematicTree, Point3, UnitQuaternion};
@@ -17,6 +16,7 @@ use agentstar_render::frames::{crop_box, crop_zoomed, widened};
 use agentstar_render::sheet::sheet_pages;
 use agentstar_render::views::{overlay, shade, silhouette_comparison, ShadeOptions};
 use agentstar_render::{render_full, BitMask, PosedModel};
+use agentstar_reports::{Candidate, CandidatePose, SearchFrame, SearchReport, SearchVerb};
 use agentstar_track::hypotheses::{hinge_swaps, refine_each, refine_ranked, LocalWindow};
 use agentstar_track::objective::{CandidateScore, FrameProblem};
 use agentstar_track::search::{sweep, Strategy, SweepConfig, SweepResult};
@@ -411,11 +411,11 @@ fn rows_from(result: SweepResult, space: &SearchSpace, tree: &KinematicTree) -> 
             rank: c.rank,
             label: if c.kept_start {
                 if outside.is_empty() {
-                    agentstar_agent::reports::KEPT_START.into()
+                    agentstar_reports::KEPT_START.into()
                 } else {
                     format!(
                         "{}, outside the region: {}",
-                        agentstar_agent::reports::KEPT_START,
+                        agentstar_reports::KEPT_START,
                         outside.join(", ")
                     )
                 }

@@ -90,9 +90,8 @@ pub struct FitReport {
 impl FitReport {
     pub fn read(path: &std::path::Path) -> crate::Result<FitReport> {
         let text = agentstar_data::read_text(path)?;
-        serde_json::from_str(&text).map_err(|e| {
-            crate::AgentError::Invalid(format!("{}: not a fit report: {e}", path.display()))
-        })
+        serde_json::from_str(&text)
+            .map_err(|e| agentstar_data::DataError::invalid(path, format!("not a fit report: {e}")))
     }
 }
 

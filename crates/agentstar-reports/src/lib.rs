@@ -3,17 +3,26 @@
 //! drift apart (a field renamed on one side is a compile error or a clear parse error, not
 //! a silently missing value).
 //!
+//! This crate holds only these types (serde, no model clients, no tools): every command
+//! that writes a report and the agent harness that reads it depend on it, and nothing in it
+//! depends on the agent.
+//!
 //! Free-form diagnostics that nothing reads back (a search's restarts, score fields) stay
 //! [`serde_json::Value`] inside the typed reports.
 
-use agentstar_data::posefile::{JointDefJson, PoseFile, PoseJson};
+pub mod fit;
+pub mod view;
+
+pub use agentstar_data::history::{FrameVersion, HistoryEntry, HistoryRow};
+use agentstar_data::posefile::{JointDefJson, PoseFile};
+use agentstar_data::DataError;
 use serde::{Deserialize, Serialize};
 use serde_json::Value;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
-/// The gate every keyframe's band IoU must reach (defined once in the renderer's scores).
-pub use agentstar_render::GATE_IOU;
+/// A report that does not read names its file.
+pub type Result<T, E = DataError> = std::result::Result<T, E>;
 
 /// The pose-search verbs. Each owns its command name and its file names, so the tool that
 /// runs a verb and the command that writes its report agree by construction.
@@ -148,13 +157,13 @@ pub struct SearchReport {
 
 impl SearchReport {
     /// Reads a report file, naming the file in every error.
-    pub fn read(path: &Path) -> crate::Result<SearchReport> {
+    pub fn read(path: &Path) -> Result<SearchReport> {
         let text = agentstar_data::read_text(path)?;
         serde_json::from_str(&text).map_err(|e| {
-            crate::AgentError::Data(agentstar_data::DataError::invalid(
+            agentstar_data::DataError::invalid(
                 path,
                 format!("not a search report (sweep, apply, osweep, oapply, oapply-all): {e}"),
-            ))
+            )
         })
     }
 }
@@ -378,26 +387,6 @@ pub struct EvalBatchReport {
     pub results: Vec<EvalReport>,
 }
 
-/// One committed version of a pose file (`.agentstar/history/STEM/NNNNNN.json`).
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct HistoryEntry {
-    pub version: u64,
-    pub time_unix_s: u64,
-    /// The command (or tool) that made it.
-    pub command: String,
-    pub pose: PoseFile,
-}
-
-/// One row of `pose history --json`.
-#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct HistoryRow {
-    pub version: u64,
-    pub time_unix_s: u64,
-    pub command: String,
-}
-
 /// What `pose history --json` prints without `--frame` (and the `pose_history` tool's
 /// report): the last versions, oldest first.
 #[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
@@ -408,25 +397,6 @@ pub struct HistoryReport {
     pub total: usize,
     /// The rows shown (the last ones when limited).
     pub versions: Vec<HistoryRow>,
-}
-
-/// One frame in one version of a pose file.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct FrameVersion {
-    pub version: u64,
-    pub time_unix_s: u64,
-    pub command: String,
-    /// The version's shared scale.
-    pub scale: f64,
-    /// The frame's pose in that version (`None`: the version has none for it).
-    pub pose: Option<PoseJson>,
-    /// Joint states in interface units (degrees, metres).
-    pub joints: BTreeMap<String, f64>,
-    /// The first earlier version with the same pose, joint states and scale.
-    pub same_as: Option<u64>,
-    /// The visible IoU of that pose with the current model (when scored).
-    pub iou_visible: Option<f64>,
 }
 
 /// What `pose history --frame F --json` prints (and the `pose_history` tool with `frame`).
@@ -495,13 +465,10 @@ impl PoseSource {
     /// Reads `path` as a search report, a history version, a track report (whose pose file
     /// it names, relative to the report's directory when it is not found as given) or a
     /// pose file; the error names the file and what it was taken for.
-    pub fn read(path: &Path) -> crate::Result<PoseSource> {
+    pub fn read(path: &Path) -> Result<PoseSource> {
         let text = agentstar_data::read_text(path)?;
         let bad = |what: &str, e: String| {
-            crate::AgentError::Data(agentstar_data::DataError::invalid(
-                path,
-                format!("not a {what}: {e}"),
-            ))
+            agentstar_data::DataError::invalid(path, format!("not a {what}: {e}"))
         };
         let probe: Probe = serde_json::from_str(&text).map_err(|e| {
             bad(
@@ -897,6 +864,7 @@ pub fn score_table(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use agentstar_render::GATE_IOU;
 
     #[test]
     fn every_verb_names_its_command_and_files_consistently() {

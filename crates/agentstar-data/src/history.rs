@@ -15,12 +15,63 @@
 //! ([`PoseHistory::frame_versions`]: one frame's pose in every version) or restored, whole
 //! or for chosen frames ([`PoseHistory::restore_frames`]).
 
-use crate::reports::{FrameVersion, HistoryEntry, HistoryRow};
-use crate::{AgentError, Result};
-use agentstar_data::posefile::{FrameEntry, PoseFile};
-use agentstar_data::DataError;
+use crate::posefile::{FrameEntry, PoseFile, PoseJson};
+use crate::DataError;
+use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
 use std::io::Write;
 use std::path::{Path, PathBuf};
+
+/// What can go wrong with a pose file's history: a file that does not read, or a request
+/// that cannot be met (a version that does not exist, a frame it does not hold).
+#[derive(Debug, thiserror::Error)]
+pub enum HistoryError {
+    #[error("{0}")]
+    Data(#[from] DataError),
+    #[error("{0}")]
+    Invalid(String),
+}
+
+pub type Result<T, E = HistoryError> = std::result::Result<T, E>;
+
+/// One committed version of a pose file (`.agentstar/history/STEM/NNNNNN.json`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct HistoryEntry {
+    pub version: u64,
+    pub time_unix_s: u64,
+    /// The command (or tool) that made it.
+    pub command: String,
+    pub pose: PoseFile,
+}
+
+/// One row of `pose history --json`.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct HistoryRow {
+    pub version: u64,
+    pub time_unix_s: u64,
+    pub command: String,
+}
+
+/// One frame in one version of a pose file.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct FrameVersion {
+    pub version: u64,
+    pub time_unix_s: u64,
+    pub command: String,
+    /// The version's shared scale.
+    pub scale: f64,
+    /// The frame's pose in that version (`None`: the version has none for it).
+    pub pose: Option<PoseJson>,
+    /// Joint states in interface units (degrees, metres).
+    pub joints: BTreeMap<String, f64>,
+    /// The first earlier version with the same pose, joint states and scale.
+    pub same_as: Option<u64>,
+    /// The visible IoU of that pose with the current model (when scored).
+    pub iou_visible: Option<f64>,
+}
 
 /// What the first version says when a history starts on a file that already existed.
 pub const INITIAL: &str = "initial version (before the first commit)";
@@ -152,9 +203,9 @@ impl PoseHistory {
 
     /// Reads version file `path`.
     pub fn read_entry(path: &Path) -> Result<HistoryEntry> {
-        let text = agentstar_data::read_text(path)?;
+        let text = crate::read_text(path)?;
         serde_json::from_str(&text).map_err(|e| {
-            AgentError::Data(DataError::invalid(
+            HistoryError::Data(DataError::invalid(
                 path,
                 format!("not a pose history entry: {e}"),
             ))
@@ -182,7 +233,7 @@ impl PoseHistory {
         let dir = self.dir();
         std::fs::create_dir_all(&dir).map_err(|e| DataError::io(&dir, e))?;
         // What a writer killed mid-version left (issue 16: `kill -9` during `track`).
-        agentstar_data::atomic::remove_stale_temporaries(&dir);
+        crate::atomic::remove_stale_temporaries(&dir);
         let mut next = self.versions()?.last().map_or(0, |(n, _)| n + 1);
         loop {
             let entry = HistoryEntry {
@@ -194,7 +245,7 @@ impl PoseHistory {
             let text = serde_json::to_string_pretty(&entry)
                 .map_err(|e| DataError::invalid(&dir, format!("cannot encode a version: {e}")))?;
             let mut tmp = tempfile::Builder::new()
-                .prefix(&agentstar_data::atomic::temporary_prefix())
+                .prefix(&crate::atomic::temporary_prefix())
                 .suffix(".tmp")
                 .tempfile_in(&dir)
                 .map_err(|e| DataError::io(&dir, e))?;
@@ -224,11 +275,11 @@ impl PoseHistory {
     /// Changes the pose file under its lock: reads it, applies `change`, writes it
     /// atomically and records the result as a new version (the file as it was becomes
     /// version 0 when there is no history yet). Returns `change`'s value and the version.
-    pub fn update<T>(
+    pub fn update<T, E: From<HistoryError> + From<DataError>>(
         &self,
         command: &str,
-        change: impl FnOnce(&mut PoseFile) -> Result<T>,
-    ) -> Result<(T, u64)> {
+        change: impl FnOnce(&mut PoseFile) -> Result<T, E>,
+    ) -> Result<(T, u64), E> {
         let lock = self.lock()?;
         let mut pf = PoseFile::read(&self.poses)?;
         if self.versions()?.is_empty() {
@@ -242,11 +293,11 @@ impl PoseHistory {
 
     /// Like [`PoseHistory::update`], but writes and records only when `change` changed
     /// the file; returns the version when it did.
-    pub fn update_if_changed<T>(
+    pub fn update_if_changed<T, E: From<HistoryError> + From<DataError>>(
         &self,
         command: &str,
-        change: impl FnOnce(&mut PoseFile) -> Result<T>,
-    ) -> Result<(T, Option<u64>)> {
+        change: impl FnOnce(&mut PoseFile) -> Result<T, E>,
+    ) -> Result<(T, Option<u64>), E> {
         let lock = self.lock()?;
         let before = PoseFile::read(&self.poses)?;
         let mut pf = before.clone();
@@ -270,7 +321,7 @@ impl PoseHistory {
         let lock = self.lock()?;
         if self.versions()?.is_empty() && self.poses.exists() {
             let before = PoseFile::read(&self.poses).map_err(|e| {
-                AgentError::Invalid(format!(
+                HistoryError::Invalid(format!(
                     "{} exists and is not a pose file, so it is not overwritten ({e})",
                     self.poses.display()
                 ))
@@ -292,7 +343,7 @@ impl PoseHistory {
     pub fn entry(&self, version: u64) -> Result<HistoryEntry> {
         let list = self.versions()?;
         let Some((_, path)) = list.iter().find(|(n, _)| *n == version) else {
-            return Err(AgentError::Invalid(format!(
+            return Err(HistoryError::Invalid(format!(
                 "no version {version} of {}; {}",
                 self.poses.display(),
                 if list.is_empty() {
@@ -333,12 +384,12 @@ impl PoseHistory {
             return Ok((names, v));
         };
         if frames.is_empty() {
-            return Err(AgentError::Invalid("no frame to restore".into()));
+            return Err(HistoryError::Invalid("no frame to restore".into()));
         }
         let command = format!("restore {} of version {version}", frames.join(","));
         self.update(&command, |pf| {
             if (entry.pose.scale - pf.scale).abs() > 1e-9 * pf.scale.abs() {
-                return Err(AgentError::Invalid(format!(
+                return Err(HistoryError::Invalid(format!(
                     "version {version} has scale {} but {} has scale {}; restore the whole version, or frames of a version at this scale",
                     entry.pose.scale,
                     self.poses.display(),
@@ -349,7 +400,7 @@ impl PoseHistory {
             let mut done = Vec::new();
             for f in frames {
                 let Some((_, old)) = entry_of(&entry.pose, f) else {
-                    return Err(AgentError::Invalid(format!(
+                    return Err(HistoryError::Invalid(format!(
                         "version {version} has no pose for frame {f}"
                     )));
                 };
@@ -434,7 +485,7 @@ mod tests {
                     s.spawn(move || {
                         h.update(&format!("writer {k}"), |pf| {
                             pf.frames.entry(format!("f{k}.png")).or_default().moved = true;
-                            Ok(())
+                            Ok::<(), HistoryError>(())
                         })
                         .expect("update")
                         .1
@@ -466,7 +517,7 @@ mod tests {
         assert!(e.to_string().contains("no version 3"), "{e}");
         h.update("scale", |pf| {
             pf.scale = 0.3;
-            Ok(())
+            Ok::<(), HistoryError>(())
         })
         .expect("update");
         assert_eq!(h.restore(0).expect("restore"), 2);
@@ -475,7 +526,7 @@ mod tests {
 
     fn moved_to(pf: &mut PoseFile, frame: &str, x: f64) {
         let e = pf.frames.entry(frame.to_string()).or_default();
-        e.object_pose = Some(agentstar_data::posefile::PoseJson {
+        e.object_pose = Some(crate::posefile::PoseJson {
             quaternion: [1.0, 0.0, 0.0, 0.0],
             translation: [x, 0.0, 1.0],
             scale: Some(pf.scale),
@@ -492,7 +543,7 @@ mod tests {
             h.update(&format!("move to {x}"), |pf| {
                 moved_to(pf, "a.png", x);
                 moved_to(pf, "b.png", x);
-                Ok(())
+                Ok::<(), HistoryError>(())
             })
             .expect("update");
         }
@@ -516,7 +567,7 @@ mod tests {
                     p.scale = Some(0.4);
                 }
             }
-            Ok(())
+            Ok::<(), HistoryError>(())
         })
         .expect("update");
         let e = h

@@ -6,8 +6,8 @@
 //! was in every image and an edit costs a local refinement, not a re-track.
 
 use crate::history::PoseHistory;
-use crate::Result;
-use agentstar_data::posefile::{joint_json, pose_json, PoseFile};
+use crate::history::Result;
+use crate::posefile::{joint_json, pose_json, PoseFile};
 use agentstar_geom::pose::ObjectPose;
 use agentstar_geom::{origin_shift, ObjectModel};
 use std::path::Path;
@@ -25,7 +25,7 @@ pub fn reconcile(
     before: Option<&ObjectModel>,
     command: &str,
 ) -> Result<(Vec<String>, Option<u64>)> {
-    let model = agentstar_data::scenefile::load_model(scene)?.model;
+    let model = crate::scenefile::load_model(scene)?.model;
     PoseHistory::new(poses).update_if_changed(command, |pf| Ok(reconcile_file(before, &model, pf)))
 }
 
