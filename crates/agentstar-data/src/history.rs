@@ -272,8 +272,8 @@ impl PoseHistory {
         }
     }
 
-    /// Changes the pose file under its lock: reads it, applies `change`, writes it
-    /// atomically and records the result as a new version (the file as it was becomes
+    /// Changes the pose file under its lock: reads it, applies `change`, records the result
+    /// as a new version and writes it atomically (the file as it was becomes
     /// version 0 when there is no history yet). Returns `change`'s value and the version.
     pub fn update<T, E: From<HistoryError> + From<DataError>>(
         &self,
@@ -286,8 +286,10 @@ impl PoseHistory {
             self.record(&lock, &pf, INITIAL)?;
         }
         let out = change(&mut pf)?;
-        pf.write(&self.poses)?;
+        // The version first, then the file: a writer killed between the two leaves a
+        // version that `restore` can bring back, never a pose file no version records.
         let v = self.record(&lock, &pf, command)?;
+        pf.write(&self.poses)?;
         Ok((out, v))
     }
 
@@ -308,8 +310,10 @@ impl PoseHistory {
         if self.versions()?.is_empty() {
             self.record(&lock, &before, INITIAL)?;
         }
-        pf.write(&self.poses)?;
+        // The version first, then the file: a writer killed between the two leaves a
+        // version that `restore` can bring back, never a pose file no version records.
         let v = self.record(&lock, &pf, command)?;
+        pf.write(&self.poses)?;
         Ok((out, Some(v)))
     }
 
@@ -330,8 +334,9 @@ impl PoseHistory {
                 self.record(&lock, &before, INITIAL)?;
             }
         }
+        let v = self.record(&lock, pose, command)?;
         pose.write(&self.poses)?;
-        self.record(&lock, pose, command)
+        Ok(v)
     }
 
     /// Replaces the pose file with `pose` (recorded as a new version).
