@@ -1,0 +1,817 @@
+//! Pose tools: `track`, the search verbs (`sweep`, `apply`, `osweep`, `oapply`,
+//! `oapply_all`), `pose_commit`, `pose_history`, `pose_restore`, `temporal`, `pose_diff`.
+
+use super::*;
+use crate::{AgentError, Result};
+use agentstar_data::history::PoseHistory;
+use agentstar_render::GATE_IOU;
+use agentstar_reports::{
+    CommitReport, FrameHistoryReport, HistoryReport, PoseDiffReport, RestoreReport, SearchReport,
+    SearchVerb, TrackReport,
+};
+use schemars::JsonSchema;
+use serde::Deserialize;
+use std::collections::BTreeMap;
+use std::path::Path;
+
+/// A track's result as an MCP client reads it: the summary first, then what the tracker
+/// did (its log), then one line per frame; the whole report is the structured content. (The
+/// report's JSON as text buried the summary under the per-frame figures: a play-test agent
+/// ran `track` again to read its log.) With the pose file it wrote, each frame's line ends
+/// with its joint states (pose.json's units: degrees or metres): play-test 6 read pose.json
+/// in a shell to see how far a lid had opened.
+pub(super) fn track_text(
+    r: &TrackReport,
+    poses: Option<&agentstar_data::posefile::PoseFile>,
+) -> String {
+    let q = &r.sequence;
+    let mut text = format!(
+        "tracked {} frame(s) in {:.1} s ({} evaluations), initialised on {}\n",
+        q.frames, r.seconds, r.evaluations, r.init_frame
+    );
+    match (q.band_px, q.mean_iou_band, q.min_iou_band) {
+        (Some(px), Some(mean), Some(min)) => text.push_str(&format!(
+            "band IoU (±{px} px boundary excluded, the gate {}) mean {mean:.4}, min {min:.4} ({}); ",
+            q.pass_iou, q.worst_frame
+        )),
+        _ => text.push_str(&format!("gate {} on the visible IoU; ", q.pass_iou)),
+    }
+    text.push_str(&format!(
+        "visible IoU mean {:.4}, min {:.4} ({})\n",
+        q.mean_iou_visible, q.min_iou_visible, q.min_visible_frame
+    ));
+    if q.below_gate.is_empty() {
+        text.push_str("every frame passes the gate\n");
+    } else {
+        text.push_str(&format!(
+            "under the gate, worst first: {}\n",
+            q.below_gate.join(", ")
+        ));
+    }
+    text.push_str("\nwhat the tracker did:\n");
+    for line in &r.log {
+        text.push_str(&format!("  {line}\n"));
+    }
+    let joints_of = |frame: &str| poses.and_then(|p| p.frames.get(frame)).map(|e| &e.joints);
+    let with_joints = r
+        .frames
+        .iter()
+        .any(|f| joints_of(&f.frame).is_some_and(|j| !j.is_empty()));
+    text.push_str(&format!(
+        "\nframe        iou_band  iou_visible{}\n",
+        if with_joints { "  joints" } else { "" }
+    ));
+    for f in &r.frames {
+        let band = f
+            .iou_band
+            .map_or("     -".to_string(), |b| format!("{b:.4}"));
+        let visible = f
+            .iou_visible
+            .map_or("     -".to_string(), |v| format!("{v:.4}"));
+        let joints: String = joints_of(&f.frame)
+            .into_iter()
+            .flatten()
+            .map(|(name, v)| format!("  {name} {v:.1}"))
+            .collect();
+        text.push_str(&format!(
+            "{:<12} {band:>8}  {visible:>11}{joints}\n",
+            f.frame
+        ));
+    }
+    text.push('\n');
+    text
+}
+
+#[derive(Debug, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct PoseRestoreArgs {
+    /// A pose version as `pose_history` lists them (0 is the first).
+    #[schemars(range(min = 0))]
+    pub version: u64,
+    /// Only these keyframes (same grammar as `frames`); the others stay as they are.
+    /// Default: the whole file.
+    pub frames: Option<String>,
+}
+
+#[derive(Debug, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct PoseHistoryArgs {
+    /// One keyframe (name, stem or number): its pose and visible IoU (with the current
+    /// model) in every version, and where it changed.
+    #[schemars(length(min = 1))]
+    pub frame: Option<String>,
+    /// Only the last N versions (default 50).
+    #[schemars(range(min = 1))]
+    pub last: Option<u64>,
+}
+
+#[derive(Debug, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct TrackArgs {
+    /// Metres per model unit (default: the scale in pose.json, or in `from`).
+    #[schemars(extend("exclusiveMinimum" = 0))]
+    pub scale: Option<f64>,
+    /// Refine these poses instead of tracking from scratch (a warm start, cheap after a
+    /// shape edit): `pose.json` for the current poses, or another pose file in the run.
+    #[schemars(length(min = 1))]
+    pub from: Option<String>,
+    /// With `from`: keyframes kept exactly and carried to their neighbours (same grammar
+    /// as `frames`).
+    #[schemars(length(min = 1))]
+    pub anchors: Option<String>,
+}
+
+/// A sweep's search strategy.
+#[derive(Debug, Clone, Copy, Deserialize, JsonSchema)]
+#[serde(rename_all = "lowercase")]
+pub enum Strategy {
+    De,
+    Grid,
+}
+
+#[derive(Debug, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct SweepArgs {
+    #[schemars(description = FRAMES, length(min = 1))]
+    pub frames: String,
+    /// DOF:min,max terms separated by `;` (roll, yaw, pitch in degrees; dpx, dpy, tz fractions; joints by name).
+    #[schemars(length(min = 1))]
+    pub ranges: String,
+    pub strategy: Option<Strategy>,
+    /// Evaluations over all restarts (default 3600, or for DE 20 generations of its
+    /// population, 8 per searched dimension, where that is more, at most 20000: 6720 for 7
+    /// dimensions).
+    #[schemars(range(min = 50, max = 50000))]
+    pub evals: Option<u64>,
+}
+
+#[derive(Debug, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct ApplyArgs {
+    /// One keyframe (name, stem or number).
+    #[schemars(length(min = 1))]
+    pub frame: String,
+    /// One value per DOF: `yaw:15;hinge:40` (increments; joint states absolute).
+    #[schemars(length(min = 1))]
+    pub order: String,
+}
+
+#[derive(Debug, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct OsweepArgs {
+    #[schemars(description = FRAMES)]
+    pub frames: Option<String>,
+    /// A preset: `z:flip`, `z:quarters`, `z:octants`, `so3:24`. Give this or `ranges`.
+    pub opreset: Option<String>,
+    /// Grid ranges over rx, ry, rz (degrees) and joints: `rz:-180,180,9;rx:-15,15,3`, each
+    /// `dof:lower,upper,steps` with `steps` grid values from lower to upper, both included.
+    /// The grid is then refined around its best points (finer spacing) and every candidate
+    /// refined locally before ranking: each row names its grid start and, after `→`, the
+    /// rotation (one rotation vector, as `oapply` reads it) and joint states it was refined to.
+    /// Give this or `opreset`.
+    pub ranges: Option<String>,
+}
+
+#[derive(Debug, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct OapplyArgs {
+    #[schemars(description = FRAMES)]
+    pub frames: Option<String>,
+    /// `flips`, `swaps` (for each hinge, the half-turn that puts its two sides in each
+    /// other's place: a laptop's lid and base), or candidates separated by `|`, terms by `;`:
+    /// `identity|flip:x|rz:90;rx:10|swaps`; a term `JOINT:value` sets a joint in that
+    /// candidate (degrees, or canonical units for a prismatic joint): `flip:x;hinge:115`.
+    pub set: Option<String>,
+}
+
+#[derive(Debug, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct OapplyAllArgs {
+    /// One rotation: `rz:90;rx:10` (rotation vector, degrees) or `flip:x|y|z`.
+    #[schemars(length(min = 1))]
+    pub rotation: String,
+    #[schemars(description = FRAMES)]
+    pub frames: Option<String>,
+}
+
+#[derive(Debug, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct PoseCommitArgs {
+    /// Where the poses come from (inside the run directory): the report a search returned,
+    /// a pose file (a track's pose.json) or a history version file.
+    #[schemars(length(min = 1))]
+    pub report: String,
+    /// The candidate's rank in a search report (0 = best).
+    #[schemars(range(min = 0))]
+    pub rank: Option<u64>,
+    /// Instead of `rank`: the candidate's label in a search report (`swap:hinge`, `flip:x`;
+    /// for osweep the grid start before `→`), the same candidate in every frame whatever its
+    /// rank there.
+    pub label: Option<String>,
+    /// Only these frames of the report (same grammar as `frames`).
+    pub frames: Option<String>,
+}
+
+#[derive(Debug, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct TemporalArgs {
+    /// e.g. vel.rot, accel.rot, vel.trans, <joint>.vel
+    pub sort_by: Option<String>,
+}
+
+#[derive(Debug, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct PoseDiffArgs {
+    #[schemars(length(min = 1))]
+    pub a: String,
+    #[schemars(length(min = 1))]
+    pub b: String,
+}
+
+/// The arguments of the built-in loop's `delegate_pose` (run by the loop, not the toolbox).
+#[derive(Debug, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct DelegateArgs {
+    /// Each window's keyframes, e.g. `000000..000020`.
+    #[schemars(length(min = 1))]
+    pub windows: Vec<String>,
+    #[schemars(length(min = 1))]
+    pub brief: String,
+}
+
+tool!(Track, "track", Pose, Poses, TrackArgs,
+    "Run the automatic tracker over every keyframe with the current model and scale (a pose step for all keyframes; the result is a new pose version, the previous ones stay in pose_history). Use it once the shape is right, then fix the frames it gets wrong with sweeps and flips. After a shape edit, `from: \"pose.json\"` refines the current poses instead of starting over (cheap), and `anchors` keeps the keyframes you trust exactly and carries them to their neighbours. Progress notifications carry its latest line; a run that is stopped keeps what it had tracked in pose.partial.json.",
+    |tb, a, step| tb.track(&a, step));
+
+tool!(Sweep, "sweep", Pose, Nothing, SweepArgs,
+    "Search a bounded region around the current pose of each given keyframe by silhouette IoU (differential evolution, 6 seeded restarts) and return the ranked candidates with a candidate sheet; rows labelled `seen` are other places the search passed through (at least 10° from the rest, not refined; another basin where the box holds one, else the slope of the same one: refine one with a narrower sweep around it). Ranges are camera-frame increments and absolute joint states, e.g. `yaw:-30,30;pitch:-20,20;tz:-0.1,0.1;lid_hinge:0,90`. Commit a candidate with pose_commit (the result names its report).",
+    |tb, a, step| {
+        let extra = [
+            vec!["--frames".into(), a.frames.clone()],
+            vec!["--ranges".into(), a.ranges.clone()],
+            a.strategy
+                .map(|s| vec!["--strategy".into(), match s { Strategy::De => "de", Strategy::Grid => "grid" }.into()])
+                .unwrap_or_default(),
+            a.evals.map(|e| vec!["--evals".into(), e.to_string()]).unwrap_or_default(),
+        ]
+        .concat();
+        tb.search(SearchVerb::Sweep, Some(&a.frames), extra, step)
+    });
+
+tool!(Apply, "apply", Pose, Nothing, ApplyArgs,
+    "Score one explicit order on one keyframe, e.g. `yaw:15;hinge:40`, and return it as a candidate (to compare with a sweep's).",
+    |tb, a, step| {
+        let extra = vec!["--frame".into(), a.frame.clone(), "--order".into(), a.order.clone()];
+        tb.search(SearchVerb::Apply, Some(&a.frame), extra, step)
+    });
+
+tool!(Osweep, "osweep", Pose, Nothing, OsweepArgs,
+    "Search object-frame rotations per keyframe: a preset (`z:flip`, `z:quarters`, `z:octants`, `so3:24`) or grid ranges (`rz:-180,180,9;rx:-15,15,3`). For objects that look alike from several sides.",
+    |tb, a, step| {
+        // The region is the agent's decision: no silent default grid, and not two at once.
+        match (&a.opreset, &a.ranges) {
+            (None, None) => return Ok(ToolOutput::error(
+                "osweep needs a region and searched nothing: give `opreset` (`z:flip`, `z:quarters`, `z:octants`, `so3:24`) or `ranges` (`rz:-180,180,9;rx:-15,15,3`), and `frames` (default: every keyframe)",
+            )),
+            (Some(_), Some(_)) => return Ok(ToolOutput::error(
+                "osweep takes `opreset` or `ranges`, not both: nothing was searched",
+            )),
+            _ => {}
+        }
+        let extra = [flag(&a.frames, "--frames"), flag(&a.opreset, "--opreset"), flag(&a.ranges, "--ranges")].concat();
+        tb.search(SearchVerb::Osweep, a.frames.as_deref(), extra, step)
+    });
+
+tool!(Oapply, "oapply", Pose, Nothing, OapplyArgs,
+    "Score a set of object-frame rotations on each keyframe, default `flips|swaps` (identity, the 180° flips about x, y, z, and for each hinge the half-turn that swaps its two sides: lid and base), each refined before ranking. The flip check for near-symmetric objects: a flipped or swapped pose can score as well as the right one, so look at the sheet.",
+    |tb, a, step| {
+        let extra = [flag(&a.frames, "--frames"), flag(&a.set, "--set")].concat();
+        tb.search(SearchVerb::Oapply, a.frames.as_deref(), extra, step)
+    });
+
+tool!(OapplyAll, "oapply_all", Pose, Nothing, OapplyAllArgs,
+    "Apply one object-frame rotation to every keyframe (`rz:90` or `flip:x`): for a model built the wrong way round; or to a block of keyframes (`frames`), to try a twin for a run of frames chained from a wrong pose: where the block meets the other frames, each frame's note gives the temporal step before and after the rotation. Nothing changes until `pose_commit`.",
+    |tb, a, step| {
+        let extra = [vec!["--rotation".into(), a.rotation.clone()], flag(&a.frames, "--frames")].concat();
+        tb.search(SearchVerb::OapplyAll, a.frames.as_deref(), extra, step)
+    });
+
+tool!(PoseCommit, "pose_commit", Pose, Poses, PoseCommitArgs,
+    "Put poses into pose.json (atomically, as a new pose version). `report` is the path a search returned (then `rank` picks the candidate, or `label` the same candidate in every frame, e.g. `swap:hinge`), a pose file (a track's pose.json) or a history version file; `frames` limits it to some keyframes.",
+    |tb, a, _step| tb.pose_commit(&a));
+
+tool!(
+    PoseHistoryTool,
+    "pose_history",
+    Diagnostic,
+    Nothing,
+    PoseHistoryArgs,
+    "List the pose versions with the command that made each (the last 50 unless `last` says). With `frame`: that keyframe's pose and visible IoU (with the current model) in every version, and where it changed; restore a good one with pose_restore and `frames`.",
+    |tb, a, _step| tb.pose_history(&a)
+);
+
+tool!(
+    PoseRestore,
+    "pose_restore",
+    Pose,
+    Poses,
+    PoseRestoreArgs,
+    "Make an earlier pose version current again (recorded as a new version), whole or only for some keyframes (`frames`; the others stay as they are). Versions are listed by pose_history.",
+    |tb, a, _step| tb.pose_restore(&a)
+);
+
+tool!(Temporal, "temporal", Diagnostic, Nothing, TemporalArgs,
+    "The temporal report: rotation (with the step's axis in the model's frame: `+z` is a spin about the model's z axis), translation and radial velocity and acceleration from keyframe to keyframe (camera motion removed), joint velocities, and a plot. Large steps are either real or wrong poses (often flips): confirm them in the frames or fix them.",
+    |tb, a, step| {
+        let out = tb.run.step_dir(step, Temporal::NAME);
+        std::fs::create_dir_all(&out).map_err(|e| agentstar_data::DataError::io(&out, e))?;
+        let plot = out.join("temporal.png");
+        let mut args: Vec<String> = vec!["temporal".into()];
+        args.extend(tb.session_args());
+        args.extend(["--plot".into(), plot.display().to_string()]);
+        args.extend(flag(&a.sort_by, "--sort-by"));
+        let (ok, stdout, stderr) = tb.exec(&args)?;
+        if !ok {
+            return Ok(ToolOutput::error(stderr.trim().to_string()));
+        }
+        Ok(ToolOutput { text: stdout, images: pngs(&out), ..Default::default() })
+    });
+
+tool!(
+    PoseDiff,
+    "pose_diff",
+    Diagnostic,
+    Nothing,
+    PoseDiffArgs,
+    "The residual between two keyframes' poses (rotation in degrees, translation, joint changes).",
+    |tb, a, _step| {
+        let mut args: Vec<String> = vec!["pose-diff".into()];
+        args.extend(tb.session_args());
+        args.extend(["--a".into(), a.a.clone(), "--b".into(), a.b.clone()]);
+        let (ok, stdout, stderr) = tb.exec(&args)?;
+        if !ok {
+            return Ok(ToolOutput::error(stderr.trim().to_string()));
+        }
+        let report: PoseDiffReport = serde_json::from_str(&stdout)
+            .map_err(|e| AgentError::Tool(format!("pose-diff printed no report ({e})")))?;
+        Ok(ToolOutput {
+            text: stdout,
+            structured: serde_json::to_value(&report).ok(),
+            ..Default::default()
+        })
+    }
+);
+
+/// A search's result as an MCP client should read it: per frame the ranked candidates
+/// (rank, scores, the order that made each), then what to do with them — look at the
+/// sheet and keep one with `pose_commit` by report and rank. No pose numbers and no shell
+/// commands: the agent never types poses.
+pub fn search_text(report: &SearchReport, path: &Path) -> String {
+    let mut t = String::new();
+    for f in &report.frames {
+        let with_model = f.ranked.iter().any(|c| c.model_ncc.is_some());
+        t.push_str(&format!(
+            "{} {}\n{:<5} {:>8} {:>8} {:>8} {:>8}{}  order\n",
+            report.verb.stem(),
+            f.frame,
+            "rank",
+            "score",
+            "iou_band",
+            "iou_vis",
+            "iou_raw",
+            if with_model { "    model" } else { "" }
+        ));
+        let or_na = |v: Option<f64>| v.map_or("n/a".into(), |v| format!("{v:.4}"));
+        for c in &f.ranked {
+            let model = if with_model {
+                format!(
+                    " {:>8}",
+                    c.model_ncc.map_or("n/a".into(), |v| format!("{v:.2}"))
+                )
+            } else {
+                String::new()
+            };
+            t.push_str(&format!(
+                "{:<5} {:>8.4} {:>8} {:>8} {:>8.4}{model}  {}\n",
+                c.rank,
+                c.gate,
+                or_na(c.iou_band),
+                or_na(c.iou_visible),
+                c.iou_raw,
+                c.label
+            ));
+        }
+        if with_model {
+            t.push_str("model: the frame's colours against the model's own part colours at the candidate (NCC, −1..1): where candidates tie in IoU (a flipped or swapped twin), the higher one puts the model's print where the frame shows it.\n");
+        }
+        for n in &f.notes {
+            t.push_str(&format!("note: {n}\n"));
+        }
+        if f.ranked.iter().any(|c| c.label.starts_with("seen ")) {
+            t.push_str("seen: a place the search passed through, at least 10° in rotation or in a joint from every row above it, and not refined: another basin where the region holds one, else the slope of the same one (refine one with a narrow `sweep` around its order before trusting its score).\n");
+        }
+        if let Some(first) = f.ranked.first().filter(|c| !c.outside_region.is_empty()) {
+            t.push_str(&format!(
+                "note: rank 0 is the start, which lies outside the region you named ({}): it is first only because nothing inside the region scored higher{}.\n",
+                first.outside_region.join(", "),
+                if f.ranked.len() > 1 {
+                    "; the region's best is rank 1"
+                } else {
+                    ""
+                }
+            ));
+        }
+        if let [only] = &f.ranked[..] {
+            // (A start outside the region has its own note above: it may well not be the
+            // best pose here.)
+            if only.label.starts_with(agentstar_reports::KEPT_START)
+                && only.outside_region.is_empty()
+            {
+                t.push_str("note: nothing the search evaluated in this region scored above the start. Either the start is already the best pose here (a sharp optimum: `apply` single small steps to see the surface), or a better pose lies outside the region (widen it, or try the flips with `osweep`).\n");
+            }
+        }
+    }
+    let frames: Vec<&str> = report.frames.iter().map(|f| f.frame.as_str()).collect();
+    if report.frames.iter().any(|f| !f.ranked.is_empty()) {
+        t.push_str(&format!(
+            "Ranked by score (the visible IoU the search optimises, with depth where weighted); the gate ({GATE_IOU}) is on iou_band, the visible IoU without the mask's uncertain outline.\n"
+        ));
+        t.push_str(&format!(
+            "To keep a candidate, look at its tiles on the sheet first (a flipped twin can score as high), then call `pose_commit` with report = \"{}\" and its rank (0 = best) or, for the same candidate in every frame, its label{}. Nothing is changed until you commit.\n",
+            path.display(),
+            if frames.len() > 1 {
+                format!("; add frames = \"…\" to commit only some of {}", frames.join(", "))
+            } else {
+                String::new()
+            }
+        ));
+    }
+    t
+}
+
+/// The frames of `spec` outside `window` (names), after resolving the spec to names.
+pub(super) fn outside_window(window: &[String], names: &[String]) -> Vec<String> {
+    names
+        .iter()
+        .filter(|n| !window.contains(n))
+        .cloned()
+        .collect()
+}
+
+impl Toolbox {
+    /// A search verb: its report read back as a [`SearchReport`], its text table as the
+    /// result, its sheets as images.
+    pub(super) fn search(
+        &self,
+        verb: SearchVerb,
+        frames: Option<&str>,
+        extra: Vec<String>,
+        step: u64,
+    ) -> Result<ToolOutput> {
+        if let Err(e) = self.check_window(frames) {
+            return Ok(ToolOutput::error(e));
+        }
+        let (o, out, _) = self.cli(&[verb.command()], step, verb.stem(), extra)?;
+        if o.is_error {
+            return Ok(o);
+        }
+        let path = verb.report_path(&out);
+        let report = SearchReport::read(&path)?;
+        let mut images = o.images;
+        let written = images.len();
+        images.truncate(MAX_IMAGES_RETURNED);
+        let mut scores = BTreeMap::new();
+        if let Some(min) = report.min_gate_iou {
+            scores.insert("best_iou_min".into(), min);
+        }
+        let mut text = search_text(&report, &path);
+        if written > images.len() {
+            text.push_str(&format!(
+                "{written} sheet page(s) written in {}; {} returned\n",
+                out.display(),
+                images.len()
+            ));
+        }
+        Ok(ToolOutput {
+            // The path first (play-test, 2026-12-02): it is what `pose_commit` needs, and
+            // step numbers cannot be predicted.
+            text: format!("report: {}\n{text}", path.display()),
+            images,
+            scores,
+            structured: serde_json::to_value(&report).ok(),
+            ..Default::default()
+        })
+    }
+
+    pub(super) fn pose_commit(&self, a: &PoseCommitArgs) -> Result<ToolOutput> {
+        if self.window.is_some() {
+            let frames = a.frames.as_deref().filter(|f| !f.trim().is_empty());
+            if let Err(e) = self.check_window(frames) {
+                return Ok(ToolOutput::error(e));
+            }
+        }
+        let report = match self.confine(&a.report) {
+            Ok(p) => p,
+            Err(e) => return Ok(ToolOutput::error(format!("pose_commit: {e}"))),
+        };
+        let mut args = vec![
+            "pose".to_string(),
+            "commit".into(),
+            "--poses".into(),
+            self.run.poses.display().to_string(),
+            "--report".into(),
+            report.display().to_string(),
+            "--json".into(),
+        ];
+        let label = a.label.as_deref().map(str::trim).filter(|l| !l.is_empty());
+        match (label, a.rank) {
+            (Some(_), Some(_)) => {
+                return Ok(ToolOutput::error(
+                    "pose_commit: give `rank` or `label`, not both".to_string(),
+                ))
+            }
+            (Some(l), None) => args.extend(["--label".to_string(), l.to_string()]),
+            (None, rank) => args.extend(["--rank".to_string(), rank.unwrap_or(0).to_string()]),
+        }
+        let which = match label {
+            Some(l) => format!("candidate `{l}`"),
+            None => format!("candidate rank {}", a.rank.unwrap_or(0)),
+        };
+        args.extend(flag(&a.frames, "--frames"));
+        let (ok, stdout, stderr) = self.exec(&args)?;
+        if !ok {
+            return Ok(ToolOutput::error(stderr.trim().to_string()));
+        }
+        let r: CommitReport = serde_json::from_str(&stdout).map_err(|e| {
+            AgentError::Tool(format!(
+                "pose commit printed no commit report ({e}): {stdout}"
+            ))
+        })?;
+        Ok(ToolOutput {
+            text: format!(
+                "committed {which} in each of {} frame(s) ({}) to pose.json as version {}",
+                r.committed.len(),
+                r.committed.join(", "),
+                r.version
+            ),
+            pose_changed: true,
+            pose_version: Some(r.version),
+            structured: serde_json::to_value(&r).ok(),
+            ..Default::default()
+        })
+    }
+
+    /// `agentstar track` writing pose.json itself, as a version of its history (the
+    /// command that made it is recorded there, the step in the ledger).
+    pub(super) fn track(&self, a: &TrackArgs, _step: u64) -> Result<ToolOutput> {
+        if self.window.is_some() {
+            return Ok(ToolOutput::error(
+                "track changes every keyframe; a pose sub-agent works on its window with sweeps and flips",
+            ));
+        }
+        let mut args = vec![
+            "track".to_string(),
+            self.run.capture.display().to_string(),
+            "--model".into(),
+            self.run.scene.display().to_string(),
+            "--out".into(),
+            self.run.poses.display().to_string(),
+            "--json".into(),
+        ];
+        let from = a.from.as_deref().map(str::trim).filter(|f| !f.is_empty());
+        let anchors = a
+            .anchors
+            .as_deref()
+            .map(str::trim)
+            .filter(|f| !f.is_empty());
+        match (from, anchors) {
+            (None, Some(_)) => {
+                return Ok(ToolOutput::error(
+                    "track: `anchors` keeps keyframes of a warm start; give `from` too (\"pose.json\" for the current poses)",
+                ))
+            }
+            (Some(f), _) => {
+                let path = match self.confine(f) {
+                    Ok(p) => p,
+                    Err(e) => return Ok(ToolOutput::error(format!("track: {e}"))),
+                };
+                args.extend(["--from".into(), path.display().to_string()]);
+                if let Some(spec) = anchors {
+                    // The frame grammar, checked here so a bad name is the tool's error.
+                    let names = self.frame_names(Some(spec))?;
+                    args.extend(["--anchors".into(), names.join(",")]);
+                }
+            }
+            (None, None) => {}
+        }
+        match (a.scale, from) {
+            (Some(s), _) => args.extend(["--scale".into(), s.to_string()]),
+            (None, Some(_)) => {}
+            (None, None) => {
+                args.extend(["--scale-from".into(), self.run.poses.display().to_string()])
+            }
+        }
+        let (ok, stdout, stderr) = self.exec(&args)?;
+        if !ok {
+            let mut text = stderr.trim().to_string();
+            // What the stopped run had tracked (the command keeps it beside the pose file).
+            let partial = agentstar_data::posefile::partial_path(&self.run.poses);
+            if partial.is_file() {
+                let name = partial
+                    .file_name()
+                    .map(|n| n.to_string_lossy().into_owned())
+                    .unwrap_or_default();
+                text.push_str(&format!(
+                    "\nThe poses it had tracked are kept in {name} (frames marked \"moved\": true); track with `from: \"{name}\"` and `anchors` on those frames goes on from them."
+                ));
+            }
+            return Ok(ToolOutput::error(text));
+        }
+        let report: TrackReport = serde_json::from_str(&stdout)
+            .map_err(|e| AgentError::Tool(format!("track printed no track report ({e})")))?;
+        let version = report
+            .pose_version
+            .ok_or_else(|| AgentError::Tool("track recorded no pose version".into()))?;
+        let mut scores = BTreeMap::new();
+        scores.insert("iou_min".into(), report.sequence.min_iou_visible);
+        scores.insert("iou_mean".into(), report.sequence.mean_iou_visible);
+        Ok(ToolOutput {
+            text: {
+                // The joint states come from the pose file the tracker wrote; should it not
+                // read, the table says so rather than losing its column unannounced.
+                let poses = agentstar_data::posefile::PoseFile::read(&report.poses);
+                let unread = match &poses {
+                    Err(e) => format!("(joint states not shown: {e})\n"),
+                    Ok(_) => String::new(),
+                };
+                format!(
+                    "{}{unread}pose.json is version {version}; the earlier versions are in pose_history.",
+                    track_text(&report, poses.ok().as_ref())
+                )
+            },
+            pose_changed: true,
+            pose_version: Some(version),
+            scores,
+            structured: serde_json::to_value(&report).ok(),
+            ..Default::default()
+        })
+    }
+
+    /// `pose_history`: the versions, or one frame across them (scored by the CLI, which
+    /// has the renderer).
+    pub(super) fn pose_history(&self, a: &PoseHistoryArgs) -> Result<ToolOutput> {
+        let last = a.last.unwrap_or(50).to_string();
+        let mut args = vec![
+            "pose".to_string(),
+            "history".into(),
+            "--poses".into(),
+            self.run.poses.display().to_string(),
+            "--last".into(),
+            last,
+            "--json".into(),
+        ];
+        let Some(frame) = a.frame.as_deref().map(str::trim).filter(|f| !f.is_empty()) else {
+            let (ok, stdout, stderr) = self.exec(&args)?;
+            if !ok {
+                return Ok(ToolOutput::error(stderr.trim().to_string()));
+            }
+            let r: HistoryReport = serde_json::from_str(&stdout).map_err(|e| {
+                AgentError::Tool(format!("pose history printed no history report ({e})"))
+            })?;
+            let mut text = if r.versions.is_empty() {
+                "no committed pose versions yet\n".to_string()
+            } else if r.versions.len() < r.total {
+                format!("the last {} of {} versions:\n", r.versions.len(), r.total)
+            } else {
+                String::new()
+            };
+            for row in &r.versions {
+                text.push_str(&format!("{:>4}  {}\n", row.version, row.command));
+            }
+            return Ok(ToolOutput {
+                text,
+                structured: serde_json::to_value(&r).ok(),
+                ..Default::default()
+            });
+        };
+        args.extend([
+            "--frame".into(),
+            frame.to_string(),
+            "--capture".into(),
+            self.run.capture.display().to_string(),
+            "--model".into(),
+            self.run.scene.display().to_string(),
+        ]);
+        let (ok, stdout, stderr) = self.exec(&args)?;
+        if !ok {
+            return Ok(ToolOutput::error(stderr.trim().to_string()));
+        }
+        let r: FrameHistoryReport = serde_json::from_str(&stdout).map_err(|e| {
+            AgentError::Tool(format!("pose history printed no frame history ({e})"))
+        })?;
+        let mut text = format!(
+            "{} in {} version(s) (visible IoU with the current model):\n",
+            r.frame,
+            r.versions.len()
+        );
+        for v in &r.versions {
+            let iou = v.iou_visible.map_or("-".to_string(), |x| format!("{x:.4}"));
+            let what = match v.same_as {
+                Some(s) => format!("same pose as version {s}"),
+                None if v.pose.is_none() => "no pose".into(),
+                None => "a new pose".into(),
+            };
+            text.push_str(&format!(
+                "{:>4}  IoU {iou:>6}  {what:<24}  {}\n",
+                v.version, v.command
+            ));
+            // The pose itself where it is new (play-test: the description promised it).
+            if let (None, Some(p)) = (v.same_as, &v.pose) {
+                let joints: Vec<String> = v
+                    .joints
+                    .iter()
+                    .map(|(name, value)| format!("{name} {value:.2}"))
+                    .collect();
+                let [w, x, y, z] = p.quaternion;
+                let [tx, ty, tz] = p.translation;
+                text.push_str(&format!(
+                    "      quaternion (w,x,y,z) [{w:.4}, {x:.4}, {y:.4}, {z:.4}]  translation [{tx:.4}, {ty:.4}, {tz:.4}]{}\n",
+                    if joints.is_empty() {
+                        String::new()
+                    } else {
+                        format!("  joints {}", joints.join(", "))
+                    }
+                ));
+            }
+        }
+        for n in &r.notes {
+            text.push_str(&format!("note: {n}\n"));
+        }
+        let mut o = ToolOutput {
+            text,
+            structured: serde_json::to_value(&r).ok(),
+            ..Default::default()
+        };
+        if let Some(best) = r
+            .versions
+            .iter()
+            .filter_map(|v| v.iou_visible)
+            .reduce(f64::max)
+        {
+            o.scores.insert("best_iou".into(), best);
+        }
+        Ok(o)
+    }
+
+    /// `pose_restore`: a version, whole or for some frames (a sub-agent only its window's).
+    pub(super) fn pose_restore(&self, a: &PoseRestoreArgs) -> Result<ToolOutput> {
+        let frames = a.frames.as_deref().map(str::trim).filter(|f| !f.is_empty());
+        if self.window.is_some() && frames.is_none() {
+            return Ok(ToolOutput::error(
+                "a pose sub-agent cannot restore the whole pose file; name its frames",
+            ));
+        }
+        if let Err(e) = self.check_window(frames) {
+            return Ok(ToolOutput::error(e));
+        }
+        let history = PoseHistory::new(&self.run.poses);
+        let wanted = frames.map(|f| self.frame_names(Some(f))).transpose()?;
+        let (restored, v) = history.restore_frames(a.version, wanted.as_deref())?;
+        let r = RestoreReport {
+            from_version: a.version,
+            frames: restored,
+            version: v,
+            poses: self.run.poses.clone(),
+        };
+        Ok(ToolOutput {
+            text: match &wanted {
+                Some(_) => format!(
+                    "restored {} of version {} (recorded as version {v}); the other keyframes are unchanged",
+                    r.frames.join(", "),
+                    a.version
+                ),
+                None => format!(
+                    "restored version {} of pose.json (recorded as version {v})",
+                    a.version
+                ),
+            },
+            pose_changed: true,
+            pose_version: Some(v),
+            structured: serde_json::to_value(&r).ok(),
+            ..Default::default()
+        })
+    }
+
+    /// `agentstar temporal --json` over every keyframe, as its report.
+    pub fn temporal_report(&self) -> Result<agentstar_reports::TemporalReport> {
+        let mut a: Vec<String> = vec!["temporal".into()];
+        a.extend(self.session_args());
+        a.push("--json".into());
+        let (ok, stdout, stderr) = self.exec(&a)?;
+        if !ok {
+            return Err(AgentError::Tool(stderr.trim().to_string()));
+        }
+        serde_json::from_str(&stdout)
+            .map_err(|e| AgentError::Tool(format!("temporal printed no report ({e})")))
+    }
+}

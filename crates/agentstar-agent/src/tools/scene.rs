@@ -1,0 +1,227 @@
+//! Scene tools: the task document, reading, writing and restoring `scene.rhai`.
+
+use super::*;
+use crate::task::task_document;
+use crate::{AgentError, Result};
+use agentstar_reports::CheckReport;
+use schemars::JsonSchema;
+use serde::Deserialize;
+use std::path::Path;
+
+#[derive(Debug, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct SceneWriteArgs {
+    /// The whole scene script (Rhai). Or give `path` instead.
+    #[schemars(length(min = 1, max = 262144))]
+    pub script: Option<String>,
+    /// A text file holding the whole script (at most 256 KiB), in the run directory or
+    /// relative to it (e.g. `draft.rhai`, written with your own editor): no escaping of the
+    /// script into a JSON string. Give `script` or `path`, not both.
+    #[schemars(length(min = 1))]
+    pub path: Option<String>,
+}
+
+/// The longest scene script `scene_write` takes, in bytes (its schema's bound on `script`).
+pub(super) const SCENE_SCRIPT_MAX_BYTES: usize = 262_144;
+
+impl SceneWriteArgs {
+    /// The script given, or read from the file given (inside the run directory or the
+    /// capture, bounded).
+    fn script(&self, tb: &Toolbox) -> Result<String> {
+        match (&self.script, &self.path) {
+            (Some(script), None) => Ok(script.clone()),
+            (None, Some(path)) => {
+                let file = tb.confine(path).map_err(AgentError::Tool)?;
+                let len = std::fs::metadata(&file)
+                    .map_err(|e| agentstar_data::DataError::io(&file, e))?
+                    .len();
+                if len > SCENE_SCRIPT_MAX_BYTES as u64 {
+                    return Err(AgentError::Tool(format!(
+                        "`{path}` holds {len} bytes; a scene script may have at most {SCENE_SCRIPT_MAX_BYTES}"
+                    )));
+                }
+                let script = agentstar_data::read_text(&file)?;
+                if script.trim().is_empty() {
+                    return Err(AgentError::Tool(format!(
+                        "`{path}` is empty; the scene was not changed"
+                    )));
+                }
+                Ok(script)
+            }
+            (Some(_), Some(_)) => Err(AgentError::Tool(
+                "give `script` or `path`, not both; the scene was not changed".into(),
+            )),
+            (None, None) => Err(AgentError::Tool(
+                "give `script` (the whole scene script) or `path` (a file in the run directory holding it)"
+                    .into(),
+            )),
+        }
+    }
+}
+
+#[derive(Debug, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct VersionArgs {
+    /// A scene version (they start at 1, the starting scene).
+    #[schemars(range(min = 1))]
+    pub version: u64,
+}
+
+tool!(Task, "task", Note, Nothing, NoArgs,
+    "Return TASK.md: the goal, the conventions, how to work, how to read the images, the gates before finishing, and the whole scene API with a worked example. Read it first.",
+    |_tb, _a, _step| Ok(ToolOutput::text(task_document())));
+
+tool!(SceneRead, "scene_read", Diagnostic, Nothing, NoArgs,
+    "Return the current scene.rhai and its check: parts, joints, the canonical frame (bounding box, centre) and warnings.",
+    |tb, _a, _step| tb.scene_read());
+
+tool!(SceneWrite, "scene_write", Shape, Scene, SceneWriteArgs,
+    "Replace scene.rhai with a whole new script (a shape step), given as `script` or as `path` (a file in the run directory holding it). The script is built in the sandbox first: on an error you get the message with its line and nothing changes. On success a new scene version is saved and pose.json gains new joints at rest (removed joints are dropped). Check the shape with `turntable` afterwards.",
+    |tb, a, step| tb.scene_write(&a.script(tb)?, step));
+
+tool!(
+    SceneRestore,
+    "scene_restore",
+    Shape,
+    Scene,
+    VersionArgs,
+    "Make an earlier scene version current again (versions are listed by scene_read).",
+    |tb, a, step| {
+        let p = tb
+            .run
+            .scene_versions()
+            .join(format!("{:04}.rhai", a.version));
+        let script = agentstar_data::read_text(&p).map_err(|_| {
+            AgentError::Tool(format!(
+                "there is no scene version {}; the versions are {:?}",
+                a.version,
+                tb.run.list_scene_versions()
+            ))
+        })?;
+        tb.scene_write(&script, step)
+    }
+);
+
+impl Toolbox {
+    pub(super) fn scene_read(&self) -> Result<ToolOutput> {
+        let script = agentstar_data::read_text(&self.run.scene)?;
+        let (_, check, stderr) = self.exec(&[
+            "check".into(),
+            self.run.scene.display().to_string(),
+            "--json".into(),
+        ])?;
+        // The check's report, typed (absent when the scene does not build: then its error).
+        let report: Option<CheckReport> = serde_json::from_str(&check).ok();
+        Ok(ToolOutput {
+            // The file's path: a coding agent edits the script there and passes it back
+            // whole (play-test 7 cut the script out of this text to edit it).
+            text: format!(
+                "scene.rhai ({}; versions saved: {:?}):\n```rhai\n{}\n```\ncheck:\n{}{}",
+                self.run.scene.display(),
+                self.run.list_scene_versions(),
+                script.trim_end(),
+                report
+                    .as_ref()
+                    .map(|r| agentstar_reports::check_text(r, None))
+                    .unwrap_or_default(),
+                stderr.trim()
+            ),
+            structured: report.and_then(|r| serde_json::to_value(&r).ok()),
+            ..Default::default()
+        })
+    }
+
+    /// Checks `script` in the sandbox from a candidate file of its own (beside the scene,
+    /// so it reaches the same mesh files), then makes it the scene and a new version.
+    /// Runs under the writer lock.
+    pub(super) fn scene_write(&self, script: &str, step: u64) -> Result<ToolOutput> {
+        if self.window.is_some() {
+            return Ok(ToolOutput::error(
+                "a pose sub-agent cannot change the shape",
+            ));
+        }
+        let dir = self
+            .run
+            .scene
+            .parent()
+            .filter(|d| !d.as_os_str().is_empty())
+            .unwrap_or(Path::new("."));
+        let mut candidate = tempfile::Builder::new()
+            .prefix(".scene_candidate-")
+            .suffix(".rhai")
+            .tempfile_in(dir)
+            .map_err(|e| agentstar_data::DataError::io(dir, e))?;
+        std::io::Write::write_all(&mut candidate, script.as_bytes())
+            .and_then(|_| candidate.as_file().sync_all())
+            .map_err(|e| agentstar_data::DataError::io(candidate.path(), e))?;
+        let shown = candidate.path().display().to_string();
+        let (ok, check, stderr) = self.exec(&["check".into(), shown.clone(), "--json".into()])?;
+        if !ok {
+            return Ok(ToolOutput::error(format!(
+                "the scene was not changed: {}",
+                stderr.trim().replace(&shown, "scene.rhai")
+            )));
+        }
+        #[cfg(unix)]
+        {
+            use std::os::unix::fs::PermissionsExt;
+            let _ = candidate
+                .as_file()
+                .set_permissions(std::fs::Permissions::from_mode(0o644));
+        }
+        // The check passed; its report typed (its raw text shown should it not parse).
+        let report: Option<CheckReport> =
+            serde_json::from_str::<CheckReport>(&check)
+                .ok()
+                .map(|mut r| {
+                    r.model = self.run.scene.clone();
+                    r
+                });
+        // The warnings of the scene this replaces (none when it does not build).
+        let (_, before_check, _) = self.exec(&[
+            "check".into(),
+            self.run.scene.display().to_string(),
+            "--json".into(),
+        ])?;
+        let before_warnings = serde_json::from_str::<CheckReport>(&before_check)
+            .map(|r| r.warnings)
+            .unwrap_or_default();
+        // The model the poses were made for: a moved origin is compensated against it.
+        let before = agentstar_data::scenefile::load_model(&self.run.scene)
+            .ok()
+            .map(|m| m.model);
+        // The scene and its version change together under the run's scene lock, which
+        // every process serving this run (two MCP servers, the loop) takes.
+        let _scene_lock = self.run.lock_scene()?;
+        candidate
+            .persist(&self.run.scene)
+            .map_err(|e| agentstar_data::DataError::io(&self.run.scene, e.error))?;
+        let version = self.run.list_scene_versions().last().copied().unwrap_or(0) + 1;
+        self.run.save_scene_version(version)?;
+        let (joints, pose_version) = agentstar_data::poses::reconcile(
+            &self.run.scene,
+            &self.run.poses,
+            before.as_ref(),
+            &format!("scene version {version} (step {step}): joints reconciled"),
+        )?;
+        Ok(ToolOutput {
+            text: format!(
+                "scene version {version} saved.{}\ncheck:\n{}",
+                if joints.is_empty() {
+                    String::new()
+                } else {
+                    format!(" pose.json: {}.", joints.join("; "))
+                },
+                report.as_ref().map_or_else(
+                    || check.trim().to_string(),
+                    |r| agentstar_reports::check_text(r, Some(&before_warnings))
+                )
+            ),
+            structured: report.as_ref().and_then(|r| serde_json::to_value(r).ok()),
+            scene_version: Some(version),
+            pose_changed: pose_version.is_some(),
+            pose_version,
+            ..Default::default()
+        })
+    }
+}

@@ -1,0 +1,222 @@
+//! View tools: `render`, `frames`, `score` and `turntable`.
+
+use super::*;
+use crate::{AgentError, Result};
+use agentstar_render::GATE_IOU;
+use agentstar_reports::view::{RenderReport, TurntableReport};
+use schemars::JsonSchema;
+use serde::Deserialize;
+
+#[derive(Debug, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct RenderArgs {
+    #[schemars(description = FRAMES)]
+    pub frames: Option<String>,
+    /// Comma separated: overlay, compare, ids, shaded, side (the keyframe cropped around its
+    /// mask beside the model rendered opaque over the same crop, with a sheet: to compare a
+    /// print without one showing through the other). Default overlay,compare.
+    pub views: Option<String>,
+}
+
+#[derive(Debug, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct FramesArgs {
+    #[schemars(description = FRAMES)]
+    pub frames: Option<String>,
+}
+
+/// What the keyframe view draws over the raw pixels.
+#[derive(Debug, Clone, Copy, Deserialize, JsonSchema)]
+#[serde(rename_all = "lowercase")]
+pub enum Outline {
+    /// The raw pixels only.
+    None,
+    /// The object mask's boundary (magenta) and the hand mask's (cyan).
+    Mask,
+    /// The posed model's silhouette boundary (yellow).
+    Model,
+    /// Both.
+    Both,
+}
+
+impl Outline {
+    fn as_str(self) -> &'static str {
+        match self {
+            Outline::None => "none",
+            Outline::Mask => "mask",
+            Outline::Model => "model",
+            Outline::Both => "both",
+        }
+    }
+}
+
+#[derive(Debug, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct KeyframesArgs {
+    #[schemars(description = FRAMES)]
+    pub frames: Option<String>,
+    /// Margin around the mask's box, a fraction of its longer side (default 0.25).
+    #[schemars(range(min = 0.0, max = 4.0))]
+    pub margin: Option<f64>,
+    /// Scale of the crop: 1 = the frame's own pixels (default), up to 8 to look at thin
+    /// parts; reduced where an image would pass the size limits.
+    #[schemars(range(min = 0.1, max = 8.0))]
+    pub zoom: Option<f64>,
+    /// Boundaries drawn over the raw pixels (default none).
+    pub outline: Option<Outline>,
+}
+
+#[derive(Debug, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct TurntableArgs {
+    /// Joint states to show: `representative` (each joint's min, median and max over the
+    /// keyframes; the default), `all` (every distinct state: many sheets), keyframes in
+    /// the frame grammar (`000010,000040`), or states given outright (degrees, canonical
+    /// units; joints not named at rest): `hinge:90|hinge:0;drawer:0.2`, one sheet each, also
+    /// before any pose is tracked.
+    #[schemars(length(min = 1, max = 4000))]
+    pub states: Option<String>,
+}
+
+tool!(Render, "render", Diagnostic, Nothing, RenderArgs,
+    "Render the posed model into keyframes: `overlay` (shaded model over the frame) and `compare` (silhouette comparison: green model and mask agree, magenta mask not covered by the model, yellow model outside the mask, grey hand (ignored), blue model under the hand, on a near-black background; the legend is on each image), `ids` (parts in flat colours, visible pixels each). With `overlay`, also a contact sheet of the overlays; with `compare`, a sheet of every frame's comparison cropped around mask and model. For the raw keyframes without the model, use `frames`.",
+    |tb, a, step| {
+        let views = a.views.clone().filter(|v| !v.trim().is_empty()).unwrap_or_else(|| "overlay,compare".into());
+        let (mut o, out, _) = tb.cli(
+            &["render"],
+            step,
+            Render::NAME,
+            [flag(&a.frames, "--frames"), vec!["--views".into(), views]].concat(),
+        )?;
+        if o.is_error {
+            return Ok(o);
+        }
+        let written = o.images.len();
+        o.images.truncate(MAX_IMAGES_RETURNED);
+        o.text = format!(
+            "render: wrote {written} image(s) in {}; {} returned (sheets first){}",
+            out.display(),
+            o.images.len(),
+            if written > o.images.len() { "; the rest are files there" } else { "" }
+        );
+        Ok(o)
+    });
+
+tool!(Keyframes, "frames", Diagnostic, Nothing, KeyframesArgs,
+    "Look at the raw keyframes (the input itself, no model): each keyframe cropped around its object mask with a margin, optionally zoomed (to judge thin parts: an edge, a handle) and outlined (`mask`: the mask's boundary in magenta and the hand's in cyan; `model`: the posed model's boundary in yellow). Returns sheets of the crops (each labelled with the frame and the crop's position in the frame) and, for a few frames, the crops themselves.",
+    |tb, a, step| {
+        let mut extra = [
+            flag(&a.frames, "--frames"),
+            vec!["--views".into(), "frame".into()],
+        ]
+        .concat();
+        if let Some(m) = a.margin {
+            extra.extend(["--margin".into(), m.to_string()]);
+        }
+        if let Some(z) = a.zoom {
+            extra.extend(["--zoom".into(), z.to_string()]);
+        }
+        if let Some(ol) = a.outline {
+            extra.extend(["--outline".into(), ol.as_str().into()]);
+        }
+        let (mut o, out, stdout) = tb.cli(&["render"], step, Keyframes::NAME, extra)?;
+        if o.is_error {
+            return Ok(o);
+        }
+        let report: RenderReport = serde_json::from_str(&stdout)
+            .map_err(|e| AgentError::Tool(format!("render printed no render report ({e})")))?;
+        let crops = report.frames.len();
+        let sheets = report.sheets.len();
+        o.images.truncate(MAX_IMAGES_RETURNED);
+        let mut text = format!(
+            "frames: {crops} keyframe crop(s) and {sheets} sheet(s) in {}; {} image(s) returned (sheets first){}",
+            out.display(),
+            o.images.len(),
+            if crops + sheets > o.images.len() {
+                "; the rest are files there"
+            } else {
+                ""
+            }
+        );
+        for f in &report.frames {
+            if let (Some([x, y, w, h]), Some(z)) = (f.crop, f.zoom) {
+                text.push_str(&format!("\n- {}: crop at ({x}, {y}), {w}×{h} frame pixels, zoom {z:.2}", f.frame));
+            }
+        }
+        for n in &report.notes {
+            text.push_str(&format!("\nnote: {n}"));
+        }
+        o.text = text;
+        Ok(o)
+    });
+
+tool!(Score, "score", Diagnostic, Nothing, FramesArgs,
+    "Per keyframe: band IoU (the visible IoU without ±2 px around the mask's outline, where segmenters err: the gate is 0.98 on it), visible IoU (hands excluded), raw IoU, pixel counts, depth error when the capture has depth, and the appearance figure (colour agreement with the neighbouring keyframes and, where the model's parts differ in colour, with the model's own colours, pooled), with the agreement with the model's own colours alone beside it (`model_ncc`: does the pose put the model's print where the frame shows it). Lists the keyframes under the gate.",
+    |tb, a, _step| {
+        let report = tb.score_report(a.frames.as_deref())?;
+        let mut o = ToolOutput::default();
+        let mut head = format!("score: {} keyframe(s)", report.frames.len());
+        if !report.frames.is_empty() {
+            let gates: Vec<f64> = report.frames.iter().map(|f| f.gate()).collect();
+            let min = gates.iter().copied().fold(1.0, f64::min);
+            let mean = gates.iter().sum::<f64>() / gates.len() as f64;
+            let below: Vec<&str> = report
+                .frames
+                .iter()
+                .filter(|f| f.gate() < GATE_IOU)
+                .map(|f| f.frame.as_str())
+                .collect();
+            o.scores.insert("iou_min".into(), min);
+            o.scores.insert("iou_mean".into(), mean);
+            head.push_str(&format!(
+                ", gate IoU (visible, boundary band excluded) mean {mean:.4}, min {min:.4}; under the gate: {}",
+                if below.is_empty() { "none".to_string() } else { below.join(", ") }
+            ));
+        }
+        // The table a person reads; the report's numbers are the structured content.
+        o.text = format!(
+            "{head}\n{}",
+            agentstar_reports::score_table(&report.frames, &report.sequence, &report.appearance)
+        );
+        o.structured = serde_json::to_value(&report).ok();
+        Ok(o)
+    });
+
+tool!(Turntable, "turntable", Diagnostic, Nothing, TurntableArgs,
+    "Eight views around the upright model (canonical +Z up) on a light background, one sheet per joint state: by default each joint's min, median and max over the keyframes (`states`: `all` or keyframes for others). The 3-D shape check after every shape step: parts floating, intersecting or missing from the back, and joints that move the wrong part or the wrong way.",
+    |tb, a, step| {
+        let (mut o, out, stdout) = tb.cli(
+            &["turntable"],
+            step,
+            Turntable::NAME,
+            flag(&a.states, "--states"),
+        )?;
+        if o.is_error {
+            return Ok(o);
+        }
+        let report: TurntableReport = serde_json::from_str(&stdout)
+            .map_err(|e| AgentError::Tool(format!("turntable printed no turntable report ({e})")))?;
+        o.images = report.sheets.clone();
+        o.images.truncate(MAX_IMAGES_RETURNED);
+        let mut text = format!(
+            "turntable: {} sheet(s) for {} joint state(s) in {}; {} returned",
+            report.sheets.len(),
+            report.states.len(),
+            out.display(),
+            o.images.len()
+        );
+        for st in &report.states {
+            let joints: Vec<String> = st.joints.iter().map(|(k, v)| format!("{k} = {v:.2}")).collect();
+            text.push_str(&format!(
+                "\n- {} ({}): {}",
+                st.label,
+                st.source,
+                if joints.is_empty() { "no joints".to_string() } else { joints.join(", ") }
+            ));
+        }
+        for w in &report.warnings {
+            text.push_str(&format!("\nwarning: {w}"));
+        }
+        o.text = text;
+        Ok(o)
+    });
