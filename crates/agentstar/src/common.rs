@@ -34,22 +34,17 @@ pub fn open_model(path: &Path) -> Result<LoadedModel> {
     Ok(m)
 }
 
-/// The three inputs of every command that works on a posed model.
-#[derive(clap::Args, Clone, Debug)]
-pub struct SessionArgs {
-    /// The capture directory (holding capture.json).
-    #[arg(long)]
-    pub capture: PathBuf,
-    /// The model: scene script (.rhai), URDF or mesh.
-    #[arg(long)]
-    pub model: PathBuf,
-    /// The pose file.
-    #[arg(long)]
-    pub poses: PathBuf,
+/// The three inputs of every command that works on a posed model (a request type: the
+/// agent's tools build it, the commands flatten it).
+pub use agentstar_requests::SessionArgs;
+
+/// Opens what a [`SessionArgs`] names.
+pub trait OpenSession {
+    fn open(&self) -> Result<Session>;
 }
 
-impl SessionArgs {
-    pub fn open(&self) -> Result<Session> {
+impl OpenSession for SessionArgs {
+    fn open(&self) -> Result<Session> {
         Session::open(&self.capture, &self.model, &self.poses)
     }
 }

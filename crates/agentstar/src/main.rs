@@ -3,6 +3,8 @@
 
 mod cmd;
 mod common;
+#[cfg(test)]
+mod tool_args;
 
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;

@@ -4,6 +4,7 @@
 
 use super::*;
 use crate::{AgentError, Result};
+use agentstar_requests::Output;
 use std::path::PathBuf;
 use std::process::Command;
 use std::sync::{Arc, Mutex};
@@ -111,13 +112,38 @@ pub(super) fn read_capped_to(mut r: impl std::io::Read, cap: usize) -> String {
     text
 }
 
-pub(super) fn flag(value: &Option<String>, name: &str) -> Vec<String> {
-    value
-        .as_deref()
-        .map(str::trim)
-        .filter(|v| !v.is_empty())
-        .map(|v| vec![name.to_string(), v.to_string()])
-        .unwrap_or_default()
+/// An optional text argument as the command should see it: absent when blank, trimmed.
+pub(super) fn nonblank(value: &Option<String>) -> Option<&str> {
+    value.as_deref().map(str::trim).filter(|v| !v.is_empty())
+}
+
+/// A child command of the `agentstar` executable: its words (the subcommand and its
+/// positional arguments), then the flags of its typed request parts, each turned into
+/// arguments by [`agentstar_requests::to_args`]. No tool writes flag text by hand; the
+/// binary's `tool_args` test parses what every tool builds.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Invocation {
+    args: Vec<String>,
+}
+
+impl Invocation {
+    pub fn new<S: AsRef<str>>(words: &[S]) -> Invocation {
+        Invocation {
+            args: words.iter().map(|w| w.as_ref().to_string()).collect(),
+        }
+    }
+
+    /// Appends the flags of one typed part of the request.
+    pub fn with(mut self, part: &impl serde::Serialize) -> Result<Invocation> {
+        let flags = agentstar_requests::to_args(part)
+            .map_err(|e| AgentError::Tool(format!("{}: {e}", self.args.join(" "))))?;
+        self.args.extend(flags);
+        Ok(self)
+    }
+
+    pub fn args(&self) -> &[String] {
+        &self.args
+    }
 }
 
 impl Toolbox {
@@ -175,16 +201,17 @@ impl Toolbox {
         verb: &[&str],
         step: u64,
         tool: &str,
-        extra: Vec<String>,
+        request: &impl serde::Serialize,
     ) -> Result<(ToolOutput, PathBuf, String)> {
         let out = self.run.step_dir(step, tool);
-        let mut a: Vec<String> = verb.iter().map(|s| s.to_string()).collect();
-        a.extend(self.session_args());
-        a.push("--out".into());
-        a.push(out.display().to_string());
-        a.extend(extra);
-        a.push("--json".into());
-        let (ok, stdout, stderr) = self.exec(&a)?;
+        let call = Invocation::new(verb)
+            .with(&self.session())?
+            .with(&Output {
+                out: out.clone(),
+                json: true,
+            })?
+            .with(request)?;
+        let (ok, stdout, stderr) = self.exec(call.args())?;
         if !ok {
             return Ok((ToolOutput::error(stderr.trim().to_string()), out, stdout));
         }

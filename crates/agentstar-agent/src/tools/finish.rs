@@ -118,17 +118,12 @@ impl Toolbox {
                 names.len()
             )));
         };
-        let (r, _, _) = self.cli(
-            &["render"],
-            step,
-            Critic::NAME,
-            vec![
-                "--frames".into(),
-                name.clone(),
-                "--views".into(),
-                "overlay,compare,frame".into(),
-            ],
-        )?;
+        let request = RenderRequest {
+            frames: Some(name),
+            views: "overlay,compare,frame",
+            ..Default::default()
+        };
+        let (r, _, _) = self.cli(&["render"], step, Critic::NAME, &request)?;
         if r.is_error {
             return Ok(r);
         }

@@ -351,15 +351,13 @@ impl Toolbox {
         }
     }
 
-    pub fn session_args(&self) -> Vec<String> {
-        vec![
-            "--capture".into(),
-            self.run.capture.display().to_string(),
-            "--model".into(),
-            self.run.scene.display().to_string(),
-            "--poses".into(),
-            self.run.poses.display().to_string(),
-        ]
+    /// The run's capture, model and pose file, as every posed-model command takes them.
+    pub fn session(&self) -> agentstar_requests::SessionArgs {
+        agentstar_requests::SessionArgs {
+            capture: self.run.capture.clone(),
+            model: self.run.scene.clone(),
+            poses: self.run.poses.clone(),
+        }
     }
 
     /// Opens the run's capture.
@@ -389,11 +387,15 @@ impl Toolbox {
 
     /// `agentstar score --json` for `frames`, as its report.
     pub fn score_report(&self, frames: Option<&str>) -> Result<ScoreReport> {
-        let mut a: Vec<String> = vec!["score".into()];
-        a.extend(self.session_args());
-        a.extend(flag(&frames.map(str::to_string), "--frames"));
-        a.push("--json".into());
-        let (_, stdout, stderr) = self.exec(&a)?;
+        #[derive(serde::Serialize)]
+        struct Score<'a> {
+            frames: Option<&'a str>,
+            json: bool,
+        }
+        let call = Invocation::new(&["score"])
+            .with(&self.session())?
+            .with(&Score { frames, json: true })?;
+        let (_, stdout, stderr) = self.exec(call.args())?;
         // `score` exits 1 when a frame is under the gate; its JSON is the result.
         serde_json::from_str(&stdout).map_err(|_| AgentError::Tool(stderr.trim().to_string()))
     }

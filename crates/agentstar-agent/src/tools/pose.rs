@@ -122,14 +122,14 @@ pub struct TrackArgs {
 }
 
 /// A sweep's search strategy.
-#[derive(Debug, Clone, Copy, Deserialize, JsonSchema)]
+#[derive(Debug, Clone, Copy, Deserialize, JsonSchema, serde::Serialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Strategy {
     De,
     Grid,
 }
 
-#[derive(Debug, Deserialize, JsonSchema)]
+#[derive(Debug, Deserialize, JsonSchema, serde::Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct SweepArgs {
     #[schemars(description = FRAMES, length(min = 1))]
@@ -145,7 +145,7 @@ pub struct SweepArgs {
     pub evals: Option<u64>,
 }
 
-#[derive(Debug, Deserialize, JsonSchema)]
+#[derive(Debug, Deserialize, JsonSchema, serde::Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct ApplyArgs {
     /// One keyframe (name, stem or number).
@@ -156,7 +156,7 @@ pub struct ApplyArgs {
     pub order: String,
 }
 
-#[derive(Debug, Deserialize, JsonSchema)]
+#[derive(Debug, Deserialize, JsonSchema, serde::Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct OsweepArgs {
     #[schemars(description = FRAMES)]
@@ -172,7 +172,7 @@ pub struct OsweepArgs {
     pub ranges: Option<String>,
 }
 
-#[derive(Debug, Deserialize, JsonSchema)]
+#[derive(Debug, Deserialize, JsonSchema, serde::Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct OapplyArgs {
     #[schemars(description = FRAMES)]
@@ -184,7 +184,7 @@ pub struct OapplyArgs {
     pub set: Option<String>,
 }
 
-#[derive(Debug, Deserialize, JsonSchema)]
+#[derive(Debug, Deserialize, JsonSchema, serde::Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct OapplyAllArgs {
     /// One rotation: `rz:90;rx:10` (rotation vector, degrees) or `flip:x|y|z`.
@@ -219,7 +219,7 @@ pub struct TemporalArgs {
     pub sort_by: Option<String>,
 }
 
-#[derive(Debug, Deserialize, JsonSchema)]
+#[derive(Debug, Deserialize, JsonSchema, serde::Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct PoseDiffArgs {
     #[schemars(length(min = 1))]
@@ -246,23 +246,13 @@ tool!(Track, "track", Pose, Poses, TrackArgs,
 tool!(Sweep, "sweep", Pose, Nothing, SweepArgs,
     "Search a bounded region around the current pose of each given keyframe by silhouette IoU (differential evolution, 6 seeded restarts) and return the ranked candidates with a candidate sheet; rows labelled `seen` are other places the search passed through (at least 10° from the rest, not refined; another basin where the box holds one, else the slope of the same one: refine one with a narrower sweep around it). Ranges are camera-frame increments and absolute joint states, e.g. `yaw:-30,30;pitch:-20,20;tz:-0.1,0.1;lid_hinge:0,90`. Commit a candidate with pose_commit (the result names its report).",
     |tb, a, step| {
-        let extra = [
-            vec!["--frames".into(), a.frames.clone()],
-            vec!["--ranges".into(), a.ranges.clone()],
-            a.strategy
-                .map(|s| vec!["--strategy".into(), match s { Strategy::De => "de", Strategy::Grid => "grid" }.into()])
-                .unwrap_or_default(),
-            a.evals.map(|e| vec!["--evals".into(), e.to_string()]).unwrap_or_default(),
-        ]
-        .concat();
-        tb.search(SearchVerb::Sweep, Some(&a.frames), extra, step)
+        tb.search(SearchVerb::Sweep, Some(&a.frames), &a, step)
     });
 
 tool!(Apply, "apply", Pose, Nothing, ApplyArgs,
     "Score one explicit order on one keyframe, e.g. `yaw:15;hinge:40`, and return it as a candidate (to compare with a sweep's).",
     |tb, a, step| {
-        let extra = vec!["--frame".into(), a.frame.clone(), "--order".into(), a.order.clone()];
-        tb.search(SearchVerb::Apply, Some(&a.frame), extra, step)
+        tb.search(SearchVerb::Apply, Some(&a.frame), &a, step)
     });
 
 tool!(Osweep, "osweep", Pose, Nothing, OsweepArgs,
@@ -278,22 +268,19 @@ tool!(Osweep, "osweep", Pose, Nothing, OsweepArgs,
             )),
             _ => {}
         }
-        let extra = [flag(&a.frames, "--frames"), flag(&a.opreset, "--opreset"), flag(&a.ranges, "--ranges")].concat();
-        tb.search(SearchVerb::Osweep, a.frames.as_deref(), extra, step)
+        tb.search(SearchVerb::Osweep, a.frames.as_deref(), &a, step)
     });
 
 tool!(Oapply, "oapply", Pose, Nothing, OapplyArgs,
     "Score a set of object-frame rotations on each keyframe, default `flips|swaps` (identity, the 180° flips about x, y, z, and for each hinge the half-turn that swaps its two sides: lid and base), each refined before ranking. The flip check for near-symmetric objects: a flipped or swapped pose can score as well as the right one, so look at the sheet.",
     |tb, a, step| {
-        let extra = [flag(&a.frames, "--frames"), flag(&a.set, "--set")].concat();
-        tb.search(SearchVerb::Oapply, a.frames.as_deref(), extra, step)
+        tb.search(SearchVerb::Oapply, a.frames.as_deref(), &a, step)
     });
 
 tool!(OapplyAll, "oapply_all", Pose, Nothing, OapplyAllArgs,
     "Apply one object-frame rotation to every keyframe (`rz:90` or `flip:x`): for a model built the wrong way round; or to a block of keyframes (`frames`), to try a twin for a run of frames chained from a wrong pose: where the block meets the other frames, each frame's note gives the temporal step before and after the rotation. Nothing changes until `pose_commit`.",
     |tb, a, step| {
-        let extra = [vec!["--rotation".into(), a.rotation.clone()], flag(&a.frames, "--frames")].concat();
-        tb.search(SearchVerb::OapplyAll, a.frames.as_deref(), extra, step)
+        tb.search(SearchVerb::OapplyAll, a.frames.as_deref(), &a, step)
     });
 
 tool!(PoseCommit, "pose_commit", Pose, Poses, PoseCommitArgs,
@@ -326,11 +313,15 @@ tool!(Temporal, "temporal", Diagnostic, Nothing, TemporalArgs,
         let out = tb.run.step_dir(step, Temporal::NAME);
         std::fs::create_dir_all(&out).map_err(|e| agentstar_data::DataError::io(&out, e))?;
         let plot = out.join("temporal.png");
-        let mut args: Vec<String> = vec!["temporal".into()];
-        args.extend(tb.session_args());
-        args.extend(["--plot".into(), plot.display().to_string()]);
-        args.extend(flag(&a.sort_by, "--sort-by"));
-        let (ok, stdout, stderr) = tb.exec(&args)?;
+        #[derive(serde::Serialize)]
+        struct TemporalRequest<'a> {
+            plot: &'a Path,
+            sort_by: Option<&'a str>,
+        }
+        let call = Invocation::new(&["temporal"])
+            .with(&tb.session())?
+            .with(&TemporalRequest { plot: &plot, sort_by: nonblank(&a.sort_by) })?;
+        let (ok, stdout, stderr) = tb.exec(call.args())?;
         if !ok {
             return Ok(ToolOutput::error(stderr.trim().to_string()));
         }
@@ -345,10 +336,10 @@ tool!(
     PoseDiffArgs,
     "The residual between two keyframes' poses (rotation in degrees, translation, joint changes).",
     |tb, a, _step| {
-        let mut args: Vec<String> = vec!["pose-diff".into()];
-        args.extend(tb.session_args());
-        args.extend(["--a".into(), a.a.clone(), "--b".into(), a.b.clone()]);
-        let (ok, stdout, stderr) = tb.exec(&args)?;
+        let call = Invocation::new(&["pose-diff"])
+            .with(&tb.session())?
+            .with(&a)?;
+        let (ok, stdout, stderr) = tb.exec(call.args())?;
         if !ok {
             return Ok(ToolOutput::error(stderr.trim().to_string()));
         }
@@ -465,13 +456,13 @@ impl Toolbox {
         &self,
         verb: SearchVerb,
         frames: Option<&str>,
-        extra: Vec<String>,
+        request: &impl serde::Serialize,
         step: u64,
     ) -> Result<ToolOutput> {
         if let Err(e) = self.check_window(frames) {
             return Ok(ToolOutput::error(e));
         }
-        let (o, out, _) = self.cli(&[verb.command()], step, verb.stem(), extra)?;
+        let (o, out, _) = self.cli(&[verb.command()], step, verb.stem(), request)?;
         if o.is_error {
             return Ok(o);
         }
@@ -514,31 +505,35 @@ impl Toolbox {
             Ok(p) => p,
             Err(e) => return Ok(ToolOutput::error(format!("pose_commit: {e}"))),
         };
-        let mut args = vec![
-            "pose".to_string(),
-            "commit".into(),
-            "--poses".into(),
-            self.run.poses.display().to_string(),
-            "--report".into(),
-            report.display().to_string(),
-            "--json".into(),
-        ];
-        let label = a.label.as_deref().map(str::trim).filter(|l| !l.is_empty());
-        match (label, a.rank) {
-            (Some(_), Some(_)) => {
-                return Ok(ToolOutput::error(
-                    "pose_commit: give `rank` or `label`, not both".to_string(),
-                ))
-            }
-            (Some(l), None) => args.extend(["--label".to_string(), l.to_string()]),
-            (None, rank) => args.extend(["--rank".to_string(), rank.unwrap_or(0).to_string()]),
+        let label = nonblank(&a.label);
+        if label.is_some() && a.rank.is_some() {
+            return Ok(ToolOutput::error(
+                "pose_commit: give `rank` or `label`, not both".to_string(),
+            ));
         }
+        #[derive(serde::Serialize)]
+        struct CommitRequest<'a> {
+            poses: &'a Path,
+            report: &'a Path,
+            rank: Option<u64>,
+            label: Option<&'a str>,
+            frames: Option<&'a str>,
+            json: bool,
+        }
+        let request = CommitRequest {
+            poses: &self.run.poses,
+            report: &report,
+            rank: label.is_none().then(|| a.rank.unwrap_or(0)),
+            label,
+            frames: nonblank(&a.frames),
+            json: true,
+        };
         let which = match label {
             Some(l) => format!("candidate `{l}`"),
             None => format!("candidate rank {}", a.rank.unwrap_or(0)),
         };
-        args.extend(flag(&a.frames, "--frames"));
-        let (ok, stdout, stderr) = self.exec(&args)?;
+        let call = Invocation::new(&["pose", "commit"]).with(&request)?;
+        let (ok, stdout, stderr) = self.exec(call.args())?;
         if !ok {
             return Ok(ToolOutput::error(stderr.trim().to_string()));
         }
@@ -569,21 +564,33 @@ impl Toolbox {
                 "track changes every keyframe; a pose sub-agent works on its window with sweeps and flips",
             ));
         }
-        let mut args = vec![
-            "track".to_string(),
-            self.run.capture.display().to_string(),
-            "--model".into(),
-            self.run.scene.display().to_string(),
-            "--out".into(),
-            self.run.poses.display().to_string(),
-            "--json".into(),
-        ];
-        let from = a.from.as_deref().map(str::trim).filter(|f| !f.is_empty());
-        let anchors = a
-            .anchors
-            .as_deref()
-            .map(str::trim)
-            .filter(|f| !f.is_empty());
+        // A blank `from` is a mistake, not a request to start over (issue 35).
+        if a.from.as_deref().is_some_and(|f| f.trim().is_empty()) {
+            return Ok(ToolOutput::error(
+                "track: `from` is blank; name a pose file (\"pose.json\" for the current poses) or leave it out to track from scratch",
+            ));
+        }
+        let from = nonblank(&a.from);
+        let anchors = nonblank(&a.anchors);
+        #[derive(serde::Serialize)]
+        struct TrackRequest<'a> {
+            model: &'a Path,
+            out: &'a Path,
+            json: bool,
+            from: Option<PathBuf>,
+            anchors: Option<String>,
+            scale: Option<f64>,
+            scale_from: Option<&'a Path>,
+        }
+        let mut request = TrackRequest {
+            model: &self.run.scene,
+            out: &self.run.poses,
+            json: true,
+            from: None,
+            anchors: None,
+            scale: a.scale,
+            scale_from: None,
+        };
         match (from, anchors) {
             (None, Some(_)) => {
                 return Ok(ToolOutput::error(
@@ -591,27 +598,23 @@ impl Toolbox {
                 ))
             }
             (Some(f), _) => {
-                let path = match self.confine(f) {
-                    Ok(p) => p,
+                request.from = match self.confine(f) {
+                    Ok(p) => Some(p),
                     Err(e) => return Ok(ToolOutput::error(format!("track: {e}"))),
                 };
-                args.extend(["--from".into(), path.display().to_string()]);
                 if let Some(spec) = anchors {
                     // The frame grammar, checked here so a bad name is the tool's error.
-                    let names = self.frame_names(Some(spec))?;
-                    args.extend(["--anchors".into(), names.join(",")]);
+                    request.anchors = Some(self.frame_names(Some(spec))?.join(","));
                 }
             }
             (None, None) => {}
         }
-        match (a.scale, from) {
-            (Some(s), _) => args.extend(["--scale".into(), s.to_string()]),
-            (None, Some(_)) => {}
-            (None, None) => {
-                args.extend(["--scale-from".into(), self.run.poses.display().to_string()])
-            }
+        if a.scale.is_none() && from.is_none() {
+            request.scale_from = Some(&self.run.poses);
         }
-        let (ok, stdout, stderr) = self.exec(&args)?;
+        let call = Invocation::new(&["track".to_string(), self.run.capture.display().to_string()])
+            .with(&request)?;
+        let (ok, stdout, stderr) = self.exec(call.args())?;
         if !ok {
             let mut text = stderr.trim().to_string();
             // What the stopped run had tracked (the command keeps it beside the pose file).
@@ -660,18 +663,26 @@ impl Toolbox {
     /// `pose_history`: the versions, or one frame across them (scored by the CLI, which
     /// has the renderer).
     pub(super) fn pose_history(&self, a: &PoseHistoryArgs) -> Result<ToolOutput> {
-        let last = a.last.unwrap_or(50).to_string();
-        let mut args = vec![
-            "pose".to_string(),
-            "history".into(),
-            "--poses".into(),
-            self.run.poses.display().to_string(),
-            "--last".into(),
-            last,
-            "--json".into(),
-        ];
-        let Some(frame) = a.frame.as_deref().map(str::trim).filter(|f| !f.is_empty()) else {
-            let (ok, stdout, stderr) = self.exec(&args)?;
+        #[derive(serde::Serialize)]
+        struct HistoryRequest<'a> {
+            poses: &'a Path,
+            last: u64,
+            json: bool,
+            frame: Option<&'a str>,
+            capture: Option<&'a Path>,
+            model: Option<&'a Path>,
+        }
+        let mut request = HistoryRequest {
+            poses: &self.run.poses,
+            last: a.last.unwrap_or(50),
+            json: true,
+            frame: None,
+            capture: None,
+            model: None,
+        };
+        let Some(frame) = nonblank(&a.frame) else {
+            let call = Invocation::new(&["pose", "history"]).with(&request)?;
+            let (ok, stdout, stderr) = self.exec(call.args())?;
             if !ok {
                 return Ok(ToolOutput::error(stderr.trim().to_string()));
             }
@@ -694,15 +705,11 @@ impl Toolbox {
                 ..Default::default()
             });
         };
-        args.extend([
-            "--frame".into(),
-            frame.to_string(),
-            "--capture".into(),
-            self.run.capture.display().to_string(),
-            "--model".into(),
-            self.run.scene.display().to_string(),
-        ]);
-        let (ok, stdout, stderr) = self.exec(&args)?;
+        request.frame = Some(frame);
+        request.capture = Some(&self.run.capture);
+        request.model = Some(&self.run.scene);
+        let call = Invocation::new(&["pose", "history"]).with(&request)?;
+        let (ok, stdout, stderr) = self.exec(call.args())?;
         if !ok {
             return Ok(ToolOutput::error(stderr.trim().to_string()));
         }
@@ -804,10 +811,14 @@ impl Toolbox {
 
     /// `agentstar temporal --json` over every keyframe, as its report.
     pub fn temporal_report(&self) -> Result<agentstar_reports::TemporalReport> {
-        let mut a: Vec<String> = vec!["temporal".into()];
-        a.extend(self.session_args());
-        a.push("--json".into());
-        let (ok, stdout, stderr) = self.exec(&a)?;
+        #[derive(serde::Serialize)]
+        struct Json {
+            json: bool,
+        }
+        let call = Invocation::new(&["temporal"])
+            .with(&self.session())?
+            .with(&Json { json: true })?;
+        let (ok, stdout, stderr) = self.exec(call.args())?;
         if !ok {
             return Err(AgentError::Tool(stderr.trim().to_string()));
         }

@@ -105,11 +105,7 @@ tool!(
 impl Toolbox {
     pub(super) fn scene_read(&self) -> Result<ToolOutput> {
         let script = agentstar_data::read_text(&self.run.scene)?;
-        let (_, check, stderr) = self.exec(&[
-            "check".into(),
-            self.run.scene.display().to_string(),
-            "--json".into(),
-        ])?;
+        let (_, check, stderr) = self.exec(check_call(&self.run.scene)?.args())?;
         // The check's report, typed (absent when the scene does not build: then its error).
         let report: Option<CheckReport> = serde_json::from_str(&check).ok();
         Ok(ToolOutput {
@@ -155,7 +151,7 @@ impl Toolbox {
             .and_then(|_| candidate.as_file().sync_all())
             .map_err(|e| agentstar_data::DataError::io(candidate.path(), e))?;
         let shown = candidate.path().display().to_string();
-        let (ok, check, stderr) = self.exec(&["check".into(), shown.clone(), "--json".into()])?;
+        let (ok, check, stderr) = self.exec(check_call(Path::new(&shown))?.args())?;
         if !ok {
             return Ok(ToolOutput::error(format!(
                 "the scene was not changed: {}",
@@ -178,11 +174,7 @@ impl Toolbox {
                     r
                 });
         // The warnings of the scene this replaces (none when it does not build).
-        let (_, before_check, _) = self.exec(&[
-            "check".into(),
-            self.run.scene.display().to_string(),
-            "--json".into(),
-        ])?;
+        let (_, before_check, _) = self.exec(check_call(&self.run.scene)?.args())?;
         let before_warnings = serde_json::from_str::<CheckReport>(&before_check)
             .map(|r| r.warnings)
             .unwrap_or_default();
@@ -224,4 +216,14 @@ impl Toolbox {
             ..Default::default()
         })
     }
+}
+
+/// `agentstar check SCRIPT --json`.
+fn check_call(script: &Path) -> Result<Invocation> {
+    #[derive(serde::Serialize)]
+    struct Check {
+        json: bool,
+    }
+    Invocation::new(&["check".to_string(), script.display().to_string()])
+        .with(&Check { json: true })
 }

@@ -66,7 +66,7 @@ pub struct FitShapeArgs {
 }
 
 /// A model axis a stated size is along.
-#[derive(Debug, Clone, Copy, Deserialize, JsonSchema)]
+#[derive(Debug, Clone, Copy, Deserialize, serde::Serialize, JsonSchema)]
 #[serde(rename_all = "lowercase")]
 pub enum SizeAxis {
     X,
@@ -111,34 +111,32 @@ impl Toolbox {
         let out = self.run.step_dir(step, Scale::NAME);
         std::fs::create_dir_all(&out).map_err(|e| agentstar_data::DataError::io(&out, e))?;
         let scaled = out.join("scaled_pose.json");
+        #[derive(serde::Serialize)]
+        struct ScaleRequest<'a> {
+            from: agentstar_reports::fit::ScaleMethod,
+            out: &'a Path,
+            json: bool,
+            axis: Option<SizeAxis>,
+            metres: Option<f64>,
+            frames: Option<&'a str>,
+        }
+        let request = ScaleRequest {
+            from: a.method,
+            out: &scaled,
+            json: true,
+            axis: a.axis,
+            metres: a.metres,
+            frames: nonblank(&a.frames),
+        };
+        let call = Invocation::new(&["scale"])
+            .with(&self.session())?
+            .with(&request)?;
         let method = match a.method {
             agentstar_reports::fit::ScaleMethod::Depth => "depth",
             agentstar_reports::fit::ScaleMethod::Parallax => "parallax",
             agentstar_reports::fit::ScaleMethod::Size => "size",
         };
-        let mut args: Vec<String> = vec!["scale".into()];
-        args.extend(self.session_args());
-        args.extend([
-            "--from".into(),
-            method.into(),
-            "--out".into(),
-            scaled.display().to_string(),
-            "--json".into(),
-        ]);
-        if let Some(axis) = a.axis {
-            let axis = match axis {
-                SizeAxis::X => "x",
-                SizeAxis::Y => "y",
-                SizeAxis::Z => "z",
-                SizeAxis::Longest => "longest",
-            };
-            args.extend(["--axis".into(), axis.into()]);
-        }
-        if let Some(m) = a.metres {
-            args.extend(["--metres".into(), m.to_string()]);
-        }
-        args.extend(flag(&a.frames, "--frames"));
-        let (ok, stdout, stderr) = self.exec(&args)?;
+        let (ok, stdout, stderr) = self.exec(call.args())?;
         if !ok {
             return Ok(ToolOutput::error(stderr.trim().to_string()));
         }
@@ -211,18 +209,20 @@ impl Toolbox {
                 "fit_shape: `{bad}` is not a parameter name (one name per list entry)"
             )));
         }
-        let extra = [
-            vec!["--params".to_string(), names.join(",")],
-            flag(&a.frames, "--frames"),
-            a.rounds
-                .map(|r| vec!["--rounds".into(), r.to_string()])
-                .unwrap_or_default(),
-            a.evals
-                .map(|e| vec!["--evals".into(), e.to_string()])
-                .unwrap_or_default(),
-        ]
-        .concat();
-        let (o, _, stdout) = self.cli(&["fit-shape"], step, FitShape::NAME, extra)?;
+        #[derive(serde::Serialize)]
+        struct FitRequest<'a> {
+            params: String,
+            frames: Option<&'a str>,
+            rounds: Option<u64>,
+            evals: Option<u64>,
+        }
+        let request = FitRequest {
+            params: names.join(","),
+            frames: nonblank(&a.frames),
+            rounds: a.rounds,
+            evals: a.evals,
+        };
+        let (o, _, stdout) = self.cli(&["fit-shape"], step, FitShape::NAME, &request)?;
         if o.is_error {
             return Ok(o);
         }

@@ -81,13 +81,12 @@ pub struct TurntableArgs {
 tool!(Render, "render", Diagnostic, Nothing, RenderArgs,
     "Render the posed model into keyframes: `overlay` (shaded model over the frame) and `compare` (silhouette comparison: green model and mask agree, magenta mask not covered by the model, yellow model outside the mask, grey hand (ignored), blue model under the hand, on a near-black background; the legend is on each image), `ids` (parts in flat colours, visible pixels each). With `overlay`, also a contact sheet of the overlays; with `compare`, a sheet of every frame's comparison cropped around mask and model. For the raw keyframes without the model, use `frames`.",
     |tb, a, step| {
-        let views = a.views.clone().filter(|v| !v.trim().is_empty()).unwrap_or_else(|| "overlay,compare".into());
-        let (mut o, out, _) = tb.cli(
-            &["render"],
-            step,
-            Render::NAME,
-            [flag(&a.frames, "--frames"), vec!["--views".into(), views]].concat(),
-        )?;
+        let request = RenderRequest {
+            frames: nonblank(&a.frames),
+            views: nonblank(&a.views).unwrap_or("overlay,compare"),
+            ..Default::default()
+        };
+        let (mut o, out, _) = tb.cli(&["render"], step, Render::NAME, &request)?;
         if o.is_error {
             return Ok(o);
         }
@@ -105,21 +104,14 @@ tool!(Render, "render", Diagnostic, Nothing, RenderArgs,
 tool!(Keyframes, "frames", Diagnostic, Nothing, KeyframesArgs,
     "Look at the raw keyframes (the input itself, no model): each keyframe cropped around its object mask with a margin, optionally zoomed (to judge thin parts: an edge, a handle) and outlined (`mask`: the mask's boundary in magenta and the hand's in cyan; `model`: the posed model's boundary in yellow). Returns sheets of the crops (each labelled with the frame and the crop's position in the frame) and, for a few frames, the crops themselves.",
     |tb, a, step| {
-        let mut extra = [
-            flag(&a.frames, "--frames"),
-            vec!["--views".into(), "frame".into()],
-        ]
-        .concat();
-        if let Some(m) = a.margin {
-            extra.extend(["--margin".into(), m.to_string()]);
-        }
-        if let Some(z) = a.zoom {
-            extra.extend(["--zoom".into(), z.to_string()]);
-        }
-        if let Some(ol) = a.outline {
-            extra.extend(["--outline".into(), ol.as_str().into()]);
-        }
-        let (mut o, out, stdout) = tb.cli(&["render"], step, Keyframes::NAME, extra)?;
+        let request = RenderRequest {
+            frames: nonblank(&a.frames),
+            views: "frame",
+            margin: a.margin,
+            zoom: a.zoom,
+            outline: a.outline.map(Outline::as_str),
+        };
+        let (mut o, out, stdout) = tb.cli(&["render"], step, Keyframes::NAME, &request)?;
         if o.is_error {
             return Ok(o);
         }
@@ -185,12 +177,12 @@ tool!(Score, "score", Diagnostic, Nothing, FramesArgs,
 tool!(Turntable, "turntable", Diagnostic, Nothing, TurntableArgs,
     "Eight views around the upright model (canonical +Z up) on a light background, one sheet per joint state: by default each joint's min, median and max over the keyframes (`states`: `all` or keyframes for others). The 3-D shape check after every shape step: parts floating, intersecting or missing from the back, and joints that move the wrong part or the wrong way.",
     |tb, a, step| {
-        let (mut o, out, stdout) = tb.cli(
-            &["turntable"],
-            step,
-            Turntable::NAME,
-            flag(&a.states, "--states"),
-        )?;
+        #[derive(serde::Serialize)]
+        struct TurntableRequest<'a> {
+            states: Option<&'a str>,
+        }
+        let request = TurntableRequest { states: nonblank(&a.states) };
+        let (mut o, out, stdout) = tb.cli(&["turntable"], step, Turntable::NAME, &request)?;
         if o.is_error {
             return Ok(o);
         }
@@ -220,3 +212,13 @@ tool!(Turntable, "turntable", Diagnostic, Nothing, TurntableArgs,
         o.text = text;
         Ok(o)
     });
+
+/// What `render` is asked for by `render`, `frames` and `critic` (its flags of the same names).
+#[derive(Debug, Default, serde::Serialize)]
+pub(super) struct RenderRequest<'a> {
+    pub(super) frames: Option<&'a str>,
+    pub(super) views: &'a str,
+    pub(super) margin: Option<f64>,
+    pub(super) zoom: Option<f64>,
+    pub(super) outline: Option<&'static str>,
+}

@@ -1,6 +1,7 @@
 //! `agentstar eval`: the paper's metrics for a run against a capture's ground truth; with
 //! `--batch`, many runs at once and the paper's tables.
 
+use crate::common::OpenSession as _;
 use crate::common::{print_json, Session, SessionArgs};
 use agentstar_bench::table::{result_table, tables};
 use agentstar_bench::{RunInfo, SequenceResult};

@@ -3,6 +3,7 @@
 //! the script with the fitted values, the poses for it, a report and before/after
 //! silhouette comparisons.
 
+use crate::common::OpenSession as _;
 use crate::common::{out_dir, print_json, select_frames, SessionArgs};
 use agentstar_data::history::PoseHistory;
 use agentstar_data::images::save_png_rgb;

@@ -2,6 +2,7 @@
 //! cropped around their masks (`frame`); every image within the limits of
 //! `agentstar_render::sheet`, sheets paged.
 
+use crate::common::OpenSession as _;
 use crate::common::{out_dir, print_json, select_frames, SessionArgs};
 use agentstar_data::images::{save_png_rgb, save_png_rgba};
 use agentstar_render::frames::{crop_box, crop_zoomed, frame_view, FrameViewOptions, MAX_ZOOM};

@@ -2,6 +2,7 @@
 //! metric cameras that move around a static object, or from a size the agent states; and
 //! the poses rescaled to it (rotations kept, translations scaled, so every silhouette stays).
 
+use crate::common::OpenSession as _;
 use crate::common::{print_json, select_frames, SessionArgs};
 use agentstar_data::history::PoseHistory;
 use agentstar_reports::fit::{ScaleFrame, ScaleMethod, ScaleReport};

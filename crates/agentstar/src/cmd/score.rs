@@ -1,5 +1,6 @@
 //! `agentstar score`: per-frame and per-sequence scores of the posed model.
 
+use crate::common::OpenSession as _;
 use crate::common::{print_json, select_frames, FrameScore, SessionArgs, PASS_IOU};
 use agentstar_render::DEFAULT_BAND_PX;
 use agentstar_reports::{score_table, FrameAppearance, ScoreReport, SequenceScore};

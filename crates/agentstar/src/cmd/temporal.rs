@@ -1,6 +1,7 @@
 //! `agentstar temporal` (velocities and accelerations per step, with a plot) and
 //! `agentstar pose-diff` (the residual between two frames).
 
+use crate::common::OpenSession as _;
 use crate::common::{print_json, select_frames, Session, SessionArgs};
 use agentstar_data::images::save_png_rgb;
 use agentstar_render::text::{draw_text, fill_rect};

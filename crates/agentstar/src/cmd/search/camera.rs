@@ -2,6 +2,7 @@
 //! (differential evolution or grids, or explicit candidate lists) or scored as given.
 
 use super::*;
+use crate::common::OpenSession as _;
 
 #[derive(clap::Args)]
 #[command(

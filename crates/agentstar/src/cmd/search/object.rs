@@ -2,6 +2,7 @@
 //! rotation sets) and one shared rotation for every frame, with their grammars.
 
 use super::*;
+use crate::common::OpenSession as _;
 
 #[derive(clap::Args)]
 #[command(
