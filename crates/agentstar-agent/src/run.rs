@@ -172,20 +172,8 @@ pub fn init_run(dir: &Path, capture: &Path, scene: Option<&str>, scale: f64) -> 
             "scale {scale}: metres per model unit, a positive number"
         )));
     }
-    let cap = agentstar_data::capture::Capture::open(capture).map_err(|problems| {
-        AgentError::Invalid(format!(
-            "{}: not a valid capture ({} problem(s); run `agentstar validate {}`): {}",
-            capture.display(),
-            problems.len(),
-            capture.display(),
-            problems
-                .iter()
-                .take(3)
-                .map(|p| format!("{}: {}", p.path.display(), p.message))
-                .collect::<Vec<_>>()
-                .join("; ")
-        ))
-    })?;
+    let cap = agentstar_data::capture::Capture::open(capture)
+        .map_err(|problems| AgentError::Invalid(problems.brief()))?;
     let parent = dir
         .parent()
         .filter(|p| !p.as_os_str().is_empty())

@@ -96,6 +96,58 @@ impl std::fmt::Display for Problem {
     }
 }
 
+/// Every problem that keeps a capture from opening, with the capture's directory: one error
+/// that every caller prints the same way ([`std::fmt::Display`]: all of them, one a line;
+/// [`CaptureProblems::brief`]: one line naming the first few).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct CaptureProblems {
+    pub dir: PathBuf,
+    pub problems: Vec<Problem>,
+}
+
+impl CaptureProblems {
+    /// One line: how many problems, the first three, and the command that lists them all.
+    pub fn brief(&self) -> String {
+        let first: Vec<String> = self
+            .problems
+            .iter()
+            .take(3)
+            .map(|p| p.to_string())
+            .collect();
+        format!(
+            "{}: not a valid capture ({} problem(s); run `agentstar validate {}`): {}",
+            self.dir.display(),
+            self.problems.len(),
+            self.dir.display(),
+            first.join("; ")
+        )
+    }
+}
+
+impl std::ops::Deref for CaptureProblems {
+    type Target = [Problem];
+    fn deref(&self) -> &[Problem] {
+        &self.problems
+    }
+}
+
+impl std::fmt::Display for CaptureProblems {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "the capture at {} has {} problem(s):",
+            self.dir.display(),
+            self.problems.len()
+        )?;
+        for p in &self.problems {
+            write!(f, "\n  {p}")?;
+        }
+        Ok(())
+    }
+}
+
+impl std::error::Error for CaptureProblems {}
+
 struct Collector {
     problems: Vec<Problem>,
 }
@@ -270,7 +322,7 @@ impl Capture {
     }
 
     /// Opens and validates a capture; fails with every problem found.
-    pub fn open(dir: &Path) -> std::result::Result<Capture, Vec<Problem>> {
+    pub fn open(dir: &Path) -> std::result::Result<Capture, CaptureProblems> {
         let mut c = Collector { problems: vec![] };
         let cap = open_inner(dir, &mut c, true);
         match cap {
@@ -278,7 +330,10 @@ impl Capture {
             _ => {
                 c.problems.sort();
                 c.problems.dedup();
-                Err(c.problems)
+                Err(CaptureProblems {
+                    dir: dir.to_path_buf(),
+                    problems: c.problems,
+                })
             }
         }
     }
@@ -287,7 +342,7 @@ impl Capture {
     /// mask and depth file.
     pub fn validate(dir: &Path) -> Vec<Problem> {
         match Capture::open(dir) {
-            Err(p) => p,
+            Err(p) => p.problems,
             Ok(cap) => {
                 let mut problems = Vec::new();
                 for i in 0..cap.frames.len() {

@@ -15,15 +15,7 @@ use std::path::{Path, PathBuf};
 
 /// Opens a capture, turning its problem list into one error.
 pub fn open_capture(dir: &Path) -> Result<Capture> {
-    Capture::open(dir).map_err(|problems| {
-        let list: Vec<String> = problems.iter().map(|p| format!("  {p}")).collect();
-        anyhow!(
-            "the capture at {} has {} problem(s):\n{}",
-            dir.display(),
-            problems.len(),
-            list.join("\n")
-        )
-    })
+    Ok(Capture::open(dir)?)
 }
 
 pub fn open_model(path: &Path) -> Result<LoadedModel> {

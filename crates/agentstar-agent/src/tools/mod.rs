@@ -362,17 +362,8 @@ impl Toolbox {
 
     /// Opens the run's capture.
     pub fn capture(&self) -> Result<agentstar_data::capture::Capture> {
-        agentstar_data::capture::Capture::open(&self.run.capture).map_err(|problems| {
-            AgentError::Tool(format!(
-                "the capture {} cannot be opened: {}",
-                self.run.capture.display(),
-                problems
-                    .iter()
-                    .map(|p| p.to_string())
-                    .collect::<Vec<_>>()
-                    .join("; ")
-            ))
-        })
+        agentstar_data::capture::Capture::open(&self.run.capture)
+            .map_err(|problems| AgentError::Tool(problems.brief()))
     }
 
     /// Resolves `spec` with the frame grammar to frame names.
