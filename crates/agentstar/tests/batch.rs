@@ -386,3 +386,145 @@ fn a_batch_runs_as_a_slurm_array_resubmits_a_cancelled_task_and_gathers_the_tabl
 
     gather_matches_eval(&env, &batch);
 }
+
+/// One small synthetic capture at `dir/caps/box` (with model/ and gt.json).
+fn one_capture(dir: &Path) -> PathBuf {
+    let out = dir.join("caps").join("box");
+    let o = agentstar_in(
+        &[],
+        &[
+            "synth",
+            s(&out),
+            "--object",
+            "box",
+            "--frames",
+            "2",
+            "--size",
+            "64x48",
+            "--seed",
+            "3",
+        ],
+    );
+    assert!(o.status.success(), "{}", text(&o));
+    out
+}
+
+/// `batch plan CAPTURE --out OUT EXTRA…`: refused with exit 2, a message containing every
+/// `needle`, no panic, and nothing written.
+fn plan_refused(dir: &Path, capture: &Path, extra: &[&str], needles: &[&str]) {
+    let out = dir.join("refused");
+    let mut args = vec!["batch", "plan", s(capture), "--out", s(&out)];
+    args.extend(extra);
+    let o = agentstar_in(&[], &args);
+    let t = text(&o);
+    assert_eq!(o.status.code(), Some(2), "{extra:?}: {t}");
+    assert!(!t.contains("panicked"), "{t}");
+    for n in needles {
+        assert!(t.contains(n), "{extra:?}: `{n}` missing from: {t}");
+    }
+    assert!(!out.exists(), "{extra:?}: nothing is written");
+}
+
+#[test]
+fn plan_refuses_memory_time_and_cpus_out_of_range() {
+    let dir = tempfile::tempdir().expect("tmp");
+    let cap = one_capture(dir.path());
+    plan_refused(
+        dir.path(),
+        &cap,
+        &["--mem", "99999999999999T"],
+        &["--mem", "99999999999999T", "out of range"],
+    );
+    plan_refused(dir.path(), &cap, &["--mem", "1025T"], &["out of range"]);
+    plan_refused(dir.path(), &cap, &["--time", "0"], &["--time 0"]);
+    plan_refused(
+        dir.path(),
+        &cap,
+        &["--cpus-per-task", "0"],
+        &["--cpus-per-task 0"],
+    );
+    // The largest valid values are kept as given, not wrapped or raised.
+    let out = dir.path().join("b");
+    let v = json(&agentstar_in(
+        &[],
+        &[
+            "batch",
+            "plan",
+            s(&cap),
+            "--out",
+            s(&out),
+            "--mem",
+            "1024T",
+            "--time",
+            "1",
+            "--json",
+        ],
+    ));
+    assert_eq!(v["jobs"][0]["resources"]["mem_mb"], 1u64 << 30);
+    assert_eq!(v["jobs"][0]["resources"]["time_min"], 1);
+    // `batch slurm` refuses the same values when it overrides the plan's.
+    for (flag, value) in [
+        ("--time", "0"),
+        ("--cpus-per-task", "0"),
+        ("--mem", "99999999999999T"),
+    ] {
+        let o = agentstar_in(&[], &["batch", "slurm", s(&out), flag, value]);
+        assert_eq!(o.status.code(), Some(2), "{}", text(&o));
+        assert!(text(&o).contains(flag), "{}", text(&o));
+    }
+    assert!(!out.join("slurm/array-1.sbatch").exists());
+}
+
+#[test]
+fn plan_refuses_the_same_capture_given_twice() {
+    let dir = tempfile::tempdir().expect("tmp");
+    let cap = one_capture(dir.path());
+    let again = dir.path().join("caps").join("..").join("caps").join("box");
+    plan_refused(
+        dir.path(),
+        &cap,
+        &[s(&again)],
+        &["same capture", "give each capture once"],
+    );
+    #[cfg(unix)]
+    {
+        let link = dir.path().join("link");
+        std::os::unix::fs::symlink(&cap, &link).expect("symlink");
+        plan_refused(dir.path(), &cap, &[s(&link)], &["same capture"]);
+    }
+}
+
+#[test]
+fn plan_refuses_a_scene_that_is_not_a_regular_model_file() {
+    let dir = tempfile::tempdir().expect("tmp");
+    let cap = one_capture(dir.path());
+    let t0 = Instant::now();
+    plan_refused(
+        dir.path(),
+        &cap,
+        &["--scene", "/dev/zero", "--scale", "0.2"],
+        &["--scene /dev/zero", "not a regular file"],
+    );
+    #[cfg(unix)]
+    {
+        // A script name on a device is refused before it is read.
+        let link = dir.path().join("zero.rhai");
+        std::os::unix::fs::symlink("/dev/zero", &link).expect("symlink");
+        plan_refused(
+            dir.path(),
+            &cap,
+            &["--scene", s(&link), "--scale", "0.2"],
+            &["zero.rhai", "not a regular file"],
+        );
+    }
+    assert!(t0.elapsed() < Duration::from_secs(60), "bounded reads");
+    // A scene that does not build is refused at plan time too, not in every job.
+    let bad = dir.path().join("bad.rhai");
+    std::fs::write(&bad, "part(\"a\", box(1, 1);").expect("write");
+    plan_refused(
+        dir.path(),
+        &cap,
+        &["--scene", s(&bad), "--scale", "0.2"],
+        &["--scene", "bad.rhai"],
+    );
+}

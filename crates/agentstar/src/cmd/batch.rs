@@ -319,6 +319,24 @@ fn absolute(p: &Path) -> Result<PathBuf> {
         .with_context(|| format!("{}: not found", p.display()))
 }
 
+/// `--scene`: a model file that loads now, not in every job later. Only a regular file is
+/// read, and only as far as its kind's limit (`/dev/zero`, a FIFO or a directory is refused
+/// before anything is read).
+fn checked_scene(p: &Path) -> Result<PathBuf> {
+    let path = absolute(p)?;
+    let meta = std::fs::metadata(&path)
+        .with_context(|| format!("--scene {}: cannot read", p.display()))?;
+    if !meta.is_file() {
+        bail!(
+            "--scene {}: not a regular file (a directory, device, FIFO or socket); give a scene script (.rhai), a URDF or a mesh",
+            p.display()
+        );
+    }
+    agentstar_data::scenefile::load_model(&path)
+        .map_err(|e| anyhow!("--scene {}: {e}", p.display()))?;
+    Ok(path)
+}
+
 fn run_plan(a: PlanArgs) -> Result<ExitCode> {
     let method = a.method;
     if method == MethodArg::Track && (a.model.is_some() || a.base_url.is_some()) {
@@ -330,9 +348,19 @@ fn run_plan(a: PlanArgs) -> Result<ExitCode> {
         }
     }
     // Everything is checked before anything is written.
-    let mut captures = Vec::with_capacity(a.captures.len());
-    for c in &a.captures {
+    let mut captures: Vec<CaptureInput> = Vec::with_capacity(a.captures.len());
+    for (k, c) in a.captures.iter().enumerate() {
         let path = absolute(c)?;
+        // The same capture under two spellings (`caps/box caps/../caps/box`, a symlink)
+        // would be two jobs on one capture, counted twice in the tables.
+        if let Some(first) = captures.iter().position(|x| x.path == path) {
+            bail!(
+                "{} and {} are the same capture ({}); give each capture once",
+                a.captures[first].display(),
+                a.captures[k].display(),
+                path.display()
+            );
+        }
         agentstar_data::capture::Capture::open(&path).map_err(|problems| {
             anyhow!(
                 "{}: not a valid capture ({} problem(s); run `agentstar validate {}`): {}",
@@ -352,7 +380,7 @@ fn run_plan(a: PlanArgs) -> Result<ExitCode> {
             path,
         });
     }
-    let scene = a.scene.as_deref().map(absolute).transpose()?;
+    let scene = a.scene.as_deref().map(checked_scene).transpose()?;
     let method_plan = match method {
         MethodArg::Track => {
             for c in &captures {
@@ -399,10 +427,11 @@ fn run_plan(a: PlanArgs) -> Result<ExitCode> {
     };
     let defaults = Resources::default_for(batch_method);
     let resources = Resources {
-        time_min: a.time.unwrap_or(defaults.time_min).max(1),
-        cpus_per_task: a.cpus_per_task.unwrap_or(defaults.cpus_per_task).max(1),
+        time_min: a.time.unwrap_or(defaults.time_min),
+        cpus_per_task: a.cpus_per_task.unwrap_or(defaults.cpus_per_task),
         mem_mb: mem_flag(a.mem.as_deref())?.unwrap_or(defaults.mem_mb),
     };
+    resources.check()?;
     if a.out.exists()
         && std::fs::read_dir(&a.out)
             .with_context(|| format!("{}: cannot list", a.out.display()))?
@@ -833,14 +862,15 @@ fn run_slurm(a: SlurmArgs) -> Result<ExitCode> {
     }
     let mut resources = batch.resources();
     if let Some(t) = a.time {
-        resources.time_min = t.max(1);
+        resources.time_min = t;
     }
     if let Some(c) = a.cpus_per_task {
-        resources.cpus_per_task = c.max(1);
+        resources.cpus_per_task = c;
     }
     if let Some(m) = mem_flag(a.mem.as_deref())? {
         resources.mem_mb = m;
     }
+    resources.check()?;
     let agentstar = match &a.agentstar {
         Some(p) => absolute(p)?,
         None => std::env::current_exe().context("finding the agentstar executable")?,
