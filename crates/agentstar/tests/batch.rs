@@ -528,3 +528,128 @@ fn plan_refuses_a_scene_that_is_not_a_regular_model_file() {
         &["--scene", "bad.rhai"],
     );
 }
+
+fn stderr_of(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+/// Rows of the per-sequence table in `gather`'s output.
+fn per_sequence_rows(gathered: &str) -> Vec<String> {
+    gathered
+        .lines()
+        .filter(|l| l.contains("| track | 4 |"))
+        .map(str::to_string)
+        .collect()
+}
+
+#[test]
+fn a_finished_job_whose_result_is_damaged_runs_again_and_gather_tables_the_rest() {
+    let dir = tempfile::tempdir().expect("tmp");
+    let batch = planned_batch(dir.path());
+    let v = json(&agentstar_in(
+        &[],
+        &["batch", "local", s(&batch), "-j", "3", "--json"],
+    ));
+    assert_eq!(v["summary"], "3 jobs: 3 finished");
+    // The finishing attempt recorded its result's size and digest.
+    let record: Value = serde_json::from_str(
+        &std::fs::read_to_string(batch.join("jobs/box/record.json")).expect("record"),
+    )
+    .expect("json");
+    let outputs = &record["attempts"][0]["outputs"];
+    assert_eq!(outputs[0]["path"], "jobs/box/pose.json", "{record}");
+    assert_eq!(outputs[0]["sha256"].as_str().map(str::len), Some(64));
+
+    let pose = |job: &str| batch.join("jobs").join(job).join("pose.json");
+    let text_box = std::fs::read(pose("box")).expect("pose");
+    std::fs::write(pose("box"), &text_box[..text_box.len() / 2]).expect("truncate");
+    std::fs::write(pose("laptop"), b"").expect("empty");
+    let o = agentstar_in(&[], &["batch", "status", s(&batch), "--json"]);
+    let err = stderr_of(&o);
+    let st = states(&[], &batch);
+    assert_eq!(
+        st.iter().map(|(_, s, _)| s.as_str()).collect::<Vec<_>>(),
+        ["damaged", "damaged", "finished"],
+        "{err}"
+    );
+    assert!(
+        err.contains("job box: jobs/box/pose.json was changed")
+            && err.contains("job laptop: jobs/laptop/pose.json was emptied")
+            && err.contains("runs again"),
+        "{err}"
+    );
+
+    // gather tables what it can read and names what it cannot.
+    let g = agentstar_in(&[], &["batch", "gather", s(&batch), "--samples", "300"]);
+    assert!(g.status.success(), "{}", text(&g));
+    let gathered = String::from_utf8_lossy(&g.stdout).into_owned();
+    let rows = per_sequence_rows(&gathered);
+    assert_eq!(rows.len(), 1, "{gathered}");
+    assert!(rows[0].contains("mug"), "{gathered}");
+    assert!(
+        stderr_of(&g).contains("job box: damaged; not evaluated"),
+        "{}",
+        text(&g)
+    );
+    assert!(
+        gathered.contains("| box | track | damaged | 1 |"),
+        "{gathered}"
+    );
+
+    // Only the damaged jobs need a run, and `batch local` reruns them.
+    let o = agentstar_in(&[], &["batch", "slurm", s(&batch), "--json"]);
+    assert_eq!(json(&o)["tasks"], serde_json::json!([0, 1]));
+    let v = json(&agentstar_in(&[], &["batch", "local", s(&batch), "--json"]));
+    assert_eq!(v["summary"], "3 jobs: 3 finished");
+    let attempts: Vec<u64> = v["jobs"]
+        .as_array()
+        .expect("jobs")
+        .iter()
+        .map(|j| j["attempts"].as_u64().expect("n"))
+        .collect();
+    assert_eq!(attempts, [2, 2, 1]);
+    assert_eq!(
+        std::fs::read(batch.join("jobs/box/pose.json.damaged")).expect("kept aside"),
+        &text_box[..text_box.len() / 2]
+    );
+
+    // A result swapped for another valid pose file, or deleted, is caught as well.
+    std::fs::copy(pose("mug"), pose("box")).expect("swap");
+    std::fs::remove_file(pose("laptop")).expect("delete");
+    let o = agentstar_in(&[], &["batch", "status", s(&batch)]);
+    let err = stderr_of(&o);
+    assert!(
+        err.contains("jobs/box/pose.json was changed")
+            && err.contains("jobs/laptop/pose.json was deleted"),
+        "{err}"
+    );
+    let o = agentstar_in(&[], &["batch", "exec", s(&batch), "--job", "box"]);
+    assert!(o.status.success(), "{}", text(&o));
+    assert!(text(&o).contains("running it again"), "{}", text(&o));
+    let v = json(&agentstar_in(&[], &["batch", "local", s(&batch), "--json"]));
+    assert_eq!(v["summary"], "3 jobs: 3 finished");
+
+    // A run that cannot be read at all (its ground truth gone) is named; the rest are tabled.
+    std::fs::remove_file(dir.path().join("caps/mug/gt.json")).expect("rm gt");
+    let g = agentstar_in(
+        &[],
+        &["batch", "gather", s(&batch), "--samples", "300", "--json"],
+    );
+    let v = json(&g);
+    assert_eq!(
+        v["results"].as_array().map(Vec::len),
+        Some(2),
+        "{}",
+        text(&g)
+    );
+    assert_eq!(v["unreadable"][0]["job"], "mug", "{v}");
+    assert!(
+        stderr_of(&g).contains("job mug: cannot read its run"),
+        "{}",
+        text(&g)
+    );
+    let runs: Value =
+        serde_json::from_str(&std::fs::read_to_string(batch.join("runs.json")).expect("runs"))
+            .expect("json");
+    assert_eq!(runs.as_array().map(Vec::len), Some(2));
+}

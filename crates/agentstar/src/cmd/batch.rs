@@ -11,7 +11,7 @@ use agentstar_batch::state::summary;
 use agentstar_batch::table::{jobs_table, AgentSpend, JobRow};
 use agentstar_batch::{
     classify, plan, Exit, JobRecord, JobSpec, JobState, Manifest, Method, MethodPlan, Observation,
-    PlanConfig, Queue, Resources, Runner,
+    OutputDigest, OutputNow, PlanConfig, Queue, Resources, Runner,
 };
 use agentstar_bench::table::tables;
 use anyhow::{anyhow, bail, Context, Result};
@@ -243,6 +243,96 @@ impl Batch {
 
     fn write_record(&self, j: &JobSpec, r: &JobRecord) -> Result<()> {
         Ok(agentstar_data::atomic::write_json(&self.record_path(j), r)?)
+    }
+
+    /// The job's result files inside the batch (relative): its poses and, for an agent
+    /// run, its scene. A track job's known model is an input, not a result.
+    fn outputs(&self, j: &JobSpec) -> Vec<PathBuf> {
+        let mut v = vec![j.poses.clone()];
+        if j.model.is_relative() && j.model != j.poses {
+            v.push(j.model.clone());
+        }
+        v
+    }
+
+    /// What a result file is now: its size and SHA-256, or missing.
+    fn output_now(&self, rel: &Path) -> Result<OutputNow> {
+        use sha2::{Digest, Sha256};
+        use std::io::Read;
+        let path = self.dir.join(rel);
+        match std::fs::metadata(&path) {
+            Ok(m) if m.is_file() => {}
+            _ => return Ok(OutputNow::Missing),
+        }
+        let mut file = std::fs::File::open(&path)
+            .with_context(|| format!("{}: cannot read", path.display()))?;
+        let mut hasher = Sha256::new();
+        let mut buf = vec![0u8; 1 << 16];
+        let mut bytes = 0u64;
+        loop {
+            let n = file
+                .read(&mut buf)
+                .with_context(|| format!("{}: cannot read", path.display()))?;
+            if n == 0 {
+                break;
+            }
+            bytes += n as u64;
+            hasher.update(&buf[..n]);
+        }
+        let sha256 = hasher
+            .finalize()
+            .iter()
+            .map(|b| format!("{b:02x}"))
+            .collect();
+        Ok(OutputNow::Present { bytes, sha256 })
+    }
+
+    /// The digests of the job's result files as they are now (those that exist).
+    fn digests(&self, j: &JobSpec) -> Result<Vec<OutputDigest>> {
+        let mut v = vec![];
+        for rel in self.outputs(j) {
+            if let OutputNow::Present { bytes, sha256 } = self.output_now(&rel)? {
+                v.push(OutputDigest {
+                    path: rel,
+                    bytes,
+                    sha256,
+                });
+            }
+        }
+        Ok(v)
+    }
+
+    /// Why a finished job's results are no longer what it left (`None`: intact, or not
+    /// finished). A record from before digests were kept is checked for a missing or empty
+    /// result only.
+    fn damage(&self, j: &JobSpec, r: &JobRecord) -> Result<Option<String>> {
+        if !r.finished() {
+            return Ok(None);
+        }
+        let recorded = r.outputs();
+        let mut paths = self.outputs(j);
+        for d in recorded {
+            if !paths.contains(&d.path) {
+                paths.push(d.path.clone());
+            }
+        }
+        for rel in paths {
+            let now = self.output_now(&rel)?;
+            let why = match recorded.iter().find(|d| d.path == rel) {
+                Some(d) => d.damage(&now),
+                None => match now {
+                    OutputNow::Missing => Some(format!("{} is missing", rel.display())),
+                    OutputNow::Present { bytes: 0, .. } => {
+                        Some(format!("{} is empty", rel.display()))
+                    }
+                    OutputNow::Present { .. } => None,
+                },
+            };
+            if why.is_some() {
+                return Ok(why);
+            }
+        }
+        Ok(None)
     }
 
     fn submissions(&self) -> Result<Submissions> {
@@ -697,12 +787,32 @@ fn states(batch: &Batch) -> Result<(Vec<Option<JobRecord>>, Vec<JobState>)> {
         .collect::<Result<_>>()?;
     let view = scheduler_view(batch, &records)?;
     let host = host_name();
-    let states = batch
+    let damaged: Vec<bool> = batch
         .manifest
         .jobs
         .iter()
         .zip(&records)
         .map(|(j, r)| {
+            let Some(r) = r else { return Ok(false) };
+            Ok(match batch.damage(j, r)? {
+                Some(why) => {
+                    eprintln!(
+                        "note: job {}: {why}; it no longer counts as finished and runs again",
+                        j.name
+                    );
+                    true
+                }
+                None => false,
+            })
+        })
+        .collect::<Result<_>>()?;
+    let states = batch
+        .manifest
+        .jobs
+        .iter()
+        .zip(&records)
+        .zip(&damaged)
+        .map(|((j, r), &damaged)| {
             let last = r.as_ref().and_then(JobRecord::last);
             let task = j.index as u64;
             let queue = match &view.queue {
@@ -723,6 +833,7 @@ fn states(batch: &Batch) -> Result<(Vec<Option<JobRecord>>, Vec<JobState>)> {
                 accounting: slurm::task_state(&view.accounting, &view.job_ids, task)
                     .map(|t| t.state.as_str()),
                 alive,
+                damaged,
             })
         })
         .collect();
@@ -1010,8 +1121,27 @@ fn run_exec(a: ExecArgs) -> Result<ExitCode> {
     };
     let mut record = batch.record(j)?.unwrap_or_default();
     if record.finished() {
-        eprintln!("job {}: already finished; nothing to do", j.name);
-        return Ok(ExitCode::SUCCESS);
+        match batch.damage(j, &record)? {
+            None => {
+                eprintln!("job {}: already finished; nothing to do", j.name);
+                return Ok(ExitCode::SUCCESS);
+            }
+            Some(why) => {
+                eprintln!("note: job {}: {why}; running it again", j.name);
+                // A track job starts over: what is left of its poses is kept aside, for a
+                // look, and does not stand in the new run's way.
+                if j.method == Method::Track {
+                    let poses = batch.dir.join(&j.poses);
+                    if poses.exists() {
+                        let aside = poses.with_extension("json.damaged");
+                        std::fs::rename(&poses, &aside).with_context(|| {
+                            format!("{}: cannot move it aside", poses.display())
+                        })?;
+                        eprintln!("note: job {}: kept as {}", j.name, aside.display());
+                    }
+                }
+            }
+        }
     }
     let host = host_name();
     if let Some(last) = record.last() {
@@ -1082,7 +1212,13 @@ fn run_exec(a: ExecArgs) -> Result<ExitCode> {
     batch.write_record(j, &record)?;
     let status = child.wait().context("waiting for the job's command")?;
     let exit = exit_of(status);
-    record.end(exit, now_unix_s());
+    // The results as the job left them, so that a later change to them is noticed.
+    let outputs = if exit.success() {
+        batch.digests(j)?
+    } else {
+        vec![]
+    };
+    record.end_with(exit, now_unix_s(), outputs);
     batch.write_record(j, &record)?;
     let wall = record.last().and_then(|a| a.wall_s()).unwrap_or(0.0);
     eprintln!(
@@ -1180,15 +1316,18 @@ fn run_gather(a: GatherArgs) -> Result<ExitCode> {
     let mut entries = Vec::new();
     for ((j, state), row) in batch.manifest.jobs.iter().zip(&states).zip(&rows) {
         match (state, &j.gt) {
-            (JobState::Finished, Some(gt)) => entries.push(crate::cmd::eval::BatchEntry {
-                capture: j.capture.clone(),
-                model: j.model.clone(),
-                poses: j.poses.clone(),
-                gt: Some(gt.clone()),
-                label: Some(batch.manifest.label.clone()),
-                family: None,
-                seconds: row.wall_s,
-            }),
+            (JobState::Finished, Some(gt)) => entries.push((
+                j,
+                crate::cmd::eval::BatchEntry {
+                    capture: j.capture.clone(),
+                    model: j.model.clone(),
+                    poses: j.poses.clone(),
+                    gt: Some(gt.clone()),
+                    label: Some(batch.manifest.label.clone()),
+                    family: None,
+                    seconds: row.wall_s,
+                },
+            )),
             (JobState::Finished, None) => {
                 eprintln!(
                     "job {}: finished, but its capture has no gt.json; not evaluated",
@@ -1205,19 +1344,55 @@ fn run_gather(a: GatherArgs) -> Result<ExitCode> {
             summary(&states)
         );
     }
+    // Each run on its own: one that cannot be read (its capture or model changed since, a
+    // result damaged past what the digests see) is reported and the rest are tabled.
+    let mut results = Vec::with_capacity(entries.len());
+    let mut eval_reports = Vec::with_capacity(entries.len());
+    let mut evaluated = Vec::with_capacity(entries.len());
+    let mut unreadable = Vec::new();
+    let n = entries.len();
+    for (i, (j, e)) in entries.into_iter().enumerate() {
+        eprintln!("eval [{}/{n}] job {}", i + 1, j.name);
+        match crate::cmd::eval::entry_result(&batch.dir, &e, a.samples) {
+            Ok((r, report)) => {
+                results.push(r);
+                eval_reports.push(report);
+                evaluated.push(e);
+            }
+            Err(err) => {
+                eprintln!(
+                    "job {}: cannot read its run: {err:#}; not evaluated",
+                    j.name
+                );
+                unreadable.push(serde_json::json!({"job": j.name, "error": format!("{err:#}")}));
+            }
+        }
+    }
+    if evaluated.is_empty() {
+        bail!(
+            "{}: none of the finished jobs' runs could be read ({} job(s); see above)",
+            batch.dir.display(),
+            unreadable.len()
+        );
+    }
     // The runs in `eval --batch` form, so that the tables can be made again from the files.
     let runs = batch.dir.join("runs.json");
-    agentstar_data::atomic::write_json(&runs, &entries)?;
+    agentstar_data::atomic::write_json(&runs, &evaluated)?;
     eprintln!(
-        "gather: {} run(s) in {} (the same as `agentstar eval --batch {} --per-sequence`)",
-        entries.len(),
+        "gather: {} run(s) in {} (the same as `agentstar eval --batch {} --per-sequence`){}",
+        evaluated.len(),
         runs.display(),
-        runs.display()
+        runs.display(),
+        if unreadable.is_empty() {
+            String::new()
+        } else {
+            format!("; {} job(s) could not be read", unreadable.len())
+        }
     );
-    let (results, eval_reports) = crate::cmd::eval::batch_results(&runs, a.samples)?;
     if a.json {
         print_json(&serde_json::json!({
-            "results": eval_reports, "summary": summary(&states), "jobs": reports(&batch, &rows)
+            "results": eval_reports, "summary": summary(&states), "jobs": reports(&batch, &rows),
+            "unreadable": unreadable
         }))?;
     } else {
         print!("{}", tables(&results, true));

@@ -178,33 +178,49 @@ pub(crate) fn batch_results(
     let mut reports = Vec::with_capacity(entries.len());
     let bar = crate::common::progress(entries.len(), "eval");
     for (i, e) in entries.iter().enumerate() {
-        let (capture, model, poses) = (
-            base.join(&e.capture),
-            base.join(&e.model),
-            base.join(&e.poses),
-        );
-        let s = Session::open(&capture, &model, &poses)
+        bar.suspend(|| {
+            eprintln!(
+                "eval [{}/{}] {}",
+                i + 1,
+                entries.len(),
+                base.join(&e.capture).display()
+            )
+        });
+        let (r, report) = entry_result(base, e, samples)
             .with_context(|| format!("{}: run {}", path.display(), i + 1))?;
-        let gt =
-            e.gt.as_ref()
-                .map_or_else(|| capture.join("gt.json"), |g| base.join(g));
-        bar.suspend(|| eprintln!("eval [{}/{}] {}", i + 1, entries.len(), capture.display()));
-        let (mut r, report) = result_of(
-            &s,
-            &capture,
-            &model,
-            &poses,
-            &gt,
-            e.label.as_deref().unwrap_or("run"),
-            e.family.as_deref(),
-            samples,
-        )
-        .with_context(|| format!("{}: run {}", path.display(), i + 1))?;
-        r.seconds = e.seconds.unwrap_or(0.0);
         results.push(r);
         reports.push(report);
     }
     Ok((results, reports))
+}
+
+/// One entry of a `--batch` file evaluated (relative paths are relative to `base`).
+pub(crate) fn entry_result(
+    base: &Path,
+    e: &BatchEntry,
+    samples: usize,
+) -> Result<(SequenceResult, EvalReport)> {
+    let (capture, model, poses) = (
+        base.join(&e.capture),
+        base.join(&e.model),
+        base.join(&e.poses),
+    );
+    let s = Session::open(&capture, &model, &poses)?;
+    let gt =
+        e.gt.as_ref()
+            .map_or_else(|| capture.join("gt.json"), |g| base.join(g));
+    let (mut r, report) = result_of(
+        &s,
+        &capture,
+        &model,
+        &poses,
+        &gt,
+        e.label.as_deref().unwrap_or("run"),
+        e.family.as_deref(),
+        samples,
+    )?;
+    r.seconds = e.seconds.unwrap_or(0.0);
+    Ok((r, report))
 }
 
 fn run_batch(a: &Args, path: &Path) -> Result<ExitCode> {
