@@ -179,6 +179,15 @@ fn gather_matches_eval(env: &[(&str, &str)], batch: &Path) {
             .parse()
             .expect("number");
         assert!(wall > 0.0, "{l}");
+        // The tracker's evaluations, from the job's log (they read 0 before).
+        let evals: u64 = l
+            .split('|')
+            .nth(6)
+            .expect("cell")
+            .trim()
+            .parse()
+            .expect("number");
+        assert!(evals > 0, "{l}");
     }
     // The killed job shows its two attempts.
     assert!(

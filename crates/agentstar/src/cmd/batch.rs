@@ -1309,6 +1309,26 @@ fn run_local(a: LocalArgs) -> Result<ExitCode> {
 // ---------------------------------------------------------------------------------------
 // gather
 
+/// The tracker's evaluations in a finished job: what `agentstar track` printed in the last
+/// attempt's log (track), or the agent's `track` calls in its ledger (agent).
+fn evaluations(batch: &Batch, j: &JobSpec) -> Option<u64> {
+    use agentstar_batch::table::{last_attempt_log, tracked_evaluations};
+    match j.method {
+        Method::Track => {
+            let log = agentstar_data::read_text(&batch.log_path(j)).ok()?;
+            tracked_evaluations(last_attempt_log(&log))
+        }
+        Method::Agent => {
+            let run = RunDir::open(&batch.job_dir(j)).ok()?;
+            let (entries, _) = agentstar_data::ledger::read(&run.ledger_path()).ok()?;
+            entries
+                .iter()
+                .filter_map(|e| tracked_evaluations(&e.summary))
+                .reduce(|a, b| a + b)
+        }
+    }
+}
+
 fn run_gather(a: GatherArgs) -> Result<ExitCode> {
     let batch = Batch::open(&a.batch)?;
     let (records, states) = states(&batch)?;
@@ -1326,6 +1346,7 @@ fn run_gather(a: GatherArgs) -> Result<ExitCode> {
                     label: Some(batch.manifest.label.clone()),
                     family: None,
                     seconds: row.wall_s,
+                    evaluations: evaluations(&batch, j),
                 },
             )),
             (JobState::Finished, None) => {

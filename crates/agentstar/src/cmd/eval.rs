@@ -30,7 +30,8 @@ pub struct Args {
     #[arg(long)]
     gt: Option<PathBuf>,
     /// A JSON list of runs to evaluate together (capture, model, poses; optional gt, label,
-    /// family: arctic, hot3d or itaco, seconds of wall time); prints the paper's tables.
+    /// family: arctic, hot3d or itaco, seconds of wall time, the tracker's evaluations);
+    /// prints the paper's tables.
     #[arg(long, conflicts_with_all = ["capture", "model", "poses", "gt"])]
     batch: Option<PathBuf>,
     /// With --batch: a row per sequence in the tables.
@@ -60,6 +61,9 @@ pub(crate) struct BatchEntry {
     /// The run's wall time in seconds, for the tables' wall-time columns.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub(crate) seconds: Option<f64>,
+    /// The tracker's evaluations in the run, for the per-sequence table.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub(crate) evaluations: Option<u64>,
 }
 
 /// The metrics of one run, and the ground truth's joints for the table rows.
@@ -220,6 +224,9 @@ pub(crate) fn entry_result(
         samples,
     )?;
     r.seconds = e.seconds.unwrap_or(0.0);
+    r.evaluations = e
+        .evaluations
+        .map_or(0, |n| usize::try_from(n).unwrap_or(usize::MAX));
     Ok((r, report))
 }
 
