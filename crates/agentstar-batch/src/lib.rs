@@ -6,7 +6,8 @@
 //! BATCH/
 //!   batch.json                 the manifest: method, resources, every job's command line
 //!   jobs/NAME/job.json         one job's spec (the same as in the manifest)
-//!   jobs/NAME/record.json      its attempts: host, pids, start, end, exit code (written by the job)
+//!   jobs/NAME/record.json      its attempts: host, pids, start, end, exit code, and the size and
+//!                              SHA-256 of its result files when it finished (written by the job)
 //!   jobs/NAME/…                the job's own output: a run directory (agent) or pose.json (track)
 //!   logs/NAME.log              the job's stdout and stderr, every attempt appended
 //!   slurm/array-N.sbatch       the job-array script of submission N
@@ -29,7 +30,7 @@ pub mod table;
 
 pub use error::BatchError;
 pub use manifest::{plan, JobSpec, Manifest, Method, MethodPlan, PlanConfig, Resources};
-pub use record::{Attempt, Exit, JobRecord, Runner};
+pub use record::{Attempt, Exit, JobRecord, OutputDigest, OutputNow, Runner};
 pub use state::{classify, JobState, Observation, Queue};
 
 /// Results of this crate.

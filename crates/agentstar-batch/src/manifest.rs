@@ -39,6 +39,11 @@ pub struct Resources {
     pub mem_mb: u64,
 }
 
+/// The longest wall-time limit, minutes: Slurm keeps time limits in 32 bits.
+pub const MAX_TIME_MIN: u64 = u32::MAX as u64 - 1;
+/// The most memory a job may ask for, megabytes (1 PiB; no node has more).
+pub const MAX_MEM_MB: u64 = 1 << 30;
+
 impl Resources {
     /// Defaults by method: a track job is minutes on two cores; an agent job is the paper's
     /// long budget (it resumes from its ledger when the limit cuts it).
@@ -57,6 +62,20 @@ impl Resources {
         }
     }
 
+    /// Refuses what no scheduler can carry out: a zero or overlong time limit, no CPUs, no
+    /// memory or more than [`MAX_MEM_MB`]. The message names the flag (`--time`, …).
+    pub fn check(&self) -> Result<()> {
+        check_time_min(self.time_min)?;
+        check_cpus(self.cpus_per_task)?;
+        if self.mem_mb == 0 || self.mem_mb > MAX_MEM_MB {
+            return Err(BatchError::Invalid(format!(
+                "--mem {} MB: out of range (1 MB to {MAX_MEM_MB} MB, i.e. 1024T)",
+                self.mem_mb
+            )));
+        }
+        Ok(())
+    }
+
     /// `--time` in Slurm's `D-HH:MM:00` form.
     pub fn slurm_time(&self) -> String {
         let (d, rem) = (self.time_min / 1440, self.time_min % 1440);
@@ -64,25 +83,48 @@ impl Resources {
     }
 }
 
-/// Parses a memory size: `4096` (MB), `512M`, `8G`, `1T`.
+/// A wall-time limit in minutes: at least 1, at most [`MAX_TIME_MIN`].
+pub fn check_time_min(t: u64) -> Result<u64> {
+    if t == 0 {
+        return Err(BatchError::Invalid(
+            "--time 0: a job needs a wall-time limit of at least 1 minute".into(),
+        ));
+    }
+    if t > MAX_TIME_MIN {
+        return Err(BatchError::Invalid(format!(
+            "--time {t}: out of range (at most {MAX_TIME_MIN} minutes, Slurm's largest limit)"
+        )));
+    }
+    Ok(t)
+}
+
+/// CPUs per task: at least 1.
+pub fn check_cpus(c: u32) -> Result<u32> {
+    if c == 0 {
+        return Err(BatchError::Invalid(
+            "--cpus-per-task 0: a job needs at least 1 CPU".into(),
+        ));
+    }
+    Ok(c)
+}
+
+/// Parses a memory size: `4096` (MB), `512M`, `8G`, `1T`; from 1 MB to [`MAX_MEM_MB`].
 pub fn parse_mem_mb(s: &str) -> Result<u64> {
     let t = s.trim();
+    let bad = || BatchError::Invalid(format!("memory `{s}`: a size such as 4096, 512M, 8G or 1T"));
     let (num, mult) = match t.char_indices().last() {
         Some((i, c)) if c.is_ascii_alphabetic() => {
-            let mult = match c.to_ascii_uppercase() {
-                'K' => return parse_number(&t[..i], s).map(|k| k.div_ceil(1024)),
-                'M' => 1,
-                'G' => 1024,
-                'T' => 1024 * 1024,
-                _ => {
-                    return Err(BatchError::Invalid(format!(
-                        "memory `{s}`: a size such as 4096, 512M, 8G or 1T"
-                    )))
-                }
+            let mult: Option<u64> = match c.to_ascii_uppercase() {
+                // Kilobytes: rounded up to whole megabytes.
+                'K' => None,
+                'M' => Some(1),
+                'G' => Some(1024),
+                'T' => Some(1024 * 1024),
+                _ => return Err(bad()),
             };
             (&t[..i], mult)
         }
-        _ => (t, 1),
+        _ => (t, Some(1)),
     };
     let n = parse_number(num, s)?;
     if n == 0 {
@@ -90,7 +132,16 @@ pub fn parse_mem_mb(s: &str) -> Result<u64> {
             "memory `{s}`: must be more than zero"
         )));
     }
-    Ok(n * mult)
+    let mb = match mult {
+        None => Some(n.div_ceil(1024)),
+        Some(m) => n.checked_mul(m),
+    };
+    match mb {
+        Some(mb) if mb <= MAX_MEM_MB => Ok(mb),
+        _ => Err(BatchError::Invalid(format!(
+            "memory `{s}`: out of range (at most {MAX_MEM_MB} MB, i.e. 1024T)"
+        ))),
+    }
 }
 
 fn parse_number(num: &str, whole: &str) -> Result<u64> {
@@ -148,7 +199,15 @@ impl Manifest {
             )));
         }
         let mut names = BTreeSet::new();
+        let mut captures = BTreeSet::new();
         for (i, j) in self.jobs.iter().enumerate() {
+            if !captures.insert(&j.capture) {
+                return Err(BatchError::Invalid(format!(
+                    "job `{}`: capture {} appears twice",
+                    j.name,
+                    j.capture.display()
+                )));
+            }
             if j.index != i {
                 return Err(BatchError::Invalid(format!(
                     "job `{}` has index {} at position {i}",
@@ -161,6 +220,9 @@ impl Manifest {
                     j.name
                 )));
             }
+            j.resources
+                .check()
+                .map_err(|e| BatchError::Invalid(format!("job `{}`: {e}", j.name)))?;
         }
         Ok(())
     }
@@ -252,12 +314,19 @@ pub fn plan(captures: &[CaptureInput], cfg: &PlanConfig) -> Result<Manifest> {
             cfg.batch_dir.display()
         )));
     }
+    cfg.resources.check()?;
     let mut used = BTreeSet::new();
     let mut jobs = Vec::with_capacity(captures.len());
     for (index, c) in captures.iter().enumerate() {
         if !c.path.is_absolute() {
             return Err(BatchError::Invalid(format!(
                 "{}: captures must be absolute paths",
+                c.path.display()
+            )));
+        }
+        if captures[..index].iter().any(|d| d.path == c.path) {
+            return Err(BatchError::Invalid(format!(
+                "{}: the same capture is given twice; give each capture once",
                 c.path.display()
             )));
         }
@@ -431,6 +500,10 @@ mod tests {
         });
         assert!(plan(&[], &c).is_err());
         assert!(plan(&caps(&["rel/cap"]), &c).is_err());
+        let e = plan(&caps(&["/c/box", "/d/mug", "/c/box"]), &c)
+            .expect_err("a capture twice")
+            .to_string();
+        assert!(e.contains("/c/box") && e.contains("twice"), "{e}");
         let mut rel = c.clone();
         rel.batch_dir = "b".into();
         assert!(plan(&caps(&["/cap"]), &rel).is_err());
@@ -453,6 +526,11 @@ mod tests {
         m.jobs[1].name = m.jobs[0].name.clone();
         assert!(m.check().is_err());
         m.jobs[1].name = "z".into();
+        let other = m.jobs[1].capture.clone();
+        m.jobs[1].capture = m.jobs[0].capture.clone();
+        assert!(m.check().is_err());
+        m.jobs[1].capture = other;
+        m.check().expect("valid again");
         m.jobs[1].index = 5;
         assert!(m.check().is_err());
         m.jobs[1].index = 1;
@@ -470,11 +548,66 @@ mod tests {
         for bad in ["", "G", "8X", "-1G", "0", "1.5G"] {
             assert!(parse_mem_mb(bad).is_err(), "{bad}");
         }
+        assert_eq!(parse_mem_mb("1024T").ok(), Some(MAX_MEM_MB));
+        // Sizes whose megabytes do not fit, or are past any node, are refused, not wrapped.
+        for huge in [
+            "99999999999999T",
+            "18446744073709551615G",
+            "1025T",
+            "1073741825",
+        ] {
+            let e = parse_mem_mb(huge).expect_err(huge).to_string();
+            assert!(e.contains("out of range") && e.contains(huge), "{e}");
+        }
         let r = Resources {
             time_min: 1530,
             cpus_per_task: 1,
             mem_mb: 1,
         };
         assert_eq!(r.slurm_time(), "1-01:30:00");
+        r.check().expect("valid");
+    }
+
+    #[test]
+    fn zero_time_and_zero_cpus_are_refused_not_raised_to_one() {
+        let ok = Resources::default_for(Method::Track);
+        for (bad, flag) in [
+            (Resources { time_min: 0, ..ok }, "--time 0"),
+            (
+                Resources {
+                    cpus_per_task: 0,
+                    ..ok
+                },
+                "--cpus-per-task 0",
+            ),
+            (Resources { mem_mb: 0, ..ok }, "--mem"),
+            (
+                Resources {
+                    time_min: MAX_TIME_MIN + 1,
+                    ..ok
+                },
+                "--time",
+            ),
+        ] {
+            let e = bad.check().expect_err(flag).to_string();
+            assert!(e.contains(flag), "{e}");
+            let mut c = cfg(MethodPlan::Track {
+                model: None,
+                scale: Some(0.2),
+            });
+            c.resources = bad;
+            assert!(plan(&caps(&["/cap"]), &c).is_err());
+        }
+        let mut m = plan(
+            &caps(&["/cap"]),
+            &cfg(MethodPlan::Track {
+                model: None,
+                scale: Some(0.2),
+            }),
+        )
+        .expect("plan");
+        m.jobs[0].resources.time_min = 0;
+        let e = m.check().expect_err("an edited manifest").to_string();
+        assert!(e.contains("job `cap`") && e.contains("--time 0"), "{e}");
     }
 }

@@ -19,6 +19,9 @@ pub enum JobState {
     Failed {
         exit: Option<Exit>,
     },
+    /// It finished, but a result file it left was changed, emptied or deleted since: it
+    /// needs a run again.
+    Damaged,
     /// Started but cut without recording an end (killed, node lost, preempted).
     Interrupted,
     /// Slurm's time limit ended it.
@@ -42,6 +45,7 @@ impl JobState {
             JobState::Queued => "queued",
             JobState::Running => "running",
             JobState::Finished => "finished",
+            JobState::Damaged => "damaged",
             JobState::Failed { .. } => "failed",
             JobState::Interrupted => "interrupted",
             JobState::Timeout => "timeout",
@@ -79,6 +83,8 @@ pub struct Observation<'a> {
     pub accounting: Option<&'a str>,
     /// Whether the last attempt's process is alive, where it ran on this host.
     pub alive: Option<bool>,
+    /// Whether a result file of a finished job no longer is what the job left.
+    pub damaged: bool,
 }
 
 fn queued(s: &str) -> bool {
@@ -107,8 +113,12 @@ fn ended_badly(accounting: Option<&str>, otherwise: JobState) -> JobState {
 /// The job's state. The record is the truth about what the command did; the queue and the
 /// process table say whether an unended attempt is still going; accounting says why a job
 /// ended that did not say so itself.
+///
+/// A finished job whose results were damaged since is [`JobState::Damaged`] until it is
+/// queued or running again.
 pub fn classify(o: &Observation) -> JobState {
-    if o.record.is_some_and(JobRecord::finished) {
+    let finished = o.record.is_some_and(JobRecord::finished);
+    if finished && !o.damaged {
         return JobState::Finished;
     }
     if let Queue::Listed(s) = o.queue {
@@ -118,6 +128,9 @@ pub fn classify(o: &Observation) -> JobState {
         if running(s) {
             return JobState::Running;
         }
+    }
+    if finished {
+        return JobState::Damaged;
     }
     let Some(last) = o.record.and_then(JobRecord::last) else {
         return match o.accounting {
@@ -153,6 +166,7 @@ pub fn classify(o: &Observation) -> JobState {
 pub fn summary(states: &[JobState]) -> String {
     let order = [
         "finished",
+        "damaged",
         "running",
         "queued",
         "pending",
@@ -187,6 +201,7 @@ mod tests {
             queue,
             accounting: None,
             alive: None,
+            damaged: false,
         }
     }
 
@@ -250,6 +265,19 @@ mod tests {
             classify(&obs(Some(&done), Queue::Listed("COMPLETING"))),
             JobState::Finished
         );
+        // Finished with its results damaged since: it needs a run, until it is queued again.
+        let mut o = obs(Some(&done), Queue::Absent);
+        o.damaged = true;
+        assert_eq!(classify(&o), JobState::Damaged);
+        assert!(classify(&o).needs_run());
+        o.queue = Queue::Listed("PENDING");
+        assert_eq!(classify(&o), JobState::Queued);
+        o.queue = Queue::Unknown;
+        assert_eq!(classify(&o), JobState::Damaged);
+        // Damage counts only for a finished job: a failed one stays failed.
+        let mut o = obs(Some(&failed), Queue::Absent);
+        o.damaged = true;
+        assert_eq!(classify(&o).name(), "failed");
     }
 
     #[test]
@@ -273,6 +301,7 @@ mod tests {
             JobState::Queued,
             JobState::Running,
             JobState::Finished,
+            JobState::Damaged,
             JobState::Failed { exit: None },
             JobState::Interrupted,
             JobState::Timeout,
@@ -281,7 +310,10 @@ mod tests {
         .iter()
         .map(|s| s.needs_run())
         .collect();
-        assert_eq!(needs, [true, false, false, false, true, true, true, true]);
+        assert_eq!(
+            needs,
+            [true, false, false, false, true, true, true, true, true]
+        );
         assert_eq!(
             summary(&[
                 JobState::Finished,

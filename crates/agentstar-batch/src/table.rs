@@ -36,6 +36,36 @@ impl AgentSpend {
     }
 }
 
+/// The evaluations the tracker reports in `text`: the sum over every line of the form
+/// `tracked N frames in S s (K evaluations), …` (what `agentstar track` prints on stdout
+/// and the agent's `track` tool in its ledger summary); `None` when no line says so.
+pub fn tracked_evaluations(text: &str) -> Option<u64> {
+    let mut total = None;
+    for line in text.lines() {
+        let Some(rest) = line.trim_start().strip_prefix("tracked ") else {
+            continue;
+        };
+        let Some(end) = rest.find(" evaluations)") else {
+            continue;
+        };
+        let Some(open) = rest[..end].rfind('(') else {
+            continue;
+        };
+        if let Ok(n) = rest[open + 1..end].trim().parse::<u64>() {
+            total = Some(total.unwrap_or(0) + n);
+        }
+    }
+    total
+}
+
+/// The part of a job's log written by its last attempt (after the last `== attempt` line).
+pub fn last_attempt_log(log: &str) -> &str {
+    match log.rfind("== attempt ") {
+        Some(i) => &log[i..],
+        None => log,
+    }
+}
+
 /// One row.
 #[derive(Debug, Clone, PartialEq)]
 pub struct JobRow {
@@ -106,6 +136,19 @@ mod tests {
                 elapsed_s: 12.0
             }
         );
+    }
+
+    #[test]
+    fn evaluations_are_read_from_what_the_tracker_prints() {
+        let log = "== attempt 1 of job box on h (Local): agentstar track …\ntracked 4 frames in 2.0 s (999 evaluations), initialised on f0; wrote x\n== attempt 2 of job box on h (Local): agentstar track …\ntrack: phase 1\ntracked 4 frames in 1.5 s (12345 evaluations), initialised on f0001; wrote /b/jobs/box/pose.json (version 1 of its history)\n";
+        assert_eq!(tracked_evaluations(last_attempt_log(log)), Some(12345));
+        assert_eq!(tracked_evaluations(log), Some(13344));
+        assert_eq!(
+            tracked_evaluations("tracked 2 frame(s) in 0.3 s (40 evaluations), initialised on a\n"),
+            Some(40)
+        );
+        assert_eq!(tracked_evaluations("== attempt 1\nkilled\n"), None);
+        assert_eq!(last_attempt_log("no attempts"), "no attempts");
     }
 
     #[test]

@@ -12,6 +12,60 @@ use std::time::{Duration, Instant};
 /// How to install COLMAP, for the message when it is missing.
 pub const INSTALL_HINT: &str = "install COLMAP: `apt install colmap` (Debian, Ubuntu), `brew install colmap` (macOS), `conda install -c conda-forge colmap`, or a release from https://github.com/colmap/colmap/releases; set AGENTSTAR_COLMAP to the executable when it is not on PATH";
 
+/// The longest `colmap help` may take to answer.
+pub const PROBE_LIMIT: Duration = Duration::from_secs(30);
+/// The most of the probe's output kept (COLMAP's help is a few kilobytes).
+const PROBE_BYTES: u64 = 1 << 20;
+
+/// Runs `program help` until it exits or `limit` passes (then it is killed): its exit status
+/// and (at most [`PROBE_BYTES`] of) its stdout.
+fn probe(program: &Path, limit: Duration) -> Result<(std::process::ExitStatus, Vec<u8>), SfmError> {
+    let missing = |reason: String| SfmError::ColmapMissing {
+        program: program.to_path_buf(),
+        reason,
+    };
+    let mut child = Command::new(program)
+        .arg("help")
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::null())
+        .env("QT_QPA_PLATFORM", "offscreen")
+        .spawn()
+        .map_err(|e| missing(e.to_string()))?;
+    // Read on a thread: a child of the program may hold the pipe open after it is killed,
+    // and the reader is then left behind rather than waited for.
+    let (tx, rx) = mpsc::channel::<Vec<u8>>();
+    if let Some(out) = child.stdout.take() {
+        std::thread::spawn(move || {
+            let mut buf = Vec::new();
+            let _ = out.take(PROBE_BYTES).read_to_end(&mut buf);
+            let _ = tx.send(buf);
+        });
+    }
+    let deadline = Instant::now() + limit;
+    let status = loop {
+        match child.try_wait() {
+            Ok(Some(status)) => break status,
+            Ok(None) => {}
+            Err(e) => return Err(missing(e.to_string())),
+        }
+        if Instant::now() >= deadline {
+            let _ = child.kill();
+            let _ = child.wait();
+            return Err(SfmError::ProbeTimedOut {
+                program: program.to_path_buf(),
+                seconds: limit.as_secs_f64(),
+            });
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    };
+    // The program exited; its output is whole once the pipe closes (bounded wait).
+    let stdout = rx
+        .recv_timeout(Duration::from_secs(2).min(limit.max(Duration::from_millis(200))))
+        .unwrap_or_default();
+    Ok((status, stdout))
+}
+
 /// Lines of output kept in memory for error messages (the whole output is in the log).
 const TAIL_LINES: usize = 15;
 /// Longest line kept (bytes); COLMAP's lines are short, so longer ones are cut.
@@ -26,22 +80,22 @@ pub struct Colmap {
 }
 
 impl Colmap {
-    /// Finds COLMAP: `explicit`, else `$AGENTSTAR_COLMAP`, else `colmap` on PATH.
+    /// Finds COLMAP: `explicit`, else `$AGENTSTAR_COLMAP`, else `colmap` on PATH; the probe
+    /// (`colmap help`) gets at most [`PROBE_LIMIT`].
     pub fn find(explicit: Option<&Path>) -> Result<Colmap, SfmError> {
+        Colmap::find_within(explicit, PROBE_LIMIT)
+    }
+
+    /// As [`Colmap::find`], with the probe stopped after `limit`: a program that does not
+    /// answer `help` (a hung COLMAP, a wrapper waiting for a display or a licence) is an
+    /// error that names the probe, never a hang.
+    pub fn find_within(explicit: Option<&Path>, limit: Duration) -> Result<Colmap, SfmError> {
         let program = explicit
             .map(Path::to_path_buf)
             .or_else(|| std::env::var_os("AGENTSTAR_COLMAP").map(PathBuf::from))
             .unwrap_or_else(|| PathBuf::from("colmap"));
-        let out = Command::new(&program)
-            .arg("help")
-            .stdin(Stdio::null())
-            .env("QT_QPA_PLATFORM", "offscreen")
-            .output()
-            .map_err(|e| SfmError::ColmapMissing {
-                program: program.clone(),
-                reason: e.to_string(),
-            })?;
-        let text = String::from_utf8_lossy(&out.stdout);
+        let (status, stdout) = probe(&program, limit)?;
+        let text = String::from_utf8_lossy(&stdout);
         let version = text
             .lines()
             .map(str::trim)
@@ -50,9 +104,8 @@ impl Colmap {
             .ok_or_else(|| SfmError::ColmapMissing {
                 program: program.clone(),
                 reason: format!(
-                    "`{} help` did not print COLMAP's banner (exit {})",
+                    "`{} help` did not print COLMAP's banner (exit {status})",
                     program.display(),
-                    out.status
                 ),
             })?;
         Ok(Colmap { program, version })
@@ -239,6 +292,31 @@ mod tests {
             c.by_name,
             vec![("000000.png".into(), 588), ("000001.png".into(), 12)]
         );
+    }
+
+    #[cfg(unix)]
+    #[test]
+    fn a_colmap_that_does_not_answer_the_probe_is_stopped_in_time() {
+        use std::os::unix::fs::PermissionsExt;
+        let dir = tempfile::tempdir().expect("tmp");
+        let fake = dir.path().join("colmap");
+        std::fs::write(&fake, "#!/bin/sh\nsleep 30\n").expect("write");
+        std::fs::set_permissions(&fake, std::fs::Permissions::from_mode(0o755)).expect("chmod");
+        let t0 = Instant::now();
+        let e = Colmap::find_within(Some(&fake), Duration::from_millis(500)).expect_err("hung");
+        assert!(t0.elapsed() < Duration::from_secs(5), "{:?}", t0.elapsed());
+        let m = e.to_string();
+        assert!(m.contains("help") && m.contains("did not answer"), "{m}");
+        // One that answers is found, with its banner's first words as the version.
+        let ok = dir.path().join("colmap-ok");
+        std::fs::write(
+            &ok,
+            "#!/bin/sh\necho 'COLMAP 3.9 -- Structure-from-Motion and Multi-View Stereo'\n",
+        )
+        .expect("write");
+        std::fs::set_permissions(&ok, std::fs::Permissions::from_mode(0o755)).expect("chmod");
+        let c = Colmap::find_within(Some(&ok), Duration::from_secs(10)).expect("found");
+        assert_eq!(c.version, "COLMAP 3.9");
     }
 
     #[test]

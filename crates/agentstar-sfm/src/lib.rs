@@ -57,6 +57,8 @@ pub enum SfmError {
         total: usize,
         missing_keyframes: Vec<String>,
     },
+    #[error("`{} help`, the probe that finds COLMAP, did not answer within {seconds:.0} s and was stopped: check that it is COLMAP and runs without a display, or point AGENTSTAR_COLMAP at one that does; {FALLBACK}", program.display())]
+    ProbeTimedOut { program: PathBuf, seconds: f64 },
     #[error("COLMAP {stage} ran past the time limit and was stopped (log: {}); allow more time (--sfm-time-limit-s) or use fewer frames (--sfm-max-frames)", log.display())]
     TimedOut { stage: String, log: PathBuf },
     #[error("COLMAP {stage} failed ({status}); log: {}; its last lines:\n{tail}", log.display())]
@@ -252,7 +254,13 @@ pub fn estimate_cameras(
             )));
         }
     }
-    let colmap = Colmap::find(job.colmap.as_deref())?;
+    // The probe is under the job's deadline too (and never longer than PROBE_LIMIT).
+    let colmap = Colmap::find_within(
+        job.colmap.as_deref(),
+        deadline
+            .saturating_duration_since(Instant::now())
+            .min(colmap::PROBE_LIMIT),
+    )?;
     let work = &job.work_dir;
     let masks_dir = work.join("masks");
     std::fs::create_dir_all(&masks_dir).map_err(|e| SfmError::io(&masks_dir, e))?;

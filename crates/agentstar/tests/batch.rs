@@ -179,6 +179,15 @@ fn gather_matches_eval(env: &[(&str, &str)], batch: &Path) {
             .parse()
             .expect("number");
         assert!(wall > 0.0, "{l}");
+        // The tracker's evaluations, from the job's log (they read 0 before).
+        let evals: u64 = l
+            .split('|')
+            .nth(6)
+            .expect("cell")
+            .trim()
+            .parse()
+            .expect("number");
+        assert!(evals > 0, "{l}");
     }
     // The killed job shows its two attempts.
     assert!(
@@ -385,4 +394,271 @@ fn a_batch_runs_as_a_slurm_array_resubmits_a_cancelled_task_and_gathers_the_tabl
     assert!(batch.join(format!("logs/slurm-{second}_1.log")).is_file());
 
     gather_matches_eval(&env, &batch);
+}
+
+/// One small synthetic capture at `dir/caps/box` (with model/ and gt.json).
+fn one_capture(dir: &Path) -> PathBuf {
+    let out = dir.join("caps").join("box");
+    let o = agentstar_in(
+        &[],
+        &[
+            "synth",
+            s(&out),
+            "--object",
+            "box",
+            "--frames",
+            "2",
+            "--size",
+            "64x48",
+            "--seed",
+            "3",
+        ],
+    );
+    assert!(o.status.success(), "{}", text(&o));
+    out
+}
+
+/// `batch plan CAPTURE --out OUT EXTRA…`: refused with exit 2, a message containing every
+/// `needle`, no panic, and nothing written.
+fn plan_refused(dir: &Path, capture: &Path, extra: &[&str], needles: &[&str]) {
+    let out = dir.join("refused");
+    let mut args = vec!["batch", "plan", s(capture), "--out", s(&out)];
+    args.extend(extra);
+    let o = agentstar_in(&[], &args);
+    let t = text(&o);
+    assert_eq!(o.status.code(), Some(2), "{extra:?}: {t}");
+    assert!(!t.contains("panicked"), "{t}");
+    for n in needles {
+        assert!(t.contains(n), "{extra:?}: `{n}` missing from: {t}");
+    }
+    assert!(!out.exists(), "{extra:?}: nothing is written");
+}
+
+#[test]
+fn plan_refuses_memory_time_and_cpus_out_of_range() {
+    let dir = tempfile::tempdir().expect("tmp");
+    let cap = one_capture(dir.path());
+    plan_refused(
+        dir.path(),
+        &cap,
+        &["--mem", "99999999999999T"],
+        &["--mem", "99999999999999T", "out of range"],
+    );
+    plan_refused(dir.path(), &cap, &["--mem", "1025T"], &["out of range"]);
+    plan_refused(dir.path(), &cap, &["--time", "0"], &["--time 0"]);
+    plan_refused(
+        dir.path(),
+        &cap,
+        &["--cpus-per-task", "0"],
+        &["--cpus-per-task 0"],
+    );
+    // The largest valid values are kept as given, not wrapped or raised.
+    let out = dir.path().join("b");
+    let v = json(&agentstar_in(
+        &[],
+        &[
+            "batch",
+            "plan",
+            s(&cap),
+            "--out",
+            s(&out),
+            "--mem",
+            "1024T",
+            "--time",
+            "1",
+            "--json",
+        ],
+    ));
+    assert_eq!(v["jobs"][0]["resources"]["mem_mb"], 1u64 << 30);
+    assert_eq!(v["jobs"][0]["resources"]["time_min"], 1);
+    // `batch slurm` refuses the same values when it overrides the plan's.
+    for (flag, value) in [
+        ("--time", "0"),
+        ("--cpus-per-task", "0"),
+        ("--mem", "99999999999999T"),
+    ] {
+        let o = agentstar_in(&[], &["batch", "slurm", s(&out), flag, value]);
+        assert_eq!(o.status.code(), Some(2), "{}", text(&o));
+        assert!(text(&o).contains(flag), "{}", text(&o));
+    }
+    assert!(!out.join("slurm/array-1.sbatch").exists());
+}
+
+#[test]
+fn plan_refuses_the_same_capture_given_twice() {
+    let dir = tempfile::tempdir().expect("tmp");
+    let cap = one_capture(dir.path());
+    let again = dir.path().join("caps").join("..").join("caps").join("box");
+    plan_refused(
+        dir.path(),
+        &cap,
+        &[s(&again)],
+        &["same capture", "give each capture once"],
+    );
+    #[cfg(unix)]
+    {
+        let link = dir.path().join("link");
+        std::os::unix::fs::symlink(&cap, &link).expect("symlink");
+        plan_refused(dir.path(), &cap, &[s(&link)], &["same capture"]);
+    }
+}
+
+#[test]
+fn plan_refuses_a_scene_that_is_not_a_regular_model_file() {
+    let dir = tempfile::tempdir().expect("tmp");
+    let cap = one_capture(dir.path());
+    let t0 = Instant::now();
+    plan_refused(
+        dir.path(),
+        &cap,
+        &["--scene", "/dev/zero", "--scale", "0.2"],
+        &["--scene /dev/zero", "not a regular file"],
+    );
+    #[cfg(unix)]
+    {
+        // A script name on a device is refused before it is read.
+        let link = dir.path().join("zero.rhai");
+        std::os::unix::fs::symlink("/dev/zero", &link).expect("symlink");
+        plan_refused(
+            dir.path(),
+            &cap,
+            &["--scene", s(&link), "--scale", "0.2"],
+            &["zero.rhai", "not a regular file"],
+        );
+    }
+    assert!(t0.elapsed() < Duration::from_secs(60), "bounded reads");
+    // A scene that does not build is refused at plan time too, not in every job.
+    let bad = dir.path().join("bad.rhai");
+    std::fs::write(&bad, "part(\"a\", box(1, 1);").expect("write");
+    plan_refused(
+        dir.path(),
+        &cap,
+        &["--scene", s(&bad), "--scale", "0.2"],
+        &["--scene", "bad.rhai"],
+    );
+}
+
+fn stderr_of(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+/// Rows of the per-sequence table in `gather`'s output.
+fn per_sequence_rows(gathered: &str) -> Vec<String> {
+    gathered
+        .lines()
+        .filter(|l| l.contains("| track | 4 |"))
+        .map(str::to_string)
+        .collect()
+}
+
+#[test]
+fn a_finished_job_whose_result_is_damaged_runs_again_and_gather_tables_the_rest() {
+    let dir = tempfile::tempdir().expect("tmp");
+    let batch = planned_batch(dir.path());
+    let v = json(&agentstar_in(
+        &[],
+        &["batch", "local", s(&batch), "-j", "3", "--json"],
+    ));
+    assert_eq!(v["summary"], "3 jobs: 3 finished");
+    // The finishing attempt recorded its result's size and digest.
+    let record: Value = serde_json::from_str(
+        &std::fs::read_to_string(batch.join("jobs/box/record.json")).expect("record"),
+    )
+    .expect("json");
+    let outputs = &record["attempts"][0]["outputs"];
+    assert_eq!(outputs[0]["path"], "jobs/box/pose.json", "{record}");
+    assert_eq!(outputs[0]["sha256"].as_str().map(str::len), Some(64));
+
+    let pose = |job: &str| batch.join("jobs").join(job).join("pose.json");
+    let text_box = std::fs::read(pose("box")).expect("pose");
+    std::fs::write(pose("box"), &text_box[..text_box.len() / 2]).expect("truncate");
+    std::fs::write(pose("laptop"), b"").expect("empty");
+    let o = agentstar_in(&[], &["batch", "status", s(&batch), "--json"]);
+    let err = stderr_of(&o);
+    let st = states(&[], &batch);
+    assert_eq!(
+        st.iter().map(|(_, s, _)| s.as_str()).collect::<Vec<_>>(),
+        ["damaged", "damaged", "finished"],
+        "{err}"
+    );
+    assert!(
+        err.contains("job box: jobs/box/pose.json was changed")
+            && err.contains("job laptop: jobs/laptop/pose.json was emptied")
+            && err.contains("runs again"),
+        "{err}"
+    );
+
+    // gather tables what it can read and names what it cannot.
+    let g = agentstar_in(&[], &["batch", "gather", s(&batch), "--samples", "300"]);
+    assert!(g.status.success(), "{}", text(&g));
+    let gathered = String::from_utf8_lossy(&g.stdout).into_owned();
+    let rows = per_sequence_rows(&gathered);
+    assert_eq!(rows.len(), 1, "{gathered}");
+    assert!(rows[0].contains("mug"), "{gathered}");
+    assert!(
+        stderr_of(&g).contains("job box: damaged; not evaluated"),
+        "{}",
+        text(&g)
+    );
+    assert!(
+        gathered.contains("| box | track | damaged | 1 |"),
+        "{gathered}"
+    );
+
+    // Only the damaged jobs need a run, and `batch local` reruns them.
+    let o = agentstar_in(&[], &["batch", "slurm", s(&batch), "--json"]);
+    assert_eq!(json(&o)["tasks"], serde_json::json!([0, 1]));
+    let v = json(&agentstar_in(&[], &["batch", "local", s(&batch), "--json"]));
+    assert_eq!(v["summary"], "3 jobs: 3 finished");
+    let attempts: Vec<u64> = v["jobs"]
+        .as_array()
+        .expect("jobs")
+        .iter()
+        .map(|j| j["attempts"].as_u64().expect("n"))
+        .collect();
+    assert_eq!(attempts, [2, 2, 1]);
+    assert_eq!(
+        std::fs::read(batch.join("jobs/box/pose.json.damaged")).expect("kept aside"),
+        &text_box[..text_box.len() / 2]
+    );
+
+    // A result swapped for another valid pose file, or deleted, is caught as well.
+    std::fs::copy(pose("mug"), pose("box")).expect("swap");
+    std::fs::remove_file(pose("laptop")).expect("delete");
+    let o = agentstar_in(&[], &["batch", "status", s(&batch)]);
+    let err = stderr_of(&o);
+    assert!(
+        err.contains("jobs/box/pose.json was changed")
+            && err.contains("jobs/laptop/pose.json was deleted"),
+        "{err}"
+    );
+    let o = agentstar_in(&[], &["batch", "exec", s(&batch), "--job", "box"]);
+    assert!(o.status.success(), "{}", text(&o));
+    assert!(text(&o).contains("running it again"), "{}", text(&o));
+    let v = json(&agentstar_in(&[], &["batch", "local", s(&batch), "--json"]));
+    assert_eq!(v["summary"], "3 jobs: 3 finished");
+
+    // A run that cannot be read at all (its ground truth gone) is named; the rest are tabled.
+    std::fs::remove_file(dir.path().join("caps/mug/gt.json")).expect("rm gt");
+    let g = agentstar_in(
+        &[],
+        &["batch", "gather", s(&batch), "--samples", "300", "--json"],
+    );
+    let v = json(&g);
+    assert_eq!(
+        v["results"].as_array().map(Vec::len),
+        Some(2),
+        "{}",
+        text(&g)
+    );
+    assert_eq!(v["unreadable"][0]["job"], "mug", "{v}");
+    assert!(
+        stderr_of(&g).contains("job mug: cannot read its run"),
+        "{}",
+        text(&g)
+    );
+    let runs: Value =
+        serde_json::from_str(&std::fs::read_to_string(batch.join("runs.json")).expect("runs"))
+            .expect("json");
+    assert_eq!(runs.as_array().map(Vec::len), Some(2));
 }

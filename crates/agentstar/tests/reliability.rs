@@ -85,6 +85,30 @@ fn a_closed_stdout_ends_quietly() {
     assert_eq!(o.status.code(), Some(141), "{err}");
 }
 
+/// `agentstar completions bash | head -c 10`: clap_complete's writer used to panic on the
+/// closed pipe (exit 101); the script is written like every other output.
+#[test]
+fn completions_on_a_closed_stdout_end_quietly() {
+    for shell in ["bash", "zsh", "fish"] {
+        let (reader, writer) = std::io::pipe().expect("pipe");
+        drop(reader);
+        let o = Command::new(env!("CARGO_BIN_EXE_agentstar"))
+            .args(["completions", shell])
+            .stdout(writer)
+            .stderr(Stdio::piped())
+            .output()
+            .expect("run");
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(!err.contains("panicked"), "{shell}: {err}");
+        assert!(err.is_empty(), "{shell}: quiet: {err}");
+        assert_eq!(o.status.code(), Some(141), "{shell}: {err}");
+    }
+    // Read to the end, the script is whole.
+    let o = agentstar(&["completions", "bash"]);
+    assert!(o.status.success(), "{}", text(&o));
+    assert!(String::from_utf8_lossy(&o.stdout).contains("complete -F"));
+}
+
 #[cfg(unix)]
 #[test]
 fn paths_that_are_not_utf8_are_refused_before_anything_is_written() {

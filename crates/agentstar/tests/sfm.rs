@@ -371,3 +371,72 @@ fn without_colmap_the_command_says_how_to_install_it() {
     assert!(err.contains("--fov"), "{err}");
     assert!(!cap.exists());
 }
+
+/// A `colmap` that never answers its probe (`colmap help`) used to hang `capture
+/// from-video --cameras sfm` whatever `--sfm-time-limit-s` said; the probe is under the
+/// deadline and the error names it.
+#[cfg(unix)]
+#[test]
+fn a_colmap_that_hangs_on_its_probe_fails_within_the_time_limit() {
+    use std::os::unix::fs::PermissionsExt;
+    let dir = tempfile::tempdir().expect("tmp");
+    let clip = synthesize_room_clip(&RoomConfig {
+        frames: 4,
+        keyframe_every: 2,
+        width: 96,
+        height: 72,
+        ..RoomConfig::default()
+    })
+    .expect("clip");
+    write_clip(dir.path(), &clip);
+    let bin = dir.path().join("bin");
+    std::fs::create_dir_all(&bin).expect("mkdir");
+    let fake = bin.join("colmap");
+    std::fs::write(&fake, "#!/bin/sh\nexec sleep 600\n").expect("write");
+    std::fs::set_permissions(&fake, std::fs::Permissions::from_mode(0o755)).expect("chmod");
+    let path = format!(
+        "{}:{}",
+        bin.display(),
+        std::env::var("PATH").unwrap_or_default()
+    );
+    let cap = dir.path().join("cap");
+    let mut child = Command::new(env!("CARGO_BIN_EXE_agentstar"))
+        .args([
+            "capture",
+            "from-video",
+            s(&dir.path().join("frames")),
+            "--masks",
+            s(&dir.path().join("masks")),
+            "--every",
+            "2",
+            "--cameras",
+            "sfm",
+            "--sfm-time-limit-s",
+            "2",
+            "--out",
+            s(&cap),
+        ])
+        .env("PATH", path)
+        .env_remove("AGENTSTAR_COLMAP")
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .expect("spawn");
+    let t0 = std::time::Instant::now();
+    while child.try_wait().expect("wait").is_none() {
+        if t0.elapsed() > std::time::Duration::from_secs(60) {
+            let _ = child.kill();
+            let _ = child.wait();
+            panic!("capture from-video hung on the colmap probe");
+        }
+        std::thread::sleep(std::time::Duration::from_millis(50));
+    }
+    let o = child.wait_with_output().expect("output");
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success(), "{err}");
+    assert!(
+        err.contains("help") && err.contains("did not answer within 2 s"),
+        "{err}"
+    );
+    assert!(!cap.exists());
+}

@@ -11,7 +11,7 @@ use agentstar_batch::state::summary;
 use agentstar_batch::table::{jobs_table, AgentSpend, JobRow};
 use agentstar_batch::{
     classify, plan, Exit, JobRecord, JobSpec, JobState, Manifest, Method, MethodPlan, Observation,
-    PlanConfig, Queue, Resources, Runner,
+    OutputDigest, OutputNow, PlanConfig, Queue, Resources, Runner,
 };
 use agentstar_bench::table::tables;
 use anyhow::{anyhow, bail, Context, Result};
@@ -245,6 +245,96 @@ impl Batch {
         Ok(agentstar_data::atomic::write_json(&self.record_path(j), r)?)
     }
 
+    /// The job's result files inside the batch (relative): its poses and, for an agent
+    /// run, its scene. A track job's known model is an input, not a result.
+    fn outputs(&self, j: &JobSpec) -> Vec<PathBuf> {
+        let mut v = vec![j.poses.clone()];
+        if j.model.is_relative() && j.model != j.poses {
+            v.push(j.model.clone());
+        }
+        v
+    }
+
+    /// What a result file is now: its size and SHA-256, or missing.
+    fn output_now(&self, rel: &Path) -> Result<OutputNow> {
+        use sha2::{Digest, Sha256};
+        use std::io::Read;
+        let path = self.dir.join(rel);
+        match std::fs::metadata(&path) {
+            Ok(m) if m.is_file() => {}
+            _ => return Ok(OutputNow::Missing),
+        }
+        let mut file = std::fs::File::open(&path)
+            .with_context(|| format!("{}: cannot read", path.display()))?;
+        let mut hasher = Sha256::new();
+        let mut buf = vec![0u8; 1 << 16];
+        let mut bytes = 0u64;
+        loop {
+            let n = file
+                .read(&mut buf)
+                .with_context(|| format!("{}: cannot read", path.display()))?;
+            if n == 0 {
+                break;
+            }
+            bytes += n as u64;
+            hasher.update(&buf[..n]);
+        }
+        let sha256 = hasher
+            .finalize()
+            .iter()
+            .map(|b| format!("{b:02x}"))
+            .collect();
+        Ok(OutputNow::Present { bytes, sha256 })
+    }
+
+    /// The digests of the job's result files as they are now (those that exist).
+    fn digests(&self, j: &JobSpec) -> Result<Vec<OutputDigest>> {
+        let mut v = vec![];
+        for rel in self.outputs(j) {
+            if let OutputNow::Present { bytes, sha256 } = self.output_now(&rel)? {
+                v.push(OutputDigest {
+                    path: rel,
+                    bytes,
+                    sha256,
+                });
+            }
+        }
+        Ok(v)
+    }
+
+    /// Why a finished job's results are no longer what it left (`None`: intact, or not
+    /// finished). A record from before digests were kept is checked for a missing or empty
+    /// result only.
+    fn damage(&self, j: &JobSpec, r: &JobRecord) -> Result<Option<String>> {
+        if !r.finished() {
+            return Ok(None);
+        }
+        let recorded = r.outputs();
+        let mut paths = self.outputs(j);
+        for d in recorded {
+            if !paths.contains(&d.path) {
+                paths.push(d.path.clone());
+            }
+        }
+        for rel in paths {
+            let now = self.output_now(&rel)?;
+            let why = match recorded.iter().find(|d| d.path == rel) {
+                Some(d) => d.damage(&now),
+                None => match now {
+                    OutputNow::Missing => Some(format!("{} is missing", rel.display())),
+                    OutputNow::Present { bytes: 0, .. } => {
+                        Some(format!("{} is empty", rel.display()))
+                    }
+                    OutputNow::Present { .. } => None,
+                },
+            };
+            if why.is_some() {
+                return Ok(why);
+            }
+        }
+        Ok(None)
+    }
+
     fn submissions(&self) -> Result<Submissions> {
         let p = self.submissions_path();
         if !p.is_file() {
@@ -319,6 +409,24 @@ fn absolute(p: &Path) -> Result<PathBuf> {
         .with_context(|| format!("{}: not found", p.display()))
 }
 
+/// `--scene`: a model file that loads now, not in every job later. Only a regular file is
+/// read, and only as far as its kind's limit (`/dev/zero`, a FIFO or a directory is refused
+/// before anything is read).
+fn checked_scene(p: &Path) -> Result<PathBuf> {
+    let path = absolute(p)?;
+    let meta = std::fs::metadata(&path)
+        .with_context(|| format!("--scene {}: cannot read", p.display()))?;
+    if !meta.is_file() {
+        bail!(
+            "--scene {}: not a regular file (a directory, device, FIFO or socket); give a scene script (.rhai), a URDF or a mesh",
+            p.display()
+        );
+    }
+    agentstar_data::scenefile::load_model(&path)
+        .map_err(|e| anyhow!("--scene {}: {e}", p.display()))?;
+    Ok(path)
+}
+
 fn run_plan(a: PlanArgs) -> Result<ExitCode> {
     let method = a.method;
     if method == MethodArg::Track && (a.model.is_some() || a.base_url.is_some()) {
@@ -330,9 +438,19 @@ fn run_plan(a: PlanArgs) -> Result<ExitCode> {
         }
     }
     // Everything is checked before anything is written.
-    let mut captures = Vec::with_capacity(a.captures.len());
-    for c in &a.captures {
+    let mut captures: Vec<CaptureInput> = Vec::with_capacity(a.captures.len());
+    for (k, c) in a.captures.iter().enumerate() {
         let path = absolute(c)?;
+        // The same capture under two spellings (`caps/box caps/../caps/box`, a symlink)
+        // would be two jobs on one capture, counted twice in the tables.
+        if let Some(first) = captures.iter().position(|x| x.path == path) {
+            bail!(
+                "{} and {} are the same capture ({}); give each capture once",
+                a.captures[first].display(),
+                a.captures[k].display(),
+                path.display()
+            );
+        }
         agentstar_data::capture::Capture::open(&path).map_err(|problems| {
             anyhow!(
                 "{}: not a valid capture ({} problem(s); run `agentstar validate {}`): {}",
@@ -352,7 +470,7 @@ fn run_plan(a: PlanArgs) -> Result<ExitCode> {
             path,
         });
     }
-    let scene = a.scene.as_deref().map(absolute).transpose()?;
+    let scene = a.scene.as_deref().map(checked_scene).transpose()?;
     let method_plan = match method {
         MethodArg::Track => {
             for c in &captures {
@@ -399,10 +517,11 @@ fn run_plan(a: PlanArgs) -> Result<ExitCode> {
     };
     let defaults = Resources::default_for(batch_method);
     let resources = Resources {
-        time_min: a.time.unwrap_or(defaults.time_min).max(1),
-        cpus_per_task: a.cpus_per_task.unwrap_or(defaults.cpus_per_task).max(1),
+        time_min: a.time.unwrap_or(defaults.time_min),
+        cpus_per_task: a.cpus_per_task.unwrap_or(defaults.cpus_per_task),
         mem_mb: mem_flag(a.mem.as_deref())?.unwrap_or(defaults.mem_mb),
     };
+    resources.check()?;
     if a.out.exists()
         && std::fs::read_dir(&a.out)
             .with_context(|| format!("{}: cannot list", a.out.display()))?
@@ -668,12 +787,32 @@ fn states(batch: &Batch) -> Result<(Vec<Option<JobRecord>>, Vec<JobState>)> {
         .collect::<Result<_>>()?;
     let view = scheduler_view(batch, &records)?;
     let host = host_name();
-    let states = batch
+    let damaged: Vec<bool> = batch
         .manifest
         .jobs
         .iter()
         .zip(&records)
         .map(|(j, r)| {
+            let Some(r) = r else { return Ok(false) };
+            Ok(match batch.damage(j, r)? {
+                Some(why) => {
+                    eprintln!(
+                        "note: job {}: {why}; it no longer counts as finished and runs again",
+                        j.name
+                    );
+                    true
+                }
+                None => false,
+            })
+        })
+        .collect::<Result<_>>()?;
+    let states = batch
+        .manifest
+        .jobs
+        .iter()
+        .zip(&records)
+        .zip(&damaged)
+        .map(|((j, r), &damaged)| {
             let last = r.as_ref().and_then(JobRecord::last);
             let task = j.index as u64;
             let queue = match &view.queue {
@@ -694,6 +833,7 @@ fn states(batch: &Batch) -> Result<(Vec<Option<JobRecord>>, Vec<JobState>)> {
                 accounting: slurm::task_state(&view.accounting, &view.job_ids, task)
                     .map(|t| t.state.as_str()),
                 alive,
+                damaged,
             })
         })
         .collect();
@@ -833,14 +973,15 @@ fn run_slurm(a: SlurmArgs) -> Result<ExitCode> {
     }
     let mut resources = batch.resources();
     if let Some(t) = a.time {
-        resources.time_min = t.max(1);
+        resources.time_min = t;
     }
     if let Some(c) = a.cpus_per_task {
-        resources.cpus_per_task = c.max(1);
+        resources.cpus_per_task = c;
     }
     if let Some(m) = mem_flag(a.mem.as_deref())? {
         resources.mem_mb = m;
     }
+    resources.check()?;
     let agentstar = match &a.agentstar {
         Some(p) => absolute(p)?,
         None => std::env::current_exe().context("finding the agentstar executable")?,
@@ -980,8 +1121,27 @@ fn run_exec(a: ExecArgs) -> Result<ExitCode> {
     };
     let mut record = batch.record(j)?.unwrap_or_default();
     if record.finished() {
-        eprintln!("job {}: already finished; nothing to do", j.name);
-        return Ok(ExitCode::SUCCESS);
+        match batch.damage(j, &record)? {
+            None => {
+                eprintln!("job {}: already finished; nothing to do", j.name);
+                return Ok(ExitCode::SUCCESS);
+            }
+            Some(why) => {
+                eprintln!("note: job {}: {why}; running it again", j.name);
+                // A track job starts over: what is left of its poses is kept aside, for a
+                // look, and does not stand in the new run's way.
+                if j.method == Method::Track {
+                    let poses = batch.dir.join(&j.poses);
+                    if poses.exists() {
+                        let aside = poses.with_extension("json.damaged");
+                        std::fs::rename(&poses, &aside).with_context(|| {
+                            format!("{}: cannot move it aside", poses.display())
+                        })?;
+                        eprintln!("note: job {}: kept as {}", j.name, aside.display());
+                    }
+                }
+            }
+        }
     }
     let host = host_name();
     if let Some(last) = record.last() {
@@ -1052,7 +1212,13 @@ fn run_exec(a: ExecArgs) -> Result<ExitCode> {
     batch.write_record(j, &record)?;
     let status = child.wait().context("waiting for the job's command")?;
     let exit = exit_of(status);
-    record.end(exit, now_unix_s());
+    // The results as the job left them, so that a later change to them is noticed.
+    let outputs = if exit.success() {
+        batch.digests(j)?
+    } else {
+        vec![]
+    };
+    record.end_with(exit, now_unix_s(), outputs);
     batch.write_record(j, &record)?;
     let wall = record.last().and_then(|a| a.wall_s()).unwrap_or(0.0);
     eprintln!(
@@ -1143,6 +1309,26 @@ fn run_local(a: LocalArgs) -> Result<ExitCode> {
 // ---------------------------------------------------------------------------------------
 // gather
 
+/// The tracker's evaluations in a finished job: what `agentstar track` printed in the last
+/// attempt's log (track), or the agent's `track` calls in its ledger (agent).
+fn evaluations(batch: &Batch, j: &JobSpec) -> Option<u64> {
+    use agentstar_batch::table::{last_attempt_log, tracked_evaluations};
+    match j.method {
+        Method::Track => {
+            let log = agentstar_data::read_text(&batch.log_path(j)).ok()?;
+            tracked_evaluations(last_attempt_log(&log))
+        }
+        Method::Agent => {
+            let run = RunDir::open(&batch.job_dir(j)).ok()?;
+            let (entries, _) = agentstar_data::ledger::read(&run.ledger_path()).ok()?;
+            entries
+                .iter()
+                .filter_map(|e| tracked_evaluations(&e.summary))
+                .reduce(|a, b| a + b)
+        }
+    }
+}
+
 fn run_gather(a: GatherArgs) -> Result<ExitCode> {
     let batch = Batch::open(&a.batch)?;
     let (records, states) = states(&batch)?;
@@ -1150,15 +1336,19 @@ fn run_gather(a: GatherArgs) -> Result<ExitCode> {
     let mut entries = Vec::new();
     for ((j, state), row) in batch.manifest.jobs.iter().zip(&states).zip(&rows) {
         match (state, &j.gt) {
-            (JobState::Finished, Some(gt)) => entries.push(crate::cmd::eval::BatchEntry {
-                capture: j.capture.clone(),
-                model: j.model.clone(),
-                poses: j.poses.clone(),
-                gt: Some(gt.clone()),
-                label: Some(batch.manifest.label.clone()),
-                family: None,
-                seconds: row.wall_s,
-            }),
+            (JobState::Finished, Some(gt)) => entries.push((
+                j,
+                crate::cmd::eval::BatchEntry {
+                    capture: j.capture.clone(),
+                    model: j.model.clone(),
+                    poses: j.poses.clone(),
+                    gt: Some(gt.clone()),
+                    label: Some(batch.manifest.label.clone()),
+                    family: None,
+                    seconds: row.wall_s,
+                    evaluations: evaluations(&batch, j),
+                },
+            )),
             (JobState::Finished, None) => {
                 eprintln!(
                     "job {}: finished, but its capture has no gt.json; not evaluated",
@@ -1175,19 +1365,55 @@ fn run_gather(a: GatherArgs) -> Result<ExitCode> {
             summary(&states)
         );
     }
+    // Each run on its own: one that cannot be read (its capture or model changed since, a
+    // result damaged past what the digests see) is reported and the rest are tabled.
+    let mut results = Vec::with_capacity(entries.len());
+    let mut eval_reports = Vec::with_capacity(entries.len());
+    let mut evaluated = Vec::with_capacity(entries.len());
+    let mut unreadable = Vec::new();
+    let n = entries.len();
+    for (i, (j, e)) in entries.into_iter().enumerate() {
+        eprintln!("eval [{}/{n}] job {}", i + 1, j.name);
+        match crate::cmd::eval::entry_result(&batch.dir, &e, a.samples) {
+            Ok((r, report)) => {
+                results.push(r);
+                eval_reports.push(report);
+                evaluated.push(e);
+            }
+            Err(err) => {
+                eprintln!(
+                    "job {}: cannot read its run: {err:#}; not evaluated",
+                    j.name
+                );
+                unreadable.push(serde_json::json!({"job": j.name, "error": format!("{err:#}")}));
+            }
+        }
+    }
+    if evaluated.is_empty() {
+        bail!(
+            "{}: none of the finished jobs' runs could be read ({} job(s); see above)",
+            batch.dir.display(),
+            unreadable.len()
+        );
+    }
     // The runs in `eval --batch` form, so that the tables can be made again from the files.
     let runs = batch.dir.join("runs.json");
-    agentstar_data::atomic::write_json(&runs, &entries)?;
+    agentstar_data::atomic::write_json(&runs, &evaluated)?;
     eprintln!(
-        "gather: {} run(s) in {} (the same as `agentstar eval --batch {} --per-sequence`)",
-        entries.len(),
+        "gather: {} run(s) in {} (the same as `agentstar eval --batch {} --per-sequence`){}",
+        evaluated.len(),
         runs.display(),
-        runs.display()
+        runs.display(),
+        if unreadable.is_empty() {
+            String::new()
+        } else {
+            format!("; {} job(s) could not be read", unreadable.len())
+        }
     );
-    let (results, eval_reports) = crate::cmd::eval::batch_results(&runs, a.samples)?;
     if a.json {
         print_json(&serde_json::json!({
-            "results": eval_reports, "summary": summary(&states), "jobs": reports(&batch, &rows)
+            "results": eval_reports, "summary": summary(&states), "jobs": reports(&batch, &rows),
+            "unreadable": unreadable
         }))?;
     } else {
         print!("{}", tables(&results, true));

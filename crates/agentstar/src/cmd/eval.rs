@@ -31,7 +31,8 @@ pub struct Args {
     #[arg(long)]
     gt: Option<PathBuf>,
     /// A JSON list of runs to evaluate together (capture, model, poses; optional gt, label,
-    /// family: arctic, hot3d or itaco, seconds of wall time); prints the paper's tables.
+    /// family: arctic, hot3d or itaco, seconds of wall time, the tracker's evaluations);
+    /// prints the paper's tables.
     #[arg(long, conflicts_with_all = ["capture", "model", "poses", "gt"])]
     batch: Option<PathBuf>,
     /// With --batch: a row per sequence in the tables.
@@ -61,6 +62,9 @@ pub(crate) struct BatchEntry {
     /// The run's wall time in seconds, for the tables' wall-time columns.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub(crate) seconds: Option<f64>,
+    /// The tracker's evaluations in the run, for the per-sequence table.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub(crate) evaluations: Option<u64>,
 }
 
 /// The metrics of one run, and the ground truth's joints for the table rows.
@@ -179,33 +183,52 @@ pub(crate) fn batch_results(
     let mut reports = Vec::with_capacity(entries.len());
     let bar = crate::common::progress(entries.len(), "eval");
     for (i, e) in entries.iter().enumerate() {
-        let (capture, model, poses) = (
-            base.join(&e.capture),
-            base.join(&e.model),
-            base.join(&e.poses),
-        );
-        let s = Session::open(&capture, &model, &poses)
+        bar.suspend(|| {
+            eprintln!(
+                "eval [{}/{}] {}",
+                i + 1,
+                entries.len(),
+                base.join(&e.capture).display()
+            )
+        });
+        let (r, report) = entry_result(base, e, samples)
             .with_context(|| format!("{}: run {}", path.display(), i + 1))?;
-        let gt =
-            e.gt.as_ref()
-                .map_or_else(|| capture.join("gt.json"), |g| base.join(g));
-        bar.suspend(|| eprintln!("eval [{}/{}] {}", i + 1, entries.len(), capture.display()));
-        let (mut r, report) = result_of(
-            &s,
-            &capture,
-            &model,
-            &poses,
-            &gt,
-            e.label.as_deref().unwrap_or("run"),
-            e.family.as_deref(),
-            samples,
-        )
-        .with_context(|| format!("{}: run {}", path.display(), i + 1))?;
-        r.seconds = e.seconds.unwrap_or(0.0);
         results.push(r);
         reports.push(report);
     }
     Ok((results, reports))
+}
+
+/// One entry of a `--batch` file evaluated (relative paths are relative to `base`).
+pub(crate) fn entry_result(
+    base: &Path,
+    e: &BatchEntry,
+    samples: usize,
+) -> Result<(SequenceResult, EvalReport)> {
+    let (capture, model, poses) = (
+        base.join(&e.capture),
+        base.join(&e.model),
+        base.join(&e.poses),
+    );
+    let s = Session::open(&capture, &model, &poses)?;
+    let gt =
+        e.gt.as_ref()
+            .map_or_else(|| capture.join("gt.json"), |g| base.join(g));
+    let (mut r, report) = result_of(
+        &s,
+        &capture,
+        &model,
+        &poses,
+        &gt,
+        e.label.as_deref().unwrap_or("run"),
+        e.family.as_deref(),
+        samples,
+    )?;
+    r.seconds = e.seconds.unwrap_or(0.0);
+    r.evaluations = e
+        .evaluations
+        .map_or(0, |n| usize::try_from(n).unwrap_or(usize::MAX));
+    Ok((r, report))
 }
 
 fn run_batch(a: &Args, path: &Path) -> Result<ExitCode> {
