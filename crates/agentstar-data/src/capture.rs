@@ -81,6 +81,9 @@ pub struct Capture {
     pub ref_index: usize,
     /// Non-fatal observations made while opening (shared camera, rescaled intrinsics…).
     pub notes: Vec<String>,
+    /// Things that are probably wrong but do not stop the capture from being read (times
+    /// that do not fit the frame numbers).
+    pub warnings: Vec<String>,
 }
 
 /// A problem found in a capture.
@@ -862,11 +865,88 @@ fn open_inner(dir: &Path, c: &mut Collector, check_files: bool) -> Option<Captur
             time_s: times[fi],
         });
     }
+    let stated_fps = manifest
+        .source
+        .as_ref()
+        .and_then(|s| s.get("fps"))
+        .and_then(|f| f.as_f64());
+    let warnings = timing_warnings(&frames, stated_fps);
     Some(Capture {
         dir: dir.to_path_buf(),
         manifest,
         frames,
         ref_index: ref_index.unwrap_or(0),
         notes,
+        warnings,
     })
+}
+
+/// Frame rates of video that a keyframe step of one frame gives away.
+const VIDEO_RATES: [f64; 5] = [24.0, 25.0, 30.0, 50.0, 60.0];
+
+/// Warnings about `time_s` that does not fit the frames' numbers (their integer stems, the
+/// frame index in the video): against the frame rate the capture states (`source.fps`), or,
+/// without one, frames whose names are several frames apart but whose times are exactly one
+/// video frame apart (times that count keyframes, not video frames).
+pub fn timing_warnings(frames: &[Frame], stated_fps: Option<f64>) -> Vec<String> {
+    let steps: Vec<(&Frame, &Frame, f64, f64)> = frames
+        .windows(2)
+        .filter_map(|w| {
+            let (a, b) = (&w[0], &w[1]);
+            let dt = b.time_s? - a.time_s?;
+            let dn = b.number.checked_sub(a.number)? as f64;
+            Some((a, b, dn, dt))
+        })
+        .collect();
+    let mut out = vec![];
+    let say = |bad: &[&(&Frame, &Frame, f64, f64)], what: String| -> String {
+        format!(
+            "{what} ({} of {} steps between frames; time_s is in tracking/keyframes.json)",
+            bad.len(),
+            steps.len()
+        )
+    };
+    match stated_fps.filter(|f| f.is_finite() && *f > 0.0) {
+        Some(fps) => {
+            let bad: Vec<_> = steps
+                .iter()
+                .filter(|(_, _, dn, dt)| (dt - dn / fps).abs() > 0.01 * dn / fps + 1e-6)
+                .collect();
+            if let Some((a, b, dn, dt)) = bad.first() {
+                out.push(say(
+                    &bad,
+                    format!(
+                        "time_s does not fit the stated {fps} fps: frames `{}` and `{}` are {dn} frame numbers apart ({:.4} s at {fps} fps) but {dt:.4} s apart in time",
+                        a.name,
+                        b.name,
+                        dn / fps
+                    ),
+                ));
+            }
+        }
+        None => {
+            let one_frame = |dt: f64| {
+                VIDEO_RATES
+                    .iter()
+                    .find(|r| (dt * **r - 1.0).abs() < 0.005)
+                    .copied()
+            };
+            let bad: Vec<_> = steps
+                .iter()
+                .filter(|(_, _, dn, dt)| (2.0..=1000.0).contains(dn) && one_frame(*dt).is_some())
+                .collect();
+            if let Some((a, b, dn, dt)) = bad.first() {
+                out.push(say(
+                    &bad,
+                    format!(
+                        "frames `{}` and `{}` are {dn} frame numbers apart but their times are {dt:.4} s apart, one video frame at {} fps: time_s seems to count keyframes, not video frames",
+                        a.name,
+                        b.name,
+                        one_frame(*dt).unwrap_or(30.0)
+                    ),
+                ));
+            }
+        }
+    }
+    out
 }

@@ -2,9 +2,11 @@
 //! masks from any segmenter's output folder, and cameras from COLMAP, nerfstudio or one
 //! static pinhole camera.
 //!
-//! Masks (and hand masks) are matched to frames by file stem (`000012.png` ↔ `000012.*` or
-//! `000012_mask.*`), else by order when the folder holds exactly as many images as frames
-//! before subsampling. Frames are numbered by their index in the video or folder.
+//! Frames keep their numbers: a video's frames are named by their index in the video, and a
+//! folder whose file stems are all integers (`000120.jpg`) keeps them (stems, `frame_index`,
+//! `time_s = number / fps`); other names are numbered 0, 1, 2, … in natural order, with a note.
+//! Masks (and hand masks) are matched to frames by file stem only ([`MaskFolder`]): a frame
+//! without its own object mask is an error; one without a hand mask shows no hands.
 
 use crate::cameras::{read_colmap, read_nerfstudio, rescaled, CameraSet};
 use agentstar_data::capture_writer::{write_capture, CaptureInfo, FrameOut};
@@ -50,6 +52,9 @@ const IMAGE_EXTS: [&str; 6] = ["png", "jpg", "jpeg", "bmp", "tif", "tiff"];
 /// The image files of a folder in natural order (by the number in the stem when every stem has
 /// one, else by name).
 pub fn images_in(dir: &Path) -> Result<Vec<PathBuf>> {
+    if !dir.is_dir() {
+        return Err(DataError::invalid(dir, "no such folder"));
+    }
     let mut v: Vec<PathBuf> = std::fs::read_dir(dir)
         .map_err(|e| DataError::io(dir, e))?
         .filter_map(|e| e.ok().map(|e| e.path()))
@@ -81,6 +86,20 @@ pub fn stem(p: &Path) -> String {
         .to_string()
 }
 
+/// The frame number a file stem states: the whole stem when it is an integer (`000120`).
+pub fn stem_number(stem: &str) -> Option<u64> {
+    if stem.is_empty() || !stem.bytes().all(|b| b.is_ascii_digit()) {
+        return None;
+    }
+    stem.parse().ok()
+}
+
+/// What may follow a frame's stem in a mask's name (`000120_mask.png`).
+const SEPARATORS: [char; 3] = ['_', '-', '.'];
+
+/// Frames numbered past this are refused (their times and indices would lose precision).
+const MAX_FRAME_NUMBER: u64 = 1 << 40;
+
 /// Extracts every frame of a video with ffmpeg into `dir` as PNGs.
 fn extract(video: &Path, dir: &Path) -> Result<()> {
     let out = std::process::Command::new("ffmpeg")
@@ -109,48 +128,117 @@ fn extract(video: &Path, dir: &Path) -> Result<()> {
     Ok(())
 }
 
-/// Finds the mask of frame `frame_stem` (position `index` among all frames) in `files`.
-pub fn match_mask<'a>(
-    files: &'a [PathBuf],
-    frame_stem: &str,
-    index: usize,
-    total: usize,
-) -> Option<&'a PathBuf> {
-    files
-        .iter()
-        .find(|p| stem(p) == frame_stem)
-        .or_else(|| {
-            files.iter().find(|p| {
-                let s = stem(p);
-                s.starts_with(frame_stem) && s[frame_stem.len()..].starts_with(['_', '-', '.'])
-            })
-        })
-        .or_else(|| (files.len() == total).then(|| &files[index]))
+/// How a capture's frames got their numbers.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Numbering {
+    /// Every file stem is an integer (a video's frames are named by their index): kept.
+    Stems,
+    /// Some stem is not an integer: frames are numbered 0, 1, 2, … in natural order, taken
+    /// as consecutive video frames.
+    Order,
 }
 
 /// The frames of a video (extracted by ffmpeg into a temporary folder that lives as long as
-/// this value) or of a frame folder, in natural order.
+/// this value) or of a frame folder, in temporal order, with their frame numbers.
 #[derive(Debug)]
 pub struct FrameFiles {
     _extracted: Option<tempfile::TempDir>,
     /// The folder holding the frames.
     pub dir: PathBuf,
-    /// Every frame, in order; a frame's index in the video is its position here.
+    /// Every frame, in temporal order.
     pub paths: Vec<PathBuf>,
+    /// Each frame's number (its index in the video): the integer file stem, or its position
+    /// when the names are not all integers (see `numbering`). Strictly increasing.
+    pub numbers: Vec<u64>,
+    pub numbering: Numbering,
 }
 
 impl FrameFiles {
-    /// The indices of the frames a capture keeps: every `every`-th from the first, at most
-    /// `max_frames`.
+    /// Frames of `dir` (already listed in natural order by [`images_in`]) numbered by their
+    /// stems when every stem is an integer, else by position. Two files with one frame number
+    /// are an error naming both.
+    pub fn numbered(dir: &Path, paths: Vec<PathBuf>) -> Result<Self> {
+        let by_stem: Option<Vec<u64>> = paths.iter().map(|p| stem_number(&stem(p))).collect();
+        let (numbers, numbering) = match by_stem {
+            Some(n) => (n, Numbering::Stems),
+            None => ((0..paths.len() as u64).collect(), Numbering::Order),
+        };
+        for (i, w) in numbers.windows(2).enumerate() {
+            if w[0] == w[1] {
+                return Err(DataError::invalid(
+                    dir,
+                    format!(
+                        "{} and {} both name frame number {}; keep one of them",
+                        paths[i].display(),
+                        paths[i + 1].display(),
+                        w[0]
+                    ),
+                ));
+            }
+        }
+        if let Some(i) = numbers.iter().position(|&n| n > MAX_FRAME_NUMBER) {
+            return Err(DataError::invalid(
+                &paths[i],
+                format!(
+                    "frame number {} is too large (at most {MAX_FRAME_NUMBER}); name frames by their index in the video",
+                    numbers[i]
+                ),
+            ));
+        }
+        Ok(FrameFiles {
+            _extracted: None,
+            dir: dir.to_path_buf(),
+            paths,
+            numbers,
+            numbering,
+        })
+    }
+
+    /// The positions (into `paths`) of the frames a capture keeps: every `every`-th frame
+    /// present, from the first, at most `max_frames`.
     pub fn keyframe_indices(&self, every: usize, max_frames: Option<usize>) -> Vec<usize> {
         (0..self.paths.len())
             .step_by(every.max(1))
             .take(max_frames.unwrap_or(usize::MAX))
             .collect()
     }
+
+    /// What a user should know about how the frames were numbered and subsampled, one line
+    /// each (empty when nothing was assumed).
+    pub fn notes(&self, every: usize) -> Vec<String> {
+        let mut out = vec![];
+        if self.numbering == Numbering::Order {
+            let odd = self
+                .paths
+                .iter()
+                .find(|p| stem_number(&stem(p)).is_none())
+                .map(|p| p.display().to_string())
+                .unwrap_or_default();
+            out.push(format!(
+                "the frame names in {} are not all integers (for example {odd}): the frames are numbered 0 to {} in natural order of their names and taken as consecutive video frames (time_s = number / fps); name frames by their frame number (000120.png) to keep their real times",
+                self.dir.display(),
+                self.paths.len().saturating_sub(1)
+            ));
+        }
+        let contiguous = self.numbers.windows(2).all(|w| w[1] == w[0] + 1);
+        if every > 1 && !contiguous {
+            let kept: Vec<String> = self
+                .keyframe_indices(every, Some(4))
+                .iter()
+                .map(|&i| self.numbers[i].to_string())
+                .collect();
+            out.push(format!(
+                "--every {every} keeps every {every}th of the {} frames present (frame numbers {}, …), not every {every}th frame number: the folder skips frame numbers",
+                self.paths.len(),
+                kept.join(", ")
+            ));
+        }
+        out
+    }
 }
 
-/// Opens a video (extracting every frame with ffmpeg) or a folder of frames.
+/// Opens a video (extracting every frame with ffmpeg; frames are named by their index in the
+/// video) or a folder of frames.
 pub fn open_frames(input: &Path) -> Result<FrameFiles> {
     let (extracted, dir) = if input.is_dir() {
         (None, input.to_path_buf())
@@ -172,11 +260,130 @@ pub fn open_frames(input: &Path) -> Result<FrameFiles> {
             "holds no frames (png, jpg, bmp, tif)",
         ));
     }
-    Ok(FrameFiles {
-        _extracted: extracted,
-        dir,
-        paths,
-    })
+    let mut frames = FrameFiles::numbered(&dir, paths)?;
+    frames._extracted = extracted;
+    Ok(frames)
+}
+
+/// A folder of masks (object or hand), matched to frames by file stem: the mask of frame
+/// `000120.jpg` is `000120.*` or `000120_<anything>.*` (also `-` or `.` after the stem); when
+/// the frame's stem is an integer, the mask's leading integer is compared as a number (so
+/// `120.png` and `00120_mask.png` match too). A name without a separator (`000120`) is
+/// preferred over one with a suffix. Nothing is matched by order.
+#[derive(Debug, Clone)]
+pub struct MaskFolder {
+    pub dir: PathBuf,
+    files: Vec<PathBuf>,
+}
+
+impl MaskFolder {
+    pub fn open(dir: &Path) -> Result<Self> {
+        Ok(MaskFolder {
+            dir: dir.to_path_buf(),
+            files: images_in(dir)?,
+        })
+    }
+
+    /// The mask of each frame of `frames` (`None` where it has none). A frame with two
+    /// equally good masks, or a mask that two frames claim, is an error naming them.
+    pub fn assign(&self, frames: &FrameFiles) -> Result<Vec<Option<PathBuf>>> {
+        use std::collections::HashMap;
+        // Every name a mask answers to, with how well (2: exactly, 1: with a suffix).
+        let mut by_number: HashMap<u64, Vec<(u8, usize)>> = HashMap::new();
+        let mut by_stem: HashMap<&str, Vec<(u8, usize)>> = HashMap::new();
+        let stems: Vec<String> = self.files.iter().map(|p| stem(p)).collect();
+        for (i, m) in stems.iter().enumerate() {
+            let digits = m.len() - m.trim_start_matches(|c: char| c.is_ascii_digit()).len();
+            let (head, rest) = m.split_at(digits);
+            if let Some(n) = stem_number(head) {
+                if rest.is_empty() {
+                    by_number.entry(n).or_default().push((2, i));
+                } else if rest.starts_with(SEPARATORS) {
+                    by_number.entry(n).or_default().push((1, i));
+                }
+            }
+            by_stem.entry(m.as_str()).or_default().push((2, i));
+            for (at, _) in m.match_indices(SEPARATORS) {
+                by_stem.entry(&m[..at]).or_default().push((1, i));
+            }
+        }
+        let mut out = Vec::with_capacity(frames.paths.len());
+        let mut claimed: HashMap<usize, &Path> = HashMap::new();
+        for frame in &frames.paths {
+            let fs = stem(frame);
+            let candidates = match stem_number(&fs) {
+                Some(n) => by_number.get(&n),
+                None => by_stem.get(fs.as_str()),
+            };
+            let Some(candidates) = candidates.filter(|c| !c.is_empty()) else {
+                out.push(None);
+                continue;
+            };
+            let best = candidates.iter().map(|c| c.0).max().unwrap_or(0);
+            let found: Vec<usize> = candidates
+                .iter()
+                .filter(|c| c.0 == best)
+                .map(|c| c.1)
+                .collect();
+            if found.len() > 1 {
+                return Err(DataError::invalid(
+                    &self.dir,
+                    format!(
+                        "frame {} has {} masks here ({}); keep one",
+                        frame.display(),
+                        found.len(),
+                        found
+                            .iter()
+                            .map(|&i| self.files[i].display().to_string())
+                            .collect::<Vec<_>>()
+                            .join(", ")
+                    ),
+                ));
+            }
+            let m = found[0];
+            if let Some(other) = claimed.insert(m, frame) {
+                return Err(DataError::invalid(
+                    &self.files[m],
+                    format!(
+                        "this mask matches two frames, {} and {}; masks are matched by file stem (the frame's name, or the frame's name then `_`, `-` or `.`)",
+                        other.display(),
+                        frame.display()
+                    ),
+                ));
+            }
+            out.push(Some(self.files[m].clone()));
+        }
+        Ok(out)
+    }
+
+    /// The masks of this folder that `assigned` (from [`MaskFolder::assign`]) gave to no
+    /// frame.
+    pub fn unmatched(&self, assigned: &[Option<PathBuf>]) -> Vec<PathBuf> {
+        let used: std::collections::HashSet<&PathBuf> = assigned.iter().flatten().collect();
+        self.files
+            .iter()
+            .filter(|p| !used.contains(p))
+            .cloned()
+            .collect()
+    }
+
+    /// The error for frame `frame` without a mask in this folder.
+    pub fn missing(&self, frame: &Path) -> DataError {
+        let s = stem(frame);
+        DataError::invalid(
+            &self.dir,
+            format!(
+                "no mask for frame {} (masks are matched by file stem: looked for {s}.* and {s}_*.*{}; {} image(s) here{})",
+                frame.display(),
+                if stem_number(&s).is_some() { ", the number compared as a number" } else { "" },
+                self.files.len(),
+                self.files
+                    .first()
+                    .map(|p| format!(", the first {}", p.display()))
+                    .unwrap_or_default()
+            ),
+        )
+    }
 }
 
 /// The focal length in pixels that a video's metadata states, for frames `width` × `height`:
@@ -240,8 +447,54 @@ fn focal_from_tags(
     Some(f35 * diagonal_px / 43.27)
 }
 
-/// Writes the capture to `out` (a new directory); returns the number of frames.
-pub fn import_video(cfg: &VideoImport, out: &Path) -> Result<usize> {
+/// What an import wrote, and what a user should know about it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct VideoSummary {
+    /// The number of frames written.
+    pub frames: usize,
+    /// What was assumed (frame numbering, subsampling, frames without a hand mask), one line
+    /// each, for the user.
+    pub notes: Vec<String>,
+}
+
+/// Frames per second when none is given.
+pub const DEFAULT_FPS: f64 = 30.0;
+/// The lowest frame rate accepted (one frame in about 17 minutes).
+pub const MIN_FPS: f64 = 0.001;
+/// The highest frame rate accepted.
+pub const MAX_FPS: f64 = 1000.0;
+
+/// Refuses options that would write nonsense: a frame rate outside [MIN_FPS, MAX_FPS] or not
+/// finite,
+/// `every` 0, `max_frames` 0.
+pub fn check_options(cfg: &VideoImport) -> Result<()> {
+    if let Some(f) = cfg.fps {
+        if !(f.is_finite() && (MIN_FPS..=MAX_FPS).contains(&f)) {
+            return Err(DataError::invalid(
+                &cfg.input,
+                format!(
+                    "fps {f:e}: frames per second must be a number from {MIN_FPS} to {MAX_FPS}"
+                ),
+            ));
+        }
+    }
+    if cfg.every == 0 {
+        return Err(DataError::invalid(
+            &cfg.input,
+            "every 0: keep every N-th frame, N at least 1",
+        ));
+    }
+    if cfg.max_frames == Some(0) {
+        return Err(DataError::invalid(
+            &cfg.input,
+            "max_frames 0: a capture needs at least one frame",
+        ));
+    }
+    Ok(())
+}
+
+/// Writes the capture to `out` (a new directory).
+pub fn import_video(cfg: &VideoImport, out: &Path) -> Result<VideoSummary> {
     let frames = open_frames(&cfg.input)?;
     import_video_frames(cfg, &frames, out, None)
 }
@@ -253,12 +506,45 @@ pub fn import_video_frames(
     frames_in: &FrameFiles,
     out: &Path,
     attach: Option<&Path>,
-) -> Result<usize> {
+) -> Result<VideoSummary> {
+    check_options(cfg)?;
     let all = &frames_in.paths;
-    let masks = images_in(&cfg.masks)?;
+    let keep = frames_in.keyframe_indices(cfg.every, cfg.max_frames);
+    let mask_folder = MaskFolder::open(&cfg.masks)?;
+    let masks = mask_folder.assign(frames_in)?;
     let hands = match &cfg.hands {
-        Some(h) => images_in(h)?,
-        None => vec![],
+        Some(h) => {
+            let folder = MaskFolder::open(h)?;
+            let found = folder.assign(frames_in)?;
+            let first = stem(&all[keep[0]]);
+            if keep.iter().all(|&i| found[i].is_none()) {
+                return Err(DataError::invalid(
+                    h,
+                    format!(
+                        "no hand mask matches any of the {} frames kept (hand masks are matched by file stem like the object masks, for example {first}.png or {first}_hand.png)",
+                        keep.len(),
+                    ),
+                ));
+            }
+            // Frames without a hand mask show no hands; but hand masks that name no frame
+            // beside frames without one say that the names do not line up.
+            let orphans = folder.unmatched(&found);
+            if let (Some(orphan), Some(&bare)) =
+                (orphans.first(), keep.iter().find(|&&i| found[i].is_none()))
+            {
+                return Err(DataError::invalid(
+                    h,
+                    format!(
+                        "the hand masks' names do not line up with the frames: frame {} has no hand mask while {} matches no frame ({} such); hand masks are matched by file stem (for example {first}.png or {first}_hand.png)",
+                        all[bare].display(),
+                        orphan.display(),
+                        orphans.len()
+                    ),
+                ));
+            }
+            Some(found)
+        }
+        None => None,
     };
     // A camera set read from a file, or the static source itself.
     let cams: Option<CameraSet> = match &cfg.cameras {
@@ -269,7 +555,7 @@ pub fn import_video_frames(
     };
     struct Row {
         name: String,
-        index: usize,
+        number: u64,
         rgb: image::RgbImage,
         mask: agentstar_mask::BitMask,
         hand: Option<agentstar_mask::BitMask>,
@@ -277,20 +563,17 @@ pub fn import_video_frames(
         c2w: Rigid,
     }
     let mut rows = vec![];
-    for index in frames_in.keyframe_indices(cfg.every, cfg.max_frames) {
+    let mut no_hands = vec![];
+    for index in keep {
         let path = &all[index];
         let s = stem(path);
         let rgb = load_rgb(path)?;
         let (w, h) = rgb.dimensions();
-        let mask_path = match_mask(&masks, &s, index, all.len()).ok_or_else(|| {
-            DataError::invalid(
-                &cfg.masks,
-                format!(
-                    "no mask for frame {} (looked for {s}.* and {s}_*.*)",
-                    path.display()
-                ),
-            )
-        })?;
+        let number = frames_in.numbers[index];
+        let name = format!("{number:06}.png");
+        let mask_path = masks[index]
+            .as_ref()
+            .ok_or_else(|| mask_folder.missing(path))?;
         let mask = load_mask(mask_path)?;
         if (mask.width(), mask.height()) != (w, h) {
             return Err(DataError::invalid(
@@ -303,9 +586,29 @@ pub fn import_video_frames(
                 ),
             ));
         }
-        let hand = match match_mask(&hands, &s, index, all.len()) {
-            Some(p) if cfg.hands.is_some() => Some(load_mask(p)?),
-            _ => None,
+        let hand = match &hands {
+            Some(found) => match &found[index] {
+                Some(p) => {
+                    let hand = load_mask(p)?;
+                    if (hand.width(), hand.height()) != (w, h) {
+                        return Err(DataError::invalid(
+                            p,
+                            format!(
+                                "hand mask is {}×{}, frame {} is {w}×{h}",
+                                hand.width(),
+                                hand.height(),
+                                path.display()
+                            ),
+                        ));
+                    }
+                    Some(hand)
+                }
+                None => {
+                    no_hands.push(name.clone());
+                    None
+                }
+            },
+            None => None,
         };
         let (camera, c2w) = match (&cams, &cfg.cameras) {
             (Some(set), _) => {
@@ -333,8 +636,8 @@ pub fn import_video_frames(
             ) => return Err(DataError::invalid(path, "no camera source was read")),
         };
         rows.push(Row {
-            name: format!("{index:06}.png"),
-            index,
+            name,
+            number,
             rgb,
             mask,
             hand,
@@ -342,16 +645,13 @@ pub fn import_video_frames(
             c2w,
         });
     }
-    let fps = cfg
-        .fps
-        .filter(|f| f.is_finite() && *f > 0.0)
-        .unwrap_or(30.0);
+    let fps = cfg.fps.unwrap_or(DEFAULT_FPS);
     let frames: Vec<FrameOut<'_>> = rows
         .iter()
         .map(|r| FrameOut {
             name: &r.name,
-            frame_index: Some(r.index as i64),
-            time_s: Some(r.index as f64 / fps),
+            frame_index: Some(r.number as i64),
+            time_s: Some(r.number as f64 / fps),
             camera: &r.camera,
             world_from_camera: &r.c2w,
             rgb: &r.rgb,
@@ -365,6 +665,12 @@ pub fn import_video_frames(
         source: Some(
             serde_json::json!({"producer": "agentstar capture from-video",
             "input": cfg.input, "masks": cfg.masks, "every": cfg.every,
+            "fps": fps,
+            "frame_numbers": match frames_in.numbering {
+                Numbering::Stems => "the frame files' names (integers)".to_string(),
+                Numbering::Order => format!("assumed: {}", frames_in.notes(1).join("; ")),
+            },
+            "frames_without_hand_mask": no_hands,
             "cameras": match &cfg.cameras {
                 CameraSource::Given { note, .. } => note.clone(),
                 other => serde_json::Value::String(format!("{other:?}")),
@@ -384,7 +690,19 @@ pub fn import_video_frames(
         }
         Ok(())
     })?;
-    Ok(rows.len())
+    let mut notes = frames_in.notes(cfg.every);
+    if let (Some(h), Some(first)) = (&cfg.hands, no_hands.first()) {
+        notes.push(format!(
+            "{} of the {} frames have no hand mask in {} (first: {first}); they are taken to show no hands",
+            no_hands.len(),
+            rows.len(),
+            h.display()
+        ));
+    }
+    Ok(VideoSummary {
+        frames: rows.len(),
+        notes,
+    })
 }
 
 #[cfg(test)]

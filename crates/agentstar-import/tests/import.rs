@@ -332,7 +332,7 @@ fn frames_with_colmap_binary_text_and_nerfstudio_cameras_import() {
             &out,
         )
         .unwrap_or_else(|e| panic!("{label}: {e}"));
-        assert_eq!(n, 3);
+        assert_eq!(n.frames, 3);
         let cap = Capture::open(&out).expect("valid");
         for (i, f) in cap.frames.iter().enumerate() {
             let c = &f.world_from_camera;
@@ -365,7 +365,7 @@ fn frames_with_colmap_binary_text_and_nerfstudio_cameras_import() {
         cameras: CameraSource::Fov(60.0),
         fps: None,
     };
-    assert_eq!(import_video(&cfg, &out).expect("fov"), 2);
+    assert_eq!(import_video(&cfg, &out).expect("fov").frames, 2);
     std::fs::remove_file(masks.join("img_2_mask.png")).expect("rm");
     let e = import_video(&cfg, &dir.path().join("x")).expect_err("missing mask");
     assert!(e.to_string().contains("img_2"), "{e}");

@@ -3,7 +3,7 @@
 
 use crate::{SfmError, SfmFrame};
 use agentstar_data::images::load_mask;
-use agentstar_import::video::{images_in, match_mask, stem, FrameFiles};
+use agentstar_import::video::{stem, FrameFiles, MaskFolder};
 use std::path::Path;
 
 /// The indices SfM uses: every frame from the first keyframe to the last, thinned evenly to
@@ -29,7 +29,8 @@ pub fn select_frames(keyframes: &[usize], max_frames: usize) -> Vec<usize> {
     out
 }
 
-/// SfM frames for `indices` of `frames`, their masks found as the capture import finds them.
+/// SfM frames for `indices` of `frames`, their masks found as the capture import finds them
+/// (by file stem, [`MaskFolder`]); a frame without a hand mask shows no hands.
 /// Frames between keyframes without an object mask are left out (their object would bring
 /// features that move with it) and named in the second list.
 pub fn sfm_frames(
@@ -39,12 +40,12 @@ pub fn sfm_frames(
     keyframes: &[usize],
     indices: &[usize],
 ) -> Result<(Vec<SfmFrame>, Vec<String>), SfmError> {
-    let mask_files = images_in(masks)?;
-    let hand_files = match hands {
-        Some(h) => images_in(h)?,
-        None => vec![],
+    let mask_folder = MaskFolder::open(masks)?;
+    let mask_of = mask_folder.assign(frames)?;
+    let hand_of = match hands {
+        Some(h) => Some(MaskFolder::open(h)?.assign(frames)?),
+        None => None,
     };
-    let total = frames.paths.len();
     let mut out = vec![];
     let mut skipped = vec![];
     for &i in indices {
@@ -56,33 +57,27 @@ pub fn sfm_frames(
             .and_then(|n| n.to_str())
             .ok_or_else(|| SfmError::Input(format!("{}: not a UTF-8 file name", path.display())))?
             .to_string();
-        let Some(mask_path) = match_mask(&mask_files, &s, i, total) else {
+        let Some(mask_path) = &mask_of[i] else {
             if keyframe {
-                return Err(SfmError::Input(format!(
-                    "{}: no mask for keyframe {} (looked for {s}.* and {s}_*.*)",
-                    masks.display(),
-                    path.display()
-                )));
+                return Err(mask_folder.missing(path).into());
             }
             skipped.push(file_name);
             continue;
         };
         let mut excluded = load_mask(mask_path)?;
-        if hands.is_some() {
-            if let Some(h) = match_mask(&hand_files, &s, i, total) {
-                let hand = load_mask(h)?;
-                if (hand.width(), hand.height()) == (excluded.width(), excluded.height()) {
-                    excluded = excluded.or(&hand);
-                } else {
-                    return Err(SfmError::Input(format!(
-                        "{}: hand mask is {}×{}, the object mask {}×{}",
-                        h.display(),
-                        hand.width(),
-                        hand.height(),
-                        excluded.width(),
-                        excluded.height()
-                    )));
-                }
+        if let Some(Some(h)) = hand_of.as_ref().map(|f| &f[i]) {
+            let hand = load_mask(h)?;
+            if (hand.width(), hand.height()) == (excluded.width(), excluded.height()) {
+                excluded = excluded.or(&hand);
+            } else {
+                return Err(SfmError::Input(format!(
+                    "{}: hand mask is {}×{}, the object mask {}×{}",
+                    h.display(),
+                    hand.width(),
+                    hand.height(),
+                    excluded.width(),
+                    excluded.height()
+                )));
             }
         }
         out.push(SfmFrame {

@@ -44,14 +44,15 @@ fn a_video_file_imports_through_ffmpeg_frame_for_frame() {
     ]);
     assert!(o.status.success(), "{}", text(&o));
     let clip = agentstar_data::capture::Capture::open(&p("clip")).expect("clip");
-    // The frames as a lossless video; the masks as a segmenter names them (by order).
+    // The frames as a lossless video; the masks as a segmenter names them (by the frame's
+    // index in the video, its own padding and suffix).
     std::fs::create_dir_all(p("seq")).expect("mkdir");
     std::fs::create_dir_all(p("masks")).expect("mkdir");
     for k in 0..clip.frames.len() {
         std::fs::copy(clip.frame_path(k), p("seq").join(format!("f{k}.png"))).expect("copy");
         std::fs::copy(
             clip.mask_path(k),
-            p("masks").join(format!("sam_out_{}.png", 10 + k)),
+            p("masks").join(format!("{k:05}_sam.png")),
         )
         .expect("copy");
     }
@@ -84,6 +85,8 @@ fn a_video_file_imports_through_ffmpeg_frame_for_frame() {
     assert!(o.status.success(), "{}", text(&o));
     let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("json");
     assert_eq!(v["frames"], 4);
+    // A video's frames are named by their index in it: nothing was assumed.
+    assert_eq!(v["notes"], serde_json::json!([]), "{v}");
     let cap = agentstar_data::capture::Capture::open(&p("cap")).expect("cap");
     for k in 0..4 {
         // Lossless: every pixel of every frame and mask comes back.

@@ -13,7 +13,7 @@ pub enum CaptureCommand {
     /// from a segmenter's output folder and cameras by structure from motion (COLMAP), from a
     /// COLMAP or nerfstudio model, or a static camera.
     #[command(
-        after_help = "With --cameras sfm, COLMAP runs on the keyframes and the frames between them with the object\nand hand masks excluded from its features; --fov/--intrinsics then fix the intrinsics (else the\nvideo's metadata or SfM gives them). The cameras are in the first keyframe's camera frame, one unit\nthe median background depth unless --background-depth-m is given (docs/sfm.md); COLMAP's logs and\nmodel are kept in CAPTURE/sfm/.\n\nExamples:\n  agentstar capture from-video clip.mp4 --masks sam2_masks/ --hands hand_masks/ --every 10 --cameras sfm --out cap\n  agentstar capture from-video clip.mp4 --masks sam2_masks/ --fov 65 --every 10 --out cap\n  agentstar capture from-video frames/ --masks masks/ --hands hand_masks/ --colmap sparse/0 --out cap"
+        after_help = "Frames keep their numbers: a video's frames are numbered by their index in the video, and a\nfolder whose file names are integers (000000.jpg, 000010.jpg, ...) keeps them as the frames'\nnames, frame_index and time_s = number / fps. Other names are numbered 0, 1, 2, ... in natural\norder (a note says so). Masks and hand masks are matched by file stem only (000010.png or\n000010_mask.png for frame 000010.jpg).\n\nWith --cameras sfm, COLMAP runs on the keyframes and the frames between them with the object\nand hand masks excluded from its features; --fov/--intrinsics then fix the intrinsics (else the\nvideo's metadata or SfM gives them). The cameras are in the first keyframe's camera frame, one unit\nthe median background depth unless --background-depth-m is given (docs/sfm.md); COLMAP's logs and\nmodel are kept in CAPTURE/sfm/.\n\nExamples:\n  agentstar capture from-video clip.mp4 --masks sam2_masks/ --hands hand_masks/ --every 10 --cameras sfm --out cap\n  agentstar capture from-video clip.mp4 --masks sam2_masks/ --fov 65 --every 10 --out cap\n  agentstar capture from-video frames/ --masks masks/ --hands hand_masks/ --colmap sparse/0 --out cap"
     )]
     FromVideo(FromVideoArgs),
     /// One object of a BOP scene (also HOT3D clips converted to BOP) as capture/v1 with gt.json.
@@ -127,20 +127,25 @@ pub struct FromArcticArgs {
 pub struct FromVideoArgs {
     /// A video file (needs the ffmpeg command) or a folder of frames.
     input: PathBuf,
-    /// The folder of object masks (matched by file stem, else by order).
+    /// The folder of object masks, matched to frames by file stem: frame 000120.jpg takes
+    /// 000120.png or 000120_mask.png (an integer stem compared as a number, so 120.png too);
+    /// never by order. A frame without its own mask is an error.
     #[arg(long)]
     masks: PathBuf,
-    /// A folder of hand (occluder) masks, matched the same way.
+    /// A folder of hand (occluder) masks, matched the same way; a frame without one shows no
+    /// hands (a note says which).
     #[arg(long)]
     hands: Option<PathBuf>,
-    /// Keep every N-th frame.
+    /// Keep every N-th frame present (N at least 1): in a folder that skips frame numbers,
+    /// every N-th file, not every N-th frame number.
     #[arg(long, default_value_t = 1)]
     every: usize,
-    /// At most this many frames.
+    /// At most this many frames (at least 1).
     #[arg(long)]
     max_frames: Option<usize>,
-    /// Frames per second of the input (for time_s).
-    #[arg(long)]
+    /// Frames per second of the input, from 0.001 to 1000 (default 30): time_s = frame
+    /// number / fps.
+    #[arg(long, allow_negative_numbers = true)]
     fps: Option<f64>,
     /// A COLMAP model directory (cameras.txt/images.txt or .bin).
     #[arg(long, group = "camera_source")]
@@ -242,8 +247,34 @@ fn check_fov(f: f64) -> Result<()> {
     Ok(())
 }
 
+/// Refuses --fps, --every and --max-frames values that would write nonsense, before anything
+/// is read or written.
+fn check_video_options(a: &FromVideoArgs) -> Result<()> {
+    use agentstar_import::video::{MAX_FPS, MIN_FPS};
+    if let Some(f) = a.fps {
+        if !(f.is_finite() && (MIN_FPS..=MAX_FPS).contains(&f)) {
+            // Display writes 1e-300 as 301 digits; scientific notation says it shorter.
+            let shown = match f.to_string() {
+                t if t.len() > 16 => format!("{f:e}"),
+                t => t,
+            };
+            anyhow::bail!(
+                "--fps {shown}: frames per second of the input, from {MIN_FPS} to {MAX_FPS}"
+            );
+        }
+    }
+    if a.every == 0 {
+        anyhow::bail!("--every 0: keep every N-th frame, N at least 1");
+    }
+    if a.max_frames == Some(0) {
+        anyhow::bail!("--max-frames 0: a capture needs at least one frame");
+    }
+    Ok(())
+}
+
 fn from_video(a: FromVideoArgs) -> Result<ExitCode> {
     use agentstar_import::video::{import_video_frames, open_frames, CameraSource, VideoImport};
+    check_video_options(&a)?;
     let sfm = a.cameras == Some(CameraMode::Sfm);
     let frames = open_frames(&a.input)?;
     let (cameras, keep, summary) = if sfm {
@@ -264,7 +295,7 @@ fn from_video(a: FromVideoArgs) -> Result<ExitCode> {
         };
         (cameras, None, None)
     };
-    let n = import_video_frames(
+    let done = import_video_frames(
         &VideoImport {
             input: a.input.clone(),
             masks: a.masks.clone(),
@@ -278,6 +309,10 @@ fn from_video(a: FromVideoArgs) -> Result<ExitCode> {
         &a.out,
         keep.as_ref().map(|k| k.join("keep")).as_deref(),
     )?;
+    for note in &done.notes {
+        eprintln!("note: {note}");
+    }
+    let n = done.frames;
     if let Some(work) = &keep {
         // The capture holds what was worth keeping; the work folder goes.
         if let Err(e) = std::fs::remove_dir_all(work) {
@@ -285,7 +320,7 @@ fn from_video(a: FromVideoArgs) -> Result<ExitCode> {
         }
     }
     if a.json {
-        print_json(&json!({"capture": a.out, "frames": n, "sfm": summary}))?;
+        print_json(&json!({"capture": a.out, "frames": n, "notes": done.notes, "sfm": summary}))?;
     } else {
         println!(
             "wrote {} ({n} frames from {})",

@@ -26,6 +26,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
             c.manifest.image_size,
             c.frames[c.ref_index].name.clone(),
             c.notes.clone(),
+            c.warnings.clone(),
         )),
         Err(_) => None,
     };
@@ -38,15 +39,19 @@ pub fn run(a: Args) -> Result<ExitCode> {
             "image_size": summary.as_ref().map(|s| s.1),
             "ref_frame": summary.as_ref().map(|s| s.2.clone()),
             "notes": summary.as_ref().map(|s| s.3.clone()).unwrap_or_default(),
+            "warnings": summary.as_ref().map(|s| s.4.clone()).unwrap_or_default(),
         }))?;
     } else if problems.is_empty() {
-        if let Some((n, [w, h], r, notes)) = &summary {
+        if let Some((n, [w, h], r, notes, warnings)) = &summary {
             println!(
                 "valid: {} ({n} frames, {w}×{h}, reference {r})",
                 a.capture.display()
             );
             for note in notes {
                 println!("note: {note}");
+            }
+            for warning in warnings {
+                println!("warning: {warning}");
             }
         }
     } else {
