@@ -3,6 +3,7 @@
 use crate::BenchError;
 use agentstar_data::gt::{model_ground_truth, GroundTruth};
 use agentstar_eval::sequence::{evaluate, EvalConfig, GtSequence, PredSequence, SequenceMetrics};
+use agentstar_eval::MetricsRecord;
 use agentstar_geom::pose::ObjectPose;
 use agentstar_geom::UnitQuaternion;
 use agentstar_render::ScoreTarget;
@@ -69,19 +70,6 @@ impl Default for RunConfig {
     }
 }
 
-/// Articulation errors of one ground-truth joint.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct JointResult {
-    pub gt_joint: String,
-    pub pred_joint: Option<String>,
-    pub revolute: bool,
-    pub axis_rad: Option<f64>,
-    /// Axis line distance in metres (revolute only).
-    pub position_m: Option<f64>,
-    /// Radians (revolute) or metres (prismatic).
-    pub state: Option<f64>,
-}
-
 /// Everything measured on one sequence with one method.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct SequenceResult {
@@ -91,23 +79,14 @@ pub struct SequenceResult {
     pub motion: String,
     /// The method's name (`tracker`, `no-temporal`, `vlm-free`) or a label for a user's runs.
     pub method: String,
-    pub frames: usize,
     /// Wall time of the tracking (not the synthesis or the evaluation), seconds.
     pub seconds: f64,
     pub evaluations: usize,
     pub iou_mean: f64,
     pub iou_min: f64,
-    pub scale_alignment: f64,
-    pub epe_cm: Option<f64>,
-    pub chamfer_cm: Option<f64>,
-    pub rotation_mean_deg: Option<f64>,
-    pub rotation_median_deg: Option<f64>,
-    pub translation_mean_cm: Option<f64>,
-    pub translation_median_cm: Option<f64>,
-    pub cd_w_m2: Option<f64>,
-    pub cd_m_m2: Option<f64>,
-    pub cd_s_m2: Option<f64>,
-    pub joints: Vec<JointResult>,
+    /// The paper's metrics (the record `eval` prints and `batch gather` tables).
+    #[serde(flatten)]
+    pub metrics: MetricsRecord,
     /// The errors reduced by the object's listed symmetries (HOT3D/BOP): per frame, the
     /// ground truth is replaced by its symmetric equivalent nearest the prediction. `None`
     /// when the object lists no symmetry (then the reduced errors are the raw ones).
@@ -162,42 +141,21 @@ impl SequenceResult {
         m: &SequenceMetrics,
         seq: &GtSequence,
     ) -> SequenceResult {
-        let rigid = m.rigid.as_ref();
-        let joints = m
-            .joints
-            .iter()
-            .zip(&seq.joints)
-            .map(|(j, g)| JointResult {
-                gt_joint: j.gt_joint.clone(),
-                pred_joint: j.pred_joint.clone(),
-                revolute: g.revolute,
-                axis_rad: j.axis_angle_rad,
-                position_m: j.axis_distance_m,
-                state: j.state_error,
-            })
-            .collect();
+        let mut metrics = MetricsRecord::from(m);
+        for (j, g) in metrics.joints.iter_mut().zip(&seq.joints) {
+            j.revolute = g.revolute;
+        }
         SequenceResult {
             id: info.id,
             object: info.object,
             family: info.family,
             motion: info.motion,
             method: info.method,
-            frames: m.frames,
             seconds: info.seconds,
             evaluations: info.evaluations,
             iou_mean: iou.iter().sum::<f64>() / iou.len().max(1) as f64,
             iou_min: iou.iter().cloned().fold(f64::INFINITY, f64::min),
-            scale_alignment: m.scale_alignment,
-            epe_cm: m.epe_cm,
-            chamfer_cm: m.chamfer_cm,
-            rotation_mean_deg: rigid.map(|r| r.rotation_mean_deg),
-            rotation_median_deg: rigid.map(|r| r.rotation_median_deg),
-            translation_mean_cm: rigid.map(|r| r.translation_mean_cm),
-            translation_median_cm: rigid.map(|r| r.translation_median_cm),
-            cd_w_m2: m.cd_sq_whole_m2,
-            cd_m_m2: m.cd_sq_moving_m2,
-            cd_s_m2: m.cd_sq_static_m2,
-            joints,
+            metrics,
             symmetry_reduced: None,
             capture_stats: None,
         }
@@ -205,36 +163,33 @@ impl SequenceResult {
 
     /// A named figure, for tolerances and tables.
     pub fn metric(&self, name: &str) -> Option<f64> {
-        let joint_mean = |f: fn(&JointResult) -> Option<f64>| {
-            let v: Vec<f64> = self.joints.iter().filter_map(f).collect();
-            (!v.is_empty()).then(|| v.iter().sum::<f64>() / v.len() as f64)
-        };
+        let m = &self.metrics;
         match name {
             "iou_mean" => Some(self.iou_mean),
             "iou_min" => Some(self.iou_min),
-            "epe_cm" => self.epe_cm,
-            "chamfer_cm" => self.chamfer_cm,
-            "rotation_mean_deg" => self.rotation_mean_deg,
-            "rotation_median_deg" => self.rotation_median_deg,
-            "translation_mean_cm" => self.translation_mean_cm,
-            "translation_median_cm" => self.translation_median_cm,
-            "cd_w_m2" => self.cd_w_m2,
-            "cd_m_m2" => self.cd_m_m2,
-            "cd_s_m2" => self.cd_s_m2,
-            "joint_axis_rad" => joint_mean(|j| j.axis_rad),
-            "joint_state" => joint_mean(|j| j.state),
+            "epe_cm" => m.epe_cm,
+            "chamfer_cm" => m.chamfer_cm,
+            "rotation_mean_deg" => m.rotation_mean_deg,
+            "rotation_median_deg" => m.rotation_median_deg,
+            "translation_mean_cm" => m.translation_mean_cm,
+            "translation_median_cm" => m.translation_median_cm,
+            "cd_w_m2" => m.cd_w_m2,
+            "cd_m_m2" => m.cd_m_m2,
+            "cd_s_m2" => m.cd_s_m2,
+            "joint_axis_rad" => m.joint_mean(|j| j.axis_angle_rad),
+            "joint_state" => m.joint_mean(|j| j.state_error),
             "sym_epe_cm" => self
                 .symmetry_reduced
                 .as_ref()
-                .map_or(self.epe_cm, |r| r.epe_cm),
+                .map_or(m.epe_cm, |r| r.epe_cm),
             "sym_rotation_mean_deg" => self
                 .symmetry_reduced
                 .as_ref()
-                .map_or(self.rotation_mean_deg, |r| r.rotation_mean_deg),
+                .map_or(m.rotation_mean_deg, |r| r.rotation_mean_deg),
             "sym_rotation_median_deg" => self
                 .symmetry_reduced
                 .as_ref()
-                .map_or(self.rotation_median_deg, |r| r.rotation_median_deg),
+                .map_or(m.rotation_median_deg, |r| r.rotation_median_deg),
             _ => None,
         }
     }

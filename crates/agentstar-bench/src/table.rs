@@ -74,9 +74,14 @@ pub fn tables(results: &[SequenceResult], per_sequence: bool) -> String {
                 out,
                 "| {} | {n} | {} | {} |",
                 m,
-                fmt(mean(&collect(results, Some("arctic"), m, |r| r.epe_cm)), 2),
                 fmt(
-                    mean(&collect(results, Some("arctic"), m, |r| r.chamfer_cm)),
+                    mean(&collect(results, Some("arctic"), m, |r| r.metrics.epe_cm)),
+                    2
+                ),
+                fmt(
+                    mean(&collect(results, Some("arctic"), m, |r| r
+                        .metrics
+                        .chamfer_cm)),
                     2
                 )
             );
@@ -88,8 +93,8 @@ pub fn tables(results: &[SequenceResult], per_sequence: bool) -> String {
                     "| {} · {} | 1 | {} | {} |",
                     r.method,
                     r.id,
-                    fmt(r.epe_cm, 2),
-                    fmt(r.chamfer_cm, 2)
+                    fmt(r.metrics.epe_cm, 2),
+                    fmt(r.metrics.chamfer_cm, 2)
                 );
             }
         }
@@ -108,10 +113,10 @@ pub fn tables(results: &[SequenceResult], per_sequence: bool) -> String {
             format!(
                 "| {label} | {} | {} | {} | {} | {} |",
                 rs.len(),
-                g(|r| r.translation_mean_cm),
-                g(|r| r.translation_median_cm),
-                g(|r| r.rotation_mean_deg),
-                g(|r| r.rotation_median_deg)
+                g(|r| r.metrics.translation_mean_cm),
+                g(|r| r.metrics.translation_median_cm),
+                g(|r| r.metrics.rotation_mean_deg),
+                g(|r| r.metrics.rotation_median_deg)
             )
         };
         for &m in &ms {
@@ -140,36 +145,46 @@ pub fn tables(results: &[SequenceResult], per_sequence: bool) -> String {
         }
         out.push('\n');
         type Getter = Box<dyn Fn(&SequenceResult) -> Vec<f64>>;
-        let joint = |revolute: bool, f: fn(&crate::run::JointResult) -> Option<f64>| -> Getter {
-            Box::new(move |r: &SequenceResult| {
-                r.joints
-                    .iter()
-                    .filter(|j| j.revolute == revolute)
-                    .filter_map(f)
-                    .collect()
-            })
-        };
+        let joint =
+            |revolute: bool, f: fn(&agentstar_eval::JointRecord) -> Option<f64>| -> Getter {
+                Box::new(move |r: &SequenceResult| {
+                    r.metrics
+                        .joints
+                        .iter()
+                        .filter(|j| j.revolute == revolute)
+                        .filter_map(f)
+                        .collect()
+                })
+            };
         let rows: Vec<(&str, &str, Getter)> = vec![
             (
                 "Geometry",
                 "CD-w (m²) ↓",
-                Box::new(|r: &SequenceResult| r.cd_w_m2.into_iter().collect()),
+                Box::new(|r: &SequenceResult| r.metrics.cd_w_m2.into_iter().collect()),
             ),
             (
                 "",
                 "CD-m (m²) ↓",
-                Box::new(|r: &SequenceResult| r.cd_m_m2.into_iter().collect()),
+                Box::new(|r: &SequenceResult| r.metrics.cd_m_m2.into_iter().collect()),
             ),
             (
                 "",
                 "CD-s (m²) ↓",
-                Box::new(|r: &SequenceResult| r.cd_s_m2.into_iter().collect()),
+                Box::new(|r: &SequenceResult| r.metrics.cd_s_m2.into_iter().collect()),
             ),
-            ("Revolute", "Axis (rad) ↓", joint(true, |j| j.axis_rad)),
-            ("", "Position (m) ↓", joint(true, |j| j.position_m)),
-            ("", "State (rad) ↓", joint(true, |j| j.state)),
-            ("Prismatic", "Axis (rad) ↓", joint(false, |j| j.axis_rad)),
-            ("", "State (m) ↓", joint(false, |j| j.state)),
+            (
+                "Revolute",
+                "Axis (rad) ↓",
+                joint(true, |j| j.axis_angle_rad),
+            ),
+            ("", "Position (m) ↓", joint(true, |j| j.axis_distance_m)),
+            ("", "State (rad) ↓", joint(true, |j| j.state_error)),
+            (
+                "Prismatic",
+                "Axis (rad) ↓",
+                joint(false, |j| j.axis_angle_rad),
+            ),
+            ("", "State (m) ↓", joint(false, |j| j.state_error)),
         ];
         for (group, metric, get) in &rows {
             let _ = write!(out, "| {group} | {metric} |");
@@ -192,7 +207,7 @@ pub fn tables(results: &[SequenceResult], per_sequence: bool) -> String {
         "### Ablation: 3D EPE (cm) over every sequence\n\n| variant | sequences | EPE (cm) ↓ | IoU mean | wall time (s, median per sequence) |\n|---|---|---|---|---|"
     );
     for &m in &ms {
-        let epe = collect(results, None, m, |r| r.epe_cm);
+        let epe = collect(results, None, m, |r| r.metrics.epe_cm);
         let iou = collect(results, None, m, |r| Some(r.iou_mean));
         let mut secs = collect(results, None, m, |r| Some(r.seconds));
         secs.sort_by(f64::total_cmp);
@@ -219,14 +234,14 @@ pub fn tables(results: &[SequenceResult], per_sequence: bool) -> String {
             "| {} | {} | {} | {:.1} | {:.2} | {} | {:.4} | {:.4} | {} | {} |",
             r.id,
             r.method,
-            r.frames,
+            r.metrics.frames,
             r.seconds,
-            r.seconds / r.frames.max(1) as f64,
+            r.seconds / r.metrics.frames.max(1) as f64,
             r.evaluations,
             r.iou_mean,
             r.iou_min,
-            fmt(r.epe_cm, 2),
-            fmt(r.rotation_median_deg, 2)
+            fmt(r.metrics.epe_cm, 2),
+            fmt(r.metrics.rotation_median_deg, 2)
         );
     }
     out
@@ -238,39 +253,42 @@ pub fn result_table(r: &SequenceResult) -> String {
     let mut row = |k: &str, v: String| {
         let _ = writeln!(out, "| {k} | {v} |");
     };
-    row("frames", r.frames.to_string());
+    row("frames", r.metrics.frames.to_string());
     row(
         "IoU (hands excluded) mean / min",
         format!("{:.4} / {:.4}", r.iou_mean, r.iou_min),
     );
-    row("scale alignment ŝ", format!("{:.4}", r.scale_alignment));
-    row("3D EPE (cm)", fmt(r.epe_cm, 3));
-    row("Chamfer (cm)", fmt(r.chamfer_cm, 3));
+    row(
+        "scale alignment ŝ",
+        format!("{:.4}", r.metrics.scale_alignment),
+    );
+    row("3D EPE (cm)", fmt(r.metrics.epe_cm, 3));
+    row("Chamfer (cm)", fmt(r.metrics.chamfer_cm, 3));
     row(
         "rotation error mean / median (°)",
         format!(
             "{} / {}",
-            fmt(r.rotation_mean_deg, 3),
-            fmt(r.rotation_median_deg, 3)
+            fmt(r.metrics.rotation_mean_deg, 3),
+            fmt(r.metrics.rotation_median_deg, 3)
         ),
     );
     row(
         "translation error mean / median (cm)",
         format!(
             "{} / {}",
-            fmt(r.translation_mean_cm, 3),
-            fmt(r.translation_median_cm, 3)
+            fmt(r.metrics.translation_mean_cm, 3),
+            fmt(r.metrics.translation_median_cm, 3)
         ),
     );
-    if !r.joints.is_empty() {
+    if !r.metrics.joints.is_empty() {
         row(
             "CD-w / CD-m / CD-s (m²)",
-            [r.cd_w_m2, r.cd_m_m2, r.cd_s_m2]
+            [r.metrics.cd_w_m2, r.metrics.cd_m_m2, r.metrics.cd_s_m2]
                 .map(|v| v.map_or("–".into(), sig))
                 .join(" / "),
         );
     }
-    for j in &r.joints {
+    for j in &r.metrics.joints {
         row(
             &format!(
                 "joint {} ↔ {}",
@@ -279,9 +297,9 @@ pub fn result_table(r: &SequenceResult) -> String {
             ),
             format!(
                 "axis {} rad, position {} m, state {} {}",
-                fmt(j.axis_rad, 4),
-                fmt(j.position_m, 4),
-                fmt(j.state, 4),
+                fmt(j.axis_angle_rad, 4),
+                fmt(j.axis_distance_m, 4),
+                fmt(j.state_error, 4),
                 if j.revolute { "rad" } else { "m" }
             ),
         );
@@ -315,13 +333,13 @@ pub fn hard_table(results: &[SequenceResult]) -> String {
             r.method,
             r.iou_mean,
             r.iou_min,
-            fmt(r.epe_cm, 2),
+            fmt(r.metrics.epe_cm, 2),
             fmt(r.metric("sym_epe_cm"), 2),
-            fmt(r.rotation_mean_deg, 1),
+            fmt(r.metrics.rotation_mean_deg, 1),
             fmt(r.metric("sym_rotation_mean_deg"), 1),
-            fmt(r.rotation_median_deg, 1),
+            fmt(r.metrics.rotation_median_deg, 1),
             fmt(r.metric("sym_rotation_median_deg"), 1),
-            fmt(r.translation_median_cm, 2),
+            fmt(r.metrics.translation_median_cm, 2),
             r.seconds,
             if pass { "yes" } else { "no" }
         );

@@ -6,6 +6,7 @@ use agentstar_bench::table::{result_table, tables};
 use agentstar_bench::tolerance::{check, record};
 use agentstar_bench::{run_sequence, Method, RunConfig, SequenceResult};
 use agentstar_data::gt::{model_ground_truth, GroundTruth};
+use agentstar_eval::{JointRecord, MetricsRecord};
 use agentstar_geom::GenPose;
 use agentstar_synth::{synthesize, SynthConfig};
 
@@ -36,17 +37,17 @@ fn the_tracker_recovers_an_articulated_hand_held_sequence() {
     assert_eq!(poses.len(), 8);
     assert_eq!(r.method, "tracker");
     assert!(r.iou_mean > 0.97, "IoU {}", r.iou_mean);
-    let epe = r.epe_cm.expect("epe");
+    let epe = r.metrics.epe_cm.expect("epe");
     assert!(epe < 1.0, "EPE {epe} cm");
     assert!(
-        (r.scale_alignment - 1.0).abs() < 0.03,
+        (r.metrics.scale_alignment - 1.0).abs() < 0.03,
         "ŝ {}",
-        r.scale_alignment
+        r.metrics.scale_alignment
     );
-    assert!(r.rotation_median_deg.expect("rot") < 3.0);
-    let j = &r.joints[0];
+    assert!(r.metrics.rotation_median_deg.expect("rot") < 3.0);
+    let j = &r.metrics.joints[0];
     assert_eq!(j.pred_joint.as_deref(), Some("lid_hinge"));
-    assert!(j.state.expect("state") < 0.05, "{j:?}");
+    assert!(j.state_error.expect("state") < 0.05, "{j:?}");
     let t = result_table(&r);
     assert!(
         t.contains("3D EPE (cm)") && t.contains("joint lid_hinge"),
@@ -73,12 +74,19 @@ fn a_short_clip_with_frames_in_a_wrong_basin_is_recovered_from_its_neighbours() 
         r.iou_min,
         r.iou_mean
     );
-    assert!(r.epe_cm.expect("epe") < 1.0, "EPE {:?}", r.epe_cm);
+    assert!(
+        r.metrics.epe_cm.expect("epe") < 1.0,
+        "EPE {:?}",
+        r.metrics.epe_cm
+    );
     // Without the pass, the global search of the propagation (frames under the band
     // threshold) and of the first frame already takes every frame but one out of the wrong
     // basin; that one stays a few degrees off (it was IoU < 0.95 before the global search).
     let (n, _) = run_sequence(&capture, Method::NoTemporal, &RunConfig::default()).expect("run");
-    let (with, without) = (r.epe_cm.expect("epe"), n.epe_cm.expect("epe"));
+    let (with, without) = (
+        r.metrics.epe_cm.expect("epe"),
+        n.metrics.epe_cm.expect("epe"),
+    );
     assert!(
         without > with + 0.3,
         "the pass should matter: EPE {with} cm with it, {without} cm without"
@@ -143,29 +151,35 @@ fn fake(id: &str, family: &str, method: &str, epe: f64, iou: f64) -> SequenceRes
         family: family.into(),
         motion: "handheld".into(),
         method: method.into(),
-        frames: 4,
         seconds: 1.5,
         evaluations: 100,
         iou_mean: iou,
         iou_min: iou - 0.01,
-        scale_alignment: 1.0,
-        epe_cm: Some(epe),
-        chamfer_cm: Some(0.2),
-        rotation_mean_deg: Some(1.0),
-        rotation_median_deg: Some(0.5),
-        translation_mean_cm: Some(0.3),
-        translation_median_cm: Some(0.2),
-        cd_w_m2: Some(1e-5),
-        cd_m_m2: Some(2e-5),
-        cd_s_m2: Some(1e-5),
-        joints: vec![agentstar_bench::run::JointResult {
-            gt_joint: "hinge".into(),
-            pred_joint: Some("hinge".into()),
-            revolute: true,
-            axis_rad: Some(0.01),
-            position_m: Some(0.002),
-            state: Some(0.02),
-        }],
+        metrics: MetricsRecord {
+            frames: 4,
+            scale_alignment: 1.0,
+            epe_cm: Some(epe),
+            epe_points: 100,
+            chamfer_cm: Some(0.2),
+            cd_moving_cm: None,
+            cd_static_cm: None,
+            cd_w_m2: Some(1e-5),
+            cd_m_m2: Some(2e-5),
+            cd_s_m2: Some(1e-5),
+            rotation_mean_deg: Some(1.0),
+            rotation_median_deg: Some(0.5),
+            translation_mean_cm: Some(0.3),
+            translation_median_cm: Some(0.2),
+            joints: vec![JointRecord {
+                gt_joint: "hinge".into(),
+                pred_joint: Some("hinge".into()),
+                matched_by: "name".into(),
+                revolute: true,
+                axis_angle_rad: Some(0.01),
+                axis_distance_m: Some(0.002),
+                state_error: Some(0.02),
+            }],
+        },
         symmetry_reduced: None,
         capture_stats: None,
     }

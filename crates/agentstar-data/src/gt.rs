@@ -3,6 +3,7 @@
 //! symmetries. Paths are relative to `gt.json`.
 
 use crate::meshio::load_mesh;
+use crate::posefile::PoseJson;
 use crate::{read_text, DataError, Result};
 use agentstar_geom::pose::ObjectPose;
 use agentstar_geom::truth::{GtJoint as SequenceJoint, GtSequence};
@@ -18,15 +19,10 @@ pub struct GtPartFile {
     pub mesh: String,
 }
 
-#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
-pub struct GtPose {
-    pub quaternion: [f64; 4],
-    pub translation: [f64; 3],
-}
-
 #[derive(Debug, Clone, Serialize, Deserialize, PartialEq, Default)]
 pub struct GtFrame {
-    pub parts: BTreeMap<String, GtPose>,
+    /// Each part's pose in the camera frame (`pose.json`'s wire pose, without a scale).
+    pub parts: BTreeMap<String, PoseJson>,
 }
 
 #[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
@@ -192,9 +188,10 @@ pub fn model_ground_truth(
             let full = cam.compose(&Similarity::from_rigid(&a));
             f.parts.insert(
                 p.name.clone(),
-                GtPose {
+                PoseJson {
                     quaternion: agentstar_geom::pose::quat_to_wxyz(&full.rotation),
                     translation: full.translation.into(),
+                    scale: None,
                 },
             );
         }

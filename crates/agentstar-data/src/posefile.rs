@@ -5,7 +5,7 @@
 use crate::capture::Capture;
 use crate::{read_text, DataError, Result};
 use agentstar_geom::kinematics::{JointDef, JointKind};
-use agentstar_geom::pose::{seed_from_reference, ObjectPose};
+use agentstar_geom::pose::{seed_from_reference, GenPose, ObjectPose};
 use agentstar_geom::{KinematicTree, Vector3};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
@@ -107,11 +107,11 @@ fn pose_convention() -> String {
     POSE_CONVENTION.into()
 }
 
-/// The generalised pose of one frame, resolved: internal-unit joint states.
+/// The generalised pose of one frame, resolved (internal-unit joint states), and where it
+/// came from.
 #[derive(Debug, Clone, PartialEq)]
 pub struct FramePose {
-    pub pose: ObjectPose,
-    pub states: Vec<f64>,
+    pub generalised: GenPose,
     /// True when the pose came from the reference frame through the cameras.
     pub seeded: bool,
     pub moved: bool,
@@ -319,8 +319,7 @@ impl PoseFile {
                 _ => ref_states.clone(),
             };
             out.push(FramePose {
-                pose,
-                states,
+                generalised: GenPose::new(pose, states),
                 seeded,
                 moved: entry.is_some_and(|e| e.moved),
             });
@@ -333,8 +332,8 @@ impl PoseFile {
         self.joint_defs = tree.joints().iter().map(joint_json).collect();
         for (f, p) in capture.frames.iter().zip(poses) {
             let e = self.frames.entry(f.name.clone()).or_default();
-            e.object_pose = Some(pose_json(&p.pose, Some(self.scale)));
-            e.joints = tree.states_to_interface(&p.states);
+            e.object_pose = Some(pose_json(&p.generalised.pose, Some(self.scale)));
+            e.joints = tree.states_to_interface(&p.generalised.states);
             e.moved = p.moved;
         }
     }

@@ -266,8 +266,8 @@ fn pose_file_resolution_seeds_through_cameras_and_checks_joints() {
     // Frame 000000's camera sits 0.2 left of the reference camera: the object appears 0.2
     // further right, with the reference's joint state.
     assert!(resolved[0].seeded && !resolved[2].seeded);
-    assert!((resolved[0].pose.translation - Vector3::new(0.2, 0.0, 2.0)).norm() < 1e-9);
-    assert!((resolved[0].states[0] - 30f64.to_radians()).abs() < 1e-12);
+    assert!((resolved[0].generalised.pose.translation - Vector3::new(0.2, 0.0, 2.0)).norm() < 1e-9);
+    assert!((resolved[0].generalised.states[0] - 30f64.to_radians()).abs() < 1e-12);
     // A state outside the limit names the frame and the joint.
     pf.frames
         .get_mut("000020.jpg")

@@ -6,11 +6,13 @@
 
 pub mod articulation;
 pub mod chamfer;
+pub mod record;
 pub mod rigid;
 pub mod scale;
 pub mod sequence;
 
 pub use articulation::{axis_angle_error, axis_line_distance, state_error};
 pub use chamfer::{chamfer_both, chamfer_distance, sample_surface};
+pub use record::{JointRecord, MetricsRecord};
 pub use rigid::{gauge_aligned_errors, GaugeErrors};
 pub use scale::median_log_depth_scale;

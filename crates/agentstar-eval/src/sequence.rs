@@ -48,6 +48,8 @@ pub struct JointMetrics {
     pub gt_joint: String,
     pub pred_joint: Option<String>,
     pub matched_by: &'static str,
+    /// True for a revolute ground-truth joint, false for a prismatic one.
+    pub revolute: bool,
     pub axis_angle_rad: Option<f64>,
     /// Metres; revolute joints only.
     pub axis_distance_m: Option<f64>,
@@ -347,6 +349,7 @@ pub fn evaluate(
                     gt_joint: gj.name.clone(),
                     pred_joint: None,
                     matched_by: "unmatched",
+                    revolute: gj.revolute,
                     axis_angle_rad: None,
                     axis_distance_m: None,
                     state_error: None,
@@ -390,6 +393,7 @@ pub fn evaluate(
                 gt_joint: gj.name.clone(),
                 pred_joint: Some(jd.name.clone()),
                 matched_by,
+                revolute: gj.revolute,
                 axis_angle_rad: Some(axis_angle_error(&p_axis, &g_axis)),
                 axis_distance_m: gj
                     .revolute

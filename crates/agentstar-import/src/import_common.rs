@@ -2,7 +2,8 @@
 //! a single-part ground truth written beside the capture.
 
 use agentstar_data::capture_writer::{write_capture, CaptureInfo, FrameOut};
-use agentstar_data::gt::{GroundTruth, GtFile, GtFrame, GtJoint, GtPartFile, GtPose, FORMAT};
+use agentstar_data::gt::{GroundTruth, GtFile, GtFrame, GtJoint, GtPartFile, FORMAT};
+use agentstar_data::posefile::PoseJson;
 use agentstar_data::{DataError, Result};
 use agentstar_geom::pose::{quat_to_wxyz, Rigid};
 use agentstar_geom::{PinholeCamera, TriMesh};
@@ -88,9 +89,10 @@ pub(crate) fn write_rows(
                     for (p, pose) in &r.parts {
                         f.parts.insert(
                             p.clone(),
-                            GtPose {
+                            PoseJson {
                                 quaternion: quat_to_wxyz(&pose.rotation),
                                 translation: pose.translation.vector.into(),
+                                scale: None,
                             },
                         );
                     }

@@ -14,7 +14,7 @@ pub mod fit;
 pub mod view;
 
 pub use agentstar_data::history::{FrameVersion, HistoryEntry, HistoryRow};
-use agentstar_data::posefile::{JointDefJson, PoseFile};
+use agentstar_data::posefile::{JointDefJson, PoseFile, PoseJson};
 use agentstar_data::DataError;
 use serde::{Deserialize, Serialize};
 use serde_json::Value;
@@ -83,15 +83,6 @@ impl SearchVerb {
     }
 }
 
-/// A candidate's pose as written in reports (scalar-first quaternion, camera frame).
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct CandidatePose {
-    pub quaternion: [f64; 4],
-    pub translation: [f64; 3],
-    pub scale: f64,
-}
-
 /// One ranked candidate of a search.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -99,7 +90,8 @@ pub struct Candidate {
     pub rank: usize,
     /// The order that produced it (`yaw:12;hinge:40`, `flip:x`).
     pub label: String,
-    pub pose: CandidatePose,
+    /// The candidate's pose, as `pose.json` writes one (with the scale it was scored at).
+    pub pose: PoseJson,
     /// Joint states in interface units (degrees, metres).
     pub joints: BTreeMap<String, f64>,
     pub iou_visible: Option<f64>,
@@ -337,22 +329,11 @@ pub struct TrackReport {
     pub pose_version: Option<u64>,
 }
 
-/// One joint's articulation errors in an [`EvalReport`].
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct EvalJoint {
-    pub gt_joint: String,
-    pub pred_joint: Option<String>,
-    pub matched_by: String,
-    pub axis_angle_rad: Option<f64>,
-    pub axis_distance_m: Option<f64>,
-    pub state_error: Option<f64>,
-}
-
 /// What `eval --json` prints for one run, and each of `eval --batch --json`'s `results`
-/// (one function writes both).
+/// (one function writes both): the run's paths beside the one metrics record
+/// ([`agentstar_eval::MetricsRecord`], which the benchmark and `batch gather` share).
+/// (Not `deny_unknown_fields`: serde cannot check that beside a flattened record.)
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
 pub struct EvalReport {
     /// The run's label (`run` unless a batch names it).
     pub label: String,
@@ -361,23 +342,10 @@ pub struct EvalReport {
     pub capture: PathBuf,
     pub poses: PathBuf,
     pub gt: PathBuf,
-    pub frames: usize,
-    pub scale_alignment: f64,
-    pub epe_cm: Option<f64>,
-    pub epe_points: usize,
-    pub chamfer_cm: Option<f64>,
-    pub cd_moving_cm: Option<f64>,
-    pub cd_static_cm: Option<f64>,
-    pub cd_w_m2: Option<f64>,
-    pub cd_m_m2: Option<f64>,
-    pub cd_s_m2: Option<f64>,
-    pub rotation_mean_deg: Option<f64>,
-    pub rotation_median_deg: Option<f64>,
-    pub translation_mean_cm: Option<f64>,
-    pub translation_median_cm: Option<f64>,
     pub iou_mean: f64,
     pub iou_min: f64,
-    pub joints: Vec<EvalJoint>,
+    #[serde(flatten)]
+    pub metrics: agentstar_eval::MetricsRecord,
 }
 
 /// What `eval --batch --json` prints.

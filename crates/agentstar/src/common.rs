@@ -97,8 +97,8 @@ impl Session {
         let p = &self.poses[i];
         PosedModel::new(
             &self.model.model,
-            &p.states,
-            &p.pose.with_scale(self.scale()),
+            &p.generalised.states,
+            &p.generalised.pose.with_scale(self.scale()),
         )
     }
 
@@ -115,10 +115,7 @@ impl Session {
 
     /// The generalised pose of frame `i`.
     pub fn gen_pose(&self, i: usize) -> agentstar_track::GenPose {
-        agentstar_track::GenPose {
-            pose: self.poses[i].pose,
-            states: self.poses[i].states.clone(),
-        }
+        self.poses[i].generalised.clone()
     }
 
     /// Scores frame `i`; `depth_weight` enters the combined score when the capture has depth.
@@ -227,8 +224,7 @@ fn tracked_pose_file(
     let frames: Vec<FramePose> = poses
         .iter()
         .map(|g| FramePose {
-            pose: g.pose,
-            states: g.states.clone(),
+            generalised: g.clone(),
             seeded: false,
             moved: true,
         })
@@ -236,7 +232,7 @@ fn tracked_pose_file(
     let reference = frames
         .get(capture.ref_index)
         .ok_or_else(|| anyhow!("no pose for the reference frame"))?;
-    let mut pf = PoseFile::initial(capture, tree, scale, &reference.pose);
+    let mut pf = PoseFile::initial(capture, tree, scale, &reference.generalised.pose);
     pf.set_frames(capture, tree, &frames);
     Ok((pf, frames))
 }

@@ -11,21 +11,21 @@ fn eval_scores_ground_truth_as_zero_and_tracking_as_small() {
     let (cap, model, poses) = example(dir.path());
     let truth: EvalReport = eval_of(&cap, &model, &poses, 3000);
     for (k, v) in [
-        ("epe_cm", truth.epe_cm),
-        ("rotation_mean_deg", truth.rotation_mean_deg),
-        ("translation_mean_cm", truth.translation_mean_cm),
+        ("epe_cm", truth.metrics.epe_cm),
+        ("rotation_mean_deg", truth.metrics.rotation_mean_deg),
+        ("translation_mean_cm", truth.metrics.translation_mean_cm),
     ] {
         assert!(v.expect(k) < 1e-3, "{k}: {v:?}");
     }
     // Independent samples of the same surfaces: the sampling floor only.
-    assert!(truth.chamfer_cm.expect("cd") < 1.0, "{truth:?}");
-    assert_eq!(truth.joints[0].matched_by, "child part name");
+    assert!(truth.metrics.chamfer_cm.expect("cd") < 1.0, "{truth:?}");
+    assert_eq!(truth.metrics.joints[0].matched_by, "child part name");
     let tracked = dir.path().join("tracked.json");
     let _: TrackReport = track_known(&cap, &model, &poses, &tracked);
     let tracked = tracked.display().to_string();
     let v: EvalReport = eval_of(&cap, &model, &tracked, 3000);
     assert!(
-        v.epe_cm.expect("epe") < 1.0 && v.rotation_mean_deg.expect("rot") < 2.0,
+        v.metrics.epe_cm.expect("epe") < 1.0 && v.metrics.rotation_mean_deg.expect("rot") < 2.0,
         "{v:?}"
     );
     // A missing ground truth is named.
@@ -76,8 +76,8 @@ fn synth_writes_a_valid_capture_whose_truth_scores_perfectly() {
     let v: ScoreReport = score_of(&cap, &model, &poses, None);
     assert_eq!(v.sequence.min_iou_visible, 1.0, "{v:?}");
     let v: EvalReport = eval_of(&cap, &model, &poses, 2000);
-    assert!(v.epe_cm.expect("epe") < 1e-3, "{v:?}");
-    assert_eq!(v.joints.len(), 2);
+    assert!(v.metrics.epe_cm.expect("epe") < 1e-3, "{v:?}");
+    assert_eq!(v.metrics.joints.len(), 2);
     // Two runs in a batch give the paper's tables, one row per sequence.
     let batch = dir.path().join("runs.json");
     std::fs::write(
@@ -122,15 +122,15 @@ fn synth_writes_a_valid_capture_whose_truth_scores_perfectly() {
     let first = &b.results[0];
     assert_eq!(
         (
-            first.epe_cm,
-            first.chamfer_cm,
-            first.joints.clone(),
+            first.metrics.epe_cm,
+            first.metrics.chamfer_cm,
+            first.metrics.joints.clone(),
             &first.label
         ),
         (
-            single.epe_cm,
-            single.chamfer_cm,
-            single.joints.clone(),
+            single.metrics.epe_cm,
+            single.metrics.chamfer_cm,
+            single.metrics.joints.clone(),
             &single.label
         )
     );

@@ -307,10 +307,10 @@ fn the_render_description_names_the_colours_the_images_use() {
             ranked: vec![agentstar_reports::Candidate {
                 rank: 0,
                 label: "flip:y;rz:30".into(),
-                pose: agentstar_reports::CandidatePose {
+                pose: agentstar_data::posefile::PoseJson {
                     quaternion: [0.5, 0.5, 0.5, 0.5],
                     translation: [0.1, 0.2, 0.9],
-                    scale: 0.2,
+                    scale: Some(0.2),
                 },
                 joints: BTreeMap::new(),
                 iou_visible: Some(0.97),

@@ -177,8 +177,9 @@ pub fn run(a: Args) -> Result<ExitCode> {
                     "bench   {:.1} s, IoU mean {:.4}, EPE {} cm, rot. median {} °",
                     r.seconds,
                     r.iou_mean,
-                    r.epe_cm.map_or("–".into(), |v| format!("{v:.2}")),
-                    r.rotation_median_deg
+                    r.metrics.epe_cm.map_or("–".into(), |v| format!("{v:.2}")),
+                    r.metrics
+                        .rotation_median_deg
                         .map_or("–".into(), |v| format!("{v:.2}"))
                 )
             });

@@ -198,10 +198,10 @@ fn write_demo_ledger(
     last.pose_version = Some(1);
     last.scores.insert("iou_mean".into(), r.iou_mean);
     last.scores.insert("iou_min".into(), r.iou_min);
-    if let Some(v) = r.epe_cm {
+    if let Some(v) = r.metrics.epe_cm {
         last.scores.insert("epe_cm".into(), v);
     }
-    if let Some(v) = r.chamfer_cm {
+    if let Some(v) = r.metrics.chamfer_cm {
         last.scores.insert("chamfer_cm".into(), v);
     }
     last.images.push("images/overlays.png".into());

@@ -7,7 +7,7 @@ use agentstar_bench::table::{result_table, tables};
 use agentstar_bench::{RunInfo, SequenceResult};
 use agentstar_data::gt::GroundTruth;
 use agentstar_eval::sequence::{evaluate, EvalConfig, PredSequence, SequenceMetrics};
-use agentstar_reports::{EvalBatchReport, EvalJoint, EvalReport};
+use agentstar_reports::{EvalBatchReport, EvalReport};
 use anyhow::{bail, Context, Result};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
@@ -82,7 +82,7 @@ pub(crate) fn evaluate_run(
         poses: s
             .poses
             .iter()
-            .map(|p| agentstar_geom::GenPose::new(p.pose, p.states.clone()))
+            .map(|p| agentstar_geom::GenPose::new(p.generalised.pose, p.generalised.states.clone()))
             .collect(),
     };
     let cams: Vec<_> = s.capture.frames.iter().map(|f| f.camera).collect();
@@ -158,7 +158,7 @@ fn result_of(
         &m,
         &seq,
     );
-    let report = eval_report(label, &family, capture, poses, gt_path, &m, &r);
+    let report = eval_report(label, &family, capture, poses, gt_path, &r);
     Ok((r, report))
 }
 
@@ -271,43 +271,16 @@ pub(crate) fn eval_report(
     capture: &Path,
     poses: &Path,
     gt: &Path,
-    m: &SequenceMetrics,
     r: &SequenceResult,
 ) -> EvalReport {
-    let rigid = m.rigid.as_ref();
     EvalReport {
         label: label.to_string(),
         family: family.to_string(),
         capture: capture.to_path_buf(),
         poses: poses.to_path_buf(),
         gt: gt.to_path_buf(),
-        frames: m.frames,
-        scale_alignment: m.scale_alignment,
-        epe_cm: m.epe_cm,
-        epe_points: m.epe_points,
-        chamfer_cm: m.chamfer_cm,
-        cd_moving_cm: m.cd_moving_cm,
-        cd_static_cm: m.cd_static_cm,
-        cd_w_m2: m.cd_sq_whole_m2,
-        cd_m_m2: m.cd_sq_moving_m2,
-        cd_s_m2: m.cd_sq_static_m2,
-        rotation_mean_deg: rigid.map(|r| r.rotation_mean_deg),
-        rotation_median_deg: rigid.map(|r| r.rotation_median_deg),
-        translation_mean_cm: rigid.map(|r| r.translation_mean_cm),
-        translation_median_cm: rigid.map(|r| r.translation_median_cm),
         iou_mean: r.iou_mean,
         iou_min: r.iou_min,
-        joints: m
-            .joints
-            .iter()
-            .map(|j| EvalJoint {
-                gt_joint: j.gt_joint.clone(),
-                pred_joint: j.pred_joint.clone(),
-                matched_by: j.matched_by.to_string(),
-                axis_angle_rad: j.axis_angle_rad,
-                axis_distance_m: j.axis_distance_m,
-                state_error: j.state_error,
-            })
-            .collect(),
+        metrics: r.metrics.clone(),
     }
 }

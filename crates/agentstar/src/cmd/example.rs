@@ -86,8 +86,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
             Vector3::new(0.03 * (4.0 * t).sin(), 0.02 - 0.03 * t, 0.95 + 0.1 * t),
         );
         gt.push(FramePose {
-            pose,
-            states: vec![(10.0 + 95.0 * t).to_radians()],
+            generalised: agentstar_geom::GenPose::new(pose, vec![(10.0 + 95.0 * t).to_radians()]),
             seeded: false,
             moved: true,
         });
@@ -98,7 +97,11 @@ pub fn run(a: Args) -> Result<ExitCode> {
     let colors: Vec<[f32; 3]> = model.parts.iter().map(|p| p.color).collect();
     for (k, name) in names.iter().enumerate() {
         let stem = &name[..6];
-        let posed = PosedModel::new(&model, &gt[k].states, &gt[k].pose.with_scale(scale));
+        let posed = PosedModel::new(
+            &model,
+            &gt[k].generalised.states,
+            &gt[k].generalised.pose.with_scale(scale),
+        );
         let buffers = render_full(&camera, &posed.instances);
         let silhouette = buffers.silhouette();
         // A hand: an ellipse grasping the lower right of the object, in every other frame.
@@ -197,7 +200,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
         "the example capture is invalid: {problems:?}"
     );
     let capture = crate::common::open_capture(&cap_dir)?;
-    let mut pose_file = PoseFile::initial(&capture, &model.tree, scale, &gt[0].pose);
+    let mut pose_file = PoseFile::initial(&capture, &model.tree, scale, &gt[0].generalised.pose);
     pose_file.set_frames(&capture, &model.tree, &gt);
     let pose_path = run_dir.join("pose.json");
     pose_file.write(&pose_path)?;
@@ -240,11 +243,11 @@ pub fn run(a: Args) -> Result<ExitCode> {
     let ref_rot = crate::cmd::turntable::upright();
     for (label, k) in [("open_first", 0usize), ("open_last", n - 1)] {
         let t: Vec<(String, RgbImage)> =
-            turntable_tiles(&model, &gt[k].states, &ref_rot, 200, 45.0)
+            turntable_tiles(&model, &gt[k].generalised.states, &ref_rot, 200, 45.0)
                 .into_iter()
                 .map(|(l, i, _)| (l, i))
                 .collect();
-        let deg = gt[k].states[0].to_degrees();
+        let deg = gt[k].generalised.states[0].to_degrees();
         save_png_rgb(
             &contact_sheet(&t, 4, &format!("turntable hinge={deg:.0}")),
             &views_dir.join(format!("turntable_sheet_{label}.png")),
@@ -289,7 +292,7 @@ fn write_ground_truth(
     let frames: Vec<_> = names
         .iter()
         .zip(gt)
-        .map(|(n, g)| (n.clone(), g.pose, g.states.clone()))
+        .map(|(n, g)| (n.clone(), g.generalised.pose, g.generalised.states.clone()))
         .collect();
     let (file, meshes) = model_ground_truth(model, scale, &frames, &[]);
     Ok(GroundTruth::from_parts(&cap_dir.join("gt.json"), file, meshes).write(cap_dir)?)

@@ -96,13 +96,13 @@ pub fn run(a: Args) -> Result<ExitCode> {
                 .zip(&s.poses)
                 .enumerate()
                 .map(|(i, (f, g))| {
-                    let camera_from_object = g.pose.with_scale(s.scale());
+                    let camera_from_object = g.generalised.pose.with_scale(s.scale());
                     AnimFrame {
                         name: f.name.clone(),
                         time_s: f.time_s.unwrap_or(i as f64 / 30.0),
                         world_from_object: Similarity::from_rigid(&f.world_from_camera)
                             .compose(&camera_from_object),
-                        states: g.states.clone(),
+                        states: g.generalised.states.clone(),
                     }
                 })
                 .collect();
@@ -140,13 +140,14 @@ pub fn run(a: Args) -> Result<ExitCode> {
         if let Some(p) = &a.bop {
             let mut csv = String::from("scene_id,im_id,obj_id,score,R,t,time\n");
             for (f, g) in s.capture.frames.iter().zip(&s.poses) {
-                let r = g.pose.rotation.to_rotation_matrix();
+                let r = g.generalised.pose.rotation.to_rotation_matrix();
                 let m = r.matrix();
                 let rows: Vec<String> = (0..3)
                     .flat_map(|i| (0..3).map(move |j| (i, j)))
                     .map(|(i, j)| format!("{:.9}", m[(i, j)]))
                     .collect();
                 let t: Vec<String> = g
+                    .generalised
                     .pose
                     .translation
                     .iter()

@@ -336,9 +336,8 @@ fn commit(
                 }
                 let cand = pick.find(fr)?;
                 let pose = PoseJson {
-                    quaternion: cand.pose.quaternion,
-                    translation: cand.pose.translation,
                     scale: None,
+                    ..cand.pose.clone()
                 };
                 v.push((fr.frame.clone(), pose, cand.joints.clone()));
             }
@@ -502,8 +501,8 @@ fn frame_history(
                     let p = &resolved[i];
                     let posed = PosedModel::new(
                         &model.model,
-                        &p.states,
-                        &p.pose.with_scale(entry.pose.scale),
+                        &p.generalised.states,
+                        &p.generalised.pose.with_scale(entry.pose.scale),
                     );
                     Some(
                         target

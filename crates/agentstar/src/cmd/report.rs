@@ -148,9 +148,9 @@ pub fn build_report(
         .iter()
         .zip(&s.poses)
         .map(|(f, p)| {
-            let cam = p.pose.with_scale(scale);
+            let cam = p.generalised.pose.with_scale(scale);
             let world_from_part = tree
-                .part_transforms(&p.states)
+                .part_transforms(&p.generalised.states)
                 .iter()
                 .map(|a| {
                     let full = cam.compose(&agentstar_geom::Similarity::from_rigid(a));
@@ -170,7 +170,7 @@ pub fn build_report(
                 joint_states: joints
                     .iter()
                     .map(|(k, j)| {
-                        let v = p.states.get(*k).copied().unwrap_or(0.0);
+                        let v = p.generalised.states.get(*k).copied().unwrap_or(0.0);
                         if j.kind.is_angular() {
                             v.to_degrees()
                         } else {

@@ -98,7 +98,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
                 .map(|&i| ParallaxFrame {
                     name: s.capture.frames[i].name.clone(),
                     world_from_camera: s.capture.frames[i].world_from_camera,
-                    origin_in_camera: s.poses[i].pose.translation,
+                    origin_in_camera: s.poses[i].generalised.pose.translation,
                 })
                 .collect();
             let mut e = ratio_from_parallax(&frames)?;

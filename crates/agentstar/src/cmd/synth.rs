@@ -141,13 +141,13 @@ pub fn write_synth(dir: &Path, s: &SynthCapture) -> Result<()> {
             .frames
             .iter()
             .map(|f| FramePose {
-                pose: f.camera_from_object,
-                states: f.states.clone(),
+                generalised: agentstar_geom::GenPose::new(f.camera_from_object, f.states.clone()),
                 seeded: false,
                 moved: true,
             })
             .collect();
-        let mut pf = PoseFile::initial(&capture, &s.model.tree, s.scale, &poses[0].pose);
+        let mut pf =
+            PoseFile::initial(&capture, &s.model.tree, s.scale, &poses[0].generalised.pose);
         pf.set_frames(&capture, &s.model.tree, &poses);
         pf.write(&model_dir.join("pose.json"))?;
         Ok(())

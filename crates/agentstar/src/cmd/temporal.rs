@@ -64,8 +64,8 @@ pub(crate) fn samples(s: &Session) -> Vec<Sample> {
         .map(|(f, p)| Sample {
             frame: f.name.clone(),
             number: f.number,
-            pose: p.pose,
-            states: p.states.clone(),
+            pose: p.generalised.pose,
+            states: p.generalised.states.clone(),
             world_from_camera: Some(f.world_from_camera),
         })
         .collect()

@@ -165,10 +165,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
                 .resolve(&capture, &model.model.tree)
                 .map_err(|e| anyhow!("{}: {e}", path.display()))?
                 .into_iter()
-                .map(|p| GenPose {
-                    pose: p.pose,
-                    states: p.states,
-                })
+                .map(|p| p.generalised)
                 .collect();
             let anchors = match &a.anchors {
                 Some(spec) => select_frames(&capture, Some(spec)).context("--anchors")?,
@@ -304,14 +301,18 @@ impl Partial<'_> {
                 )
             };
             frames.push(agentstar_data::posefile::FramePose {
-                pose,
-                states: g.states.clone(),
+                generalised: GenPose::new(pose, g.states.clone()),
                 seeded: k != i,
                 moved: k == i,
             });
         }
         let reference = &frames[self.capture.ref_index.min(frames.len() - 1)];
-        let mut pf = PoseFile::initial(self.capture, self.tree, self.scale, &reference.pose);
+        let mut pf = PoseFile::initial(
+            self.capture,
+            self.tree,
+            self.scale,
+            &reference.generalised.pose,
+        );
         pf.set_frames(self.capture, self.tree, &frames);
         pf.write(self.path)
     }

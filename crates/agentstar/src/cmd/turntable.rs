@@ -207,9 +207,12 @@ pub fn run(a: Args) -> Result<ExitCode> {
                 .resolve(&capture, tree)
                 .map_err(|e| anyhow!("{}: {e}", p.display()))?;
             if a.orient == Orient::Reference {
-                rotation = resolved[capture.ref_index].pose.rotation;
+                rotation = resolved[capture.ref_index].generalised.pose.rotation;
             }
-            let all: Vec<Vec<f64>> = resolved.iter().map(|r| r.states.clone()).collect();
+            let all: Vec<Vec<f64>> = resolved
+                .iter()
+                .map(|r| r.generalised.states.clone())
+                .collect();
             let names: Vec<String> = capture.frames.iter().map(|f| f.name.clone()).collect();
             warnings.extend(tree.at_limit_warnings(&all, &names));
             match a.states.trim() {

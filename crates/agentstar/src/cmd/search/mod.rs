@@ -16,7 +16,7 @@ use agentstar_render::frames::{crop_box, crop_zoomed, widened};
 use agentstar_render::sheet::sheet_pages;
 use agentstar_render::views::{overlay, shade, silhouette_comparison, ShadeOptions};
 use agentstar_render::{render_full, BitMask, PosedModel};
-use agentstar_reports::{Candidate, CandidatePose, SearchFrame, SearchReport, SearchVerb};
+use agentstar_reports::{Candidate, SearchFrame, SearchReport, SearchVerb};
 use agentstar_track::hypotheses::{hinge_swaps, refine_each, refine_ranked, LocalWindow};
 use agentstar_track::objective::{CandidateScore, FrameProblem};
 use agentstar_track::search::{sweep, Strategy, SweepConfig, SweepResult};
@@ -121,11 +121,7 @@ fn candidate(r: &Row, scale: f64, tree: &KinematicTree) -> Candidate {
     Candidate {
         rank: r.rank,
         label: r.label.clone(),
-        pose: CandidatePose {
-            quaternion: p.quaternion,
-            translation: p.translation,
-            scale,
-        },
+        pose: p,
         joints: tree.states_to_interface(&r.pose.states),
         iou_visible: r.score.iou_visible,
         iou_raw: r.score.iou_raw,
