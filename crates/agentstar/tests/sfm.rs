@@ -6,6 +6,8 @@
 //! say so and pass, unless `AGENTSTAR_REQUIRE_COLMAP` is set (CI sets it where it installed
 //! COLMAP), when its absence fails them.
 
+mod support;
+
 use agentstar_data::capture::Capture;
 use agentstar_data::gt::{model_ground_truth, GroundTruth};
 use agentstar_data::images::{mask_to_gray, save_png_gray, save_png_rgb};
@@ -13,26 +15,8 @@ use agentstar_geom::pose::Rigid;
 use agentstar_sfm::gauge::camera_errors;
 use agentstar_synth::environment::{synthesize_room_clip, CameraPath, RoomClip, RoomConfig, Walls};
 use std::path::Path;
-use std::process::{Command, Output};
-
-fn agentstar(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_agentstar"))
-        .args(args)
-        .output()
-        .expect("run agentstar")
-}
-
-fn text(o: &Output) -> String {
-    format!(
-        "{}{}",
-        String::from_utf8_lossy(&o.stdout),
-        String::from_utf8_lossy(&o.stderr)
-    )
-}
-
-fn s(p: &Path) -> &str {
-    p.to_str().expect("utf8")
-}
+use std::process::Command;
+use support::{agentstar, path_str as s, text};
 
 /// Whether COLMAP can run here; panics when it cannot and `AGENTSTAR_REQUIRE_COLMAP` is set.
 fn have_colmap() -> bool {

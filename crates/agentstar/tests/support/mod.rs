@@ -14,6 +14,21 @@ pub fn agentstar(args: &[&str]) -> Output {
         .expect("run agentstar")
 }
 
+/// Runs `agentstar ARGS` to completion with extra environment variables.
+pub fn agentstar_in(env: &[(&str, &str)], args: &[&str]) -> Output {
+    let mut c = Command::new(env!("CARGO_BIN_EXE_agentstar"));
+    c.args(args);
+    for (k, v) in env {
+        c.env(k, v);
+    }
+    c.output().expect("run agentstar")
+}
+
+/// A path as a borrowed `&str` argument.
+pub fn path_str(path: &Path) -> &str {
+    path.to_str().expect("utf8")
+}
+
 /// A command's stdout and stderr, for assertion messages.
 pub fn text(o: &Output) -> String {
     format!(
