@@ -5,6 +5,8 @@
 //! - [`SessionArgs`]: the capture, model and pose file every command on a posed model takes
 //!   (the binary flattens it into those commands' arguments);
 //! - [`Output`]: where a command writes its files, and `--json`;
+//! - the requests the MCP tools take and the commands flatten, one type each (the
+//!   object-frame pose verbs: [`OsweepArgs`], [`OapplyArgs`], [`OapplyAllArgs`]);
 //! - [`to_args`]: the one rule that turns any serialisable request into arguments: each
 //!   field `name` becomes `--name=VALUE` (snake case to kebab case), `true` a bare `--name`,
 //!   `false`, `null` and absent fields nothing, a list one `--name=ITEM` per item.
@@ -18,6 +20,13 @@
 use serde::{Deserialize, Serialize};
 use serde_json::Value;
 use std::path::PathBuf;
+
+pub mod object;
+
+pub use object::{OapplyAllArgs, OapplyArgs, OsweepArgs};
+
+/// What a `frames` argument takes (the one frame grammar, `Capture::select`).
+pub const FRAMES: &str = "Keyframes: `all`, names (`000010.png`), stems (`000010`), frame numbers, or ranges `a..b`, comma separated.";
 
 /// A request that cannot be turned into arguments.
 #[derive(Debug, thiserror::Error)]

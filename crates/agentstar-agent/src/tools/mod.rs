@@ -91,7 +91,7 @@ pub const MAX_NOTES_BYTES: usize = 64 * 1024;
 /// Most images one tool call returns inline (the rest stay files, named in the text).
 pub const MAX_IMAGES_RETURNED: usize = 8;
 
-const FRAMES: &str = "Keyframes: `all`, names (`000010.png`), stems (`000010`), frame numbers, or ranges `a..b`, comma separated.";
+use agentstar_requests::FRAMES;
 
 /// One tool: its name, kind, what it writes, its arguments and its handler.
 pub trait Tool {

@@ -9,6 +9,7 @@ use agentstar_reports::{
     CommitReport, FrameHistoryReport, HistoryReport, PoseDiffReport, RestoreReport, SearchReport,
     SearchVerb, TrackReport,
 };
+use agentstar_requests::{OapplyAllArgs, OapplyArgs, OsweepArgs};
 use schemars::JsonSchema;
 use serde::Deserialize;
 use std::collections::BTreeMap;
@@ -154,44 +155,6 @@ pub struct ApplyArgs {
     /// One value per DOF: `yaw:15;hinge:40` (increments; joint states absolute).
     #[schemars(length(min = 1))]
     pub order: String,
-}
-
-#[derive(Debug, Deserialize, JsonSchema, serde::Serialize)]
-#[serde(deny_unknown_fields)]
-pub struct OsweepArgs {
-    #[schemars(description = FRAMES)]
-    pub frames: Option<String>,
-    /// A preset: `z:flip`, `z:quarters`, `z:octants`, `so3:24`. Give this or `ranges`.
-    pub opreset: Option<String>,
-    /// Grid ranges over rx, ry, rz (degrees) and joints: `rz:-180,180,9;rx:-15,15,3`, each
-    /// `dof:lower,upper,steps` with `steps` grid values from lower to upper, both included.
-    /// The grid is then refined around its best points (finer spacing) and every candidate
-    /// refined locally before ranking: each row names its grid start and, after `→`, the
-    /// rotation (one rotation vector, as `oapply` reads it) and joint states it was refined to.
-    /// Give this or `opreset`.
-    pub ranges: Option<String>,
-}
-
-#[derive(Debug, Deserialize, JsonSchema, serde::Serialize)]
-#[serde(deny_unknown_fields)]
-pub struct OapplyArgs {
-    #[schemars(description = FRAMES)]
-    pub frames: Option<String>,
-    /// `flips`, `swaps` (for each hinge, the half-turn that puts its two sides in each
-    /// other's place: a laptop's lid and base), or candidates separated by `|`, terms by `;`:
-    /// `identity|flip:x|rz:90;rx:10|swaps`; a term `JOINT:value` sets a joint in that
-    /// candidate (degrees, or canonical units for a prismatic joint): `flip:x;hinge:115`.
-    pub set: Option<String>,
-}
-
-#[derive(Debug, Deserialize, JsonSchema, serde::Serialize)]
-#[serde(deny_unknown_fields)]
-pub struct OapplyAllArgs {
-    /// One rotation: `rz:90;rx:10` (rotation vector, degrees) or `flip:x|y|z`.
-    #[schemars(length(min = 1))]
-    pub rotation: String,
-    #[schemars(description = FRAMES)]
-    pub frames: Option<String>,
 }
 
 #[derive(Debug, Deserialize, JsonSchema)]

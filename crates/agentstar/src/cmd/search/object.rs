@@ -3,6 +3,7 @@
 
 use super::*;
 use crate::common::OpenSession as _;
+use agentstar_requests as requests;
 
 #[derive(clap::Args)]
 #[command(
@@ -12,15 +13,11 @@ use crate::common::OpenSession as _;
 pub struct OsweepArgs {
     #[command(flatten)]
     common: Common,
-    /// Frames: names, stems or `a..b` ranges, comma separated (default: all).
-    #[arg(long)]
-    frames: Option<String>,
-    /// Grid ranges over rx, ry, rz (and joints): `rz:-180,180,9;rx:-15,15,3` (this or `--opreset`).
-    #[arg(long)]
-    ranges: Option<String>,
-    /// Preset rotations: `z:flip`, `z:quarters`, `z:octants`, `z:full`, `z:0,90,180`, `z:large`, or `so3:N` (identity plus N uniform rotations) (this or `--ranges`).
-    #[arg(long)]
-    opreset: Option<String>,
+    /// Where to search (the `osweep` tool's arguments). Presets: `z:flip`, `z:quarters`,
+    /// `z:octants`, `z:full`, `z:0,90,180`, `z:large`, or `so3:N` (identity plus N uniform
+    /// rotations).
+    #[command(flatten)]
+    request: requests::OsweepArgs,
     /// Grid steps for axes whose range gives none.
     #[arg(long, default_value_t = 5)]
     steps: usize,
@@ -45,20 +42,14 @@ pub struct OsweepArgs {
 pub struct OapplyArgs {
     #[command(flatten)]
     common: Common,
-    /// Frames: names, stems or `a..b` ranges, comma separated (default: all).
-    #[arg(long)]
-    frames: Option<String>,
-    /// Candidates separated by `|`, terms by `;`: `identity|flip:x|rz:90;rx:10|flip:y;rz:30`,
-    /// `flips` or `swaps`. rx/ry/rz terms make one rotation vector (degrees); a flip splits a
-    /// candidate into factors applied left to right about the turned object axes. Each
-    /// candidate turns the object about its box centre (at the frame's joint states). A term
-    /// `JOINT:value` sets that joint in the candidate (degrees, or canonical units for a
-    /// prismatic joint): `flip:x;hinge:115`.
-    /// `swaps`: for each revolute joint, the half-turn through the hinge that puts each of
-    /// its two sides where the other was (a laptop's lid and base, a notebook's covers),
-    /// labelled `swap:JOINT`; none for a rigid model.
-    #[arg(long, default_value = "flips|swaps")]
-    set: String,
+    /// What to score (the `oapply` tool's arguments; the set defaults to `flips|swaps`).
+    /// rx/ry/rz terms make one rotation vector (degrees); a flip splits a candidate into
+    /// factors applied left to right about the turned object axes. Each candidate turns the
+    /// object about its box centre (at the frame's joint states). `swaps`: for each revolute
+    /// joint, the half-turn through the hinge that puts each of its two sides where the other
+    /// was, labelled `swap:JOINT`; none for a rigid model.
+    #[command(flatten)]
+    request: requests::OapplyArgs,
     /// Rank the candidates as placed, without refining each locally first.
     #[arg(long)]
     no_refine: bool,
@@ -71,14 +62,10 @@ pub struct OapplyArgs {
 pub struct OapplyAllArgs {
     #[command(flatten)]
     common: Common,
-    /// Frames to rotate (default: all).
-    #[arg(long)]
-    frames: Option<String>,
-    /// One rotation: `rz:90;rx:10` (rotation vector, degrees), `flip:x|y|z`, or a compound
-    /// such as `flip:y;rz:30`. It turns every frame about the canonical origin (the
-    /// translation is kept).
-    #[arg(long)]
-    rotation: String,
+    /// The rotation and the frames (the `oapply_all` tool's arguments). The rotation turns
+    /// every frame about the canonical origin (the translation is kept).
+    #[command(flatten)]
+    request: requests::OapplyAllArgs,
 }
 
 /// Rotation-vector candidates from an object preset.
@@ -157,12 +144,12 @@ fn opreset_candidates(spec: &str, seed: u64) -> Result<Vec<(String, [f64; 3])>> 
 pub fn run_osweep(a: OsweepArgs) -> Result<ExitCode> {
     let s = a.common.session.open()?;
     let tree = &s.model.model.tree;
-    let frames = select_frames(&s.capture, a.frames.as_deref())?;
+    let frames = select_frames(&s.capture, a.request.frames.as_deref())?;
     let mut outputs = Vec::new();
     for &i in progress(frames.len(), "osweep").wrap_iter(frames.iter()) {
         let inputs = s.target(i)?;
         let p = problem_for(&s, i, &inputs, a.common.depth_weight, s.gen_pose(i));
-        let (space, cfg) = if let Some(pre) = &a.opreset {
+        let (space, cfg) = if let Some(pre) = &a.request.opreset {
             let cands = opreset_candidates(pre, 0x5EED)?;
             let space = SearchSpace {
                 ranges: [Dof::Rx, Dof::Ry, Dof::Rz]
@@ -185,7 +172,7 @@ pub fn run_osweep(a: OsweepArgs) -> Result<ExitCode> {
                 },
             )
         } else {
-            let space = build_space(a.ranges.as_deref(), None, tree, Grammar::Object)?;
+            let space = build_space(a.request.ranges.as_deref(), None, tree, Grammar::Object)?;
             (
                 space,
                 SweepConfig {
@@ -430,8 +417,8 @@ fn parse_rotation(cand: &str) -> Result<UnitQuaternion> {
 
 pub fn run_oapply(a: OapplyArgs) -> Result<ExitCode> {
     let s = a.common.session.open()?;
-    let set = rotation_set(&a.set, &s.model.model.tree)?;
-    let frames = select_frames(&s.capture, a.frames.as_deref())?;
+    let set = rotation_set(a.request.set(), &s.model.model.tree)?;
+    let frames = select_frames(&s.capture, a.request.frames.as_deref())?;
     let mut outputs = Vec::new();
     for &i in progress(frames.len(), "oapply").wrap_iter(frames.iter()) {
         let inputs = s.target(i)?;
@@ -451,7 +438,7 @@ pub fn run_oapply(a: OapplyArgs) -> Result<ExitCode> {
         if moves.is_empty() {
             bail!(
                 "`{}`: the model has no revolute joint to swap the sides of, and the set names no other rotation; e.g. `flips|swaps`",
-                a.set
+                a.request.set()
             );
         }
         let mut rows: Vec<Row> = moves
@@ -493,7 +480,7 @@ pub fn run_oapply(a: OapplyArgs) -> Result<ExitCode> {
         outputs.push(FrameOutput {
             frame: s.capture.frames[i].name.clone(),
             rows,
-            extra: json!({"method": "oapply", "set": a.set}),
+            extra: json!({"method": "oapply", "set": a.request.set()}),
             notes: vec![],
         });
     }
@@ -509,8 +496,8 @@ pub fn run_oapply(a: OapplyArgs) -> Result<ExitCode> {
 
 pub fn run_oapply_all(a: OapplyAllArgs) -> Result<ExitCode> {
     let s = a.common.session.open()?;
-    let q = parse_rotation(a.rotation.trim()).context("--rotation")?;
-    let frames = select_frames(&s.capture, a.frames.as_deref())?;
+    let q = parse_rotation(a.request.rotation.trim()).context("--rotation")?;
+    let frames = select_frames(&s.capture, a.request.frames.as_deref())?;
     let mut outputs = Vec::new();
     // The temporal steps before the rotation, and the samples it will change.
     let before = crate::cmd::temporal::samples(&s);
@@ -530,7 +517,7 @@ pub fn run_oapply_all(a: OapplyAllArgs) -> Result<ExitCode> {
             frame: s.capture.frames[i].name.clone(),
             rows: vec![Row {
                 rank: 0,
-                label: a.rotation.clone(),
+                label: a.request.rotation.clone(),
                 pose: g,
                 score,
                 extra: json!({}),

@@ -1,0 +1,69 @@
+//! The object-frame pose verbs' requests: what `osweep`, `oapply` and `oapply-all` search,
+//! as the MCP tools of the same names take it and the commands flatten it (each command
+//! adds its tuning flags and the session's inputs).
+
+use crate::FRAMES;
+use schemars::JsonSchema;
+use serde::{Deserialize, Serialize};
+
+/// Where `osweep` searches: a preset or grid ranges, in some keyframes.
+#[derive(clap::Args, Debug, Clone, PartialEq, Deserialize, Serialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct OsweepArgs {
+    #[arg(long, help = FRAMES)]
+    #[schemars(description = FRAMES)]
+    pub frames: Option<String>,
+    /// A preset: `z:flip`, `z:quarters`, `z:octants`, `so3:24`. Give this or `ranges`.
+    #[arg(long)]
+    pub opreset: Option<String>,
+    /// Grid ranges over rx, ry, rz (degrees) and joints: `rz:-180,180,9;rx:-15,15,3`, each
+    /// `dof:lower,upper,steps` with `steps` grid values from lower to upper, both included.
+    /// The grid is then refined around its best points (finer spacing) and every candidate
+    /// refined locally before ranking: each row names its grid start and, after `→`, the
+    /// rotation (one rotation vector, as `oapply` reads it) and joint states it was refined to.
+    /// Give this or `opreset`.
+    #[arg(long)]
+    pub ranges: Option<String>,
+}
+
+/// What `oapply` scores: a set of object-frame rotations, in some keyframes.
+#[derive(clap::Args, Debug, Clone, PartialEq, Deserialize, Serialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct OapplyArgs {
+    #[arg(long, help = FRAMES)]
+    #[schemars(description = FRAMES)]
+    pub frames: Option<String>,
+    /// `flips`, `swaps` (for each hinge, the half-turn that puts its two sides in each
+    /// other's place: a laptop's lid and base), or candidates separated by `|`, terms by `;`:
+    /// `identity|flip:x|rz:90;rx:10|swaps`; a term `JOINT:value` sets a joint in that
+    /// candidate (degrees, or canonical units for a prismatic joint): `flip:x;hinge:115`.
+    #[arg(long)]
+    pub set: Option<String>,
+}
+
+impl OapplyArgs {
+    /// The set when none is named.
+    pub const DEFAULT_SET: &'static str = "flips|swaps";
+
+    /// The set to score.
+    pub fn set(&self) -> &str {
+        self.set
+            .as_deref()
+            .map(str::trim)
+            .filter(|s| !s.is_empty())
+            .unwrap_or(Self::DEFAULT_SET)
+    }
+}
+
+/// The one rotation `oapply-all` applies, to every keyframe or a block of them.
+#[derive(clap::Args, Debug, Clone, PartialEq, Deserialize, Serialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct OapplyAllArgs {
+    /// One rotation: `rz:90;rx:10` (rotation vector, degrees) or `flip:x|y|z`.
+    #[arg(long)]
+    #[schemars(length(min = 1))]
+    pub rotation: String,
+    #[arg(long, help = FRAMES)]
+    #[schemars(description = FRAMES)]
+    pub frames: Option<String>,
+}
