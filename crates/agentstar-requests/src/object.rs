@@ -8,6 +8,7 @@ use serde::{Deserialize, Serialize};
 
 /// Where `osweep` searches: a preset or grid ranges, in some keyframes.
 #[derive(clap::Args, Debug, Clone, PartialEq, Deserialize, Serialize, JsonSchema)]
+#[group(skip)]
 #[serde(deny_unknown_fields)]
 pub struct OsweepArgs {
     #[arg(long, help = FRAMES)]
@@ -28,6 +29,7 @@ pub struct OsweepArgs {
 
 /// What `oapply` scores: a set of object-frame rotations, in some keyframes.
 #[derive(clap::Args, Debug, Clone, PartialEq, Deserialize, Serialize, JsonSchema)]
+#[group(skip)]
 #[serde(deny_unknown_fields)]
 pub struct OapplyArgs {
     #[arg(long, help = FRAMES)]
@@ -57,6 +59,7 @@ impl OapplyArgs {
 
 /// The one rotation `oapply-all` applies, to every keyframe or a block of them.
 #[derive(clap::Args, Debug, Clone, PartialEq, Deserialize, Serialize, JsonSchema)]
+#[group(skip)]
 #[serde(deny_unknown_fields)]
 pub struct OapplyAllArgs {
     /// One rotation: `rz:90;rx:10` (rotation vector, degrees) or `flip:x|y|z`.
