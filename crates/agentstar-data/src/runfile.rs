@@ -27,6 +27,9 @@ pub struct FinishPolicy {
     /// An `occlusion` reason is accepted when at least this share of the rendered model
     /// is hidden, percent.
     pub min_occlusion_percent: f64,
+    /// Whether `finish` needs a fresh `mechanism_pick` of the declared arm for every
+    /// revolute joint of the current scene (on by default; runs without it read as on).
+    pub mechanism_check: bool,
 }
 
 impl Default for FinishPolicy {
@@ -34,6 +37,7 @@ impl Default for FinishPolicy {
         FinishPolicy {
             max_share_under_gate: 0.25,
             min_occlusion_percent: 30.0,
+            mechanism_check: true,
         }
     }
 }
