@@ -577,7 +577,7 @@ mod tests {
         // The ends do not count, nor does a number repeated.
         let ends = "at 0 closed, at 110 open, at 55 half way, at 55 again";
         assert_eq!(evidence_states(ends, &STATES, true), [55.0]);
-        let e = check_evidence("lid", ends, &STATES, true).unwrap_err();
+        let e = check_evidence("lid", ends, &STATES, true).expect_err("one interior state");
         assert!(
             e.contains("names 1 interior state(s) of the sheets (55)"),
             "{e}"
