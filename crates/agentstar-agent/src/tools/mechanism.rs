@@ -329,7 +329,7 @@ impl Toolbox {
             let states: Vec<String> = j.states.iter().map(|v| num(*v)).collect();
             let interior: Vec<String> = j.interior().iter().map(|v| num(*v)).collect();
             text.push_str(&format!(
-                "\n- {} ({}, {} to {}{unit}): states {} (interior {}); arm A: {}; arm B: {}",
+                "\n- {} ({}, {} to {}{unit}): states {} (interior {})\n  arm A: {}\n  arm B: {}",
                 j.joint,
                 j.kind,
                 num(j.range[0]),
@@ -349,7 +349,7 @@ impl Toolbox {
             ));
             if let Some(f) = &j.frame {
                 text.push_str(&format!(
-                    "; most open in {} ({}{unit}): {}",
+                    "\n  most open in {} ({}{unit}): {}",
                     f.frame,
                     num(f.state),
                     f.image.display()
