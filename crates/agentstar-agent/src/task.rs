@@ -48,7 +48,8 @@ Alternate two kinds of steps; **each step changes the shape or the poses, never 
    directory, e.g. `draft.rhai`). It is checked before it replaces the current one: on a
    syntax or geometry error you get the message and nothing changes. Check the result with
    `turntable` in every joint state: the 3-D shape must be coherent from every side, not only
-   from the camera. Proportions you are unsure of (a depth, a handle's height) are better
+   from the camera; for a model with joints, run `mechanism` and name with `mechanism_pick`
+   the arm that moves as the object does (see the gates). Proportions you are unsure of (a depth, a handle's height) are better
    declared as parameters, `param("depth", 0.9, 0.7, 1.1)`, and fitted with `fit_shape`
    (only the parameters you name move, within their bounds, against the committed poses);
    `scale` estimates metres per model unit (from depth, camera parallax or a size you state)
@@ -82,6 +83,14 @@ compare; compare and side are cropped around the object, overlay shows the whole
   background, one sheet per joint state (each joint's min, median and max over the
   keyframes unless you ask for others); look for parts floating, intersecting, or missing
   from the back, and for joints that move the wrong part.
+- **mechanism**: each joint swept through its range twice, about the axis the scene
+  declares and about the negated axis, as two arms labelled A and B (one sheet each; which
+  is declared is not shown), the other joints at rest, from two views 40° off the joint's
+  axis, the framing fixed per joint so only the motion differs; one column per state
+  (both ends of the range and the interior states, labelled with their value), one row per
+  view; with the keyframe where the joint is most open. One arm opens the part the way the
+  frames show; the other swings it the mirror way (a lid into the box, a door through the
+  wall).
 - Every image is at most {MAX_SIDE} px on its long side and {MAX_MP} megapixels; larger
   sets come as several sheets (pages), never one stretched image.
 - **temporal plot**: rotation and translation from keyframe to keyframe after removing the
@@ -102,6 +111,11 @@ so a high IoU does not rule them out:
   Check: limit joints to the range they really move (the scene check warns about full
   turns); look at `turntable` at the joint's min, median and max (it warns when many
   keyframes sit at a limit) and at `frames` where the part is visible.
+- **A mirrored joint axis.** A hinge declared about −x instead of +x moves its part the
+  mirror way, yet at the keyframes' states the tracker can still fit the outline (with the
+  states negated, or the part swung through the body). Check: `mechanism`, and name the
+  arm whose motion matches the frames with `mechanism_pick`; if it is the negated arm,
+  negate the axis in the scene (or keep it and swap the limit to [−upper, −lower]).
 - **A mirror-image model.** A model built the mirror image of the object (a handle, a ring
   or a part on the wrong side; two blades layered the wrong way round) fits most
   silhouettes, and no pose, flip or swap can fix it: a reflection is not a turn. Check:
@@ -130,6 +144,14 @@ Call `finish` only when all of these hold; it checks them and tells you what is 
    confirmed or fixed. A step over 90° that stays is named in `finish`'s `steps_checked`
    with what you found, after `oapply` (or `osweep`, `render`, `frames`) on one of its
    frames: `{"steps_checked": {"000040->000045": "oapply on 000045: no twin within 0.01"}}`.
+4. Every revolute joint of the current scene has a `mechanism_pick` made for this scene
+   version that names the arm about the declared axis. Run `mechanism`, compare arms A and
+   B with the frames, and pick with evidence naming at least three interior states by
+   value: `{"picks": {"lid_hinge": {"arm": "A", "evidence": "at 37 deg the lid clears the
+   rim; at 55 deg it stands over the back; at 92 deg it leans back as in 000040"}}}`. A
+   scene change makes a pick stale (sweep and pick again); picking the negated arm blocks
+   `finish` until the axis is negated in the scene. A run can switch this gate off in
+   `run.json` (`"finish": {"mechanism_check": false}`).
 
 ## Budgets
 
@@ -194,7 +216,7 @@ pub fn mcp_instructions(with_critic: bool) -> String {
 
 /// What an MCP client shows its model when it connects (with a critic model: see
 /// [`mcp_instructions`]).
-pub const MCP_INSTRUCTIONS: &str = "agentstar fits an object model written as code (scene.rhai) and its pose in every keyframe of a video to the object's masks. Read TASK.md in the run directory first (the tool `task` returns it): it explains the loop (each step changes the shape or the poses, never both), how to read the images, and the gates `finish` checks. Shape tools: scene_read, scene_write, scene_restore, fit_shape, scale, turntable. Pose tools: track, sweep, apply, osweep, oapply, oapply_all, pose_commit, pose_history, pose_restore. Diagnostics: frames (the raw keyframes, cropped around the mask), render, score, temporal, pose_diff, critic. Images come back inline and as files under the run's images/ directory.";
+pub const MCP_INSTRUCTIONS: &str = "agentstar fits an object model written as code (scene.rhai) and its pose in every keyframe of a video to the object's masks. Read TASK.md in the run directory first (the tool `task` returns it): it explains the loop (each step changes the shape or the poses, never both), how to read the images, and the gates `finish` checks. Shape tools: scene_read, scene_write, scene_restore, fit_shape, scale, turntable, mechanism, mechanism_pick. Pose tools: track, sweep, apply, osweep, oapply, oapply_all, pose_commit, pose_history, pose_restore. Diagnostics: frames (the raw keyframes, cropped around the mask), render, score, temporal, pose_diff, critic. Images come back inline and as files under the run's images/ directory.";
 
 #[cfg(test)]
 mod tests {
@@ -241,6 +263,9 @@ mod tests {
             !without.contains("critic") && without.contains("pose_diff."),
             "{without}"
         );
+        // The mechanism gate: how to pass it and how a run turns it off.
+        assert!(t.contains("mechanism_pick") && t.contains("mechanism_check"));
+        assert!(without.contains("turntable, mechanism, mechanism_pick."));
         assert!(t.contains("A worked articulated example"));
         assert!(t.contains("joint("));
         // Short enough to read whole: under ~5,000 words.

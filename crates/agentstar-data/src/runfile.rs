@@ -27,6 +27,9 @@ pub struct FinishPolicy {
     /// An `occlusion` reason is accepted when at least this share of the rendered model
     /// is hidden, percent.
     pub min_occlusion_percent: f64,
+    /// Whether `finish` needs a fresh `mechanism_pick` of the declared arm for every
+    /// revolute joint of the current scene (on by default; runs without it read as on).
+    pub mechanism_check: bool,
 }
 
 impl Default for FinishPolicy {
@@ -34,6 +37,7 @@ impl Default for FinishPolicy {
         FinishPolicy {
             max_share_under_gate: 0.25,
             min_occlusion_percent: 30.0,
+            mechanism_check: true,
         }
     }
 }
@@ -72,5 +76,27 @@ impl RunFile {
             }
         }
         Ok(Some(rf))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_mechanism_check_is_on_unless_run_json_turns_it_off() {
+        // A run.json from before the check reads as on.
+        let old: RunFile =
+            serde_json::from_str(r#"{"capture": "cap", "finish": {"max_share_under_gate": 0.5}}"#)
+                .expect("old run.json");
+        assert!(old.finish.mechanism_check);
+        assert_eq!(old.finish.max_share_under_gate, 0.5);
+        let none: RunFile = serde_json::from_str(r#"{"capture": "cap"}"#).expect("run.json");
+        assert!(none.finish.mechanism_check);
+        let off: RunFile =
+            serde_json::from_str(r#"{"capture": "cap", "finish": {"mechanism_check": false}}"#)
+                .expect("run.json");
+        assert!(!off.finish.mechanism_check);
+        assert_eq!(off.finish.min_occlusion_percent, 30.0);
     }
 }

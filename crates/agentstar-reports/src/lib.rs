@@ -11,6 +11,7 @@
 //! [`serde_json::Value`] inside the typed reports.
 
 pub mod fit;
+pub mod mechanism;
 pub mod view;
 
 pub use agentstar_data::history::{FrameVersion, HistoryEntry, HistoryRow};

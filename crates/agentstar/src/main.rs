@@ -36,6 +36,8 @@ enum Command {
     Score(cmd::score::Args),
     /// Render turntables (8 views on a sphere) of the model, once per distinct joint state.
     Turntable(cmd::turntable::Args),
+    /// The mechanism check: each joint swept about its declared axis and about the negated axis, as two blind arms A and B, from views off the swing plane.
+    Mechanism(cmd::mechanism::Args),
     /// Export the model: GLB (one node per part) or URDF with OBJ meshes.
     Export(cmd::export::Args),
     /// Search camera-frame increments and joint states for one or more frames (differential evolution or grid).
@@ -147,6 +149,7 @@ fn main() -> ExitCode {
         Command::Render(a) => cmd::render::run(a),
         Command::Score(a) => cmd::score::run(a),
         Command::Turntable(a) => cmd::turntable::run(a),
+        Command::Mechanism(a) => cmd::mechanism::run(a),
         Command::Export(a) => cmd::export::run(a),
         Command::Sweep(a) => cmd::search::run_sweep(a),
         Command::Apply(a) => cmd::search::run_apply(a),

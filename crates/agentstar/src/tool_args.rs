@@ -84,6 +84,13 @@ fn samples() -> BTreeMap<&'static str, Vec<Value>> {
         ),
         ("score", vec![json!({"frames": "all"})]),
         ("turntable", vec![json!({"states": "all"})]),
+        ("mechanism", vec![json!({}), json!({"joints": "lid_hinge"})]),
+        (
+            "mechanism_pick",
+            vec![
+                json!({"picks": {"lid_hinge": {"arm": "A", "evidence": "at 18 deg the lid lifts; at 55 deg it stands; at 92 deg it is upright"}}}),
+            ],
+        ),
         (
             "track",
             vec![
@@ -149,6 +156,7 @@ const RUN_A_COMMAND: &[&str] = &[
     "frames",
     "score",
     "turntable",
+    "mechanism",
     "track",
     "scale",
     "sweep",

@@ -106,6 +106,8 @@ fn the_agent_loop_builds_tracks_and_passes_the_gates_against_a_mock_model() {
     ]);
     assert!(o.status.success(), "{}", text(&o));
     assert!(p("run/TASK.md").is_file() && p("run/NOTES.md").is_file());
+    // A scripted model cannot look at the mechanism sheets (tests/mechanism.rs does).
+    support::mechanism_check_off(&p("run"));
     let known = std::fs::read_to_string(p("cap/model/scene.rhai")).expect("scene");
     let model = mock_model(vec![
         // A server error and a reply slower than the timeout: both retried.

@@ -267,6 +267,8 @@ impl Session {
 fn tracked_from_truth(dir: &Path) -> (std::path::PathBuf, Session, serde_json::Value) {
     small_run(dir, 4, true);
     let (cap, run) = (dir.join("cap"), dir.join("run"));
+    // The gates under test here; the mechanism check has its own (tests/mechanism.rs).
+    support::mechanism_check_off(&run);
     let mut c = Session::new(&run);
     let r = c.call("track", json!({"from": s(&cap.join("model/pose.json"))}));
     assert_eq!(r["result"]["isError"], false, "{r}");

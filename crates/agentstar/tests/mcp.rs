@@ -41,6 +41,10 @@ fn sample(tool: &str, prop: &str, scene: &str) -> Option<Value> {
         ("frames", "zoom") => json!(2.0),
         ("frames", "outline") => json!("both"),
         ("turntable", "states") => json!("representative"),
+        ("mechanism", "joints") => json!("lid_hinge"),
+        // The box's lid swept 0 to 110 degrees in 7 states: 18, 37, 55, 73, 92 inside.
+        ("mechanism_pick", "picks") => json!({"lid_hinge": {"arm": "A",
+            "evidence": "at 18 deg the lid lifts; at 55 deg it stands; at 92 deg it is upright"}}),
         ("fit_shape", "params") => json!(["lid_thickness"]),
         ("scale", "method") => json!("size"),
         ("scale", "axis") => json!("longest"),

@@ -1,5 +1,5 @@
 //! Ending a run: `critic`, `notes` and `finish` with its gates (IoU with reasons, the
-//! turntable and temporal checks, the large steps looked at).
+//! turntable and temporal checks, the large steps looked at, the mechanism picks).
 
 use super::*;
 use crate::Result;
@@ -101,7 +101,7 @@ tool!(Notes, "notes", Note, Notes, NotesArgs,
     });
 
 tool!(Finish, "finish", Diagnostic, Nothing, FinishArgs,
-    "Check the gates and end the run when they hold: every keyframe's band IoU (the gate `score` reports) ≥ 0.98 or a checked reason for it in `unreachable` (categories: occlusion over the run's threshold, a mask error shown on an image, truncated by the frame border, out of the model's reach with a note); at most a quarter of the keyframes (the run's `finish.max_share_under_gate`) under the gate even with reasons; a turntable after the last shape change; a temporal report after the last change of the poses (a commit, track, restore, fit or rescale; searches that were not committed do not count); every large step of the current poses (over 90°, as `temporal` warns) named in `steps_checked` with what you found, after looking at one of its frames (`oapply`, `osweep`, `render` or `frames`). Returns what is missing otherwise.",
+    "Check the gates and end the run when they hold: every keyframe's band IoU (the gate `score` reports) ≥ 0.98 or a checked reason for it in `unreachable` (categories: occlusion over the run's threshold, a mask error shown on an image, truncated by the frame border, out of the model's reach with a note); at most a quarter of the keyframes (the run's `finish.max_share_under_gate`) under the gate even with reasons; a turntable after the last shape change; a temporal report after the last change of the poses (a commit, track, restore, fit or rescale; searches that were not committed do not count); every large step of the current poses (over 90°, as `temporal` warns) named in `steps_checked` with what you found, after looking at one of its frames (`oapply`, `osweep`, `render` or `frames`); for every revolute joint, a `mechanism_pick` made for the current scene that names the arm about the declared axis (run.json `finish.mechanism_check`, on by default). Returns what is missing otherwise.",
     |tb, a, _step| tb.finish(&a));
 
 impl Toolbox {
@@ -429,6 +429,7 @@ impl Toolbox {
             missing.push("review the `temporal` report after the last pose change".into());
         }
         missing.extend(self.unchecked_steps(args.steps_checked.as_ref(), &entries));
+        missing.extend(self.mechanism_missing());
         let passed = missing.is_empty();
         let mut o = ToolOutput {
             text: if passed {

@@ -19,7 +19,8 @@
 //! `schema.rs` the schemas and argument checks; `exec.rs` the child-process runner; and one
 //! file per tool family, each with its argument types, its `tool!` entries and its handlers:
 //! `scene.rs` (task, scene_read, scene_write, scene_restore), `views.rs` (render, frames,
-//! score, turntable), `pose.rs` (track, the search verbs, pose_commit, pose_history,
+//! score, turntable), `mechanism.rs` (mechanism, mechanism_pick: the blind arms of each joint
+//! and the picks `finish` reads), `pose.rs` (track, the search verbs, pose_commit, pose_history,
 //! pose_restore, temporal, pose_diff), `shape.rs` (fit_shape, scale) and `finish.rs`
 //! (critic, notes, finish).
 //!
@@ -69,6 +70,8 @@ pub enum Writes {
     Scene,
     /// `NOTES.md`.
     Notes,
+    /// The mechanism picks (`.agentstar/mechanism/picks.json`).
+    Picks,
 }
 
 /// One tool as offered to a model (a view of a [`ToolDef`]).
@@ -188,6 +191,7 @@ macro_rules! tool {
 
 mod exec;
 mod finish;
+mod mechanism;
 mod pose;
 mod scene;
 mod schema;
@@ -198,6 +202,7 @@ mod views;
 
 pub use exec::*;
 pub use finish::*;
+pub use mechanism::*;
 pub use pose::*;
 pub use scene::*;
 pub use schema::*;
@@ -220,6 +225,8 @@ pub static REGISTRY: &[ToolDef] = &[
     ToolDef::of::<Keyframes>(),
     ToolDef::of::<Score>(),
     ToolDef::of::<Turntable>(),
+    ToolDef::of::<Mechanism>(),
+    ToolDef::of::<MechanismPick>(),
     ToolDef::of::<Track>(),
     ToolDef::of::<Scale>(),
     ToolDef::of::<Sweep>(),

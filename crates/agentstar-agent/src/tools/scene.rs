@@ -219,7 +219,7 @@ impl Toolbox {
 }
 
 /// `agentstar check SCRIPT --json`.
-fn check_call(script: &Path) -> Result<Invocation> {
+pub(super) fn check_call(script: &Path) -> Result<Invocation> {
     #[derive(serde::Serialize)]
     struct Check {
         json: bool,

@@ -11,6 +11,7 @@ pub mod example;
 pub mod export;
 pub mod fit;
 pub mod mcp;
+pub mod mechanism;
 pub mod pose;
 pub mod render;
 pub mod report;

@@ -168,6 +168,17 @@ pub fn small_run(dir: &Path, frames: usize, known_scene: bool) {
     assert!(o.status.success(), "{}", text(&o));
 }
 
+/// Turns the mechanism gate off in `RUN/run.json` (`finish.mechanism_check: false`), for
+/// tests of the other gates on the box, whose lid is a revolute joint. A server reads the
+/// policy when it starts.
+pub fn mechanism_check_off(run: &Path) {
+    let rf = run.join("run.json");
+    let mut v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&rf).expect("run.json")).expect("json");
+    v["finish"]["mechanism_check"] = serde_json::json!(false);
+    std::fs::write(&rf, v.to_string()).expect("write run.json");
+}
+
 /// The ledger's entries.
 pub fn ledger(run: &Path) -> Vec<serde_json::Value> {
     std::fs::read_to_string(run.join("ledger.jsonl"))
