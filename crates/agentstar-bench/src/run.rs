@@ -8,7 +8,9 @@ use agentstar_geom::pose::ObjectPose;
 use agentstar_geom::UnitQuaternion;
 use agentstar_render::ScoreTarget;
 use agentstar_synth::SynthCapture;
-use agentstar_track::tracker::{track_independent, track_observed, TrackConfig, TrackFrame};
+use agentstar_track::tracker::{
+    track_independent, track_observed, TrackConfig, TrackFrame, TrackSwitches,
+};
 use agentstar_track::GenPose;
 use serde::{Deserialize, Serialize};
 use std::time::Instant;
@@ -238,14 +240,13 @@ pub fn run_sequence_observed(
             })
         })
         .collect::<Result<_, BenchError>>()?;
-    let tcfg = TrackConfig {
+    let tcfg = TrackConfig::from(TrackSwitches {
         seed: cfg.seed,
         local_evals: cfg.local_evals,
-        consistency_pass: method == Method::Tracker,
-        sequence_choice: cfg.sequence_choice && method == Method::Tracker,
+        temporal: method == Method::Tracker,
+        sequence_choice: cfg.sequence_choice,
         appearance: cfg.appearance,
-        ..TrackConfig::default()
-    };
+    });
     let t0 = Instant::now();
     let tracked = match method {
         Method::Tracker | Method::NoTemporal => {

@@ -111,6 +111,36 @@ impl Default for TrackConfig {
     }
 }
 
+/// The tracker's switches as the `track` command and the benchmark's methods state them, and
+/// the one place they become a [`TrackConfig`] (the command-line flags, the bench methods and
+/// their ablations agree because they all go through it).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct TrackSwitches {
+    pub seed: u64,
+    /// Evaluations of each local search.
+    pub local_evals: usize,
+    /// The temporal passes: the final consistency pass and the sequence-level choice (off:
+    /// the "no temporal" ablation, which turns the choice off too).
+    pub temporal: bool,
+    /// The sequence-level choice (only with `temporal`).
+    pub sequence_choice: bool,
+    /// The frames' colours (off: the masks alone).
+    pub appearance: bool,
+}
+
+impl From<TrackSwitches> for TrackConfig {
+    fn from(s: TrackSwitches) -> TrackConfig {
+        TrackConfig {
+            seed: s.seed,
+            local_evals: s.local_evals,
+            consistency_pass: s.temporal,
+            sequence_choice: s.sequence_choice && s.temporal,
+            appearance: s.appearance,
+            ..TrackConfig::default()
+        }
+    }
+}
+
 #[derive(Debug, Clone, PartialEq)]
 pub struct TrackResult {
     pub poses: Vec<GenPose>,

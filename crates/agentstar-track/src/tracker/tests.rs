@@ -447,3 +447,27 @@ fn spin_about_z(g: &GenPose, deg: f64) -> GenPose {
 fn error_of(a: &GenPose, b: &GenPose) -> f64 {
     angle_deg(&(a.pose.rotation * b.pose.rotation.inverse()))
 }
+
+#[test]
+fn the_switches_map_to_one_config_and_no_temporal_turns_the_choice_off() {
+    let on = TrackSwitches {
+        seed: 3,
+        local_evals: 100,
+        temporal: true,
+        sequence_choice: true,
+        appearance: false,
+    };
+    let cfg = TrackConfig::from(on);
+    assert!(cfg.consistency_pass && cfg.sequence_choice && !cfg.appearance);
+    assert_eq!((cfg.seed, cfg.local_evals), (3, 100));
+    let off = TrackConfig::from(TrackSwitches {
+        temporal: false,
+        ..on
+    });
+    assert!(!off.consistency_pass && !off.sequence_choice);
+    let no_choice = TrackConfig::from(TrackSwitches {
+        sequence_choice: false,
+        ..on
+    });
+    assert!(no_choice.consistency_pass && !no_choice.sequence_choice);
+}

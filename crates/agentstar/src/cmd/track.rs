@@ -10,7 +10,7 @@ use agentstar_data::posefile::{partial_path, PoseFile};
 use agentstar_render::ScoreTarget;
 use agentstar_reports::TrackReport;
 use agentstar_track::tracker::{
-    track_from, track_observed, TrackConfig, TrackFrame, TrackObserver,
+    track_from, track_observed, TrackConfig, TrackFrame, TrackObserver, TrackSwitches,
 };
 use agentstar_track::GenPose;
 use anyhow::{anyhow, bail, Context, Result};
@@ -132,14 +132,13 @@ pub fn run(a: Args) -> Result<ExitCode> {
             rgb: img.as_ref().map(|m| m.as_raw().as_slice()),
         })
         .collect();
-    let cfg = TrackConfig {
+    let cfg = TrackConfig::from(TrackSwitches {
         seed: a.seed,
         local_evals: a.evals,
-        consistency_pass: !a.no_temporal,
-        sequence_choice: !a.no_sequence_choice && !a.no_temporal,
+        temporal: !a.no_temporal,
+        sequence_choice: !a.no_sequence_choice,
         appearance: !a.no_appearance,
-        ..TrackConfig::default()
-    };
+    });
     let t0 = std::time::Instant::now();
     let bar = crate::common::progress(frames.len(), "track");
     let partial_path = partial_path(&a.out);
