@@ -115,6 +115,7 @@ pub struct ToolDef {
     pub writes: Writes,
     pub description: &'static str,
     schema: fn() -> Value,
+    parse: fn(&Value) -> Result<()>,
     call: fn(&Toolbox, &Value, u64) -> Result<ToolOutput>,
 }
 
@@ -132,8 +133,15 @@ impl ToolDef {
             writes: T::WRITES,
             description: T::DESCRIPTION,
             schema: schema_of::<T::Args>,
+            parse: parse_typed::<T>,
             call: call_typed::<T>,
         }
+    }
+
+    /// Parses `args` into the tool's argument type and checks it against the schema, as a
+    /// call does before anything runs (the error is the one a call would answer with).
+    pub fn parse_args(&self, args: &Value) -> Result<()> {
+        (self.parse)(args)
     }
 
     /// The generated JSON Schema of the arguments.
@@ -154,6 +162,11 @@ impl ToolDef {
     pub fn check_args(&self, args: &Value) -> std::result::Result<(), String> {
         check_bounds(self.name, &self.schema(), args)
     }
+}
+
+fn parse_typed<T: Tool>(args: &Value) -> Result<()> {
+    parse_args::<T::Args>(T::NAME, args)?;
+    check_bounds(T::NAME, &schema_of::<T::Args>(), args).map_err(AgentError::Tool)
 }
 
 fn call_typed<T: Tool>(tb: &Toolbox, args: &Value, step: u64) -> Result<ToolOutput> {
