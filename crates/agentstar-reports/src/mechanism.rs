@@ -6,6 +6,18 @@
 use serde::{Deserialize, Serialize};
 use std::path::PathBuf;
 
+/// A joint state (or any figure) as the sheets' labels and the tools' text write it, so an
+/// agent can cite it back: at most three decimals, no trailing zeros, no `-0`.
+pub fn state_text(v: f64) -> String {
+    let t = format!("{v:.3}");
+    let t = t.trim_end_matches('0').trim_end_matches('.');
+    if t == "-0" {
+        "0".into()
+    } else {
+        t.to_string()
+    }
+}
+
 /// A blind arm label.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Serialize, Deserialize)]
 pub enum ArmLabel {

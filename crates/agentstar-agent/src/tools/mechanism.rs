@@ -133,16 +133,8 @@ fn fnv_hex(bytes: &[u8]) -> String {
     format!("{h:016x}")
 }
 
-/// A number as the text writes it (no trailing zeros, no `-0`).
-fn num(v: f64) -> String {
-    let t = format!("{v:.3}");
-    let t = t.trim_end_matches('0').trim_end_matches('.');
-    if t == "-0" {
-        "0".into()
-    } else {
-        t.to_string()
-    }
-}
+/// A number as the text writes it (as the sheets label the states).
+use agentstar_reports::mechanism::state_text as num;
 
 fn vec3(v: &[f64; 3]) -> String {
     format!("({}, {}, {})", num(v[0]), num(v[1]), num(v[2]))

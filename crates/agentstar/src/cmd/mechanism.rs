@@ -105,16 +105,7 @@ pub fn sweep_states(lo: f64, hi: f64, samples: usize, angular: bool) -> Vec<f64>
         .collect()
 }
 
-/// A state as the labels and the text write it.
-pub fn state_text(v: f64) -> String {
-    let t = format!("{v:.3}");
-    let t = t.trim_end_matches('0').trim_end_matches('.');
-    if t == "-0" {
-        "0".into()
-    } else {
-        t.to_string()
-    }
-}
+pub use agentstar_reports::mechanism::state_text;
 
 /// Up to two viewpoints (unit directions from the object to the eye) at
 /// [`VIEW_OFF_AXIS_DEG`] from `axis`: the first nearest the turntable's az35/el20 and not

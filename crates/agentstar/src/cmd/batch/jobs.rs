@@ -355,21 +355,10 @@ pub(super) fn run_local(a: LocalArgs) -> Result<ExitCode> {
             }
         }
     }
-    let (records, states) = self::states(&batch)?;
-    let rows = job_rows(&batch, &records, &states)?;
-    if a.json {
-        print_json(&serde_json::json!({
-            "batch": batch.dir, "summary": summary(&states), "jobs": reports(&batch, &rows)
-        }))?;
-    } else {
-        println!("{}: {}", batch.dir.display(), summary(&states));
-    }
+    print_status(&batch, a.json, false)?;
     Ok(if failed == 0 {
         ExitCode::SUCCESS
     } else {
         ExitCode::from(1)
     })
 }
-
-// ---------------------------------------------------------------------------------------
-// gather

@@ -444,6 +444,3 @@ fn tempfile_dir(target: &Path) -> Result<TempDir> {
     }
     bail!("{}: no free temporary name", parent.display())
 }
-
-// ---------------------------------------------------------------------------------------
-// status

@@ -15,9 +15,6 @@ pub(super) fn mem_flag(mem: Option<&str>) -> Result<Option<u64>> {
         .transpose()
 }
 
-// ---------------------------------------------------------------------------------------
-// plan
-
 /// `--scene`: a model file that loads now, not in every job later. Only a regular file is
 /// read, and only as far as its kind's limit (`/dev/zero`, a FIFO or a directory is refused
 /// before anything is read).

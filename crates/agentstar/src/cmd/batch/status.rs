@@ -271,20 +271,25 @@ pub(super) fn reports(batch: &Batch, rows: &[JobRow]) -> Vec<JobReport> {
         .collect()
 }
 
-pub(super) fn run_status(a: StatusArgs) -> Result<ExitCode> {
-    let batch = Batch::open(&a.batch)?;
-    let (records, states) = states(&batch)?;
-    let rows = job_rows(&batch, &records, &states)?;
-    if a.json {
+/// Prints the batch's summary (and, with `table`, the jobs table), or everything as JSON.
+pub(super) fn print_status(batch: &Batch, json: bool, table: bool) -> Result<()> {
+    let (records, states) = states(batch)?;
+    let rows = job_rows(batch, &records, &states)?;
+    if json {
         print_json(&serde_json::json!({
-            "batch": batch.dir, "summary": summary(&states), "jobs": reports(&batch, &rows)
+            "batch": batch.dir, "summary": summary(&states), "jobs": reports(batch, &rows)
         }))?;
-    } else {
+    } else if table {
         println!("{}: {}\n", batch.dir.display(), summary(&states));
         print!("{}", jobs_table(&rows));
+    } else {
+        println!("{}: {}", batch.dir.display(), summary(&states));
     }
-    Ok(ExitCode::SUCCESS)
+    Ok(())
 }
 
-// ---------------------------------------------------------------------------------------
-// slurm
+pub(super) fn run_status(a: StatusArgs) -> Result<ExitCode> {
+    let batch = Batch::open(&a.batch)?;
+    print_status(&batch, a.json, true)?;
+    Ok(ExitCode::SUCCESS)
+}
