@@ -671,6 +671,20 @@ fn every_request_is_answered_and_paths_stay_in_the_run() {
         let (r, _) = c.response(id);
         assert_eq!(r["result"]["isError"], true, "{args}: {r}");
     }
+    // Arguments that are not an object: invalid params (-32602), naming the tool and what
+    // was given (the service's own answer had been "method not found", -32601).
+    for (id, args, what) in [
+        (13, json!("frames=all"), "a string"),
+        (14, json!(["all"]), "a list"),
+        (15, json!(7), "a number"),
+    ] {
+        c.send(json!({"jsonrpc": "2.0", "id": id, "method": "tools/call",
+            "params": {"name": "score", "arguments": args}}));
+        let (r, _) = c.response(id);
+        assert_eq!(r["error"]["code"], -32602, "{r}");
+        let message = r["error"]["message"].as_str().expect("message");
+        assert!(message.contains("`score`") && message.contains(what), "{r}");
+    }
     // Paths outside the run directory and the capture are not opened.
     for (id, path) in [(20, "/etc/passwd"), (21, "../../../etc/passwd")] {
         c.call(id, "pose_commit", json!({"report": path}));

@@ -31,11 +31,12 @@ impl Session {
     }
 }
 
-/// What the mechanism command says of the run's scene (the same seed as the tool's):
-/// the report with the declared label, which the tool never shows.
+/// What the mechanism command says of the run's scene, with the declared label of each
+/// joint as the tool's last call drew it (the tool seeds its coin with the step, and keeps
+/// the labels in the harness's `.agentstar/mechanism/sheets.json`, which it never shows).
 fn report_of(dir: &Path) -> MechanismReport {
     let (cap, run) = (dir.join("cap"), dir.join("run"));
-    json_of(&agentstar(&[
+    let mut report: MechanismReport = json_of(&agentstar(&[
         "mechanism",
         "--capture",
         &s(&cap),
@@ -46,7 +47,16 @@ fn report_of(dir: &Path) -> MechanismReport {
         "--out",
         &s(&dir.join("mech_cli")),
         "--json",
-    ]))
+    ]));
+    let sheets: Value = serde_json::from_str(
+        &std::fs::read_to_string(run.join(".agentstar/mechanism/sheets.json")).expect("sheets"),
+    )
+    .expect("sheets json");
+    for joint in &mut report.joints {
+        joint.declared = serde_json::from_value(sheets["joints"][&joint.joint]["declared"].clone())
+            .expect("declared label");
+    }
+    report
 }
 
 /// Evidence naming three interior states of `states`.

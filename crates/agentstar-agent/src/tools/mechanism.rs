@@ -275,10 +275,15 @@ impl Toolbox {
         #[derive(Serialize)]
         struct MechanismRequest<'a> {
             joints: Option<&'a str>,
+            seed: u64,
         }
         let before = self.scene_id()?;
+        // A new coin for every call (the step number: seeded, in the ledger), so the labels
+        // of one run say nothing of the next (play-test 11 found A the negated arm in both of
+        // its runs and, once told which arm was declared, picked without looking).
         let request = MechanismRequest {
             joints: nonblank(&a.joints),
+            seed: step,
         };
         let (o, out, stdout) = self.cli(&["mechanism"], step, Mechanism::NAME, &request)?;
         if o.is_error {
@@ -483,6 +488,23 @@ impl Toolbox {
     /// What `finish` still needs of the mechanism check: a fresh pick (made for the current
     /// scene) for every revolute joint, and no fresh pick of a negated arm. Nothing when
     /// the run's policy turns the check off.
+    /// After a shape change: what the mechanism gate now wants, when the agent has picked
+    /// before and the picks no longer hold (play-test 11 learnt it only from TASK.md).
+    pub(super) fn mechanism_reminder(&self) -> Option<String> {
+        if !self.run.finish.mechanism_check
+            || self.mechanism_picks().map_or(true, |p| p.picks.is_empty())
+        {
+            return None;
+        }
+        let missing = self.mechanism_missing();
+        (!missing.is_empty()).then(|| {
+            format!(
+                "The mechanism picks were for the earlier scene: run `mechanism` and `mechanism_pick` again before `finish` ({}).",
+                missing.join("; ")
+            )
+        })
+    }
+
     pub(super) fn mechanism_missing(&self) -> Vec<String> {
         if !self.run.finish.mechanism_check {
             return vec![];

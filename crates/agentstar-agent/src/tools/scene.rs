@@ -198,12 +198,17 @@ impl Toolbox {
         )?;
         Ok(ToolOutput {
             text: format!(
-                "scene version {version} saved.{}\ncheck:\n{}",
+                "scene version {version} saved.{}{}\ncheck:\n{}",
                 if joints.is_empty() {
-                    String::new()
+                    // Said, not left out (play-test 11 could not tell whether its poses
+                    // had been carried).
+                    " pose.json unchanged: no joint was added or removed and the canonical origin did not move, so every pose stands as it was.".to_string()
                 } else {
                     format!(" pose.json: {}.", joints.join("; "))
                 },
+                self.mechanism_reminder()
+                    .map(|r| format!("\n{r}"))
+                    .unwrap_or_default(),
                 report.as_ref().map_or_else(
                     || check.trim().to_string(),
                     |r| agentstar_reports::check_text(r, Some(&before_warnings))

@@ -324,6 +324,10 @@ impl Toolbox {
             "scene version {} saved with the fitted values; pose.json version {pose_version} holds the refined poses. Look at a `turntable` before finishing.\n",
             written.scene_version.unwrap_or(0)
         ));
+        if let Some(r) = self.mechanism_reminder() {
+            text.push_str(&r);
+            text.push('\n');
+        }
         Ok(ToolOutput {
             text,
             images,

@@ -288,6 +288,31 @@ enum Front {
     Skip,
 }
 
+/// A `tools/call` whose `arguments` are not an object (a string, a list, a number) is
+/// answered here with JSON-RPC's invalid params (-32602), naming what was given: the
+/// service's request type cannot hold it and would answer "method not found".
+fn bad_tool_arguments(request: &serde_json::Value) -> Option<Vec<u8>> {
+    if request.get("method").and_then(|m| m.as_str()) != Some("tools/call") {
+        return None;
+    }
+    let params = request.get("params")?;
+    let what = match params.get("arguments") {
+        None | Some(serde_json::Value::Null) | Some(serde_json::Value::Object(_)) => return None,
+        Some(serde_json::Value::String(_)) => "a string",
+        Some(serde_json::Value::Array(_)) => "a list",
+        Some(serde_json::Value::Number(_)) => "a number",
+        Some(serde_json::Value::Bool(_)) => "a boolean",
+    };
+    let tool = params.get("name").and_then(|n| n.as_str()).unwrap_or("?");
+    Some(error_line(
+        request.get("id").cloned().unwrap_or(serde_json::Value::Null),
+        -32602,
+        format!(
+            "invalid params: the arguments of `{tool}` must be a JSON object of named arguments, not {what}"
+        ),
+    ))
+}
+
 fn judge(line: &[u8]) -> Front {
     let body = line.strip_suffix(b"\n").unwrap_or(line);
     let body = body.strip_suffix(b"\r").unwrap_or(body);
@@ -295,7 +320,10 @@ fn judge(line: &[u8]) -> Front {
         return Front::Skip;
     }
     match serde_json::from_slice::<serde_json::Value>(body) {
-        Ok(_) => Front::Forward,
+        Ok(request) => match bad_tool_arguments(&request) {
+            Some(answer) => Front::Answer(answer),
+            None => Front::Forward,
+        },
         Err(e) => Front::Answer(error_line(
             serde_json::Value::Null,
             -32700,
