@@ -70,6 +70,8 @@ pub struct Outcome {
 pub struct Session {
     pub model: ModelConfig,
     pub budget: Budget,
+    /// The last step number this session took (numbers come from `RunDir::next_step`, under
+    /// the run's lock, so other processes on the run never take the same).
     step: AtomicU64,
     steps_this_session: AtomicU64,
     tokens: AtomicU64,
@@ -431,7 +433,8 @@ pub fn run_agent(
                     .iter()
                     .find(|t| t.name == call.name)
                     .map_or(Kind::Diagnostic, |t| t.kind);
-                let step = session.step.fetch_add(1, Ordering::SeqCst) + 1;
+                let step = toolbox.run.next_step()?;
+                session.step.store(step, Ordering::SeqCst);
                 (session.progress)(&format!(
                     "{label}: #{step} {} {}",
                     call.name,
@@ -475,7 +478,8 @@ fn refuse_call(
     orchestrator: bool,
     label: &str,
 ) -> Result<()> {
-    let step = session.step.fetch_add(1, Ordering::SeqCst) + 1;
+    let step = toolbox.run.next_step()?;
+    session.step.store(step, Ordering::SeqCst);
     (session.progress)(&format!("{label}: #{step} {} refused ({why})", call.name));
     let out = ToolOutput {
         text: format!("refused: {why}; the call was not run"),

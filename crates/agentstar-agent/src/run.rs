@@ -145,6 +145,31 @@ impl RunDir {
         Ok(s)
     }
 
+    /// The next step number of this run, allocated under the run's step lock
+    /// (`.agentstar/steps.lock`) for every process on the run: two MCP servers (or a server
+    /// and the built-in loop) never number two steps alike, so their ledger entries and image
+    /// folders (`images/step_NNNN_tool/`) stay apart. The last number given is kept in
+    /// `.agentstar/last_step`; a run from before it starts after its ledger's last step.
+    pub fn next_step(&self) -> Result<u64> {
+        let dir = self.dir.join(".agentstar");
+        let _lock = agentstar_data::history::lock_file(&dir.join("steps.lock"))?;
+        let counter = dir.join("last_step");
+        let given = if counter.is_file() {
+            let text = agentstar_data::read_text(&counter)?;
+            text.trim().parse::<u64>().map_err(|e| {
+                AgentError::Invalid(format!(
+                    "{}: not a step number ({e}); remove it and the next step starts after the ledger's last",
+                    counter.display()
+                ))
+            })?
+        } else {
+            0
+        };
+        let next = given.max(self.state()?.steps) + 1;
+        agentstar_data::atomic::write_atomic(&counter, format!("{next}\n").as_bytes())?;
+        Ok(next)
+    }
+
     /// Appends a ledger entry.
     pub fn record(&self, e: &LedgerEntry) -> Result<()> {
         Ok(ledger::append(&self.ledger_path(), e)?)

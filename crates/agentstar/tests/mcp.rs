@@ -882,3 +882,46 @@ fn pose_commit_by_label_over_mcp_takes_that_candidate_in_every_frame() {
         }
     }
 }
+
+#[test]
+fn two_servers_on_one_run_never_number_two_steps_alike() {
+    let dir = tempfile::tempdir().expect("tmp");
+    let run = dir.path().join("run");
+    small_run(dir.path(), 2, true);
+    let (mut a, _) = McpClient::initialised(&run);
+    let (mut b, _) = McpClient::initialised(&run);
+    // Both servers get their calls at once; each answers them concurrently.
+    let ids: Vec<u64> = (10..18).collect();
+    for &id in &ids {
+        let (tool, args) = if id % 4 == 0 {
+            ("frames", json!({"frames": "all"}))
+        } else {
+            ("score", json!({}))
+        };
+        a.call(id, tool, args.clone());
+        b.call(id, tool, args);
+    }
+    let (ra, rb) = (a.responses(&ids), b.responses(&ids));
+    for r in ra.values().chain(rb.values()) {
+        assert!(r.get("result").is_some(), "{r}");
+    }
+    let steps: Vec<u64> = ledger(&run)
+        .iter()
+        .filter(|e| e["tool"] == "score" || e["tool"] == "frames")
+        .filter_map(|e| e["step"].as_u64())
+        .collect();
+    assert_eq!(steps.len(), 2 * ids.len(), "{steps:?}");
+    let unique: BTreeSet<u64> = steps.iter().copied().collect();
+    assert_eq!(
+        unique.len(),
+        steps.len(),
+        "a step number was given twice: {steps:?}"
+    );
+    // Each `frames` call wrote into a folder of its own.
+    let folders: Vec<String> = std::fs::read_dir(run.join("images"))
+        .expect("images")
+        .map(|e| e.expect("entry").file_name().to_string_lossy().into_owned())
+        .filter(|n| n.ends_with("_frames"))
+        .collect();
+    assert_eq!(folders.len(), 4, "{folders:?}");
+}

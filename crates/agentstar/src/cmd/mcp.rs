@@ -24,7 +24,6 @@ use rmcp::service::RequestContext;
 use rmcp::{ErrorData, RoleServer, ServerHandler, ServiceExt};
 use std::path::PathBuf;
 use std::process::ExitCode;
-use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Arc;
 
 #[derive(clap::Args)]
@@ -55,7 +54,6 @@ pub fn mcp_tools() -> Vec<Tool> {
 
 struct Server {
     toolbox: Arc<Toolbox>,
-    step: AtomicU64,
     start: std::time::Instant,
     offset_s: f64,
 }
@@ -102,7 +100,9 @@ impl ServerHandler for Server {
             )
         })?;
         let args = serde_json::Value::Object(request.arguments.unwrap_or_default());
-        let step = self.step.fetch_add(1, Ordering::SeqCst) + 1;
+        let step = self.toolbox.run.next_step().map_err(|e| {
+            ErrorData::internal_error(format!("allocating a step number: {e}"), None)
+        })?;
         let toolbox = self.toolbox.clone();
         let (a, n) = (args.clone(), name.clone());
         // Long tools report progress while they run (when the client asked for it): once
@@ -222,7 +222,6 @@ pub fn run(a: Args) -> Result<ExitCode> {
     }
     let server = Server {
         toolbox: Arc::new(toolbox),
-        step: AtomicU64::new(state.steps),
         start: std::time::Instant::now(),
         offset_s: state.elapsed_s,
     };
