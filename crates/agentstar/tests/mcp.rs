@@ -925,3 +925,71 @@ fn two_servers_on_one_run_never_number_two_steps_alike() {
         .collect();
     assert_eq!(folders.len(), 4, "{folders:?}");
 }
+
+#[test]
+fn a_client_that_goes_away_mid_track_still_leaves_the_tracks_ledger_step() {
+    let dir = tempfile::tempdir().expect("tmp");
+    let run = dir.path().join("run");
+    small_run(dir.path(), 6, true);
+    // A client process that dies mid-call: both of its pipes close.
+    let mut server = std::process::Command::new(env!("CARGO_BIN_EXE_agentstar"))
+        .args(["mcp", &s(&run)])
+        .stdin(std::process::Stdio::piped())
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .expect("mcp");
+    {
+        use std::io::{BufRead, Write};
+        let mut stdin = server.stdin.take().expect("stdin");
+        let mut stdout = std::io::BufReader::new(server.stdout.take().expect("stdout"));
+        for m in [
+            json!({"jsonrpc": "2.0", "id": 1, "method": "initialize", "params": {
+                "protocolVersion": "2025-06-18", "capabilities": {},
+                "clientInfo": {"name": "test", "version": "0"}}}),
+            json!({"jsonrpc": "2.0", "method": "notifications/initialized"}),
+            json!({"jsonrpc": "2.0", "id": 5, "method": "tools/call",
+                "params": {"name": "track", "arguments": {}}}),
+        ] {
+            writeln!(stdin, "{m}").expect("write");
+        }
+        stdin.flush().expect("flush");
+        let mut first = String::new();
+        stdout.read_line(&mut first).expect("initialize answer");
+        std::thread::sleep(std::time::Duration::from_millis(100));
+    }
+    let t0 = std::time::Instant::now();
+    while server.try_wait().expect("wait").is_none() {
+        assert!(
+            t0.elapsed() < std::time::Duration::from_secs(180),
+            "the MCP server did not exit after its client went away"
+        );
+        std::thread::sleep(std::time::Duration::from_millis(50));
+    }
+    let entries = ledger(&run);
+    let recorded: BTreeSet<u64> = entries
+        .iter()
+        .filter_map(|e| e["pose_version"].as_u64())
+        .collect();
+    assert!(
+        entries.iter().any(|e| e["tool"] == "track"),
+        "no track step in the ledger: {entries:?}"
+    );
+    // Every pose version after the first has the ledger step that made it.
+    let history = run.join(".agentstar/history/pose");
+    let versions: Vec<u64> = std::fs::read_dir(&history)
+        .expect("history")
+        .filter_map(|e| {
+            let name = e.expect("entry").file_name().to_string_lossy().into_owned();
+            name.strip_suffix(".json")?.parse().ok()
+        })
+        .filter(|v| *v > 0)
+        .collect();
+    assert!(!versions.is_empty(), "track recorded no pose version");
+    for v in versions {
+        assert!(
+            recorded.contains(&v),
+            "pose version {v} has no ledger step: {entries:?}"
+        );
+    }
+}

@@ -120,8 +120,28 @@ impl ServerHandler for Server {
         // What the tool's child command says it is doing (the tracker: a line per frame).
         let activity = Activity::default();
         let act = activity.clone();
-        let work =
-            tokio::task::spawn_blocking(move || with_activity(&act, || toolbox.call(&n, &a, step)));
+        // The step is recorded where the tool ran, not after the answer is awaited: a client
+        // that disconnects mid-call (the await is then dropped) still leaves the step of the
+        // change the tool made in the ledger, since the runtime waits for blocking work.
+        let (kind, time_origin, offset_s) = (spec.kind, self.start, self.offset_s);
+        let work = tokio::task::spawn_blocking(move || {
+            let out = with_activity(&act, || toolbox.call(&n, &a, step));
+            if let Err(e) = record_step(
+                &toolbox.run,
+                StepRecord {
+                    step,
+                    time_s: offset_s + time_origin.elapsed().as_secs_f64(),
+                    kind,
+                    tool: &n,
+                    args: &a,
+                    agent: None,
+                },
+                &out,
+            ) {
+                eprintln!("agentstar mcp: could not write the ledger: {e}");
+            }
+            out
+        });
         let ticker = token.map(|token| {
             let peer = context.peer.clone();
             let name = name.clone();
@@ -148,20 +168,6 @@ impl ServerHandler for Server {
             .map_err(|e| ErrorData::internal_error(format!("the tool stopped: {e}"), None))?;
         if let Some(t) = ticker {
             t.abort();
-        }
-        if let Err(e) = record_step(
-            &self.toolbox.run,
-            StepRecord {
-                step,
-                time_s: self.offset_s + self.start.elapsed().as_secs_f64(),
-                kind: spec.kind,
-                tool: &name,
-                args: &args,
-                agent: None,
-            },
-            &out,
-        ) {
-            eprintln!("agentstar mcp: could not write the ledger: {e}");
         }
         let mut text = out.text.clone();
         if !out.images.is_empty() {

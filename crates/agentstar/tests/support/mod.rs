@@ -311,6 +311,25 @@ impl McpClient {
     }
 }
 
+impl McpClient {
+    /// Closes the server's stdin (a client that goes away) and waits, bounded, for the server
+    /// to exit.
+    pub fn hang_up(&mut self) -> std::process::ExitStatus {
+        drop(self.stdin.take());
+        let t0 = std::time::Instant::now();
+        loop {
+            if let Some(status) = self.child.try_wait().expect("wait") {
+                return status;
+            }
+            assert!(
+                t0.elapsed() < std::time::Duration::from_secs(180),
+                "the MCP server did not exit after its client went away"
+            );
+            std::thread::sleep(std::time::Duration::from_millis(50));
+        }
+    }
+}
+
 impl Drop for McpClient {
     fn drop(&mut self) {
         drop(self.stdin.take());
