@@ -59,13 +59,35 @@ impl RunDir {
                 dir.display()
             ))
         })?;
-        Ok(RunDir {
+        let run = RunDir {
             dir: dir.to_path_buf(),
             capture: rf.capture,
             scene: rf.model,
             poses: rf.poses,
             finish: rf.finish,
-        })
+        };
+        run.sweep_temporaries();
+        Ok(run)
+    }
+
+    /// Removes what writers killed mid-write (`kill -9`) left in the run's directories: the
+    /// run itself, `.agentstar/`, its scene versions and the pose file's history (the
+    /// temporaries of processes that no longer run; see `agentstar_data::atomic`).
+    fn sweep_temporaries(&self) {
+        let history = agentstar_data::history::PoseHistory::new(&self.poses).dir();
+        let poses_dir = self.poses.parent().map(Path::to_path_buf);
+        for dir in [
+            Some(self.dir.clone()),
+            Some(self.dir.join(".agentstar")),
+            Some(self.scene_versions()),
+            Some(history),
+            poses_dir,
+        ]
+        .into_iter()
+        .flatten()
+        {
+            agentstar_data::atomic::remove_stale_temporaries(&dir);
+        }
     }
 
     pub fn ledger_path(&self) -> PathBuf {
@@ -274,4 +296,43 @@ pub fn init_run(dir: &Path, capture: &Path, scene: Option<&str>, scale: f64) -> 
         pose_version: None,
     })?;
     Ok(run)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn opening_a_run_removes_what_a_killed_writer_left() {
+        let dir = tempfile::tempdir().expect("tmp");
+        let cap = dir.path().join("cap");
+        std::fs::create_dir_all(&cap).expect("cap dir");
+        let run = dir.path().join("run");
+        std::fs::create_dir_all(run.join(".agentstar/history/pose")).expect("dirs");
+        std::fs::write(
+            run.join("run.json"),
+            format!("{{\"capture\": \"{}\"}}", cap.display()),
+        )
+        .expect("run.json");
+        // A pid that no process has (beyond the kernel's limit), and this process's own.
+        let dead = ".agentstar-4194305-abc123.tmp";
+        let mine = format!("{}abc123.tmp", agentstar_data::atomic::temporary_prefix());
+        for d in [run.clone(), run.join(".agentstar/history/pose")] {
+            std::fs::write(d.join(dead), b"half a pose").expect("stale");
+            std::fs::write(d.join(&mine), b"in use").expect("live");
+        }
+        RunDir::open(&run).expect("open");
+        for d in [run.clone(), run.join(".agentstar/history/pose")] {
+            assert!(
+                !d.join(dead).exists(),
+                "{} kept the dead writer's file",
+                d.display()
+            );
+            assert!(
+                d.join(&mine).exists(),
+                "{} lost a live writer's file",
+                d.display()
+            );
+        }
+    }
 }
