@@ -13,6 +13,7 @@ pub mod bop;
 pub mod cameras;
 pub mod hot3d;
 mod import_common;
+pub mod process;
 pub mod video;
 
 use agentstar_geom::pose::{Rigid, Similarity};

@@ -100,22 +100,32 @@ const SEPARATORS: [char; 3] = ['_', '-', '.'];
 /// Frames numbered past this are refused (their times and indices would lose precision).
 const MAX_FRAME_NUMBER: u64 = 1 << 40;
 
-/// Extracts every frame of a video with ffmpeg into `dir` as PNGs.
+/// How long `ffmpeg` may take to extract a video's frames.
+const EXTRACT_LIMIT: std::time::Duration = std::time::Duration::from_secs(30 * 60);
+
+/// Extracts every frame of a video with ffmpeg into `dir` as PNGs (stopped past
+/// [`EXTRACT_LIMIT`]).
 fn extract(video: &Path, dir: &Path) -> Result<()> {
-    let out = std::process::Command::new("ffmpeg")
-        .args(["-v", "error", "-nostdin", "-i"])
-        .arg(video)
-        .args(["-start_number", "0"])
-        .arg(dir.join("%06d.png"))
-        .output()
-        .map_err(|e| {
-            DataError::invalid(
-                video,
+    let out = crate::process::output_within(
+        std::process::Command::new("ffmpeg")
+            .args(["-v", "error", "-nostdin", "-i"])
+            .arg(video)
+            .args(["-start_number", "0"])
+            .arg(dir.join("%06d.png")),
+        EXTRACT_LIMIT,
+    )
+    .map_err(|e| {
+        DataError::invalid(
+            video,
+            if e.kind() == std::io::ErrorKind::TimedOut {
+                format!("ffmpeg extracting the frames {e}; extract them yourself and pass their folder")
+            } else {
                 format!(
                     "cannot run ffmpeg ({e}); install it (for example `apt install ffmpeg`) or extract the frames yourself and pass their folder"
-                ),
-            )
-        })?;
+                )
+            },
+        )
+    })?;
     if !out.status.success() {
         return Err(DataError::invalid(
             video,
@@ -395,19 +405,20 @@ pub fn video_focal_px(video: &Path, width: u32, height: u32) -> Option<f64> {
     if !video.is_file() {
         return None;
     }
-    let out = std::process::Command::new("ffprobe")
-        .args([
-            "-v",
-            "error",
-            "-of",
-            "json",
-            "-show_entries",
-            "format_tags:stream_tags",
-        ])
-        .arg(video)
-        .stdin(std::process::Stdio::null())
-        .output()
-        .ok()?;
+    let out = crate::process::output_within(
+        std::process::Command::new("ffprobe")
+            .args([
+                "-v",
+                "error",
+                "-of",
+                "json",
+                "-show_entries",
+                "format_tags:stream_tags",
+            ])
+            .arg(video),
+        crate::process::PROBE_LIMIT,
+    )
+    .ok()?;
     if !out.status.success() {
         return None;
     }

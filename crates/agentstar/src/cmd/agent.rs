@@ -262,10 +262,11 @@ fn external_agent(run: &RunDir, agent: &str) -> Result<ExitCode> {
         }
         other => bail!("--agent {other}: claude or codex"),
     };
-    let found = std::process::Command::new(bin)
-        .arg("--version")
-        .output()
-        .is_ok_and(|o| o.status.success());
+    let found = agentstar_import::process::output_within(
+        std::process::Command::new(bin).arg("--version"),
+        agentstar_import::process::PROBE_LIMIT,
+    )
+    .is_ok_and(|o| o.status.success());
     if !found {
         bail!(
             "`{bin}` is not installed: install it ({install}), then run this again. The MCP configuration is written in {} (or print it with `agentstar mcp {} --print-config {agent}`)",
