@@ -993,3 +993,48 @@ fn a_client_that_goes_away_mid_track_still_leaves_the_tracks_ledger_step() {
         );
     }
 }
+
+#[test]
+fn pose_commit_takes_the_newest_search_report_as_last() {
+    let dir = tempfile::tempdir().expect("tmp");
+    let run = dir.path().join("run");
+    small_run(dir.path(), 2, true);
+    let (mut c, _) = McpClient::initialised(&run);
+    c.call(5, "pose_commit", json!({"report": "last"}));
+    let (r, _) = c.response(5);
+    assert_eq!(r["result"]["isError"], true, "{r}");
+    assert!(McpClient::text_of(&r).contains("has none yet"), "{r}");
+    c.call(6, "oapply", json!({"set": "identity|flip:x"}));
+    let (r, _) = c.response(6);
+    assert_eq!(r["result"]["isError"], false, "{r}");
+    c.call(7, "oapply_all", json!({"rotation": "flip:z"}));
+    let (r, _) = c.response(7);
+    assert_eq!(r["result"]["isError"], false, "{r}");
+    // The newest report is oapply_all's: committing it turns every frame by the flip.
+    c.call(8, "pose_commit", json!({"report": "last"}));
+    let (r, _) = c.response(8);
+    assert_eq!(r["result"]["isError"], false, "{r}");
+    let text = McpClient::text_of(&r);
+    assert!(text.contains("committed"), "{text}");
+    let newest = ledger(&run)
+        .into_iter()
+        .rev()
+        .find(|e| e["tool"] == "pose_commit")
+        .expect("commit step");
+    assert!(newest["pose_version"].as_u64().is_some(), "{newest}");
+    let history = run.join(".agentstar/history/pose");
+    let latest = std::fs::read_dir(&history)
+        .expect("history")
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .max()
+        .expect("a version");
+    let entry: Value =
+        serde_json::from_str(&std::fs::read_to_string(latest).expect("version")).expect("json");
+    assert!(
+        entry["command"]
+            .as_str()
+            .unwrap_or("")
+            .contains("oapply_all"),
+        "{entry}"
+    );
+}

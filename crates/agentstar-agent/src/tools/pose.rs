@@ -160,8 +160,9 @@ pub struct ApplyArgs {
 #[derive(Debug, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct PoseCommitArgs {
-    /// Where the poses come from (inside the run directory): the report a search returned,
-    /// a pose file (a track's pose.json) or a history version file.
+    /// Where the poses come from (inside the run directory): the report a search returned
+    /// (`last`: the newest search report of the run), a pose file (a track's pose.json) or a
+    /// history version file.
     #[schemars(length(min = 1))]
     pub report: String,
     /// The candidate's rank in a search report (0 = best).
@@ -464,7 +465,20 @@ impl Toolbox {
                 return Ok(ToolOutput::error(e));
             }
         }
-        let report = match self.confine(&a.report) {
+        // `last`: the newest search report of the run (play-tests guessed report paths).
+        let named = if a.report.trim() == "last" {
+            match self.last_search_report() {
+                Some(p) => p.display().to_string(),
+                None => {
+                    return Ok(ToolOutput::error(
+                        "pose_commit: `last` names the newest search report, and this run has none yet: run `sweep`, `apply`, `osweep`, `oapply` or `oapply_all` first",
+                    ))
+                }
+            }
+        } else {
+            a.report.clone()
+        };
+        let report = match self.confine(&named) {
             Ok(p) => p,
             Err(e) => return Ok(ToolOutput::error(format!("pose_commit: {e}"))),
         };
@@ -770,6 +784,24 @@ impl Toolbox {
             structured: serde_json::to_value(&r).ok(),
             ..Default::default()
         })
+    }
+
+    /// The newest search report of the run: the one of the highest step whose folder
+    /// (`images/step_NNNN_VERB/`) holds a search verb's report.
+    pub fn last_search_report(&self) -> Option<PathBuf> {
+        let entries = std::fs::read_dir(self.run.dir.join("images")).ok()?;
+        entries
+            .flatten()
+            .filter_map(|e| {
+                let name = e.file_name().to_string_lossy().into_owned();
+                let (step, tool) = name.strip_prefix("step_")?.split_once('_')?;
+                let step: u64 = step.parse().ok()?;
+                let verb = SearchVerb::ALL.into_iter().find(|v| v.stem() == tool)?;
+                let report = verb.report_path(&e.path());
+                report.is_file().then_some((step, report))
+            })
+            .max_by_key(|(step, _)| *step)
+            .map(|(_, report)| report)
     }
 
     /// `agentstar temporal --json` over every keyframe, as its report.
