@@ -1,0 +1,136 @@
+//! `kill -9` at random moments: `agentstar pose commit` and `agentstar track` are killed at
+//! seeded random times, over and over, and after every kill the pose file and its history
+//! must read and agree: `pose.json` is whole and is the newest version's poses, or (killed
+//! after the version was recorded and before the file was written) the version before it.
+//! A version is recorded before the file is written, so no pose file ever holds poses that no
+//! version records.
+//!
+//! `AGENTSTAR_KILLS=N` sets the number of kills of `pose commit` (default 200; `track` is
+//! killed a tenth as often).
+
+mod support;
+
+use agentstar_data::history::{HistoryEntry, PoseHistory};
+use agentstar_data::posefile::PoseFile;
+use serde_json::Value;
+use std::path::Path;
+use std::process::Command;
+use std::time::Duration;
+use support::{s, small_run};
+
+/// A seeded generator (splitmix64), so a failing run reproduces.
+struct Rng(u64);
+
+impl Rng {
+    fn below(&mut self, n: u64) -> u64 {
+        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
+        let mut z = self.0;
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        (z ^ (z >> 31)) % n.max(1)
+    }
+}
+
+/// A copy of the pose file `from` with every translation moved by `dx` metres along x.
+fn shifted(from: &Path, to: &Path, dx: f64) {
+    let mut v: Value =
+        serde_json::from_str(&std::fs::read_to_string(from).expect("pose.json")).expect("json");
+    for f in v["frames"].as_object_mut().expect("frames").values_mut() {
+        if let Some(t) = f["object_pose"]["translation"][0].as_f64() {
+            f["object_pose"]["translation"][0] = Value::from(t + dx);
+        }
+    }
+    std::fs::write(to, serde_json::to_string_pretty(&v).expect("json")).expect("write");
+}
+
+/// The pose file and its history agree (see the module's docs); returns the versions.
+fn check(poses: &Path, after: &str) -> usize {
+    let pf = PoseFile::read(poses).unwrap_or_else(|e| panic!("after {after}: pose.json: {e}"));
+    let history = PoseHistory::new(poses);
+    let versions = history
+        .versions()
+        .unwrap_or_else(|e| panic!("after {after}: history: {e}"));
+    let entries: Vec<HistoryEntry> = versions
+        .iter()
+        .map(|(_, p)| PoseHistory::read_entry(p).unwrap_or_else(|e| panic!("after {after}: {e}")))
+        .collect();
+    if let Some(newest) = entries.last() {
+        let previous = entries.len().checked_sub(2).map(|i| &entries[i].pose);
+        assert!(
+            newest.pose == pf || previous == Some(&pf),
+            "after {after}: pose.json is neither the newest version ({}) nor the one before",
+            newest.version
+        );
+    }
+    entries.len()
+}
+
+fn kill_at(mut cmd: Command, after: Duration) {
+    let mut child = cmd
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .expect("spawn");
+    std::thread::sleep(after);
+    let _ = child.kill();
+    let _ = child.wait();
+}
+
+#[test]
+fn pose_files_and_their_history_agree_after_every_kill() {
+    let kills: u64 = std::env::var("AGENTSTAR_KILLS")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(200);
+    let dir = tempfile::tempdir().expect("tmp");
+    small_run(dir.path(), 3, true);
+    let run = dir.path().join("run");
+    let poses = run.join("pose.json");
+    let (a, b) = (dir.path().join("a.json"), dir.path().join("b.json"));
+    shifted(&poses, &a, 0.01);
+    shifted(&poses, &b, -0.01);
+    let mut rng = Rng(0xA6E7_57A2);
+    let exe = env!("CARGO_BIN_EXE_agentstar");
+    for k in 0..kills {
+        let source = if k % 2 == 0 { &a } else { &b };
+        let mut cmd = Command::new(exe);
+        cmd.args([
+            "pose",
+            "commit",
+            "--poses",
+            &s(&poses),
+            "--report",
+            &s(source),
+        ]);
+        let wait = Duration::from_micros(rng.below(60_000));
+        kill_at(cmd, wait);
+        check(
+            &poses,
+            &format!("pose commit killed at {wait:?} (kill {k})"),
+        );
+    }
+    let cap = dir.path().join("cap");
+    for k in 0..(kills / 10).max(1) {
+        let mut cmd = Command::new(exe);
+        cmd.args([
+            "track",
+            &s(&cap),
+            "--model",
+            &s(&run.join("scene.rhai")),
+            "--scale-from",
+            &s(&poses),
+            "--out",
+            &s(&poses),
+        ]);
+        let wait = Duration::from_millis(rng.below(1500));
+        kill_at(cmd, wait);
+        check(&poses, &format!("track killed at {wait:?} (kill {k})"));
+    }
+    // A last, whole commit: the history grew, and what the kills left is gone.
+    let o = Command::new(exe)
+        .args(["pose", "commit", "--poses", &s(&poses), "--report", &s(&a)])
+        .output()
+        .expect("commit");
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(check(&poses, "the last commit") > 1);
+}
