@@ -1138,7 +1138,7 @@ fn explain(err: EvalAltResult, parts_so_far: Vec<String>, limits: &Limits) -> Sc
         EvalAltResult::ErrorVariableNotFound(v, _) => (
             SceneErrorKind::UnknownName,
             format!(
-                "unknown variable `{v}` (declare it with `let {v} = …;` before use){}",
+                "unknown variable `{v}` (declare it with `let {v} = …;` before use; functions and `|x| …` closures see only their own parameters){}",
                 did_you_mean(v, &names)
             ),
         ),
