@@ -1038,3 +1038,18 @@ fn pose_commit_takes_the_newest_search_report_as_last() {
         "{entry}"
     );
 }
+
+#[test]
+fn track_refuses_a_blank_from_instead_of_starting_over() {
+    let dir = tempfile::tempdir().expect("tmp");
+    let run = dir.path().join("run");
+    small_run(dir.path(), 2, true);
+    let before = std::fs::read_to_string(run.join("pose.json")).expect("pose.json");
+    let (mut c, _) = McpClient::initialised(&run);
+    c.call(5, "track", json!({"from": " "}));
+    let (r, _) = c.response(5);
+    assert_eq!(r["result"]["isError"], true, "{r}");
+    assert!(McpClient::text_of(&r).contains("`from` is blank"), "{r}");
+    let after = std::fs::read_to_string(run.join("pose.json")).expect("pose.json");
+    assert_eq!(before, after, "a refused track changed pose.json");
+}
