@@ -119,10 +119,16 @@ impl RunDir {
 
     /// Saves the current scene as version `n` (`.agentstar/scenes/NNNN.rhai`).
     pub fn save_scene_version(&self, n: u64) -> Result<PathBuf> {
+        let text = agentstar_data::read_text(&self.scene)?;
+        self.save_scene_text(n, &text)
+    }
+
+    /// Saves `text` as scene version `n` (before it becomes the scene, so that no scene is
+    /// ever current without its version).
+    pub fn save_scene_text(&self, n: u64, text: &str) -> Result<PathBuf> {
         let dir = self.scene_versions();
         std::fs::create_dir_all(&dir).map_err(|e| agentstar_data::DataError::io(&dir, e))?;
         let p = dir.join(format!("{n:04}.rhai"));
-        let text = agentstar_data::read_text(&self.scene)?;
         agentstar_data::atomic::write_atomic(&p, text.as_bytes())?;
         Ok(p)
     }

@@ -1,12 +1,13 @@
-//! `kill -9` at random moments: `agentstar pose commit` and `agentstar track` are killed at
-//! seeded random times, over and over, and after every kill the pose file and its history
-//! must read and agree: `pose.json` is whole and is the newest version's poses, or (killed
-//! after the version was recorded and before the file was written) the version before it.
-//! A version is recorded before the file is written, so no pose file ever holds poses that no
-//! version records.
+//! `kill -9` at random moments: `agentstar pose commit`, `agentstar track` and an MCP server
+//! in the middle of `scene_write` are killed at seeded random times, over and over, and after
+//! every kill the files must read and agree: `pose.json` is whole and is the newest version's
+//! poses, or (killed after the version was recorded and before the file was written) the
+//! version before it; `scene.rhai` is the newest scene version or the one before; the ledger
+//! reads. Versions are recorded before the files they version are written, so no pose file
+//! or scene is ever current without its version.
 //!
-//! `AGENTSTAR_KILLS=N` sets the number of kills of `pose commit` (default 200; `track` is
-//! killed a tenth as often).
+//! `AGENTSTAR_KILLS=N` sets the number of kills of `pose commit` (default 200; `track` and
+//! `scene_write` are killed a tenth as often each).
 
 mod support;
 
@@ -125,6 +126,58 @@ fn pose_files_and_their_history_agree_after_every_kill() {
         let wait = Duration::from_millis(rng.below(1500));
         kill_at(cmd, wait);
         check(&poses, &format!("track killed at {wait:?} (kill {k})"));
+    }
+    let scenes = run.join(".agentstar/scenes");
+    for k in 0..(kills / 10).max(1) {
+        let mut server = Command::new(exe)
+            .args(["mcp", &s(&run)])
+            .stdin(std::process::Stdio::piped())
+            .stdout(std::process::Stdio::null())
+            .stderr(std::process::Stdio::null())
+            .spawn()
+            .expect("mcp");
+        {
+            use std::io::Write;
+            let script = format!(
+                "part(\"body\", box({:.2}, 0.6, 0.4));",
+                1.0 + 0.01 * k as f64
+            );
+            let mut stdin = server.stdin.take().expect("stdin");
+            for m in [
+                serde_json::json!({"jsonrpc": "2.0", "id": 1, "method": "initialize", "params": {
+                    "protocolVersion": "2025-06-18", "capabilities": {},
+                    "clientInfo": {"name": "kill", "version": "0"}}}),
+                serde_json::json!({"jsonrpc": "2.0", "method": "notifications/initialized"}),
+                serde_json::json!({"jsonrpc": "2.0", "id": 2, "method": "tools/call",
+                    "params": {"name": "scene_write", "arguments": {"script": script}}}),
+            ] {
+                let _ = writeln!(stdin, "{m}");
+            }
+            let _ = stdin.flush();
+            let wait = Duration::from_millis(rng.below(600));
+            std::thread::sleep(wait);
+            let _ = server.kill();
+            let _ = server.wait();
+            let after = format!("scene_write killed at {wait:?} (kill {k})");
+            let scene = std::fs::read_to_string(run.join("scene.rhai"))
+                .unwrap_or_else(|e| panic!("after {after}: scene.rhai: {e}"));
+            let mut versions: Vec<_> = std::fs::read_dir(&scenes)
+                .map(|d| d.flatten().map(|e| e.path()).collect())
+                .unwrap_or_default();
+            versions.retain(|p: &std::path::PathBuf| p.extension().is_some_and(|x| x == "rhai"));
+            versions.sort();
+            let text = |p: &std::path::PathBuf| std::fs::read_to_string(p).expect("version");
+            if let Some(newest) = versions.last() {
+                let previous = versions.len().checked_sub(2).map(|i| text(&versions[i]));
+                assert!(
+                    text(newest) == scene || previous.as_deref() == Some(scene.as_str()),
+                    "after {after}: scene.rhai is neither the newest scene version nor the one before"
+                );
+            }
+            agentstar_data::ledger::read(&run.join("ledger.jsonl"))
+                .unwrap_or_else(|e| panic!("after {after}: ledger: {e}"));
+            check(&poses, &after);
+        }
     }
     // A last, whole commit: the history grew, and what the kills left is gone.
     let o = Command::new(exe)

@@ -185,11 +185,13 @@ impl Toolbox {
         // The scene and its version change together under the run's scene lock, which
         // every process serving this run (two MCP servers, the loop) takes.
         let _scene_lock = self.run.lock_scene()?;
+        // The version first, then the scene: a writer killed between the two leaves a
+        // version `scene_restore` can bring back, never a scene no version records.
+        let version = self.run.list_scene_versions().last().copied().unwrap_or(0) + 1;
+        self.run.save_scene_text(version, script)?;
         candidate
             .persist(&self.run.scene)
             .map_err(|e| agentstar_data::DataError::io(&self.run.scene, e.error))?;
-        let version = self.run.list_scene_versions().last().copied().unwrap_or(0) + 1;
-        self.run.save_scene_version(version)?;
         let (joints, pose_version) = agentstar_data::poses::reconcile(
             &self.run.scene,
             &self.run.poses,
