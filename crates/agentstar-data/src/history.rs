@@ -73,6 +73,15 @@ pub struct FrameVersion {
     pub iou_visible: Option<f64>,
 }
 
+/// The process dies here, as `kill -9` would, when `AGENTSTAR_FAILPOINT` is
+/// `between-version-and-file`: the kill tests' one way to land exactly between a version and
+/// the file it versions (random kills almost never do).
+fn failpoint_between_version_and_file() {
+    if std::env::var_os("AGENTSTAR_FAILPOINT").is_some_and(|v| v == "between-version-and-file") {
+        std::process::abort();
+    }
+}
+
 /// What the first version says when a history starts on a file that already existed.
 pub const INITIAL: &str = "initial version (before the first commit)";
 
@@ -289,6 +298,7 @@ impl PoseHistory {
         // The version first, then the file: a writer killed between the two leaves a
         // version that `restore` can bring back, never a pose file no version records.
         let v = self.record(&lock, &pf, command)?;
+        failpoint_between_version_and_file();
         pf.write(&self.poses)?;
         Ok((out, v))
     }
@@ -313,6 +323,7 @@ impl PoseHistory {
         // The version first, then the file: a writer killed between the two leaves a
         // version that `restore` can bring back, never a pose file no version records.
         let v = self.record(&lock, &pf, command)?;
+        failpoint_between_version_and_file();
         pf.write(&self.poses)?;
         Ok((out, Some(v)))
     }
@@ -335,6 +346,7 @@ impl PoseHistory {
             }
         }
         let v = self.record(&lock, pose, command)?;
+        failpoint_between_version_and_file();
         pose.write(&self.poses)?;
         Ok(v)
     }

@@ -187,3 +187,30 @@ fn pose_files_and_their_history_agree_after_every_kill() {
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     assert!(check(&poses, "the last commit") > 1);
 }
+
+/// A writer that dies exactly between a pose version and the pose file (the failpoint):
+/// `pose.json` is still the previous poses, and the newest version holds the new ones, which
+/// `pose restore` brings back. (With the file written first, this left a pose file that no
+/// version recorded: issue 35 item 13.)
+#[test]
+fn a_writer_dying_between_the_version_and_the_file_leaves_a_version_not_a_stray_file() {
+    let dir = tempfile::tempdir().expect("tmp");
+    small_run(dir.path(), 2, true);
+    let poses = dir.path().join("run/pose.json");
+    let a = dir.path().join("a.json");
+    shifted(&poses, &a, 0.02);
+    let exe = env!("CARGO_BIN_EXE_agentstar");
+    let before = PoseFile::read(&poses).expect("before");
+    let o = Command::new(exe)
+        .args(["pose", "commit", "--poses", &s(&poses), "--report", &s(&a)])
+        .env("AGENTSTAR_FAILPOINT", "between-version-and-file")
+        .output()
+        .expect("commit");
+    assert!(!o.status.success(), "the failpoint did not stop the commit");
+    check(&poses, "the failpoint");
+    assert_eq!(PoseFile::read(&poses).expect("after"), before);
+    let versions = PoseHistory::new(&poses).versions().expect("versions");
+    let (_, newest) = versions.last().expect("a version");
+    let newest = PoseHistory::read_entry(newest).expect("newest");
+    assert_ne!(newest.pose, before, "the new poses were not recorded");
+}
