@@ -6,7 +6,8 @@
 //!   (the binary flattens it into those commands' arguments);
 //! - [`Output`]: where a command writes its files, and `--json`;
 //! - the requests the MCP tools take and the commands flatten, one type each (the
-//!   object-frame pose verbs: [`OsweepArgs`], [`OapplyArgs`], [`OapplyAllArgs`]);
+//!   object-frame pose verbs: [`OsweepArgs`], [`OapplyArgs`], [`OapplyAllArgs`]; and
+//!   [`TurntableArgs`], [`PoseDiffArgs`]);
 //! - [`to_args`]: the one rule that turns any serialisable request into arguments: each
 //!   field `name` becomes `--name=VALUE` (snake case to kebab case), `true` a bare `--name`,
 //!   `false`, `null` and absent fields nothing, a list one `--name=ITEM` per item.
@@ -22,8 +23,10 @@ use serde_json::Value;
 use std::path::PathBuf;
 
 pub mod object;
+pub mod views;
 
 pub use object::{OapplyAllArgs, OapplyArgs, OsweepArgs};
+pub use views::{PoseDiffArgs, TurntableArgs};
 
 /// What a `frames` argument takes (the one frame grammar, `Capture::select`).
 pub const FRAMES: &str = "Keyframes: `all`, names (`000010.png`), stems (`000010`), frame numbers, or ranges `a..b`, comma separated.";

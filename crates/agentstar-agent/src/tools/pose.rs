@@ -9,7 +9,7 @@ use agentstar_reports::{
     CommitReport, FrameHistoryReport, HistoryReport, PoseDiffReport, RestoreReport, SearchReport,
     SearchVerb, TrackReport,
 };
-use agentstar_requests::{OapplyAllArgs, OapplyArgs, OsweepArgs};
+use agentstar_requests::{OapplyAllArgs, OapplyArgs, OsweepArgs, PoseDiffArgs};
 use schemars::JsonSchema;
 use serde::Deserialize;
 use std::collections::BTreeMap;
@@ -181,15 +181,6 @@ pub struct PoseCommitArgs {
 pub struct TemporalArgs {
     /// e.g. vel.rot, accel.rot, vel.trans, <joint>.vel
     pub sort_by: Option<String>,
-}
-
-#[derive(Debug, Deserialize, JsonSchema, serde::Serialize)]
-#[serde(deny_unknown_fields)]
-pub struct PoseDiffArgs {
-    #[schemars(length(min = 1))]
-    pub a: String,
-    #[schemars(length(min = 1))]
-    pub b: String,
 }
 
 /// The arguments of the built-in loop's `delegate_pose` (run by the loop, not the toolbox).

@@ -4,6 +4,7 @@ use super::*;
 use crate::{AgentError, Result};
 use agentstar_render::GATE_IOU;
 use agentstar_reports::view::{RenderReport, TurntableReport};
+use agentstar_requests::TurntableArgs;
 use schemars::JsonSchema;
 use serde::Deserialize;
 
@@ -64,18 +65,6 @@ pub struct KeyframesArgs {
     pub zoom: Option<f64>,
     /// Boundaries drawn over the raw pixels (default none).
     pub outline: Option<Outline>,
-}
-
-#[derive(Debug, Deserialize, JsonSchema)]
-#[serde(deny_unknown_fields)]
-pub struct TurntableArgs {
-    /// Joint states to show: `representative` (each joint's min, median and max over the
-    /// keyframes; the default), `all` (every distinct state: many sheets), keyframes in
-    /// the frame grammar (`000010,000040`), or states given outright (degrees, canonical
-    /// units; joints not named at rest): `hinge:90|hinge:0;drawer:0.2`, one sheet each, also
-    /// before any pose is tracked.
-    #[schemars(length(min = 1, max = 4000))]
-    pub states: Option<String>,
 }
 
 tool!(Render, "render", Diagnostic, Nothing, RenderArgs,
@@ -177,12 +166,7 @@ tool!(Score, "score", Diagnostic, Nothing, FramesArgs,
 tool!(Turntable, "turntable", Diagnostic, Nothing, TurntableArgs,
     "Eight views around the upright model (canonical +Z up) on a light background, one sheet per joint state: by default each joint's min, median and max over the keyframes (`states`: `all` or keyframes for others). The 3-D shape check after every shape step: parts floating, intersecting or missing from the back, and joints that move the wrong part or the wrong way.",
     |tb, a, step| {
-        #[derive(serde::Serialize)]
-        struct TurntableRequest<'a> {
-            states: Option<&'a str>,
-        }
-        let request = TurntableRequest { states: nonblank(&a.states) };
-        let (mut o, out, stdout) = tb.cli(&["turntable"], step, Turntable::NAME, &request)?;
+        let (mut o, out, stdout) = tb.cli(&["turntable"], step, Turntable::NAME, &a)?;
         if o.is_error {
             return Ok(o);
         }

@@ -46,12 +46,9 @@ pub struct Args {
 pub struct DiffArgs {
     #[command(flatten)]
     session: SessionArgs,
-    /// The first frame.
-    #[arg(long)]
-    a: String,
-    /// The second frame.
-    #[arg(long)]
-    b: String,
+    /// The two keyframes (the `pose_diff` tool's arguments).
+    #[command(flatten)]
+    request: agentstar_requests::PoseDiffArgs,
 }
 
 pub(crate) fn samples(s: &Session) -> Vec<Sample> {
@@ -379,8 +376,8 @@ fn plot_velocities(rows: &[Row]) -> RgbImage {
 
 pub fn run_diff(a: DiffArgs) -> Result<ExitCode> {
     let s = a.session.open()?;
-    let ia = select_frames(&s.capture, Some(&a.a))?;
-    let ib = select_frames(&s.capture, Some(&a.b))?;
+    let ia = select_frames(&s.capture, Some(&a.request.a))?;
+    let ib = select_frames(&s.capture, Some(&a.request.b))?;
     let (Some(&ia), Some(&ib)) = (ia.first(), ib.first()) else {
         bail!("name one frame for --a and one for --b")
     };

@@ -45,13 +45,10 @@ pub struct Args {
     /// Output directory.
     #[arg(long)]
     out: PathBuf,
-    /// Joint states: `representative` (each joint's min, median and max over the
-    /// keyframes; the default), `all` (every distinct state, one sheet each), keyframes
-    /// (the frame grammar: names, stems, numbers, `a..b`), or states given outright, one
-    /// sheet each, in interface units (degrees, canonical units), joints not named at rest:
-    /// `hinge:90|hinge:0;drawer:0.2` (needs no poses: check a shape before tracking).
-    #[arg(long, default_value = "representative")]
-    states: String,
+    /// The joint states to show (the `turntable` tool's arguments; `representative` by
+    /// default; states given outright need no poses: check a shape before tracking).
+    #[command(flatten)]
+    request: agentstar_requests::TurntableArgs,
     /// Orientation of the object: upright (canonical +Z up) or as in the reference keyframe.
     #[arg(long, value_enum, default_value_t = Orient::Upright)]
     orient: Orient,
@@ -194,9 +191,9 @@ pub fn run(a: Args) -> Result<ExitCode> {
     let mut rotation = upright();
     let mut states: Vec<(String, String, Vec<f64>)> = Vec::new();
     let mut warnings = tree.limit_warnings();
-    let explicit = a.states.contains(':');
+    let explicit = a.request.states().contains(':');
     if explicit {
-        states = explicit_states(a.states.trim(), tree)?;
+        states = explicit_states(a.request.states(), tree)?;
     }
     match (&a.poses, &a.capture) {
         _ if explicit && a.orient == Orient::Upright => {}
@@ -215,7 +212,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
                 .collect();
             let names: Vec<String> = capture.frames.iter().map(|f| f.name.clone()).collect();
             warnings.extend(tree.at_limit_warnings(&all, &names));
-            match a.states.trim() {
+            match a.request.states() {
                 _ if explicit => {}
                 "representative" | "" => {
                     let r = representative(&all, tree.joints().len());
@@ -251,8 +248,11 @@ pub fn run(a: Args) -> Result<ExitCode> {
             if a.orient == Orient::Reference {
                 bail!("--orient reference needs --capture and --poses");
             }
-            if !matches!(a.states.trim(), "representative" | "") {
-                bail!("--states {} needs --capture and --poses", a.states);
+            if a.request.states() != "representative" {
+                bail!(
+                    "--states {} needs --capture and --poses",
+                    a.request.states()
+                );
             }
             states.push(("rest".into(), "rest".into(), tree.rest_states()));
         }
