@@ -132,6 +132,43 @@ fn recursion_and_sizes_are_bounded() {
     assert!(build("eval(\"1\");").is_err());
 }
 
+/// Issue 35 item 2: 100,000 closures each capturing the last made `agentstar check` abort
+/// (exit 134) when Rhai freed the chain recursively. Scene scripts have no closures (an
+/// anonymous function sees only its parameters) and no `curry` (`f.curry(f)` doubled a
+/// pointer at every step, out of memory), so no function pointer holds another; every other
+/// nesting counts towards the size limits and runs on a stack that holds it.
+#[test]
+fn nested_closures_and_curried_pointers_are_refused_not_aborted() {
+    let chain = "let f = || 1;\nfor i in 0..100000 { let g = f; f = || g.call(); }\nlet x = f.call();\npart(\"a\", box(1, 1, 1));";
+    let e = build(chain).expect_err("closure chain");
+    assert_eq!(e.kind, SceneErrorKind::UnknownName, "{}", e.message);
+    assert!(
+        e.message.contains("`g` inside an anonymous function") && e.message.contains("no closures"),
+        "{}",
+        e.message
+    );
+    assert_eq!(e.line, Some(2), "{e:?}");
+    // Built but never called, the chain holds nothing and frees at once.
+    build("let f = || 1;\nfor i in 0..100000 { let g = f; f = || g.call(); }\npart(\"a\", box(1, 1, 1));")
+        .expect("uncalled anonymous functions");
+    for bomb in [
+        "fn h(x) { 1 }\nlet f = Fn(\"h\");\nfor i in 0..100000 { f = f.curry(f); }",
+        "fn h(x) { 1 }\nlet f = curry(Fn(\"h\"), 1);",
+    ] {
+        let e = build(bomb).expect_err("curry");
+        assert!(
+            e.message.contains("`curry` is not available"),
+            "{}",
+            e.message
+        );
+        assert_eq!(e.line, Some(bomb.lines().count()), "{e:?}");
+    }
+    // Anonymous functions over their own parameters and function pointers still work.
+    let b = build("fn h(x) { x + 1 }\nlet xs = [1, 2].map(|x| x * 2);\nlet y = Fn(\"h\").call(2);\npart(\"a\", box(xs[1], y, 1));")
+        .expect("anonymous functions without captures");
+    assert_eq!(b.model.parts.len(), 1);
+}
+
 #[test]
 fn syntax_errors_point_at_the_line() {
     let e = build("let a = box(1, 1, 1);\npart(\"a\", a;\n").expect_err("syntax");

@@ -261,6 +261,26 @@ fn urdf_loops_and_duplicates_are_named() {
     assert!(text(&o).contains("defined twice"), "{}", text(&o));
 }
 
+/// Issue 35 item 2: a script nesting 100,000 closures made `check` abort with a stack
+/// overflow (exit 134) as the chain was freed; now a named error and exit 2.
+#[test]
+fn nested_closures_are_an_error_not_an_abort() {
+    let dir = tempfile::tempdir().expect("tmp");
+    let scene = dir.path().join("scene.rhai");
+    std::fs::write(
+        &scene,
+        "let f = || 1;\nfor i in 0..100000 { let g = f; f = || g.call(); }\nlet x = f.call();\npart(\"a\", box(1, 1, 1));\n",
+    )
+    .expect("scene");
+    let o = agentstar_within(&["check", &s(&scene)], Duration::from_secs(120)).expect("finishes");
+    assert_eq!(o.status.code(), Some(2), "{}", text(&o));
+    assert!(
+        text(&o).contains("scene.rhai") && text(&o).contains("no closures"),
+        "{}",
+        text(&o)
+    );
+}
+
 #[test]
 fn mesh_messages_say_what_is_wrong() {
     let dir = tempfile::tempdir().expect("tmp");
