@@ -80,8 +80,51 @@ pub const INITIAL: &str = "initial version (before the first commit)";
 /// no longer held the newest version's poses (see [`PoseHistory::catch_up`]).
 pub const FOUND: &str = "pose file as found";
 
+/// The environment variable through which an agent's tool tells the command it runs which
+/// ledger step it serves and which process will write that step (`S of process P`).
+pub const STEP_ENV: &str = "AGENTSTAR_STEP";
+
+/// A ledger step and the process that allocated it, as a version's command names them
+/// (`… [step 18 of process 4242]`): when that process is gone and the ledger has no step 18,
+/// the run records the step on reopening (`agentstar_agent::run`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct StepTag {
+    pub step: u64,
+    pub pid: u32,
+}
+
+impl StepTag {
+    pub fn of_this_process(step: u64) -> StepTag {
+        StepTag {
+            step,
+            pid: std::process::id(),
+        }
+    }
+
+    /// The tag at the end of a version's command.
+    pub fn in_command(command: &str) -> Option<StepTag> {
+        let inner = command.strip_suffix(']')?.rsplit_once(" [")?.1;
+        let (step, pid) = inner.strip_prefix("step ")?.split_once(" of process ")?;
+        Some(StepTag {
+            step: step.parse().ok()?,
+            pid: pid.parse().ok()?,
+        })
+    }
+
+    fn from_env(value: &str) -> Option<StepTag> {
+        StepTag::in_command(&format!("x [step {value}]"))
+    }
+}
+
+impl std::fmt::Display for StepTag {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{} of process {}", self.step, self.pid)
+    }
+}
+
 /// This process's command as it is recorded in a history: `agentstar` and its arguments
-/// (arguments with spaces or quotes are quoted).
+/// (arguments with spaces or quotes are quoted), and the step it serves when an agent's tool
+/// ran it (`[step S of process P]`, from [`STEP_ENV`]).
 pub fn command_line() -> String {
     let mut words = vec!["agentstar".to_string()];
     words.extend(std::env::args().skip(1).map(|a| {
@@ -91,7 +134,14 @@ pub fn command_line() -> String {
             a
         }
     }));
-    words.join(" ")
+    let mut line = words.join(" ");
+    if let Some(tag) = std::env::var(STEP_ENV)
+        .ok()
+        .and_then(|v| StepTag::from_env(&v))
+    {
+        line.push_str(&format!(" [step {tag}]"));
+    }
+    line
 }
 
 /// An exclusive lock on a file (`flock`), released when dropped; waits for other holders,
@@ -672,5 +722,25 @@ mod tests {
         h.update::<_, HistoryError>("again", |_| Ok(()))
             .expect("update");
         assert_eq!(h.rows().expect("rows").len(), 7);
+    }
+
+    #[test]
+    fn a_step_tag_reads_back_from_a_command_and_nothing_else_does() {
+        let tag = StepTag {
+            step: 18,
+            pid: 4242,
+        };
+        let command = format!("agentstar pose commit --poses=p.json [step {tag}]");
+        assert_eq!(StepTag::in_command(&command), Some(tag));
+        assert_eq!(StepTag::from_env(&tag.to_string()), Some(tag));
+        for other in [
+            "agentstar pose commit --poses=p.json",
+            INITIAL,
+            "restore version 3",
+            "x [step 1 of process]",
+            "x [step a of process 2]",
+        ] {
+            assert_eq!(StepTag::in_command(other), None, "{other}");
+        }
     }
 }
