@@ -916,10 +916,10 @@ const MAX_MAP_SIZE: usize = 10_000;
 /// `max_array_len` or [`MAX_MAP_SIZE`], and scene scripts have no closures (`no_closure`)
 /// and no `curry`, so function pointers hold nothing. This stack holds the deepest nesting
 /// the default limits allow with room to spare
-/// (`deepest_data_the_limits_allow_is_freed_on_the_script_stack`: 8 MiB is too little for
-/// it, 64 MiB enough in a debug build). It is reserved address space; only what is used is
-/// ever touched.
-pub(crate) const SCRIPT_STACK_BYTES: usize = 256 << 20;
+/// (`deepest_data_the_limits_allow_is_freed_on_the_script_stack`: in a debug build 8 MiB
+/// is too little to free it, 256 MiB too little to compare it, 512 MiB enough). It is
+/// reserved address space; only what is used is ever touched.
+pub(crate) const SCRIPT_STACK_BYTES: usize = 1 << 30;
 
 pub(crate) fn build(
     source: &str,
@@ -1262,7 +1262,7 @@ mod tests {
 
     /// Every level of nesting costs an element of an array or an entry of a map, and the
     /// size limits count nested ones: the deepest data a script can build is
-    /// `max_array_len + MAX_MAP_SIZE` levels. Rhai clones, prints and frees such
+    /// `max_array_len + MAX_MAP_SIZE` levels. Rhai clones, prints, compares and frees such
     /// data recursively; all of it fits on the script's stack.
     #[test]
     fn deepest_data_the_limits_allow_is_freed_on_the_script_stack() {
@@ -1283,8 +1283,19 @@ mod tests {
                 let copy = value.clone();
                 let text = value.to_string();
                 assert!(text.len() > depth);
-                drop(copy);
-                drop(value);
+                // The engine compares nested arrays recursively through its calls.
+                let engine = Engine::new();
+                let mut scope = rhai::Scope::new();
+                scope.push("a", copy);
+                scope.push("b", value);
+                assert_eq!(
+                    engine.eval_with_scope::<bool>(&mut scope, "a == b").ok(),
+                    Some(true)
+                );
+                assert!(engine
+                    .eval_with_scope::<bool>(&mut scope, "a.contains(b)")
+                    .is_ok());
+                drop(scope);
             })
             .expect("thread")
             .join()
