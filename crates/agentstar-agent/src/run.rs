@@ -67,7 +67,84 @@ impl RunDir {
             finish: rf.finish,
         };
         run.sweep_temporaries();
+        run.record_orphaned_steps()?;
         Ok(run)
+    }
+
+    /// Records the ledger steps of pose versions whose server was killed (`kill -9`) after
+    /// its tool's command had recorded the version and before the server wrote the step: a
+    /// version whose command names a step (`[step S of process P]`, see
+    /// `agentstar_data::history::StepTag`) that the ledger lacks, of a process that no longer
+    /// runs, gets a `system` entry numbered S naming it. Only where `/proc` says which
+    /// processes run; under the step lock, so no server numbers a step meanwhile.
+    fn record_orphaned_steps(&self) -> Result<()> {
+        use agentstar_data::history::{PoseHistory, StepTag};
+        if !Path::new("/proc/self").exists() {
+            return Ok(());
+        }
+        let history = PoseHistory::new(&self.poses);
+        let Ok(versions) = history.versions() else {
+            return Ok(());
+        };
+        let tagged: Vec<(u64, StepTag)> = versions
+            .iter()
+            .filter_map(|(n, p)| {
+                let entry = PoseHistory::read_entry(p).ok()?;
+                Some((*n, StepTag::in_command(&entry.command)?))
+            })
+            .collect();
+        if tagged.is_empty() {
+            return Ok(());
+        }
+        let _lock = self.step_lock()?;
+        let state = self.state()?;
+        let (entries, _) = match self.ledger_path().is_file() {
+            true => ledger::read(&self.ledger_path())?,
+            false => (vec![], vec![]),
+        };
+        let taken: std::collections::BTreeSet<u64> = entries.iter().map(|e| e.step).collect();
+        let mut orphans: std::collections::BTreeMap<u64, (u32, Vec<u64>)> = Default::default();
+        for (version, tag) in tagged {
+            let gone = tag.pid != std::process::id()
+                && !Path::new("/proc").join(tag.pid.to_string()).exists();
+            if gone && !taken.contains(&tag.step) {
+                orphans
+                    .entry(tag.step)
+                    .or_insert((tag.pid, vec![]))
+                    .1
+                    .push(version);
+            }
+        }
+        for (step, (pid, versions)) in orphans {
+            let newest = versions.iter().copied().max();
+            let list = versions
+                .iter()
+                .map(u64::to_string)
+                .collect::<Vec<_>>()
+                .join(", ");
+            self.record(&LedgerEntry {
+                step,
+                time_s: state.elapsed_s,
+                kind: "system".into(),
+                tool: "recovered".into(),
+                args: serde_json::Value::Null,
+                summary: format!(
+                    "pose version {list} was made by step {step}, whose server (process {pid}) stopped before writing the step; recorded when the run was opened again"
+                ),
+                scores: Default::default(),
+                images: vec![],
+                scene_version: None,
+                pose_version: newest,
+            })?;
+        }
+        Ok(())
+    }
+
+    /// The run's step lock (`.agentstar/steps.lock`), held while a step number is given.
+    fn step_lock(&self) -> Result<agentstar_data::history::PoseLock> {
+        Ok(agentstar_data::history::lock_file(
+            &self.dir.join(".agentstar").join("steps.lock"),
+        )?)
     }
 
     /// Removes what writers killed mid-write (`kill -9`) left in the run's directories: the
@@ -180,7 +257,7 @@ impl RunDir {
     /// `.agentstar/last_step`; a run from before it starts after its ledger's last step.
     pub fn next_step(&self) -> Result<u64> {
         let dir = self.dir.join(".agentstar");
-        let _lock = agentstar_data::history::lock_file(&dir.join("steps.lock"))?;
+        let _lock = self.step_lock()?;
         let counter = dir.join("last_step");
         let given = if counter.is_file() {
             let text = agentstar_data::read_text(&counter)?;

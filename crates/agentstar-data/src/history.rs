@@ -85,8 +85,55 @@ fn failpoint_between_version_and_file() {
 /// What the first version says when a history starts on a file that already existed.
 pub const INITIAL: &str = "initial version (before the first commit)";
 
+/// The start of the command of a version that records the pose file as it was found when it
+/// no longer held the newest version's poses (see [`PoseHistory::catch_up`]).
+pub const FOUND: &str = "pose file as found";
+
+/// The environment variable through which an agent's tool tells the command it runs which
+/// ledger step it serves and which process will write that step (`S of process P`).
+pub const STEP_ENV: &str = "AGENTSTAR_STEP";
+
+/// A ledger step and the process that allocated it, as a version's command names them
+/// (`… [step 18 of process 4242]`): when that process is gone and the ledger has no step 18,
+/// the run records the step on reopening (`agentstar_agent::run`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct StepTag {
+    pub step: u64,
+    pub pid: u32,
+}
+
+impl StepTag {
+    pub fn of_this_process(step: u64) -> StepTag {
+        StepTag {
+            step,
+            pid: std::process::id(),
+        }
+    }
+
+    /// The tag at the end of a version's command.
+    pub fn in_command(command: &str) -> Option<StepTag> {
+        let inner = command.strip_suffix(']')?.rsplit_once(" [")?.1;
+        let (step, pid) = inner.strip_prefix("step ")?.split_once(" of process ")?;
+        Some(StepTag {
+            step: step.parse().ok()?,
+            pid: pid.parse().ok()?,
+        })
+    }
+
+    fn from_env(value: &str) -> Option<StepTag> {
+        StepTag::in_command(&format!("x [step {value}]"))
+    }
+}
+
+impl std::fmt::Display for StepTag {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{} of process {}", self.step, self.pid)
+    }
+}
+
 /// This process's command as it is recorded in a history: `agentstar` and its arguments
-/// (arguments with spaces or quotes are quoted).
+/// (arguments with spaces or quotes are quoted), and the step it serves when an agent's tool
+/// ran it (`[step S of process P]`, from [`STEP_ENV`]).
 pub fn command_line() -> String {
     let mut words = vec!["agentstar".to_string()];
     words.extend(std::env::args().skip(1).map(|a| {
@@ -96,7 +143,14 @@ pub fn command_line() -> String {
             a
         }
     }));
-    words.join(" ")
+    let mut line = words.join(" ");
+    if let Some(tag) = std::env::var(STEP_ENV)
+        .ok()
+        .and_then(|v| StepTag::from_env(&v))
+    {
+        line.push_str(&format!(" [step {tag}]"));
+    }
+    line
 }
 
 /// An exclusive lock on a file (`flock`), released when dropped; waits for other holders,
@@ -281,6 +335,27 @@ impl PoseHistory {
         }
     }
 
+    /// Makes the newest version hold `found`, the pose file as it stands, before a change is
+    /// recorded: the file as it was becomes version 0 when there is no history yet, and
+    /// when the newest version holds other poses (a writer killed between recording its
+    /// version and writing the file, or an edit outside agentstar) the file is recorded as
+    /// found. So the pose file is always the newest version's poses or, while a writer is
+    /// stopped between the two, the version before it, however many writers are stopped.
+    fn catch_up(&self, lock: &PoseLock, found: &PoseFile) -> Result<()> {
+        let versions = self.versions()?;
+        let Some((n, path)) = versions.last() else {
+            return self.record(lock, found, INITIAL).map(|_| ());
+        };
+        if Self::read_entry(path)?.pose != *found {
+            self.record(
+                lock,
+                found,
+                &format!("{FOUND} (version {n} was recorded but never written to it: a writer stopped between the two, or an edit outside agentstar)"),
+            )?;
+        }
+        Ok(())
+    }
+
     /// Changes the pose file under its lock: reads it, applies `change`, records the result
     /// as a new version and writes it atomically (the file as it was becomes
     /// version 0 when there is no history yet). Returns `change`'s value and the version.
@@ -291,9 +366,7 @@ impl PoseHistory {
     ) -> Result<(T, u64), E> {
         let lock = self.lock()?;
         let mut pf = PoseFile::read(&self.poses)?;
-        if self.versions()?.is_empty() {
-            self.record(&lock, &pf, INITIAL)?;
-        }
+        self.catch_up(&lock, &pf)?;
         let out = change(&mut pf)?;
         // The version first, then the file: a writer killed between the two leaves a
         // version that `restore` can bring back, never a pose file no version records.
@@ -317,9 +390,7 @@ impl PoseHistory {
         if pf == before {
             return Ok((out, None));
         }
-        if self.versions()?.is_empty() {
-            self.record(&lock, &before, INITIAL)?;
-        }
+        self.catch_up(&lock, &before)?;
         // The version first, then the file: a writer killed between the two leaves a
         // version that `restore` can bring back, never a pose file no version records.
         let v = self.record(&lock, &pf, command)?;
@@ -343,6 +414,10 @@ impl PoseHistory {
             })?;
             if before != *pose {
                 self.record(&lock, &before, INITIAL)?;
+            }
+        } else if let Ok(before) = PoseFile::read(&self.poses) {
+            if before != *pose {
+                self.catch_up(&lock, &before)?;
             }
         }
         let v = self.record(&lock, pose, command)?;
@@ -623,5 +698,61 @@ mod tests {
         let e = PoseHistory::new(&junk).write(&src, "x").expect_err("junk");
         assert!(e.to_string().contains("not a pose file"), "{e}");
         assert_eq!(std::fs::read_to_string(&junk).expect("r"), "{\"not\": 1}");
+    }
+
+    /// Two writers each stopped between recording a version and writing the file leave the
+    /// file two versions behind; the next change records the file as found first, so the
+    /// newest version is the file again (and, stopped once more, the one before it).
+    #[test]
+    fn a_change_after_interrupted_writes_records_the_file_as_found() {
+        let dir = tempfile::tempdir().expect("tmp");
+        let p = pose_file(dir.path());
+        let pf = PoseFile::read(&p).expect("read");
+        let h = PoseHistory::new(&p);
+        h.update::<_, HistoryError>("first", |_| Ok(()))
+            .expect("update");
+        // Stopped between the two, twice: versions the file never held.
+        for cmd in ["lost 1", "lost 2"] {
+            let lock = h.lock().expect("lock");
+            let mut moved = pf.clone();
+            moved.scale *= 2.0;
+            h.record(&lock, &moved, cmd).expect("record");
+        }
+        h.update::<_, HistoryError>("next", |_| Ok(()))
+            .expect("update");
+        let rows = h.rows().expect("rows");
+        let commands: Vec<&str> = rows.iter().map(|r| r.command.as_str()).collect();
+        assert_eq!(commands.len(), 6, "{commands:?}");
+        assert!(
+            commands[4].starts_with(FOUND) && commands[4].contains("version 3"),
+            "{commands:?}"
+        );
+        assert_eq!(commands[5], "next");
+        let newest = PoseHistory::read_entry(&h.versions().expect("v")[5].1).expect("entry");
+        assert_eq!(newest.pose, PoseFile::read(&p).expect("read"));
+        // Nothing out of step: no version as found.
+        h.update::<_, HistoryError>("again", |_| Ok(()))
+            .expect("update");
+        assert_eq!(h.rows().expect("rows").len(), 7);
+    }
+
+    #[test]
+    fn a_step_tag_reads_back_from_a_command_and_nothing_else_does() {
+        let tag = StepTag {
+            step: 18,
+            pid: 4242,
+        };
+        let command = format!("agentstar pose commit --poses=p.json [step {tag}]");
+        assert_eq!(StepTag::in_command(&command), Some(tag));
+        assert_eq!(StepTag::from_env(&tag.to_string()), Some(tag));
+        for other in [
+            "agentstar pose commit --poses=p.json",
+            INITIAL,
+            "restore version 3",
+            "x [step 1 of process]",
+            "x [step a of process 2]",
+        ] {
+            assert_eq!(StepTag::in_command(other), None, "{other}");
+        }
     }
 }

@@ -3,7 +3,8 @@
 //!
 //! Appending writes one whole line with a single `write` on a file opened for appending and
 //! syncs it, so a crash leaves at most one truncated last line; the reader skips such a line
-//! and says so, and every earlier step stays readable (a run resumes from them).
+//! and says so, and every earlier step stays readable (a run resumes from them). The next
+//! append starts a new line after a truncated one, so the step after a crash is kept.
 
 use crate::{DataError, Result};
 use serde::{Deserialize, Serialize};
@@ -44,12 +45,31 @@ pub fn append(path: &Path, entry: &LedgerEntry) -> Result<()> {
     line.push('\n');
     let mut f = std::fs::OpenOptions::new()
         .create(true)
+        .read(true)
         .append(true)
         .open(path)
         .map_err(|e| DataError::io(path, e))?;
+    // A line cut short by a crash has no newline: without one here this entry would be
+    // glued to it and lost with it. (Two writers that both see it add an empty line, which
+    // the reader skips.)
+    if ends_mid_line(&mut f).map_err(|e| DataError::io(path, e))? {
+        line.insert(0, '\n');
+    }
     f.write_all(line.as_bytes())
         .and_then(|_| f.sync_data())
         .map_err(|e| DataError::io(path, e))
+}
+
+/// Whether `f` is not empty and its last byte is not a newline.
+fn ends_mid_line(f: &mut std::fs::File) -> std::io::Result<bool> {
+    use std::io::{Read, Seek, SeekFrom};
+    if f.metadata()?.len() == 0 {
+        return Ok(false);
+    }
+    f.seek(SeekFrom::End(-1))?;
+    let mut last = [0u8; 1];
+    f.read_exact(&mut last)?;
+    Ok(last[0] != b'\n')
 }
 
 /// Reads a ledger: the entries, and a note for each line that could not be read (a
@@ -102,5 +122,11 @@ mod tests {
         assert_eq!(entries, vec![entry(1), entry(2)]);
         assert_eq!(notes.len(), 1);
         assert!(notes[0].contains("line 3"), "{notes:?}");
+        // The step after the crash starts its own line and is kept (it was glued to the
+        // cut line and lost with it).
+        append(&p, &entry(4)).expect("append");
+        let (entries, notes) = read(&p).expect("read");
+        assert_eq!(entries, vec![entry(1), entry(2), entry(4)]);
+        assert_eq!(notes.len(), 1, "{notes:?}");
     }
 }

@@ -247,13 +247,59 @@ impl FrameFiles {
     }
 }
 
+/// The start of the name of the folder a process extracts a video's frames into (in the
+/// system's temporary directory): `agentstar-frames-<host>-<pid>-`.
+fn frame_folder_prefix(pid: u32) -> String {
+    format!("agentstar-frames-{}-{pid}-", host_name())
+}
+
+fn host_name() -> String {
+    std::fs::read_to_string("/proc/sys/kernel/hostname")
+        .map(|h| h.trim().replace(['-', '/'], "_"))
+        .unwrap_or_default()
+}
+
+/// Removes the frame folders in `root` of this host's processes that no longer run: an
+/// import killed mid-extraction (`kill -9`) leaves every frame it had extracted. Best effort,
+/// and only where `/proc` says which processes run; another host's folders (a shared
+/// temporary directory) are left alone.
+fn remove_stale_frame_folders(root: &Path) {
+    if !Path::new("/proc/self").exists() {
+        return;
+    }
+    let start = format!("agentstar-frames-{}-", host_name());
+    let Ok(entries) = std::fs::read_dir(root) else {
+        return;
+    };
+    for entry in entries.flatten() {
+        let name = entry.file_name();
+        let Some(pid) = name
+            .to_str()
+            .and_then(|n| n.strip_prefix(&start))
+            .and_then(|rest| rest.split_once('-'))
+            .and_then(|(pid, _)| pid.parse::<u32>().ok())
+        else {
+            continue;
+        };
+        let dead = pid != std::process::id() && !Path::new("/proc").join(pid.to_string()).exists();
+        if dead && entry.file_type().is_ok_and(|t| t.is_dir()) {
+            let _ = std::fs::remove_dir_all(entry.path());
+        }
+    }
+}
+
 /// Opens a video (extracting every frame with ffmpeg; frames are named by their index in the
 /// video) or a folder of frames.
 pub fn open_frames(input: &Path) -> Result<FrameFiles> {
     let (extracted, dir) = if input.is_dir() {
         (None, input.to_path_buf())
     } else if input.is_file() {
-        let tmp = tempfile::tempdir().map_err(|e| DataError::io(std::env::temp_dir(), e))?;
+        let root = std::env::temp_dir();
+        remove_stale_frame_folders(&root);
+        let tmp = tempfile::Builder::new()
+            .prefix(&frame_folder_prefix(std::process::id()))
+            .tempdir_in(&root)
+            .map_err(|e| DataError::io(&root, e))?;
         extract(input, tmp.path())?;
         let dir = tmp.path().to_path_buf();
         (Some(tmp), dir)
@@ -718,6 +764,31 @@ pub fn import_video_frames(
 
 #[cfg(test)]
 mod tests {
+
+    /// What an import killed mid-extraction left is removed by the next one; a live
+    /// process's folder and other names stay.
+    #[test]
+    fn frame_folders_of_dead_imports_are_removed() {
+        let root = tempfile::tempdir().expect("tmp");
+        // No process has this id (above the kernel's limit).
+        let dead = root
+            .path()
+            .join(format!("{}Ab12Cd", frame_folder_prefix(999_999_999)));
+        let live = root
+            .path()
+            .join(format!("{}Zz99Yy", frame_folder_prefix(std::process::id())));
+        let other = root.path().join("agentstar-frames-elsewhere");
+        for d in [&dead, &live, &other] {
+            std::fs::create_dir(d).expect("dir");
+            std::fs::write(d.join("000000.png"), b"frame").expect("frame");
+        }
+        remove_stale_frame_folders(root.path());
+        if Path::new("/proc/self").exists() {
+            assert!(!dead.exists(), "the dead import's frames are removed");
+        }
+        assert!(live.exists() && other.exists());
+    }
+
     use super::*;
 
     #[test]

@@ -870,10 +870,13 @@ fn make_engine(state: &Shared, meshes: Arc<dyn MeshSource>, limits: &Limits) -> 
     engine.set_max_expr_depths(128, 64);
     engine.set_max_string_size(limits.max_string_len);
     engine.set_max_array_size(limits.max_array_len);
-    engine.set_max_map_size(10_000);
+    engine.set_max_map_size(MAX_MAP_SIZE);
     engine.set_max_variables(10_000);
     engine.set_max_functions(1_000);
     engine.disable_symbol("eval");
+    // `f.curry(f)` doubles a function pointer's size at every call (a memory bomb no size
+    // limit sees) and nests pointers; scene scripts pass arguments instead.
+    engine.disable_symbol("curry");
     let start = Instant::now();
     let budget = limits.max_wall_time;
     engine.on_progress(move |ops| {
@@ -904,7 +907,54 @@ fn make_engine(state: &Shared, meshes: Arc<dyn MeshSource>, limits: &Limits) -> 
     engine
 }
 
+/// The most entries a script's maps hold, nested ones counted.
+const MAX_MAP_SIZE: usize = 10_000;
+
+/// The stack a script runs on. Rhai evaluates, measures, clones and frees nested data
+/// recursively (one level of an array in an array is a few frames deep), and no engine limit
+/// bounds that depth; the size limits do: every level of nesting counts towards
+/// `max_array_len` or [`MAX_MAP_SIZE`], and scene scripts have no closures (`no_closure`)
+/// and no `curry`, so function pointers hold nothing. This stack holds the deepest nesting
+/// the default limits allow with room to spare
+/// (`deepest_data_the_limits_allow_is_freed_on_the_script_stack`: in a debug build 8 MiB
+/// is too little to free it, 256 MiB too little to compare it, 512 MiB enough). It is
+/// reserved address space; only what is used is ever touched.
+pub(crate) const SCRIPT_STACK_BYTES: usize = 1 << 30;
+
 pub(crate) fn build(
+    source: &str,
+    meshes: &dyn MeshSource,
+    limits: &Limits,
+    overrides: &BTreeMap<String, f64>,
+) -> Result<SceneBuild, SceneError> {
+    std::thread::scope(|scope| {
+        match std::thread::Builder::new()
+            .name("scene-script".into())
+            .stack_size(SCRIPT_STACK_BYTES)
+            .spawn_scoped(scope, || build_here(source, meshes, limits, overrides))
+        {
+            Ok(handle) => handle.join().unwrap_or_else(|panic| {
+                let what = panic
+                    .downcast_ref::<&str>()
+                    .map(|s| s.to_string())
+                    .or_else(|| panic.downcast_ref::<String>().cloned())
+                    .unwrap_or_else(|| "no message".into());
+                Err(SceneError {
+                    kind: SceneErrorKind::Limit,
+                    message: format!("the script's evaluation failed inside the engine: {what}"),
+                    line: None,
+                    column: None,
+                    parts_so_far: vec![],
+                })
+            }),
+            // No thread to be had (address space or thread limits): run here, on the
+            // caller's stack.
+            Err(_) => build_here(source, meshes, limits, overrides),
+        }
+    })
+}
+
+fn build_here(
     source: &str,
     meshes: &dyn MeshSource,
     limits: &Limits,
@@ -944,9 +994,18 @@ pub(crate) fn build(
     let engine = make_engine(&state, loaded, limits);
     let ast: AST = engine.compile(source).map_err(|e| {
         let pos = e.position();
+        let at_curry = pos
+            .line()
+            .zip(pos.position())
+            .and_then(|(l, c)| source.lines().nth(l.checked_sub(1)?)?.get(c.checked_sub(1)?..))
+            .is_some_and(|rest| rest.starts_with("curry"));
         SceneError {
             kind: SceneErrorKind::Syntax,
-            message: format!("syntax error: {}", e.err_type()),
+            message: if at_curry {
+                "`curry` is not available in scene scripts; pass every value to `call` (`f.call(a, b)`) or to the function itself".into()
+            } else {
+                format!("syntax error: {}", e.err_type())
+            },
             line: pos.line(),
             column: pos.position(),
             parts_so_far: no_parts(),
@@ -1096,8 +1155,11 @@ impl MeshSource for Preloaded {
 fn explain(err: EvalAltResult, parts_so_far: Vec<String>, limits: &Limits) -> SceneError {
     let mut pos = err.position();
     let mut e = err;
+    // Whether the innermost function the error happened in is an anonymous one (`|x| …`).
+    let mut in_anonymous = false;
     // Unwrap calls into script-defined functions, keeping the innermost known position.
-    while let EvalAltResult::ErrorInFunctionCall(_, _, inner, p) = e {
+    while let EvalAltResult::ErrorInFunctionCall(name, _, inner, p) = e {
+        in_anonymous = name.starts_with("anon$");
         if !p.is_none() {
             pos = p;
         }
@@ -1135,6 +1197,12 @@ fn explain(err: EvalAltResult, parts_so_far: Vec<String>, limits: &Limits) -> Sc
                 )
             }
         }
+        EvalAltResult::ErrorVariableNotFound(v, _) if in_anonymous => (
+            SceneErrorKind::UnknownName,
+            format!(
+                "unknown variable `{v}` inside an anonymous function (`|…| …`): scene scripts have no closures, so an anonymous function sees only its own parameters; pass `{v}` as a parameter or use a `for` loop"
+            ),
+        ),
         EvalAltResult::ErrorVariableNotFound(v, _) => (
             SceneErrorKind::UnknownName,
             format!(
@@ -1185,5 +1253,52 @@ fn explain(err: EvalAltResult, parts_so_far: Vec<String>, limits: &Limits) -> Sc
         line: pos.line(),
         column: pos.position(),
         parts_so_far,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Every level of nesting costs an element of an array or an entry of a map, and the
+    /// size limits count nested ones: the deepest data a script can build is
+    /// `max_array_len + MAX_MAP_SIZE` levels. Rhai clones, prints, compares and frees such
+    /// data recursively; all of it fits on the script's stack.
+    #[test]
+    fn deepest_data_the_limits_allow_is_freed_on_the_script_stack() {
+        let depth = Limits::default().max_array_len + MAX_MAP_SIZE;
+        std::thread::Builder::new()
+            .stack_size(SCRIPT_STACK_BYTES)
+            .spawn(move || {
+                let mut value = Dynamic::from(1_i64);
+                for level in 0..depth {
+                    value = if level % 20 == 0 {
+                        let mut m = Map::new();
+                        m.insert("x".into(), value);
+                        Dynamic::from_map(m)
+                    } else {
+                        Dynamic::from_array(vec![value])
+                    };
+                }
+                let copy = value.clone();
+                let text = value.to_string();
+                assert!(text.len() > depth);
+                // The engine compares nested arrays recursively through its calls.
+                let engine = Engine::new();
+                let mut scope = rhai::Scope::new();
+                scope.push("a", copy);
+                scope.push("b", value);
+                assert_eq!(
+                    engine.eval_with_scope::<bool>(&mut scope, "a == b").ok(),
+                    Some(true)
+                );
+                assert!(engine
+                    .eval_with_scope::<bool>(&mut scope, "a.contains(b)")
+                    .is_ok());
+                drop(scope);
+            })
+            .expect("thread")
+            .join()
+            .expect("nested data fits on the script stack");
     }
 }

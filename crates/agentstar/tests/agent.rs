@@ -470,3 +470,54 @@ fn external_agents_get_their_configuration_and_keys_stay_out_of_the_run() {
         }
     }
 }
+
+/// Issue 35: every child process has a deadline. An agent whose `--version` never answers
+/// (a fake `claude` on PATH that sleeps) is stopped at the probe's limit (30 s) and named,
+/// instead of hanging `run --agent`.
+#[cfg(unix)]
+#[test]
+fn an_agent_that_does_not_answer_its_version_probe_is_stopped_and_named() {
+    use std::os::unix::fs::PermissionsExt;
+    let dir = tempfile::tempdir().expect("tmp");
+    small_run(dir.path(), 2, false);
+    let bin = dir.path().join("bin");
+    std::fs::create_dir(&bin).expect("bin");
+    let fake = bin.join("claude");
+    std::fs::write(&fake, "#!/bin/sh\nexec sleep 600\n").expect("fake");
+    std::fs::set_permissions(&fake, std::fs::Permissions::from_mode(0o755)).expect("chmod");
+    let path = format!(
+        "{}:{}",
+        bin.display(),
+        std::env::var("PATH").unwrap_or_else(|_| "/usr/bin:/bin".into())
+    );
+    let start = std::time::Instant::now();
+    let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_agentstar"))
+        .args([
+            "run",
+            dir.path().join("run").to_str().expect("utf8"),
+            "--agent",
+            "claude",
+        ])
+        .env("PATH", path)
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .expect("run");
+    // Past twice the limit the harness itself is stuck: stop it and fail.
+    while child.try_wait().expect("wait").is_none() {
+        if start.elapsed() > std::time::Duration::from_secs(90) {
+            let _ = child.kill();
+            let _ = child.wait();
+            panic!("run --agent hung on a version probe that never answers");
+        }
+        std::thread::sleep(std::time::Duration::from_millis(100));
+    }
+    let o = child.wait_with_output().expect("output");
+    assert_eq!(o.status.code(), Some(2), "{}", text(&o));
+    assert!(
+        text(&o).contains("`claude --version` did not finish within 30 s")
+            && text(&o).contains("does not answer"),
+        "{}",
+        text(&o)
+    );
+}

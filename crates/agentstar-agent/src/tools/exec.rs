@@ -36,6 +36,21 @@ impl Activity {
 
 thread_local! {
     static ACTIVITY: std::cell::RefCell<Option<Activity>> = const { std::cell::RefCell::new(None) };
+    /// The ledger step whose tool runs on this thread.
+    static STEP: std::cell::Cell<Option<u64>> = const { std::cell::Cell::new(None) };
+}
+
+/// Runs `f` with the child commands it starts on this thread told the step they serve
+/// (`AGENTSTAR_STEP`, which `agentstar_data::history::command_line` records with a version).
+pub(super) fn with_step<T>(step: u64, f: impl FnOnce() -> T) -> T {
+    struct Reset(Option<u64>);
+    impl Drop for Reset {
+        fn drop(&mut self) {
+            STEP.with(|s| s.set(self.0));
+        }
+    }
+    let _reset = Reset(STEP.with(|s| s.replace(Some(step))));
+    f()
 }
 
 /// Runs `f` with the child commands it starts on this thread reporting their stderr lines
@@ -150,7 +165,14 @@ impl Toolbox {
     /// Runs the executable (the one runner of every child tool); returns (success,
     /// stdout, stderr). A child that runs past `timeout_s` is killed.
     pub fn exec(&self, args: &[String]) -> Result<(bool, String, String)> {
-        let mut child = Command::new(&self.exe)
+        let mut command = Command::new(&self.exe);
+        if let Some(step) = STEP.with(|s| s.get()) {
+            command.env(
+                agentstar_data::history::STEP_ENV,
+                agentstar_data::history::StepTag::of_this_process(step).to_string(),
+            );
+        }
+        let mut child = command
             .args(args)
             .stdin(std::process::Stdio::null())
             .stdout(std::process::Stdio::piped())

@@ -488,9 +488,12 @@ impl Toolbox {
                     .join(", ")
             ));
         };
-        let run = || match (def.call)(self, args, step) {
-            Ok(o) => o,
-            Err(e) => ToolOutput::error(e.to_string()),
+        // The children it starts carry the step, so the versions they record name it.
+        let run = || {
+            exec::with_step(step, || match (def.call)(self, args, step) {
+                Ok(o) => o,
+                Err(e) => ToolOutput::error(e.to_string()),
+            })
         };
         if def.writes == Writes::Nothing {
             run()

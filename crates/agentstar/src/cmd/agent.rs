@@ -262,17 +262,28 @@ fn external_agent(run: &RunDir, agent: &str) -> Result<ExitCode> {
         }
         other => bail!("--agent {other}: claude or codex"),
     };
-    let found = agentstar_import::process::output_within(
+    let probe = agentstar_import::process::output_within(
         std::process::Command::new(bin).arg("--version"),
         agentstar_import::process::PROBE_LIMIT,
-    )
-    .is_ok_and(|o| o.status.success());
-    if !found {
-        bail!(
-            "`{bin}` is not installed: install it ({install}), then run this again. The MCP configuration is written in {} (or print it with `agentstar mcp {} --print-config {agent}`)",
-            dir.display(),
-            dir.display()
-        );
+    );
+    let config = format!(
+        "The MCP configuration is written in {} (or print it with `agentstar mcp {} --print-config {agent}`)",
+        dir.display(),
+        dir.display()
+    );
+    match probe {
+        Err(e) if e.kind() == std::io::ErrorKind::TimedOut => bail!(
+            "`{bin} --version` {e}: `{bin}` is installed but does not answer; check it in a shell, then run this again. {config}"
+        ),
+        Ok(o) if !o.status.success() => bail!(
+            "`{bin} --version` failed ({}): {}; reinstall it ({install}), then run this again. {config}",
+            o.status,
+            String::from_utf8_lossy(&o.stderr).trim()
+        ),
+        Err(_) => bail!(
+            "`{bin}` is not installed: install it ({install}), then run this again. {config}"
+        ),
+        Ok(_) => {}
     }
     eprintln!("starting {bin} in {}", dir.display());
     let status = std::process::Command::new(bin)

@@ -80,14 +80,15 @@ pub fn machine() -> String {
 }
 
 fn today() -> String {
-    std::process::Command::new("date")
-        .arg("+%Y-%m-%d")
-        .output()
-        .ok()
-        .and_then(|o| String::from_utf8(o.stdout).ok())
-        .map(|s| s.trim().to_string())
-        .filter(|s| !s.is_empty())
-        .unwrap_or_else(|| "unknown date".into())
+    agentstar_import::process::output_within(
+        std::process::Command::new("date").arg("+%Y-%m-%d"),
+        agentstar_import::process::PROBE_LIMIT,
+    )
+    .ok()
+    .and_then(|o| String::from_utf8(o.stdout).ok())
+    .map(|s| s.trim().to_string())
+    .filter(|s| !s.is_empty())
+    .unwrap_or_else(|| "unknown date".into())
 }
 
 pub fn run(a: Args) -> Result<ExitCode> {

@@ -330,6 +330,14 @@ impl McpClient {
     }
 }
 
+impl McpClient {
+    /// Kills the server (`kill -9`) with its stdin still open, and reaps it.
+    pub fn kill(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
 impl Drop for McpClient {
     fn drop(&mut self) {
         drop(self.stdin.take());

@@ -8,10 +8,10 @@ use agentstar_batch::slurm::{self, TaskState};
 use agentstar_batch::state::summary;
 use agentstar_batch::table::{jobs_table, AgentSpend, JobRow};
 use agentstar_batch::{classify, JobRecord, JobSpec, JobState, Method, Observation, Queue, Runner};
-use anyhow::{bail, Context, Result};
+use anyhow::Result;
 use serde::Serialize;
 use std::path::PathBuf;
-use std::process::{Command, ExitCode, Stdio};
+use std::process::{Command, ExitCode};
 
 /// What Slurm says about the batch's submissions, where it can be asked.
 pub(super) struct SchedulerView {
@@ -26,28 +26,25 @@ pub(super) fn on_path(program: &str) -> bool {
         .is_some_and(|paths| std::env::split_paths(&paths).any(|d| d.join(program).is_file()))
 }
 
-/// Runs a scheduler command with a bound on its time; stdout, stderr and success.
+/// How long `sbatch`, `squeue` or `sacct` may take.
+const SCHEDULER_LIMIT: std::time::Duration = std::time::Duration::from_secs(60);
+
+/// Runs a scheduler command with a bound on its time; stdout, stderr and success. Its output
+/// is read while it runs: a queue listing longer than a pipe holds (64 KiB) once stalled
+/// the command until it was stopped at the limit.
 pub(super) fn scheduler_command(program: &str, args: &[String]) -> Result<(String, String, bool)> {
-    let mut child = Command::new(program)
-        .args(args)
-        .stdin(Stdio::null())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .with_context(|| format!("starting {program}"))?;
-    let deadline = std::time::Instant::now() + std::time::Duration::from_secs(60);
-    loop {
-        if child.try_wait()?.is_some() {
-            break;
-        }
-        if std::time::Instant::now() > deadline {
-            let _ = child.kill();
-            let _ = child.wait();
-            bail!("{program} did not answer within 60 s");
-        }
-        std::thread::sleep(std::time::Duration::from_millis(20));
-    }
-    let out = child.wait_with_output()?;
+    let out =
+        agentstar_import::process::output_within(Command::new(program).args(args), SCHEDULER_LIMIT)
+            .map_err(|e| {
+                if e.kind() == std::io::ErrorKind::TimedOut {
+                    anyhow::anyhow!(
+                        "{program} did not answer within {} s",
+                        SCHEDULER_LIMIT.as_secs()
+                    )
+                } else {
+                    anyhow::Error::new(e).context(format!("starting {program}"))
+                }
+            })?;
     Ok((
         String::from_utf8_lossy(&out.stdout).into_owned(),
         String::from_utf8_lossy(&out.stderr).into_owned(),
@@ -292,4 +289,24 @@ pub(super) fn run_status(a: StatusArgs) -> Result<ExitCode> {
     let batch = Batch::open(&a.batch)?;
     print_status(&batch, a.json, true)?;
     Ok(ExitCode::SUCCESS)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A scheduler that prints more than a pipe holds is read while it runs (it was read
+    /// only after it exited, so it stalled until stopped at the limit).
+    #[test]
+    fn a_long_queue_listing_is_read_whole() {
+        let start = std::time::Instant::now();
+        let (out, _, ok) = scheduler_command(
+            "sh",
+            &["-c".into(), "head -c 1000000 /dev/zero | tr '\\0' x".into()],
+        )
+        .expect("runs");
+        assert!(ok);
+        assert_eq!(out.len(), 1_000_000);
+        assert!(start.elapsed() < std::time::Duration::from_secs(30));
+    }
 }
