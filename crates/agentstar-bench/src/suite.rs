@@ -64,6 +64,7 @@ pub fn hard_sequence(object: &str, seed: u64) -> SequenceSpec {
             depth: Some(false),
             principal_point: Some((0.5 * w as f64 + 38.0, 0.5 * h as f64 - 22.0)),
             hand_coverage_max: Some(0.6),
+            between: 0,
         },
     }
 }

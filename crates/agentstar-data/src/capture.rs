@@ -32,6 +32,10 @@ pub struct Manifest {
     pub downscale: Option<f64>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub undistorted: Option<bool>,
+    /// The frames that are tracked, scored, evaluated and shown (names or stems of entries of
+    /// `frames`); the others are in-between frames. Absent: every frame is a keyframe.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub keyframes: Option<Vec<String>>,
 }
 
 fn default_depth() -> String {
@@ -71,12 +75,24 @@ pub struct Frame {
     pub time_s: Option<f64>,
 }
 
+/// A frame of the video (key or in-between) with its index among the keyframes.
+#[derive(Debug, Clone, Copy)]
+pub struct VideoFrame<'a> {
+    pub frame: &'a Frame,
+    /// Index into [`Capture::frames`] for a keyframe; `None` for an in-between frame.
+    pub keyframe: Option<usize>,
+}
+
 /// An opened, validated capture.
 #[derive(Debug, Clone)]
 pub struct Capture {
     pub dir: PathBuf,
     pub manifest: Manifest,
+    /// The keyframes, in temporal order: what every keyframe tool indexes.
     pub frames: Vec<Frame>,
+    /// The in-between frames (`formats.md` §2), in temporal order; empty for a capture
+    /// without the `keyframes` key. Never tracked, scored or evaluated as keyframes.
+    pub between: Vec<Frame>,
     /// Index into `frames` of the reference frame.
     pub ref_index: usize,
     /// Non-fatal observations made while opening (shared camera, rescaled intrinsics…).
@@ -176,17 +192,68 @@ impl Capture {
         dir.join("capture.json")
     }
     pub fn frame_path(&self, i: usize) -> PathBuf {
-        self.dir.join("frames").join(&self.frames[i].name)
+        self.frame_file(&self.frames[i])
     }
     pub fn mask_path(&self, i: usize) -> PathBuf {
-        self.dir
-            .join("mask_object")
-            .join(format!("{}.png", self.frames[i].stem))
+        self.mask_file(&self.frames[i])
     }
     pub fn hand_path(&self, i: usize) -> PathBuf {
+        self.hand_file(&self.frames[i])
+    }
+    /// The RGB file of any frame of the capture, key or in-between.
+    pub fn frame_file(&self, frame: &Frame) -> PathBuf {
+        self.dir.join("frames").join(&frame.name)
+    }
+    pub fn mask_file(&self, frame: &Frame) -> PathBuf {
+        self.dir
+            .join("mask_object")
+            .join(format!("{}.png", frame.stem))
+    }
+    pub fn hand_file(&self, frame: &Frame) -> PathBuf {
         self.dir
             .join("mask_hand")
-            .join(format!("{}.png", self.frames[i].stem))
+            .join(format!("{}.png", frame.stem))
+    }
+    /// Every frame, key or in-between, in temporal order, with its keyframe index.
+    pub fn video(&self) -> Vec<VideoFrame<'_>> {
+        let mut all: Vec<VideoFrame<'_>> = self
+            .frames
+            .iter()
+            .enumerate()
+            .map(|(k, frame)| VideoFrame {
+                frame,
+                keyframe: Some(k),
+            })
+            .chain(self.between.iter().map(|frame| VideoFrame {
+                frame,
+                keyframe: None,
+            }))
+            .collect();
+        all.sort_by_key(|v| v.frame.number);
+        all
+    }
+    /// The in-between frames strictly between keyframes `k` and `k + 1`, in temporal order
+    /// (empty for the last keyframe or a capture without in-between frames).
+    pub fn between_keyframes(&self, k: usize) -> Vec<&Frame> {
+        let (Some(a), Some(b)) = (self.frames.get(k), self.frames.get(k + 1)) else {
+            return vec![];
+        };
+        self.between
+            .iter()
+            .filter(|f| f.number > a.number && f.number < b.number)
+            .collect()
+    }
+    /// One line for a keyframe tool's log when the capture has in-between frames: how many,
+    /// and that the command works on the keyframes. `None` without in-between frames.
+    pub fn between_note(&self) -> Option<String> {
+        (!self.between.is_empty()).then(|| {
+            format!(
+                "{} holds {} in-between frame(s) besides its {} keyframes; this works on the keyframes",
+                self.dir.display(),
+                self.between.len(),
+                self.frames.len()
+            )
+        })
     }
     pub fn width(&self) -> u32 {
         self.manifest.image_size[0]
@@ -254,17 +321,34 @@ impl Capture {
     }
 
     pub fn load_frame(&self, i: usize) -> Result<image::RgbImage> {
-        load_rgb(&self.frame_path(i))
+        self.load_frame_of(&self.frames[i])
     }
     pub fn load_mask(&self, i: usize) -> Result<BitMask> {
-        let p = self.mask_path(i);
+        self.load_mask_of(&self.frames[i])
+    }
+    /// The hand (don't-care) mask, when the capture has one for this frame.
+    pub fn load_hand(&self, i: usize) -> Result<Option<BitMask>> {
+        self.load_hand_of(&self.frames[i])
+    }
+    /// Observed depth for a frame, when the capture has depth and this frame has a file.
+    pub fn load_depth(&self, i: usize) -> Result<Option<DepthObservation>> {
+        self.load_depth_of(&self.frames[i])
+    }
+    /// The RGB image of any frame, key or in-between.
+    pub fn load_frame_of(&self, frame: &Frame) -> Result<image::RgbImage> {
+        let p = self.frame_file(frame);
+        let img = load_rgb(&p)?;
+        self.check_size(&p, img.width(), img.height())?;
+        Ok(img)
+    }
+    pub fn load_mask_of(&self, frame: &Frame) -> Result<BitMask> {
+        let p = self.mask_file(frame);
         let m = load_mask(&p)?;
         self.check_size(&p, m.width(), m.height())?;
         Ok(m)
     }
-    /// The hand (don't-care) mask, when the capture has one for this frame.
-    pub fn load_hand(&self, i: usize) -> Result<Option<BitMask>> {
-        let p = self.hand_path(i);
+    pub fn load_hand_of(&self, frame: &Frame) -> Result<Option<BitMask>> {
+        let p = self.hand_file(frame);
         if !p.is_file() {
             return Ok(None);
         }
@@ -286,12 +370,11 @@ impl Capture {
         Ok(())
     }
 
-    /// Observed depth for a frame, when the capture has depth and this frame has a file.
-    pub fn load_depth(&self, i: usize) -> Result<Option<DepthObservation>> {
+    pub fn load_depth_of(&self, frame: &Frame) -> Result<Option<DepthObservation>> {
         if self.manifest.depth == "none" {
             return Ok(None);
         }
-        let stem = &self.frames[i].stem;
+        let stem = &frame.stem;
         let npz = self.dir.join("depth").join(format!("{stem}.npz"));
         let png = self.dir.join("depth").join(format!("{stem}.png"));
         let (w, h) = (self.width(), self.height());
@@ -348,12 +431,12 @@ impl Capture {
             Err(p) => p.problems,
             Ok(cap) => {
                 let mut problems = Vec::new();
-                for i in 0..cap.frames.len() {
+                for frame in cap.frames.iter().chain(&cap.between) {
                     for r in [
-                        cap.load_frame(i).map(|_| ()),
-                        cap.load_mask(i).map(|_| ()),
-                        cap.load_hand(i).map(|_| ()),
-                        cap.load_depth(i).map(|_| ()),
+                        cap.load_frame_of(frame).map(|_| ()),
+                        cap.load_mask_of(frame).map(|_| ()),
+                        cap.load_hand_of(frame).map(|_| ()),
+                        cap.load_depth_of(frame).map(|_| ()),
                     ] {
                         if let Err(e) = r {
                             let (path, message) = match e {
@@ -363,10 +446,13 @@ impl Capture {
                             problems.push(Problem { path, message });
                         }
                     }
-                    if let Ok(m) = cap.load_mask(i) {
-                        if m.count() == 0 {
+                    // An in-between frame may show no object (it left the view or a hand covers
+                    // it): the tracker carries its pose across; a keyframe must show it.
+                    let key = cap.between.iter().all(|b| b.name != frame.name);
+                    if let Ok(m) = cap.load_mask_of(frame) {
+                        if key && m.count() == 0 {
                             problems.push(Problem {
-                                path: cap.mask_path(i),
+                                path: cap.mask_file(frame),
                                 message: "the object mask is empty".into(),
                             });
                         }
@@ -871,14 +957,96 @@ fn open_inner(dir: &Path, c: &mut Collector, check_files: bool) -> Option<Captur
         .and_then(|s| s.get("fps"))
         .and_then(|f| f.as_f64());
     let warnings = timing_warnings(&frames, stated_fps);
+    // Without `ref_frame` the reference is the first keyframe.
+    let ref_name = manifest
+        .ref_frame
+        .as_ref()
+        .and(ref_index)
+        .and_then(|i| frames.get(i))
+        .map(|f| f.name.clone());
+    let (frames, between) = split_keyframes(&mpath, &manifest, frames, c)?;
+    let ref_index = match ref_name {
+        Some(name) => match frames.iter().position(|f| f.name == name) {
+            Some(i) => i,
+            None => {
+                c.add(
+                    &mpath,
+                    format!("ref_frame `{name}` is an in-between frame; it must be a keyframe"),
+                );
+                return None;
+            }
+        },
+        None => 0,
+    };
+    if !between.is_empty() {
+        notes.push(format!(
+            "{} keyframes and {} in-between frames",
+            frames.len(),
+            between.len()
+        ));
+    }
     Some(Capture {
         dir: dir.to_path_buf(),
         manifest,
         frames,
-        ref_index: ref_index.unwrap_or(0),
+        between,
+        ref_index,
         notes,
         warnings,
     })
+}
+
+/// Splits the frames (in temporal order) into keyframes and in-between frames by the
+/// manifest's `keyframes` key; every frame is a keyframe without it.
+fn split_keyframes(
+    mpath: &Path,
+    manifest: &Manifest,
+    frames: Vec<Frame>,
+    c: &mut Collector,
+) -> Option<(Vec<Frame>, Vec<Frame>)> {
+    let Some(names) = &manifest.keyframes else {
+        return Some((frames, vec![]));
+    };
+    if names.is_empty() {
+        c.add(
+            mpath,
+            "`keyframes` is empty; list the frames to track, or leave the key out (every frame is then a keyframe)",
+        );
+        return None;
+    }
+    let mut is_key = vec![false; frames.len()];
+    let mut bad = false;
+    for name in names {
+        match frames
+            .iter()
+            .position(|f| f.name == *name || f.stem == stem_of(name))
+        {
+            Some(i) if is_key[i] => {
+                c.add(mpath, format!("`keyframes` lists `{name}` twice"));
+                bad = true;
+            }
+            Some(i) => is_key[i] = true,
+            None => {
+                c.add(
+                    mpath,
+                    format!("`keyframes` lists `{name}`, which is not one of `frames`"),
+                );
+                bad = true;
+            }
+        }
+    }
+    if bad {
+        return None;
+    }
+    let (mut key, mut between) = (vec![], vec![]);
+    for (frame, k) in frames.into_iter().zip(is_key) {
+        if k {
+            key.push(frame);
+        } else {
+            between.push(frame);
+        }
+    }
+    Some((key, between))
 }
 
 /// Frame rates of video that a keyframe step of one frame gives away.

@@ -32,6 +32,9 @@ pub struct FrameOut<'a> {
 pub struct CaptureInfo {
     pub dataset: Option<String>,
     pub source: Option<serde_json::Value>,
+    /// The names of the keyframes when the capture also keeps in-between frames
+    /// (`formats.md` §2); `None`: every frame written is a keyframe.
+    pub keyframes: Option<Vec<String>>,
 }
 
 /// A camera's `c2w` (row-major 4×4) and intrinsics (row-major 3×3) as `tracking/cameras.npz`
@@ -170,7 +173,12 @@ pub fn write_capture(
         format: FORMAT.into(),
         image_size: [w, h],
         frames: frames.iter().map(|f| f.name.to_string()).collect(),
-        ref_frame: Some(first.name.to_string()),
+        ref_frame: Some(
+            info.keyframes
+                .as_ref()
+                .and_then(|k| k.first().cloned())
+                .unwrap_or_else(|| first.name.to_string()),
+        ),
         depth: if has_depth {
             "rendered".into()
         } else {
@@ -181,6 +189,7 @@ pub fn write_capture(
         source: info.source.clone(),
         downscale: Some(1.0),
         undistorted: Some(true),
+        keyframes: info.keyframes.clone(),
     };
     crate::atomic::write_json(&Capture::manifest_path(root), &manifest)?;
     let problems = Capture::validate(root);

@@ -40,6 +40,10 @@ pub struct FrameEntry {
     pub camera_c2w: Option<[[f64; 4]; 4]>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub intrinsics: Option<serde_json::Value>,
+    /// An in-between frame's pose (`formats.md` §2), written by `track --write-between`:
+    /// never read as a keyframe's, and dropped when keyframe poses are written again.
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub between: bool,
 }
 
 #[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
@@ -267,18 +271,32 @@ impl PoseFile {
         capture: &Capture,
         tree: &KinematicTree,
     ) -> std::result::Result<Vec<FramePose>, String> {
-        for name in self.frames.keys() {
-            if capture.frame_index(name).is_none() {
+        for (name, entry) in &self.frames {
+            let in_between = capture
+                .between
+                .iter()
+                .any(|f| f.name == *name || f.stem == *name);
+            if entry.between && !in_between {
+                return Err(format!(
+                    "frame `{name}` is marked `between` but is not an in-between frame of the capture"
+                ));
+            }
+            if !in_between && capture.frame_index(name).is_none() {
                 return Err(format!("frame `{name}` is not in the capture"));
             }
         }
         let entry_for = |name: &str, stem: &str| {
-            self.frames.get(name).or_else(|| {
-                self.frames
-                    .iter()
-                    .find(|(k, _)| Path::new(k).file_stem().and_then(|s| s.to_str()) == Some(stem))
-                    .map(|(_, v)| v)
-            })
+            self.frames
+                .get(name)
+                .or_else(|| {
+                    self.frames
+                        .iter()
+                        .find(|(k, _)| {
+                            Path::new(k).file_stem().and_then(|s| s.to_str()) == Some(stem)
+                        })
+                        .map(|(_, v)| v)
+                })
+                .filter(|e| !e.between)
         };
         let ri = capture.frame_index(&self.reference_frame).ok_or_else(|| {
             format!(
@@ -328,13 +346,35 @@ impl PoseFile {
     }
 
     /// Writes `poses` for every frame (full precision), keeping joint definitions in sync.
+    /// In-between frames' poses written before are dropped: they followed the keyframe poses
+    /// being replaced.
     pub fn set_frames(&mut self, capture: &Capture, tree: &KinematicTree, poses: &[FramePose]) {
         self.joint_defs = tree.joints().iter().map(joint_json).collect();
+        self.frames.retain(|_, e| !e.between);
         for (f, p) in capture.frames.iter().zip(poses) {
             let e = self.frames.entry(f.name.clone()).or_default();
             e.object_pose = Some(pose_json(&p.generalised.pose, Some(self.scale)));
             e.joints = tree.states_to_interface(&p.generalised.states);
             e.moved = p.moved;
+        }
+    }
+
+    /// Adds in-between frames' poses (`"between": true`) after [`PoseFile::set_frames`].
+    pub fn set_between<'a>(
+        &mut self,
+        tree: &KinematicTree,
+        poses: impl IntoIterator<Item = (&'a str, &'a GenPose)>,
+    ) {
+        for (name, p) in poses {
+            self.frames.insert(
+                name.to_string(),
+                FrameEntry {
+                    object_pose: Some(pose_json(&p.pose, Some(self.scale))),
+                    joints: tree.states_to_interface(&p.states),
+                    between: true,
+                    ..Default::default()
+                },
+            );
         }
     }
 }

@@ -73,6 +73,7 @@ fn write_capture(dir: &Path, frames: usize, c2w: Vec<[[f64; 4]; 4]>) {
         source: None,
         downscale: None,
         undistorted: None,
+        keyframes: None,
     };
     std::fs::write(
         dir.join("capture.json"),

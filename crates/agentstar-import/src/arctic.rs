@@ -365,6 +365,7 @@ pub fn import_arctic(cfg: &ArcticImport, out: &Path) -> Result<usize> {
             "camera": cfg.camera, "offset": offset, "every": cfg.every,
             "masks": if cfg.masks.is_some() { "given" } else { "rendered from the ground truth (hands not cut out)" }}),
         ),
+        keyframes: None,
     };
     let model = GtModel {
         base_part: "bottom".into(),

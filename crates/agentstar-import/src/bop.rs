@@ -245,6 +245,7 @@ pub fn import_bop(cfg: &BopImport, out: &Path) -> Result<usize> {
         dataset: Some("bop".into()),
         source: Some(serde_json::json!({"producer": "agentstar capture from-bop",
             "scene": cfg.scene, "obj_id": cfg.obj_id, "every": cfg.every})),
+        keyframes: None,
     };
     let model = GtModel {
         base_part: "object".into(),

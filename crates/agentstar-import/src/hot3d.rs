@@ -289,6 +289,7 @@ pub fn import_hot3d(cfg: &Hot3dImport, out: &Path) -> Result<Hot3dSummary> {
             "sequence": cfg.sequence, "object_uid": cfg.object_uid, "every": cfg.every,
             "masks": if cfg.masks.is_some() { "given" } else { "rendered from the ground truth (hands not cut out)" }}),
         ),
+        keyframes: None,
     };
     let model = GtModel {
         base_part: "object".into(),

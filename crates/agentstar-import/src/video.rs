@@ -734,6 +734,7 @@ pub fn import_video_frames(
             },
             "camera_warnings": cams.map(|c| c.warnings).unwrap_or_default()}),
         ),
+        keyframes: None,
     };
     write_capture(out, &frames, &info, |root| {
         let Some(src) = attach else { return Ok(()) };

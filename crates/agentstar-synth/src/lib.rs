@@ -59,6 +59,10 @@ pub struct SynthConfig {
     /// hiding up to this fraction of its silhouette (placed again farther out while they hide
     /// more). `None`: the default grips at the object's rim.
     pub hand_coverage_max: Option<f64>,
+    /// In-between frames rendered between consecutive keyframes (0: none). With them the
+    /// keyframes are `between + 1` video frames apart (else 5), and are the same keyframes
+    /// as without them.
+    pub between: usize,
 }
 
 impl Default for SynthConfig {
@@ -75,6 +79,7 @@ impl Default for SynthConfig {
             depth: None,
             principal_point: None,
             hand_coverage_max: None,
+            between: 0,
         }
     }
 }
@@ -113,7 +118,11 @@ pub struct SynthCapture {
     /// Metres per canonical unit.
     pub scale: f64,
     pub camera: PinholeCamera,
+    /// The keyframes.
     pub frames: Vec<SynthFrame>,
+    /// The in-between frames (`SynthConfig::between` of them between consecutive keyframes),
+    /// in temporal order: the same motion sampled densely.
+    pub between: Vec<SynthFrame>,
     /// Rotations of the base part's frame that map the object onto itself (not the identity).
     pub symmetries: Vec<UnitQuaternion>,
 }
@@ -180,6 +189,12 @@ pub fn synthesize(cfg: &SynthConfig) -> Result<SynthCapture, SynthError> {
             cfg.mask_noise_px
         )));
     }
+    if cfg.between > 59 || cfg.frames * (cfg.between + 1) > 20_000 {
+        return Err(SynthError::Config(format!(
+            "between must be 0 to 59 in-between frames a keyframe step, and {} keyframes with {} between each make too long a video (at most 20,000 frames)",
+            cfg.frames, cfg.between
+        )));
+    }
     if let Some(c) = cfg.hand_coverage_max {
         if !(c.is_finite() && (0.0..=0.95).contains(&c)) {
             return Err(SynthError::Config(format!(
@@ -233,78 +248,219 @@ pub fn synthesize(cfg: &SynthConfig) -> Result<SynthCapture, SynthError> {
         Motion::HardHeld => 0.85,
     };
     let hand_phase = hand_rng.range(0.0, std::f64::consts::TAU);
-    let mut frames = Vec::with_capacity(cfg.frames);
-    for (k, step) in traj.into_iter().enumerate() {
+    // Every keyframe's hands are drawn first, in the order the keyframes were always drawn in,
+    // so that a capture with in-between frames has the same keyframes as one without.
+    let hand_plans: Vec<Vec<HandPlan>> = (0..traj.len())
+        .map(|_| {
+            let mut count = 0;
+            if cfg.hands && hand_rng.uniform() < hand_probability {
+                count = if matches!(motion, Motion::HandHeld | Motion::HardHeld)
+                    && hand_rng.uniform() < 0.4
+                {
+                    2
+                } else {
+                    1
+                };
+            }
+            (0..count)
+                .map(|_| match cfg.hand_coverage_max {
+                    None => HandPlan {
+                        jitter: hand_rng.range(-0.2, 0.2),
+                        reach: 0.0,
+                        size: hand_scale,
+                    },
+                    Some(_) => HandPlan {
+                        jitter: hand_rng.range(-0.4, 0.4),
+                        reach: hand_rng.range(0.2, 1.0),
+                        size: hand_scale * hand_rng.range(1.0, 1.5),
+                    },
+                })
+                .collect()
+        })
+        .collect();
+    let scene = FrameScene {
+        cfg,
+        spec,
+        model: &model,
+        camera: &camera,
+        scale,
+        radius,
+        hand_part: &hand_part,
+        hand_phase,
+        background: &background,
+        light: &light,
+        colors: &colors,
+        depth,
+    };
+    let stride = if cfg.between == 0 {
+        5
+    } else {
+        cfg.between as i64 + 1
+    };
+    let mut between = Vec::new();
+    if cfg.between > 0 {
+        for (k, pair) in traj.windows(2).enumerate() {
+            for j in 1..=cfg.between {
+                let s = j as f64 / (cfg.between + 1) as f64;
+                let step = motion::between_step(&pair[0], &pair[1], &model, scale, s);
+                // Each hand stays with its keyframe's grip until halfway, then takes the next
+                // one's; the grip turns with the motion in between.
+                let hands = &hand_plans[if s < 0.5 { k } else { k + 1 }];
+                let frame_index = stride * k as i64 + j as i64;
+                between.push(scene.render(
+                    step,
+                    k as f64 + s,
+                    hands,
+                    FrameSeeds::between(cfg.seed, frame_index),
+                    frame_index,
+                ));
+            }
+        }
+    }
+    let frames: Vec<SynthFrame> = traj
+        .into_iter()
+        .zip(&hand_plans)
+        .enumerate()
+        .map(|(k, (step, hands))| {
+            scene.render(
+                step,
+                k as f64,
+                hands,
+                FrameSeeds::keyframe(cfg.seed, k),
+                stride * k as i64,
+            )
+        })
+        .collect();
+    let symmetries = match spec.symmetry {
+        Symmetry::None => vec![],
+        Symmetry::ContinuousZ => agentstar_geom::truth::continuous_symmetry(&Vector3::z_axis()),
+    };
+    Ok(SynthCapture {
+        object: spec,
+        motion,
+        seed: cfg.seed,
+        model,
+        scale,
+        camera,
+        frames,
+        between,
+        symmetries,
+    })
+}
+
+/// One hand of a frame: its grip's turn about the object (added to the sequence's phase),
+/// how far it reaches across the object, and its size.
+#[derive(Debug, Clone, Copy)]
+struct HandPlan {
+    jitter: f64,
+    reach: f64,
+    size: f64,
+}
+
+/// The seeds of a frame's mask noise and film grain.
+#[derive(Debug, Clone, Copy)]
+struct FrameSeeds {
+    mask_noise: u64,
+    grain: u32,
+}
+
+impl FrameSeeds {
+    fn keyframe(seed: u64, k: usize) -> FrameSeeds {
+        FrameSeeds {
+            mask_noise: seed ^ (k as u64).wrapping_mul(0x2545_F491_4F6C_DD1D),
+            grain: seed as u32 ^ k as u32,
+        }
+    }
+    /// Distinct from every keyframe's seeds.
+    fn between(seed: u64, frame_index: i64) -> FrameSeeds {
+        FrameSeeds {
+            mask_noise: seed
+                ^ ((1u64 << 40) + frame_index as u64).wrapping_mul(0x2545_F491_4F6C_DD1D),
+            grain: seed as u32 ^ (0x8000_0000 | frame_index as u32),
+        }
+    }
+}
+
+/// What every frame of a capture shares.
+struct FrameScene<'a> {
+    cfg: &'a SynthConfig,
+    spec: &'static ObjectSpec,
+    model: &'a ObjectModel,
+    camera: &'a PinholeCamera,
+    scale: f64,
+    radius: f64,
+    hand_part: &'a agentstar_geom::Part,
+    hand_phase: f64,
+    background: &'a Background,
+    light: &'a Vector3,
+    colors: &'a [[f32; 3]],
+    depth: bool,
+}
+
+impl FrameScene<'_> {
+    /// Renders one frame at `step`; `key_position` is its place in keyframes (fractional
+    /// between them), which turns the hands' grips.
+    fn render(
+        &self,
+        step: motion::Step,
+        key_position: f64,
+        hands: &[HandPlan],
+        seeds: FrameSeeds,
+        frame_index: i64,
+    ) -> SynthFrame {
+        let (cfg, model, scale, camera) = (self.cfg, self.model, self.scale, self.camera);
+        let (w, h) = (camera.width, camera.height);
         let posed = PosedModel::new(
-            &model,
+            model,
             &step.states,
             &step.camera_from_object.with_scale(scale),
         );
         let mut instances: Vec<Instance<'_>> = posed.instances.clone();
         let n_parts = instances.len() as u16;
-        // Hands: one (sometimes two) gripping the object from the front.
-        let mut hand_count = 0;
-        if cfg.hands && hand_rng.uniform() < hand_probability {
-            hand_count = if matches!(motion, Motion::HandHeld | Motion::HardHeld)
-                && hand_rng.uniform() < 0.4
-            {
-                2
-            } else {
-                1
-            };
-        }
+        let hand_count = hands.len();
         let centre = step
             .camera_from_object
             .with_scale(scale)
             .transform_point(&model.posed_bounds(&step.states).center());
+        let phi_of = |i: usize, plan: &HandPlan| {
+            self.hand_phase + 0.35 * key_position + std::f64::consts::PI * i as f64 + plan.jitter
+        };
         let buffers = match cfg.hand_coverage_max {
             None => {
-                for i in 0..hand_count {
-                    let phi = hand_phase
-                        + 0.35 * k as f64
-                        + std::f64::consts::PI * i as f64
-                        + hand_rng.range(-0.2, 0.2);
-                    let pose = hand::grip_pose(&centre, radius, phi, hand_scale);
-                    instances.push(hand_instance(&hand_part, &pose, n_parts + i as u16));
+                for (i, plan) in hands.iter().enumerate() {
+                    let pose = hand::grip_pose(&centre, self.radius, phi_of(i, plan), plan.size);
+                    instances.push(hand_instance(self.hand_part, &pose, n_parts + i as u16));
                 }
-                render_full(&camera, &instances)
+                render_full(camera, &instances)
             }
             Some(max_coverage) => {
                 // Hands reaching across the object; moved out until they hide at most
                 // `max_coverage` of it, dropped if they still hide more.
-                let alone = render_full(&camera, &instances);
+                let alone = render_full(camera, &instances);
                 let full = alone.part.iter().filter(|&&p| p < n_parts).count().max(1);
-                let grips: Vec<(f64, f64, f64)> = (0..hand_count)
-                    .map(|i| {
-                        (
-                            hand_phase
-                                + 0.35 * k as f64
-                                + std::f64::consts::PI * i as f64
-                                + hand_rng.range(-0.4, 0.4),
-                            hand_rng.range(0.2, 1.0),
-                            hand_scale * hand_rng.range(1.0, 1.5),
-                        )
-                    })
-                    .collect();
                 let mut chosen = alone;
                 for attempt in 0..=6 {
-                    if grips.is_empty() {
+                    if hands.is_empty() {
                         break;
                     }
                     let mut with_hands = instances.clone();
                     if attempt < 6 {
-                        for (i, &(phi, reach, s)) in grips.iter().enumerate() {
+                        for (i, plan) in hands.iter().enumerate() {
                             let pose = hand::reach_pose(
                                 &centre,
-                                radius,
-                                phi,
-                                s,
-                                reach + 0.2 * attempt as f64,
+                                self.radius,
+                                phi_of(i, plan),
+                                plan.size,
+                                plan.reach + 0.2 * attempt as f64,
                             );
-                            with_hands.push(hand_instance(&hand_part, &pose, n_parts + i as u16));
+                            with_hands.push(hand_instance(
+                                self.hand_part,
+                                &pose,
+                                n_parts + i as u16,
+                            ));
                         }
                     }
-                    let b = render_full(&camera, &with_hands);
+                    let b = render_full(camera, &with_hands);
                     let visible = b.part.iter().filter(|&&p| p < n_parts).count();
                     chosen = b;
                     if 1.0 - visible as f64 / full as f64 <= max_coverage {
@@ -315,7 +471,7 @@ pub fn synthesize(cfg: &SynthConfig) -> Result<SynthCapture, SynthError> {
             }
         };
         let full_count = if cfg.hand_coverage_max.is_some() || hand_count > 0 {
-            render_full(&camera, &posed.instances)
+            render_full(camera, &posed.instances)
                 .part
                 .iter()
                 .filter(|&&p| p < n_parts)
@@ -337,7 +493,7 @@ pub fn synthesize(cfg: &SynthConfig) -> Result<SynthCapture, SynthError> {
             })
         });
         if cfg.mask_noise_px > 0.0 {
-            let seed = cfg.seed ^ (k as u64).wrapping_mul(0x2545_F491_4F6C_DD1D);
+            let seed = seeds.mask_noise;
             mask = noise::jitter_boundary(&mask, cfg.mask_noise_px, seed);
             hand_mask = hand_mask.map(|m| noise::jitter_boundary(&m, cfg.mask_noise_px, seed + 1));
         }
@@ -353,10 +509,10 @@ pub fn synthesize(cfg: &SynthConfig) -> Result<SynthCapture, SynthError> {
             })
             .collect();
         let foreground = Foreground {
-            camera: &camera,
-            light: &light,
-            appearance: spec.appearance,
-            colors: &colors,
+            camera,
+            light: self.light,
+            appearance: self.spec.appearance,
+            colors: self.colors,
             part_from_camera: &part_from_camera,
             n_parts,
         };
@@ -365,9 +521,9 @@ pub fn synthesize(cfg: &SynthConfig) -> Result<SynthCapture, SynthError> {
             for x in 0..w {
                 let i = (y * w + x) as usize;
                 let p = buffers.part[i];
-                let grain = 0.03 * (noise::hash01(x, y, cfg.seed as u32 ^ k as u32) - 0.5);
+                let grain = 0.03 * (noise::hash01(x, y, seeds.grain) - 0.5);
                 let c = if p == NO_PART {
-                    background.at(x, y)
+                    self.background.at(x, y)
                 } else {
                     foreground.shade(&buffers, x, y)
                 };
@@ -382,15 +538,14 @@ pub fn synthesize(cfg: &SynthConfig) -> Result<SynthCapture, SynthError> {
                 );
             }
         }
-        let depth_m = depth.then(|| {
+        let depth_m = self.depth.then(|| {
             buffers
                 .depth
                 .iter()
                 .map(|&z| if z.is_finite() { z } else { f32::NAN })
                 .collect()
         });
-        let frame_index = 5 * k as i64;
-        frames.push(SynthFrame {
+        SynthFrame {
             name: format!("{frame_index:06}.png"),
             frame_index,
             time_s: frame_index as f64 / 30.0,
@@ -402,22 +557,8 @@ pub fn synthesize(cfg: &SynthConfig) -> Result<SynthCapture, SynthError> {
             hand: hand_mask,
             depth_m,
             hand_coverage,
-        });
+        }
     }
-    let symmetries = match spec.symmetry {
-        Symmetry::None => vec![],
-        Symmetry::ContinuousZ => agentstar_geom::truth::continuous_symmetry(&Vector3::z_axis()),
-    };
-    Ok(SynthCapture {
-        object: spec,
-        motion,
-        seed: cfg.seed,
-        model,
-        scale,
-        camera,
-        frames,
-        symmetries,
-    })
 }
 
 fn hand_instance<'a>(

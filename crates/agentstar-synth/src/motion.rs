@@ -299,6 +299,39 @@ pub fn trajectory(
     }
 }
 
+/// The motion between two consecutive keyframes at `s` in (0, 1), as a video samples it: the
+/// object turns about its centre through the keyframes' one rotation step (the shortest
+/// rotation between their orientations in the world) at a steady rate while its centre moves
+/// on a straight line; the camera likewise; joint states move linearly.
+pub fn between_step(a: &Step, b: &Step, model: &ObjectModel, scale: f64, s: f64) -> Step {
+    let along = |ra: &UnitQuaternion, rb: &UnitQuaternion| (rb * ra.inverse()).powf(s) * ra;
+    let states: Vec<f64> = a
+        .states
+        .iter()
+        .zip(&b.states)
+        .map(|(x, y)| x + s * (y - x))
+        .collect();
+    let world_from_object = |st: &Step| st.world_from_camera * st.camera_from_object.to_rigid();
+    let (wa, wb) = (world_from_object(a), world_from_object(b));
+    let pivot = |st: &[f64]| model.posed_bounds(st).center().coords * scale;
+    let centre_a = wa * Point3::from(pivot(&a.states));
+    let centre_b = wb * Point3::from(pivot(&b.states));
+    let rotation = along(&wa.rotation, &wb.rotation);
+    let centre = centre_a.coords + s * (centre_b - centre_a);
+    let world_from_object = ObjectPose::new(rotation, centre - rotation * pivot(&states));
+    let camera_rotation = along(&a.world_from_camera.rotation, &b.world_from_camera.rotation);
+    let (ea, eb) = (
+        a.world_from_camera.translation.vector,
+        b.world_from_camera.translation.vector,
+    );
+    let world_from_camera = Rigid::from_parts((ea + s * (eb - ea)).into(), camera_rotation);
+    Step {
+        world_from_camera,
+        camera_from_object: compose(&world_from_camera.inverse(), &world_from_object),
+        states,
+    }
+}
+
 fn compose(camera_from_world: &Rigid, world_from_object: &ObjectPose) -> ObjectPose {
     let c = camera_from_world * world_from_object.to_rigid();
     ObjectPose::new(c.rotation, c.translation.vector)
@@ -343,6 +376,39 @@ mod tests {
                     assert!((30.0..=50.0).contains(&mean), "mean {mean}: {angles:?}");
                     assert!(angles.iter().all(|&a| a >= 11.9), "{angles:?}");
                 }
+            }
+            // In-between steps divide each keyframe step evenly and end where it ends.
+            for pair in steps.windows(2) {
+                let whole = step_angle_deg(&pair[0], &pair[1]);
+                let mut previous = pair[0].clone();
+                for j in 1..=9 {
+                    let mid =
+                        between_step(&pair[0], &pair[1], &model, spec.size_m, j as f64 / 10.0);
+                    let part = step_angle_deg(&previous, &mid);
+                    assert!(
+                        (part - whole / 10.0).abs() < 1e-6,
+                        "{motion:?}: {part} of {whole}"
+                    );
+                    assert!(mid.camera_from_object.translation.z > 0.2, "{motion:?}");
+                    previous = mid;
+                }
+                let last = step_angle_deg(&previous, &pair[1]);
+                assert!(
+                    (last - whole / 10.0).abs() < 1e-6,
+                    "{motion:?}: {last} of {whole}"
+                );
+                let end = between_step(&pair[0], &pair[1], &model, spec.size_m, 1.0);
+                assert!(
+                    (end.camera_from_object.translation - pair[1].camera_from_object.translation)
+                        .norm()
+                        < 1e-9
+                        && end
+                            .camera_from_object
+                            .rotation
+                            .angle_to(&pair[1].camera_from_object.rotation)
+                            < 1e-9,
+                    "{motion:?}: s = 1 is the next keyframe"
+                );
             }
             for s in &steps {
                 assert!(s.camera_from_object.translation.z > 0.2, "{motion:?}");

@@ -13,9 +13,14 @@ use anyhow::{anyhow, Context, Result};
 use serde::Serialize;
 use std::path::{Path, PathBuf};
 
-/// Opens a capture, turning its problem list into one error.
+/// Opens a capture, turning its problem list into one error. A capture with in-between
+/// frames says so on stderr: the commands that open it this way work on its keyframes.
 pub fn open_capture(dir: &Path) -> Result<Capture> {
-    Ok(Capture::open(dir)?)
+    let capture = Capture::open(dir)?;
+    if let Some(note) = capture.between_note() {
+        eprintln!("note: {note}");
+    }
+    Ok(capture)
 }
 
 pub fn open_model(path: &Path) -> Result<LoadedModel> {
@@ -202,14 +207,17 @@ pub fn write_tracked_poses(
 /// Like [`write_tracked_poses`], but the file is written as a version of its history
 /// (`agentstar_data::history`) with this process's command: what `track` does. Returns
 /// the version too.
+/// In-between frames' poses are written too (`"between": true`), where given.
 pub fn write_tracked_version(
     capture: &Capture,
     tree: &agentstar_geom::KinematicTree,
     scale: f64,
     poses: &[agentstar_track::GenPose],
+    between: &[(String, agentstar_track::GenPose)],
     path: &Path,
 ) -> Result<(PoseFile, Vec<FramePose>, u64)> {
-    let (pf, frames) = tracked_pose_file(capture, tree, scale, poses)?;
+    let (mut pf, frames) = tracked_pose_file(capture, tree, scale, poses)?;
+    pf.set_between(tree, between.iter().map(|(n, g)| (n.as_str(), g)));
     let version = agentstar_data::history::PoseHistory::new(path)
         .write(&pf, &agentstar_data::history::command_line())?;
     Ok((pf, frames, version))

@@ -174,7 +174,9 @@ pub(super) fn consistency(
     let n = frames.len();
     let tree = &s.model.tree;
     let step = |poses: &[GenPose], a: usize, b: usize| {
-        angle_deg(&(poses[b].pose.rotation * carried(frames, poses, a, b).pose.rotation.inverse()))
+        angle_deg(
+            &(poses[b].pose.rotation * s.carried(frames, poses, a, b).pose.rotation.inverse()),
+        )
     };
     // Three rounds of narrow searches, and more (up to one per frame, so a good pose can
     // travel the whole sequence) while wide searches from better neighbours still move poses.
@@ -208,26 +210,26 @@ pub(super) fn consistency(
             }
             let mut seeds: Vec<GenPose> = neighbours
                 .iter()
-                .map(|&j| carried(frames, poses, j, i))
+                .map(|&j| s.carried(frames, poses, j, i))
                 .collect();
             if i >= 2 {
                 seeds.push(extrapolate(
-                    &carried(frames, poses, i - 2, i),
-                    &carried(frames, poses, i - 1, i),
+                    &s.carried(frames, poses, i - 2, i),
+                    &s.carried(frames, poses, i - 1, i),
                     tree,
                 ));
             }
             if i + 2 < n {
                 seeds.push(extrapolate(
-                    &carried(frames, poses, i + 2, i),
-                    &carried(frames, poses, i + 1, i),
+                    &s.carried(frames, poses, i + 2, i),
+                    &s.carried(frames, poses, i + 1, i),
                     tree,
                 ));
             }
             if i >= 1 && i + 1 < n {
                 let (l, r) = (
-                    carried(frames, poses, i - 1, i),
-                    carried(frames, poses, i + 1, i),
+                    s.carried(frames, poses, i - 1, i),
+                    s.carried(frames, poses, i + 1, i),
                 );
                 let mut states: Vec<f64> = l
                     .states
@@ -280,7 +282,7 @@ pub(super) fn consistency(
                     && s.band_iou(&frames[j], j, &poses[j]) >= RESCUE_BAND
             };
             if best_neighbour > here + FAR_MARGIN || (best_neighbour > here && band_gap()) {
-                let from = carried(frames, poses, j, i);
+                let from = s.carried(frames, poses, j, i);
                 let seed = s.cfg.seed + 65537 * (i as u64 + 1) + 97 * round + 50;
                 // Only a pose above this frame's score (and the narrow searches') moves it.
                 let floor = here - PRUNE_SLACK;

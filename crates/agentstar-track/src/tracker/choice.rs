@@ -37,6 +37,12 @@ pub(super) const CHOICE_KEEP: f64 = 0.03;
 /// the masks and colours decide. 120° put that keyframe back in its twin (hard suite,
 /// 2026-12-02).
 pub(super) const CHOICE_STEP_CAP_DEG: f64 = 90.0;
+/// Across a gap a chain followed, a step's rotation is measured from the chain's motion: one
+/// unit per 15° off it (a chain that kept its basin lands within a few degrees; a twin is 90°
+/// or more away), capped at 120°, so that a twin costs up to 64 units, an IoU shortfall of
+/// 0.32: only a frame whose mask clearly wants another basin leaves the chain's.
+pub(super) const CHAIN_STEP_DEG: f64 = 15.0;
+pub(super) const CHAIN_STEP_CAP_DEG: f64 = 120.0;
 /// Frames scoring under this (the IoU gate) have every twin refined, in the wide window.
 pub(super) const CHOICE_SUSPECT: f64 = agentstar_render::GATE_IOU;
 
@@ -45,20 +51,6 @@ pub(super) const CHOICE_SUSPECT: f64 = agentstar_render::GATE_IOU;
 /// [`CHOICE_STEP_CAP_DEG`]: a hand moves an object a few centimetres between keyframes at
 /// half a metre (the hard suite's steps: 6–7% of the depth on average, 13% at most).
 pub(super) const CHOICE_FAR_SHIFT: f64 = 0.1;
-
-/// Frame `from`'s pose carried into frame `to` through the cameras (the object held still
-/// between them), with its joint states.
-pub(super) fn carried(
-    frames: &[TrackFrame<'_>],
-    poses: &[GenPose],
-    from: usize,
-    to: usize,
-) -> GenPose {
-    GenPose {
-        pose: transfer(&poses[from].pose, &frames[from], &frames[to]),
-        states: poses[from].states.clone(),
-    }
-}
 
 /// Whether `to` lies far from `from` (both in one frame's camera): see [`CHOICE_FAR_SHIFT`].
 pub(super) fn far_step(from: &GenPose, to: &GenPose) -> bool {
@@ -123,7 +115,7 @@ pub(super) fn choose_sequence(
                     [i.checked_sub(1), (i + 1 < n).then_some(i + 1)]
                         .into_iter()
                         .flatten()
-                        .map(|j| carried(frames, poses, j, i))
+                        .map(|j| s.carried(frames, poses, j, i))
                         .filter(|c| far_step(c, &poses[i]))
                         .collect();
                 let carried = refine_each_above(
@@ -223,10 +215,18 @@ pub(super) fn choose_sequence(
             .unwrap_or(0.0);
         let from = &hyps[i - 1][a].0;
         let to = &hyps[i][b].0;
-        let carried = transfer(&from.pose, &frames[i - 1], &frames[i]);
-        let rot = angle_deg(&(to.pose.rotation * carried.rotation.inverse()))
-            .min(CHOICE_STEP_CAP_DEG)
-            / CHOICE_STEP_DEG;
+        let mut carried = transfer(&from.pose, &frames[i - 1], &frames[i]);
+        // Across a gap whose video a chain followed, the motion it measured predicts the
+        // step to a few degrees, for whichever basin the step starts in.
+        let (unit_deg, cap_deg) = match s.gap(i - 1) {
+            Some(gap) => {
+                carried.rotation = gap.rotation * carried.rotation;
+                (CHAIN_STEP_DEG, CHAIN_STEP_CAP_DEG)
+            }
+            None => (CHOICE_STEP_DEG, CHOICE_STEP_CAP_DEG),
+        };
+        let rot =
+            angle_deg(&(to.pose.rotation * carried.rotation.inverse())).min(cap_deg) / unit_deg;
         let joint = from
             .states
             .iter()

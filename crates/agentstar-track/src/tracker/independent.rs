@@ -124,5 +124,6 @@ pub(super) fn track_independent_on(
         init_frame: 0,
         log: log.lines,
         evaluations: s.evals.into_inner(),
+        between: vec![],
     })
 }

@@ -26,6 +26,7 @@ use rayon::prelude::*;
 
 mod appearance_pass;
 mod axis_pass;
+mod chain;
 mod choice;
 mod independent;
 mod place;
@@ -37,6 +38,7 @@ mod warm;
 
 use appearance_pass::*;
 use axis_pass::*;
+use chain::*;
 use choice::*;
 pub use independent::*;
 use place::*;
@@ -92,6 +94,9 @@ pub struct TrackConfig {
     /// consistency between hypotheses of neighbouring frames), the appearance passes and the
     /// axis pass about a round body's axis; frames without an image use the masks alone.
     pub appearance: bool,
+    /// With in-between frames: also return every in-between frame's pose, followed from the
+    /// final keyframe poses ([`TrackResult::between`]).
+    pub between_poses: bool,
 }
 
 impl Default for TrackConfig {
@@ -107,6 +112,7 @@ impl Default for TrackConfig {
             init_frame: None,
             sequence_choice: true,
             appearance: true,
+            between_poses: false,
         }
     }
 }
@@ -150,6 +156,10 @@ pub struct TrackResult {
     /// What the tracker did, frame by frame, for people to read.
     pub log: Vec<String>,
     pub evaluations: usize,
+    /// With in-between frames and [`TrackConfig::between_poses`]: each gap's in-between
+    /// frames' poses (gap g: between keyframes g and g + 1, in temporal order) and IoU
+    /// (`None`: carried at constant velocity, not fitted: hidden or out of view).
+    pub between: Vec<Vec<(GenPose, Option<f64>)>>,
 }
 
 /// What a tracking run reports as it goes: each line of its log (progress), and the poses
@@ -252,8 +262,36 @@ pub fn track_observed(
     cfg: &TrackConfig,
     observe: &dyn TrackObserver,
 ) -> Result<TrackResult, TrackError> {
+    track_video(model, scale, frames, &[], cfg, observe)
+}
+
+/// [`track_observed`] with the video between keyframes: `between[g]` holds the in-between
+/// frames between keyframes g and g + 1 in temporal order (empty, or fewer gaps than
+/// keyframes minus one: no video there). Each keyframe is reached by following the video
+/// from the keyframe before it ([`chain`]), and the motion each chain measured enters the
+/// passes over the sequence.
+pub fn track_video(
+    model: &ObjectModel,
+    scale: f64,
+    frames: &[TrackFrame<'_>],
+    between: &[Vec<TrackFrame<'_>>],
+    cfg: &TrackConfig,
+    observe: &dyn TrackObserver,
+) -> Result<TrackResult, TrackError> {
+    if between.len() >= frames.len()
+        && between
+            .iter()
+            .skip(frames.len().saturating_sub(1))
+            .any(|g| !g.is_empty())
+    {
+        return Err(TrackError::Invalid(format!(
+            "{} gaps of in-between frames for {} keyframes",
+            between.len(),
+            frames.len()
+        )));
+    }
     on_stand_in(model, scale, frames, cfg, &[], observe, |searched| {
-        track_on(searched, scale, frames, cfg, observe)
+        track_on(searched, scale, frames, between, cfg, observe)
     })
 }
 
@@ -261,11 +299,22 @@ fn track_on(
     model: &ObjectModel,
     scale: f64,
     frames: &[TrackFrame<'_>],
+    between: &[Vec<TrackFrame<'_>>],
     cfg: &TrackConfig,
     observe: &dyn TrackObserver,
 ) -> Result<TrackResult, TrackError> {
     let s = Searcher::new(model, scale, frames, cfg)?;
     let mut log = Log::new(observe);
+    // The in-between frames' own searcher (their targets at half resolution), when there
+    // are any; `typical`: what a keyframe shows of the object.
+    let flat_between: Vec<TrackFrame<'_>> = between.iter().flatten().cloned().collect();
+    let chain_s = if flat_between.is_empty() {
+        None
+    } else {
+        Some(Searcher::new(model, scale, &flat_between, cfg)?)
+    };
+    let typical = typical_visible(frames);
+    let gap_frames = |g: usize| between.get(g).map_or(&[][..], |v| v.as_slice());
     // The frame with the most visible mask.
     let init = match cfg.init_frame {
         Some(i) if i < frames.len() => i,
@@ -356,7 +405,26 @@ fn track_on(
             states: prev.states.clone(),
         }];
         let prev2_i = prev_i as isize + dir;
-        if prev2_i >= 0 && (prev2_i as usize) < n {
+        // The video between the two keyframes, followed from the one tracked.
+        let gap = i.min(prev_i);
+        let mut chained = None;
+        if let (Some(cs), false) = (&chain_s, gap_frames(gap).is_empty()) {
+            let mut path: Vec<&TrackFrame<'_>> = gap_frames(gap).iter().collect();
+            if dir == 1 {
+                path.reverse();
+            }
+            let followed = follow(
+                cs,
+                &frames[prev_i],
+                &prev,
+                &path,
+                &frames[i],
+                typical,
+                cfg.seed + 1_000_003 * (gap as u64 + 1) + (dir == 1) as u64,
+            )?;
+            seeds = followed.arrival.clone();
+            chained = Some(followed);
+        } else if prev2_i >= 0 && (prev2_i as usize) < n {
             if let Some(p2) = &poses[prev2_i as usize] {
                 let p2t = GenPose {
                     pose: transfer(
@@ -385,7 +453,26 @@ fn track_on(
         let (mut g, mut sc) =
             best_of(results)?.ok_or_else(|| TrackError::Invalid("search found nothing".into()))?;
         let mut how = "local";
-        if sc < cfg.drop_threshold || sc < scores[prev_i] - cfg.drop_margin {
+        if let Some(followed) = &chained {
+            // The motion the chain measured, for the passes over the sequence.
+            let (at_g, at_next) = if dir == -1 { (&prev, &g) } else { (&g, &prev) };
+            s.set_gap(gap, Gap::between(frames, gap, at_g, at_next));
+            how = "followed";
+            log.push(format!(
+                "{} ← {}: followed {} in-between frame(s) ({} fitted, the rest carried)",
+                frames[i].name,
+                frames[prev_i].name,
+                followed.poses.len(),
+                followed.fitted
+            ));
+            if let Some(cs) = &chain_s {
+                s.evals.fetch_add(
+                    cs.evals.swap(0, std::sync::atomic::Ordering::Relaxed),
+                    std::sync::atomic::Ordering::Relaxed,
+                );
+            }
+            log.phase("video", &s);
+        } else if sc < cfg.drop_threshold || sc < scores[prev_i] - cfg.drop_margin {
             if let Some(r) = s
                 .wide(
                     &frames[i],
@@ -536,6 +623,33 @@ fn track_on(
         init,
         &mut log,
     )?;
+    // Every in-between frame's pose, followed from the final keyframe poses.
+    let mut between_poses = Vec::new();
+    if let (Some(cs), true) = (&chain_s, cfg.between_poses) {
+        for g in 0..n.saturating_sub(1) {
+            let path: Vec<&TrackFrame<'_>> = gap_frames(g).iter().collect();
+            if path.is_empty() {
+                between_poses.push(vec![]);
+                continue;
+            }
+            let seed = cfg.seed + 2_000_003 * (g as u64 + 1);
+            let followed = follow(
+                cs,
+                &frames[g],
+                &poses[g],
+                &path,
+                &frames[g + 1],
+                typical,
+                seed,
+            )?;
+            between_poses.push(followed.poses);
+        }
+        s.evals.fetch_add(
+            cs.evals.swap(0, std::sync::atomic::Ordering::Relaxed),
+            std::sync::atomic::Ordering::Relaxed,
+        );
+        log.phase("video", &s);
+    }
     log.phases_line();
     Ok(TrackResult {
         poses,
@@ -543,6 +657,7 @@ fn track_on(
         init_frame: init,
         log: log.lines,
         evaluations: s.evals.into_inner(),
+        between: between_poses,
     })
 }
 

@@ -29,6 +29,9 @@ pub(super) struct Searcher<'m> {
     pub(super) halved: Vec<ScoreTarget>,
     /// The address of each frame's target: how [`Searcher::halved_of`] tells frames apart.
     pub(super) targets: Vec<usize>,
+    /// The motion the video between keyframes g and g + 1 measured ([`Gap`]), where a chain
+    /// followed it: how [`Searcher::carried`] carries a pose across that gap.
+    pub(super) gaps: std::sync::RwLock<Vec<Option<Gap>>>,
 }
 
 impl<'m> Searcher<'m> {
@@ -61,7 +64,57 @@ impl<'m> Searcher<'m> {
                 .iter()
                 .map(|f| std::ptr::from_ref(f.target) as usize)
                 .collect(),
+            gaps: std::sync::RwLock::new(vec![None; frames.len().saturating_sub(1)]),
         })
+    }
+
+    /// Records the motion a chain measured across gap `g` (keyframes g → g + 1).
+    pub(super) fn set_gap(&self, g: usize, gap: Gap) {
+        if let Ok(mut gaps) = self.gaps.write() {
+            if let Some(slot) = gaps.get_mut(g) {
+                *slot = Some(gap);
+            }
+        }
+    }
+
+    /// The motion measured across gap `g`, where a chain followed it.
+    pub(super) fn gap(&self, g: usize) -> Option<Gap> {
+        self.gaps
+            .read()
+            .ok()
+            .and_then(|gaps| gaps.get(g).copied().flatten())
+    }
+
+    /// Frame `from`'s pose carried into frame `to`: through the cameras (the object held
+    /// still), and, between neighbouring keyframes whose video a chain followed, turned by
+    /// the motion it measured ([`Gap`]), with its joint states.
+    pub(super) fn carried(
+        &self,
+        frames: &[TrackFrame<'_>],
+        poses: &[GenPose],
+        from: usize,
+        to: usize,
+    ) -> GenPose {
+        let mut pose = poses[from].pose;
+        if to == from + 1 {
+            if let Some(gap) = self.gap(from) {
+                pose = transfer(&pose, &frames[from], &frames[to]);
+                pose.rotation = gap.rotation * pose.rotation;
+                return GenPose {
+                    pose,
+                    states: poses[from].states.clone(),
+                };
+            }
+        } else if from == to + 1 {
+            if let Some(gap) = self.gap(to) {
+                // R_from = W · C · R_to, so R_to = C⁻¹ · W⁻¹ · R_from (C: the cameras').
+                pose.rotation = gap.rotation.inverse() * pose.rotation;
+            }
+        }
+        GenPose {
+            pose: transfer(&pose, &frames[from], &frames[to]),
+            states: poses[from].states.clone(),
+        }
     }
 
     /// [`refine_local`] around `base` in `window`, counting its evaluations.

@@ -216,5 +216,6 @@ pub(super) fn track_from_on(
         init_frame,
         log: log.lines,
         evaluations: s.evals.into_inner(),
+        between: vec![],
     })
 }

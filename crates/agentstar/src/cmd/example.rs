@@ -189,6 +189,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
         ),
         downscale: Some(1.0),
         undistorted: Some(true),
+        keyframes: None,
     };
     agentstar_data::atomic::write_json(&Capture::manifest_path(&cap_dir), &manifest)?;
     write_ground_truth(&cap_dir, &model, scale, &names, &gt)?;

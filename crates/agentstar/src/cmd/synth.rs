@@ -52,6 +52,11 @@ pub struct Args {
     /// Hands that reach across the object, hiding up to this fraction of it (0 to 0.95).
     #[arg(long)]
     hand_coverage: Option<f64>,
+    /// Also write K in-between frames between consecutive keyframes (the same motion sampled
+    /// densely, with hands and mask noise in every frame); keyframes are then K + 1 video
+    /// frames apart (else 5), and are the same keyframes as without in-between frames.
+    #[arg(long, default_value_t = 0, value_name = "K")]
+    between: usize,
     /// List the object library and the motions, then exit.
     #[arg(long)]
     list: bool,
@@ -100,9 +105,10 @@ pub fn parse_motion(s: &str) -> Result<Motion> {
 /// Writes a synthetic capture to `dir`: the capture, `gt.json` with its meshes, and the known
 /// model with its true poses under `model/` (`scene.rhai`, `pose.json`).
 pub fn write_synth(dir: &Path, s: &SynthCapture) -> Result<()> {
-    let frames: Vec<FrameOut<'_>> = s
-        .frames
-        .iter()
+    let mut all: Vec<&agentstar_synth::SynthFrame> = s.frames.iter().chain(&s.between).collect();
+    all.sort_by_key(|f| f.frame_index);
+    let frames: Vec<FrameOut<'_>> = all
+        .into_iter()
         .map(|f| FrameOut {
             name: &f.name,
             frame_index: Some(f.frame_index),
@@ -119,8 +125,10 @@ pub fn write_synth(dir: &Path, s: &SynthCapture) -> Result<()> {
         dataset: Some(format!("agentstar-synth/{}", s.object.family.as_str())),
         source: Some(json!({
             "producer": "agentstar synth", "object": s.object.name, "motion": s.motion.as_str(),
-            "seed": s.seed, "scale_m": s.scale,
+            "seed": s.seed, "scale_m": s.scale, "between": s.between.len(),
         })),
+        keyframes: (!s.between.is_empty())
+            .then(|| s.frames.iter().map(|f| f.name.clone()).collect()),
     };
     write_capture(dir, &frames, &info, |root| {
         let truth: Vec<_> = s
@@ -149,6 +157,15 @@ pub fn write_synth(dir: &Path, s: &SynthCapture) -> Result<()> {
         let mut pf =
             PoseFile::initial(&capture, &s.model.tree, s.scale, &poses[0].generalised.pose);
         pf.set_frames(&capture, &s.model.tree, &poses);
+        let between: Vec<(&str, agentstar_geom::GenPose)> = s
+            .between
+            .iter()
+            .map(|f| {
+                let pose = agentstar_geom::GenPose::new(f.camera_from_object, f.states.clone());
+                (f.name.as_str(), pose)
+            })
+            .collect();
+        pf.set_between(&s.model.tree, between.iter().map(|(n, p)| (*n, p)));
         pf.write(&model_dir.join("pose.json"))?;
         Ok(())
     })
@@ -159,11 +176,15 @@ pub fn write_synth(dir: &Path, s: &SynthCapture) -> Result<()> {
 pub fn describe(s: &SynthCapture) -> String {
     let hands = s.frames.iter().filter(|f| f.hand.is_some()).count();
     format!(
-        "{} ({}, {}): {} frames {}×{}, {} joint(s), hands in {hands}, depth {}",
+        "{} ({}, {}): {} frames{} {}×{}, {} joint(s), hands in {hands}, depth {}",
         s.object.name,
         s.object.family.as_str(),
         s.motion.as_str(),
         s.frames.len(),
+        match s.between.len() {
+            0 => String::new(),
+            n => format!(" (and {n} in-between)"),
+        },
         s.camera.width,
         s.camera.height,
         s.model.tree.joints().len(),
@@ -232,6 +253,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
             .map(parse_principal_point)
             .transpose()?,
         hand_coverage_max: a.hand_coverage,
+        between: a.between,
         depth: if a.depth {
             Some(true)
         } else if a.no_depth {
@@ -245,7 +267,8 @@ pub fn run(a: Args) -> Result<ExitCode> {
     if a.json {
         print_json(&json!({
             "capture": out, "object": s.object.name, "family": s.object.family.as_str(),
-            "motion": s.motion.as_str(), "frames": s.frames.len(), "seed": s.seed,
+            "motion": s.motion.as_str(), "frames": s.frames.len(),
+            "between_frames": s.between.len(), "seed": s.seed,
             "scale_m": s.scale, "model": out.join("model/scene.rhai"), "poses": out.join("model/pose.json"),
             "gt": out.join("gt.json"),
         }))?;

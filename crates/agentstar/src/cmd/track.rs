@@ -6,11 +6,12 @@ use crate::cmd::score::{print_table, summarise};
 use crate::common::{
     open_capture, open_model, print_json, select_frames, write_tracked_version, Session, PASS_IOU,
 };
+use agentstar_data::capture::{Capture, Frame};
 use agentstar_data::posefile::{partial_path, PoseFile};
 use agentstar_render::ScoreTarget;
 use agentstar_reports::TrackReport;
 use agentstar_track::tracker::{
-    track_from, track_observed, TrackConfig, TrackFrame, TrackObserver, TrackSwitches,
+    track_from, track_video, TrackConfig, TrackFrame, TrackObserver, TrackSwitches,
 };
 use agentstar_track::GenPose;
 use anyhow::{anyhow, bail, Context, Result};
@@ -64,9 +65,66 @@ pub struct Args {
     /// turns silhouette twins to the pose whose colours agree with the frames before).
     #[arg(long)]
     no_appearance: bool,
+    /// Leave the capture's in-between frames out (the keyframes-only ablation): by default
+    /// each keyframe is reached by following the video between it and the keyframe before.
+    #[arg(long)]
+    no_between: bool,
+    /// Also write every in-between frame's pose to OUT (entries marked `"between": true`),
+    /// followed from the final keyframe poses.
+    #[arg(long, conflicts_with = "no_between")]
+    write_between: bool,
     /// Print the result as JSON on stdout.
     #[arg(long)]
     json: bool,
+}
+
+/// A frame's score target (its object mask, hands as don't-care).
+fn target_of(capture: &Capture, frame: &Frame) -> Result<ScoreTarget> {
+    Ok(ScoreTarget::new(
+        capture.load_mask_of(frame)?,
+        capture.load_hand_of(frame)?,
+    )?)
+}
+
+/// A frame's colour image for the appearance term; `None` (with a warning) when it cannot be
+/// read or is not its camera's size: the frame is then tracked from its mask alone.
+fn image_of(capture: &Capture, frame: &Frame) -> Option<image::RgbImage> {
+    let cam = &frame.camera;
+    match capture.load_frame_of(frame) {
+        Ok(img) if img.width() == cam.width && img.height() == cam.height => Some(img),
+        Ok(img) => {
+            eprintln!(
+                "warning: frame {}: image {}×{} is not the camera's {}×{}; tracked from its mask alone",
+                frame.name,
+                img.width(),
+                img.height(),
+                cam.width,
+                cam.height
+            );
+            None
+        }
+        Err(e) => {
+            eprintln!(
+                "warning: frame {}: {e:#}; tracked from its mask alone",
+                frame.name
+            );
+            None
+        }
+    }
+}
+
+fn track_frame<'a>(
+    frame: &Frame,
+    target: &'a ScoreTarget,
+    image: &'a Option<image::RgbImage>,
+) -> TrackFrame<'a> {
+    TrackFrame {
+        name: frame.name.clone(),
+        camera: frame.camera,
+        target,
+        world_from_camera: Some(frame.world_from_camera),
+        rgb: image.as_ref().map(|m| m.as_raw().as_slice()),
+    }
 }
 
 pub fn run(a: Args) -> Result<ExitCode> {
@@ -79,59 +137,61 @@ pub fn run(a: Args) -> Result<ExitCode> {
         (None, None, Some(f)) => f.scale,
         (None, None, None) => bail!("the tracker needs the object's scale: give --scale S (p_cam = s·R·p + t), --scale-from pose.json or --from pose.json"),
     };
-    let targets: Vec<ScoreTarget> = (0..capture.frames.len())
-        .map(|i| {
-            Ok(ScoreTarget::new(
-                capture.load_mask(i)?,
-                capture.load_hand(i)?,
-            )?)
-        })
+    let targets: Vec<ScoreTarget> = capture
+        .frames
+        .iter()
+        .map(|f| target_of(&capture, f))
         .collect::<Result<_>>()?;
-    let images: Vec<Option<image::RgbImage>> = (0..capture.frames.len())
-        .map(|i| -> Result<_> {
-            Ok(if a.no_appearance {
-                None
-            } else {
-                // A frame whose image cannot be read, or is not its camera's size, is tracked
-                // from its mask alone (the appearance term is optional; the masks are not).
-                let cam = &capture.frames[i].camera;
-                match capture.load_frame(i) {
-                    Ok(img) if img.width() == cam.width && img.height() == cam.height => Some(img),
-                    Ok(img) => {
-                        eprintln!(
-                            "warning: frame {}: image {}×{} is not the camera's {}×{}; tracked from its mask alone",
-                            capture.frames[i].name,
-                            img.width(),
-                            img.height(),
-                            cam.width,
-                            cam.height
-                        );
-                        None
-                    }
-                    Err(e) => {
-                        eprintln!(
-                            "warning: frame {}: {e:#}; tracked from its mask alone",
-                            capture.frames[i].name
-                        );
-                        None
-                    }
-                }
-            })
-        })
-        .collect::<Result<_>>()?;
+    let images: Vec<Option<image::RgbImage>> = capture
+        .frames
+        .iter()
+        .map(|f| (!a.no_appearance).then(|| image_of(&capture, f)).flatten())
+        .collect();
     let frames: Vec<TrackFrame> = capture
         .frames
         .iter()
         .zip(&targets)
         .zip(&images)
-        .map(|((f, t), img)| TrackFrame {
-            name: f.name.clone(),
-            camera: f.camera,
-            target: t,
-            world_from_camera: Some(f.world_from_camera),
-            rgb: img.as_ref().map(|m| m.as_raw().as_slice()),
+        .map(|((f, t), img)| track_frame(f, t, img))
+        .collect();
+    // The in-between frames, gap by gap (gap g: between keyframes g and g + 1).
+    let gaps: Vec<Vec<&Frame>> = if a.no_between {
+        vec![]
+    } else {
+        (0..capture.frames.len().saturating_sub(1))
+            .map(|g| capture.between_keyframes(g))
+            .collect()
+    };
+    let between_targets: Vec<Vec<ScoreTarget>> = gaps
+        .iter()
+        .map(|gap| gap.iter().map(|f| target_of(&capture, f)).collect())
+        .collect::<Result<_>>()?;
+    let between_images: Vec<Vec<Option<image::RgbImage>>> = gaps
+        .iter()
+        .map(|gap| {
+            gap.iter()
+                .map(|f| (!a.no_appearance).then(|| image_of(&capture, f)).flatten())
+                .collect()
         })
         .collect();
+    let between: Vec<Vec<TrackFrame>> = gaps
+        .iter()
+        .zip(&between_targets)
+        .zip(&between_images)
+        .map(|((gap, targets), images)| {
+            gap.iter()
+                .zip(targets)
+                .zip(images)
+                .map(|((f, t), img)| track_frame(f, t, img))
+                .collect()
+        })
+        .collect();
+    if a.no_between && !capture.between.is_empty() {
+        eprintln!(
+            "track: --no-between: the capture's {} in-between frames are left out",
+            capture.between.len()
+        );
+    }
     let cfg = TrackConfig::from(TrackSwitches {
         seed: a.seed,
         local_evals: a.evals,
@@ -139,6 +199,10 @@ pub fn run(a: Args) -> Result<ExitCode> {
         sequence_choice: !a.no_sequence_choice,
         appearance: !a.no_appearance,
     });
+    let cfg = TrackConfig {
+        between_poses: a.write_between,
+        ..cfg
+    };
     let t0 = std::time::Instant::now();
     let bar = crate::common::progress(frames.len(), "track");
     let partial_path = partial_path(&a.out);
@@ -180,13 +244,28 @@ pub fn run(a: Args) -> Result<ExitCode> {
                 &observe,
             )?
         }
-        _ => track_observed(&model.model, scale, &frames, &cfg, &observe)?,
+        _ => track_video(&model.model, scale, &frames, &between, &cfg, &observe)?,
     };
+    let between_poses: Vec<(String, GenPose)> = gaps
+        .iter()
+        .zip(&r.between)
+        .flat_map(|(gap, poses)| {
+            gap.iter()
+                .zip(poses)
+                .map(|(f, (g, _))| (f.name.clone(), g.clone()))
+        })
+        .collect();
     bar.finish_and_clear();
     let seconds = t0.elapsed().as_secs_f64();
     // Written as a version of the pose file's history, with this command.
-    let (pose_file, written, version) =
-        write_tracked_version(&capture, &model.model.tree, scale, &r.poses, &a.out)?;
+    let (pose_file, written, version) = write_tracked_version(
+        &capture,
+        &model.model.tree,
+        scale,
+        &r.poses,
+        &between_poses,
+        &a.out,
+    )?;
     // The run finished: its partial results are superseded.
     if let Err(e) = std::fs::remove_file(&partial_path) {
         if e.kind() != std::io::ErrorKind::NotFound {

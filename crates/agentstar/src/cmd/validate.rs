@@ -22,7 +22,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
     let problems = Capture::validate(&a.capture);
     let summary = match Capture::open(&a.capture) {
         Ok(c) => Some((
-            c.frames.len(),
+            (c.frames.len(), c.between.len()),
             c.manifest.image_size,
             c.frames[c.ref_index].name.clone(),
             c.notes.clone(),
@@ -35,16 +35,21 @@ pub fn run(a: Args) -> Result<ExitCode> {
             "capture": a.capture,
             "valid": problems.is_empty(),
             "problems": problems.iter().map(|p| json!({"path": p.path, "message": p.message})).collect::<Vec<_>>(),
-            "frames": summary.as_ref().map(|s| s.0),
+            "frames": summary.as_ref().map(|s| s.0 .0),
+            "between_frames": summary.as_ref().map(|s| s.0 .1),
             "image_size": summary.as_ref().map(|s| s.1),
             "ref_frame": summary.as_ref().map(|s| s.2.clone()),
             "notes": summary.as_ref().map(|s| s.3.clone()).unwrap_or_default(),
             "warnings": summary.as_ref().map(|s| s.4.clone()).unwrap_or_default(),
         }))?;
     } else if problems.is_empty() {
-        if let Some((n, [w, h], r, notes, warnings)) = &summary {
+        if let Some(((n, between), [w, h], r, notes, warnings)) = &summary {
+            let between = match between {
+                0 => String::new(),
+                b => format!(" and {b} in-between frames"),
+            };
             println!(
-                "valid: {} ({n} frames, {w}×{h}, reference {r})",
+                "valid: {} ({n} frames{between}, {w}×{h}, reference {r})",
                 a.capture.display()
             );
             for note in notes {

@@ -1,0 +1,157 @@
+//! Following the video between keyframes (`formats.md` §2, in-between frames): a keyframe's
+//! pose carried frame by frame through the frames between it and the next keyframe, each
+//! search starting from the previous frame's pose and motion in a small window. A hand turns
+//! an object 40–150° between keyframes ten video frames apart, but only 4–15° between video
+//! frames, well inside one basin: the chain carries the keyframe's basin across a jump that
+//! no search around the keyframe's neighbour reaches.
+//!
+//! A chain carries a basin; it does not choose one. What it adds to the keyframe machinery is
+//! the motion between two keyframes ([`Gap::motion`]), which the sequence-level choice uses
+//! in its step cost in place of "the object held still": any basin chained across a gap
+//! arrives in the basin the same motion takes it to, so the choice weighs whole sequences of
+//! twins against each other rather than single frames.
+
+use super::*;
+use agentstar_geom::UnitQuaternion;
+
+/// The window of a search from the previous video frame: a video frame moves the object a
+/// few degrees (a 150° turn over ten frames is 15° a frame, and the constant-velocity seed
+/// takes most of it), so 12°, 5% shift, 8% depth and 12° of joint.
+const CHAIN_WINDOW: LocalWindow = LocalWindow {
+    angle_deg: 12.0,
+    shift: 0.05,
+    depth: 0.08,
+    joint_deg: 12.0,
+    evals: 300,
+};
+
+/// A chain frame whose mask shows less than this share of the object seen in the keyframes
+/// (visible pixels, outside the hands; median over the keyframes) is carried at constant
+/// velocity, not fitted: a hand over most of it, or the object leaving the image.
+const CHAIN_MIN_VISIBLE: f64 = 0.2;
+
+/// A chain frame fitted under this IoU is carried at constant velocity instead: a mask that
+/// no pose near the prediction explains (a segmenter's miss) must not pull the chain away.
+const CHAIN_MIN_IOU: f64 = 0.5;
+
+/// What one gap's chain found.
+#[derive(Debug, Clone)]
+pub(super) struct Followed {
+    /// Each in-between frame's pose and IoU (temporal order whatever the direction followed),
+    /// `None` for a frame carried rather than fitted.
+    pub(super) poses: Vec<(GenPose, Option<f64>)>,
+    /// Seeds for the keyframe the chain arrives at: the last chain pose carried there, and
+    /// extrapolated at the chain's velocity.
+    pub(super) arrival: Vec<GenPose>,
+    /// Frames fitted (the rest were carried).
+    pub(super) fitted: usize,
+}
+
+/// The motion a chain measured across one gap: `R_{g+1} ≈ rotation · carried(R_g)`, where
+/// `carried` takes keyframe g's pose into keyframe g + 1's camera (the object held still).
+/// A left factor in the camera: whichever basin a chain starts in, the same hand motion
+/// takes it there.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct Gap {
+    pub(super) rotation: UnitQuaternion,
+}
+
+impl Gap {
+    /// From a chain's two ends: keyframe g's pose and keyframe g + 1's, in their cameras.
+    pub(super) fn between(
+        frames: &[TrackFrame<'_>],
+        g: usize,
+        at_g: &GenPose,
+        at_next: &GenPose,
+    ) -> Gap {
+        let carried = transfer(&at_g.pose, &frames[g], &frames[g + 1]);
+        Gap {
+            rotation: at_next.pose.rotation * carried.rotation.inverse(),
+        }
+    }
+}
+
+/// The visible object pixels of a target (outside the hands).
+pub(super) fn visible_pixels(target: &agentstar_render::ScoreTarget) -> usize {
+    let count = match target.keep() {
+        Some(k) => target.mask().and(k).count(),
+        None => target.mask().count(),
+    };
+    count as usize
+}
+
+/// Follows the video from `start` (the pose at `from`) through `path` (the in-between frames
+/// in the order followed) to `to`. `typical_visible`: the keyframes' median visible pixels.
+#[allow(clippy::too_many_arguments)]
+pub(super) fn follow(
+    s: &Searcher<'_>,
+    from: &TrackFrame<'_>,
+    start: &GenPose,
+    path: &[&TrackFrame<'_>],
+    to: &TrackFrame<'_>,
+    typical_visible: usize,
+    seed: u64,
+) -> Result<Followed, TrackError> {
+    let tree = &s.model.tree;
+    // The last two poses of the chain, each in its frame's camera, with their frames.
+    let mut last: (&TrackFrame<'_>, GenPose) = (from, start.clone());
+    let mut before: Option<(&TrackFrame<'_>, GenPose)> = None;
+    let predict = |last: &(&TrackFrame<'_>, GenPose),
+                   before: &Option<(&TrackFrame<'_>, GenPose)>,
+                   here: &TrackFrame<'_>| {
+        let carried = GenPose {
+            pose: transfer(&last.1.pose, last.0, here),
+            states: last.1.states.clone(),
+        };
+        let extrapolated = before.as_ref().map(|b| {
+            let b_here = GenPose {
+                pose: transfer(&b.1.pose, b.0, here),
+                states: b.1.states.clone(),
+            };
+            extrapolate(&b_here, &carried, tree)
+        });
+        (carried, extrapolated)
+    };
+    let mut poses = Vec::with_capacity(path.len());
+    let mut fitted = 0;
+    for (j, &frame) in path.iter().enumerate() {
+        let (carried, extrapolated) = predict(&last, &before, frame);
+        let prediction = extrapolated.clone().unwrap_or_else(|| carried.clone());
+        let visible = visible_pixels(frame.target);
+        let (pose, score) = if (visible as f64) < CHAIN_MIN_VISIBLE * typical_visible as f64
+            || visible == 0
+        {
+            (prediction, None)
+        } else {
+            let seeds: Vec<GenPose> = std::iter::once(carried).chain(extrapolated).collect();
+            let results: Vec<Result<(GenPose, f64), TrackError>> = seeds
+                .par_iter()
+                .enumerate()
+                .map(|(k, g)| s.refine(frame, g, &CHAIN_WINDOW, seed + 17 * j as u64 + k as u64))
+                .collect();
+            match best_of(results)? {
+                Some((g, sc)) if sc >= CHAIN_MIN_IOU => {
+                    fitted += 1;
+                    (g, Some(sc))
+                }
+                _ => (prediction, None),
+            }
+        };
+        poses.push((pose.clone(), score));
+        before = Some(last);
+        last = (frame, pose);
+    }
+    let (carried, extrapolated) = predict(&last, &before, to);
+    Ok(Followed {
+        poses,
+        arrival: std::iter::once(carried).chain(extrapolated).collect(),
+        fitted,
+    })
+}
+
+/// The keyframes' median visible pixels: what a frame showing the whole object shows.
+pub(super) fn typical_visible(frames: &[TrackFrame<'_>]) -> usize {
+    let mut v: Vec<usize> = frames.iter().map(|f| visible_pixels(f.target)).collect();
+    v.sort_unstable();
+    v.get(v.len() / 2).copied().unwrap_or(0)
+}
