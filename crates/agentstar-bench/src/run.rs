@@ -9,7 +9,7 @@ use agentstar_geom::UnitQuaternion;
 use agentstar_render::ScoreTarget;
 use agentstar_synth::SynthCapture;
 use agentstar_track::tracker::{
-    track_independent, track_observed, TrackConfig, TrackFrame, TrackSwitches,
+    track_independent, track_video, TrackConfig, TrackFrame, TrackSwitches,
 };
 use agentstar_track::GenPose;
 use serde::{Deserialize, Serialize};
@@ -240,6 +240,35 @@ pub fn run_sequence_observed(
             })
         })
         .collect::<Result<_, BenchError>>()?;
+    // The in-between frames, gap by gap (gap g: between keyframes g and g + 1), as the
+    // tracker follows them.
+    let between_targets: Vec<ScoreTarget> = capture
+        .between
+        .iter()
+        .map(|f| ScoreTarget::new(f.mask.clone(), f.hand.clone()))
+        .collect::<Result<_, _>>()
+        .map_err(|e| BenchError::Invalid(format!("{id}: {e}")))?;
+    let mut between: Vec<Vec<TrackFrame<'_>>> =
+        vec![Vec::new(); capture.frames.len().saturating_sub(1)];
+    for (f, t) in capture.between.iter().zip(&between_targets) {
+        let Some(g) = capture
+            .frames
+            .windows(2)
+            .position(|w| w[0].frame_index < f.frame_index && f.frame_index < w[1].frame_index)
+        else {
+            continue;
+        };
+        let (camera, world_from_camera) =
+            agentstar_data::capture_writer::as_stored(&capture.camera, &f.world_from_camera)
+                .map_err(|e| BenchError::Invalid(format!("{id}: {e}")))?;
+        between[g].push(TrackFrame {
+            name: f.name.clone(),
+            camera,
+            target: t,
+            world_from_camera: Some(world_from_camera),
+            rgb: cfg.appearance.then(|| f.rgb.as_raw().as_slice()),
+        });
+    }
     let tcfg = TrackConfig::from(TrackSwitches {
         seed: cfg.seed,
         local_evals: cfg.local_evals,
@@ -249,11 +278,14 @@ pub fn run_sequence_observed(
     });
     let t0 = Instant::now();
     let tracked = match method {
-        Method::Tracker | Method::NoTemporal => {
-            track_observed(&capture.model, capture.scale, &frames, &tcfg, &|l: &str| {
-                observe(l)
-            })
-        }
+        Method::Tracker | Method::NoTemporal => track_video(
+            &capture.model,
+            capture.scale,
+            &frames,
+            &between,
+            &tcfg,
+            &|l: &str| observe(l),
+        ),
         Method::VlmFree => track_independent(
             &capture.model,
             capture.scale,

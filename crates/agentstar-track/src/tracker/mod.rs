@@ -511,7 +511,12 @@ fn track_on(
         // its neighbour reaches (a step of 90–150°): the whole rotation space, as at the start.
         let band = s.band_iou(&frames[i], i, &g);
         let mut note = String::new();
-        if band < rescue_band(&bands) {
+        // A keyframe reached through the video keeps the chain's basin unless its mask clearly
+        // refuses it: a global search there picks by the outline alone, which is what the
+        // twins share (the chain's pose stays a hypothesis of the sequence choice).
+        let chain_holds = chained.is_some() && sc >= cfg.drop_threshold;
+        let arrival = chained.as_ref().map(|_| (g.clone(), sc));
+        if band < rescue_band(&bands) && !chain_holds {
             // The joint grid, and the states found here and at the neighbour: joints move
             // less between keyframes than the base does.
             let mut sets = joint_sets.clone();
@@ -528,9 +533,12 @@ fn track_on(
                 note = format!("; {text}");
             }
             alternatives[i] = rescue.basins;
+            alternatives[i].extend(arrival);
             log.phase("global", &s);
         }
-        if cfg.appearance {
+        // One step's colours do not outweigh the video's motion: a chained frame is not
+        // settled here (the passes over the sequence weigh colours with the chains).
+        if cfg.appearance && chained.is_none() {
             if let Some((tg, tsc, text)) = s.settle(&frames[i], &g, sc, &refs, &[]) {
                 (g, sc) = (tg, tsc);
                 note = format!("{note}; {text}");

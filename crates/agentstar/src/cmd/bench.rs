@@ -55,6 +55,10 @@ pub struct Args {
     /// The tracker sees the masks alone, not the frames' colours (no appearance term).
     #[arg(long)]
     no_appearance: bool,
+    /// Synthesise K in-between frames between consecutive keyframes of every sequence (the
+    /// same keyframes, K + 1 video frames apart), which the tracker follows.
+    #[arg(long, default_value_t = 0, value_name = "K")]
+    between: usize,
     /// Print the results as JSON on stdout.
     #[arg(long)]
     json: bool,
@@ -108,6 +112,9 @@ pub fn run(a: Args) -> Result<ExitCode> {
                 a.suite
             );
         }
+    }
+    for spec in &mut specs {
+        spec.synth.between = a.between;
     }
     let methods: Vec<Method> = a
         .methods
