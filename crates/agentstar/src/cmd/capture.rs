@@ -143,6 +143,11 @@ pub struct FromVideoArgs {
     /// At most this many frames (at least 1).
     #[arg(long)]
     max_frames: Option<usize>,
+    /// Keep the frames between keyframes too, as in-between frames that `track` follows
+    /// (docs/formats.md): every frame, or every N-th after each keyframe with `--between N`.
+    /// Every kept frame needs its object mask.
+    #[arg(long, num_args = 0..=1, default_missing_value = "1", value_name = "N")]
+    between: Option<usize>,
     /// Frames per second of the input, from 0.001 to 1000 (default 30): time_s = frame
     /// number / fps.
     #[arg(long, allow_negative_numbers = true)]
@@ -304,6 +309,7 @@ fn from_video(a: FromVideoArgs) -> Result<ExitCode> {
             max_frames: a.max_frames,
             cameras,
             fps: a.fps,
+            between: a.between,
         },
         &frames,
         &a.out,
