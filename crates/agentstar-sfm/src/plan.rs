@@ -132,12 +132,13 @@ mod tests {
 
     #[test]
     fn pairs_link_neighbours_longer_steps_and_both_ends() {
-        let p = subset_pairs(20, 3);
+        let p = subset_pairs(30, 3);
         assert!(p.contains(&(0, 1)) && p.contains(&(0, 3)) && !p.contains(&(0, 4)));
         // Longer links at 6 and 12, not at 24 (past 4 × 3).
-        assert!(p.contains(&(0, 6)) && p.contains(&(0, 12)) && !p.contains(&(2, 14)));
+        assert!(p.contains(&(2, 8)) && p.contains(&(2, 14)) && !p.contains(&(2, 26)));
+        assert!(!p.contains(&(2, 9)));
         // The loop: the first three with the last three.
-        assert!(p.contains(&(0, 19)) && p.contains(&(2, 17)) && !p.contains(&(3, 19)));
+        assert!(p.contains(&(0, 29)) && p.contains(&(2, 27)) && !p.contains(&(3, 29)));
         assert!(p.windows(2).all(|w| w[0] < w[1]));
         // A short subset: every pair within the overlap, no loop pairs beyond them.
         assert_eq!(subset_pairs(3, 5), vec![(0, 1), (0, 2), (1, 2)]);

@@ -683,8 +683,69 @@ mod tests {
     fn textured_walls_have_structure_and_plain_walls_do_not() {
         let textured = background_gradient(&small(Walls::Textured, CameraPath::OrbitWobble));
         let plain = background_gradient(&small(Walls::Plain, CameraPath::OrbitWobble));
+        let photographic =
+            background_gradient(&small(Walls::Photographic, CameraPath::OrbitWobble));
         assert!(textured > 4.0 * plain, "textured {textured}, plain {plain}");
+        assert!(
+            photographic > 4.0 * plain,
+            "photographic {photographic}, plain {plain}"
+        );
         assert!(plain < 2.0, "plain {plain}");
+    }
+
+    #[test]
+    fn photographic_texture_has_detail_at_every_scale() {
+        // Mean absolute difference of the noise at points `d` metres apart grows with d
+        // (structure at every scale), without saturating at the finest scale.
+        let diff = |d: f64| {
+            let mut sum = 0.0;
+            for i in 0..400 {
+                let (u, v) = (0.37 * i as f64, 0.11 * i as f64);
+                sum += (pink_noise(u, v, 9) - pink_noise(u + d, v, 9)).abs();
+            }
+            sum / 400.0
+        };
+        let (fine, mid, coarse) = (diff(0.01), diff(0.08), diff(0.6));
+        assert!(
+            fine > 0.005 && fine < mid && mid < coarse,
+            "{fine} {mid} {coarse}"
+        );
+    }
+
+    #[test]
+    fn without_a_hand_the_object_stands_still() {
+        let clip = synthesize_room_clip(&RoomConfig {
+            object: "microwave".into(),
+            frames: 5,
+            keyframe_every: 2,
+            width: 160,
+            height: 120,
+            object_turn_deg_per_frame: 0.0,
+            hand: false,
+            orbit_deg: Some(90.0),
+            ..RoomConfig::default()
+        })
+        .expect("clip");
+        let world_from_object =
+            |f: &SynthFrame| f.world_from_camera * f.camera_from_object.to_rigid();
+        let first = world_from_object(&clip.frames[0]);
+        for f in &clip.frames {
+            assert!(f.hand.is_none());
+            let w = world_from_object(f);
+            assert!((w.translation.vector - first.translation.vector).norm() < 1e-9);
+            assert!(w.rotation.angle_to(&first.rotation) < 1e-9);
+            assert_eq!(f.states, clip.frames[0].states);
+        }
+        // The orbit sweeps the 90° asked for (the camera's heading about the vertical).
+        let heading = |f: &SynthFrame| {
+            let c = f.world_from_camera.translation.vector;
+            c.y.atan2(c.x)
+        };
+        let sweep = (heading(&clip.frames[4]) - heading(&clip.frames[0]))
+            .abs()
+            .to_degrees();
+        let sweep = sweep.min(360.0 - sweep);
+        assert!((80.0..100.0).contains(&sweep), "{sweep}");
     }
 
     #[test]

@@ -148,7 +148,7 @@ fn run_in(b: &SfmBench, root: &Path) -> Result<ExitCode> {
             file_name: f.name.clone(),
             stem: f.name.trim_end_matches(".png").to_string(),
             excluded,
-            role: if f.frame_index as usize % b.keyframe_every == 0 {
+            role: if (f.frame_index as usize).is_multiple_of(b.keyframe_every) {
                 FrameRole::Keyframe
             } else {
                 FrameRole::InBetween
@@ -208,8 +208,18 @@ fn run_in(b: &SfmBench, root: &Path) -> Result<ExitCode> {
         if report.gpu { "on" } else { "off" },
     );
     md += "| stage | seconds |\n|---|---:|\n";
-    for (stage, s) in &report.stage_seconds {
-        md += &format!("| {stage} | {s:.1} |\n");
+    // In the order they run.
+    for stage in [
+        "checks",
+        "features",
+        "matching",
+        "mapping",
+        "registration",
+        "model",
+    ] {
+        if let Some(s) = report.stage_seconds.get(stage) {
+            md += &format!("| {stage} | {s:.1} |\n");
+        }
     }
     md += &format!("| **whole SfM** | **{sfm_s:.1}** |\n\n");
     md += &format!(
