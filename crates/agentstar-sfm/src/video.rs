@@ -1,7 +1,7 @@
 //! The frames of a video import that SfM sees: the keyframes and the frames between them,
 //! each with its object and hand masks.
 
-use crate::{SfmError, SfmFrame};
+use crate::{FrameRole, SfmError, SfmFrame};
 use agentstar_data::images::load_mask;
 use agentstar_import::video::{stem, FrameFiles, MaskFolder};
 use std::path::Path;
@@ -84,7 +84,11 @@ pub fn sfm_frames(
             file_name,
             stem: s,
             excluded,
-            keyframe,
+            role: if keyframe {
+                FrameRole::Keyframe
+            } else {
+                FrameRole::Helper
+            },
         });
     }
     Ok((out, skipped))
