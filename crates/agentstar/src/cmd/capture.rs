@@ -462,9 +462,24 @@ fn sfm_cameras(
     }
     // SfM may use the frames between keyframes (at most SFM_CANDIDATES of the video); it
     // picks its own subset to reconstruct from and registers the keyframes it left out.
-    let indices = select_frames(&keyframes, SFM_CANDIDATES.max(keyframes.len()));
-    let (sfm_frames, skipped) =
-        sfm_frames(frames, &a.masks, a.hands.as_deref(), &keyframes, &indices)?;
+    // The in-between frames the capture keeps need cameras too: SfM registers those it does
+    // not reconstruct from.
+    let in_between = a
+        .between
+        .map(|stride| agentstar_import::video::FrameFiles::between_indices(&keyframes, stride))
+        .unwrap_or_default();
+    let mut indices = select_frames(&keyframes, SFM_CANDIDATES.max(keyframes.len()));
+    indices.extend(&in_between);
+    indices.sort_unstable();
+    indices.dedup();
+    let (sfm_frames, skipped) = sfm_frames(
+        frames,
+        &a.masks,
+        a.hands.as_deref(),
+        &keyframes,
+        &in_between,
+        &indices,
+    )?;
     if !skipped.is_empty() {
         eprintln!(
             "note: {} frame(s) between keyframes have no mask and are left out of SfM (first: {})",
