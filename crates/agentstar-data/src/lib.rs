@@ -10,6 +10,7 @@ pub mod atomic;
 pub mod capture;
 pub mod capture_writer;
 pub mod export;
+pub mod glb;
 pub mod gt;
 pub mod history;
 pub mod images;
@@ -21,6 +22,7 @@ pub mod posefile;
 pub mod poses;
 pub mod runfile;
 pub mod scenefile;
+pub mod texture;
 pub mod urdf;
 
 use std::path::{Path, PathBuf};
