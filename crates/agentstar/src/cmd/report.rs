@@ -3,7 +3,7 @@
 
 use crate::common::{print_json, Session};
 use agentstar_data::ledger;
-use agentstar_render::views::{overlay, shade, ShadeOptions};
+use agentstar_render::views::{overlay, ShadeOptions};
 use agentstar_report::{
     render_html, FrameEntry, Image, Report, Step, Temporal, Viewer, ViewerFrame, ViewerPart,
 };
@@ -88,7 +88,6 @@ pub fn build_report(
 ) -> Result<Report> {
     let model = &s.model.model;
     let scale = s.scale();
-    let colors: Vec<[f32; 3]> = model.parts.iter().map(|p| p.color).collect();
     let n = s.capture.frames.len();
     let bar = crate::common::progress(n, "report");
     let frames: Vec<FrameEntry> = (0..n)
@@ -97,11 +96,7 @@ pub fn build_report(
             bar.inc(1);
             let f = &s.capture.frames[i];
             let img = s.capture.load_frame(i)?;
-            let shaded = shade(
-                &s.render_buffers(i),
-                &colors,
-                ShadeOptions { outlines: true },
-            );
+            let (_, shaded) = s.render_shaded(i, ShadeOptions { outlines: true });
             let over = overlay(&img, &shaded, 0.6);
             let score = s.score(i, 0.0)?;
             Ok(FrameEntry {
