@@ -2,6 +2,7 @@
 //! glTF's Y-up: `p_gltf = (x, z, −y)` of canonical) and URDF with one OBJ mesh per part.
 
 use crate::atomic::write_atomic;
+use crate::gltf_write::GltfBuilder;
 use crate::meshio::{obj_text, parse_glb};
 use crate::{DataError, Result};
 use agentstar_geom::kinematics::JointKind;
@@ -9,53 +10,22 @@ use agentstar_geom::ObjectModel;
 use serde_json::json;
 use std::path::Path;
 
-/// The GLB bytes of the model at rest.
+/// The GLB bytes of the model at rest, with each part's appearance
+/// ([`crate::gltf_write`]).
 pub fn glb_bytes(model: &ObjectModel) -> Vec<u8> {
-    let mut bin: Vec<u8> = Vec::new();
-    let (mut nodes, mut meshes, mut materials, mut accessors, mut views) =
-        (vec![], vec![], vec![], vec![], vec![]);
+    let mut builder = GltfBuilder::default();
+    let (mut nodes, mut meshes) = (vec![], vec![]);
     for (i, part) in model.parts.iter().enumerate() {
-        let m = &part.mesh;
-        let mut min = [f32::INFINITY; 3];
-        let mut max = [f32::NEG_INFINITY; 3];
-        let pos_offset = bin.len();
-        for p in &m.positions {
-            let g = [p.x as f32, p.z as f32, -p.y as f32];
-            for k in 0..3 {
-                min[k] = min[k].min(g[k]);
-                max[k] = max[k].max(g[k]);
-                bin.extend_from_slice(&g[k].to_le_bytes());
-            }
-        }
-        let pos_len = bin.len() - pos_offset;
-        let idx_offset = bin.len();
-        for t in &m.triangles {
-            for &k in t {
-                bin.extend_from_slice(&k.to_le_bytes());
-            }
-        }
-        let idx_len = bin.len() - idx_offset;
-        views.push(
-            json!({"buffer": 0, "byteOffset": pos_offset, "byteLength": pos_len, "target": 34962}),
-        );
-        views.push(
-            json!({"buffer": 0, "byteOffset": idx_offset, "byteLength": idx_len, "target": 34963}),
-        );
-        accessors.push(json!({"bufferView": 2 * i, "componentType": 5126, "count": m.positions.len(), "type": "VEC3", "min": min, "max": max}));
-        accessors.push(json!({"bufferView": 2 * i + 1, "componentType": 5125, "count": m.triangles.len() * 3, "type": "SCALAR"}));
-        let c = part.color;
-        materials.push(json!({"name": part.name, "pbrMetallicRoughness": {"baseColorFactor": [c[0], c[1], c[2], 1.0], "metallicFactor": 0.0, "roughnessFactor": 0.6}}));
-        meshes.push(json!({"name": part.name, "primitives": [{"attributes": {"POSITION": 2 * i}, "indices": 2 * i + 1, "material": i}]}));
+        meshes.push(builder.part_mesh(part, |p| [p.x as f32, p.z as f32, -p.y as f32]));
         nodes.push(json!({"name": part.name, "mesh": i}));
     }
-    let doc = json!({
+    let mut doc = json!({
         "asset": {"version": "2.0", "generator": concat!("agentstar ", env!("CARGO_PKG_VERSION"))},
         "scene": 0,
         "scenes": [{"nodes": (0..model.parts.len()).collect::<Vec<_>>()}],
-        "nodes": nodes, "meshes": meshes, "materials": materials,
-        "accessors": accessors, "bufferViews": views,
-        "buffers": [{"byteLength": bin.len()}],
+        "nodes": nodes, "meshes": meshes,
     });
+    let bin = builder.finish(&mut doc);
     glb_container(&doc, bin)
 }
 

@@ -11,6 +11,7 @@ pub mod capture;
 pub mod capture_writer;
 pub mod export;
 pub mod glb;
+pub(crate) mod gltf_write;
 pub mod gt;
 pub mod history;
 pub mod images;
