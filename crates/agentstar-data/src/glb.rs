@@ -6,7 +6,9 @@
 //! read is a warning naming it, and its primitives keep the material's colour.
 
 use crate::texture::{decode_texture, linear_to_display, SideFiles};
-use agentstar_geom::{AppearedMesh, Material, Matrix4, Point3, SurfaceAppearance, Texture, TriMesh, WrapMode};
+use agentstar_geom::{
+    AppearedMesh, Material, Matrix4, Point3, SurfaceAppearance, Texture, TriMesh, WrapMode,
+};
 use std::collections::BTreeMap;
 use std::sync::Arc;
 
@@ -36,10 +38,12 @@ pub fn parse_glb_appearance(
 /// Reads a binary glTF as [`parse_glb`] does but keeps the file's own coordinates (no Y-up
 /// to Z-up turn): for datasets whose poses refer to the model as stored (HOT3D).
 pub fn parse_glb_file_frame(bytes: &[u8]) -> Result<Vec<(String, TriMesh)>, String> {
-    Ok(parse_glb_from(bytes, Matrix4::identity(), &SideFiles::none())?
-        .into_iter()
-        .map(|(n, m)| (n, m.mesh))
-        .collect())
+    Ok(
+        parse_glb_from(bytes, Matrix4::identity(), &SideFiles::none())?
+            .into_iter()
+            .map(|(n, m)| (n, m.mesh))
+            .collect(),
+    )
 }
 
 /// Checks an accessor before the `gltf` reader touches it (the reader indexes and asserts on
@@ -274,17 +278,15 @@ fn parse_glb_from(
                         ),
                     }
                     let uvs: Option<Vec<[f32; 2]>> = match (uv_set, &uv_acc) {
-                        (Some(set), Some(_)) => reader
-                            .read_tex_coords(set)
-                            .map(|t| t.into_f32().collect()),
+                        (Some(set), Some(_)) => {
+                            reader.read_tex_coords(set).map(|t| t.into_f32().collect())
+                        }
                         _ => None,
                     };
                     let colors: Option<Vec<[f32; 3]>> = color_acc.as_ref().and_then(|_| {
-                        reader.read_colors(0).map(|c| {
-                            c.into_rgb_f32()
-                                .map(|c| c.map(linear_to_display))
-                                .collect()
-                        })
+                        reader
+                            .read_colors(0)
+                            .map(|c| c.into_rgb_f32().map(|c| c.map(linear_to_display)).collect())
                     });
                     let material = textures.material(
                         &prim.material(),
@@ -333,7 +335,6 @@ fn parse_glb_from(
     }
     Ok(parts)
 }
-
 
 /// The materials of one glTF file, each read once: its textures shared by every part that
 /// uses them.
@@ -386,21 +387,19 @@ impl TextureCache {
         }
         let tex = info.texture();
         let index = tex.index();
-        if !self.textures.contains_key(&index) {
+        let entry = self.textures.entry(index).or_insert_with(|| {
             let read = read_image(&tex.source(), blob, files).map(|t| {
                 let s = tex.sampler();
                 Arc::new(t.with_wrap(wrap_mode(s.wrap_s()), wrap_mode(s.wrap_t())))
             });
-            let read = read
-                .map_err(|e| {
-                    warnings.push(format!(
-                        "material `{name}`: {e}; the part keeps the material's colour"
-                    ))
-                })
-                .ok();
-            self.textures.insert(index, read);
-        }
-        out.texture = self.textures.get(&index).cloned().flatten();
+            read.map_err(|e| {
+                warnings.push(format!(
+                    "material `{name}`: {e}; the part keeps the material's colour"
+                ))
+            })
+            .ok()
+        });
+        out.texture = entry.clone();
         out
     }
 }
@@ -478,19 +477,23 @@ impl Looks {
         for t in triangles {
             let local = t.map(|i| i.wrapping_sub(base) as usize);
             self.triangle_material.push(index as u16);
-            self.corner_uv.push(local.map(|i| {
-                uvs.and_then(|u| u.get(i)).copied().unwrap_or([0.0; 2])
-            }));
-            self.corner_color.push(local.map(|i| {
-                colors.and_then(|c| c.get(i)).copied().unwrap_or([1.0; 3])
-            }));
+            self.corner_uv
+                .push(local.map(|i| uvs.and_then(|u| u.get(i)).copied().unwrap_or([0.0; 2])));
+            self.corner_color
+                .push(local.map(|i| colors.and_then(|c| c.get(i)).copied().unwrap_or([1.0; 3])));
         }
         Ok(())
     }
 
     fn swap_since(&mut self, first: usize) {
-        self.corner_uv.iter_mut().skip(first).for_each(|t| t.swap(1, 2));
-        self.corner_color.iter_mut().skip(first).for_each(|t| t.swap(1, 2));
+        self.corner_uv
+            .iter_mut()
+            .skip(first)
+            .for_each(|t| t.swap(1, 2));
+        self.corner_color
+            .iter_mut()
+            .skip(first)
+            .for_each(|t| t.swap(1, 2));
     }
 
     /// The node's surface, `None` when it is one plain white default material (the file

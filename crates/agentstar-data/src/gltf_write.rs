@@ -85,8 +85,10 @@ impl GltfBuilder {
             self.bytes.extend_from_slice(&v.to_le_bytes());
         }
         self.views.push(json!({"buffer": 0, "byteOffset": offset, "byteLength": data.len() * 4, "target": 34963}));
-        self.accessors.push(json!({"bufferView": self.views.len() - 1, "componentType": 5125,
-                                   "count": data.len(), "type": "SCALAR"}));
+        self.accessors.push(
+            json!({"bufferView": self.views.len() - 1, "componentType": 5125,
+                                   "count": data.len(), "type": "SCALAR"}),
+        );
         self.accessors.len() - 1
     }
 
@@ -103,22 +105,17 @@ impl GltfBuilder {
             .push(json!({"buffer": 0, "byteOffset": offset, "byteLength": png.len()}));
         self.images
             .push(json!({"bufferView": self.views.len() - 1, "mimeType": "image/png"}));
-        self.samplers.push(json!({"magFilter": 9729, "minFilter": 9729,
+        self.samplers
+            .push(json!({"magFilter": 9729, "minFilter": 9729,
             "wrapS": wrap_code(texture.wrap_u), "wrapT": wrap_code(texture.wrap_v)}));
-        self.textures.push(
-            json!({"sampler": self.samplers.len() - 1, "source": self.images.len() - 1}),
-        );
+        self.textures
+            .push(json!({"sampler": self.samplers.len() - 1, "source": self.images.len() - 1}));
         let index = self.textures.len() - 1;
         self.written.push((texture.clone(), index));
         Ok(index)
     }
 
-    fn material(
-        &mut self,
-        name: &str,
-        color: [f32; 3],
-        texture: Option<&Arc<Texture>>,
-    ) -> usize {
+    fn material(&mut self, name: &str, color: [f32; 3], texture: Option<&Arc<Texture>>) -> usize {
         let c = color.map(display_to_linear);
         let mut pbr = json!({"baseColorFactor": [c[0], c[1], c[2], 1.0], "metallicFactor": 0.0, "roughnessFactor": 0.6});
         // Encoding an image in memory does not fail; were it to, the material keeps its colour.
@@ -131,11 +128,7 @@ impl GltfBuilder {
     }
 
     /// The glTF mesh of `part` (positions mapped by `to_gltf`), its materials added.
-    pub fn part_mesh(
-        &mut self,
-        part: &Part,
-        to_gltf: impl Fn(&Point3) -> [f32; 3],
-    ) -> Value {
+    pub fn part_mesh(&mut self, part: &Part, to_gltf: impl Fn(&Point3) -> [f32; 3]) -> Value {
         let m = &part.mesh;
         let Some(surface) = &part.surface else {
             let pos: Vec<f32> = m.positions.iter().flat_map(&to_gltf).collect();
@@ -175,7 +168,8 @@ impl GltfBuilder {
                     idx.push(v);
                 }
             }
-            let mut attributes = json!({"POSITION": self.floats(&pos, 3, "VEC3", true, Some(34962))});
+            let mut attributes =
+                json!({"POSITION": self.floats(&pos, 3, "VEC3", true, Some(34962))});
             if uvs.is_some() {
                 attributes["TEXCOORD_0"] = json!(self.floats(&uv, 2, "VEC2", false, Some(34962)));
             }

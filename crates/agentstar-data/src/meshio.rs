@@ -119,11 +119,10 @@ pub fn parse_obj_appearance(bytes: &[u8], files: &SideFiles) -> Result<AppearedM
         let name = p.to_string_lossy().to_string();
         match files.read(&name) {
             Ok((_, mtl)) => tobj::load_mtl_buf(&mut std::io::BufReader::new(mtl.as_slice()))
-                .map_err(|e| {
+                .inspect_err(|e| {
                     warnings.borrow_mut().push(format!(
                         "material library `{name}` does not read ({e}); its parts keep their colour"
                     ));
-                    e
                 }),
             Err(e) => {
                 warnings.borrow_mut().push(format!(
@@ -388,12 +387,21 @@ pub fn parse_ply_appearance(bytes: &[u8], files: &SideFiles) -> Result<AppearedM
         .map(|e| e.2.clone())
         .unwrap_or_default();
     let has = |names: &[&str]| names.iter().all(|n| vertex_props.iter().any(|p| p.0 == *n));
-    let color_names: Option<[&str; 3]> = [["red", "green", "blue"], ["diffuse_red", "diffuse_green", "diffuse_blue"], ["r", "g", "b"]]
-        .into_iter()
-        .find(|n| has(n));
-    let uv_names: Option<[&str; 2]> = [["u", "v"], ["s", "t"], ["texture_u", "texture_v"], ["texture_s", "texture_t"]]
-        .into_iter()
-        .find(|n| has(n));
+    let color_names: Option<[&str; 3]> = [
+        ["red", "green", "blue"],
+        ["diffuse_red", "diffuse_green", "diffuse_blue"],
+        ["r", "g", "b"],
+    ]
+    .into_iter()
+    .find(|n| has(n));
+    let uv_names: Option<[&str; 2]> = [
+        ["u", "v"],
+        ["s", "t"],
+        ["texture_u", "texture_v"],
+        ["texture_s", "texture_t"],
+    ]
+    .into_iter()
+    .find(|n| has(n));
     let mut vertex_color: Vec<[f32; 3]> = Vec::new();
     let mut vertex_uv: Vec<[f32; 2]> = Vec::new();
     // Per triangle, its corners' texture coordinates from a face's `texcoord` list.
@@ -473,10 +481,14 @@ pub fn parse_ply_appearance(bytes: &[u8], files: &SideFiles) -> Result<AppearedM
                                 "y" => xyz[1] = v,
                                 "z" => xyz[2] = v,
                                 p => {
-                                    if let Some(k) = color_names.and_then(|c| c.iter().position(|n| *n == p)) {
+                                    if let Some(k) =
+                                        color_names.and_then(|c| c.iter().position(|n| *n == p))
+                                    {
                                         rgb[k] = ply_unit(v, ty);
                                     }
-                                    if let Some(k) = uv_names.and_then(|c| c.iter().position(|n| *n == p)) {
+                                    if let Some(k) =
+                                        uv_names.and_then(|c| c.iter().position(|n| *n == p))
+                                    {
                                         uv[k] = v as f32;
                                     }
                                 }
@@ -506,7 +518,8 @@ pub fn parse_ply_appearance(bytes: &[u8], files: &SideFiles) -> Result<AppearedM
                     }
                 };
                 for k in 1..n.saturating_sub(1) {
-                    mesh.triangles.push([face_polygon[0], face_polygon[k], face_polygon[k + 1]]);
+                    mesh.triangles
+                        .push([face_polygon[0], face_polygon[k], face_polygon[k + 1]]);
                     face_uv.push([corner(0), corner(k), corner(k + 1)]);
                 }
             }

@@ -152,14 +152,19 @@ mod tests {
 
     #[test]
     fn textures_decode_within_bounds_and_name_what_fails() {
-        let img = image::RgbImage::from_fn(3, 2, |x, y| image::Rgb([x as u8 * 100, y as u8 * 100, 7]));
+        let img =
+            image::RgbImage::from_fn(3, 2, |x, y| image::Rgb([x as u8 * 100, y as u8 * 100, 7]));
         let mut png = Vec::new();
         img.write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)
             .expect("png");
         let t = decode_texture(&png, "t.png").expect("decodes");
         assert_eq!((t.width(), t.height()), (3, 2));
         assert_eq!(&t.rgb()[3..6], &[100, 0, 7]);
-        assert_eq!(texture_png(&t).map(|b| decode_texture(&b, "again").map(|u| u == Texture::new("again", 3, 2, t.rgb().to_vec()).expect("t"))), Ok(Ok(true)));
+        assert_eq!(
+            texture_png(&t).map(|b| decode_texture(&b, "again")
+                .map(|u| u == Texture::new("again", 3, 2, t.rgb().to_vec()).expect("t"))),
+            Ok(Ok(true))
+        );
         let e = decode_texture(b"not an image", "bad.png").expect_err("garbage");
         assert!(e.contains("bad.png"), "{e}");
         // A PNG header that claims 100000 × 1 texels is refused before decoding.

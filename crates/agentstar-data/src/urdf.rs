@@ -12,9 +12,9 @@ use agentstar_geom::primitives::{cuboid, cylinder, uv_sphere};
 use agentstar_geom::{
     KinematicTree, Matrix3, ObjectModel, Part, SurfaceAppearance, TriMesh, UnitQuaternion, Vector3,
 };
-use std::sync::Arc;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 
 struct UrdfJoint {
     name: String,
@@ -115,7 +115,10 @@ fn visual_color(
         let c = attr_numbers(rgba, "rgba", 4, owner, None)?;
         return Ok(Some([c[0], c[1], c[2]].map(|v| v.clamp(0.0, 1.0) as f32)));
     }
-    Ok(material.attribute("name").and_then(|n| named.get(n)).copied())
+    Ok(material
+        .attribute("name")
+        .and_then(|n| named.get(n))
+        .copied())
 }
 
 /// [`load_urdf`] with what reading the meshes' appearance gave to say (a texture that does
@@ -144,7 +147,10 @@ pub fn load_urdf_with_warnings(path: &Path) -> Result<(ObjectModel, Vec<String>)
             continue;
         };
         let c = attr_numbers(rgba, "rgba", 4, &format!("material `{name}`"), None).map_err(&err)?;
-        named_colors.insert(name.to_string(), [c[0], c[1], c[2]].map(|v| v.clamp(0.0, 1.0) as f32));
+        named_colors.insert(
+            name.to_string(),
+            [c[0], c[1], c[2]].map(|v| v.clamp(0.0, 1.0) as f32),
+        );
     }
     // Links with their geometry in the link frame.
     let mut links: BTreeMap<String, (TriMesh, SurfaceAppearance)> = BTreeMap::new();
@@ -202,9 +208,15 @@ pub fn load_urdf_with_warnings(path: &Path) -> Result<(ObjectModel, Vec<String>)
             };
             let rot = origin.rotation.to_rotation_matrix().into_inner();
             let visual_look = own_look.unwrap_or_else(|| {
-                SurfaceAppearance::plain(&name, color.unwrap_or(URDF_DEFAULT_COLOR), g.triangles.len())
+                SurfaceAppearance::plain(
+                    &name,
+                    color.unwrap_or(URDF_DEFAULT_COLOR),
+                    g.triangles.len(),
+                )
             });
-            look = look.appended(&visual_look).map_err(|e| err(format!("{owner}: {e}")))?;
+            look = look
+                .appended(&visual_look)
+                .map_err(|e| err(format!("{owner}: {e}")))?;
             mesh.append(&g.transformed(&rot, &origin.translation.vector));
         }
         link_order.push(name.clone());
@@ -401,11 +413,7 @@ pub fn load_urdf_with_warnings(path: &Path) -> Result<(ObjectModel, Vec<String>)
 /// A link's part: one colour where its visuals share one plain material, else its
 /// appearance triangle by triangle. The first (empty) material of `look` is the seed of
 /// the appending, never used by a triangle.
-fn link_part(
-    name: &str,
-    mesh: TriMesh,
-    look: &SurfaceAppearance,
-) -> agentstar_geom::Result<Part> {
+fn link_part(name: &str, mesh: TriMesh, look: &SurfaceAppearance) -> agentstar_geom::Result<Part> {
     let used: std::collections::BTreeSet<u16> = look.triangle_material().iter().copied().collect();
     let materials = look.materials();
     let plain = look.corner_color().is_none()

@@ -54,10 +54,7 @@ fn write_textured_obj(dir: &Path, map: &str) -> std::path::PathBuf {
     }
     obj.push_str("vt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\nusemtl print\n");
     for f in FACES {
-        obj.push_str(&format!(
-            "f {}/1 {}/2 {}/3 {}/4\n",
-            f[0], f[1], f[2], f[3]
-        ));
+        obj.push_str(&format!("f {}/1 {}/2 {}/3 {}/4\n", f[0], f[1], f[2], f[3]));
     }
     std::fs::write(dir.join("cube.obj"), obj).expect("obj");
     std::fs::write(
@@ -184,7 +181,11 @@ fn an_obj_with_a_texture_renders_its_print_and_keeps_it_through_glb_export() {
     write_print(&dir.path().join("print.png"));
     let obj = write_textured_obj(dir.path(), "print.png");
     let loaded = load_model(&obj).expect("obj");
-    assert!(loaded.warnings.iter().all(|w| !w.contains("print.png")), "{:?}", loaded.warnings);
+    assert!(
+        loaded.warnings.iter().all(|w| !w.contains("print.png")),
+        "{:?}",
+        loaded.warnings
+    );
     let part = &loaded.model.parts[0];
     let surface = part.surface.as_ref().expect("the texture is kept");
     let texture = surface.materials()[0].texture.as_ref().expect("texture");
@@ -199,8 +200,14 @@ fn an_obj_with_a_texture_renders_its_print_and_keeps_it_through_glb_export() {
     let glb = dir.path().join("cube.glb");
     std::fs::write(&glb, glb_bytes(&loaded.model)).expect("glb");
     let back = load_model(&glb).expect("glb back");
-    let t = back.model.parts[0].surface.as_ref().expect("surface")
-        .materials().iter().find_map(|m| m.texture.clone()).expect("texture kept");
+    let t = back.model.parts[0]
+        .surface
+        .as_ref()
+        .expect("surface")
+        .materials()
+        .iter()
+        .find_map(|m| m.texture.clone())
+        .expect("texture kept");
     assert_eq!(t.rgb(), texture.rgb());
     assert_golden("obj_textured.png", &render(&back.model));
 }
@@ -211,7 +218,10 @@ fn a_ply_with_vertex_colours_renders_them_perspective_correct_and_through_glb() 
     let ply = write_colored_ply(dir.path());
     let loaded = load_model(&ply).expect("ply");
     let model = &loaded.model;
-    assert!(model.parts[0].surface.as_ref().is_some_and(|s| s.corner_color().is_some()));
+    assert!(model.parts[0]
+        .surface
+        .as_ref()
+        .is_some_and(|s| s.corner_color().is_some()));
     // The colours are the surface point's coordinates + ½, linear over each face: every
     // pixel's colour is that of the point its ray meets (screen-space interpolation would
     // be off by the perspective).
@@ -239,7 +249,10 @@ fn a_ply_with_vertex_colours_renders_them_perspective_correct_and_through_glb() 
     let glb = dir.path().join("cube.glb");
     std::fs::write(&glb, glb_bytes(model)).expect("glb");
     let back = load_model(&glb).expect("glb back");
-    assert!(back.model.parts[0].surface.as_ref().is_some_and(|s| s.corner_color().is_some()));
+    assert!(back.model.parts[0]
+        .surface
+        .as_ref()
+        .is_some_and(|s| s.corner_color().is_some()));
     assert_golden("ply_vertex_colours.png", &render(&back.model));
 }
 
@@ -254,18 +267,35 @@ fn a_missing_texture_is_a_warning_naming_it_and_the_part_keeps_its_colour() {
     .expect("mtl");
     let loaded = load_model(&obj).expect("still loads");
     assert!(
-        loaded.warnings.iter().any(|w| w.contains("missing_print.png")),
+        loaded
+            .warnings
+            .iter()
+            .any(|w| w.contains("missing_print.png")),
         "{:?}",
         loaded.warnings
     );
     let part = &loaded.model.parts[0];
-    assert!(part.surface.as_ref().is_none_or(|s| s.materials().iter().all(|m| m.texture.is_none())));
+    assert!(part
+        .surface
+        .as_ref()
+        .is_none_or(|s| s.materials().iter().all(|m| m.texture.is_none())));
     let expected = [0.2f32, 0.4, 0.6];
-    assert!((0..3).all(|i| (part.color[i] - expected[i]).abs() < 1e-6), "{:?}", part.color);
+    assert!(
+        (0..3).all(|i| (part.color[i] - expected[i]).abs() < 1e-6),
+        "{:?}",
+        part.color
+    );
     // A texture that is not an image: the same, naming it.
     std::fs::write(dir.path().join("missing_print.png"), b"not a png").expect("w");
     let loaded = load_model(&obj).expect("still loads");
-    assert!(loaded.warnings.iter().any(|w| w.contains("missing_print.png")), "{:?}", loaded.warnings);
+    assert!(
+        loaded
+            .warnings
+            .iter()
+            .any(|w| w.contains("missing_print.png")),
+        "{:?}",
+        loaded.warnings
+    );
 }
 
 #[test]
@@ -276,15 +306,33 @@ fn a_scene_script_keeps_an_imported_meshs_texture_inside_its_directory_only() {
     write_print(&scene.join("print.png"));
     write_textured_obj(&scene, "print.png");
     let script = scene.join("scene.rhai");
-    std::fs::write(&script, "part(\"cube\", mesh(\"cube.obj\").translate(0, 0, 0.1));\n").expect("w");
+    std::fs::write(
+        &script,
+        "part(\"cube\", mesh(\"cube.obj\").translate(0, 0, 0.1));\n",
+    )
+    .expect("w");
     let loaded = load_model(&script).expect("scene");
     let part = &loaded.model.parts[0];
-    assert!(part.surface.as_ref().is_some_and(|s| s.materials().iter().any(|m| m.texture.is_some())));
+    assert!(part
+        .surface
+        .as_ref()
+        .is_some_and(|s| s.materials().iter().any(|m| m.texture.is_some())));
     // The same script whose material library names a texture outside its directory: a
     // warning, not a read.
     write_print(&dir.path().join("outside.png"));
-    std::fs::write(scene.join("cube.mtl"), "newmtl print\nKd 1 1 1\nmap_Kd ../outside.png\n").expect("w");
+    std::fs::write(
+        scene.join("cube.mtl"),
+        "newmtl print\nKd 1 1 1\nmap_Kd ../outside.png\n",
+    )
+    .expect("w");
     let loaded = load_model(&script).expect("scene");
-    assert!(loaded.warnings.iter().any(|w| w.contains("../outside.png")), "{:?}", loaded.warnings);
-    assert!(loaded.model.parts[0].surface.as_ref().is_none_or(|s| s.materials().iter().all(|m| m.texture.is_none())));
+    assert!(
+        loaded.warnings.iter().any(|w| w.contains("../outside.png")),
+        "{:?}",
+        loaded.warnings
+    );
+    assert!(loaded.model.parts[0]
+        .surface
+        .as_ref()
+        .is_none_or(|s| s.materials().iter().all(|m| m.texture.is_none())));
 }

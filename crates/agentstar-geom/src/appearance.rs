@@ -139,10 +139,7 @@ impl Texture {
         let y = f64::from(v) * f64::from(self.height) - 0.5;
         let (x0, y0) = (x.floor(), y.floor());
         let (fx, fy) = ((x - x0) as f32, (y - y0) as f32);
-        let (x0, y0) = (
-            x0.clamp(-1e15, 1e15) as i64,
-            y0.clamp(-1e15, 1e15) as i64,
-        );
+        let (x0, y0) = (x0.clamp(-1e15, 1e15) as i64, y0.clamp(-1e15, 1e15) as i64);
         let xa = self.wrap_u.texel(x0, self.width);
         let xb = self.wrap_u.texel(x0 + 1, self.width);
         let ya = self.wrap_v.texel(y0, self.height);
@@ -392,7 +389,13 @@ impl SurfaceAppearance {
             materials,
             triangle_material,
             join(&self.corner_uv, na, &other.corner_uv, nb, [[0.0; 2]; 3]),
-            join(&self.corner_color, na, &other.corner_color, nb, [[1.0; 3]; 3]),
+            join(
+                &self.corner_color,
+                na,
+                &other.corner_color,
+                nb,
+                [[1.0; 3]; 3],
+            ),
         )
     }
 
@@ -492,11 +495,21 @@ mod tests {
         .expect("surface");
         assert_eq!(s.color_at(0, [1.0, 0.0, 0.0]), [0.5, 0.5, 1.0]);
         let mean = s.mean_color(&mesh);
-        assert!((0..3).all(|i| (mean[i] - [0.5, 0.5, 1.0][i]).abs() < 1e-5), "{mean:?}");
+        assert!(
+            (0..3).all(|i| (mean[i] - [0.5, 0.5, 1.0][i]).abs() < 1e-5),
+            "{mean:?}"
+        );
         assert!(s.varies());
         // Barycentric interpolation of vertex colours.
-        let v = SurfaceAppearance::vertex_colored(vec![[[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]]; n])
-            .expect("vertex colours");
+        let v = SurfaceAppearance::vertex_colored(vec![
+            [
+                [1.0, 0.0, 0.0],
+                [0.0, 1.0, 0.0],
+                [0.0, 0.0, 1.0]
+            ];
+            n
+        ])
+        .expect("vertex colours");
         let c = v.color_at(3, [0.5, 0.25, 0.25]);
         assert_eq!(c, [0.5, 0.25, 0.25]);
         let swapped = v.with_corners_swapped();

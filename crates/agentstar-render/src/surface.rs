@@ -64,7 +64,10 @@ pub fn surface_colors(
                 let t = buffers.triangle[k] as usize;
                 match inst.mesh.triangles.get(t) {
                     Some(tri) => {
-                        let corner = |i: u32| inst.camera_from_mesh.apply(&inst.mesh.positions[i as usize]);
+                        let corner = |i: u32| {
+                            inst.camera_from_mesh
+                                .apply(&inst.mesh.positions[i as usize])
+                        };
                         let z = f64::from(buffers.depth[k]);
                         let (x, y) = ((k % w) as f64 + 0.5, (k / w) as f64 + 0.5);
                         let hit = [

@@ -7,8 +7,8 @@ use crate::preload::Preloaded;
 use crate::{Limits, MeshSource, ParamDecl, SceneBuild};
 use agentstar_geom::kinematics::{JointDef, JointKind};
 use agentstar_geom::{
-    csg, primitives as prim, KinematicTree, Matrix3, ObjectModel, Part, Point3,
-    SurfaceAppearance, TriMesh, UnitQuaternion, Vector3,
+    csg, primitives as prim, KinematicTree, Matrix3, ObjectModel, Part, Point3, SurfaceAppearance,
+    TriMesh, UnitQuaternion, Vector3,
 };
 use rhai::{Array, Dynamic, Engine, EvalAltResult, Map, Position, AST};
 use std::collections::BTreeMap;

@@ -25,7 +25,7 @@ pub const API: &[ApiEntry] = &[
     ApiEntry { name: "hull", forms: &["hull(points)"], doc: "Convex hull of [[x, y, z], …] (at least 4 points, not all coplanar)." },
     ApiEntry { name: "extrude", forms: &["extrude(outline, height)", "extrude(outline, holes, height)"], doc: "Prism from a 2-D polygon [[x, y], …] in XY (holes: a list of polygons), extruded along Z, centred on z = 0." },
     ApiEntry { name: "lathe", forms: &["lathe(profile)", "lathe(profile, segments)"], doc: "Revolves [[radius, z], …] about Z; radius 0 makes a pole; ends off the axis get flat caps; a closed loop (first = last) makes a ring." },
-    ApiEntry { name: "mesh", forms: &["mesh(path)"], doc: "Loads an OBJ, STL, PLY or GLB file that sits beside the script (no other paths)." },
+    ApiEntry { name: "mesh", forms: &["mesh(path)"], doc: "Loads an OBJ, STL, PLY or GLB file that sits beside the script (no other paths), with its materials, texture and vertex colours (the files they name must sit beside it too)." },
     ApiEntry { name: "union", forms: &["union(a, b)", "a + b"], doc: "Boolean union (solids only; never unite parts that move relative to each other)." },
     ApiEntry { name: "union_all", forms: &["union_all([a, b, …])"], doc: "Boolean union of a list of solids." },
     ApiEntry { name: "difference", forms: &["difference(a, b)", "a - b"], doc: "Boolean difference: a with b removed. The cutter should stick out through every surface it cuts." },

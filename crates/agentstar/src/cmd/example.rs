@@ -116,7 +116,13 @@ pub fn run(a: Args) -> Result<ExitCode> {
             }
         });
         let visible = silhouette.and_not(&hand);
-        let shaded = shade_model(&model, &posed.instances, &camera, &buffers, ShadeOptions { outlines: false });
+        let shaded = shade_model(
+            &model,
+            &posed.instances,
+            &camera,
+            &buffers,
+            ShadeOptions { outlines: false },
+        );
         let mut frame = RgbImage::from_fn(w, h, |x, y| {
             let g = 0.55 + 0.25 * (y as f32 / h as f32) + 0.08 * noise(x / 4, y / 4, 7);
             Rgb([(g * 200.0) as u8, (g * 190.0) as u8, (g * 175.0) as u8])
