@@ -336,3 +336,63 @@ fn a_scene_script_keeps_an_imported_meshs_texture_inside_its_directory_only() {
         .as_ref()
         .is_none_or(|s| s.materials().iter().all(|m| m.texture.is_none())));
 }
+
+#[test]
+fn urdf_export_writes_the_materials_and_textures_and_reads_them_back() {
+    let dir = tempfile::tempdir().expect("tmp");
+    write_print(&dir.path().join("print.png"));
+    let obj = write_textured_obj(dir.path(), "print.png");
+    let model = load_model(&obj).expect("obj").model;
+    let out = dir.path().join("urdf");
+    let urdf = agentstar_data::export::write_urdf(&model, &out, "cube").expect("urdf");
+    let mtl = std::fs::read_to_string(out.join("meshes/cube.mtl")).expect("mtl written");
+    assert!(mtl.contains("map_Kd cube_t0.png"), "{mtl}");
+    let back = load_model(&urdf).expect("urdf back");
+    assert!(
+        back.warnings.iter().all(|w| !w.contains(".png")),
+        "{:?}",
+        back.warnings
+    );
+    assert_golden("obj_textured.png", &render(&back.model));
+}
+
+#[test]
+fn urdf_visual_materials_colour_their_links() {
+    let dir = tempfile::tempdir().expect("tmp");
+    let urdf = dir.path().join("two.urdf");
+    std::fs::write(
+        &urdf,
+        r#"<robot name="two">
+  <material name="label"><color rgba="0.9 0.8 0.1 1"/></material>
+  <link name="body">
+    <visual><geometry><box size="1 1 0.5"/></geometry><material name="dark"><color rgba="0.1 0.1 0.1 1"/></material></visual>
+    <visual><origin xyz="0 0 0.4"/><geometry><box size="0.5 0.5 0.3"/></geometry><material name="label"/></visual>
+  </link>
+  <link name="lid">
+    <visual><geometry><box size="1 1 0.1"/></geometry><material name="label"/></visual>
+  </link>
+  <joint name="fix" type="fixed"><parent link="body"/><child link="lid"/><origin xyz="0 0 1"/></joint>
+</robot>"#,
+    )
+    .expect("urdf");
+    let model = load_model(&urdf).expect("urdf").model;
+    let body = &model.parts[0];
+    let surface = body.surface.as_ref().expect("two colours on one link");
+    let used: std::collections::BTreeSet<[u32; 3]> = surface
+        .triangle_material()
+        .iter()
+        .map(|&m| {
+            surface.materials()[usize::from(m)]
+                .color
+                .map(|c| (c * 100.0).round() as u32)
+        })
+        .collect();
+    assert_eq!(
+        used.into_iter().collect::<Vec<_>>(),
+        vec![[10, 10, 10], [90, 80, 10]]
+    );
+    // One named material on the whole link: one colour, no surface.
+    let lid = &model.parts[1];
+    assert!(lid.surface.is_none());
+    assert!((lid.color[0] - 0.9).abs() < 1e-6 && (lid.color[1] - 0.8).abs() < 1e-6);
+}

@@ -37,6 +37,7 @@ fn report() -> Report {
                 color: [0.8, 0.3, 0.2],
                 positions: vec![0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0],
                 triangles: vec![0, 1, 2],
+                surface: None,
             }],
             joint_names: vec!["hinge".into()],
             frames: ["000000.png", "000005.png"]
