@@ -269,24 +269,26 @@ mod tests {
         );
         let part = &standin.parts[0];
         let surface = part.surface.as_ref().expect("colours carried");
-        // Away from the equator each triangle shows its side's colour.
+        // Every triangle wholly on one side shows its side's colour; those across the
+        // equator blend the two.
+        let mut whole = 0;
         for (t, tri) in part.mesh.triangles.iter().enumerate() {
-            let z: f64 = tri
-                .iter()
-                .map(|&i| part.mesh.positions[i as usize].z)
-                .sum::<f64>()
-                / 3.0;
-            if z.abs() < 0.2 {
-                continue;
-            }
-            let c = surface.color_at(t, [1.0 / 3.0; 3]);
-            let want = if z > 0.0 {
+            let z = tri.map(|i| part.mesh.positions[i as usize].z);
+            let want = if z.iter().all(|&z| z > 1e-9) {
                 [1.0, 0.0, 0.0]
-            } else {
+            } else if z.iter().all(|&z| z < -1e-9) {
                 [0.0, 0.0, 1.0]
+            } else {
+                continue;
             };
-            assert_eq!(c, want, "triangle {t} at z {z}");
+            whole += 1;
+            assert_eq!(
+                surface.color_at(t, [1.0 / 3.0; 3]),
+                want,
+                "triangle {t} at {z:?}"
+            );
         }
+        assert!(whole > part.mesh.triangles.len() / 2, "{whole}");
     }
 
     #[test]
