@@ -9,6 +9,7 @@
 
 mod api;
 mod api_table;
+mod colors;
 mod diagnostics;
 mod params;
 mod preload;
