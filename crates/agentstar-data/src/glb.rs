@@ -103,7 +103,7 @@ fn check_accessor(
 
 /// Checks what the `gltf` crate (1.4) trusts and panics on: the GLB header and chunk
 /// lengths, and the accessor indices that its validation looks up unchecked.
-fn precheck_glb(bytes: &[u8]) -> Result<(), String> {
+fn precheck_glb(bytes: &[u8]) -> Result<Vec<String>, String> {
     let word = |at: usize| -> Option<u32> {
         bytes
             .get(at..at + 4)
@@ -151,7 +151,22 @@ fn precheck_glb(bytes: &[u8]) -> Result<(), String> {
             }
         }
     }
-    Ok(())
+    // Extensions change what a file shows (a texture transform, another material model);
+    // none is read, so each one the file declares is named rather than silently ignored.
+    let unread: Vec<&str> = json["extensionsUsed"]
+        .as_array()
+        .into_iter()
+        .flatten()
+        .filter_map(|e| e.as_str())
+        .collect();
+    Ok(if unread.is_empty() {
+        vec![]
+    } else {
+        vec![format!(
+            "the file uses glTF extensions that are not read ({}); what they change (texture transforms, other materials) is not drawn",
+            unread.join(", ")
+        )]
+    })
 }
 
 fn parse_glb_from(
@@ -159,7 +174,7 @@ fn parse_glb_from(
     root_from_file: Matrix4,
     files: &SideFiles,
 ) -> Result<Vec<(String, AppearedMesh)>, String> {
-    precheck_glb(bytes).map_err(|e| format!("not a valid GLB file: {e}"))?;
+    let file_warnings = precheck_glb(bytes).map_err(|e| format!("not a valid GLB file: {e}"))?;
     // The prechecks cover the panics we know of in `gltf`; a reader bug we do not know of
     // is still an error about this file rather than a crash.
     let gltf = std::panic::catch_unwind(|| gltf::Gltf::from_slice(bytes))
@@ -327,6 +342,9 @@ fn parse_glb_from(
                 },
             ));
         }
+    }
+    if let Some((_, first)) = parts.first_mut() {
+        first.warnings.extend(file_warnings);
     }
     if parts.is_empty() {
         return Err(
@@ -515,5 +533,84 @@ impl Looks {
         )
         .map_err(|e| e.to_string())?;
         Ok((Some(Arc::new(surface)), self.warnings))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use agentstar_geom::primitives::cuboid;
+    use agentstar_geom::{KinematicTree, ObjectModel, Part};
+
+    /// A one-box GLB with `edit` applied to its JSON.
+    fn glb_with(edit: impl Fn(&mut serde_json::Value)) -> Vec<u8> {
+        let model = ObjectModel {
+            parts: vec![Part::new(
+                "box",
+                cuboid(1.0, 1.0, 1.0).expect("box"),
+                [0.2, 0.4, 0.6],
+            )],
+            tree: KinematicTree::rigid(1),
+        };
+        let bytes = crate::export::glb_bytes(&model);
+        let json_len = u32::from_le_bytes([bytes[12], bytes[13], bytes[14], bytes[15]]) as usize;
+        let mut doc: serde_json::Value =
+            serde_json::from_slice(&bytes[20..20 + json_len]).expect("json");
+        let bin_at = 20 + json_len;
+        let bin_len = u32::from_le_bytes([
+            bytes[bin_at],
+            bytes[bin_at + 1],
+            bytes[bin_at + 2],
+            bytes[bin_at + 3],
+        ]) as usize;
+        let bin = bytes[bin_at + 8..bin_at + 8 + bin_len].to_vec();
+        edit(&mut doc);
+        crate::export::glb_container(&doc, bin)
+    }
+
+    #[test]
+    fn a_plain_materials_colour_round_trips_and_unread_extensions_are_named() {
+        let parts = parse_glb_appearance(&glb_with(|_| {}), &SideFiles::none()).expect("glb");
+        let surface = parts[0].1.surface.as_ref().expect("a material");
+        let c = surface.materials()[0].color;
+        assert!(
+            (0..3).all(|i| (c[i] - [0.2, 0.4, 0.6][i]).abs() < 1e-5),
+            "{c:?}"
+        );
+        assert!(parts[0].1.warnings.is_empty());
+        let with_ext = glb_with(|d| {
+            d["extensionsUsed"] = serde_json::json!(["KHR_texture_transform"]);
+        });
+        let parts = parse_glb_appearance(&with_ext, &SideFiles::none()).expect("glb");
+        assert!(
+            parts[0]
+                .1
+                .warnings
+                .iter()
+                .any(|w| w.contains("KHR_texture_transform")),
+            "{:?}",
+            parts[0].1.warnings
+        );
+    }
+
+    #[test]
+    fn a_texture_on_a_primitive_without_its_coordinates_is_named_and_dropped() {
+        // A base colour texture on the box, whose primitive has no texture coordinates.
+        let glb = glb_with(|d| {
+            let views = d["bufferViews"].as_array_mut().expect("views");
+            views.push(serde_json::json!({"buffer": 0, "byteOffset": 0, "byteLength": 8}));
+            let last = views.len() - 1;
+            d["images"] = serde_json::json!([{"bufferView": last, "mimeType": "image/png"}]);
+            d["textures"] = serde_json::json!([{"source": 0}]);
+            d["materials"][0]["pbrMetallicRoughness"]["baseColorTexture"] =
+                serde_json::json!({"index": 0});
+        });
+        let parts = parse_glb_appearance(&glb, &SideFiles::none()).expect("still reads");
+        // The box has no TEXCOORD_0: the texture is named and dropped.
+        assert!(
+            parts[0].1.warnings.iter().any(|w| w.contains("TEXCOORD_0")),
+            "{:?}",
+            parts[0].1.warnings
+        );
     }
 }
