@@ -5,6 +5,7 @@
 //! radians everywhere in this crate; degrees appear only at the edges (scene scripts,
 //! `pose.json`), where the conversion is named explicitly (`angle_deg`).
 
+pub mod appearance;
 pub mod camera;
 pub mod csg;
 pub mod hull;
@@ -16,6 +17,7 @@ pub mod primitives;
 pub mod simplify;
 pub mod truth;
 
+pub use appearance::{AppearedMesh, Material, SurfaceAppearance, Texture, WrapMode};
 pub use camera::PinholeCamera;
 pub use kinematics::{JointDef, JointKind, KinematicTree};
 pub use mesh::{Aabb, TriMesh};

@@ -1,6 +1,7 @@
 //! The object model: named parts (meshes in the canonical rest frame, each with a colour)
 //! and the kinematic tree that moves them, plus the canonical-frame report.
 
+use crate::appearance::SurfaceAppearance;
 use crate::kinematics::KinematicTree;
 use crate::mesh::{Aabb, TriMesh};
 use crate::pose::{ObjectPose, Rigid};
@@ -30,6 +31,9 @@ pub struct Part {
     /// renderers tell front faces from back ones without projecting every vertex. `None`
     /// when `edges` is.
     pub planes: Option<Arc<Vec<[f64; 4]>>>,
+    /// Texture, vertex colours or materials per triangle where the model file had them;
+    /// `color` is then their mean. `None`: the part is `color` all over.
+    pub surface: Option<Arc<SurfaceAppearance>>,
 }
 
 impl Part {
@@ -52,6 +56,35 @@ impl Part {
             edges,
             open_edges,
             planes,
+            surface: None,
+        }
+    }
+
+    /// The part with `surface` as its appearance, and its mean as its colour; refused when
+    /// the surface is not for this many triangles.
+    pub fn with_surface(mut self, surface: Arc<SurfaceAppearance>) -> crate::Result<Part> {
+        if surface.triangle_count() != self.mesh.triangles.len() {
+            return Err(crate::GeomError::InvalidArgument {
+                primitive: "part".into(),
+                reason: format!(
+                    "part `{}`: an appearance for {} triangles on a mesh of {}",
+                    self.name,
+                    surface.triangle_count(),
+                    self.mesh.triangles.len()
+                ),
+            });
+        }
+        self.color = surface.mean_color(&self.mesh);
+        self.surface = Some(surface);
+        Ok(self)
+    }
+
+    /// The colour at barycentric coordinates `bary` of triangle `triangle`: the surface's
+    /// where the part has one, else the part's colour.
+    pub fn color_at(&self, triangle: usize, bary: [f32; 3]) -> [f32; 3] {
+        match &self.surface {
+            Some(s) => s.color_at(triangle, bary),
+            None => self.color,
         }
     }
 }

@@ -11,6 +11,7 @@ pub mod raster;
 pub mod scene;
 pub mod score;
 pub mod sheet;
+pub mod surface;
 pub mod text;
 pub mod views;
 

@@ -111,6 +111,26 @@ impl Session {
         render_full(&self.capture.frames[i].camera, &self.posed(i).instances)
     }
 
+    /// Frame `i`'s full render and the model drawn from it with its textures, vertex
+    /// colours and part colours.
+    pub fn render_shaded(
+        &self,
+        i: usize,
+        opts: agentstar_render::views::ShadeOptions,
+    ) -> (RenderBuffers, image::RgbaImage) {
+        let camera = &self.capture.frames[i].camera;
+        let posed = self.posed(i);
+        let buffers = render_full(camera, &posed.instances);
+        let shaded = agentstar_render::views::shade_model(
+            &self.model.model,
+            &posed.instances,
+            camera,
+            &buffers,
+            opts,
+        );
+        (buffers, shaded)
+    }
+
     /// The score target (mask with hands excluded) and observed depth of frame `i`.
     pub fn target(&self, i: usize) -> Result<FrameInputs> {
         let target = ScoreTarget::new(self.capture.load_mask(i)?, self.capture.load_hand(i)?)?

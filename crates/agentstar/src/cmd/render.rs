@@ -8,7 +8,7 @@ use agentstar_data::images::{save_png_rgb, save_png_rgba};
 use agentstar_render::frames::{crop_box, crop_zoomed, frame_view, FrameViewOptions, MAX_ZOOM};
 use agentstar_render::sheet::{fit_to_limits, sheet_pages};
 use agentstar_render::views::{
-    comparison_legend, id_color, overlay, part_id_view, shade, side_by_side, silhouette_comparison,
+    comparison_legend, id_color, overlay, part_id_view, side_by_side, silhouette_comparison,
     with_legend, ShadeOptions,
 };
 use agentstar_reports::view::{RenderFrame, RenderReport};
@@ -150,7 +150,6 @@ pub fn run(a: Args) -> Result<ExitCode> {
     let s = a.session.open()?;
     let frames = select_frames(&s.capture, a.frames.as_deref())?;
     let dir = out_dir(&a.out)?;
-    let colors: Vec<[f32; 3]> = s.model.model.parts.iter().map(|p| p.color).collect();
     let names = s.model.model.part_names();
     let opts = ShadeOptions {
         outlines: !a.no_outlines,
@@ -167,8 +166,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
         .map(|&i| {
             bar.inc(1);
             let f = &s.capture.frames[i];
-            let buffers = s.render_buffers(i);
-            let shaded = shade(&buffers, &colors, opts);
+            let (buffers, shaded) = s.render_shaded(i, opts);
             let mut written = Vec::new();
             let mut iou = None;
             let frame_img = s.capture.load_frame(i)?;

@@ -14,7 +14,7 @@ use agentstar_data::posefile::pose_json;
 use agentstar_geom::{KinematicTree, Point3, UnitQuaternion};
 use agentstar_render::frames::{crop_box, crop_zoomed, widened};
 use agentstar_render::sheet::sheet_pages;
-use agentstar_render::views::{overlay, shade, silhouette_comparison, ShadeOptions};
+use agentstar_render::views::{overlay, shade_model, silhouette_comparison, ShadeOptions};
 use agentstar_render::{render_full, BitMask, PosedModel};
 use agentstar_reports::{Candidate, SearchFrame, SearchReport, SearchVerb};
 use agentstar_track::hypotheses::{hinge_swaps, refine_each, refine_ranked, LocalWindow};
@@ -162,9 +162,8 @@ fn candidate_sheet(
     let frame = s.capture.load_frame(i)?;
     let (target, _) = s.target(i)?;
     let cam = s.capture.frames[i].camera;
-    let colors: Vec<[f32; 3]> = s.model.model.parts.iter().map(|p| p.color).collect();
     let hand = target.keep().map(|k| k.not());
-    let shown: Vec<(&Row, agentstar_render::RenderBuffers)> = rows
+    let shown: Vec<(&Row, agentstar_render::RenderBuffers, image::RgbaImage)> = rows
         .iter()
         .take(limit.max(1))
         .map(|r| {
@@ -173,10 +172,18 @@ fn candidate_sheet(
                 &r.pose.states,
                 &r.pose.pose.with_scale(s.scale()),
             );
-            (r, render_full(&cam, &posed.instances))
+            let buffers = render_full(&cam, &posed.instances);
+            let shaded = shade_model(
+                &s.model.model,
+                &posed.instances,
+                &cam,
+                &buffers,
+                ShadeOptions::default(),
+            );
+            (r, buffers, shaded)
         })
         .collect();
-    let silhouettes: Vec<BitMask> = shown.iter().map(|(_, b)| b.silhouette()).collect();
+    let silhouettes: Vec<BitMask> = shown.iter().map(|(_, b, _)| b.silhouette()).collect();
     let union = silhouettes
         .iter()
         .skip(1)
@@ -197,16 +204,15 @@ fn candidate_sheet(
     // opaque (its print against the frame's, as `render side` shows it: play-tests 8 and 10
     // could not tell the model's print from the frame's under the translucent overlay), and
     // the silhouette comparison.
-    for ((r, buffers), sil) in shown.iter().zip(&silhouettes) {
-        let shaded = shade(buffers, &colors, ShadeOptions::default());
+    for ((r, _, shaded), sil) in shown.iter().zip(&silhouettes) {
         let (cmp, _) = silhouette_comparison(sil, target.mask(), hand.as_ref());
         tiles.push((
             format!("#{} IoU {:.4} {}", r.rank, r.score.gate, r.label),
-            cut(&overlay(&frame, &shaded, 0.6)),
+            cut(&overlay(&frame, shaded, 0.6)),
         ));
         tiles.push((
             format!("#{} model (opaque)", r.rank),
-            cut(&overlay(&frame, &shaded, 1.0)),
+            cut(&overlay(&frame, shaded, 1.0)),
         ));
         tiles.push((format!("#{} compare", r.rank), cut(&cmp)));
     }
