@@ -7,6 +7,7 @@
 
 pub mod camera;
 pub mod csg;
+pub mod facing;
 pub mod hull;
 pub mod kinematics;
 pub mod mesh;

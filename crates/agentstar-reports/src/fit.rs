@@ -105,6 +105,9 @@ pub enum ScaleMethod {
     Parallax,
     /// A size the agent states along one model axis.
     Size,
+    /// The hands' apparent palm breadth against an adult-hand prior, the hand at the
+    /// object's depth (hand masks, no depth): the weakest route, with its uncertainty.
+    Hand,
 }
 
 /// One keyframe's figure in a scale estimate.
@@ -112,9 +115,12 @@ pub enum ScaleMethod {
 #[serde(deny_unknown_fields)]
 pub struct ScaleFrame {
     pub frame: String,
-    /// Its own ratio (depth), or the object origin's distance from the common point after
-    /// the fit, metres (parallax).
+    /// Its own ratio (depth, hand), or the object origin's distance from the common point
+    /// after the fit, metres (parallax).
     pub value: f64,
+    /// With the hand route: the palm's apparent breadth, pixels.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub palm_px: Option<f64>,
 }
 
 /// What `agentstar scale` found (and on stdout with `--json`).
@@ -130,8 +136,12 @@ pub struct ScaleReport {
     pub frames: Vec<ScaleFrame>,
     /// Relative spread of the estimate (see the method).
     pub spread: f64,
-    /// Pixels (depth), frames (parallax) or 1 (size).
+    /// Pixels (depth), frames (parallax, hand) or 1 (size).
     pub samples: usize,
+    /// One standard deviation of the ratio, relative, where the route states one (hand:
+    /// the palm prior's spread, the frames' spread and where the hand sits on the object).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub uncertainty: Option<f64>,
     pub notes: Vec<String>,
     /// True when the estimate's own checks warn (frames that disagree, a short baseline, an
     /// object that wanders in the world): the notes say which.

@@ -418,6 +418,92 @@ fn scale_comes_back_from_depth_parallax_and_a_stated_size() {
     );
 }
 
+/// `agentstar scale --from hand`: the hands' palm breadth against the adult prior puts a
+/// hand-held laptop (no depth, a moving object: no other route applies) back at its scale
+/// from poses at 0.6 of it, within the uncertainty the report states; a capture without
+/// hands says what to use instead.
+#[test]
+fn scale_comes_back_from_the_hands_within_its_stated_uncertainty() {
+    let dir = tempfile::tempdir().expect("tmp");
+    let synth = |out: &Path, object: &str, hands: bool| {
+        let mut args = vec![
+            "synth".to_string(),
+            s(out),
+            "--object".into(),
+            object.into(),
+            "--motion".into(),
+            "handheld".into(),
+            "--frames".into(),
+            "10".into(),
+            "--size".into(),
+            "320x240".into(),
+            "--seed".into(),
+            "5".into(),
+        ];
+        if !hands {
+            args.push("--no-hands".into());
+        }
+        let o = agentstar(&args.iter().map(String::as_str).collect::<Vec<_>>());
+        assert!(o.status.success(), "{}", text(&o));
+    };
+    // The laptop (0.3 m) is drawn with full-size hands: a palm of 8.5 cm.
+    assert_eq!(agentstar_synth::hand::hand_scale_for(0.3), 1.0);
+    let cap = dir.path().join("laptop");
+    synth(&cap, "laptop", true);
+    let model = cap.join("model/scene.rhai");
+    let wrong = dir.path().join("wrong.json");
+    let truth = rescaled(&cap.join("model/pose.json"), 0.6, &wrong);
+    let scale_cli = |cap: &Path, poses: &Path, model: &Path| {
+        agentstar(&[
+            "scale",
+            "--capture",
+            &s(cap),
+            "--model",
+            &s(model),
+            "--poses",
+            &s(poses),
+            "--from",
+            "hand",
+            "--json",
+        ])
+    };
+    let o = scale_cli(&cap, &wrong, &model);
+    assert!(o.status.success(), "{}", text(&o));
+    let r: agentstar_reports::fit::ScaleReport =
+        serde_json::from_slice(&o.stdout).unwrap_or_else(|_| panic!("{}", text(&o)));
+    let u = r.uncertainty.expect("the hand route states its uncertainty");
+    let error = r.scale_after / truth - 1.0;
+    eprintln!(
+        "hand: {:.4} m per unit vs {truth} ({:+.1}%), ± {:.1}% over {} frames, palms {:?} px",
+        r.scale_after,
+        100.0 * error,
+        100.0 * u,
+        r.samples,
+        r.frames.iter().map(|f| f.palm_px).collect::<Vec<_>>()
+    );
+    assert!(r.samples >= 3, "{r:?}");
+    assert!(u > 0.05 && u < 0.2, "{r:?}");
+    assert!(error.abs() <= 2.0 * u, "{error} vs ± {u}: {r:?}");
+    // From 40% off to within its stated range: far better than the start.
+    assert!(error.abs() < 0.5 * (1.0 / 0.6 - 1.0) * 0.6, "{r:?}");
+    assert!(r.frames.iter().all(|f| f.palm_px.is_some_and(|p| p >= 10.0)));
+    let notes = r.notes.join("\n");
+    assert!(
+        notes.contains("--from depth") && notes.contains("parallax") && notes.contains("--from size"),
+        "{notes}"
+    );
+    // Without hand masks: a clear error, naming the other routes.
+    let bare = dir.path().join("bare");
+    synth(&bare, "laptop", false);
+    let o = scale_cli(&bare, &bare.join("model/pose.json"), &bare.join("model/scene.rhai"));
+    assert!(!o.status.success(), "{}", text(&o));
+    assert!(
+        text(&o).contains("hand mask") && text(&o).contains("depth"),
+        "{}",
+        text(&o)
+    );
+}
+
 #[test]
 fn scene_write_reads_a_script_from_a_file_in_the_run_and_nowhere_else() {
     let dir = tempfile::tempdir().expect("tmp");

@@ -78,7 +78,7 @@ pub enum SizeAxis {
 #[derive(Debug, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct ScaleArgs {
-    /// `depth` (the capture's depth against the render), `parallax` (metric cameras moving around an object that stays put) or `size` (give `axis` and `metres`).
+    /// `depth` (the capture's depth against the render), `parallax` (metric cameras moving around an object that stays put), `size` (give `axis` and `metres`) or `hand` (the hands' palm breadth in their masks against an adult hand, the hand at the object's depth: without depth or a known size only, ± about 10%).
     pub method: agentstar_reports::fit::ScaleMethod,
     /// With `size`: the model axis the size is along (default the longest side).
     pub axis: Option<SizeAxis>,
@@ -96,7 +96,7 @@ tool!(FitShape, "fit_shape", Shape, Scene, FitShapeArgs,
     |tb, a, step| tb.fit_shape(&a, step));
 
 tool!(Scale, "scale", Pose, Poses, ScaleArgs,
-    "Estimate the scale (metres per model unit) from the capture's depth, from the parallax of metric cameras moving around an object that stays put, or from a size you state along a model axis; with `apply: true` rescale pose.json to it (rotations kept, translations scaled, so every silhouette and IoU stays the same; a pose version). Silhouettes never say the scale: use this before reporting metric results.",
+    "Estimate the scale (metres per model unit) from the capture's depth, from the parallax of metric cameras moving around an object that stays put, from a size you state along a model axis, or from the hands holding it (their palm breadth in the hand masks against an adult hand's, about 7.9 cm: the weakest route, its uncertainty stated; use it when there is no depth, the object moves and you know no size); with `apply: true` rescale pose.json to it (rotations kept, translations scaled, so every silhouette and IoU stays the same; a pose version). Silhouettes never say the scale: use this before reporting metric results.",
     |tb, a, step| tb.scale(&a, step));
 
 impl Toolbox {
@@ -135,6 +135,7 @@ impl Toolbox {
             agentstar_reports::fit::ScaleMethod::Depth => "depth",
             agentstar_reports::fit::ScaleMethod::Parallax => "parallax",
             agentstar_reports::fit::ScaleMethod::Size => "size",
+            agentstar_reports::fit::ScaleMethod::Hand => "hand",
         };
         let (ok, stdout, stderr) = self.exec(call.args())?;
         if !ok {
@@ -145,12 +146,21 @@ impl Toolbox {
                 AgentError::Tool(format!("scale printed no scale report ({e}): {stdout}"))
             })?;
         let mut text = format!(
-            "scale from {method}: {} → {:.6} m per model unit (translations × {:.4}; spread {:.2}%, {} sample(s))\n",
+            "scale from {method}: {} → {:.6} m per model unit (translations × {:.4}; spread {:.2}%, {} sample(s){})\n",
             report.scale_before,
             report.scale_after,
             report.ratio,
             100.0 * report.spread,
-            report.samples
+            report.samples,
+            match report.uncertainty {
+                Some(u) => format!(
+                    "; ± {:.0}% one standard deviation: {:.6} to {:.6} m per unit",
+                    100.0 * u,
+                    report.scale_after * (1.0 - u),
+                    report.scale_after * (1.0 + u)
+                ),
+                None => String::new(),
+            }
         );
         for n in &report.notes {
             text.push_str(&format!("note: {n}\n"));

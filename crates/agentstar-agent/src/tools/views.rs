@@ -156,8 +156,9 @@ tool!(Score, "score", Diagnostic, Nothing, FramesArgs,
         }
         // The table a person reads; the report's numbers are the structured content.
         o.text = format!(
-            "{head}\n{}",
-            agentstar_reports::score_table(&report.frames, &report.sequence, &report.appearance)
+            "{head}\n{}{}",
+            agentstar_reports::score_table(&report.frames, &report.sequence, &report.appearance),
+            agentstar_reports::view::facing_lines(&report.facing)
         );
         o.structured = serde_json::to_value(&report).ok();
         Ok(o)

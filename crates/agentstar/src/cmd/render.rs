@@ -179,6 +179,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
                     iou_visible: None,
                     crop: None,
                     zoom: None,
+                    facing: s.facing(i),
                 },
                 overlay_tile: None,
                 frame_tile: None,
