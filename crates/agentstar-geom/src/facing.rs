@@ -193,8 +193,8 @@ mod tests {
             origin: Vector3::new(0.0, 0.5, 0.1),
             limit: Some((0.0, 120.0)),
         };
-        let tree =
-            KinematicTree::new(vec![joint], &["body".to_string(), "lid".to_string()]).expect("tree");
+        let tree = KinematicTree::new(vec![joint], &["body".to_string(), "lid".to_string()])
+            .expect("tree");
         let model = ObjectModel {
             parts: vec![body, lid],
             tree,
@@ -227,12 +227,18 @@ mod tests {
         assert!(lid.moved && !body.moved);
         // Its +Z is 70° off the ray now (±5° of perspective from its own centre), so its
         // +Y is the side nearest the camera.
-        assert!((lid.side.axis_angles[2].to_degrees() - 70.0).abs() < 5.0, "{lid:?}");
+        assert!(
+            (lid.side.axis_angles[2].to_degrees() - 70.0).abs() < 5.0,
+            "{lid:?}"
+        );
         assert_eq!(lid.side.axis, "+Y", "{lid:?}");
         assert!(body.side.angle.to_degrees() < 5.0, "{body:?}");
         let line = f.line(4);
         assert!(line.starts_with("+Z toward the camera"), "{line}");
-        assert!(line.contains("`lid`") && line.contains("moved by its joint"), "{line}");
+        assert!(
+            line.contains("`lid`") && line.contains("moved by its joint"),
+            "{line}"
+        );
         // A camera at the centre has no side toward it.
         let inside = Similarity {
             translation: -(pose.rotation * model.posed_bounds(&[0.0]).center().coords),

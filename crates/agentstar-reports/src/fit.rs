@@ -59,6 +59,146 @@ pub struct FitRoundRow {
     pub builds: usize,
 }
 
+/// What a group of frames wants of the model's size along X, Y and Z: relative changes
+/// (0.08: 8% longer), `None` along an axis these frames cannot tell.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct AxisWants {
+    pub want: [Option<f64>; 3],
+    pub equations: usize,
+}
+
+/// Frames grouped by the model axis they see face-on (`X`, `Y`, `Z`, or `oblique`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ViewGroup {
+    pub face_on: String,
+    pub frames: Vec<String>,
+    pub wants: AxisWants,
+}
+
+/// Residuals of the fitted silhouettes against the masks grouped by viewing direction:
+/// the observed extent over the model's along each projected model axis, solved for the
+/// relative size changes each group of frames wants (`agentstar_track::proportion`). Only
+/// differences between the axes mean something: a uniform change is the scale.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ViewResiduals {
+    pub all: AxisWants,
+    pub groups: Vec<ViewGroup>,
+    /// What this says in words: which axis the frames want longer or shorter, and which
+    /// fixed proportion that points at; empty when the axes agree within
+    /// [`PROPORTION_NOTE_SHARE`].
+    pub verdict: Vec<String>,
+}
+
+/// Axes whose wanted changes differ by less than this share are said to agree.
+pub const PROPORTION_NOTE_SHARE: f64 = 0.03;
+
+const AXIS_NAMES: [&str; 3] = ["X", "Y", "Z"];
+
+fn percent(v: f64) -> String {
+    format!("{:+.1}%", 100.0 * v)
+}
+
+impl AxisWants {
+    /// "X +8.0%, Y +0.1%, Z −6.0%" over the determined axes.
+    pub fn line(&self) -> String {
+        let parts: Vec<String> = AXIS_NAMES
+            .iter()
+            .zip(self.want)
+            .filter_map(|(n, w)| w.map(|w| format!("{n} {}", percent(w))))
+            .collect();
+        if parts.is_empty() {
+            "nothing measurable".into()
+        } else {
+            parts.join(", ")
+        }
+    }
+}
+
+impl ViewResiduals {
+    /// The verdict from the wanted changes of all frames and of each group: the axis the
+    /// frames want longest against the one they want shortest, relative to each other.
+    pub fn verdict_of(all: &AxisWants, groups: &[ViewGroup]) -> Vec<String> {
+        let known: Vec<(usize, f64)> = all
+            .want
+            .iter()
+            .enumerate()
+            .filter_map(|(b, w)| w.map(|w| (b, w)))
+            .collect();
+        if known.len() < 2 {
+            return vec![];
+        }
+        let (long, short) = (
+            known.iter().copied().max_by(|a, b| a.1.total_cmp(&b.1)),
+            known.iter().copied().min_by(|a, b| a.1.total_cmp(&b.1)),
+        );
+        let (Some((l, lw)), Some((s, sw))) = (long, short) else {
+            return vec![];
+        };
+        let ratio = (1.0 + lw) / (1.0 + sw).max(1e-6);
+        if ratio - 1.0 < PROPORTION_NOTE_SHARE {
+            return vec![];
+        }
+        let mut out = vec![];
+        let seen_by = |axis: usize, want_sign: f64| -> Vec<String> {
+            groups
+                .iter()
+                .filter(|g| g.face_on != AXIS_NAMES[axis])
+                .filter(|g| g.wants.want[axis].is_some_and(|w| w * want_sign > 0.0))
+                .map(|g| {
+                    format!(
+                        "the {} frame(s) face-on to {} want {} {}",
+                        g.frames.len(),
+                        g.face_on,
+                        AXIS_NAMES[axis],
+                        percent(g.wants.want[axis].unwrap_or(0.0))
+                    )
+                })
+                .collect()
+        };
+        let mut evidence = seen_by(l, 1.0);
+        evidence.extend(seen_by(s, -1.0));
+        out.push(format!(
+            "the frames want the model longer along {} ({}) than along {} ({}): the proportion {}:{} is off by ×{:.3}{}",
+            AXIS_NAMES[l],
+            percent(lw),
+            AXIS_NAMES[s],
+            percent(sw),
+            AXIS_NAMES[l],
+            AXIS_NAMES[s],
+            ratio,
+            if evidence.is_empty() {
+                String::new()
+            } else {
+                format!(" ({})", evidence.join("; "))
+            }
+        ));
+        out
+    }
+}
+
+/// The residuals by viewing direction as lines for a person or a model.
+pub fn views_text(v: &ViewResiduals) -> String {
+    let mut t = String::from(
+        "residuals by viewing direction (observed extent over the model's along its axes, at the fitted poses, as the size change the frames want; a change common to all axes is the scale, which silhouettes do not say):\n",
+    );
+    for g in &v.groups {
+        t.push_str(&format!(
+            "  face-on to {} ({} frame(s)): {}\n",
+            g.face_on,
+            g.frames.len(),
+            g.wants.line()
+        ));
+    }
+    t.push_str(&format!("  all frames: {}\n", v.all.line()));
+    for line in &v.verdict {
+        t.push_str(&format!("  → {line}\n"));
+    }
+    t
+}
+
 /// What `fit-shape` did.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -85,6 +225,9 @@ pub struct FitReport {
     pub seconds: f64,
     /// True when the fitted script and poses were written over the inputs (`--write`).
     pub written: bool,
+    /// The fitted silhouettes' residuals grouped by viewing direction, at the fitted poses.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub views: Option<ViewResiduals>,
 }
 
 impl FitReport {

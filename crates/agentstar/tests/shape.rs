@@ -471,7 +471,9 @@ fn scale_comes_back_from_the_hands_within_its_stated_uncertainty() {
     assert!(o.status.success(), "{}", text(&o));
     let r: agentstar_reports::fit::ScaleReport =
         serde_json::from_slice(&o.stdout).unwrap_or_else(|_| panic!("{}", text(&o)));
-    let u = r.uncertainty.expect("the hand route states its uncertainty");
+    let u = r
+        .uncertainty
+        .expect("the hand route states its uncertainty");
     let error = r.scale_after / truth - 1.0;
     eprintln!(
         "hand: {:.4} m per unit vs {truth} ({:+.1}%), ± {:.1}% over {} frames, palms {:?} px",
@@ -486,16 +488,25 @@ fn scale_comes_back_from_the_hands_within_its_stated_uncertainty() {
     assert!(error.abs() <= 2.0 * u, "{error} vs ± {u}: {r:?}");
     // From 40% off to within its stated range: far better than the start.
     assert!(error.abs() < 0.5 * (1.0 / 0.6 - 1.0) * 0.6, "{r:?}");
-    assert!(r.frames.iter().all(|f| f.palm_px.is_some_and(|p| p >= 10.0)));
+    assert!(r
+        .frames
+        .iter()
+        .all(|f| f.palm_px.is_some_and(|p| p >= 10.0)));
     let notes = r.notes.join("\n");
     assert!(
-        notes.contains("--from depth") && notes.contains("parallax") && notes.contains("--from size"),
+        notes.contains("--from depth")
+            && notes.contains("parallax")
+            && notes.contains("--from size"),
         "{notes}"
     );
     // Without hand masks: a clear error, naming the other routes.
     let bare = dir.path().join("bare");
     synth(&bare, "laptop", false);
-    let o = scale_cli(&bare, &bare.join("model/pose.json"), &bare.join("model/scene.rhai"));
+    let o = scale_cli(
+        &bare,
+        &bare.join("model/pose.json"),
+        &bare.join("model/scene.rhai"),
+    );
     assert!(!o.status.success(), "{}", text(&o));
     assert!(
         text(&o).contains("hand mask") && text(&o).contains("depth"),

@@ -92,7 +92,7 @@ pub struct ScaleArgs {
 }
 
 tool!(FitShape, "fit_shape", Shape, Scene, FitShapeArgs,
-    "Fit shape parameters the scene declares with `let d = param(\"depth\", 0.6, 0.4, 0.9);` (value, min, max) against the committed poses over the keyframes (default all): only the parameters you name move, within their bounds, while every keyframe's pose is refined locally. Returns the values, the IoU change per keyframe and before/after silhouette comparisons; when the mean IoU rises, the fitted values become the script's `param` values (a new scene version) and the refined poses a pose version. Fit proportions you judged wrong by eye on poses that are right otherwise; then look at a turntable (a shape that games IoU from these views can still be wrong in 3-D).",
+    "Fit shape parameters the scene declares with `let d = param(\"depth\", 0.6, 0.4, 0.9);` (value, min, max) against the committed poses over the keyframes (default all): only the parameters you name move, within their bounds, while every keyframe's pose is refined locally. Returns the values, the IoU change per keyframe and before/after silhouette comparisons; when the mean IoU rises, the fitted values become the script's `param` values (a new scene version) and the refined poses a pose version. Fit proportions you judged wrong by eye on poses that are right otherwise; then look at a turntable (a shape that games IoU from these views can still be wrong in 3-D). Also returns the residuals grouped by viewing direction (frames face-on to each model axis, and what size change along X, Y, Z they want) and, where the axes disagree, the fixed proportion they point at.",
     |tb, a, step| tb.fit_shape(&a, step));
 
 tool!(Scale, "scale", Pose, Poses, ScaleArgs,
@@ -291,6 +291,14 @@ impl Toolbox {
                 "  {}  {:.4} → {:.4}{band}\n",
                 f.frame, f.iou_before, f.iou_after
             ));
+        }
+        if let Some(v) = &report.views {
+            text.push_str(&agentstar_reports::fit::views_text(v));
+            if !v.verdict.is_empty() && fit_saves_nothing(&report).is_some() {
+                // Play-test: a fit came back to its start with no hint that the error was
+                // one fixed proportion the fitted parameters do not set.
+                text.push_str("The fit came back near its start while the frames point at a fixed proportion: the parameters fitted do not set it, or the poses hold the wrong shape where it is. Change that proportion in the script (scene_write, or declare a `param` for it and fit that), then `track` from pose.json and fit again.\n");
+            }
         }
         let mut scores = BTreeMap::new();
         scores.insert("iou_mean_before".to_string(), report.iou_mean_before);

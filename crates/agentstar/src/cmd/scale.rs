@@ -8,8 +8,8 @@ use crate::common::{print_json, select_frames, SessionArgs};
 use agentstar_data::history::PoseHistory;
 use agentstar_reports::fit::{ScaleFrame, ScaleMethod, ScaleReport};
 use agentstar_track::scale::{
-    ratio_from_depth, ratio_from_hand, ratio_from_parallax, DepthFrame, HandFrame,
-    ParallaxFrame, ScaleEstimate, PALM_BREADTH_MEAN_M, PALM_BREADTH_SD_M,
+    ratio_from_depth, ratio_from_hand, ratio_from_parallax, DepthFrame, HandFrame, ParallaxFrame,
+    ScaleEstimate, PALM_BREADTH_MEAN_M, PALM_BREADTH_SD_M,
 };
 use anyhow::{anyhow, bail, Result};
 use std::path::PathBuf;
