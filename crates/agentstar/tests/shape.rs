@@ -210,6 +210,7 @@ fn fit_shape_names_the_fixed_proportion_its_parameters_cannot_reach() {
         "{:?}\n{body}",
         v.verdict
     );
+    eprintln!("{body}");
     assert!(body.contains("residuals by viewing direction"), "{body}");
     assert!(body.contains("face-on to"), "{body}");
     assert!(body.contains("longer along X"), "{body}");

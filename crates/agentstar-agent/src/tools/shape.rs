@@ -78,7 +78,7 @@ pub enum SizeAxis {
 #[derive(Debug, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct ScaleArgs {
-    /// `depth` (the capture's depth against the render), `parallax` (metric cameras moving around an object that stays put), `size` (give `axis` and `metres`) or `hand` (the hands' palm breadth in their masks against an adult hand, the hand at the object's depth: without depth or a known size only, ± about 10%).
+    /// `depth` (the capture's depth against the render), `parallax` (metric cameras moving around an object that stays put), `size` (give `axis` and `metres`) or `hand` (the hands' palm breadth in their masks against an adult hand, the hand at the object's depth: without depth or a known size only; its uncertainty, often ±10–20%, is stated).
     pub method: agentstar_reports::fit::ScaleMethod,
     /// With `size`: the model axis the size is along (default the longest side).
     pub axis: Option<SizeAxis>,
