@@ -141,26 +141,22 @@ impl ViewResiduals {
         if ratio - 1.0 < PROPORTION_NOTE_SHARE {
             return vec![];
         }
-        let mut out = vec![];
-        let seen_by = |axis: usize, want_sign: f64| -> Vec<String> {
-            groups
-                .iter()
-                .filter(|g| g.face_on != AXIS_NAMES[axis])
-                .filter(|g| g.wants.want[axis].is_some_and(|w| w * want_sign > 0.0))
-                .map(|g| {
-                    format!(
-                        "the {} frame(s) face-on to {} want {} {}",
-                        g.frames.len(),
-                        g.face_on,
-                        AXIS_NAMES[axis],
-                        percent(g.wants.want[axis].unwrap_or(0.0))
-                    )
-                })
-                .collect()
-        };
-        let mut evidence = seen_by(l, 1.0);
-        evidence.extend(seen_by(s, -1.0));
-        out.push(format!(
+        let evidence: Vec<String> = groups
+            .iter()
+            .filter_map(|g| {
+                let (a, b) = (g.wants.want[l]?, g.wants.want[s]?);
+                Some(format!(
+                    "{} frame(s) {}: {} {} against {} {}",
+                    g.frames.len(),
+                    g.label(),
+                    AXIS_NAMES[l],
+                    percent(a),
+                    AXIS_NAMES[s],
+                    percent(b)
+                ))
+            })
+            .collect();
+        vec![format!(
             "the frames want the model longer along {} ({}) than along {} ({}): the proportion {}:{} is off by ×{:.3}{}",
             AXIS_NAMES[l],
             percent(lw),
@@ -174,8 +170,18 @@ impl ViewResiduals {
             } else {
                 format!(" ({})", evidence.join("; "))
             }
-        ));
-        out
+        )]
+    }
+}
+
+impl ViewGroup {
+    /// "face-on to X", or "seen obliquely".
+    pub fn label(&self) -> String {
+        if self.face_on == "oblique" {
+            "seen obliquely (no axis face-on)".into()
+        } else {
+            format!("face-on to {}", self.face_on)
+        }
     }
 }
 
@@ -186,8 +192,8 @@ pub fn views_text(v: &ViewResiduals) -> String {
     );
     for g in &v.groups {
         t.push_str(&format!(
-            "  face-on to {} ({} frame(s)): {}\n",
-            g.face_on,
+            "  {} ({} frame(s)): {}\n",
+            g.label(),
             g.frames.len(),
             g.wants.line()
         ));

@@ -113,8 +113,9 @@ fn project_direction(cam: &PinholeCamera, p: &Point3, d: &Vector3) -> [f64; 2] {
 }
 
 /// The relative size changes along the determined axes that best explain `rows`
-/// (`[a_X, a_Y, a_Z, residual]`), least squares.
-fn solve(rows: &[[f64; 4]]) -> AxisWants {
+/// (`[a_X, a_Y, a_Z, residual]`), least squares; the axis `end_on` (seen end-on by every
+/// frame of a group) is left out.
+fn solve(rows: &[[f64; 4]], end_on: Option<usize>) -> AxisWants {
     let mut weight = [0.0f64; 3];
     for r in rows {
         for b in 0..3 {
@@ -123,6 +124,7 @@ fn solve(rows: &[[f64; 4]]) -> AxisWants {
     }
     let strongest = weight.iter().copied().fold(0.0, f64::max);
     let cols: Vec<usize> = (0..3)
+        .filter(|&b| Some(b) != end_on)
         .filter(|&b| strongest > 0.0 && weight[b] >= MIN_COLUMN_SHARE * strongest)
         .collect();
     let mut want = [None; 3];
@@ -219,13 +221,13 @@ pub fn view_residuals(frames: &[ViewFrame<'_>]) -> ViewResiduals {
                 .filter(|p| p.face_on == face_on)
                 .map(|p| p.frame.clone())
                 .collect(),
-            wants: solve(&rows),
+            wants: solve(&rows, NAMES.iter().position(|n| *n == face_on)),
             face_on,
         })
         .collect();
     groups.sort_by(|a, b| a.face_on.cmp(&b.face_on));
     ViewResiduals {
-        all: solve(&all_rows),
+        all: solve(&all_rows, None),
         groups,
         frames: per_frame,
     }
@@ -291,6 +293,12 @@ mod tests {
         // X wants ~ +11% (1.0 / 0.9), the others about nothing.
         assert!((x - 0.111).abs() < 0.04, "{r:?}");
         assert!(y.abs() < 0.03 && z.abs() < 0.03, "{r:?}");
+        // A group never judges the axis it sees end-on.
+        for g in &r.groups {
+            if let Some(b) = ["X", "Y", "Z"].iter().position(|n| *n == g.face_on) {
+                assert!(g.wants.want[b].is_none(), "{g:?}");
+            }
+        }
         // The right model wants nothing.
         let same: Vec<ViewFrame<'_>> = masks
             .iter()
