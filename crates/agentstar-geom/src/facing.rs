@@ -39,8 +39,8 @@ pub struct Facing {
     pub parts: Vec<PartSide>,
 }
 
-/// The side of a frame whose axes are the columns of `frame_from_camera_dir`'s inverse: the
-/// unit direction toward the camera `toward` expressed in the body's own axes.
+/// The side of a body toward the camera, from `toward`: the direction from the body's
+/// centre to the camera, in the body's own axes.
 fn side_of(toward: &Vector3) -> Side {
     let d = toward.normalize();
     let axis_angles = [
@@ -77,7 +77,7 @@ pub fn facing(
     let eye = object_from_camera.transform_point(&Point3::origin());
     let centre = model.posed_bounds(states).center();
     let toward = eye - centre;
-    if !(toward.norm() > 1e-12) || !toward.iter().all(|v| v.is_finite()) {
+    if !toward.iter().all(|v| v.is_finite()) || toward.norm() <= 1e-12 {
         return None;
     }
     let transforms = model.tree.part_transforms(states);
@@ -215,7 +215,7 @@ mod tests {
         let turn = UnitQuaternion::from_axis_angle(&Vector3::y_axis(), 40f64.to_radians());
         let turned = Similarity {
             rotation: turn * pose.rotation,
-            ..pose.clone()
+            ..pose
         };
         let f = facing(&model, &[0.0], &turned).expect("facing");
         assert_eq!(f.model.axis, "+Z");

@@ -301,3 +301,43 @@ pub struct ScaleReport {
     /// True when the rescaled poses were written over the input (`--write`).
     pub written: bool,
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn wants(x: f64, y: f64, z: Option<f64>) -> AxisWants {
+        AxisWants {
+            want: [Some(x), Some(y), z],
+            equations: 6,
+        }
+    }
+
+    #[test]
+    fn the_verdict_names_the_proportion_the_axes_disagree_on() {
+        let groups = vec![ViewGroup {
+            face_on: "Z".into(),
+            frames: vec!["a".into(), "b".into()],
+            wants: wants(0.10, -0.02, None),
+        }];
+        let v = ViewResiduals::verdict_of(&wants(0.08, -0.02, Some(0.0)), &groups);
+        assert_eq!(v.len(), 1, "{v:?}");
+        assert!(
+            v[0].contains("longer along X (+8.0%) than along Y (-2.0%)"),
+            "{v:?}"
+        );
+        assert!(v[0].contains("X:Y is off by ×1.102"), "{v:?}");
+        assert!(
+            v[0].contains("2 frame(s) face-on to Z: X +10.0% against Y -2.0%"),
+            "{v:?}"
+        );
+        // A change common to every axis is the scale: no verdict.
+        assert!(ViewResiduals::verdict_of(&wants(0.2, 0.2, Some(0.21)), &groups).is_empty());
+        // One axis measured says nothing of a proportion.
+        let one = AxisWants {
+            want: [Some(0.1), None, None],
+            equations: 2,
+        };
+        assert!(ViewResiduals::verdict_of(&one, &[]).is_empty());
+    }
+}

@@ -159,7 +159,7 @@ pub fn view_residuals(frames: &[ViewFrame<'_>]) -> ViewResiduals {
     for f in frames {
         let pose = &f.camera_from_object;
         let centre = pose.transform_point(&f.centre);
-        if !(centre.z > 1e-9) {
+        if !centre.z.is_finite() || centre.z <= 1e-9 {
             continue;
         }
         // Unit model axes in the camera frame, and their image projections per unit size.
@@ -282,7 +282,7 @@ mod tests {
                 mask,
                 keep: None,
                 silhouette: sil,
-                camera_from_object: pose.clone(),
+                camera_from_object: *pose,
                 centre: Point3::origin(),
                 size: Vector3::new(0.9, 0.6, 0.4),
             })
@@ -309,7 +309,7 @@ mod tests {
                 mask,
                 keep: None,
                 silhouette: mask,
-                camera_from_object: pose.clone(),
+                camera_from_object: *pose,
                 centre: Point3::origin(),
                 size: Vector3::new(1.0, 0.6, 0.4),
             })
