@@ -52,8 +52,13 @@ Alternate two kinds of steps; **each step changes the shape or the poses, never 
    the arm that moves as the object does (see the gates). Proportions you are unsure of (a depth, a handle's height) are better
    declared as parameters, `param("depth", 0.9, 0.7, 1.1)`, and fitted with `fit_shape`
    (only the parameters you name move, within their bounds, against the committed poses);
-   `scale` estimates metres per model unit (from depth, camera parallax or a size you state)
-   and rescales the poses.
+   its reply groups the residuals by viewing direction (frames face-on to each model axis,
+   and the size change along X, Y, Z they want): when the fit comes back to its start and
+   the frames want one axis longer than another, a fixed proportion the fitted parameters
+   do not set is wrong, so change it in the script.
+   `scale` estimates metres per model unit (from depth, camera parallax, a size you state,
+   or, with none of these, the hands holding the object: `hand`, about ±10–20%) and
+   rescales the poses.
 2. **Pose step.** Pick the worst keyframes (`score`, `temporal`), name a bounded region with
    `sweep` (camera-frame ranges and joint ranges, e.g. `yaw:-30,30;pitch:-20,20;hinge:0,90`)
    or the object-frame verbs (`osweep`, `oapply` with `flips` for near-symmetric objects,
@@ -68,7 +73,13 @@ Alternate two kinds of steps; **each step changes the shape or the poses, never 
 ## Reading the images
 
 The tool `render` draws these views (`views`, e.g. `"compare,side"`; default overlay and
-compare; compare and side are cropped around the object, overlay shows the whole frame):
+compare; compare and side are cropped around the object, overlay shows the whole frame).
+`zoom` (up to 8) and `crop` (`mask`, or a box `x0,y0,x1,y1` in frame pixels) apply to every
+view and sheet of `render` and to `frames`: to judge a detail of a few pixels (a drinking
+hole, a letter), crop a box around it and zoom. `render` and `score` also say per keyframe
+which side of the model faces the camera (`+Z toward the camera (12° off the ray; …)`,
+each axis's angle to the camera ray, 0°/180° face-on, 90° edge-on) and which side of each
+part (a lid at its joint state), so you need not compute it from pose.json.
 
 - **compare** (the silhouette comparison; each image carries the same legend):
 {COMPARE_LEGEND}
@@ -76,6 +87,8 @@ compare; compare and side are cropped around the object, overlay shows the whole
 - **frames**: the raw keyframe itself, cropped around its mask (optionally zoomed, with the
   mask's boundary in magenta, the hand's in cyan, the model's in yellow): the only view of
   the input without the model over it; use it to judge thin parts, print and texture.
+  With `model: true` the posed model in its own colours, opaque, stands beside each crop at
+  the same crop and zoom.
 - **candidate sheet** (sweeps): one candidate a row, as the render over the frame, the
   model opaque on the frame (its print against the frame's), and its comparison, cropped
   around the object, ranked, labelled with rank, IoU and the order that produced it.
@@ -124,8 +137,9 @@ so a high IoU does not rule them out:
 - **Scale.** A larger object farther away casts the same silhouette: the IoU cannot tell
   the scale from the distance. Check: use depth when the capture has it (the depth error
   in `score`), a size you know ("the laptop is 30 cm wide"), or a moving camera's
-  parallax, each a method of the `scale` tool; keep proportions from the frames, not from
-  the IoU.
+  parallax, each a method of the `scale` tool; with none of these, the hands holding the
+  object (`hand`: an adult palm is about 7.9 cm across) give a rough scale with its
+  uncertainty stated; keep proportions from the frames, not from the IoU.
 
 ## Gates before you finish
 

@@ -8,6 +8,7 @@
 pub mod appearance;
 pub mod camera;
 pub mod csg;
+pub mod facing;
 pub mod hull;
 pub mod kinematics;
 pub mod mesh;

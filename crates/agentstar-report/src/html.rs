@@ -456,7 +456,12 @@ pub fn render_html(r: &Report) -> String {
             .map_or("no visible mask".to_string(), |v| format!("{v:.4}"));
         let _ = write!(
             s,
-            r#"<figure id="frame-{i}" data-src="{src}"><img loading="lazy" src="{ov}" alt="{n}"><figcaption>{n} · IoU visible <span class="{c}">{iou}</span> · raw {raw:.4}</figcaption></figure>"#,
+            r#"<figure id="frame-{i}" data-src="{src}"><img loading="lazy" src="{ov}" alt="{n}"><figcaption>{n} · IoU visible <span class="{c}">{iou}</span> · raw {raw:.4}{facing}</figcaption></figure>"#,
+            facing = f
+                .facing
+                .as_ref()
+                .map(|l| format!(r#"<br><span class="facing">{}</span>"#, esc(l)))
+                .unwrap_or_default(),
             src = data_uri(&f.frame),
             ov = data_uri(&f.overlay),
             n = esc(&f.name),

@@ -39,6 +39,8 @@ pub struct FrameEntry {
     /// Visible-region IoU (hands excluded), when the frame has visible mask pixels.
     pub iou_visible: Option<f64>,
     pub iou_raw: f64,
+    /// Which side of the model (and of each part) faces the camera, one line.
+    pub facing: Option<String>,
 }
 
 /// A part's mesh in the object frame, metres (the run's scale applied).

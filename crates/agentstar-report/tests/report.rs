@@ -26,6 +26,7 @@ fn report() -> Report {
         overlay: png.clone(),
         iou_visible: iou,
         iou_raw: 0.9,
+        facing: Some(format!("+Z toward the camera <{name}>")),
     };
     Report {
         title: "run <1>".into(),
@@ -94,6 +95,8 @@ fn the_page_holds_every_section_and_decodable_viewer_data() {
     // Two keyframes, the second without a visible mask and marked below the gate.
     assert_eq!(html.matches("<figure id=\"frame-").count(), 2);
     assert!(html.contains("no visible mask"));
+    // Each keyframe names the side toward the camera, escaped.
+    assert!(html.contains(r#"<span class="facing">+Z toward the camera &lt;000005.png&gt;</span>"#));
     // The viewer's data parse back, with the mesh as little-endian f32/u32 in base64.
     let start = html
         .find("<script id=\"report-data\" type=\"application/json\">")

@@ -291,6 +291,10 @@ pub struct ScoreReport {
     /// (`agentstar_track::appearance::neighbour_consistency`). Empty without frame images.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub appearance: Vec<FrameAppearance>,
+    /// Per frame (in `frames`' order), which side of the model and of each part faces the
+    /// camera.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub facing: Vec<view::FrameFacing>,
 }
 
 /// One frame's appearance figure in a [`ScoreReport`].

@@ -450,7 +450,7 @@ pub fn synthesize_room_clip(cfg: &RoomConfig) -> Result<RoomClip, SynthError> {
             .norm()
         * scale;
     let hand_part = agentstar_geom::Part::new("hand", hand::hand_mesh(), hand::SKIN);
-    let hand_scale = (scale / 0.3).clamp(0.5, 1.0);
+    let hand_scale = hand::hand_scale_for(scale);
     let hand_phase = motion_rng.range(0.0, TAU);
     let mut rotation = start;
     let mut frames = Vec::with_capacity(n);

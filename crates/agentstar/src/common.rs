@@ -143,6 +143,34 @@ impl Session {
         self.poses[i].generalised.clone()
     }
 
+    /// Which side of the model and of each part faces the camera in frame `i`; `None` when
+    /// the camera sits at the model's centre.
+    pub fn facing(&self, i: usize) -> Option<agentstar_reports::view::FrameFacing> {
+        let p = &self.poses[i].generalised;
+        let f = agentstar_geom::facing::facing(
+            &self.model.model,
+            &p.states,
+            &p.pose.with_scale(self.scale()),
+        )?;
+        Some(agentstar_reports::view::FrameFacing {
+            frame: self.capture.frames[i].name.clone(),
+            toward: f.model.axis.to_string(),
+            angle_deg: f.model.angle.to_degrees(),
+            axis_angles_deg: f.model.axis_angles.map(f64::to_degrees),
+            parts: f
+                .parts
+                .iter()
+                .map(|p| agentstar_reports::view::PartFacing {
+                    part: p.part.clone(),
+                    toward: p.side.axis.to_string(),
+                    angle_deg: p.side.angle.to_degrees(),
+                    moved: p.moved,
+                })
+                .collect(),
+            line: f.line(6),
+        })
+    }
+
     /// Scores frame `i`; `depth_weight` enters the combined score when the capture has depth.
     pub fn score(&self, i: usize, depth_weight: f64) -> Result<FrameScore> {
         let f = &self.capture.frames[i];

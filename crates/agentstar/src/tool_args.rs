@@ -100,7 +100,10 @@ fn samples() -> BTreeMap<&'static str, Vec<Value>> {
         ),
         (
             "scale",
-            vec![json!({"method": "size", "axis": "longest", "metres": 0.3, "frames": "all"})],
+            vec![
+                json!({"method": "size", "axis": "longest", "metres": 0.3, "frames": "all"}),
+                json!({"method": "hand", "frames": "0..3"}),
+            ],
         ),
         (
             "sweep",

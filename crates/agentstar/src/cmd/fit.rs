@@ -319,6 +319,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
         evaluations: fit.evaluations,
         seconds: t0.elapsed().as_secs_f64(),
         written: false,
+        views: Some(view_residuals(&fit, &frames, s.scale())),
     };
     if a.write {
         agentstar_data::atomic::write_atomic(model_path, fitted_source.as_bytes())?;
@@ -350,6 +351,59 @@ pub fn run(a: Args) -> Result<ExitCode> {
         print_summary(&report);
     }
     Ok(ExitCode::SUCCESS)
+}
+
+/// The fitted silhouettes' residuals grouped by viewing direction, at the fitted poses.
+fn view_residuals(
+    fit: &agentstar_track::shape::ShapeFit,
+    frames: &[ShapeFrame<'_>],
+    scale: f64,
+) -> agentstar_reports::fit::ViewResiduals {
+    use agentstar_reports::fit as r;
+    use agentstar_track::proportion as p;
+    let silhouettes: Vec<agentstar_render::BitMask> = frames
+        .iter()
+        .zip(&fit.poses)
+        .map(|(f, g)| silhouette(&fit.model, g, scale, &f.camera))
+        .collect();
+    let views: Vec<p::ViewFrame<'_>> = frames
+        .iter()
+        .zip(&fit.poses)
+        .zip(&silhouettes)
+        .map(|((f, g), sil)| {
+            let bounds = fit.model.posed_bounds(&g.states);
+            p::ViewFrame {
+                name: f.name.clone(),
+                camera: f.camera,
+                mask: f.target.mask(),
+                keep: f.target.keep(),
+                silhouette: sil,
+                camera_from_object: g.pose.with_scale(scale),
+                centre: bounds.center(),
+                size: bounds.extent(),
+            }
+        })
+        .collect();
+    let v = p::view_residuals(&views);
+    let wants = |w: &p::AxisWants| r::AxisWants {
+        want: w.want,
+        equations: w.equations,
+    };
+    let all = wants(&v.all);
+    let groups: Vec<r::ViewGroup> = v
+        .groups
+        .iter()
+        .map(|g| r::ViewGroup {
+            face_on: g.face_on.clone(),
+            frames: g.frames.clone(),
+            wants: wants(&g.wants),
+        })
+        .collect();
+    r::ViewResiduals {
+        verdict: r::ViewResiduals::verdict_of(&all, &groups),
+        all,
+        groups,
+    }
 }
 
 /// The silhouette of `model` at `pose`.
@@ -397,6 +451,9 @@ fn print_summary(r: &FitReport) {
         r.builds,
         r.seconds
     );
+    if let Some(v) = &r.views {
+        print!("{}", agentstar_reports::fit::views_text(v));
+    }
     println!(
         "wrote {} and {}{}",
         r.scene.display(),

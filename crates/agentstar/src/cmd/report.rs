@@ -106,6 +106,7 @@ pub fn build_report(
                 overlay: jpeg(&downscale(&over, max_width))?,
                 iou_visible: score.iou_visible,
                 iou_raw: score.iou_raw,
+                facing: s.facing(i).map(|f| f.line),
             })
         })
         .collect::<Result<_>>()?;
