@@ -96,6 +96,7 @@ fn samples() -> BTreeMap<&'static str, Vec<Value>> {
             vec![
                 json!({}),
                 json!({"from": "pose.json", "anchors": "all", "scale": 0.25}),
+                json!({"from": "pose.json", "keep_basins": true}),
             ],
         ),
         (
