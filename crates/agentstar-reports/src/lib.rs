@@ -126,6 +126,18 @@ pub struct SearchFrame {
     /// How the frame was searched (method, space, restarts, score field).
     pub search: Value,
     pub ranked: Vec<Candidate>,
+    /// The pages of the frame's candidate sheet and the ranks each draws (the first page
+    /// is `sheet`).
+    #[serde(default)]
+    pub pages: Vec<SheetPage>,
+}
+
+/// One page of a candidate sheet: its file and the ranks of the candidates it draws.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SheetPage {
+    pub path: PathBuf,
+    pub ranks: Vec<usize>,
 }
 
 /// What `sweep`, `apply`, `osweep`, `oapply` and `oapply-all` write (`VERB.json`, and on

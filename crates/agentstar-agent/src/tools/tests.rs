@@ -306,6 +306,7 @@ fn the_render_description_names_the_colours_the_images_use() {
             sheet: "run/images/x/oapply_sheet_000000.png".into(),
             notes: vec![],
             search: json!({}),
+            pages: vec![],
             ranked: vec![agentstar_reports::Candidate {
                 rank: 0,
                 label: "flip:y;rz:30".into(),
