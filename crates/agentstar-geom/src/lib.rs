@@ -8,6 +8,7 @@
 pub mod camera;
 pub mod csg;
 pub mod hull;
+pub mod inside;
 pub mod kinematics;
 pub mod mesh;
 pub mod model;

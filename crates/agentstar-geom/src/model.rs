@@ -107,7 +107,8 @@ impl ObjectModel {
         self.posed_bounds(states).center()
     }
 
-    /// Measures the canonical-frame convention at rest.
+    /// Measures the canonical-frame convention at rest; its warnings also name each part
+    /// hidden inside another ([`crate::inside::hidden_parts`]).
     pub fn canonical_report(&self) -> CanonicalReport {
         let b = self.posed_bounds(&self.tree.rest_states());
         let ext = b.extent();
@@ -117,7 +118,8 @@ impl ObjectModel {
             b.center()
         };
         let longest = ext.max();
-        let mut warnings = Vec::new();
+        // Parts hidden inside another (never seen in an image): every model load reports them.
+        let mut warnings = crate::inside::hidden_part_warnings(self);
         if b.is_empty() {
             warnings.push("the model has no geometry".into());
         } else {
