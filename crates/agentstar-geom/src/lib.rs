@@ -20,7 +20,10 @@ pub mod truth;
 pub use camera::PinholeCamera;
 pub use kinematics::{JointDef, JointKind, KinematicTree};
 pub use mesh::{Aabb, TriMesh};
-pub use model::{origin_shift, CanonicalReport, ObjectModel, OriginShift, Part};
+pub use model::{
+    held_part, origin_shift, origin_shift_holding, CanonicalReport, HeldPart, ObjectModel,
+    OriginShift, Part,
+};
 pub use pose::{GenPose, ObjectPose, Similarity};
 
 /// Errors of the geometry layer. Messages name the offending value and say what is valid.

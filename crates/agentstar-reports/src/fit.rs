@@ -85,6 +85,10 @@ pub struct FitReport {
     pub seconds: f64,
     /// True when the fitted script and poses were written over the inputs (`--write`).
     pub written: bool,
+    /// The part kept in place when the poses were carried to each shape, and why it
+    /// (`--hold`, or the part most in view).
+    #[serde(default)]
+    pub held_part: Option<String>,
 }
 
 impl FitReport {

@@ -102,6 +102,7 @@ fn a_fit_is_saved_only_when_a_parameter_moved_and_the_iou_rose() {
             evaluations: 1,
             seconds: 0.0,
             written: false,
+            held_part: None,
         }
     };
     // The play-test's case: the IoU rose (the poses were refined) but the width stayed.
