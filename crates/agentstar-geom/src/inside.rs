@@ -192,7 +192,11 @@ mod tests {
         assert!(hidden_parts(&around).is_empty());
         // Flush with the can (the same radius, inside its height): on the surface, shown.
         let flush = model(vec![can(), label(0.5)], rigid);
-        assert!(hidden_parts(&flush).is_empty(), "{:?}", hidden_parts(&flush));
+        assert!(
+            hidden_parts(&flush).is_empty(),
+            "{:?}",
+            hidden_parts(&flush)
+        );
     }
 
     #[test]

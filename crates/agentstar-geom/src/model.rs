@@ -332,11 +332,17 @@ pub fn held_part(
     }
     candidates
         .iter()
-        .max_by(|&&a, &&b| old.parts[a].mesh.area().total_cmp(&old.parts[b].mesh.area()))
+        .max_by(|&&a, &&b| {
+            old.parts[a]
+                .mesh
+                .area()
+                .total_cmp(&old.parts[b].mesh.area())
+        })
         .map(|&k| HeldPart {
             name: old.parts[k].name.clone(),
-            why: "the largest part by surface area (no posed keyframe to measure the parts in view)"
-                .to_string(),
+            why:
+                "the largest part by surface area (no posed keyframe to measure the parts in view)"
+                    .to_string(),
         })
         .ok_or_else(|| "the old and the new model share no part name".to_string())
 }
@@ -346,7 +352,11 @@ pub fn held_part(
 /// its unchanged side as [`origin_shift`] reads it; none shared: it stayed); with a new
 /// layout (a boolean or a segment count changed), the move of its bounding box's centre (it
 /// grew evenly about where it was). `None` when `held` is not a part of both.
-pub fn origin_shift_holding(old: &ObjectModel, new: &ObjectModel, held: &str) -> Option<OriginShift> {
+pub fn origin_shift_holding(
+    old: &ObjectModel,
+    new: &ObjectModel,
+    held: &str,
+) -> Option<OriginShift> {
     let before = old.parts.iter().find(|p| p.name == held)?;
     let part = new.parts.iter().find(|p| p.name == held)?;
     let (a, b) = (&before.mesh, &part.mesh);
@@ -533,12 +543,20 @@ mod tests {
         // The largest in view, else named, else by surface.
         let held = held_part(&old, &new, None, Some((&[9000, 400], 6))).expect("held");
         assert_eq!(held.name, "body");
-        assert!(held.why.contains("96%") && held.why.contains("6 keyframe"), "{held:?}");
+        assert!(
+            held.why.contains("96%") && held.why.contains("6 keyframe"),
+            "{held:?}"
+        );
         let held = held_part(&old, &new, None, Some((&[10, 400], 6))).expect("held");
         assert_eq!(held.name, "handle");
-        assert_eq!(held_part(&old, &new, None, None).expect("held").name, "body");
         assert_eq!(
-            held_part(&old, &new, Some("handle"), None).expect("held").name,
+            held_part(&old, &new, None, None).expect("held").name,
+            "body"
+        );
+        assert_eq!(
+            held_part(&old, &new, Some("handle"), None)
+                .expect("held")
+                .name,
             "handle"
         );
         let e = held_part(&old, &new, Some("lid"), None).expect_err("no lid");

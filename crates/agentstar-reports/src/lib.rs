@@ -370,7 +370,12 @@ impl BasinMoveRow {
     pub fn line(&self) -> String {
         format!(
             "{}: turned {:.1}° from its starting pose (bound {}°), IoU {:.4} → {:.4}, by {}",
-            self.frame, self.rotation_deg, self.bound_deg, self.iou_before, self.iou_after, self.pass
+            self.frame,
+            self.rotation_deg,
+            self.bound_deg,
+            self.iou_before,
+            self.iou_after,
+            self.pass
         )
     }
 }

@@ -276,7 +276,13 @@ pub fn fit_shape(
             TrackError::Invalid(format!("the model does not build at {trial_values:?}: {e}"))
         })?;
         builds += 1;
-        let mut trial_poses = carried(&base_model, &trial_model, &base_poses, scale, cfg.held.as_deref());
+        let mut trial_poses = carried(
+            &base_model,
+            &trial_model,
+            &base_poses,
+            scale,
+            cfg.held.as_deref(),
+        );
         let iou_held = mean(&frame_ious(&trial_model, frames, &trial_poses, scale));
         // (b) Every frame's pose refined locally for the trial model.
         if cfg.refine_poses {

@@ -197,8 +197,7 @@ fn every_tool_runs_over_stdio_with_schema_arguments_and_typed_results() {
                     // Every candidate of a preset or a set is drawn, and each row says
                     // where it ended (`asked → turn;joints [angle about axis]`).
                     let f = &r.frames[0];
-                    let drawn: Vec<usize> =
-                        f.pages.iter().flat_map(|p| p.ranks.clone()).collect();
+                    let drawn: Vec<usize> = f.pages.iter().flat_map(|p| p.ranks.clone()).collect();
                     assert_eq!(drawn, (0..f.ranked.len()).collect::<Vec<_>>(), "{name}");
                     for c in &f.ranked {
                         assert!(

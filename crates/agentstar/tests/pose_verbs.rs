@@ -33,7 +33,14 @@ fn turn_in_label(label: &str) -> UnitQuaternion {
         .unwrap_or_else(|| panic!("no refined turn: {label}"))
         .split(';')
         .take(3)
-        .map(|t| t.split_once(':').expect("term").1.trim().parse().expect("deg"))
+        .map(|t| {
+            t.split_once(':')
+                .expect("term")
+                .1
+                .trim()
+                .parse()
+                .expect("deg")
+        })
         .collect();
     UnitQuaternion::from_scaled_axis(
         agentstar_geom::Vector3::new(v[0], v[1], v[2]).map(f64::to_radians),
@@ -94,11 +101,13 @@ fn pose_verbs_track_commit_and_diagnose() {
         // Each row says where it ended: the turn from the frame's pose (the rotation vector
         // of the candidate's own pose against the frame's), as an angle about an axis, and
         // the final joint state.
-        let base = rotation_of(&start["frames"][f["frame"].as_str().expect("frame")]["object_pose"]);
+        let base =
+            rotation_of(&start["frames"][f["frame"].as_str().expect("frame")]["object_pose"]);
         for r in ranked {
             let label = r["label"].as_str().expect("label");
             assert!(
-                label.contains(";hinge:") && (label.contains("° about (") || label.contains("[no turn")),
+                label.contains(";hinge:")
+                    && (label.contains("° about (") || label.contains("[no turn")),
                 "{label}"
             );
             let ended = base.inverse() * rotation_of(&r["pose"]);
@@ -240,11 +249,23 @@ fn pose_verbs_track_commit_and_diagnose() {
     let pages = f["pages"].as_array().expect("pages");
     let mut drawn: Vec<u64> = vec![];
     for p in pages {
-        assert!(std::path::Path::new(p["path"].as_str().expect("path")).is_file(), "{p}");
-        drawn.extend(p["ranks"].as_array().expect("ranks").iter().map(|r| r.as_u64().expect("rank")));
+        assert!(
+            std::path::Path::new(p["path"].as_str().expect("path")).is_file(),
+            "{p}"
+        );
+        drawn.extend(
+            p["ranks"]
+                .as_array()
+                .expect("ranks")
+                .iter()
+                .map(|r| r.as_u64().expect("rank")),
+        );
     }
     assert_eq!(drawn, (0..25).collect::<Vec<u64>>(), "{f}");
-    assert!(pages.len() > 1, "25 candidates at three tiles each fit no one page: {f}");
+    assert!(
+        pages.len() > 1,
+        "25 candidates at three tiles each fit no one page: {f}"
+    );
     let note = f["notes"]
         .as_array()
         .expect("notes")
@@ -252,7 +273,10 @@ fn pose_verbs_track_commit_and_diagnose() {
         .filter_map(|n| n.as_str())
         .find(|n| n.starts_with("sheet: 25 of 25 candidates drawn"))
         .unwrap_or_else(|| panic!("no page note: {f}"));
-    assert!(note.contains(&format!("page {}/{}", pages.len(), pages.len())), "{note}");
+    assert!(
+        note.contains(&format!("page {}/{}", pages.len(), pages.len())),
+        "{note}"
+    );
     let mut args = common("oapply", "oapply-135");
     args.extend([
         "--frames".into(),
@@ -271,14 +295,20 @@ fn pose_verbs_track_commit_and_diagnose() {
     let ended = rotation_of(&start["frames"]["000005.png"]["object_pose"]).inverse()
         * rotation_of(&row["pose"]);
     let label = row["label"].as_str().expect("label");
-    assert!(turn_in_label(label).angle_to(&ended).to_degrees() < 0.2, "{label}");
+    assert!(
+        turn_in_label(label).angle_to(&ended).to_degrees() < 0.2,
+        "{label}"
+    );
     let said_deg: f64 = label
         .split(" [")
         .nth(1)
         .and_then(|t| t.split('°').next())
         .and_then(|d| d.parse().ok())
         .unwrap_or_else(|| panic!("no angle: {label}"));
-    assert!((said_deg - ended.angle().to_degrees()).abs() < 0.6, "{label}");
+    assert!(
+        (said_deg - ended.angle().to_degrees()).abs() < 0.6,
+        "{label}"
+    );
 
     // Apply a bad order, commit it, see it in the history, restore the original.
     let mut args = common("apply", "apply");

@@ -523,11 +523,19 @@ fn a_scene_edit_holds_the_part_most_in_view_or_the_named_one_and_names_hidden_pa
     let (resp, _) = c.response(3);
     let body = McpClient::text_of(&resp);
     assert_eq!(resp["result"]["isError"], false, "{resp}");
-    assert!(body.contains("Held in place: part `handle` (named)"), "{body}");
+    assert!(
+        body.contains("Held in place: part `handle` (named)"),
+        "{body}"
+    );
     assert!(body.contains("under part `handle` (named"), "{body}");
     let carried = translations(&poses);
     for (a, b) in start.iter().zip(&carried) {
-        let moved: f64 = a.iter().zip(b).map(|(x, y)| (x - y) * (x - y)).sum::<f64>().sqrt();
+        let moved: f64 = a
+            .iter()
+            .zip(b)
+            .map(|(x, y)| (x - y) * (x - y))
+            .sum::<f64>()
+            .sqrt();
         assert!((moved - 0.05 * 0.24).abs() < 1e-6, "{moved} {body}");
     }
     // A part named that is not in both scripts: refused, the scene unchanged.

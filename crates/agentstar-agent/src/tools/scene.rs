@@ -193,7 +193,10 @@ impl Toolbox {
         let before = agentstar_data::scenefile::load_model(&self.run.scene)
             .ok()
             .map(|m| m.model);
-        let held = match (&before, agentstar_data::scenefile::load_model(candidate.path())) {
+        let held = match (
+            &before,
+            agentstar_data::scenefile::load_model(candidate.path()),
+        ) {
             (Some(old), Ok(new)) => {
                 let visible = visible_pixels(old, &self.run.capture, &self.run.poses);
                 match agentstar_geom::held_part(
@@ -287,7 +290,10 @@ pub(super) fn visible_pixels(
             g.states.as_slice(),
         )
     });
-    Some((agentstar_render::visible_part_pixels(model, views), chosen.len()))
+    Some((
+        agentstar_render::visible_part_pixels(model, views),
+        chosen.len(),
+    ))
 }
 
 /// Keyframes measured to find the part most in view.

@@ -137,7 +137,9 @@ pub fn track_from_with(
 ) -> Result<WarmStart, TrackError> {
     let mut passes = Vec::new();
     let mut result = on_stand_in(model, scale, frames, cfg, anchors, observe, |searched| {
-        let (r, p) = track_from_on(searched, scale, frames, start, anchors, policy, cfg, observe)?;
+        let (r, p) = track_from_on(
+            searched, scale, frames, start, anchors, policy, cfg, observe,
+        )?;
         passes = p;
         Ok(r)
     })?;
@@ -166,14 +168,19 @@ pub fn track_from_with(
             result.scores[i] = score_at(i, &start[i]);
             continue;
         }
-        let rotation_deg = angle_deg(&(result.poses[i].pose.rotation * start[i].pose.rotation.inverse()));
+        let rotation_deg =
+            angle_deg(&(result.poses[i].pose.rotation * start[i].pose.rotation.inverse()));
         if rotation_deg <= BASIN_ROTATION_DEG {
             // Moved in a joint only: the rotation's basin is kept (the report is of turns).
             continue;
         }
-        let within = |q: &UnitQuaternion| angle_deg(&(q * start[i].pose.rotation.inverse())) <= BASIN_ROTATION_DEG;
+        let within = |q: &UnitQuaternion| {
+            angle_deg(&(q * start[i].pose.rotation.inverse())) <= BASIN_ROTATION_DEG
+        };
         // The pass after the last one that left it within the bound.
-        let last_within = passes.iter().rposition(|(_, rots): &(String, Vec<UnitQuaternion>)| rots.get(i).is_some_and(within));
+        let last_within = passes
+            .iter()
+            .rposition(|(_, rots): &(String, Vec<UnitQuaternion>)| rots.get(i).is_some_and(within));
         let pass = match last_within {
             None => passes.first().map(|p| p.0.clone()),
             Some(k) => passes.get(k + 1).map(|p| p.0.clone()),
@@ -295,10 +302,7 @@ fn track_from_on(
         ));
     }
     let rotations = |poses: &[GenPose]| poses.iter().map(|g| g.pose.rotation).collect();
-    let mut passes: Passes = vec![(
-        "the polish of its own pose".to_string(),
-        rotations(&poses),
-    )];
+    let mut passes: Passes = vec![("the polish of its own pose".to_string(), rotations(&poses))];
     // Outward from every anchor, nearest frames first, each frame from its neighbour on the
     // side of its nearest anchor.
     let mut order: Vec<(usize, usize, isize)> = Vec::new();

@@ -173,9 +173,13 @@ pub fn run(a: Args) -> Result<ExitCode> {
     // The part held in place as the shape changes: named, or the one most in view.
     let visible = agentstar_render::visible_part_pixels(
         &s.model.model,
-        frames
-            .iter()
-            .map(|f| (&f.camera, f.pose.pose.with_scale(s.scale()), f.pose.states.as_slice())),
+        frames.iter().map(|f| {
+            (
+                &f.camera,
+                f.pose.pose.with_scale(s.scale()),
+                f.pose.states.as_slice(),
+            )
+        }),
     );
     let held = agentstar_geom::held_part(
         &s.model.model,
@@ -184,7 +188,10 @@ pub fn run(a: Args) -> Result<ExitCode> {
         Some((&visible, frames.len())),
     )
     .map_err(|e| anyhow!("--hold: {e}"))?;
-    eprintln!("fit-shape: holding part `{}` in place ({})", held.name, held.why);
+    eprintln!(
+        "fit-shape: holding part `{}` in place ({})",
+        held.name, held.why
+    );
     let cfg = ShapeFitConfig {
         held: Some(held.name.clone()),
         rounds: a.rounds,

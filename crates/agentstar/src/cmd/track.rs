@@ -8,8 +8,8 @@ use crate::common::{
 };
 use agentstar_data::posefile::{partial_path, PoseFile};
 use agentstar_render::ScoreTarget;
-use agentstar_reports::TrackReport;
 use agentstar_reports::BasinMoveRow;
+use agentstar_reports::TrackReport;
 use agentstar_track::tracker::{
     track_from_with, track_observed, BasinPolicy, TrackConfig, TrackFrame, TrackObserver,
     TrackSwitches, BASIN_JOINT_DEG, BASIN_ROTATION_DEG,

@@ -360,11 +360,7 @@ fn write_outputs(
         // Which page draws which candidates, and which are not drawn.
         let drawn: usize = sheet_pages.iter().map(|p| p.ranks.len()).sum();
         if sheet_pages.len() > 1 || drawn < o.rows.len() {
-            let mut line = format!(
-                "sheet: {} of {} candidates drawn",
-                drawn,
-                o.rows.len()
-            );
+            let mut line = format!("sheet: {} of {} candidates drawn", drawn, o.rows.len());
             for (k, p) in sheet_pages.iter().enumerate() {
                 let name = p
                     .path

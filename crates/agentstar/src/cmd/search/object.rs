@@ -234,7 +234,9 @@ fn refined_to(base: &GenPose, pose: &GenPose, tree: &KinematicTree) -> String {
     }
     let angle = q.angle().to_degrees();
     let about = match q.axis() {
-        Some(a) if angle >= 0.05 => format!("{angle:.0}° about ({:.2}, {:.2}, {:.2})", a.x, a.y, a.z),
+        Some(a) if angle >= 0.05 => {
+            format!("{angle:.0}° about ({:.2}, {:.2}, {:.2})", a.x, a.y, a.z)
+        }
         _ => "no turn".to_string(),
     };
     match nearest_named_turn(&q) {
