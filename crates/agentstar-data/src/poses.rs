@@ -67,7 +67,7 @@ pub fn carry_origin(
         if shift.share > 0.0 {
             "moved whole or on its unchanged side"
         } else {
-            "its bounds' centre, as its mesh changed"
+            "by its bounds, as its mesh changed"
         }
     )]
 }

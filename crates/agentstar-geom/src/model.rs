@@ -350,8 +350,9 @@ pub fn held_part(
 /// How far the canonical origin moved from `old` to `new`, holding the part `held` in place:
 /// with the same mesh layout in both, its vertices' shared translation (moved whole, or on
 /// its unchanged side as [`origin_shift`] reads it; none shared: it stayed); with a new
-/// layout (a boolean or a segment count changed), the move of its bounding box's centre (it
-/// grew evenly about where it was). `None` when `held` is not a part of both.
+/// layout (a boolean or a segment count changed), its bounds axis by axis: both faces moved
+/// alike (a translation), one face stayed (it grew from there: no shift), else the move of
+/// their centre (it grew about it). `None` when `held` is not a part of both.
 pub fn origin_shift_holding(
     old: &ObjectModel,
     new: &ObjectModel,
@@ -389,8 +390,23 @@ pub fn origin_shift_holding(
             share: 0.0,
         });
     }
+    // Meshed anew: its bounds, axis by axis. Both faces moved alike: a translation; one
+    // face stayed: it grew from that side and the origin stayed; else it grew about its
+    // centre, whose move is the shift.
+    let (ba, bb) = (a.bounds(), b.bounds());
+    let tolerance = 1e-6 * ba.extent().max().max(1e-9);
+    let shift = Vector3::from_fn(|k, _| {
+        let (dmin, dmax) = (bb.min[k] - ba.min[k], bb.max[k] - ba.max[k]);
+        if (dmin - dmax).abs() <= tolerance {
+            (dmin + dmax) / 2.0
+        } else if dmin.abs() <= tolerance || dmax.abs() <= tolerance {
+            0.0
+        } else {
+            (dmin + dmax) / 2.0
+        }
+    });
     Some(OriginShift {
-        shift: b.bounds().center() - a.bounds().center(),
+        shift,
         part: Some(held.to_string()),
         share: 0.0,
     })
@@ -539,6 +555,24 @@ mod tests {
         // A body meshed anew (another segment count): its bounds' centre, which stayed.
         let s = origin_shift_holding(&cabinet(1.0, 8), &cabinet(1.2, 9), "body").expect("part");
         assert!(s.shift.norm() < 1e-9, "{s:?}");
+        // Meshed anew and grown from its bottom face up, then moved 0.1 along x: the face
+        // that stayed keeps the origin along z; x moved whole.
+        let one_sided = |h: f64, x: f64, rings: i64| ObjectModel {
+            tree: KinematicTree::rigid(1),
+            parts: vec![Part::new(
+                "body",
+                crate::primitives::cylinder(0.3, h, rings)
+                    .expect("body")
+                    .translated(Vector3::new(x, 0.0, h / 2.0)),
+                [0.5; 3],
+            )],
+        };
+        let s = origin_shift_holding(&one_sided(0.5, 0.0, 16), &one_sided(0.7, 0.1, 20), "body")
+            .expect("part");
+        assert!(
+            (s.shift - Vector3::new(0.1, 0.0, 0.0)).norm() < 1e-9,
+            "{s:?}"
+        );
         assert!(origin_shift_holding(&old, &new, "lid").is_none());
         // The largest in view, else named, else by surface.
         let held = held_part(&old, &new, None, Some((&[9000, 400], 6))).expect("held");
