@@ -59,14 +59,29 @@ Alternate two kinds of steps; **each step changes the shape or the poses, never 
    `scale` estimates metres per model unit (from depth, camera parallax, a size you state,
    or, with none of these, the hands holding the object: `hand`, about ±10–20%) and
    rescales the poses.
+   When a shape edit moves the canonical origin, `scene_write` and
+   `fit_shape` carry every pose so that one part stays where it was in the images: the part
+   most in view (by its visible pixels in the keyframes), or the one you name with `hold`
+   (a small handle is a poor anchor for a body that grew); the result says which part was
+   held. `check` (in `scene_write` and `scene_read`) warns about a part hidden entirely
+   inside another: it never shows, so its shape and colour cannot be seen.
 2. **Pose step.** Pick the worst keyframes (`score`, `temporal`), name a bounded region with
    `sweep` (camera-frame ranges and joint ranges, e.g. `yaw:-30,30;pitch:-20,20;hinge:0,90`)
    or the object-frame verbs (`osweep`, `oapply` with `flips` for near-symmetric objects,
    `oapply_all` when the model is built the wrong way round), look at the candidate sheet, and
    commit the candidate you believe with `pose_commit` (the search's report and the
    candidate's rank). A high IoU on a wrong pose is still
-   wrong: a mirror or 180° flip of a symmetric-looking object can score well. `track` runs the
-   automatic tracker over every keyframe; use it once the shape is right to start the poses.
+   wrong: a mirror or 180° flip of a symmetric-looking object can score well. `oapply` and
+   `osweep` rows read `asked → where it ended`: the turn from the frame's current pose as
+   `rx;ry;rz` (the language `oapply` takes), the final joint states, and in brackets the
+   whole turn as an angle about an axis; commit by the row, never by the asked label's
+   angle. Every candidate of a preset or a set is drawn; a note says which sheet page holds
+   which ranks. `track` runs the automatic tracker over every keyframe; use it once the
+   shape is right to start the poses. `track` with `from: "pose.json"` refines the current
+   poses and names every frame it moved to another basin (turned over 45° from its pose
+   there, with the IoU before and after and the pass that moved it); with
+   `keep_basins: true` it only polishes, keeping every frame within 45° of rotation (half a
+   quarter turn, so no flip or twin) and 30° of joint of the pose you settled.
 3. Keep notes with `notes`: what the object is, which parts move, what you ruled out. Notes
    survive when older images leave your context.
 

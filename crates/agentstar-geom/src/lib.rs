@@ -10,6 +10,7 @@ pub mod camera;
 pub mod csg;
 pub mod facing;
 pub mod hull;
+pub mod inside;
 pub mod kinematics;
 pub mod mesh;
 pub mod model;
@@ -22,7 +23,10 @@ pub use appearance::{AppearedMesh, Material, SurfaceAppearance, Texture, WrapMod
 pub use camera::PinholeCamera;
 pub use kinematics::{JointDef, JointKind, KinematicTree};
 pub use mesh::{Aabb, TriMesh};
-pub use model::{origin_shift, CanonicalReport, ObjectModel, OriginShift, Part};
+pub use model::{
+    held_part, origin_shift, origin_shift_holding, CanonicalReport, HeldPart, ObjectModel,
+    OriginShift, Part,
+};
 pub use pose::{GenPose, ObjectPose, Similarity};
 
 /// Errors of the geometry layer. Messages name the offending value and say what is valid.

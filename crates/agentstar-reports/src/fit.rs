@@ -234,6 +234,10 @@ pub struct FitReport {
     /// The fitted silhouettes' residuals grouped by viewing direction, at the fitted poses.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub views: Option<ViewResiduals>,
+    /// The part kept in place when the poses were carried to each shape, and why it
+    /// (`--hold`, or the part most in view).
+    #[serde(default)]
+    pub held_part: Option<String>,
 }
 
 impl FitReport {

@@ -589,3 +589,113 @@ fn scene_write_reads_a_script_from_a_file_in_the_run_and_nowhere_else() {
     let scene = std::fs::read_to_string(run.join("scene.rhai")).expect("scene");
     assert_eq!(scene, edited);
 }
+
+/// The translations of every frame of a pose file.
+fn translations(poses: &Path) -> Vec<Vec<f64>> {
+    let v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(poses).expect("poses")).expect("json");
+    let mut frames: Vec<(String, Vec<f64>)> = v["frames"]
+        .as_object()
+        .expect("frames")
+        .iter()
+        .map(|(k, f)| {
+            (
+                k.clone(),
+                f["object_pose"]["translation"]
+                    .as_array()
+                    .expect("translation")
+                    .iter()
+                    .map(|t| t.as_f64().expect("number"))
+                    .collect(),
+            )
+        })
+        .collect();
+    frames.sort_by(|a, b| a.0.cmp(&b.0));
+    frames.into_iter().map(|f| f.1).collect()
+}
+
+/// Issue 34 items 3 and 9b over MCP. A body grown evenly and meshed anew (its bevel's
+/// segments changed) with a small handle on its face, which moves out: the edit holds the
+/// body, the part most in view, so no pose moves (the largest part that could vote was the
+/// handle, and every pose was carried by its move); `hold` names another part; a part named
+/// that is not in both scripts is refused and nothing changes. And a part sunk inside the
+/// body's solid floor draws a warning naming both parts.
+#[test]
+fn a_scene_edit_holds_the_part_most_in_view_or_the_named_one_and_names_hidden_parts() {
+    let dir = tempfile::tempdir().expect("tmp");
+    let handle =
+        "part(\"handle\", box(0.04, 0.1, 0.1).translate(w / 2 + 0.02, 0, 0.1).color(\"#333333\"));\n";
+    let original = format!("{}{handle}", box_script("1.0", "0.7", "0.48"));
+    let (_cap, run) = run_with(dir.path(), 3, &original);
+    let poses = run.join("pose.json");
+    let start = translations(&poses);
+    let grown = original
+        .replace("param(\"width\", 1.0,", "param(\"width\", 1.1,")
+        .replace("box(w, d, h, 0.02)", "box(w, d, h, 0.02, 3)");
+    assert_ne!(grown, original);
+    let (mut c, _) = McpClient::initialised(&run);
+    c.call(2, "scene_write", json!({"script": grown}));
+    let (resp, _) = c.response(2);
+    let body = McpClient::text_of(&resp);
+    assert_eq!(resp["result"]["isError"], false, "{resp}");
+    assert!(
+        body.contains("Held in place: part `body` (the largest part in view:"),
+        "{body}"
+    );
+    assert!(body.contains("the canonical origin did not move"), "{body}");
+    assert_eq!(translations(&poses), start, "{body}");
+    // Holding the handle, the edit back moves every pose by the handle's move (5 cm of
+    // model along x: 1.2 cm at this scale).
+    c.call(
+        3,
+        "scene_write",
+        json!({"script": original, "hold": "handle"}),
+    );
+    let (resp, _) = c.response(3);
+    let body = McpClient::text_of(&resp);
+    assert_eq!(resp["result"]["isError"], false, "{resp}");
+    assert!(
+        body.contains("Held in place: part `handle` (named)"),
+        "{body}"
+    );
+    assert!(body.contains("under part `handle` (named"), "{body}");
+    let carried = translations(&poses);
+    for (a, b) in start.iter().zip(&carried) {
+        let moved: f64 = a
+            .iter()
+            .zip(b)
+            .map(|(x, y)| (x - y) * (x - y))
+            .sum::<f64>()
+            .sqrt();
+        assert!((moved - 0.05 * 0.24).abs() < 1e-6, "{moved} {body}");
+    }
+    // A part named that is not in both scripts: refused, the scene unchanged.
+    let scene_before = std::fs::read_to_string(run.join("scene.rhai")).expect("scene");
+    c.call(4, "scene_write", json!({"script": grown, "hold": "knob"}));
+    let (resp, _) = c.response(4);
+    assert_eq!(resp["result"]["isError"], true, "{resp}");
+    let refused = McpClient::text_of(&resp);
+    assert!(
+        refused.contains("the scene was not changed: `hold`: part `knob`")
+            && refused.contains("body, lid, handle"),
+        "{refused}"
+    );
+    assert_eq!(
+        std::fs::read_to_string(run.join("scene.rhai")).expect("scene"),
+        scene_before
+    );
+    // A weight sunk in the body's floor (z -0.24 to -0.19 before the body's own offset).
+    let weighted = format!(
+        "{original}part(\"weight\", box(0.3, 0.3, 0.02).translate(0, 0, -0.215 + 0.2 - h / 2));\n"
+    );
+    c.call(5, "scene_write", json!({"script": weighted}));
+    let (resp, _) = c.response(5);
+    let body = McpClient::text_of(&resp);
+    assert_eq!(resp["result"]["isError"], false, "{resp}");
+    assert!(
+        body.contains("part `weight` lies entirely inside part `body`"),
+        "{body}"
+    );
+    // Not said of the handle, which stands out of the body.
+    assert!(!body.contains("part `handle` lies"), "{body}");
+}

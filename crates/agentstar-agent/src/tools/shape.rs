@@ -63,6 +63,10 @@ pub struct FitShapeArgs {
     /// Model builds per round (default 60).
     #[schemars(range(min = 5, max = 500))]
     pub evals: Option<u64>,
+    /// The part kept in place when the poses are carried to each new shape (a part of the
+    /// scene). Default: the part with the most visible pixels in the keyframes.
+    #[schemars(length(min = 1))]
+    pub hold: Option<String>,
 }
 
 /// A model axis a stated size is along.
@@ -225,12 +229,14 @@ impl Toolbox {
             frames: Option<&'a str>,
             rounds: Option<u64>,
             evals: Option<u64>,
+            hold: Option<&'a str>,
         }
         let request = FitRequest {
             params: names.join(","),
             frames: nonblank(&a.frames),
             rounds: a.rounds,
             evals: a.evals,
+            hold: nonblank(&a.hold),
         };
         let (o, _, stdout) = self.cli(&["fit-shape"], step, FitShape::NAME, &request)?;
         if o.is_error {
@@ -266,6 +272,11 @@ impl Toolbox {
         );
         if let Some(line) = unmoved_line(&report) {
             text.push_str(&line);
+        }
+        if let Some(part) = &report.held_part {
+            text.push_str(&format!(
+                "poses carried to each shape holding part {part} in place\n"
+            ));
         }
         if !report.held.is_empty() {
             text.push_str(&format!(
@@ -326,7 +337,7 @@ impl Toolbox {
             });
         }
         let script = agentstar_data::read_text(&report.scene)?;
-        let written = self.scene_write(&script, step)?;
+        let written = self.scene_write(&script, nonblank(&a.hold), step)?;
         if written.is_error {
             return Ok(written);
         }

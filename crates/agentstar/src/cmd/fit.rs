@@ -58,6 +58,10 @@ pub struct Args {
     /// Hold the poses as committed (no local refinement).
     #[arg(long)]
     no_refine: bool,
+    /// The part kept in place when the poses are carried to each new shape (default: the
+    /// part with the most visible pixels in the fitted keyframes at their poses).
+    #[arg(long)]
+    hold: Option<String>,
     /// Seed of the pose refinements.
     #[arg(long, default_value_t = 17)]
     seed: u64,
@@ -166,7 +170,30 @@ pub fn run(a: Args) -> Result<ExitCode> {
             pose: s.gen_pose(i),
         })
         .collect();
+    // The part held in place as the shape changes: named, or the one most in view.
+    let visible = agentstar_render::visible_part_pixels(
+        &s.model.model,
+        frames.iter().map(|f| {
+            (
+                &f.camera,
+                f.pose.pose.with_scale(s.scale()),
+                f.pose.states.as_slice(),
+            )
+        }),
+    );
+    let held = agentstar_geom::held_part(
+        &s.model.model,
+        &s.model.model,
+        a.hold.as_deref(),
+        Some((&visible, frames.len())),
+    )
+    .map_err(|e| anyhow!("--hold: {e}"))?;
+    eprintln!(
+        "fit-shape: holding part `{}` in place ({})",
+        held.name, held.why
+    );
     let cfg = ShapeFitConfig {
+        held: Some(held.name.clone()),
         rounds: a.rounds,
         evals_per_round: a.evals,
         refine_poses: !a.no_refine,
@@ -192,7 +219,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
     let fitted_source =
         set_param_values(&source, &values).map_err(|e| anyhow!("{}: {e}", model_path.display()))?;
     let mut pf: PoseFile = s.pose_file.clone();
-    agentstar_data::poses::carry_origin(&s.model.model, &fit.model, &mut pf);
+    agentstar_data::poses::carry_origin(&s.model.model, &fit.model, &mut pf, &held);
     let tree = &fit.model.tree;
     pf.joint_defs = tree.joints().iter().map(joint_json).collect();
     for (&i, g) in indices.iter().zip(&fit.poses) {
@@ -320,6 +347,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
         seconds: t0.elapsed().as_secs_f64(),
         written: false,
         views: Some(view_residuals(&fit, &frames, s.scale())),
+        held_part: Some(format!("{} ({})", held.name, held.why)),
     };
     if a.write {
         agentstar_data::atomic::write_atomic(model_path, fitted_source.as_bytes())?;
