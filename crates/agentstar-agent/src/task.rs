@@ -9,7 +9,11 @@ const TASK: &str = r#"# Your task
 You are given a video of an object: keyframes, a mask of the object in each (hands cut out
 and marked separately), and the camera of each keyframe. Build a model of the object **as
 code** and find its pose in every keyframe, so that the model drawn into each keyframe covers
-the object's mask.
+the object's mask. A capture may also keep the video frames between its keyframes
+(in-between frames): no tool shows, scores or asks poses of them, but `track` follows the
+object through them from one keyframe to the next (a 150° turn between keyframes is a few
+degrees a video frame), so each keyframe arrives in the basin the motion carries it to; the
+basin of the whole sequence (which way up, which side is which) is still yours to check.
 
 - The model is `scene.rhai`: named parts built from primitives, joined by revolute or
   prismatic joints with limits (the API is at the end of this document). Real sizes come
