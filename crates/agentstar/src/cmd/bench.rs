@@ -18,13 +18,14 @@ use std::process::ExitCode;
     after_help = "Examples:\n  agentstar bench --suite quick --check bench/quick-tolerances.json\n  agentstar bench --suite full --results bench/full.md --out /tmp/bench-runs"
 )]
 pub struct Args {
-    /// The suite: quick (CI), full, or hard (by hand: 7 × 20 keyframes at 640×480; use --methods tracker).
+    /// The suite: quick (CI), full, hard (by hand: 7 × 20 keyframes at 640×480; use --methods
+    /// tracker) or general (by hand: 24 generated objects × 3 seeds in the hard suite's captures).
     #[arg(long, default_value = "quick")]
     suite: String,
     /// Methods, comma separated: tracker, no-temporal, vlm-free.
     #[arg(long, default_value = "tracker,no-temporal,vlm-free")]
     methods: String,
-    /// Only these objects of the suite (comma separated).
+    /// Only these objects of the suite (comma separated; the general suite's are gen-N).
     #[arg(long)]
     only: Option<String>,
     /// Write every capture and every method's pose.json under this directory.
@@ -210,6 +211,10 @@ pub fn run(a: Args) -> Result<ExitCode> {
     if a.suite == "hard" {
         md.push('\n');
         md.push_str(&agentstar_bench::table::hard_table(&results));
+    }
+    if a.suite == "general" {
+        md.push('\n');
+        md.push_str(&agentstar_bench::table::general_table(&results));
     }
     let header = format!(
         "## agentstar bench: {} suite, {} sequence(s), methods {}\n\nRecorded {} on {}; tracker with the appearance term {}, sequence-level choice {}.\n\n",
