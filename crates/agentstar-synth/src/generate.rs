@@ -271,7 +271,7 @@ impl Body {
                 sides,
                 radius,
                 height,
-            } => format!("a {sides}-sided prism of radius {radius:.3} and height {height:.3}"),
+            } => format!("a prism of {sides} sides, radius {radius:.3} and height {height:.3}"),
             Body::Block { x, y, z } => format!("a block {x:.3} × {y:.3} × {z:.3}"),
             Body::Frustum {
                 bottom,
