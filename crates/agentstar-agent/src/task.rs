@@ -9,7 +9,11 @@ const TASK: &str = r#"# Your task
 You are given a video of an object: keyframes, a mask of the object in each (hands cut out
 and marked separately), and the camera of each keyframe. Build a model of the object **as
 code** and find its pose in every keyframe, so that the model drawn into each keyframe covers
-the object's mask.
+the object's mask. A capture may also keep the video frames between its keyframes
+(in-between frames): no tool shows, scores or asks poses of them, but `track` follows the
+object through them from one keyframe to the next (a 150° turn between keyframes is a few
+degrees a video frame), so each keyframe arrives in the basin the motion carries it to; the
+basin of the whole sequence (which way up, which side is which) is still yours to check.
 
 - The model is `scene.rhai`: named parts built from primitives, joined by revolute or
   prismatic joints with limits (the API is at the end of this document). Real sizes come
@@ -52,23 +56,49 @@ Alternate two kinds of steps; **each step changes the shape or the poses, never 
    the arm that moves as the object does (see the gates). Proportions you are unsure of (a depth, a handle's height) are better
    declared as parameters, `param("depth", 0.9, 0.7, 1.1)`, and fitted with `fit_shape`
    (only the parameters you name move, within their bounds, against the committed poses);
-   `scale` estimates metres per model unit (from depth, camera parallax or a size you state)
-   and rescales the poses.
+   its reply groups the residuals by viewing direction (frames face-on to each model axis,
+   and the size change along X, Y, Z they want): when the fit comes back to its start and
+   the frames want one axis longer than another, a fixed proportion the fitted parameters
+   do not set is wrong, so change it in the script.
+   `scale` estimates metres per model unit (from depth, camera parallax, a size you state,
+   or, with none of these, the hands holding the object: `hand`, about ±10–20%) and
+   rescales the poses.
+   When a shape edit moves the canonical origin, `scene_write` and
+   `fit_shape` carry every pose so that one part stays where it was in the images: the part
+   most in view (by its visible pixels in the keyframes), or the one you name with `hold`
+   (a small handle is a poor anchor for a body that grew); the result says which part was
+   held. `check` (in `scene_write` and `scene_read`) warns about a part hidden entirely
+   inside another: it never shows, so its shape and colour cannot be seen.
 2. **Pose step.** Pick the worst keyframes (`score`, `temporal`), name a bounded region with
    `sweep` (camera-frame ranges and joint ranges, e.g. `yaw:-30,30;pitch:-20,20;hinge:0,90`)
    or the object-frame verbs (`osweep`, `oapply` with `flips` for near-symmetric objects,
    `oapply_all` when the model is built the wrong way round), look at the candidate sheet, and
    commit the candidate you believe with `pose_commit` (the search's report and the
    candidate's rank). A high IoU on a wrong pose is still
-   wrong: a mirror or 180° flip of a symmetric-looking object can score well. `track` runs the
-   automatic tracker over every keyframe; use it once the shape is right to start the poses.
+   wrong: a mirror or 180° flip of a symmetric-looking object can score well. `oapply` and
+   `osweep` rows read `asked → where it ended`: the turn from the frame's current pose as
+   `rx;ry;rz` (the language `oapply` takes), the final joint states, and in brackets the
+   whole turn as an angle about an axis; commit by the row, never by the asked label's
+   angle. Every candidate of a preset or a set is drawn; a note says which sheet page holds
+   which ranks. `track` runs the automatic tracker over every keyframe; use it once the
+   shape is right to start the poses. `track` with `from: "pose.json"` refines the current
+   poses and names every frame it moved to another basin (turned over 45° from its pose
+   there, with the IoU before and after and the pass that moved it); with
+   `keep_basins: true` it only polishes, keeping every frame within 45° of rotation (half a
+   quarter turn, so no flip or twin) and 30° of joint of the pose you settled.
 3. Keep notes with `notes`: what the object is, which parts move, what you ruled out. Notes
    survive when older images leave your context.
 
 ## Reading the images
 
 The tool `render` draws these views (`views`, e.g. `"compare,side"`; default overlay and
-compare; compare and side are cropped around the object, overlay shows the whole frame):
+compare; compare and side are cropped around the object, overlay shows the whole frame).
+`zoom` (up to 8) and `crop` (`mask`, or a box `x0,y0,x1,y1` in frame pixels) apply to every
+view and sheet of `render` and to `frames`: to judge a detail of a few pixels (a drinking
+hole, a letter), crop a box around it and zoom. `render` and `score` also say per keyframe
+which side of the model faces the camera (`+Z toward the camera (12° off the ray; …)`,
+each axis's angle to the camera ray, 0°/180° face-on, 90° edge-on) and which side of each
+part (a lid at its joint state), so you need not compute it from pose.json.
 
 - **compare** (the silhouette comparison; each image carries the same legend):
 {COMPARE_LEGEND}
@@ -76,6 +106,8 @@ compare; compare and side are cropped around the object, overlay shows the whole
 - **frames**: the raw keyframe itself, cropped around its mask (optionally zoomed, with the
   mask's boundary in magenta, the hand's in cyan, the model's in yellow): the only view of
   the input without the model over it; use it to judge thin parts, print and texture.
+  With `model: true` the posed model in its own colours, opaque, stands beside each crop at
+  the same crop and zoom.
 - **candidate sheet** (sweeps): one candidate a row, as the render over the frame, the
   model opaque on the frame (its print against the frame's), and its comparison, cropped
   around the object, ranked, labelled with rank, IoU and the order that produced it.
@@ -124,8 +156,9 @@ so a high IoU does not rule them out:
 - **Scale.** A larger object farther away casts the same silhouette: the IoU cannot tell
   the scale from the distance. Check: use depth when the capture has it (the depth error
   in `score`), a size you know ("the laptop is 30 cm wide"), or a moving camera's
-  parallax, each a method of the `scale` tool; keep proportions from the frames, not from
-  the IoU.
+  parallax, each a method of the `scale` tool; with none of these, the hands holding the
+  object (`hand`: an adult palm is about 7.9 cm across) give a rough scale with its
+  uncertainty stated; keep proportions from the frames, not from the IoU.
 
 ## Gates before you finish
 

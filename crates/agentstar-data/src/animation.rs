@@ -10,6 +10,7 @@
 //! interface units (degrees or canonical units) and the joint definitions, so a reader gets
 //! exact joint states back; the node transforms alone already play in Blender and three.js.
 
+use crate::gltf_write::GltfBuilder;
 use crate::{DataError, Result};
 use agentstar_geom::pose::{Rigid, Similarity};
 use agentstar_geom::{ObjectModel, UnitQuaternion, Vector3};
@@ -30,52 +31,6 @@ pub struct AnimFrame {
 /// `gltf_from_world`: a half turn about X.
 fn gltf_from_world() -> UnitQuaternion {
     UnitQuaternion::from_axis_angle(&Vector3::x_axis(), std::f64::consts::PI)
-}
-
-struct Bin {
-    bytes: Vec<u8>,
-    views: Vec<serde_json::Value>,
-    accessors: Vec<serde_json::Value>,
-}
-
-impl Bin {
-    /// Appends `data` (rows of `width` floats) as an accessor; returns its index.
-    fn floats(&mut self, data: &[f32], width: usize, kind: &str, bounds: bool) -> usize {
-        let offset = self.bytes.len();
-        for v in data {
-            self.bytes.extend_from_slice(&v.to_le_bytes());
-        }
-        self.views
-            .push(json!({"buffer": 0, "byteOffset": offset, "byteLength": data.len() * 4}));
-        let mut acc = json!({"bufferView": self.views.len() - 1, "componentType": 5126,
-                             "count": data.len() / width, "type": kind});
-        if bounds {
-            let mut min = vec![f32::INFINITY; width];
-            let mut max = vec![f32::NEG_INFINITY; width];
-            for row in data.chunks_exact(width) {
-                for k in 0..width {
-                    min[k] = min[k].min(row[k]);
-                    max[k] = max[k].max(row[k]);
-                }
-            }
-            acc["min"] = json!(min);
-            acc["max"] = json!(max);
-        }
-        self.accessors.push(acc);
-        self.accessors.len() - 1
-    }
-    fn indices(&mut self, data: &[u32]) -> usize {
-        let offset = self.bytes.len();
-        for v in data {
-            self.bytes.extend_from_slice(&v.to_le_bytes());
-        }
-        self.views.push(json!({"buffer": 0, "byteOffset": offset, "byteLength": data.len() * 4, "target": 34963}));
-        self.accessors.push(
-            json!({"bufferView": self.views.len() - 1, "componentType": 5125,
-                                   "count": data.len(), "type": "SCALAR"}),
-        );
-        self.accessors.len() - 1
-    }
 }
 
 fn quat_xyzw(q: &UnitQuaternion) -> [f32; 4] {
@@ -107,14 +62,10 @@ pub fn animated_glb_bytes(
             return Err(format!("keyframe {}: the pose is not finite", f.name));
         }
     }
-    let mut bin = Bin {
-        bytes: vec![],
-        views: vec![],
-        accessors: vec![],
-    };
-    let (mut nodes, mut meshes, mut materials) = (vec![], vec![], vec![]);
+    let mut bin = GltfBuilder::default();
+    let (mut nodes, mut meshes) = (vec![], vec![]);
     let times: Vec<f32> = frames.iter().map(|f| f.time_s as f32).collect();
-    let input = bin.floats(&times, 1, "SCALAR", true);
+    let input = bin.floats(&times, 1, "SCALAR", true, None);
     let mut samplers = vec![];
     let mut channels = vec![];
     let mut channel =
@@ -141,11 +92,11 @@ pub fn animated_glb_bytes(
         "translation": [first_t.x, first_t.y, first_t.z], "rotation": first_r,
         "scale": [first.scale, first.scale, first.scale],
         "children": (1..=model.parts.len()).collect::<Vec<_>>()}));
-    let out = bin.floats(&t, 3, "VEC3", false);
+    let out = bin.floats(&t, 3, "VEC3", false, None);
     channel(0, "translation", out, &mut samplers);
-    let out = bin.floats(&r, 4, "VEC4", false);
+    let out = bin.floats(&r, 4, "VEC4", false, None);
     channel(0, "rotation", out, &mut samplers);
-    let out = bin.floats(&sc, 3, "VEC3", false);
+    let out = bin.floats(&sc, 3, "VEC3", false, None);
     channel(0, "scale", out, &mut samplers);
     // Parts: meshes in canonical coordinates, forward kinematics animated.
     let fk: Vec<Vec<Rigid>> = frames
@@ -153,18 +104,7 @@ pub fn animated_glb_bytes(
         .map(|f| model.tree.part_transforms(&f.states))
         .collect();
     for (i, part) in model.parts.iter().enumerate() {
-        let m = &part.mesh;
-        let pos: Vec<f32> = m
-            .positions
-            .iter()
-            .flat_map(|p| [p.x as f32, p.y as f32, p.z as f32])
-            .collect();
-        let pa = bin.floats(&pos, 3, "VEC3", true);
-        let idx: Vec<u32> = m.triangles.iter().flatten().copied().collect();
-        let ia = bin.indices(&idx);
-        let c = part.color;
-        materials.push(json!({"name": part.name, "pbrMetallicRoughness": {"baseColorFactor": [c[0], c[1], c[2], 1.0], "metallicFactor": 0.0, "roughnessFactor": 0.6}}));
-        meshes.push(json!({"name": part.name, "primitives": [{"attributes": {"POSITION": pa}, "indices": ia, "material": i}]}));
+        meshes.push(bin.part_mesh(part, |p| [p.x as f32, p.y as f32, p.z as f32]));
         let node = i + 1;
         let a0 = &fk[0][i];
         let t0 = a0.translation.vector;
@@ -179,9 +119,9 @@ pub fn animated_glb_bytes(
                 })
                 .collect();
             let r: Vec<f32> = fk.iter().flat_map(|a| quat_xyzw(&a[i].rotation)).collect();
-            let out = bin.floats(&t, 3, "VEC3", false);
+            let out = bin.floats(&t, 3, "VEC3", false, None);
             channel(node, "translation", out, &mut samplers);
-            let out = bin.floats(&r, 4, "VEC4", false);
+            let out = bin.floats(&r, 4, "VEC4", false, None);
             channel(node, "rotation", out, &mut samplers);
         }
     }
@@ -206,21 +146,20 @@ pub fn animated_glb_bytes(
         .iter()
         .map(crate::posefile::joint_json)
         .collect();
-    let doc = json!({
+    let mut doc = json!({
         "asset": {"version": "2.0", "generator": concat!("agentstar ", env!("CARGO_PKG_VERSION"))},
         "scene": 0,
         "scenes": [{"name": "tracked", "nodes": [0]}],
-        "nodes": nodes, "meshes": meshes, "materials": materials,
+        "nodes": nodes, "meshes": meshes,
         "animations": [{"name": "tracked", "samplers": samplers, "channels": channels,
             "extras": {"agentstar": {
                 "frames": frames.iter().map(|f| &f.name).collect::<Vec<_>>(),
                 "times_s": frames.iter().map(|f| f.time_s).collect::<Vec<_>>(),
                 "joint_states": joints, "joint_defs": joint_defs,
                 "convention": "root = half turn about X · world_from_object (OpenCV world); parts in canonical coordinates (+Z up), forward kinematics per part; joint states in degrees (revolute) or canonical units (prismatic)"}}}],
-        "accessors": bin.accessors, "bufferViews": bin.views,
-        "buffers": [{"byteLength": bin.bytes.len()}],
     });
-    Ok(crate::export::glb_container(&doc, bin.bytes))
+    let bytes = bin.finish(&mut doc);
+    Ok(crate::export::glb_container(&doc, bytes))
 }
 
 /// What reading an animated GLB back gives.

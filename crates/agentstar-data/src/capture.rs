@@ -957,17 +957,25 @@ fn open_inner(dir: &Path, c: &mut Collector, check_files: bool) -> Option<Captur
         .and_then(|s| s.get("fps"))
         .and_then(|f| f.as_f64());
     let warnings = timing_warnings(&frames, stated_fps);
-    // Without `ref_frame` the reference is the first keyframe.
-    let ref_name = manifest
-        .ref_frame
-        .as_ref()
-        .and(ref_index)
+    let ref_name = ref_index
         .and_then(|i| frames.get(i))
         .map(|f| f.name.clone());
     let (frames, between) = split_keyframes(&mpath, &manifest, frames, c)?;
     let ref_index = match ref_name {
         Some(name) => match frames.iter().position(|f| f.name == name) {
             Some(i) => i,
+            // Without `ref_frame`, the first frame listed; when that is an in-between frame,
+            // the first keyframe listed.
+            None if manifest.ref_frame.is_none() => manifest
+                .keyframes
+                .as_ref()
+                .and_then(|k| k.first())
+                .and_then(|k| {
+                    frames
+                        .iter()
+                        .position(|f| f.name == *k || f.stem == stem_of(k))
+                })
+                .unwrap_or(0),
             None => {
                 c.add(
                     &mpath,

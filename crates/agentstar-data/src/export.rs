@@ -2,6 +2,7 @@
 //! glTF's Y-up: `p_gltf = (x, z, −y)` of canonical) and URDF with one OBJ mesh per part.
 
 use crate::atomic::write_atomic;
+use crate::gltf_write::GltfBuilder;
 use crate::meshio::{obj_text, parse_glb};
 use crate::{DataError, Result};
 use agentstar_geom::kinematics::JointKind;
@@ -9,53 +10,22 @@ use agentstar_geom::ObjectModel;
 use serde_json::json;
 use std::path::Path;
 
-/// The GLB bytes of the model at rest.
+/// The GLB bytes of the model at rest, with each part's appearance
+/// ([`crate::gltf_write`]).
 pub fn glb_bytes(model: &ObjectModel) -> Vec<u8> {
-    let mut bin: Vec<u8> = Vec::new();
-    let (mut nodes, mut meshes, mut materials, mut accessors, mut views) =
-        (vec![], vec![], vec![], vec![], vec![]);
+    let mut builder = GltfBuilder::default();
+    let (mut nodes, mut meshes) = (vec![], vec![]);
     for (i, part) in model.parts.iter().enumerate() {
-        let m = &part.mesh;
-        let mut min = [f32::INFINITY; 3];
-        let mut max = [f32::NEG_INFINITY; 3];
-        let pos_offset = bin.len();
-        for p in &m.positions {
-            let g = [p.x as f32, p.z as f32, -p.y as f32];
-            for k in 0..3 {
-                min[k] = min[k].min(g[k]);
-                max[k] = max[k].max(g[k]);
-                bin.extend_from_slice(&g[k].to_le_bytes());
-            }
-        }
-        let pos_len = bin.len() - pos_offset;
-        let idx_offset = bin.len();
-        for t in &m.triangles {
-            for &k in t {
-                bin.extend_from_slice(&k.to_le_bytes());
-            }
-        }
-        let idx_len = bin.len() - idx_offset;
-        views.push(
-            json!({"buffer": 0, "byteOffset": pos_offset, "byteLength": pos_len, "target": 34962}),
-        );
-        views.push(
-            json!({"buffer": 0, "byteOffset": idx_offset, "byteLength": idx_len, "target": 34963}),
-        );
-        accessors.push(json!({"bufferView": 2 * i, "componentType": 5126, "count": m.positions.len(), "type": "VEC3", "min": min, "max": max}));
-        accessors.push(json!({"bufferView": 2 * i + 1, "componentType": 5125, "count": m.triangles.len() * 3, "type": "SCALAR"}));
-        let c = part.color;
-        materials.push(json!({"name": part.name, "pbrMetallicRoughness": {"baseColorFactor": [c[0], c[1], c[2], 1.0], "metallicFactor": 0.0, "roughnessFactor": 0.6}}));
-        meshes.push(json!({"name": part.name, "primitives": [{"attributes": {"POSITION": 2 * i}, "indices": 2 * i + 1, "material": i}]}));
+        meshes.push(builder.part_mesh(part, |p| [p.x as f32, p.z as f32, -p.y as f32]));
         nodes.push(json!({"name": part.name, "mesh": i}));
     }
-    let doc = json!({
+    let mut doc = json!({
         "asset": {"version": "2.0", "generator": concat!("agentstar ", env!("CARGO_PKG_VERSION"))},
         "scene": 0,
         "scenes": [{"nodes": (0..model.parts.len()).collect::<Vec<_>>()}],
-        "nodes": nodes, "meshes": meshes, "materials": materials,
-        "accessors": accessors, "bufferViews": views,
-        "buffers": [{"byteLength": bin.len()}],
+        "nodes": nodes, "meshes": meshes,
     });
+    let bin = builder.finish(&mut doc);
     glb_container(&doc, bin)
 }
 
@@ -100,6 +70,88 @@ pub fn write_glb(model: &ObjectModel, path: &Path) -> Result<()> {
     write_atomic(path, &bytes)
 }
 
+/// A part with its appearance as OBJ text (`mtllib STEM.mtl`, a `usemtl` group per
+/// material, `vt` per corner with `v` up the image, and where the part has vertex colours
+/// one `v x y z r g b` per corner), its material library (`Kd`, `map_Kd`) and its textures
+/// as PNG files (`STEM_tJ.png`) beside it.
+fn obj_with_materials(
+    mesh: &agentstar_geom::TriMesh,
+    name: &str,
+    stem: &str,
+    surface: &agentstar_geom::SurfaceAppearance,
+) -> (String, String, Vec<(String, Vec<u8>)>) {
+    use std::fmt::Write;
+    let mut obj = format!("# agentstar\nmtllib {stem}.mtl\no {name}\n");
+    let colors = surface.corner_color();
+    let uvs = surface.corner_uv();
+    // Vertex colours are per corner: one vertex per corner then, else the mesh's own.
+    match colors {
+        Some(c) => {
+            for (t, tri) in mesh.triangles.iter().enumerate() {
+                for k in 0..3 {
+                    let p = mesh.positions[tri[k] as usize];
+                    let [r, g, b] = c[t][k];
+                    let _ = writeln!(obj, "v {} {} {} {r} {g} {b}", p.x, p.y, p.z);
+                }
+            }
+        }
+        None => {
+            for p in &mesh.positions {
+                let _ = writeln!(obj, "v {} {} {}", p.x, p.y, p.z);
+            }
+        }
+    }
+    if let Some(uv) = uvs {
+        for t in uv {
+            for c in t {
+                let _ = writeln!(obj, "vt {} {}", c[0], 1.0 - c[1]);
+            }
+        }
+    }
+    let mut mtl = String::from("# agentstar\n");
+    let mut images: Vec<(String, Vec<u8>)> = Vec::new();
+    let mut written: Vec<(*const agentstar_geom::Texture, String)> = Vec::new();
+    for (mi, material) in surface.materials().iter().enumerate() {
+        let c = material.color;
+        let _ = write!(mtl, "newmtl m{mi}\nKd {} {} {}\n", c[0], c[1], c[2]);
+        if let (Some(t), Some(_)) = (&material.texture, uvs) {
+            let key = std::sync::Arc::as_ptr(t);
+            let file = match written.iter().find(|(k, _)| *k == key) {
+                Some((_, f)) => Some(f.clone()),
+                // A texture that does not encode leaves the material its colour.
+                None => crate::texture::texture_png(t).ok().map(|png| {
+                    let f = format!("{stem}_t{}.png", images.len());
+                    images.push((f.clone(), png));
+                    written.push((key, f.clone()));
+                    f
+                }),
+            };
+            if let Some(f) = file {
+                let _ = writeln!(mtl, "map_Kd {f}");
+            }
+        }
+        let _ = writeln!(obj, "usemtl m{mi}");
+        for (t, tri) in mesh.triangles.iter().enumerate() {
+            if usize::from(surface.triangle_material()[t]) != mi {
+                continue;
+            }
+            let corner = |k: usize| {
+                let v = if colors.is_some() {
+                    3 * t + k + 1
+                } else {
+                    tri[k] as usize + 1
+                };
+                match uvs {
+                    Some(_) => format!("{v}/{}", 3 * t + k + 1),
+                    None => v.to_string(),
+                }
+            };
+            let _ = writeln!(obj, "f {} {} {}", corner(0), corner(1), corner(2));
+        }
+    }
+    (obj, mtl, images)
+}
+
 fn xml_escape(s: &str) -> String {
     s.replace('&', "&amp;")
         .replace('<', "&lt;")
@@ -139,8 +191,19 @@ pub fn write_urdf(model: &ObjectModel, dir: &Path, robot: &str) -> Result<std::p
     for (i, part) in model.parts.iter().enumerate() {
         let o = frame_origin(i);
         let local = (*part.mesh).clone().translated(-o);
-        let rel = format!("meshes/{}.obj", file_stem(&part.name));
-        write_atomic(&dir.join(&rel), obj_text(&local, &part.name).as_bytes())?;
+        let stem = file_stem(&part.name);
+        let rel = format!("meshes/{stem}.obj");
+        match &part.surface {
+            None => write_atomic(&dir.join(&rel), obj_text(&local, &part.name).as_bytes())?,
+            Some(surface) => {
+                let (obj, mtl, images) = obj_with_materials(&local, &part.name, &stem, surface);
+                for (name, png) in images {
+                    write_atomic(&dir.join("meshes").join(name), &png)?;
+                }
+                write_atomic(&dir.join(format!("meshes/{stem}.mtl")), mtl.as_bytes())?;
+                write_atomic(&dir.join(&rel), obj.as_bytes())?;
+            }
+        }
         let c = part.color;
         x.push_str(&format!(
             "  <link name=\"{n}\">\n    <visual>\n      <geometry><mesh filename=\"{rel}\"/></geometry>\n      <material name=\"{n}_color\"><color rgba=\"{} {} {} 1\"/></material>\n    </visual>\n    <collision><geometry><mesh filename=\"{rel}\"/></geometry></collision>\n  </link>\n",

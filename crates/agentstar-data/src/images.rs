@@ -89,7 +89,7 @@ fn decode_jpeg_strict(bytes: &[u8], path: &Path, what: &str) -> Result<image::Dy
 }
 
 /// A JPEG ends with the EOI marker `FF D9` (some writers pad a few bytes after it).
-fn jpeg_is_complete(bytes: &[u8]) -> bool {
+pub(crate) fn jpeg_is_complete(bytes: &[u8]) -> bool {
     let tail = &bytes[bytes.len().saturating_sub(64)..];
     tail.windows(2).any(|w| w == [0xFF, 0xD9])
 }

@@ -10,6 +10,8 @@ pub mod atomic;
 pub mod capture;
 pub mod capture_writer;
 pub mod export;
+pub mod glb;
+pub(crate) mod gltf_write;
 pub mod gt;
 pub mod history;
 pub mod images;
@@ -21,6 +23,7 @@ pub mod posefile;
 pub mod poses;
 pub mod runfile;
 pub mod scenefile;
+pub mod texture;
 pub mod urdf;
 
 use std::path::{Path, PathBuf};

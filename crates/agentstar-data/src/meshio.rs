@@ -1,41 +1,74 @@
 //! Mesh files: OBJ, STL (ASCII and binary), PLY (ASCII and binary) and GLB read into one
-//! triangle mesh in the file's own frame; OBJ written for exports. GLB files are Y-up and
-//! are converted to the canonical Z-up frame (`(x, y, z)_gltf → (x, −z, y)`).
+//! triangle mesh in the file's own frame, with the appearance the file gives it (an OBJ's
+//! material library with `Kd` and `map_Kd` over its texture coordinates and its vertex
+//! colours; a PLY's vertex colours and texture coordinates with the texture its
+//! `comment TextureFile` names; a GLB's materials, see [`crate::glb`]); OBJ written for
+//! exports. GLB files are Y-up and are converted to the canonical Z-up frame
+//! (`(x, y, z)_gltf → (x, −z, y)`). Texture coordinates are stored with `v` down the image
+//! (glTF's convention): OBJ's and PLY's `v` is flipped.
 
+pub use crate::glb::{parse_glb, parse_glb_appearance, parse_glb_file_frame};
+use crate::texture::{load_texture, SideFiles};
 use crate::{read_bytes, DataError, Result};
-use agentstar_geom::{Matrix4, Point3, TriMesh};
+use agentstar_geom::{AppearedMesh, Material, Point3, SurfaceAppearance, TriMesh};
+use std::cell::RefCell;
 use std::path::Path;
+use std::sync::Arc;
 
 /// The extensions [`load_mesh`] understands.
 pub const MESH_EXTENSIONS: [&str; 4] = ["obj", "stl", "ply", "glb"];
 
-/// Loads a mesh file by its extension and checks it (non-empty, finite, indices in range).
+/// Loads a mesh file's geometry by its extension and checks it (non-empty, finite, indices
+/// in range); its appearance is not read.
 pub fn load_mesh(path: &Path) -> Result<TriMesh> {
+    Ok(load_appeared_mesh(path, &SideFiles::none())?.mesh)
+}
+
+/// Loads a mesh file with its appearance, its side files (material library, textures)
+/// looked up in `files`; a side file that cannot be read is a warning of the result.
+pub fn load_appeared_mesh(path: &Path, files: &SideFiles) -> Result<AppearedMesh> {
     let ext = path
         .extension()
         .and_then(|e| e.to_str())
         .unwrap_or("")
         .to_ascii_lowercase();
     let bytes = read_bytes(path)?;
-    let mesh = match ext.as_str() {
-        "obj" => parse_obj(&bytes),
-        "stl" => parse_stl(&bytes),
-        "ply" => parse_ply(&bytes),
-        "glb" => parse_glb(&bytes).map(|parts| {
-            let mut m = TriMesh::default();
-            for (_, p) in parts {
-                m.append(&p);
-            }
-            m
-        }),
+    let loaded = match ext.as_str() {
+        "obj" => parse_obj_appearance(&bytes, files),
+        "stl" => parse_stl(&bytes).map(AppearedMesh::plain),
+        "ply" => parse_ply_appearance(&bytes, files),
+        "glb" => parse_glb_appearance(&bytes, files).and_then(merge_nodes),
         "" => Err("has no file extension; a mesh file is .obj, .stl, .ply or .glb".into()),
         other => Err(format!(
             "unsupported mesh format `.{other}`; use one of .obj, .stl, .ply, .glb"
         )),
     }
     .map_err(|m| DataError::invalid(path, m))?;
-    check(&mesh).map_err(|m| DataError::invalid(path, m))?;
-    Ok(mesh)
+    check(&loaded.mesh).map_err(|m| DataError::invalid(path, m))?;
+    Ok(loaded)
+}
+
+/// A GLB's root nodes as one mesh (for a single-part import), their appearances side by
+/// side; a node without one gets a plain white material (glTF's default).
+fn merge_nodes(nodes: Vec<(String, AppearedMesh)>) -> Result<AppearedMesh, String> {
+    let any_surface = nodes.iter().any(|(_, n)| n.surface.is_some());
+    let mut out = AppearedMesh::default();
+    let mut surface: Option<SurfaceAppearance> = None;
+    for (name, node) in nodes {
+        if any_surface {
+            let own = node.surface.as_deref().cloned().unwrap_or_else(|| {
+                SurfaceAppearance::plain(&name, [1.0; 3], node.mesh.triangles.len())
+            });
+            surface = Some(match surface {
+                None => own,
+                Some(s) => s.appended(&own).map_err(|e| e.to_string())?,
+            });
+        }
+        out.mesh.append(&node.mesh);
+        out.warnings.extend(node.warnings);
+    }
+    out.surface = surface.map(Arc::new);
+    Ok(out)
 }
 
 fn check(mesh: &TriMesh) -> Result<(), String> {
@@ -56,17 +89,86 @@ fn check(mesh: &TriMesh) -> Result<(), String> {
 }
 
 pub fn parse_obj(bytes: &[u8]) -> Result<TriMesh, String> {
+    Ok(parse_obj_appearance(bytes, &SideFiles::none())?.mesh)
+}
+
+/// The texture file of an MTL `map_Kd` value: its last word when options (`-s 1 1 1`)
+/// come first, else the whole value (a name may hold spaces).
+fn map_kd_file(value: &str) -> &str {
+    let v = value.trim();
+    if v.starts_with('-') {
+        v.split_whitespace().last().unwrap_or(v)
+    } else {
+        v
+    }
+}
+
+/// An OBJ with its material library (`mtllib`, read through `files`): each face's material
+/// (`usemtl`) with `Kd` and `map_Kd`, texture coordinates (`vt`) and vertex colours
+/// (`v x y z r g b`).
+pub fn parse_obj_appearance(bytes: &[u8], files: &SideFiles) -> Result<AppearedMesh, String> {
     let opts = tobj::LoadOptions {
         triangulate: true,
         single_index: true,
         ignore_points: true,
         ignore_lines: true,
     };
+    let warnings = RefCell::new(Vec::new());
     let mut reader = std::io::BufReader::new(bytes);
-    let (models, _) =
-        tobj::load_obj_buf(&mut reader, &opts, |_| Err(tobj::LoadError::OpenFileFailed))
-            .map_err(|e| format!("not a valid OBJ file: {e}"))?;
+    let (models, materials) = tobj::load_obj_buf(&mut reader, &opts, |p| {
+        let name = p.to_string_lossy().to_string();
+        match files.read(&name) {
+            Ok((_, mtl)) => tobj::load_mtl_buf(&mut std::io::BufReader::new(mtl.as_slice()))
+                .inspect_err(|e| {
+                    warnings.borrow_mut().push(format!(
+                        "material library `{name}` does not read ({e}); its parts keep their colour"
+                    ));
+                }),
+            Err(e) => {
+                warnings.borrow_mut().push(format!(
+                    "material library: {e}; its parts keep their colour"
+                ));
+                Err(tobj::LoadError::OpenFileFailed)
+            }
+        }
+    })
+    .map_err(|e| format!("not a valid OBJ file: {e}"))?;
+    let mut warnings = warnings.into_inner();
+    let mtl = materials.unwrap_or_default();
+    // Our materials: tobj's, each with its texture read once; then a default for faces
+    // without one.
+    let mut ours: Vec<Material> = Vec::with_capacity(mtl.len() + 1);
+    for m in &mtl {
+        let color = m.diffuse.unwrap_or([1.0; 3]);
+        let texture = m.diffuse_texture.as_deref().and_then(|t| {
+            let file = map_kd_file(t);
+            load_texture(files, file)
+                .map_err(|e| {
+                    warnings.push(format!(
+                        "material `{}`: map_Kd {e}; it keeps its colour Kd",
+                        m.name
+                    ))
+                })
+                .ok()
+                .map(Arc::new)
+        });
+        ours.push(Material {
+            name: m.name.clone(),
+            color: color.map(|c| c.clamp(0.0, 1.0)),
+            texture,
+        });
+    }
+    let default = ours.len();
+    ours.push(Material {
+        name: "default".into(),
+        color: [1.0; 3],
+        texture: None,
+    });
     let mut mesh = TriMesh::default();
+    let mut triangle_material = Vec::new();
+    let mut corner_uv = Vec::new();
+    let mut corner_color = Vec::new();
+    let (mut any_uv, mut any_color, mut any_material) = (false, false, false);
     for m in models {
         let base = mesh.positions.len() as u32;
         let p = &m.mesh.positions;
@@ -74,14 +176,61 @@ pub fn parse_obj(bytes: &[u8]) -> Result<TriMesh, String> {
             p.chunks_exact(3)
                 .map(|c| Point3::new(c[0] as f64, c[1] as f64, c[2] as f64)),
         );
-        mesh.triangles.extend(
-            m.mesh
-                .indices
-                .chunks_exact(3)
-                .map(|t| [t[0] + base, t[1] + base, t[2] + base]),
-        );
+        let material = m.mesh.material_id.filter(|&i| i < mtl.len());
+        any_material |= material.is_some();
+        let texcoords = &m.mesh.texcoords;
+        let colors = &m.mesh.vertex_color;
+        any_uv |= !texcoords.is_empty();
+        any_color |= !colors.is_empty();
+        for t in m.mesh.indices.chunks_exact(3) {
+            mesh.triangles.push([t[0] + base, t[1] + base, t[2] + base]);
+            triangle_material.push(material.unwrap_or(default) as u16);
+            corner_uv.push([0, 1, 2].map(|k| {
+                let i = t[k] as usize;
+                match (texcoords.get(2 * i), texcoords.get(2 * i + 1)) {
+                    (Some(&u), Some(&v)) => [u, 1.0 - v],
+                    _ => [0.0; 2],
+                }
+            }));
+            corner_color.push([0, 1, 2].map(|k| {
+                let i = t[k] as usize;
+                colors
+                    .get(3 * i..3 * i + 3)
+                    .map_or([1.0; 3], |c| [c[0], c[1], c[2]].map(|v| v.clamp(0.0, 1.0)))
+            }));
+        }
     }
-    Ok(mesh)
+    if ours.len() > usize::from(u16::MAX) {
+        return Err(format!("{} materials; at most 65535 are read", ours.len()));
+    }
+    if !any_uv {
+        for m in ours.iter_mut().filter(|m| m.texture.is_some()) {
+            warnings.push(format!(
+                "material `{}` has a texture (map_Kd) but the OBJ has no texture coordinates (vt); it keeps its colour Kd",
+                m.name
+            ));
+            m.texture = None;
+        }
+    }
+    let surface = if any_material || any_color {
+        let any_texture = ours.iter().any(|m| m.texture.is_some());
+        Some(Arc::new(
+            SurfaceAppearance::new(
+                ours,
+                triangle_material,
+                any_texture.then_some(corner_uv),
+                any_color.then_some(corner_color),
+            )
+            .map_err(|e| e.to_string())?,
+        ))
+    } else {
+        None
+    };
+    Ok(AppearedMesh {
+        mesh,
+        surface,
+        warnings,
+    })
 }
 
 pub fn parse_stl(bytes: &[u8]) -> Result<TriMesh, String> {
@@ -149,6 +298,26 @@ fn ply_read(ty: &str, b: &[u8], fmt: PlyFormat) -> f64 {
 /// PLY with a `vertex` element (x, y, z) and a `face` element (a list of indices);
 /// other elements and properties are skipped.
 pub fn parse_ply(bytes: &[u8]) -> Result<TriMesh, String> {
+    Ok(parse_ply_appearance(bytes, &SideFiles::none())?.mesh)
+}
+
+/// A PLY vertex colour component as a display value in [0, 1]: integers over their type's
+/// range, floats as they are.
+fn ply_unit(v: f64, ty: &str) -> f32 {
+    let scale = match ty {
+        "uchar" | "uint8" | "char" | "int8" => 255.0,
+        "ushort" | "uint16" | "short" | "int16" => 65535.0,
+        "float" | "float32" | "double" | "float64" => 1.0,
+        _ => 255.0,
+    };
+    (v / scale).clamp(0.0, 1.0) as f32
+}
+
+/// [`parse_ply`] with vertex colours (`red`, `green`, `blue`, or `diffuse_…`) and texture
+/// coordinates (per vertex `u`/`v`, `s`/`t`, `texture_u`/`texture_v`, or a face's
+/// `texcoord` list) with the texture named by `comment TextureFile` (read through
+/// `files`).
+pub fn parse_ply_appearance(bytes: &[u8], files: &SideFiles) -> Result<AppearedMesh, String> {
     let end = bytes
         .windows(10)
         .position(|w| w == b"end_header")
@@ -166,6 +335,7 @@ pub fn parse_ply(bytes: &[u8]) -> Result<TriMesh, String> {
         return Err("not a PLY file: it must start with `ply`".into());
     }
     let mut fmt = None;
+    let mut texture_file: Option<String> = None;
     // (name, count, properties: (name, type, list count type))
     type Property = (String, String, Option<String>);
     let mut elements: Vec<(String, usize, Vec<Property>)> = Vec::new();
@@ -195,6 +365,10 @@ pub fn parse_ply(bytes: &[u8]) -> Result<TriMesh, String> {
                 let e = elements.last_mut().ok_or("property before any element")?;
                 e.2.push((name.to_string(), ty.to_string(), None));
             }
+            ["comment", key, ..] if key.eq_ignore_ascii_case("texturefile") => {
+                let rest = line.trim_start()["comment".len()..].trim_start();
+                texture_file = Some(rest[key.len()..].trim().to_string());
+            }
             _ => {}
         }
     }
@@ -207,6 +381,32 @@ pub fn parse_ply(bytes: &[u8]) -> Result<TriMesh, String> {
         }
     }
     let mut mesh = TriMesh::default();
+    let vertex_props = elements
+        .iter()
+        .find(|e| e.0 == "vertex")
+        .map(|e| e.2.clone())
+        .unwrap_or_default();
+    let has = |names: &[&str]| names.iter().all(|n| vertex_props.iter().any(|p| p.0 == *n));
+    let color_names: Option<[&str; 3]> = [
+        ["red", "green", "blue"],
+        ["diffuse_red", "diffuse_green", "diffuse_blue"],
+        ["r", "g", "b"],
+    ]
+    .into_iter()
+    .find(|n| has(n));
+    let uv_names: Option<[&str; 2]> = [
+        ["u", "v"],
+        ["s", "t"],
+        ["texture_u", "texture_v"],
+        ["texture_s", "texture_t"],
+    ]
+    .into_iter()
+    .find(|n| has(n));
+    let mut vertex_color: Vec<[f32; 3]> = Vec::new();
+    let mut vertex_uv: Vec<[f32; 2]> = Vec::new();
+    // Per triangle, its corners' texture coordinates from a face's `texcoord` list.
+    let mut face_uv: Vec<[[f32; 2]; 3]> = Vec::new();
+    let mut any_face_uv = false;
     let body = &bytes[body_start..];
     let mut tokens = if fmt == PlyFormat::Ascii {
         std::str::from_utf8(body)
@@ -245,6 +445,9 @@ pub fn parse_ply(bytes: &[u8]) -> Result<TriMesh, String> {
         }
         for _ in 0..*count {
             let mut xyz = [0.0; 3];
+            let mut rgb = [1.0f32; 3];
+            let mut uv = [0.0f32; 2];
+            let (mut face_polygon, mut face_tex): (Vec<u32>, Vec<f32>) = (Vec::new(), Vec::new());
             for (pname, ty, list) in props {
                 match list {
                     Some(ct) => {
@@ -253,14 +456,20 @@ pub fn parse_ply(bytes: &[u8]) -> Result<TriMesh, String> {
                             return Err(format!("PLY list `{pname}` has a bad length {c}"));
                         }
                         let n = c as usize;
-                        let mut idx = Vec::with_capacity(n.min(64));
-                        for _ in 0..n {
-                            idx.push(next(ty, &mut pos)? as u32);
-                        }
                         if name == "face" && (pname == "vertex_indices" || pname == "vertex_index")
                         {
-                            for k in 1..n.saturating_sub(1) {
-                                mesh.triangles.push([idx[0], idx[k], idx[k + 1]]);
+                            face_polygon.clear();
+                            for _ in 0..n {
+                                face_polygon.push(next(ty, &mut pos)? as u32);
+                            }
+                        } else if name == "face" && pname == "texcoord" {
+                            face_tex.clear();
+                            for _ in 0..n {
+                                face_tex.push(next(ty, &mut pos)? as f32);
+                            }
+                        } else {
+                            for _ in 0..n {
+                                next(ty, &mut pos)?;
                             }
                         }
                     }
@@ -271,7 +480,18 @@ pub fn parse_ply(bytes: &[u8]) -> Result<TriMesh, String> {
                                 "x" => xyz[0] = v,
                                 "y" => xyz[1] = v,
                                 "z" => xyz[2] = v,
-                                _ => {}
+                                p => {
+                                    if let Some(k) =
+                                        color_names.and_then(|c| c.iter().position(|n| *n == p))
+                                    {
+                                        rgb[k] = ply_unit(v, ty);
+                                    }
+                                    if let Some(k) =
+                                        uv_names.and_then(|c| c.iter().position(|n| *n == p))
+                                    {
+                                        uv[k] = v as f32;
+                                    }
+                                }
                             }
                         }
                     }
@@ -279,248 +499,90 @@ pub fn parse_ply(bytes: &[u8]) -> Result<TriMesh, String> {
             }
             if name == "vertex" {
                 mesh.positions.push(Point3::new(xyz[0], xyz[1], xyz[2]));
+                if color_names.is_some() {
+                    vertex_color.push(rgb);
+                }
+                if uv_names.is_some() {
+                    vertex_uv.push([uv[0], 1.0 - uv[1]]);
+                }
             }
-        }
-    }
-    Ok(mesh)
-}
-
-/// Reads a binary glTF: one mesh per root node (its subtree merged), named after the node,
-/// converted to the canonical Z-up frame. Sorted as in the file.
-pub fn parse_glb(bytes: &[u8]) -> Result<Vec<(String, TriMesh)>, String> {
-    let y_up_to_z_up = Matrix4::new(
-        1.0, 0.0, 0.0, 0.0, 0.0, 0.0, -1.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0,
-    );
-    parse_glb_from(bytes, y_up_to_z_up)
-}
-
-/// Reads a binary glTF as [`parse_glb`] does but keeps the file's own coordinates (no Y-up
-/// to Z-up turn): for datasets whose poses refer to the model as stored (HOT3D).
-pub fn parse_glb_file_frame(bytes: &[u8]) -> Result<Vec<(String, TriMesh)>, String> {
-    parse_glb_from(bytes, Matrix4::identity())
-}
-
-/// Checks an accessor before the `gltf` reader touches it (the reader indexes and asserts on
-/// what the file claims): its buffer view lies inside the binary chunk, its elements fit
-/// in the view, and its type is what we read.
-fn check_accessor(
-    acc: &gltf::Accessor,
-    blob_len: usize,
-    what: &str,
-    dims: gltf::accessor::Dimensions,
-    types: &[gltf::accessor::DataType],
-) -> Result<(), String> {
-    let bad = |why: String| Err(format!("accessor {} ({what}): {why}", acc.index()));
-    if acc.sparse().is_some() {
-        return bad("sparse accessors are not supported".into());
-    }
-    if acc.dimensions() != dims || !types.contains(&acc.data_type()) {
-        return bad(format!(
-            "type {:?} {:?} is not the expected {dims:?}",
-            acc.dimensions(),
-            acc.data_type()
-        ));
-    }
-    let Some(view) = acc.view() else {
-        return bad("it has no buffer view".into());
-    };
-    let buffer = view.buffer();
-    if !matches!(buffer.source(), gltf::buffer::Source::Bin) {
-        return bad("its buffer is not the GLB's binary chunk".into());
-    }
-    let view_end = view.offset().checked_add(view.length());
-    if buffer.length() > blob_len || view_end.is_none_or(|e| e > buffer.length()) {
-        return bad("its buffer view lies outside the binary chunk".into());
-    }
-    let elem = acc.size();
-    let stride = view.stride().unwrap_or(elem);
-    if stride < elem {
-        return bad(format!(
-            "byte stride {stride} is smaller than an element ({elem} bytes)"
-        ));
-    }
-    if acc.count() > 0 {
-        let last = (acc.count() - 1)
-            .checked_mul(stride)
-            .and_then(|v| v.checked_add(acc.offset()))
-            .and_then(|v| v.checked_add(elem));
-        if last.is_none_or(|l| l > view.length()) {
-            return bad(format!(
-                "{} elements do not fit in its buffer view of {} bytes",
-                acc.count(),
-                view.length()
-            ));
-        }
-    }
-    Ok(())
-}
-
-/// Checks what the `gltf` crate (1.4) trusts and panics on: the GLB header and chunk
-/// lengths, and the accessor indices that its validation looks up unchecked.
-fn precheck_glb(bytes: &[u8]) -> Result<(), String> {
-    let word = |at: usize| -> Option<u32> {
-        bytes
-            .get(at..at + 4)
-            .map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]]))
-    };
-    if bytes.get(..4) != Some(b"glTF") {
-        return Err("not a GLB file (no `glTF` magic)".into());
-    }
-    let total = word(8).ok_or("the GLB header is truncated")? as usize;
-    if total < 20 || total > bytes.len() {
-        return Err(format!(
-            "the GLB header gives a length of {total} bytes but the file has {}",
-            bytes.len()
-        ));
-    }
-    let json_len = word(12).ok_or("the GLB JSON chunk is truncated")? as usize;
-    if word(16) != Some(0x4E4F_534A) || 20usize.saturating_add(json_len) > total {
-        return Err("the GLB JSON chunk is malformed".into());
-    }
-    let json_end = 20 + json_len;
-    let bin_at = json_end.div_ceil(4) * 4;
-    if bin_at + 8 <= total {
-        let bin_len = word(bin_at).unwrap_or(u32::MAX) as usize;
-        if (bin_at + 8).saturating_add(bin_len) > total {
-            return Err("the GLB binary chunk runs past the end of the file".into());
-        }
-    }
-    let json: serde_json::Value = serde_json::from_slice(&bytes[20..json_end])
-        .map_err(|e| format!("the GLB JSON chunk is not JSON: {e}"))?;
-    let accessors = json["accessors"].as_array().map_or(0, Vec::len);
-    for mesh in json["meshes"].as_array().into_iter().flatten() {
-        for prim in mesh["primitives"].as_array().into_iter().flatten() {
-            let refs = prim["attributes"]
-                .as_object()
-                .into_iter()
-                .flat_map(|a| a.values())
-                .chain(std::iter::once(&prim["indices"]))
-                .filter(|v| !v.is_null());
-            for r in refs {
-                if r.as_u64().is_none_or(|i| i as usize >= accessors) {
-                    return Err(format!(
-                        "a mesh primitive refers to accessor {r}, but there are {accessors}"
-                    ));
+            if name == "face" {
+                let n = face_polygon.len();
+                let tex_ok = face_tex.len() == 2 * n;
+                any_face_uv |= tex_ok && n >= 3;
+                let corner = |k: usize| {
+                    if tex_ok {
+                        [face_tex[2 * k], 1.0 - face_tex[2 * k + 1]]
+                    } else {
+                        [0.0; 2]
+                    }
+                };
+                for k in 1..n.saturating_sub(1) {
+                    mesh.triangles
+                        .push([face_polygon[0], face_polygon[k], face_polygon[k + 1]]);
+                    face_uv.push([corner(0), corner(k), corner(k + 1)]);
                 }
             }
         }
     }
-    Ok(())
-}
-
-fn parse_glb_from(bytes: &[u8], root_from_file: Matrix4) -> Result<Vec<(String, TriMesh)>, String> {
-    precheck_glb(bytes).map_err(|e| format!("not a valid GLB file: {e}"))?;
-    // The prechecks cover the panics we know of in `gltf`; a reader bug we do not know of
-    // is still an error about this file rather than a crash.
-    let gltf = std::panic::catch_unwind(|| gltf::Gltf::from_slice(bytes))
-        .map_err(|_| "not a valid GLB file: the glTF reader failed on it".to_string())?
-        .map_err(|e| format!("not a valid GLB file: {e}"))?;
-    let blob = gltf.blob.as_deref();
-    let blob_len = blob.map_or(0, <[u8]>::len);
-    let scene = gltf
-        .default_scene()
-        .or_else(|| gltf.scenes().next())
-        .ok_or("the GLB file has no scene")?;
-    let mut parts = Vec::new();
-    for (i, root) in scene.nodes().enumerate() {
-        let mut mesh = TriMesh::default();
-        let mut stack = vec![(root.clone(), root_from_file, 0usize)];
-        let mut visited = 0usize;
-        while let Some((node, parent, depth)) = stack.pop() {
-            // A node graph with a cycle (invalid glTF) would never end.
-            visited += 1;
-            if depth > 256 || visited > 1_000_000 {
-                return Err("the node hierarchy is cyclic or deeper than 256 levels".into());
-            }
-            let local = Matrix4::from_fn(|r, c| node.transform().matrix()[c][r] as f64);
-            let world = parent * local;
-            if let Some(m) = node.mesh() {
-                for prim in m.primitives() {
-                    if prim.mode() != gltf::mesh::Mode::Triangles {
-                        continue;
-                    }
-                    use gltf::accessor::{DataType, Dimensions};
-                    if let Some(acc) = prim.get(&gltf::Semantic::Positions) {
-                        check_accessor(
-                            &acc,
-                            blob_len,
-                            "positions",
-                            Dimensions::Vec3,
-                            &[DataType::F32],
-                        )?;
-                    }
-                    if let Some(acc) = prim.indices() {
-                        check_accessor(
-                            &acc,
-                            blob_len,
-                            "indices",
-                            Dimensions::Scalar,
-                            &[DataType::U8, DataType::U16, DataType::U32],
-                        )?;
-                    }
-                    let reader = prim.reader(|b| match b.source() {
-                        gltf::buffer::Source::Bin => blob,
-                        gltf::buffer::Source::Uri(_) => None,
-                    });
-                    let Some(positions) = reader.read_positions() else {
-                        continue;
-                    };
-                    let base = mesh.positions.len() as u32;
-                    let first_triangle = mesh.triangles.len();
-                    let pts: Vec<Point3> = positions
-                        .map(|p| {
-                            world.transform_point(&Point3::new(
-                                p[0] as f64,
-                                p[1] as f64,
-                                p[2] as f64,
-                            ))
-                        })
-                        .collect();
-                    let count = pts.len() as u32;
-                    mesh.positions.extend(pts);
-                    match reader.read_indices() {
-                        Some(ind) => {
-                            let ind: Vec<u32> = ind.into_u32().collect();
-                            mesh.triangles.extend(ind.chunks_exact(3).map(|t| {
-                                // Out-of-range indices are reported by `check`.
-                                [
-                                    t[0].saturating_add(base),
-                                    t[1].saturating_add(base),
-                                    t[2].saturating_add(base),
-                                ]
-                            }));
-                        }
-                        None => mesh.triangles.extend(
-                            (0..count / 3)
-                                .map(|k| [base + 3 * k, base + 3 * k + 1, base + 3 * k + 2]),
-                        ),
-                    }
-                    if world.fixed_view::<3, 3>(0, 0).determinant() < 0.0 {
-                        for t in mesh.triangles.iter_mut().skip(first_triangle) {
-                            t.swap(1, 2);
-                        }
-                    }
-                }
-            }
-            for c in node.children() {
-                stack.push((c, world, depth + 1));
-            }
-        }
-        if !mesh.triangles.is_empty() {
-            parts.push((
-                root.name()
-                    .map(str::to_string)
-                    .unwrap_or_else(|| format!("node{i}")),
-                mesh,
+    let mut warnings = Vec::new();
+    // Vertex attributes per corner; an index out of range is reported by `check`.
+    let corners = |t: &[u32; 3]| t.map(|i| i as usize);
+    let corner_color = (!vertex_color.is_empty()).then(|| {
+        mesh.triangles
+            .iter()
+            .map(|t| corners(t).map(|i| vertex_color.get(i).copied().unwrap_or([1.0; 3])))
+            .collect::<Vec<_>>()
+    });
+    let corner_uv = if any_face_uv {
+        Some(face_uv)
+    } else if !vertex_uv.is_empty() {
+        Some(
+            mesh.triangles
+                .iter()
+                .map(|t| corners(t).map(|i| vertex_uv.get(i).copied().unwrap_or([0.0; 2])))
+                .collect::<Vec<_>>(),
+        )
+    } else {
+        None
+    };
+    let texture = match (&texture_file, &corner_uv) {
+        (Some(file), Some(_)) => load_texture(files, file)
+            .map_err(|e| warnings.push(format!("TextureFile {e}; the mesh keeps its colour")))
+            .ok()
+            .map(Arc::new),
+        (Some(file), None) => {
+            warnings.push(format!(
+                "TextureFile `{file}` is named but the PLY has no texture coordinates; the mesh keeps its colour"
             ));
+            None
         }
+        _ => None,
+    };
+    if texture.is_none() && corner_color.is_none() {
+        return Ok(AppearedMesh {
+            mesh,
+            surface: None,
+            warnings,
+        });
     }
-    if parts.is_empty() {
-        return Err(
-            "the GLB file holds no triangle geometry (external buffers are not supported)".into(),
-        );
-    }
-    Ok(parts)
+    let n = mesh.triangles.len();
+    let surface = SurfaceAppearance::new(
+        vec![Material {
+            name: texture_file.unwrap_or_else(|| "vertex colours".into()),
+            color: [1.0; 3],
+            texture: texture.clone(),
+        }],
+        vec![0; n],
+        texture.is_some().then_some(corner_uv).flatten(),
+        corner_color,
+    )
+    .map_err(|e| e.to_string())?;
+    Ok(AppearedMesh {
+        mesh,
+        surface: Some(Arc::new(surface)),
+        warnings,
+    })
 }
 
 /// OBJ text of a mesh (vertices and faces, 1-based).

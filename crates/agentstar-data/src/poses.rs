@@ -1,15 +1,17 @@
 //! Keeping `pose.json` in step with the scene: after a shape step, joints the new scene
 //! added start at rest in every frame, joints it removed are dropped, and the joint
 //! definitions and part names are the new scene's. When the edit moved the canonical origin
-//! (geometry that did not change moved, as re-centring a model does), every written pose
-//! is carried by the shift ([`agentstar_geom::origin_shift`]), so the object stays where it
-//! was in every image and an edit costs a local refinement, not a re-track.
+//! under the held part (the largest part in view, or one the caller names:
+//! [`agentstar_geom::held_part`]), every written pose is carried by the shift
+//! ([`agentstar_geom::origin_shift_holding`]), so that part stays where it was in every
+//! image and an edit costs a local refinement, not a re-track. (Play-test: a cabinet grown
+//! evenly was carried so as to keep its small handle in place, not its body.)
 
 use crate::history::PoseHistory;
 use crate::history::Result;
 use crate::posefile::{joint_json, pose_json, PoseFile};
 use agentstar_geom::pose::ObjectPose;
-use agentstar_geom::{origin_shift, ObjectModel};
+use agentstar_geom::{origin_shift_holding, HeldPart, ObjectModel};
 use std::path::Path;
 
 /// Shifts of the origin under this many canonical units are left alone (float noise).
@@ -17,22 +19,29 @@ const SHIFT_TOLERANCE: f64 = 1e-7;
 
 /// Updates the pose file at `poses` to the model at `scene` (under the pose file's lock,
 /// recorded in its history as `command` when anything changed); `before` is the model the
-/// poses were made for, when it is known (then a moved origin is compensated). Returns what
-/// changed and the version recorded.
+/// poses were made for with the part to hold in place, when it is known (then a moved
+/// origin is compensated). Returns what changed and the version recorded.
 pub fn reconcile(
     scene: &Path,
     poses: &Path,
-    before: Option<&ObjectModel>,
+    before: Option<(&ObjectModel, &HeldPart)>,
     command: &str,
 ) -> Result<(Vec<String>, Option<u64>)> {
     let model = crate::scenefile::load_model(scene)?.model;
     PoseHistory::new(poses).update_if_changed(command, |pf| Ok(reconcile_file(before, &model, pf)))
 }
 
-/// Carries every written pose of `pf` from `before` to `model` when the origin moved;
-/// returns what changed.
-pub fn carry_origin(before: &ObjectModel, model: &ObjectModel, pf: &mut PoseFile) -> Vec<String> {
-    let shift = origin_shift(before, model);
+/// Carries every written pose of `pf` from `before` to `model` when the origin moved under
+/// the `held` part; returns what changed.
+pub fn carry_origin(
+    before: &ObjectModel,
+    model: &ObjectModel,
+    pf: &mut PoseFile,
+    held: &HeldPart,
+) -> Vec<String> {
+    let Some(shift) = origin_shift_holding(before, model, &held.name) else {
+        return vec![];
+    };
     if !shift.moved(SHIFT_TOLERANCE) {
         return vec![];
     }
@@ -49,11 +58,17 @@ pub fn carry_origin(before: &ObjectModel, model: &ObjectModel, pf: &mut PoseFile
     }
     let s = shift.shift;
     vec![format!(
-        "the canonical origin moved by ({:.4}, {:.4}, {:.4}) (part `{}` moved whole or on its unchanged side); {n} pose(s) carried so the object stays where it was in every image",
+        "the canonical origin moved by ({:.4}, {:.4}, {:.4}) under part `{}` ({}; {}); {n} pose(s) carried so that part stays where it was in every image",
         s.x,
         s.y,
         s.z,
-        shift.part.as_deref().unwrap_or("?")
+        held.name,
+        held.why,
+        if shift.share > 0.0 {
+            "moved whole or on its unchanged side"
+        } else {
+            "by its bounds, as its mesh changed"
+        }
     )]
 }
 
@@ -81,14 +96,14 @@ pub fn rescale(pf: &mut PoseFile, scale: f64) -> std::result::Result<(), String>
 
 /// Brings `pf` in step with `model`; returns what changed.
 fn reconcile_file(
-    before: Option<&ObjectModel>,
+    before: Option<(&ObjectModel, &HeldPart)>,
     model: &ObjectModel,
     pf: &mut PoseFile,
 ) -> Vec<String> {
     let tree = &model.tree;
     let rest = tree.states_to_interface(&tree.rest_states());
     let mut changes = match before {
-        Some(b) => carry_origin(b, model, pf),
+        Some((b, held)) => carry_origin(b, model, pf, held),
         None => vec![],
     };
     let mut added = std::collections::BTreeSet::new();

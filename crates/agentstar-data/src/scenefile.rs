@@ -3,10 +3,11 @@
 //! else one part). A script that fails leaves the last good model in place: every good
 //! build is remembered in `.agentstar/last_good.rhai` beside the script.
 
-use crate::meshio::{load_mesh, parse_glb, MESH_EXTENSIONS};
-use crate::urdf::load_urdf;
+use crate::meshio::{load_appeared_mesh, parse_glb_appearance, MESH_EXTENSIONS};
+use crate::texture::SideFiles;
+use crate::urdf::load_urdf_with_warnings;
 use crate::{read_bytes, read_text, DataError, Result};
-use agentstar_geom::{KinematicTree, ObjectModel, Part, TriMesh};
+use agentstar_geom::{AppearedMesh, KinematicTree, ObjectModel, Part};
 use agentstar_scene::{build_scene, Limits, MeshSource, SceneBuild};
 use std::path::{Component, Path, PathBuf};
 
@@ -29,7 +30,7 @@ impl ScriptDirMeshes {
 }
 
 impl MeshSource for ScriptDirMeshes {
-    fn load(&self, path: &str) -> std::result::Result<TriMesh, String> {
+    fn load(&self, path: &str) -> std::result::Result<AppearedMesh, String> {
         let p = Path::new(path);
         if p.is_absolute() || p.components().any(|c| !matches!(c, Component::Normal(_))) {
             return Err(format!("`{path}` must be a relative path inside the script's directory (no `..`, no absolute paths)"));
@@ -82,7 +83,9 @@ impl MeshSource for ScriptDirMeshes {
                 None => format!("`{path}` leads outside the script's directory"),
             });
         }
-        load_mesh(&real).map_err(|e| e.to_string())
+        // The files it names (material library, textures) are held to the same directory.
+        let files = SideFiles::confined(real.parent().unwrap_or(&root), &root);
+        load_appeared_mesh(&real, &files).map_err(|e| e.to_string())
     }
 }
 
@@ -152,30 +155,55 @@ pub fn load_model(path: &Path) -> Result<LoadedModel> {
             Ok(LoadedModel { model: b.model, warnings: b.warnings, printed: b.printed })
         }
         "urdf" => {
-            let model = load_urdf(path)?;
-            let warnings = model.canonical_report().warnings;
+            let (model, mut warnings) = load_urdf_with_warnings(path)?;
+            warnings.extend(model.canonical_report().warnings);
             Ok(LoadedModel { model, warnings, printed: vec![] })
         }
         "glb" => {
-            let parts = parse_glb(&read_bytes(path)?).map_err(|e| DataError::invalid(path, e))?;
-            let parts: Vec<Part> = parts.into_iter().enumerate().map(|(i, (n, m))| Part::new(n, m, palette(i))).collect();
-            rigid(parts)
+            let files = SideFiles::beside(path.parent().unwrap_or(Path::new(".")));
+            let nodes = parse_glb_appearance(&read_bytes(path)?, &files).map_err(|e| DataError::invalid(path, e))?;
+            let mut warnings = Vec::new();
+            let mut parts = Vec::new();
+            for (i, (n, m)) in nodes.into_iter().enumerate() {
+                warnings.extend(m.warnings.iter().map(|w| format!("{}: node `{n}`: {w}", path.display())));
+                parts.push(appeared_part(n, m, palette(i)).map_err(|e| DataError::invalid(path, e))?);
+            }
+            rigid(parts, warnings)
         }
         e if MESH_EXTENSIONS.contains(&e) => {
             let name = path.file_stem().and_then(|s| s.to_str()).unwrap_or("object").to_string();
-            rigid(vec![Part::new(name, load_mesh(path)?, palette(0))])
+            let files = SideFiles::beside(path.parent().unwrap_or(Path::new(".")));
+            let m = load_appeared_mesh(path, &files)?;
+            let warnings = m.warnings.iter().map(|w| format!("{}: {w}", path.display())).collect();
+            rigid(vec![appeared_part(name, m, palette(0)).map_err(|e| DataError::invalid(path, e))?], warnings)
         }
         "" => Err(DataError::invalid(path, format!("has no file extension, so it is not a model file; use a scene script (.rhai), a URDF (.urdf) or a mesh (.{})", MESH_EXTENSIONS.join(", .")))),
         other => Err(DataError::invalid(path, format!("unknown model type `.{other}`; use a scene script (.rhai), a URDF (.urdf) or a mesh (.{})", MESH_EXTENSIONS.join(", .")))),
     }
 }
 
-fn rigid(parts: Vec<Part>) -> Result<LoadedModel> {
+/// The part of a mesh read with its appearance: one colour where the file gave it one
+/// plain material (or `fallback` where it gave none), else its surface.
+pub fn appeared_part(
+    name: String,
+    m: AppearedMesh,
+    fallback: [f32; 3],
+) -> std::result::Result<Part, String> {
+    match m.surface {
+        None => Ok(Part::new(name, m.mesh, fallback)),
+        Some(s) if !s.varies() => Ok(Part::new(name, m.mesh, s.materials()[0].color)),
+        Some(s) => Part::new(name, m.mesh, fallback)
+            .with_surface(s)
+            .map_err(|e| e.to_string()),
+    }
+}
+
+fn rigid(parts: Vec<Part>, mut warnings: Vec<String>) -> Result<LoadedModel> {
     let model = ObjectModel {
         tree: KinematicTree::rigid(parts.len()),
         parts,
     };
-    let warnings = model.canonical_report().warnings;
+    warnings.extend(model.canonical_report().warnings);
     Ok(LoadedModel {
         model,
         warnings,

@@ -3,14 +3,18 @@
 //! convention (origin and axis expressed in the model frame at rest). Malformed values get
 //! an error naming the element, the joint or link, and the attribute.
 
-use crate::meshio::load_mesh;
+use crate::meshio::load_appeared_mesh;
+use crate::texture::SideFiles;
 use crate::{read_text, DataError, Result};
 use agentstar_geom::kinematics::{JointDef, JointKind};
 use agentstar_geom::pose::Rigid;
 use agentstar_geom::primitives::{cuboid, cylinder, uv_sphere};
-use agentstar_geom::{KinematicTree, Matrix3, ObjectModel, Part, TriMesh, UnitQuaternion, Vector3};
+use agentstar_geom::{
+    KinematicTree, Matrix3, ObjectModel, Part, SurfaceAppearance, TriMesh, UnitQuaternion, Vector3,
+};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 
 struct UrdfJoint {
     name: String,
@@ -91,6 +95,37 @@ fn resolve_mesh(dir: &Path, filename: &str) -> Vec<PathBuf> {
 
 /// Loads a URDF file and the meshes it references (relative to the file).
 pub fn load_urdf(path: &Path) -> Result<ObjectModel> {
+    Ok(load_urdf_with_warnings(path)?.0)
+}
+
+/// The grey of a visual without a material.
+const URDF_DEFAULT_COLOR: [f32; 3] = [0.7, 0.7, 0.72];
+
+/// A visual's colour: its `<material>`'s `<color rgba>`, or the colour of the robot-level
+/// `<material>` of the same name.
+fn visual_color(
+    visual: roxmltree::Node,
+    named: &BTreeMap<String, [f32; 3]>,
+    owner: &str,
+) -> std::result::Result<Option<[f32; 3]>, String> {
+    let Some(material) = visual.children().find(|c| c.has_tag_name("material")) else {
+        return Ok(None);
+    };
+    if let Some(rgba) = material.children().find(|c| c.has_tag_name("color")) {
+        let c = attr_numbers(rgba, "rgba", 4, owner, None)?;
+        return Ok(Some([c[0], c[1], c[2]].map(|v| v.clamp(0.0, 1.0) as f32)));
+    }
+    Ok(material
+        .attribute("name")
+        .and_then(|n| named.get(n))
+        .copied())
+}
+
+/// [`load_urdf`] with what reading the meshes' appearance gave to say (a texture that does
+/// not read). Each link's colour is its visuals' materials (a `<material>` of the visual or
+/// one defined at the robot level by name); a mesh with an appearance of its own (an OBJ's
+/// materials, a PLY's vertex colours, a GLB's textures) keeps it.
+pub fn load_urdf_with_warnings(path: &Path) -> Result<(ObjectModel, Vec<String>)> {
     let text = read_text(path)?;
     let dir = path.parent().unwrap_or(Path::new("."));
     let err = |m: String| DataError::invalid(path, m);
@@ -102,8 +137,23 @@ pub fn load_urdf(path: &Path) -> Result<ObjectModel> {
             robot.tag_name().name()
         )));
     }
+    let mut warnings = Vec::new();
+    let mut named_colors: BTreeMap<String, [f32; 3]> = BTreeMap::new();
+    for m in robot.children().filter(|n| n.has_tag_name("material")) {
+        let (Some(name), Some(rgba)) = (
+            m.attribute("name"),
+            m.children().find(|c| c.has_tag_name("color")),
+        ) else {
+            continue;
+        };
+        let c = attr_numbers(rgba, "rgba", 4, &format!("material `{name}`"), None).map_err(&err)?;
+        named_colors.insert(
+            name.to_string(),
+            [c[0], c[1], c[2]].map(|v| v.clamp(0.0, 1.0) as f32),
+        );
+    }
     // Links with their geometry in the link frame.
-    let mut links: BTreeMap<String, (TriMesh, Option<[f32; 3]>)> = BTreeMap::new();
+    let mut links: BTreeMap<String, (TriMesh, SurfaceAppearance)> = BTreeMap::new();
     let mut link_order = Vec::new();
     for link in robot.children().filter(|n| n.has_tag_name("link")) {
         let name = link
@@ -117,7 +167,7 @@ pub fn load_urdf(path: &Path) -> Result<ObjectModel> {
             )));
         }
         let mut mesh = TriMesh::default();
-        let mut color = None;
+        let mut look = SurfaceAppearance::plain(&name, URDF_DEFAULT_COLOR, 0);
         for visual in link.children().filter(|n| n.has_tag_name("visual")) {
             let origin = origin_of(visual, &owner).map_err(&err)?;
             let Some(geometry) = visual.children().find(|c| c.has_tag_name("geometry")) else {
@@ -126,6 +176,8 @@ pub fn load_urdf(path: &Path) -> Result<ObjectModel> {
             let Some(shape) = geometry.children().find(|c| c.is_element()) else {
                 continue;
             };
+            let color = visual_color(visual, &named_colors, &owner).map_err(&err)?;
+            let mut own_look = None;
             let g = match shape.tag_name().name() {
                 "box" => {
                     let s = attr_numbers(shape, "size", 3, &owner, None).map_err(&err)?;
@@ -145,20 +197,30 @@ pub fn load_urdf(path: &Path) -> Result<ObjectModel> {
                     let scale = attr_numbers(shape, "scale", 3, &owner, Some(vec![1.0; 3])).map_err(&err)?;
                     let candidates = resolve_mesh(dir, file);
                     let found = candidates.iter().find(|p| p.is_file()).ok_or_else(|| err(format!("{owner}: mesh file `{file}` not found (looked at {})", candidates.iter().map(|p| p.display().to_string()).collect::<Vec<_>>().join(", "))))?;
-                    let m = load_mesh(found).map_err(|e| err(format!("{owner}: {e}")))?;
-                    m.transformed(&Matrix3::from_diagonal(&Vector3::new(scale[0], scale[1], scale[2])), &Vector3::zeros())
+                    let dir = found.parent().unwrap_or(Path::new("."));
+                    let m = load_appeared_mesh(found, &SideFiles::beside(dir)).map_err(|e| err(format!("{owner}: {e}")))?;
+                    warnings.extend(m.warnings.iter().map(|w| format!("{owner}: {}: {w}", found.display())));
+                    let mirrors = scale[0] * scale[1] * scale[2] < 0.0;
+                    own_look = m.surface.map(|s| if mirrors { s.with_corners_swapped() } else { (*s).clone() });
+                    m.mesh.transformed(&Matrix3::from_diagonal(&Vector3::new(scale[0], scale[1], scale[2])), &Vector3::zeros())
                 }
                 other => return Err(err(format!("{owner}: unsupported geometry <{other}> (box, cylinder, sphere and mesh are supported)"))),
             };
             let rot = origin.rotation.to_rotation_matrix().into_inner();
+            let visual_look = own_look.unwrap_or_else(|| {
+                SurfaceAppearance::plain(
+                    &name,
+                    color.unwrap_or(URDF_DEFAULT_COLOR),
+                    g.triangles.len(),
+                )
+            });
+            look = look
+                .appended(&visual_look)
+                .map_err(|e| err(format!("{owner}: {e}")))?;
             mesh.append(&g.transformed(&rot, &origin.translation.vector));
-            if let Some(rgba) = visual.descendants().find(|c| c.has_tag_name("color")) {
-                let c = attr_numbers(rgba, "rgba", 4, &owner, None).map_err(&err)?;
-                color = Some([c[0] as f32, c[1] as f32, c[2] as f32]);
-            }
         }
         link_order.push(name.clone());
-        links.insert(name, (mesh, color));
+        links.insert(name, (mesh, look));
     }
     let mut joints = Vec::new();
     for j in robot.children().filter(|n| n.has_tag_name("joint")) {
@@ -295,7 +357,7 @@ pub fn load_urdf(path: &Path) -> Result<ObjectModel> {
     }
     let mut parts = Vec::new();
     for name in &link_order {
-        let (Some((mesh, color)), Some(&w)) = (links.get(name), world.get(name)) else {
+        let (Some((mesh, look)), Some(&w)) = (links.get(name), world.get(name)) else {
             continue;
         };
         if mesh.triangles.is_empty() {
@@ -303,11 +365,7 @@ pub fn load_urdf(path: &Path) -> Result<ObjectModel> {
         }
         let rot = w.rotation.to_rotation_matrix().into_inner();
         let placed = mesh.clone().transformed(&rot, &w.translation.vector);
-        parts.push(Part::new(
-            name.clone(),
-            placed,
-            color.unwrap_or([0.7, 0.7, 0.72]),
-        ));
+        parts.push(link_part(name, placed, look).map_err(|e| err(e.to_string()))?);
     }
     if parts.is_empty() {
         return Err(err("no link has visual geometry".into()));
@@ -349,5 +407,27 @@ pub fn load_urdf(path: &Path) -> Result<ObjectModel> {
         })
         .collect();
     let tree = KinematicTree::new(defs, &part_names).map_err(|e| err(e.to_string()))?;
-    Ok(ObjectModel { parts, tree })
+    Ok((ObjectModel { parts, tree }, warnings))
+}
+
+/// A link's part: one colour where its visuals share one plain material, else its
+/// appearance triangle by triangle. The first (empty) material of `look` is the seed of
+/// the appending, never used by a triangle.
+fn link_part(name: &str, mesh: TriMesh, look: &SurfaceAppearance) -> agentstar_geom::Result<Part> {
+    let used: std::collections::BTreeSet<u16> = look.triangle_material().iter().copied().collect();
+    let materials = look.materials();
+    let plain = look.corner_color().is_none()
+        && used.iter().all(|&m| {
+            let first = &materials[usize::from(*used.iter().next().unwrap_or(&m))];
+            let this = &materials[usize::from(m)];
+            this.texture.is_none() && this.color == first.color
+        });
+    if plain {
+        let color = used
+            .iter()
+            .next()
+            .map_or(URDF_DEFAULT_COLOR, |&m| materials[usize::from(m)].color);
+        return Ok(Part::new(name, mesh, color));
+    }
+    Part::new(name, mesh, URDF_DEFAULT_COLOR).with_surface(Arc::new(look.clone()))
 }

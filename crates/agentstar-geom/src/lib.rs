@@ -5,9 +5,12 @@
 //! radians everywhere in this crate; degrees appear only at the edges (scene scripts,
 //! `pose.json`), where the conversion is named explicitly (`angle_deg`).
 
+pub mod appearance;
 pub mod camera;
 pub mod csg;
+pub mod facing;
 pub mod hull;
+pub mod inside;
 pub mod kinematics;
 pub mod mesh;
 pub mod model;
@@ -16,10 +19,14 @@ pub mod primitives;
 pub mod simplify;
 pub mod truth;
 
+pub use appearance::{AppearedMesh, Material, SurfaceAppearance, Texture, WrapMode};
 pub use camera::PinholeCamera;
 pub use kinematics::{JointDef, JointKind, KinematicTree};
 pub use mesh::{Aabb, TriMesh};
-pub use model::{origin_shift, CanonicalReport, ObjectModel, OriginShift, Part};
+pub use model::{
+    held_part, origin_shift, origin_shift_holding, CanonicalReport, HeldPart, ObjectModel,
+    OriginShift, Part,
+};
 pub use pose::{GenPose, ObjectPose, Similarity};
 
 /// Errors of the geometry layer. Messages name the offending value and say what is valid.

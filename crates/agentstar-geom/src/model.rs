@@ -1,6 +1,7 @@
 //! The object model: named parts (meshes in the canonical rest frame, each with a colour)
 //! and the kinematic tree that moves them, plus the canonical-frame report.
 
+use crate::appearance::SurfaceAppearance;
 use crate::kinematics::KinematicTree;
 use crate::mesh::{Aabb, TriMesh};
 use crate::pose::{ObjectPose, Rigid};
@@ -30,6 +31,9 @@ pub struct Part {
     /// renderers tell front faces from back ones without projecting every vertex. `None`
     /// when `edges` is.
     pub planes: Option<Arc<Vec<[f64; 4]>>>,
+    /// Texture, vertex colours or materials per triangle where the model file had them;
+    /// `color` is then their mean. `None`: the part is `color` all over.
+    pub surface: Option<Arc<SurfaceAppearance>>,
 }
 
 impl Part {
@@ -52,6 +56,35 @@ impl Part {
             edges,
             open_edges,
             planes,
+            surface: None,
+        }
+    }
+
+    /// The part with `surface` as its appearance, and its mean as its colour; refused when
+    /// the surface is not for this many triangles.
+    pub fn with_surface(mut self, surface: Arc<SurfaceAppearance>) -> crate::Result<Part> {
+        if surface.triangle_count() != self.mesh.triangles.len() {
+            return Err(crate::GeomError::InvalidArgument {
+                primitive: "part".into(),
+                reason: format!(
+                    "part `{}`: an appearance for {} triangles on a mesh of {}",
+                    self.name,
+                    surface.triangle_count(),
+                    self.mesh.triangles.len()
+                ),
+            });
+        }
+        self.color = surface.mean_color(&self.mesh);
+        self.surface = Some(surface);
+        Ok(self)
+    }
+
+    /// The colour at barycentric coordinates `bary` of triangle `triangle`: the surface's
+    /// where the part has one, else the part's colour.
+    pub fn color_at(&self, triangle: usize, bary: [f32; 3]) -> [f32; 3] {
+        match &self.surface {
+            Some(s) => s.color_at(triangle, bary),
+            None => self.color,
         }
     }
 }
@@ -107,7 +140,8 @@ impl ObjectModel {
         self.posed_bounds(states).center()
     }
 
-    /// Measures the canonical-frame convention at rest.
+    /// Measures the canonical-frame convention at rest; its warnings also name each part
+    /// hidden inside another ([`crate::inside::hidden_parts`]).
     pub fn canonical_report(&self) -> CanonicalReport {
         let b = self.posed_bounds(&self.tree.rest_states());
         let ext = b.extent();
@@ -117,7 +151,8 @@ impl ObjectModel {
             b.center()
         };
         let longest = ext.max();
-        let mut warnings = Vec::new();
+        // Parts hidden inside another (never seen in an image): every model load reports them.
+        let mut warnings = crate::inside::hidden_part_warnings(self);
         if b.is_empty() {
             warnings.push("the model has no geometry".into());
         } else {
@@ -260,6 +295,156 @@ pub fn origin_shift(old: &ObjectModel, new: &ObjectModel) -> OriginShift {
     best.map_or_else(OriginShift::none, |(_, s)| s)
 }
 
+/// The part a shape edit keeps in place when it carries poses to the new model, and why it
+/// was chosen ([`held_part`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct HeldPart {
+    pub name: String,
+    /// Why this part: named by the caller, the largest in view, or the largest surface.
+    pub why: String,
+}
+
+/// The part to hold in place across an edit from `old` to `new`: `named` when given (it
+/// must be a part of both), else the part of both with the most visible pixels over the
+/// frames (`visible`, per part of `old`, at the poses being carried), else, with no pixels
+/// counted, the largest surface area (a convex body's mean projected area over all view
+/// directions is a quarter of its surface area: Cauchy's formula).
+pub fn held_part(
+    old: &ObjectModel,
+    new: &ObjectModel,
+    named: Option<&str>,
+    visible: Option<(&[u64], usize)>,
+) -> Result<HeldPart, String> {
+    let in_both = |name: &str| {
+        old.parts.iter().any(|p| p.name == name) && new.parts.iter().any(|p| p.name == name)
+    };
+    if let Some(name) = named {
+        if in_both(name) {
+            return Ok(HeldPart {
+                name: name.to_string(),
+                why: "named".to_string(),
+            });
+        }
+        let names: Vec<&str> = new
+            .parts
+            .iter()
+            .map(|p| p.name.as_str())
+            .filter(|n| in_both(n))
+            .collect();
+        return Err(format!(
+            "part `{name}` is not a part of both the old and the new model (parts of both: {})",
+            if names.is_empty() {
+                "none".to_string()
+            } else {
+                names.join(", ")
+            }
+        ));
+    }
+    let candidates: Vec<usize> = (0..old.parts.len())
+        .filter(|&k| in_both(&old.parts[k].name))
+        .collect();
+    if let Some((pixels, frames)) = visible.filter(|(v, _)| {
+        candidates
+            .iter()
+            .any(|&k| v.get(k).copied().unwrap_or(0) > 0)
+    }) {
+        let total: u64 = pixels.iter().sum();
+        if let Some(&k) = candidates
+            .iter()
+            .max_by_key(|&&k| (pixels.get(k).copied().unwrap_or(0), std::cmp::Reverse(k)))
+        {
+            let share = pixels.get(k).copied().unwrap_or(0) as f64 / total.max(1) as f64;
+            return Ok(HeldPart {
+                name: old.parts[k].name.clone(),
+                why: format!(
+                    "the largest part in view: {:.0}% of the model's visible pixels over {frames} keyframe(s)",
+                    100.0 * share
+                ),
+            });
+        }
+    }
+    candidates
+        .iter()
+        .max_by(|&&a, &&b| {
+            old.parts[a]
+                .mesh
+                .area()
+                .total_cmp(&old.parts[b].mesh.area())
+        })
+        .map(|&k| HeldPart {
+            name: old.parts[k].name.clone(),
+            why:
+                "the largest part by surface area (no posed keyframe to measure the parts in view)"
+                    .to_string(),
+        })
+        .ok_or_else(|| "the old and the new model share no part name".to_string())
+}
+
+/// How far the canonical origin moved from `old` to `new`, holding the part `held` in place:
+/// with the same mesh layout in both, its vertices' shared translation (moved whole, or on
+/// its unchanged side as [`origin_shift`] reads it; none shared: it stayed); with a new
+/// layout (a boolean or a segment count changed), its bounds axis by axis: both faces moved
+/// alike (a translation), one face stayed (it grew from there: no shift), else the move of
+/// their centre (it grew about it). `None` when `held` is not a part of both.
+pub fn origin_shift_holding(
+    old: &ObjectModel,
+    new: &ObjectModel,
+    held: &str,
+) -> Option<OriginShift> {
+    let before = old.parts.iter().find(|p| p.name == held)?;
+    let part = new.parts.iter().find(|p| p.name == held)?;
+    let (a, b) = (&before.mesh, &part.mesh);
+    if a.positions.len() == b.positions.len() && a.triangles == b.triangles && !a.is_empty() {
+        let size = old
+            .posed_bounds(&old.tree.rest_states())
+            .extent()
+            .max()
+            .max(1e-9);
+        let (shift, share, next) = displacement_groups(a, b, 1e-6 * size);
+        let whole = share >= 1.0 - 1e-12;
+        return Some(if whole || (share >= 0.5 && share >= 1.5 * next) {
+            OriginShift {
+                shift,
+                part: Some(held.to_string()),
+                share,
+            }
+        } else {
+            OriginShift {
+                shift: Vector3::zeros(),
+                part: Some(held.to_string()),
+                share: 0.0,
+            }
+        });
+    }
+    if a.is_empty() || b.is_empty() {
+        return Some(OriginShift {
+            shift: Vector3::zeros(),
+            part: Some(held.to_string()),
+            share: 0.0,
+        });
+    }
+    // Meshed anew: its bounds, axis by axis. Both faces moved alike: a translation; one
+    // face stayed: it grew from that side and the origin stayed; else it grew about its
+    // centre, whose move is the shift.
+    let (ba, bb) = (a.bounds(), b.bounds());
+    let tolerance = 1e-6 * ba.extent().max().max(1e-9);
+    let shift = Vector3::from_fn(|k, _| {
+        let (dmin, dmax) = (bb.min[k] - ba.min[k], bb.max[k] - ba.max[k]);
+        if (dmin - dmax).abs() <= tolerance {
+            (dmin + dmax) / 2.0
+        } else if dmin.abs() <= tolerance || dmax.abs() <= tolerance {
+            0.0
+        } else {
+            (dmin + dmax) / 2.0
+        }
+    });
+    Some(OriginShift {
+        shift,
+        part: Some(held.to_string()),
+        share: 0.0,
+    })
+}
+
 /// A copy of `mesh` mapped by a rigid transform.
 pub fn transform_rigid(mesh: &TriMesh, t: &Rigid) -> TriMesh {
     TriMesh {
@@ -370,6 +555,79 @@ mod tests {
             )],
         };
         assert_eq!(origin_shift(&single, &other), OriginShift::none());
+    }
+
+    #[test]
+    fn a_held_part_decides_the_shift_and_the_largest_in_view_is_held() {
+        // A cabinet grown evenly about its centre: its handle moves out with its face.
+        let cabinet = |w: f64, segments: usize| {
+            let body = if segments == 0 {
+                cuboid(w, 0.6, 0.8).expect("box")
+            } else {
+                crate::primitives::uv_sphere(w / 2.0, segments as i64 * 2, segments as i64)
+                    .expect("body")
+            };
+            let handle = cuboid(0.04, 0.1, 0.1)
+                .expect("box")
+                .translated(Vector3::new(w / 2.0 + 0.02, 0.0, 0.0));
+            ObjectModel {
+                tree: KinematicTree::rigid(2),
+                parts: vec![
+                    Part::new("body", body, [0.5; 3]),
+                    Part::new("handle", handle, [0.5; 3]),
+                ],
+            }
+        };
+        let (old, new) = (cabinet(1.0, 0), cabinet(1.2, 0));
+        // Holding the handle (what the largest voting part did when the body voted for
+        // nothing) moves every pose by the handle's move; holding the body, nothing moves.
+        let by_handle = origin_shift_holding(&old, &new, "handle").expect("part");
+        assert!((by_handle.shift - Vector3::new(0.1, 0.0, 0.0)).norm() < 1e-9);
+        let by_body = origin_shift_holding(&old, &new, "body").expect("part");
+        assert!(by_body.shift.norm() < 1e-12, "{by_body:?}");
+        // A body meshed anew (another segment count): its bounds' centre, which stayed.
+        let s = origin_shift_holding(&cabinet(1.0, 8), &cabinet(1.2, 9), "body").expect("part");
+        assert!(s.shift.norm() < 1e-9, "{s:?}");
+        // Meshed anew and grown from its bottom face up, then moved 0.1 along x: the face
+        // that stayed keeps the origin along z; x moved whole.
+        let one_sided = |h: f64, x: f64, rings: i64| ObjectModel {
+            tree: KinematicTree::rigid(1),
+            parts: vec![Part::new(
+                "body",
+                crate::primitives::cylinder(0.3, h, rings)
+                    .expect("body")
+                    .translated(Vector3::new(x, 0.0, h / 2.0)),
+                [0.5; 3],
+            )],
+        };
+        let s = origin_shift_holding(&one_sided(0.5, 0.0, 16), &one_sided(0.7, 0.1, 20), "body")
+            .expect("part");
+        assert!(
+            (s.shift - Vector3::new(0.1, 0.0, 0.0)).norm() < 1e-9,
+            "{s:?}"
+        );
+        assert!(origin_shift_holding(&old, &new, "lid").is_none());
+        // The largest in view, else named, else by surface.
+        let held = held_part(&old, &new, None, Some((&[9000, 400], 6))).expect("held");
+        assert_eq!(held.name, "body");
+        assert!(
+            held.why.contains("96%") && held.why.contains("6 keyframe"),
+            "{held:?}"
+        );
+        let held = held_part(&old, &new, None, Some((&[10, 400], 6))).expect("held");
+        assert_eq!(held.name, "handle");
+        assert_eq!(
+            held_part(&old, &new, None, None).expect("held").name,
+            "body"
+        );
+        assert_eq!(
+            held_part(&old, &new, Some("handle"), None)
+                .expect("held")
+                .name,
+            "handle"
+        );
+        let e = held_part(&old, &new, Some("lid"), None).expect_err("no lid");
+        assert!(e.contains("`lid`") && e.contains("body, handle"), "{e}");
     }
 
     #[test]

@@ -10,8 +10,10 @@
 //! borders are locked (an open part's silhouette is bounded by its rim), and a part that
 //! would lose its closedness or every triangle keeps its own mesh.
 
+use crate::appearance::SurfaceAppearance;
 use crate::mesh::TriMesh;
 use crate::model::{ObjectModel, Part};
+use std::sync::Arc;
 
 /// What [`simplified_model`] did.
 #[derive(Debug, Clone, PartialEq)]
@@ -127,7 +129,16 @@ pub fn simplified_model(
                 report.triangles_after += simpler.mesh.triangles.len();
                 report.deviation = report.deviation.max(simplified.deviation);
                 report.holes_closed += simplified.holes_closed;
-                simpler
+                match &part.surface {
+                    Some(surface) if surface.varies() => {
+                        let baked = baked_colors(&part.mesh, surface, &simpler.mesh);
+                        simpler
+                            .clone()
+                            .with_surface(Arc::new(baked))
+                            .unwrap_or(simpler)
+                    }
+                    _ => simpler,
+                }
             }
         })
         .collect();
@@ -138,6 +149,57 @@ pub fn simplified_model(
         },
         report,
     )
+}
+
+/// The appearance of `dense` carried onto its stand-in `coarse` as vertex colours: each
+/// coarse vertex takes the colour of the nearest dense vertex (the mean over its corners,
+/// so a texture is sampled at that vertex's coordinates), and the colours are interpolated
+/// over the coarse triangles. A print blurs to the stand-in's resolution but keeps its
+/// place, which is what the search's colour terms need to tell twins apart.
+fn baked_colors(
+    dense: &TriMesh,
+    surface: &SurfaceAppearance,
+    coarse: &TriMesh,
+) -> SurfaceAppearance {
+    let mut sum = vec![[0.0f32; 3]; dense.positions.len()];
+    let mut count = vec![0u32; dense.positions.len()];
+    for (t, tri) in dense.triangles.iter().enumerate() {
+        for k in 0..3 {
+            let mut bary = [0.0; 3];
+            bary[k] = 1.0;
+            let c = surface.color_at(t, bary);
+            let v = tri[k] as usize;
+            for i in 0..3 {
+                sum[v][i] += c[i];
+            }
+            count[v] += 1;
+        }
+    }
+    let colored: Vec<(crate::Point3, [f32; 3])> = dense
+        .positions
+        .iter()
+        .zip(sum.iter().zip(&count))
+        .filter(|(_, (_, &n))| n > 0)
+        .map(|(p, (c, &n))| (*p, c.map(|v| v / n as f32)))
+        .collect();
+    let nearest = |p: &crate::Point3| {
+        colored
+            .iter()
+            .min_by(|a, b| {
+                (a.0 - p)
+                    .norm_squared()
+                    .total_cmp(&(b.0 - p).norm_squared())
+            })
+            .map_or([0.7; 3], |(_, c)| *c)
+    };
+    let vertex: Vec<[f32; 3]> = coarse.positions.iter().map(nearest).collect();
+    let corners = coarse
+        .triangles
+        .iter()
+        .map(|t| t.map(|i| vertex[i as usize]))
+        .collect();
+    SurfaceAppearance::vertex_colored(corners)
+        .unwrap_or_else(|_| SurfaceAppearance::plain("stand-in", [0.7; 3], coarse.triangles.len()))
 }
 
 #[cfg(test)]
@@ -174,6 +236,59 @@ mod tests {
             })
             .fold(f64::INFINITY, f64::min);
         assert!(1.0 - centroid_radius_min < 0.004, "{centroid_radius_min}");
+    }
+
+    #[test]
+    fn a_stand_in_keeps_a_coloured_parts_print_where_it_was() {
+        // A dense sphere, red above the equator and blue below (vertex colours).
+        let dense = primitives::uv_sphere(1.0, 96, 48).expect("sphere");
+        let corners: Vec<[[f32; 3]; 3]> = dense
+            .triangles
+            .iter()
+            .map(|t| {
+                t.map(|i| {
+                    if dense.positions[i as usize].z > 0.0 {
+                        [1.0, 0.0, 0.0]
+                    } else {
+                        [0.0, 0.0, 1.0]
+                    }
+                })
+            })
+            .collect();
+        let surface = Arc::new(SurfaceAppearance::vertex_colored(corners).expect("colours"));
+        let model = ObjectModel {
+            parts: vec![Part::new("ball", dense, [0.5; 3])
+                .with_surface(surface)
+                .expect("part")],
+            tree: crate::KinematicTree::rigid(1),
+        };
+        let (standin, report) = simplified_model(&model, 0.01, 500, 0.0);
+        assert!(
+            report.triangles_after < report.triangles_before / 4,
+            "{report:?}"
+        );
+        let part = &standin.parts[0];
+        let surface = part.surface.as_ref().expect("colours carried");
+        // Every triangle wholly on one side shows its side's colour; those across the
+        // equator blend the two.
+        let mut whole = 0;
+        for (t, tri) in part.mesh.triangles.iter().enumerate() {
+            let z = tri.map(|i| part.mesh.positions[i as usize].z);
+            let want = if z.iter().all(|&z| z > 1e-9) {
+                [1.0, 0.0, 0.0]
+            } else if z.iter().all(|&z| z < -1e-9) {
+                [0.0, 0.0, 1.0]
+            } else {
+                continue;
+            };
+            whole += 1;
+            assert_eq!(
+                surface.color_at(t, [1.0 / 3.0; 3]),
+                want,
+                "triangle {t} at {z:?}"
+            );
+        }
+        assert!(whole > part.mesh.triangles.len() / 2, "{whole}");
     }
 
     #[test]

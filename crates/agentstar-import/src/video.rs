@@ -45,6 +45,9 @@ pub struct VideoImport {
     pub max_frames: Option<usize>,
     pub cameras: CameraSource,
     pub fps: Option<f64>,
+    /// Keep the frames between keyframes too (`formats.md` §2, in-between frames), every
+    /// N-th from each keyframe (1: every frame); `None`: keyframes only.
+    pub between: Option<usize>,
 }
 
 const IMAGE_EXTS: [&str; 6] = ["png", "jpg", "jpeg", "bmp", "tif", "tiff"];
@@ -210,6 +213,16 @@ impl FrameFiles {
         (0..self.paths.len())
             .step_by(every.max(1))
             .take(max_frames.unwrap_or(usize::MAX))
+            .collect()
+    }
+
+    /// The positions of the in-between frames a capture keeps between consecutive
+    /// `keyframes` (positions, ascending): every `stride`-th frame after each keyframe,
+    /// before the next.
+    pub fn between_indices(keyframes: &[usize], stride: usize) -> Vec<usize> {
+        keyframes
+            .windows(2)
+            .flat_map(|w| ((w[0] + stride.max(1))..w[1]).step_by(stride.max(1)))
             .collect()
     }
 
@@ -547,6 +560,12 @@ pub fn check_options(cfg: &VideoImport) -> Result<()> {
             "max_frames 0: a capture needs at least one frame",
         ));
     }
+    if cfg.between == Some(0) {
+        return Err(DataError::invalid(
+            &cfg.input,
+            "between 0: keep every N-th frame between keyframes, N at least 1",
+        ));
+    }
     Ok(())
 }
 
@@ -566,9 +585,33 @@ pub fn import_video_frames(
 ) -> Result<VideoSummary> {
     check_options(cfg)?;
     let all = &frames_in.paths;
-    let keep = frames_in.keyframe_indices(cfg.every, cfg.max_frames);
+    let keyframes = frames_in.keyframe_indices(cfg.every, cfg.max_frames);
+    let between = cfg
+        .between
+        .map(|stride| FrameFiles::between_indices(&keyframes, stride))
+        .unwrap_or_default();
+    let mut keep: Vec<usize> = keyframes.iter().chain(&between).copied().collect();
+    keep.sort_unstable();
     let mask_folder = MaskFolder::open(&cfg.masks)?;
     let masks = mask_folder.assign(frames_in)?;
+    // Every kept frame needs its mask: the in-between frames' missing ones named together.
+    let unmasked: Vec<String> = between
+        .iter()
+        .filter(|&&i| masks[i].is_none())
+        .map(|&i| stem(&all[i]))
+        .collect();
+    if let Some(first) = unmasked.first() {
+        return Err(DataError::invalid(
+            &cfg.masks,
+            format!(
+                "{} of the {} in-between frames kept have no object mask ({}{}); every kept frame needs one: give masks for every frame, or keep fewer in-between frames (a larger --between stride), or none (masks are matched by file stem, for example {first}.png)",
+                unmasked.len(),
+                between.len(),
+                unmasked.iter().take(8).cloned().collect::<Vec<_>>().join(", "),
+                if unmasked.len() > 8 { ", …" } else { "" },
+            ),
+        ));
+    }
     let hands = match &cfg.hands {
         Some(h) => {
             let folder = MaskFolder::open(h)?;
@@ -722,6 +765,7 @@ pub fn import_video_frames(
         source: Some(
             serde_json::json!({"producer": "agentstar capture from-video",
             "input": cfg.input, "masks": cfg.masks, "every": cfg.every,
+            "between": cfg.between,
             "fps": fps,
             "frame_numbers": match frames_in.numbering {
                 Numbering::Stems => "the frame files' names (integers)".to_string(),
@@ -734,7 +778,12 @@ pub fn import_video_frames(
             },
             "camera_warnings": cams.map(|c| c.warnings).unwrap_or_default()}),
         ),
-        keyframes: None,
+        keyframes: (!between.is_empty()).then(|| {
+            keyframes
+                .iter()
+                .map(|&i| format!("{:06}.png", frames_in.numbers[i]))
+                .collect()
+        }),
     };
     write_capture(out, &frames, &info, |root| {
         let Some(src) = attach else { return Ok(()) };

@@ -21,6 +21,7 @@ fn run(b: &[u8]) {
         max_frames: None,
         cameras: CameraSource::Fov(60.0),
         fps: None,
+        between: None,
     };
     let mut names = vec![];
     for line in text.lines() {
@@ -28,6 +29,7 @@ fn run(b: &[u8]) {
             Some(("fps", v)) => cfg.fps = v.trim().parse().ok(),
             Some(("every", v)) => cfg.every = v.trim().parse().unwrap_or(0),
             Some(("max", v)) => cfg.max_frames = v.trim().parse().ok(),
+            Some(("between", v)) => cfg.between = v.trim().parse().ok(),
             _ if !line.is_empty() && !line.contains('/') => names.push(PathBuf::from(line)),
             _ => {}
         }
@@ -38,6 +40,13 @@ fn run(b: &[u8]) {
     if let Ok(frames) = FrameFiles::numbered(Path::new("frames"), names) {
         let kept = frames.keyframe_indices(cfg.every, cfg.max_frames);
         assert!(kept.iter().all(|&i| i < frames.paths.len()));
+        if let Some(stride) = cfg.between {
+            let between = FrameFiles::between_indices(&kept, stride);
+            assert!(between
+                .iter()
+                .all(|i| !kept.contains(i) && *i < frames.paths.len()));
+            assert!(between.windows(2).all(|w| w[0] < w[1]));
+        }
         let _ = frames.notes(cfg.every);
     }
 }

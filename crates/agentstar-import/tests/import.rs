@@ -328,6 +328,7 @@ fn frames_with_colmap_binary_text_and_nerfstudio_cameras_import() {
                 max_frames: None,
                 cameras,
                 fps: Some(10.0),
+                between: None,
             },
             &out,
         )
@@ -364,8 +365,36 @@ fn frames_with_colmap_binary_text_and_nerfstudio_cameras_import() {
         max_frames: None,
         cameras: CameraSource::Fov(60.0),
         fps: None,
+        between: None,
     };
     assert_eq!(import_video(&cfg, &out).expect("fov").frames, 2);
+    // The frame between the two keyframes kept as an in-between frame (formats.md §2).
+    let with_between = VideoImport {
+        between: Some(1),
+        ..cfg.clone()
+    };
+    let out_between = dir.path().join("cap_between");
+    assert_eq!(
+        import_video(&with_between, &out_between)
+            .expect("between")
+            .frames,
+        3
+    );
+    let cap = Capture::open(&out_between).expect("valid");
+    assert_eq!(cap.frames.len(), 2, "keyframes");
+    assert_eq!(cap.between.len(), 1, "in-between frames");
+    assert_eq!(cap.between_keyframes(0).len(), 1);
+    assert!(Capture::validate(&out_between).is_empty());
+    // Its mask is required like a keyframe's, and named when missing.
+    let spare = dir.path().join("img_1_mask.png");
+    std::fs::rename(masks.join("img_1_mask.png"), &spare).expect("mv");
+    let e = import_video(&with_between, &dir.path().join("y")).expect_err("no mask");
+    assert!(
+        e.to_string().contains("in-between") && e.to_string().contains("img_1"),
+        "{e}"
+    );
+    assert!(!dir.path().join("y").exists(), "nothing written");
+    std::fs::rename(&spare, masks.join("img_1_mask.png")).expect("mv back");
     std::fs::remove_file(masks.join("img_2_mask.png")).expect("rm");
     let e = import_video(&cfg, &dir.path().join("x")).expect_err("missing mask");
     assert!(e.to_string().contains("img_2"), "{e}");

@@ -6,7 +6,8 @@
 
 use agentstar_geom::pose::Similarity;
 use agentstar_geom::{
-    KinematicTree, ObjectModel, Part, PinholeCamera, Point3, TriMesh, UnitQuaternion, Vector3,
+    KinematicTree, Material, ObjectModel, Part, PinholeCamera, Point3, SurfaceAppearance, Texture,
+    TriMesh, UnitQuaternion, Vector3,
 };
 use agentstar_render::scene::{fill_instances, InstanceBuilder};
 use agentstar_render::{ScoreTarget, SilhouetteRenderer};
@@ -160,6 +161,90 @@ fn setup(
     );
 }
 
+/// One colour evaluation: the full render of the pose and the textured model shaded from
+/// it (what every colour view and the appearance terms pay per image), at setup B's camera.
+fn colour_setup(model: &ObjectModel, camera: PinholeCamera) {
+    let mut rng = Rng(2027);
+    let poses: Vec<Similarity> = (0..100)
+        .map(|_| {
+            let q =
+                nalgebra::Quaternion::new(rng.normal(), rng.normal(), rng.normal(), rng.normal());
+            Similarity {
+                scale: 1.0,
+                rotation: UnitQuaternion::from_quaternion(q),
+                translation: Vector3::new(0.0, 0.0, 1.2),
+            }
+        })
+        .collect();
+    let mut renderer = agentstar_render::FullRenderer::default();
+    let mut instances = Vec::new();
+    let mut builder = InstanceBuilder::default();
+    let mut per_eval_us = Vec::new();
+    let mut sink = 0u64;
+    for round in 0..4 {
+        for p in &poses {
+            let t0 = Instant::now();
+            builder.build(model, &[], p, &mut instances);
+            let buffers = renderer.render(&camera, &instances);
+            let img = agentstar_render::views::shade_model(
+                model,
+                &instances,
+                &camera,
+                buffers,
+                agentstar_render::views::ShadeOptions::default(),
+            );
+            sink += u64::from(img.get_pixel(camera.width / 2, camera.height / 2)[0]);
+            if round > 0 {
+                per_eval_us.push(t0.elapsed().as_secs_f64() * 1e6);
+            }
+        }
+    }
+    println!(
+        "colour (textured, setup B camera): median {:.0} µs per full render + textured shade  [checksum {sink}]",
+        median(&mut per_eval_us)
+    );
+}
+
+/// The mesh with a 256×256 texture over texture coordinates from its x and z.
+fn textured(mesh: &TriMesh) -> Part {
+    let rgb: Vec<u8> = (0..256u32 * 256)
+        .flat_map(|k| {
+            let (x, y) = (k % 256, k / 256);
+            [x as u8, y as u8, ((x / 32 + y / 32) % 2 * 255) as u8]
+        })
+        .collect();
+    let texture = std::sync::Arc::new(Texture::new("bench", 256, 256, rgb).expect("texture"));
+    let b = mesh.bounds();
+    let e = b.extent();
+    let uv: Vec<[[f32; 2]; 3]> = mesh
+        .triangles
+        .iter()
+        .map(|t| {
+            t.map(|i| {
+                let p = mesh.positions[i as usize];
+                [
+                    ((p.x - b.min.x) / e.x) as f32,
+                    ((p.z - b.min.z) / e.z) as f32,
+                ]
+            })
+        })
+        .collect();
+    let surface = SurfaceAppearance::new(
+        vec![Material {
+            name: "print".into(),
+            color: [1.0; 3],
+            texture: Some(texture),
+        }],
+        vec![0; mesh.triangles.len()],
+        Some(uv),
+        None,
+    )
+    .expect("surface");
+    Part::new("mesh5k", mesh.clone(), [0.7; 3])
+        .with_surface(std::sync::Arc::new(surface))
+        .expect("part")
+}
+
 fn main() {
     let default =
         std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/bench/mesh5k.obj");
@@ -173,6 +258,10 @@ fn main() {
         mesh.triangles.len(),
         mesh.is_watertight()
     );
+    let textured_model = ObjectModel {
+        tree: KinematicTree::rigid(1),
+        parts: vec![textured(&mesh)],
+    };
     let model = ObjectModel {
         tree: KinematicTree::rigid(1),
         parts: vec![Part::new("mesh5k", mesh, [0.7; 3])],
@@ -190,5 +279,9 @@ fn main() {
         PinholeCamera::new(600.0, 600.0, 320.0, 240.0, 640, 480).expect("camera"),
         (1.0, 1.4),
         1.2,
+    );
+    colour_setup(
+        &textured_model,
+        PinholeCamera::new(600.0, 600.0, 320.0, 240.0, 640, 480).expect("camera"),
     );
 }

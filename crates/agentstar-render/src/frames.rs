@@ -25,6 +25,9 @@ pub struct FrameViewOptions {
     pub zoom: f64,
     /// Draw the mask's and the hand mask's boundaries.
     pub mask_outline: bool,
+    /// The crop `[x0, y0, width, height]` in frame pixels, instead of the box around the
+    /// mask (a detail to look at closely).
+    pub window: Option<[u32; 4]>,
 }
 
 impl Default for FrameViewOptions {
@@ -33,6 +36,7 @@ impl Default for FrameViewOptions {
             margin: 0.25,
             zoom: 1.0,
             mask_outline: false,
+            window: None,
         }
     }
 }
@@ -128,9 +132,21 @@ pub fn frame_view(
     model: Option<&BitMask>,
     opts: &FrameViewOptions,
 ) -> FrameView {
-    let crop = crop_box(mask, model, opts.margin);
-    let empty_mask = crop.is_none();
-    let [x0, y0, cw, ch] = crop.unwrap_or([0, 0, frame.width(), frame.height()]);
+    let around = crop_box(mask, model, opts.margin);
+    let empty_mask = around.is_none() && opts.window.is_none();
+    let [x0, y0, cw, ch] = opts
+        .window
+        .map(|[x, y, w, h]| {
+            let (x, y) = (x.min(frame.width() - 1), y.min(frame.height() - 1));
+            [
+                x,
+                y,
+                w.min(frame.width() - x).max(1),
+                h.min(frame.height() - y).max(1),
+            ]
+        })
+        .or(around)
+        .unwrap_or([0, 0, frame.width(), frame.height()]);
     let cut = image::imageops::crop_imm(frame, x0, y0, cw, ch).to_image();
     let zoom = opts.zoom.clamp(0.05, MAX_ZOOM);
     let zoom = zoom.min(zoom * limit_factor((cw as f64 * zoom) as u32, (ch as f64 * zoom) as u32));
@@ -238,6 +254,7 @@ mod tests {
             margin: 0.1,
             zoom: 4.0,
             mask_outline: true,
+            window: None,
         };
         let v = frame_view(&f, &mask, Some(&hand), None, &opts);
         assert_eq!(v.zoom, 4.0);
@@ -272,6 +289,38 @@ mod tests {
         );
         assert!(v.empty_mask && v.crop == [0, 0, 1920, 1080]);
         assert!(within_limits(v.image.width(), v.image.height()));
+        // A window shows that box, zoomed, whatever the mask (clamped to the frame).
+        let v = frame_view(
+            &f,
+            &mask,
+            None,
+            None,
+            &FrameViewOptions {
+                window: Some([950, 510, 12, 10]),
+                zoom: 8.0,
+                ..opts
+            },
+        );
+        assert_eq!((v.crop, v.zoom), ([950, 510, 12, 10], 8.0));
+        assert_eq!(v.image.dimensions(), (96, 80));
+        // The window's middle, not the mask's: the frame's gradient there (x, y mod 256).
+        let mid = v.image.get_pixel(48, 40);
+        assert!(
+            (mid[0] as i32 - (956 % 256)).abs() <= 2 && (mid[1] as i32 - (515 % 256)).abs() <= 2,
+            "{mid:?}"
+        );
+        let v = frame_view(
+            &f,
+            &mask,
+            None,
+            None,
+            &FrameViewOptions {
+                window: Some([1910, 1070, 40, 40]),
+                zoom: 1.0,
+                ..opts
+            },
+        );
+        assert_eq!(v.crop, [1910, 1070, 10, 10]);
     }
 
     #[test]

@@ -24,6 +24,9 @@ pub struct RenderBuffers {
     pub part: Vec<u16>,
     /// Unit camera-frame normal of the visible face, turned toward the camera.
     pub normal: Vec<[f32; 3]>,
+    /// The visible triangle's index in its part's mesh (meaningful where `part` is set):
+    /// with the depth it gives the surface point, so colour views sample textures there.
+    pub triangle: Vec<u32>,
 }
 
 impl RenderBuffers {
@@ -35,6 +38,7 @@ impl RenderBuffers {
             depth: vec![f32::INFINITY; n],
             part: vec![NO_PART; n],
             normal: vec![[0.0; 3]; n],
+            triangle: vec![0; n],
         }
     }
     pub fn covered(&self, x: u32, y: u32) -> bool {
@@ -103,7 +107,8 @@ fn draw_full(
     for inst in instances {
         let any_near = scratch.project(inst.mesh, &inst.camera_from_mesh, camera);
         let cull = inst.closed() && !camera_inside_bounds(inst);
-        for tri in &inst.mesh.triangles {
+        for (tri_index, tri) in inst.mesh.triangles.iter().enumerate() {
+            let tri_index = tri_index as u32;
             let idx = [tri[0] as usize, tri[1] as usize, tri[2] as usize];
             let c = [
                 scratch.cam[idx[0]],
@@ -156,6 +161,7 @@ fn draw_full(
                             out.depth[k] = zf;
                             out.part[k] = inst.part_id;
                             out.normal[k] = unit;
+                            out.triangle[k] = tri_index;
                         }
                     }
                 }

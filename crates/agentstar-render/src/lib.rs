@@ -11,13 +11,14 @@ pub mod raster;
 pub mod scene;
 pub mod score;
 pub mod sheet;
+pub mod surface;
 pub mod text;
 pub mod views;
 
 pub use agentstar_mask::{BitMask, DepthObservation};
 pub use full::{render_full, FullRenderer, RenderBuffers, NO_PART};
 pub use raster::{Affine, Instance, SilhouetteRenderer};
-pub use scene::PosedModel;
+pub use scene::{visible_part_pixels, PosedModel};
 pub use score::{boundary_band, IouScore, ScoreTarget, DEFAULT_BAND_PX, GATE_IOU};
 
 #[derive(Debug, thiserror::Error)]

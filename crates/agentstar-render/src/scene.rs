@@ -32,6 +32,30 @@ pub fn fill_instances<'a>(
     InstanceBuilder::default().build(model, states, camera_from_object, out);
 }
 
+/// Each part's visible pixels (the nearest surface, as the full renderer draws part ids)
+/// summed over `views` (a camera, the object's pose in it and the joint states, internal
+/// units), indexed like `model.parts`: what a shape edit reads to hold the part most in
+/// view in place ([`agentstar_geom::held_part`]).
+pub fn visible_part_pixels<'v>(
+    model: &ObjectModel,
+    views: impl IntoIterator<Item = (&'v agentstar_geom::PinholeCamera, Similarity, &'v [f64])>,
+) -> Vec<u64> {
+    let mut counts = vec![0u64; model.parts.len()];
+    let mut renderer = crate::full::FullRenderer::default();
+    let mut instances = Vec::new();
+    let mut builder = InstanceBuilder::default();
+    for (camera, pose, states) in views {
+        builder.build(model, states, &pose, &mut instances);
+        let buffers = renderer.render(camera, &instances);
+        for &p in &buffers.part {
+            if let Some(c) = counts.get_mut(p as usize) {
+                *c += 1;
+            }
+        }
+    }
+    counts
+}
+
 /// Reusable forward-kinematics buffers for placing a model many times without allocating.
 #[derive(Debug, Default, Clone)]
 pub struct InstanceBuilder {

@@ -106,8 +106,37 @@ fn to_u8(v: f32) -> u8 {
 }
 
 /// Flat part colours lit by one light near the camera plus ambient light; transparent
-/// where nothing is rendered.
+/// where nothing is rendered. Textures and vertex colours are not drawn: views of a model
+/// use [`shade_model`].
 pub fn shade(buffers: &RenderBuffers, colors: &[[f32; 3]], opts: ShadeOptions) -> RgbaImage {
+    shade_with(buffers, opts, |_, part| {
+        colors.get(part as usize).copied().unwrap_or([0.7; 3])
+    })
+}
+
+/// The model's surface (textures, vertex colours, part colours; see
+/// [`crate::surface::surface_colors`]) lit as [`shade`] lights it. `instances` are the
+/// ones `buffers` was rendered from, `camera` the camera they were rendered with.
+pub fn shade_model(
+    model: &agentstar_geom::ObjectModel,
+    instances: &[crate::Instance<'_>],
+    camera: &agentstar_geom::PinholeCamera,
+    buffers: &RenderBuffers,
+    opts: ShadeOptions,
+) -> RgbaImage {
+    if model.parts.iter().all(|p| p.surface.is_none()) {
+        let colors: Vec<[f32; 3]> = model.parts.iter().map(|p| p.color).collect();
+        return shade(buffers, &colors, opts);
+    }
+    let colors = crate::surface::surface_colors(model, instances, camera, buffers);
+    shade_with(buffers, opts, |k, _| colors[k].unwrap_or([0.7; 3]))
+}
+
+fn shade_with(
+    buffers: &RenderBuffers,
+    opts: ShadeOptions,
+    color_of: impl Fn(usize, u16) -> [f32; 3],
+) -> RgbaImage {
     let (w, h) = (buffers.width, buffers.height);
     let light = {
         let l = [-0.35f32, -0.55, -1.0];
@@ -122,7 +151,7 @@ pub fn shade(buffers: &RenderBuffers, colors: &[[f32; 3]], opts: ShadeOptions) -
             if part == NO_PART {
                 continue;
             }
-            let c = colors.get(part as usize).copied().unwrap_or([0.7; 3]);
+            let c = color_of(k, part);
             let n = buffers.normal[k];
             let lambert = (n[0] * light[0] + n[1] * light[1] + n[2] * light[2]).max(0.0);
             let mut f = 0.35 + 0.65 * lambert;

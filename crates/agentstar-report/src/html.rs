@@ -150,14 +150,46 @@ async function main() {
   const sun = new THREE.DirectionalLight(0xffffff, 1.4);
   sun.position.set(1, -2, -3);
   scene.add(sun);
-  const parts = data.parts.map((p) => {
+  // Colours are display (sRGB) values; three.js works in linear space.
+  const srgb = (c) => new THREE.Color().setRGB(c[0], c[1], c[2], THREE.SRGBColorSpace);
+  const wraps = { 10497: THREE.RepeatWrapping, 33648: THREE.MirroredRepeatWrapping, 33071: THREE.ClampToEdgeWrapping };
+  const surfaceMesh = (p) => {
+    // Textures and vertex colours: one vertex per triangle corner, a group per material.
+    const s = p.surface, pos = decode(p.positions, Float32Array), tri = decode(p.triangles, Uint32Array);
+    const order = decode(s.order, Uint32Array), cols = decode(s.colors, Float32Array), uvs = decode(s.uvs, Float32Array);
+    const corner = new Float32Array(order.length * 9), lin = new Float32Array(cols.length);
+    order.forEach((t, i) => { for (let k = 0; k < 3; k++) for (let d = 0; d < 3; d++) corner[i * 9 + k * 3 + d] = pos[tri[t * 3 + k] * 3 + d]; });
+    const c = new THREE.Color();
+    for (let i = 0; i < cols.length; i += 3) { c.setRGB(cols[i], cols[i + 1], cols[i + 2], THREE.SRGBColorSpace); lin[i] = c.r; lin[i + 1] = c.g; lin[i + 2] = c.b; }
     const g = new THREE.BufferGeometry();
-    g.setAttribute('position', new THREE.BufferAttribute(decode(p.positions, Float32Array), 3));
-    g.setIndex(new THREE.BufferAttribute(decode(p.triangles, Uint32Array), 1));
+    g.setAttribute('position', new THREE.BufferAttribute(corner, 3));
+    g.setAttribute('color', new THREE.BufferAttribute(lin, 3));
+    if (uvs.length) g.setAttribute('uv', new THREE.BufferAttribute(uvs, 2));
+    let start = 0;
+    s.groups.forEach(([n, mat]) => { g.addGroup(start * 3, n * 3, mat); start += n; });
+    const textures = s.textures.map((t) => {
+      const tex = new THREE.TextureLoader().load(t.png);
+      tex.colorSpace = THREE.SRGBColorSpace; tex.flipY = false;
+      tex.wrapS = wraps[t.wrap[0]] ?? THREE.RepeatWrapping; tex.wrapT = wraps[t.wrap[1]] ?? THREE.RepeatWrapping;
+      return tex;
+    });
+    const mats = s.materials.map((m) => new THREE.MeshLambertMaterial({ color: srgb(m.color), vertexColors: true,
+      map: m.texture === null ? null : textures[m.texture], transparent: true, opacity: 0.75, side: THREE.DoubleSide }));
+    return [g, mats];
+  };
+  const parts = data.parts.map((p) => {
+    let g, mat;
+    if (p.surface) {
+      [g, mat] = surfaceMesh(p);
+    } else {
+      g = new THREE.BufferGeometry();
+      g.setAttribute('position', new THREE.BufferAttribute(decode(p.positions, Float32Array), 3));
+      g.setIndex(new THREE.BufferAttribute(decode(p.triangles, Uint32Array), 1));
+      mat = new THREE.MeshLambertMaterial({ color: srgb(p.color), transparent: true, opacity: 0.75, side: THREE.DoubleSide });
+    }
     g.computeVertexNormals();
     g.computeBoundingSphere();
-    const m = new THREE.Mesh(g, new THREE.MeshLambertMaterial({
-      color: new THREE.Color(p.color[0], p.color[1], p.color[2]), transparent: true, opacity: 0.75, side: THREE.DoubleSide }));
+    const m = new THREE.Mesh(g, mat);
     m.matrixAutoUpdate = false;
     scene.add(m);
     return m;
@@ -424,7 +456,12 @@ pub fn render_html(r: &Report) -> String {
             .map_or("no visible mask".to_string(), |v| format!("{v:.4}"));
         let _ = write!(
             s,
-            r#"<figure id="frame-{i}" data-src="{src}"><img loading="lazy" src="{ov}" alt="{n}"><figcaption>{n} · IoU visible <span class="{c}">{iou}</span> · raw {raw:.4}</figcaption></figure>"#,
+            r#"<figure id="frame-{i}" data-src="{src}"><img loading="lazy" src="{ov}" alt="{n}"><figcaption>{n} · IoU visible <span class="{c}">{iou}</span> · raw {raw:.4}{facing}</figcaption></figure>"#,
+            facing = f
+                .facing
+                .as_ref()
+                .map(|l| format!(r#"<br><span class="facing">{}</span>"#, esc(l)))
+                .unwrap_or_default(),
             src = data_uri(&f.frame),
             ov = data_uri(&f.overlay),
             n = esc(&f.name),
@@ -496,10 +533,23 @@ pub fn render_html(r: &Report) -> String {
     );
     // Data and scripts.
     let data = json!({
-        "parts": r.viewer.parts.iter().map(|p| json!({
-            "name": p.name, "color": p.color,
-            "positions": f32_b64(&p.positions), "triangles": u32_b64(&p.triangles),
-        })).collect::<Vec<_>>(),
+        "parts": r.viewer.parts.iter().map(|p| {
+            let mut part = json!({
+                "name": p.name, "color": p.color,
+                "positions": f32_b64(&p.positions), "triangles": u32_b64(&p.triangles),
+            });
+            if let Some(sf) = &p.surface {
+                part["surface"] = json!({
+                    "order": u32_b64(&sf.order),
+                    "colors": f32_b64(&sf.corner_colors),
+                    "uvs": f32_b64(&sf.corner_uvs),
+                    "groups": sf.groups,
+                    "materials": sf.materials.iter().map(|m| json!({"color": m.color, "texture": m.texture})).collect::<Vec<_>>(),
+                    "textures": sf.textures.iter().map(|t| json!({"png": format!("data:image/png;base64,{}", b64(&t.png)), "wrap": t.wrap})).collect::<Vec<_>>(),
+                });
+            }
+            part
+        }).collect::<Vec<_>>(),
         "joint_names": r.viewer.joint_names,
         "frames": r.viewer.frames.iter().map(|f| json!({
             "name": f.name, "world_from_part": f.world_from_part,

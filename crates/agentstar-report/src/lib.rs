@@ -39,15 +39,55 @@ pub struct FrameEntry {
     /// Visible-region IoU (hands excluded), when the frame has visible mask pixels.
     pub iou_visible: Option<f64>,
     pub iou_raw: f64,
+    /// Which side of the model (and of each part) faces the camera, one line.
+    pub facing: Option<String>,
 }
 
 /// A part's mesh in the object frame, metres (the run's scale applied).
 #[derive(Debug, Clone, PartialEq)]
 pub struct ViewerPart {
     pub name: String,
+    /// Display values (sRGB-encoded, as `#rrggbb / 255`).
     pub color: [f32; 3],
     pub positions: Vec<f32>,
     pub triangles: Vec<u32>,
+    /// Textures and vertex colours where the part has them; the view then draws them
+    /// instead of `color`.
+    pub surface: Option<ViewerSurface>,
+}
+
+/// A part's appearance for the 3-D view, per triangle corner (the triangles of
+/// [`ViewerPart::triangles`], in the order of `groups`).
+#[derive(Debug, Clone, PartialEq)]
+pub struct ViewerSurface {
+    /// Triangle indices into [`ViewerPart::triangles`] (divided by 3) in drawing order:
+    /// the triangles of `groups[0]` first, then `groups[1]`'s…
+    pub order: Vec<u32>,
+    /// Per corner in drawing order: RGB display values that multiply the material's colour
+    /// (white where the part has no vertex colours).
+    pub corner_colors: Vec<f32>,
+    /// Per corner in drawing order: texture coordinates (`v` down the image, glTF's
+    /// convention); empty when no material has a texture.
+    pub corner_uvs: Vec<f32>,
+    /// Consecutive runs of `order` drawn with one material: `(triangles, material)`.
+    pub groups: Vec<(u32, u32)>,
+    pub materials: Vec<ViewerMaterial>,
+    /// PNG images the materials name by index.
+    pub textures: Vec<ViewerTexture>,
+}
+
+#[derive(Debug, Clone, PartialEq)]
+pub struct ViewerMaterial {
+    /// Display values.
+    pub color: [f32; 3],
+    pub texture: Option<u32>,
+}
+
+#[derive(Debug, Clone, PartialEq)]
+pub struct ViewerTexture {
+    pub png: Vec<u8>,
+    /// glTF wrap codes (10497 repeat, 33648 mirrored repeat, 33071 clamp).
+    pub wrap: [u32; 2],
 }
 
 /// The pose of everything at one keyframe, in the world frame. Matrices are 4×4,

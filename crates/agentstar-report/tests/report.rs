@@ -2,8 +2,10 @@
 //! escaping, and nothing fetched from elsewhere.
 
 use agentstar_report::{
-    render_html, FrameEntry, Image, Report, Step, Temporal, Viewer, ViewerFrame, ViewerPart,
+    render_html, FrameEntry, Image, Report, Step, Temporal, Viewer, ViewerFrame, ViewerMaterial,
+    ViewerPart, ViewerSurface, ViewerTexture,
 };
+use std::path::Path;
 
 fn identity() -> [f64; 16] {
     let mut m = [0.0; 16];
@@ -24,6 +26,7 @@ fn report() -> Report {
         overlay: png.clone(),
         iou_visible: iou,
         iou_raw: 0.9,
+        facing: Some(format!("+Z toward the camera <{name}>")),
     };
     Report {
         title: "run <1>".into(),
@@ -37,6 +40,7 @@ fn report() -> Report {
                 color: [0.8, 0.3, 0.2],
                 positions: vec![0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0],
                 triangles: vec![0, 1, 2],
+                surface: None,
             }],
             joint_names: vec!["hinge".into()],
             frames: ["000000.png", "000005.png"]
@@ -91,6 +95,8 @@ fn the_page_holds_every_section_and_decodable_viewer_data() {
     // Two keyframes, the second without a visible mask and marked below the gate.
     assert_eq!(html.matches("<figure id=\"frame-").count(), 2);
     assert!(html.contains("no visible mask"));
+    // Each keyframe names the side toward the camera, escaped.
+    assert!(html.contains(r#"<span class="facing">+Z toward the camera &lt;000005.png&gt;</span>"#));
     // The viewer's data parse back, with the mesh as little-endian f32/u32 in base64.
     let start = html
         .find("<script id=\"report-data\" type=\"application/json\">")
@@ -115,4 +121,157 @@ fn the_page_holds_every_section_and_decodable_viewer_data() {
     // The plots: IoU with the gate, rotation and translation steps, joint states.
     assert_eq!(html.matches("<svg class=\"chart\"").count(), 4);
     assert!(html.contains("gate 0.98"));
+}
+
+fn png_bytes(img: &image::RgbImage) -> Vec<u8> {
+    let mut out = Vec::new();
+    img.write_to(&mut std::io::Cursor::new(&mut out), image::ImageFormat::Png)
+        .expect("png");
+    out
+}
+
+/// A headless Chromium, where one is installed (`.ci/run` installs Debian's `chromium` and
+/// sets `AGENTSTAR_REQUIRE_CHROMIUM=1`, which turns its absence into a failure).
+fn chromium() -> Option<String> {
+    let found = ["chromium", "chromium-browser", "google-chrome"]
+        .into_iter()
+        .find(|b| {
+            std::process::Command::new(b)
+                .arg("--version")
+                .output()
+                .is_ok_and(|o| o.status.success())
+        })
+        .map(str::to_string);
+    if found.is_none() {
+        assert!(
+            std::env::var_os("AGENTSTAR_REQUIRE_CHROMIUM").is_none(),
+            "AGENTSTAR_REQUIRE_CHROMIUM is set but no chromium is installed"
+        );
+        eprintln!("chromium not installed (apt install chromium): the browser check is skipped");
+    }
+    found
+}
+
+/// The page's DOM after headless Chromium ran its scripts (with a time limit).
+fn dump_dom(bin: &str, page: &Path) -> String {
+    let stdout_path = page.with_extension("stdout");
+    let stdout = std::fs::File::create(&stdout_path).expect("stdout file");
+    let mut child = std::process::Command::new(bin)
+        .args([
+            "--headless",
+            "--no-sandbox",
+            "--disable-gpu",
+            "--use-angle=swiftshader",
+            "--enable-unsafe-swiftshader",
+            "--disable-background-networking",
+            "--disable-extensions",
+            "--no-first-run",
+            "--virtual-time-budget=15000",
+            "--window-size=1300,1400",
+            "--dump-dom",
+        ])
+        .arg(format!("file://{}", page.display()))
+        .stdout(stdout)
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .expect("start chromium");
+    let start = std::time::Instant::now();
+    while child.try_wait().expect("wait").is_none() {
+        if start.elapsed().as_secs() > 120 {
+            let _ = child.kill();
+            panic!("chromium did not finish in 120 s");
+        }
+        std::thread::sleep(std::time::Duration::from_millis(100));
+    }
+    String::from_utf8_lossy(&std::fs::read(&stdout_path).expect("stdout")).into_owned()
+}
+
+fn body_attr(dom: &str, name: &str) -> Option<String> {
+    let body = &dom[dom.find("<body")?..];
+    let body = &body[..body.find('>')?];
+    let key = format!("{name}=\"");
+    let at = body.find(&key)? + key.len();
+    Some(body[at..at + body[at..].find('"')?].to_string())
+}
+
+/// A textured, vertex-coloured part in the 3-D view (issue 33): the page carries its
+/// texture and corner colours, and in a browser the view starts and draws it without a
+/// script error.
+#[test]
+fn a_textured_part_is_drawn_by_the_viewer() {
+    let mut r = report();
+    let frame_png = Image {
+        mime: "image/png".into(),
+        bytes: png_bytes(&image::RgbImage::from_pixel(
+            100,
+            80,
+            image::Rgb([90, 90, 90]),
+        )),
+    };
+    for f in &mut r.frames {
+        f.frame = frame_png.clone();
+        f.overlay = frame_png.clone();
+    }
+    let print = image::RgbImage::from_fn(2, 2, |x, y| {
+        image::Rgb([200 * (x as u8), 200 * (y as u8), 90])
+    });
+    // A square 0.6 wide, 2 in front of the camera: one triangle textured, one plain.
+    r.viewer.parts = vec![ViewerPart {
+        name: "label".into(),
+        color: [0.8, 0.3, 0.2],
+        positions: vec![
+            -0.3, -0.3, 2.0, 0.3, -0.3, 2.0, 0.3, 0.3, 2.0, -0.3, 0.3, 2.0,
+        ],
+        triangles: vec![0, 1, 2, 0, 2, 3],
+        surface: Some(ViewerSurface {
+            order: vec![0, 1],
+            corner_colors: vec![
+                1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 0.5, 0.5, 0.5, 1.0, 0.5, 1.0,
+                1.0, 1.0,
+            ],
+            corner_uvs: vec![0.0, 0.0, 1.0, 0.0, 1.0, 1.0, 0.0, 0.0, 1.0, 1.0, 0.0, 1.0],
+            groups: vec![(1, 0), (1, 1)],
+            materials: vec![
+                ViewerMaterial {
+                    color: [1.0, 1.0, 1.0],
+                    texture: Some(0),
+                },
+                ViewerMaterial {
+                    color: [0.2, 0.6, 0.9],
+                    texture: None,
+                },
+            ],
+            textures: vec![ViewerTexture {
+                png: png_bytes(&print),
+                wrap: [33071, 10497],
+            }],
+        }),
+    }];
+    let html = render_html(&r);
+    assert!(
+        html.contains("\"surface\""),
+        "the part's surface is in the page"
+    );
+    assert!(html.contains("data:image/png;base64,"));
+    let Some(bin) = chromium() else { return };
+    let dir = tempfile::tempdir().expect("tmp");
+    let page = dir.path().join("report.html");
+    std::fs::write(&page, &html).expect("page");
+    let dom = dump_dom(&bin, &page);
+    assert_eq!(
+        body_attr(&dom, "data-viewer").as_deref(),
+        Some("ready"),
+        "{:?}",
+        body_attr(&dom, "data-error-text")
+    );
+    assert_eq!(
+        body_attr(&dom, "data-errors").as_deref(),
+        Some("0"),
+        "{:?}",
+        body_attr(&dom, "data-error-text")
+    );
+    let px: u64 = body_attr(&dom, "data-cam-pixels")
+        .and_then(|v| v.parse().ok())
+        .expect("camera pixels");
+    assert!(px > 200, "the camera view shows {px} pixels of the part");
 }

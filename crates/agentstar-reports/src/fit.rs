@@ -59,6 +59,152 @@ pub struct FitRoundRow {
     pub builds: usize,
 }
 
+/// What a group of frames wants of the model's size along X, Y and Z: relative changes
+/// (0.08: 8% longer), `None` along an axis these frames cannot tell.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct AxisWants {
+    pub want: [Option<f64>; 3],
+    pub equations: usize,
+}
+
+/// Frames grouped by the model axis they see face-on (`X`, `Y`, `Z`, or `oblique`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ViewGroup {
+    pub face_on: String,
+    pub frames: Vec<String>,
+    pub wants: AxisWants,
+}
+
+/// Residuals of the fitted silhouettes against the masks grouped by viewing direction:
+/// the observed extent over the model's along each projected model axis, solved for the
+/// relative size changes each group of frames wants (`agentstar_track::proportion`). Only
+/// differences between the axes mean something: a uniform change is the scale.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ViewResiduals {
+    pub all: AxisWants,
+    pub groups: Vec<ViewGroup>,
+    /// What this says in words: which axis the frames want longer or shorter, and which
+    /// fixed proportion that points at; empty when the axes agree within
+    /// [`PROPORTION_NOTE_SHARE`].
+    pub verdict: Vec<String>,
+}
+
+/// Axes whose wanted changes differ by less than this share are said to agree.
+pub const PROPORTION_NOTE_SHARE: f64 = 0.03;
+
+const AXIS_NAMES: [&str; 3] = ["X", "Y", "Z"];
+
+fn percent(v: f64) -> String {
+    format!("{:+.1}%", 100.0 * v)
+}
+
+impl AxisWants {
+    /// "X +8.0%, Y +0.1%, Z −6.0%" over the determined axes.
+    pub fn line(&self) -> String {
+        let parts: Vec<String> = AXIS_NAMES
+            .iter()
+            .zip(self.want)
+            .filter_map(|(n, w)| w.map(|w| format!("{n} {}", percent(w))))
+            .collect();
+        if parts.is_empty() {
+            "nothing measurable".into()
+        } else {
+            parts.join(", ")
+        }
+    }
+}
+
+impl ViewResiduals {
+    /// The verdict from the wanted changes of all frames and of each group: the axis the
+    /// frames want longest against the one they want shortest, relative to each other.
+    pub fn verdict_of(all: &AxisWants, groups: &[ViewGroup]) -> Vec<String> {
+        let known: Vec<(usize, f64)> = all
+            .want
+            .iter()
+            .enumerate()
+            .filter_map(|(b, w)| w.map(|w| (b, w)))
+            .collect();
+        if known.len() < 2 {
+            return vec![];
+        }
+        let (long, short) = (
+            known.iter().copied().max_by(|a, b| a.1.total_cmp(&b.1)),
+            known.iter().copied().min_by(|a, b| a.1.total_cmp(&b.1)),
+        );
+        let (Some((l, lw)), Some((s, sw))) = (long, short) else {
+            return vec![];
+        };
+        let ratio = (1.0 + lw) / (1.0 + sw).max(1e-6);
+        if ratio - 1.0 < PROPORTION_NOTE_SHARE {
+            return vec![];
+        }
+        let evidence: Vec<String> = groups
+            .iter()
+            .filter_map(|g| {
+                let (a, b) = (g.wants.want[l]?, g.wants.want[s]?);
+                Some(format!(
+                    "{} frame(s) {}: {} {} against {} {}",
+                    g.frames.len(),
+                    g.label(),
+                    AXIS_NAMES[l],
+                    percent(a),
+                    AXIS_NAMES[s],
+                    percent(b)
+                ))
+            })
+            .collect();
+        vec![format!(
+            "the frames want the model longer along {} ({}) than along {} ({}): the proportion {}:{} is off by ×{:.3}{}",
+            AXIS_NAMES[l],
+            percent(lw),
+            AXIS_NAMES[s],
+            percent(sw),
+            AXIS_NAMES[l],
+            AXIS_NAMES[s],
+            ratio,
+            if evidence.is_empty() {
+                String::new()
+            } else {
+                format!(" ({})", evidence.join("; "))
+            }
+        )]
+    }
+}
+
+impl ViewGroup {
+    /// "face-on to X", or "seen obliquely".
+    pub fn label(&self) -> String {
+        if self.face_on == "oblique" {
+            "seen obliquely (no axis face-on)".into()
+        } else {
+            format!("face-on to {}", self.face_on)
+        }
+    }
+}
+
+/// The residuals by viewing direction as lines for a person or a model.
+pub fn views_text(v: &ViewResiduals) -> String {
+    let mut t = String::from(
+        "residuals by viewing direction (observed extent over the model's along its axes, at the fitted poses, as the size change the frames want; a change common to all axes is the scale, which silhouettes do not say):\n",
+    );
+    for g in &v.groups {
+        t.push_str(&format!(
+            "  {} ({} frame(s)): {}\n",
+            g.label(),
+            g.frames.len(),
+            g.wants.line()
+        ));
+    }
+    t.push_str(&format!("  all frames: {}\n", v.all.line()));
+    for line in &v.verdict {
+        t.push_str(&format!("  → {line}\n"));
+    }
+    t
+}
+
 /// What `fit-shape` did.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -85,6 +231,13 @@ pub struct FitReport {
     pub seconds: f64,
     /// True when the fitted script and poses were written over the inputs (`--write`).
     pub written: bool,
+    /// The fitted silhouettes' residuals grouped by viewing direction, at the fitted poses.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub views: Option<ViewResiduals>,
+    /// The part kept in place when the poses were carried to each shape, and why it
+    /// (`--hold`, or the part most in view).
+    #[serde(default)]
+    pub held_part: Option<String>,
 }
 
 impl FitReport {
@@ -105,6 +258,9 @@ pub enum ScaleMethod {
     Parallax,
     /// A size the agent states along one model axis.
     Size,
+    /// The hands' apparent palm breadth against an adult-hand prior, the hand at the
+    /// object's depth (hand masks, no depth): the weakest route, with its uncertainty.
+    Hand,
 }
 
 /// One keyframe's figure in a scale estimate.
@@ -112,9 +268,12 @@ pub enum ScaleMethod {
 #[serde(deny_unknown_fields)]
 pub struct ScaleFrame {
     pub frame: String,
-    /// Its own ratio (depth), or the object origin's distance from the common point after
-    /// the fit, metres (parallax).
+    /// Its own ratio (depth, hand), or the object origin's distance from the common point
+    /// after the fit, metres (parallax).
     pub value: f64,
+    /// With the hand route: the palm's apparent breadth, pixels.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub palm_px: Option<f64>,
 }
 
 /// What `agentstar scale` found (and on stdout with `--json`).
@@ -130,8 +289,12 @@ pub struct ScaleReport {
     pub frames: Vec<ScaleFrame>,
     /// Relative spread of the estimate (see the method).
     pub spread: f64,
-    /// Pixels (depth), frames (parallax) or 1 (size).
+    /// Pixels (depth), frames (parallax, hand) or 1 (size).
     pub samples: usize,
+    /// One standard deviation of the ratio, relative, where the route states one (hand:
+    /// the palm prior's spread, the frames' spread and where the hand sits on the object).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub uncertainty: Option<f64>,
     pub notes: Vec<String>,
     /// True when the estimate's own checks warn (frames that disagree, a short baseline, an
     /// object that wanders in the world): the notes say which.
@@ -141,4 +304,44 @@ pub struct ScaleReport {
     pub poses: Option<PathBuf>,
     /// True when the rescaled poses were written over the input (`--write`).
     pub written: bool,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn wants(x: f64, y: f64, z: Option<f64>) -> AxisWants {
+        AxisWants {
+            want: [Some(x), Some(y), z],
+            equations: 6,
+        }
+    }
+
+    #[test]
+    fn the_verdict_names_the_proportion_the_axes_disagree_on() {
+        let groups = vec![ViewGroup {
+            face_on: "Z".into(),
+            frames: vec!["a".into(), "b".into()],
+            wants: wants(0.10, -0.02, None),
+        }];
+        let v = ViewResiduals::verdict_of(&wants(0.08, -0.02, Some(0.0)), &groups);
+        assert_eq!(v.len(), 1, "{v:?}");
+        assert!(
+            v[0].contains("longer along X (+8.0%) than along Y (-2.0%)"),
+            "{v:?}"
+        );
+        assert!(v[0].contains("X:Y is off by ×1.102"), "{v:?}");
+        assert!(
+            v[0].contains("2 frame(s) face-on to Z: X +10.0% against Y -2.0%"),
+            "{v:?}"
+        );
+        // A change common to every axis is the scale: no verdict.
+        assert!(ViewResiduals::verdict_of(&wants(0.2, 0.2, Some(0.21)), &groups).is_empty());
+        // One axis measured says nothing of a proportion.
+        let one = AxisWants {
+            want: [Some(0.1), None, None],
+            equations: 2,
+        };
+        assert!(ViewResiduals::verdict_of(&one, &[]).is_empty());
+    }
 }

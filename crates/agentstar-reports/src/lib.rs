@@ -126,6 +126,18 @@ pub struct SearchFrame {
     /// How the frame was searched (method, space, restarts, score field).
     pub search: Value,
     pub ranked: Vec<Candidate>,
+    /// The pages of the frame's candidate sheet and the ranks each draws (the first page
+    /// is `sheet`).
+    #[serde(default)]
+    pub pages: Vec<SheetPage>,
+}
+
+/// One page of a candidate sheet: its file and the ranks of the candidates it draws.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SheetPage {
+    pub path: PathBuf,
+    pub ranks: Vec<usize>,
 }
 
 /// What `sweep`, `apply`, `osweep`, `oapply` and `oapply-all` write (`VERB.json`, and on
@@ -291,6 +303,10 @@ pub struct ScoreReport {
     /// (`agentstar_track::appearance::neighbour_consistency`). Empty without frame images.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub appearance: Vec<FrameAppearance>,
+    /// Per frame (in `frames`' order), which side of the model and of each part faces the
+    /// camera.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub facing: Vec<view::FrameFacing>,
 }
 
 /// One frame's appearance figure in a [`ScoreReport`].
@@ -328,6 +344,44 @@ pub struct TrackReport {
     /// The version of the pose file's history the result was recorded as.
     #[serde(default)]
     pub pose_version: Option<u64>,
+    /// `track --from --keep-basins`: every frame refined within its own basin.
+    #[serde(default)]
+    pub keep_basins: bool,
+    /// `track --from` without `--keep-basins`: the frames it moved to another basin (turned
+    /// further from their starting pose than the basin's bound), with the evidence.
+    #[serde(default)]
+    pub basin_moves: Vec<BasinMoveRow>,
+}
+
+/// A frame `track --from` moved to another basin.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct BasinMoveRow {
+    pub frame: String,
+    /// The rotation from its starting pose to the tracked one, degrees.
+    pub rotation_deg: f64,
+    /// The bound it passed (the basin's half-width), degrees.
+    pub bound_deg: f64,
+    /// The gate IoU at its starting pose and at the tracked one.
+    pub iou_before: f64,
+    pub iou_after: f64,
+    /// The tracker's pass that moved it.
+    pub pass: String,
+}
+
+impl BasinMoveRow {
+    /// One line for people: `000003.png: turned 179.2° (bound 45°), IoU 0.41 → 0.99, by …`.
+    pub fn line(&self) -> String {
+        format!(
+            "{}: turned {:.1}° from its starting pose (bound {}°), IoU {:.4} → {:.4}, by {}",
+            self.frame,
+            self.rotation_deg,
+            self.bound_deg,
+            self.iou_before,
+            self.iou_after,
+            self.pass
+        )
+    }
 }
 
 /// What `eval --json` prints for one run, and each of `eval --batch --json`'s `results`

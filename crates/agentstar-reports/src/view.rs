@@ -19,6 +19,49 @@ pub struct RenderFrame {
     /// Output pixels per frame pixel of the frames view (after the size limits).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub zoom: Option<f64>,
+    /// Which side of the model and of each part faces the camera.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub facing: Option<FrameFacing>,
+}
+
+/// A part's side toward the camera in one frame, in its own axes (its joints applied).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PartFacing {
+    pub part: String,
+    /// The signed axis nearest the ray to the camera: `+X`, `-X`, `+Y`, `-Y`, `+Z`, `-Z`.
+    pub toward: String,
+    /// Degrees between that axis and the ray to the camera.
+    pub angle_deg: f64,
+    /// True when its joints move it from its rest place in this frame.
+    pub moved: bool,
+}
+
+/// Which side of the posed model faces the camera in one frame: the model's signed axis
+/// nearest the ray from its centre to the camera, the angle of each of +X, +Y, +Z to that
+/// ray (0°/180° face-on, 90° edge-on), and each part's own side.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct FrameFacing {
+    pub frame: String,
+    pub toward: String,
+    pub angle_deg: f64,
+    pub axis_angles_deg: [f64; 3],
+    pub parts: Vec<PartFacing>,
+    /// The same in words, one line.
+    pub line: String,
+}
+
+/// One line per frame: "FRAME: +Z toward the camera (12° off the ray …)".
+pub fn facing_lines(facing: &[FrameFacing]) -> String {
+    let mut t = String::new();
+    if !facing.is_empty() {
+        t.push_str("side toward the camera (model axes; 0°/180° face-on, 90° edge-on):\n");
+    }
+    for f in facing {
+        t.push_str(&format!("  {}: {}\n", f.frame, f.line));
+    }
+    t
 }
 
 /// What `render --json` prints.

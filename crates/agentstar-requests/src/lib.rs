@@ -26,7 +26,7 @@ pub mod object;
 pub mod views;
 
 pub use object::{OapplyAllArgs, OapplyArgs, OsweepArgs};
-pub use views::{PoseDiffArgs, TurntableArgs};
+pub use views::{Crop, PoseDiffArgs, TurntableArgs};
 
 /// What a `frames` argument takes (the one frame grammar, `Capture::select`).
 pub const FRAMES: &str = "Keyframes: `all`, names (`000010.png`), stems (`000010`), frame numbers, or ranges `a..b`, comma separated.";

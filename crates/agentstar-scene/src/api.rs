@@ -1,129 +1,37 @@
 //! The functions a scene script can call, their registration with a sandboxed Rhai engine,
 //! and the evaluation that turns a script into an object model.
 
+use crate::api_table::{api_names, API};
+use crate::colors::{parse_color, PALETTE};
 use crate::diagnostics::{did_you_mean, SceneError, SceneErrorKind};
+use crate::preload::Preloaded;
 use crate::{Limits, MeshSource, ParamDecl, SceneBuild};
 use agentstar_geom::kinematics::{JointDef, JointKind};
 use agentstar_geom::{
-    csg, primitives as prim, KinematicTree, Matrix3, ObjectModel, Part, Point3, TriMesh,
-    UnitQuaternion, Vector3,
+    csg, primitives as prim, KinematicTree, Matrix3, ObjectModel, Part, Point3, SurfaceAppearance,
+    TriMesh, UnitQuaternion, Vector3,
 };
 use rhai::{Array, Dynamic, Engine, EvalAltResult, Map, Position, AST};
 use std::collections::BTreeMap;
 use std::sync::{Arc, Mutex};
 use std::time::Instant;
 
-/// One entry of the scene API, for error messages and generated documentation.
-#[derive(Debug, Clone, Copy)]
-pub struct ApiEntry {
-    pub name: &'static str,
-    pub forms: &'static [&'static str],
-    pub doc: &'static str,
-}
-
-/// Every function a script can call. Units: canonical (longest side about 1); angles in degrees.
-pub const API: &[ApiEntry] = &[
-    ApiEntry { name: "box", forms: &["box(size_x, size_y, size_z)", "box(size_x, size_y, size_z, bevel)", "box(size_x, size_y, size_z, bevel, segments)"], doc: "Axis-aligned box centred at the origin with full extents; `bevel` rounds the edges with that radius (segments = 1 chamfers)." },
-    ApiEntry { name: "cylinder", forms: &["cylinder(radius, height)", "cylinder(radius, height, segments)"], doc: "Cylinder along Z centred at the origin (default 48 segments)." },
-    ApiEntry { name: "sector", forms: &["sector(radius, height, angle_deg)", "sector(radius, height, angle_deg, segments)"], doc: "Pie-slice prism along Z centred at the origin, the sector from −angle/2 to +angle/2 about +X (0 < angle < 360; default 48 segments); with intersection it keeps part of a turn: a label over 195° of a side is intersection(sleeve, sector(1, 1, 195))." },
-    ApiEntry { name: "cone", forms: &["cone(radius_bottom, radius_top, height)", "cone(radius_bottom, radius_top, height, segments)"], doc: "Truncated cone along Z, bottom at z = −height/2; a radius of 0 makes a point." },
-    ApiEntry { name: "sphere", forms: &["sphere(radius)", "sphere(radius, segments, rings)"], doc: "UV sphere centred at the origin, poles on Z (default 32 × 16)." },
-    ApiEntry { name: "ico_sphere", forms: &["ico_sphere(radius)", "ico_sphere(radius, subdivisions)"], doc: "Subdivided icosahedron (default 2 subdivisions, at most 6)." },
-    ApiEntry { name: "torus", forms: &["torus(major_radius, minor_radius)", "torus(major_radius, minor_radius, segments, minor_segments)"], doc: "Ring around Z in the XY plane: tube centre at major_radius, tube radius minor_radius." },
-    ApiEntry { name: "capsule", forms: &["capsule(radius, length)", "capsule(radius, length, segments)"], doc: "Cylinder of `length` along Z capped by hemispheres (total height length + 2·radius)." },
-    ApiEntry { name: "plane", forms: &["plane(size_x, size_y)"], doc: "Zero-thickness rectangle in the XY plane, visible from both sides (prefer a thin box for solids)." },
-    ApiEntry { name: "disc", forms: &["disc(radius)", "disc(radius, segments)"], doc: "Zero-thickness disc in the XY plane, visible from both sides." },
-    ApiEntry { name: "wedge", forms: &["wedge(size_x, size_y, size_z)"], doc: "Ramp: footprint size_x × size_y, full height at −Y sloping to zero at +Y." },
-    ApiEntry { name: "hull", forms: &["hull(points)"], doc: "Convex hull of [[x, y, z], …] (at least 4 points, not all coplanar)." },
-    ApiEntry { name: "extrude", forms: &["extrude(outline, height)", "extrude(outline, holes, height)"], doc: "Prism from a 2-D polygon [[x, y], …] in XY (holes: a list of polygons), extruded along Z, centred on z = 0." },
-    ApiEntry { name: "lathe", forms: &["lathe(profile)", "lathe(profile, segments)"], doc: "Revolves [[radius, z], …] about Z; radius 0 makes a pole; ends off the axis get flat caps; a closed loop (first = last) makes a ring." },
-    ApiEntry { name: "mesh", forms: &["mesh(path)"], doc: "Loads an OBJ, STL, PLY or GLB file that sits beside the script (no other paths)." },
-    ApiEntry { name: "union", forms: &["union(a, b)", "a + b"], doc: "Boolean union (solids only; never unite parts that move relative to each other)." },
-    ApiEntry { name: "union_all", forms: &["union_all([a, b, …])"], doc: "Boolean union of a list of solids." },
-    ApiEntry { name: "difference", forms: &["difference(a, b)", "a - b"], doc: "Boolean difference: a with b removed. The cutter should stick out through every surface it cuts." },
-    ApiEntry { name: "intersection", forms: &["intersection(a, b)"], doc: "Boolean intersection." },
-    ApiEntry { name: "translate", forms: &["s.translate(x, y, z)", "s.translate([x, y, z])"], doc: "Moves a solid." },
-    ApiEntry { name: "rotate", forms: &["s.rotate([ax, ay, az], angle_deg)"], doc: "Rotates about an axis through the origin, right-handed, degrees." },
-    ApiEntry { name: "rotate_x", forms: &["s.rotate_x(angle_deg)"], doc: "Rotates about +X (degrees)." },
-    ApiEntry { name: "rotate_y", forms: &["s.rotate_y(angle_deg)"], doc: "Rotates about +Y (degrees)." },
-    ApiEntry { name: "rotate_z", forms: &["s.rotate_z(angle_deg)"], doc: "Rotates about +Z (degrees)." },
-    ApiEntry { name: "rotate_euler", forms: &["s.rotate_euler(x_deg, y_deg, z_deg)"], doc: "Euler XYZ as in Blender: about X, then Y, then Z (fixed axes)." },
-    ApiEntry { name: "scale", forms: &["s.scale(factor)", "s.scale(sx, sy, sz)"], doc: "Scales about the origin (factors > 0; use mirror to flip)." },
-    ApiEntry { name: "mirror", forms: &["s.mirror(\"x\")"], doc: "Mirrors across the plane through the origin normal to x, y or z." },
-    ApiEntry { name: "color", forms: &["s.color(r, g, b)", "s.color(\"#rrggbb\")", "s.color(\"red\")"], doc: "Colour of the part (0–1 components, hex, or a name)." },
-    ApiEntry { name: "size", forms: &["s.size()"], doc: "Bounding-box extents [x, y, z]." },
-    ApiEntry { name: "bounds", forms: &["s.bounds()"], doc: "#{min: [..], max: [..], center: [..], size: [..]} of the bounding box." },
-    ApiEntry { name: "volume", forms: &["s.volume()"], doc: "Enclosed volume." },
-    ApiEntry { name: "triangle_count", forms: &["s.triangle_count()"], doc: "Number of triangles." },
-    ApiEntry { name: "part", forms: &["part(name, solid)"], doc: "Declares a named part (the unit that joints move and exports name)." },
-    ApiEntry { name: "param", forms: &["param(name, value, min, max)"], doc: "A named shape parameter with its bounds: returns `value` (or the value `fit_shape` is trying); `agentstar fit-shape --params name` fits it within [min, max] against the committed poses and writes the result back as the new `value` (keep it a number literal)." },
-    ApiEntry { name: "joint", forms: &["joint(#{name, type, child, origin, axis, limit, parent})"], doc: "Declares a joint: type revolute (limit in degrees), continuous (no limit), prismatic (limit in canonical units) or fixed; child is a part name or a list; origin and axis in the canonical rest frame; parent names another joint for chains." },
-];
-
-/// The API reference as Markdown (one row per function), the source of `docs/scene.md`'s
-/// reference section so that the docs cannot drift from what is registered.
-pub fn api_markdown() -> String {
-    let mut s = String::from("| function | forms | what it does |\n|---|---|---|\n");
-    for e in API {
-        let forms: Vec<String> = e.forms.iter().map(|f| format!("`{f}`")).collect();
-        s.push_str(&format!(
-            "| `{}` | {} | {} |\n",
-            e.name,
-            forms.join("<br>"),
-            e.doc
-        ));
-    }
-    s
-}
-
-/// Names of every API function (sorted, unique).
-pub fn api_names() -> Vec<&'static str> {
-    let mut v: Vec<&str> = API.iter().map(|e| e.name).collect();
-    v.sort_unstable();
-    v.dedup();
-    v
-}
-
 const JOINT_KEYS: [&str; 7] = ["axis", "child", "limit", "name", "origin", "parent", "type"];
 
-const NAMED_COLORS: &[(&str, [f32; 3])] = &[
-    ("black", [0.05, 0.05, 0.05]),
-    ("blue", [0.15, 0.3, 0.85]),
-    ("brown", [0.45, 0.28, 0.15]),
-    ("cyan", [0.1, 0.75, 0.8]),
-    ("gray", [0.5, 0.5, 0.5]),
-    ("green", [0.2, 0.65, 0.25]),
-    ("grey", [0.5, 0.5, 0.5]),
-    ("orange", [0.95, 0.55, 0.1]),
-    ("pink", [0.95, 0.55, 0.7]),
-    ("purple", [0.55, 0.25, 0.7]),
-    ("red", [0.85, 0.15, 0.12]),
-    ("silver", [0.75, 0.75, 0.78]),
-    ("white", [0.95, 0.95, 0.95]),
-    ("yellow", [0.95, 0.85, 0.15]),
-];
-
-/// Distinct default colours for parts that set none.
-const PALETTE: [[f32; 3]; 8] = [
-    [0.85, 0.33, 0.25],
-    [0.25, 0.55, 0.85],
-    [0.35, 0.75, 0.35],
-    [0.9, 0.7, 0.2],
-    [0.6, 0.4, 0.8],
-    [0.2, 0.75, 0.75],
-    [0.9, 0.5, 0.7],
-    [0.6, 0.6, 0.6],
-];
-
-/// A solid value in a script: an immutable mesh and an optional colour.
+/// A solid value in a script: an immutable mesh, an optional colour, and the appearance
+/// of an imported mesh file (kept through transforms; a boolean or `color` replaces it
+/// with one colour).
 #[derive(Debug, Clone)]
 pub struct Solid {
     mesh: Arc<TriMesh>,
     color: Option<[f32; 3]>,
+    surface: Option<Arc<SurfaceAppearance>>,
 }
 
 struct State {
     parts: Vec<(String, Solid)>,
+    /// What reading mesh files and dropping their appearance in booleans gave to say.
+    notes: Vec<String>,
     joints: Vec<(JointDef, Position)>,
     triangles: usize,
     printed: Vec<String>,
@@ -235,11 +143,36 @@ fn to_array(v: &Vector3) -> Array {
 
 impl Solid {
     fn mapped(&self, linear: &Matrix3, offset: &Vector3) -> Solid {
+        // A mirroring map swaps each triangle's last two corners; their attributes follow.
+        let surface = match &self.surface {
+            Some(s) if linear.determinant() < 0.0 => Some(Arc::new(s.with_corners_swapped())),
+            s => s.clone(),
+        };
         Solid {
             mesh: Arc::new((*self.mesh).clone().transformed(linear, offset)),
             color: self.color,
+            surface,
         }
     }
+
+    /// The one colour this solid gives a boolean's result: its own, or its surface's mean.
+    fn plain_color(&self) -> Option<[f32; 3]> {
+        self.color
+            .or_else(|| self.surface.as_ref().map(|s| s.mean_color(&self.mesh)))
+    }
+}
+
+/// A boolean's result colour, noting once per call when an operand's texture or vertex
+/// colours are replaced by their mean.
+fn boolean_color(state: &Shared, op: &str, solids: &[&Solid]) -> Option<[f32; 3]> {
+    if solids.iter().any(|s| s.surface.is_some()) {
+        let note = format!("`{op}` replaces the texture and vertex colours of an imported mesh by their mean colour (a boolean keeps one colour); make the textured mesh a part of its own to keep them");
+        let mut s = lock(state);
+        if !s.notes.contains(&note) {
+            s.notes.push(note);
+        }
+    }
+    solids.iter().find_map(|s| s.plain_color())
 }
 
 /// Records a new mesh against the triangle budget.
@@ -258,6 +191,7 @@ fn admit(state: &Shared, mesh: TriMesh, color: Option<[f32; 3]>) -> RResult<Soli
     Ok(Solid {
         mesh: Arc::new(mesh),
         color,
+        surface: None,
     })
 }
 
@@ -269,32 +203,6 @@ fn geom<T>(r: agentstar_geom::Result<T>) -> RResult<T> {
         )),
         e => fail(e.to_string()),
     })
-}
-
-fn parse_color(s: &str) -> RResult<[f32; 3]> {
-    let t = s.trim();
-    if let Some(hex) = t.strip_prefix('#') {
-        if hex.len() == 6 {
-            if let Ok(v) = u32::from_str_radix(hex, 16) {
-                return Ok([
-                    ((v >> 16) & 255) as f32 / 255.0,
-                    ((v >> 8) & 255) as f32 / 255.0,
-                    (v & 255) as f32 / 255.0,
-                ]);
-            }
-        }
-        return fail(format!("`color`: `{s}` is not a #rrggbb colour"));
-    }
-    let lower = t.to_ascii_lowercase();
-    if let Some((_, c)) = NAMED_COLORS.iter().find(|(n, _)| *n == lower) {
-        return Ok(*c);
-    }
-    let names: Vec<&str> = NAMED_COLORS.iter().map(|(n, _)| *n).collect();
-    fail(format!(
-        "`color`: unknown colour name `{s}`{}; use #rrggbb, r, g, b in 0–1, or one of {}",
-        did_you_mean(&lower, &names),
-        names.join(", ")
-    ))
 }
 
 fn axis_rotation(axis: Vector3, angle_deg: f64, func: &str) -> RResult<Matrix3> {
@@ -567,7 +475,18 @@ fn register(engine: &mut Engine, state: &Shared, meshes: Arc<dyn MeshSource>) {
             let m = meshes
                 .load(path)
                 .or_else(|e| fail(format!("`mesh`: {e}")))?;
-            admit(&st, m, None)
+            {
+                let mut s = lock(&st);
+                for w in &m.warnings {
+                    let note = format!("`mesh(\"{path}\")`: {w}");
+                    if !s.notes.contains(&note) {
+                        s.notes.push(note);
+                    }
+                }
+            }
+            let mut solid = admit(&st, m.mesh, None)?;
+            solid.surface = m.surface;
+            Ok(solid)
         });
     }
 
@@ -585,7 +504,8 @@ fn register(engine: &mut Engine, state: &Shared, meshes: Arc<dyn MeshSource>) {
         engine.register_fn(name, move |a: Solid, b: Solid| -> RResult<Solid> {
             let budget = lock(&st).boolean_budget();
             let m = geom(op(&a.mesh, &b.mesh, budget))?;
-            admit(&st, m, a.color.or(b.color))
+            let color = boolean_color(&st, name, &[&a, &b]);
+            admit(&st, m, color)
         });
     }
     {
@@ -606,7 +526,8 @@ fn register(engine: &mut Engine, state: &Shared, meshes: Arc<dyn MeshSource>) {
             for s in &solids[1..] {
                 acc = geom(csg::union_within(&acc, &s.mesh, budget))?;
             }
-            admit(&st, acc, first.color)
+            let color = boolean_color(&st, "union_all", &solids.iter().collect::<Vec<_>>());
+            admit(&st, acc, color)
         });
     }
 
@@ -717,12 +638,13 @@ fn register(engine: &mut Engine, state: &Shared, meshes: Arc<dyn MeshSource>) {
         if c.iter().any(|v| !(0.0..=1.0).contains(v)) {
             return fail(format!("`color`: components must be in 0–1, got {c:?} (for 0–255 values divide by 255)"));
         }
-        Ok(Solid { mesh: s.mesh.clone(), color: Some([c[0] as f32, c[1] as f32, c[2] as f32]) })
+        Ok(Solid { mesh: s.mesh.clone(), color: Some([c[0] as f32, c[1] as f32, c[2] as f32]), surface: None })
     });
     engine.register_fn("color", |s: &mut Solid, c: &str| -> RResult<Solid> {
         Ok(Solid {
             mesh: s.mesh.clone(),
-            color: Some(parse_color(c)?),
+            color: Some(parse_color(c).or_else(fail)?),
+            surface: None,
         })
     });
 
@@ -976,6 +898,7 @@ fn build_here(
     }
     let state: Shared = Arc::new(Mutex::new(State {
         parts: vec![],
+        notes: vec![],
         joints: vec![],
         triangles: 0,
         printed: vec![],
@@ -1056,11 +979,16 @@ fn build_here(
         .iter()
         .enumerate()
         .map(|(i, (name, solid))| {
-            Part::new(
+            let part = Part::new(
                 name.clone(),
                 (*solid.mesh).clone(),
                 solid.color.unwrap_or(PALETTE[i % PALETTE.len()]),
-            )
+            );
+            match &solid.surface {
+                // The surface was read for this mesh, and transforms keep its triangles.
+                Some(s) => part.clone().with_surface(s.clone()).unwrap_or(part),
+                None => part,
+            }
         })
         .collect();
     let names: Vec<String> = parts.iter().map(|p| p.name.clone()).collect();
@@ -1083,7 +1011,7 @@ fn build_here(
             parts_so_far: parts_so_far.clone(),
         }
     })?;
-    let mut warnings = Vec::new();
+    let mut warnings = st.notes.clone();
     for j in tree.joints() {
         if let Some((lo, hi)) = j.limit {
             if lo > 0.0 || hi < 0.0 {
@@ -1110,45 +1038,6 @@ fn build_here(
         printed,
         params,
     })
-}
-
-/// Loads every `mesh("…")` literal of the script up front through the caller's source, so
-/// that the engine's callbacks own their data. Paths built at run time fall back to an
-/// error that says to use a literal.
-struct Preloaded {
-    files: Vec<(String, Result<TriMesh, String>)>,
-}
-
-impl Preloaded {
-    fn new(source: &str, meshes: &dyn MeshSource) -> Self {
-        let mut files = Vec::new();
-        let mut rest = source;
-        while let Some(i) = rest.find("mesh(") {
-            rest = &rest[i + 5..];
-            let t = rest.trim_start();
-            if let Some(stripped) = t.strip_prefix('"') {
-                if let Some(end) = stripped.find('"') {
-                    let path = stripped[..end].to_string();
-                    if !files.iter().any(|(p, _)| *p == path) {
-                        let loaded = meshes.load(&path);
-                        files.push((path, loaded));
-                    }
-                }
-            }
-        }
-        Preloaded { files }
-    }
-}
-
-impl MeshSource for Preloaded {
-    fn load(&self, path: &str) -> Result<TriMesh, String> {
-        match self.files.iter().find(|(p, _)| p == path) {
-            Some((_, r)) => r.clone(),
-            None => Err(format!(
-                "`{path}` must be written as a string literal: mesh(\"{path}\")"
-            )),
-        }
-    }
 }
 
 /// Converts a Rhai error into a [`SceneError`] with position and guidance.

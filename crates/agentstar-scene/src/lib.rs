@@ -8,28 +8,33 @@
 //! the valid names, and the parts defined so far.
 
 mod api;
+mod api_table;
+mod colors;
 mod diagnostics;
 mod params;
+mod preload;
 
-pub use api::{api_markdown, api_names, ApiEntry, API};
+pub use api_table::{api_markdown, api_names, ApiEntry, API};
 pub use diagnostics::{SceneError, SceneErrorKind};
 pub use params::{format_param_value, set_param_values};
 
-use agentstar_geom::{CanonicalReport, ObjectModel, TriMesh};
+use agentstar_geom::{AppearedMesh, CanonicalReport, ObjectModel};
 use std::collections::BTreeMap;
 use std::time::Duration;
 
-/// Loads mesh files that a script names (`mesh("handle.obj")`). Implementations decide
-/// which paths are allowed; the scene layer itself never touches the file system.
+/// Loads mesh files that a script names (`mesh("handle.obj")`) with their appearance
+/// (materials, textures, vertex colours) and the warnings reading it gave. Implementations
+/// decide which paths are allowed, for the mesh and the files it names; the scene layer
+/// itself never touches the file system.
 pub trait MeshSource: Send + Sync {
-    fn load(&self, path: &str) -> Result<TriMesh, String>;
+    fn load(&self, path: &str) -> Result<AppearedMesh, String>;
 }
 
 /// A source that refuses every mesh file (for scripts evaluated without a directory).
 pub struct NoMeshFiles;
 
 impl MeshSource for NoMeshFiles {
-    fn load(&self, path: &str) -> Result<TriMesh, String> {
+    fn load(&self, path: &str) -> Result<AppearedMesh, String> {
         Err(format!(
             "mesh files are not available here (asked for `{path}`)"
         ))

@@ -235,9 +235,11 @@ fn duplicate_and_empty_parts_are_refused() {
 
 struct OneFile;
 impl MeshSource for OneFile {
-    fn load(&self, path: &str) -> Result<agentstar_geom::TriMesh, String> {
+    fn load(&self, path: &str) -> Result<agentstar_geom::AppearedMesh, String> {
         if path == "handle.obj" {
-            agentstar_geom::primitives::cuboid(0.1, 0.2, 0.3).map_err(|e| e.to_string())
+            agentstar_geom::primitives::cuboid(0.1, 0.2, 0.3)
+                .map(agentstar_geom::AppearedMesh::plain)
+                .map_err(|e| e.to_string())
         } else {
             Err(format!("no file `{path}` beside the script"))
         }

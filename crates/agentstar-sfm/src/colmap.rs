@@ -77,6 +77,22 @@ pub struct Colmap {
     pub program: PathBuf,
     /// The first line of `colmap help`, e.g. `COLMAP 3.8 -- Structure-from-Motion …`.
     pub version: String,
+    /// Whether the banner says it was built with CUDA (`… with CUDA`, not `without CUDA`).
+    pub cuda: bool,
+}
+
+/// Whether this machine shows an NVIDIA device (`/dev/nvidia0`, or a GPU listed by the
+/// driver under `/proc/driver/nvidia/gpus`).
+pub fn nvidia_device_present() -> bool {
+    Path::new("/dev/nvidia0").exists()
+        || std::fs::read_dir("/proc/driver/nvidia/gpus")
+            .map(|mut d| d.next().is_some())
+            .unwrap_or(false)
+}
+
+/// Whether a banner of `colmap help` names a CUDA build.
+pub fn banner_has_cuda(banner: &str) -> bool {
+    banner.contains("with CUDA") && !banner.contains("without CUDA")
 }
 
 impl Colmap {
@@ -108,7 +124,12 @@ impl Colmap {
                     program.display(),
                 ),
             })?;
-        Ok(Colmap { program, version })
+        let cuda = banner_has_cuda(&text);
+        Ok(Colmap {
+            program,
+            version,
+            cuda,
+        })
     }
 
     /// Runs `colmap COMMAND ARGS…` until it exits or `deadline` passes (then it is killed).
@@ -184,6 +205,8 @@ impl Colmap {
         if timed_out {
             return Err(SfmError::TimedOut {
                 stage: command.to_string(),
+                command: command.to_string(),
+                limit_s: 0.0,
                 log: log.to_path_buf(),
             });
         }
@@ -317,6 +340,17 @@ mod tests {
         std::fs::set_permissions(&ok, std::fs::Permissions::from_mode(0o755)).expect("chmod");
         let c = Colmap::find_within(Some(&ok), Duration::from_secs(10)).expect("found");
         assert_eq!(c.version, "COLMAP 3.9");
+        assert!(!c.cuda, "no build line: no CUDA");
+    }
+
+    #[test]
+    fn the_banner_says_whether_colmap_has_cuda() {
+        assert!(banner_has_cuda(
+            "COLMAP 3.8 -- Structure-from-Motion\n(Commit 1 on 2023-01-31 with CUDA)"
+        ));
+        assert!(!banner_has_cuda(
+            "COLMAP 3.8 -- Structure-from-Motion\n(Commit Unknown on Unknown without CUDA)"
+        ));
     }
 
     #[test]

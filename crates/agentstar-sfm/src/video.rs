@@ -1,7 +1,7 @@
 //! The frames of a video import that SfM sees: the keyframes and the frames between them,
 //! each with its object and hand masks.
 
-use crate::{SfmError, SfmFrame};
+use crate::{FrameRole, SfmError, SfmFrame};
 use agentstar_data::images::load_mask;
 use agentstar_import::video::{stem, FrameFiles, MaskFolder};
 use std::path::Path;
@@ -32,12 +32,14 @@ pub fn select_frames(keyframes: &[usize], max_frames: usize) -> Vec<usize> {
 /// SfM frames for `indices` of `frames`, their masks found as the capture import finds them
 /// (by file stem, [`MaskFolder`]); a frame without a hand mask shows no hands.
 /// Frames between keyframes without an object mask are left out (their object would bring
-/// features that move with it) and named in the second list.
+/// features that move with it) and named in the second list, unless the capture keeps them
+/// (`in_between`, sorted: they need cameras, and their masks).
 pub fn sfm_frames(
     frames: &FrameFiles,
     masks: &Path,
     hands: Option<&Path>,
     keyframes: &[usize],
+    in_between: &[usize],
     indices: &[usize],
 ) -> Result<(Vec<SfmFrame>, Vec<String>), SfmError> {
     let mask_folder = MaskFolder::open(masks)?;
@@ -52,13 +54,14 @@ pub fn sfm_frames(
         let path = &frames.paths[i];
         let s = stem(path);
         let keyframe = keyframes.binary_search(&i).is_ok();
+        let kept = in_between.binary_search(&i).is_ok();
         let file_name = path
             .file_name()
             .and_then(|n| n.to_str())
             .ok_or_else(|| SfmError::Input(format!("{}: not a UTF-8 file name", path.display())))?
             .to_string();
         let Some(mask_path) = &mask_of[i] else {
-            if keyframe {
+            if keyframe || kept {
                 return Err(mask_folder.missing(path).into());
             }
             skipped.push(file_name);
@@ -84,7 +87,13 @@ pub fn sfm_frames(
             file_name,
             stem: s,
             excluded,
-            keyframe,
+            role: if keyframe {
+                FrameRole::Keyframe
+            } else if kept {
+                FrameRole::InBetween
+            } else {
+                FrameRole::Helper
+            },
         });
     }
     Ok((out, skipped))

@@ -32,6 +32,11 @@ pub enum Walls {
     Textured,
     /// One flat colour per surface: only the room's edges have structure.
     Plain,
+    /// Texture with the statistics of photographs of a cluttered room: multi-octave noise
+    /// with a 1/f amplitude spectrum (from 1.3 m down to 1 cm), a gravel floor (dense small
+    /// stones of random tone), brick walls (courses of offset bricks with mortar lines),
+    /// and framed pictures (straight edges, their own colour and finer noise) on the walls.
+    Photographic,
 }
 
 /// How the camera moves.
@@ -61,6 +66,12 @@ pub struct RoomConfig {
     pub camera: CameraPath,
     /// Degrees the object turns in the world per frame (about a drifting axis).
     pub object_turn_deg_per_frame: f64,
+    /// A hand holds the object (it drifts a little and its joints move); without one the
+    /// object stands still in the room (no drift, joints at rest) and only its turn, if any,
+    /// moves it.
+    pub hand: bool,
+    /// The orbit's sweep in degrees (`OrbitWobble`); `None`: 50° to 70°, drawn.
+    pub orbit_deg: Option<f64>,
 }
 
 impl Default for RoomConfig {
@@ -75,6 +86,8 @@ impl Default for RoomConfig {
             walls: Walls::Textured,
             camera: CameraPath::OrbitWobble,
             object_turn_deg_per_frame: 2.5,
+            hand: true,
+            orbit_deg: None,
         }
     }
 }
@@ -178,6 +191,7 @@ impl Room {
                     c = spot;
                 }
             }
+            Walls::Photographic => c = photographic(surface, u, v, base, seed),
         }
         c.map(|x| (x * shade).clamp(0.0, 1.0))
     }
@@ -198,6 +212,113 @@ fn value_noise(u: f64, v: f64, cell: f64, seed: u32) -> f64 {
     let a = lattice(0.0, 0.0) * (1.0 - su) + lattice(1.0, 0.0) * su;
     let b = lattice(0.0, 1.0) * (1.0 - su) + lattice(1.0, 1.0) * su;
     a * (1.0 - sv) + b * sv
+}
+
+/// Octaves of the 1/f noise: cell sizes in metres, each half the one before.
+const OCTAVES: [f64; 8] = [1.3, 0.65, 0.32, 0.16, 0.08, 0.04, 0.02, 0.01];
+
+/// Noise whose amplitude is proportional to the wavelength (a 1/f amplitude spectrum, as
+/// photographs of natural scenes have), in about [−1, 1].
+fn pink_noise(u: f64, v: f64, seed: u32) -> f64 {
+    let mut sum = 0.0;
+    for (i, cell) in OCTAVES.iter().enumerate() {
+        sum += cell / OCTAVES[0] * value_noise(u, v, *cell, seed.wrapping_add(i as u32 * 7919));
+    }
+    // The amplitudes sum to just under 2.
+    0.5 * sum
+}
+
+/// Linear RGB of a photographic surface at its coordinates (u, v) in metres: 1/f noise on
+/// every surface; gravel on the floor, bricks on the walls along X, and framed pictures on
+/// every wall.
+fn photographic(surface: usize, u: f64, v: f64, base: [f64; 3], seed: u32) -> [f64; 3] {
+    let n = pink_noise(u, v, seed);
+    let tint = value_noise(u, v, 0.5, seed ^ 5);
+    let mut c = [
+        base[0] * (1.0 + 0.55 * n) + 0.05 * tint,
+        base[1] * (1.0 + 0.55 * n),
+        base[2] * (1.0 + 0.55 * n) - 0.05 * tint,
+    ];
+    match surface {
+        4 => {
+            // Gravel: stones of 1.5 to 4 cm, each its own tone, darker in the gaps.
+            if let Some(stone) = stone_at(u, v, 0.035, seed ^ 3) {
+                let g = 0.6 + 0.8 * stone;
+                c = c.map(|x| x * g);
+            } else {
+                c = c.map(|x| 0.45 * x);
+            }
+        }
+        0 | 1 => {
+            // Bricks of 21 × 6.5 cm in courses offset by half a brick; 1 cm of mortar.
+            let (bw, bh, mortar) = (0.22, 0.075, 0.01);
+            let row = (v / bh).floor();
+            let shift = if row as i64 % 2 == 0 { 0.0 } else { 0.5 * bw };
+            let col = ((u + shift) / bw).floor();
+            let (fu, fv) = (u + shift - col * bw, v - row * bh);
+            if fu < mortar || fv < mortar {
+                c = [0.62 + 0.1 * n, 0.6 + 0.1 * n, 0.55 + 0.1 * n];
+            } else {
+                let h = hash01(col as i64 as u32, row as i64 as u32, seed ^ 4);
+                let g = 0.75 + 0.5 * h;
+                c = [c[0] * g * 1.25, c[1] * g * 0.85, c[2] * g * 0.7];
+            }
+        }
+        _ => {}
+    }
+    if surface < 4 {
+        if let Some(p) = picture_at(u, v, seed ^ 6) {
+            c = p;
+        }
+    }
+    c
+}
+
+/// A stone of a gravel bed on a grid of `cell` metres: its tone in [0, 1] where (u, v) lies
+/// inside the stone of its cell, else `None` (the gap between stones).
+fn stone_at(u: f64, v: f64, cell: f64, seed: u32) -> Option<f64> {
+    let (iu, iv) = ((u / cell).floor(), (v / cell).floor());
+    let (x, y) = (iu as i64 as u32, iv as i64 as u32);
+    let h = |k: u32| hash01(x, y, seed.wrapping_add(k.wrapping_mul(0x2545_F491)));
+    let (ru, rv) = (cell * (0.25 + 0.2 * h(1)), cell * (0.25 + 0.2 * h(2)));
+    let cu = (iu + 0.5 + 0.15 * (h(3) - 0.5)) * cell;
+    let cv = (iv + 0.5 + 0.15 * (h(4) - 0.5)) * cell;
+    (((u - cu) / ru).powi(2) + ((v - cv) / rv).powi(2) <= 1.0).then(|| h(5))
+}
+
+/// A framed picture in half of the cells of 0.7 m: a dark frame, then the picture: a colour
+/// of its own, a straight horizon between two tones and finer 1/f noise.
+fn picture_at(u: f64, v: f64, seed: u32) -> Option<[f64; 3]> {
+    const CELL: f64 = 0.7;
+    let (iu, iv) = ((u / CELL).floor(), (v / CELL).floor());
+    let (x, y) = (iu as i64 as u32, iv as i64 as u32);
+    let h = |k: u32| hash01(x, y, seed.wrapping_add(k.wrapping_mul(0x68E3_1DA4)));
+    if h(0) > 0.5 {
+        return None;
+    }
+    let (half_w, half_h) = (CELL * (0.15 + 0.2 * h(1)), CELL * (0.12 + 0.2 * h(2)));
+    let cu = (iu + 0.5) * CELL + (h(3) - 0.5) * (CELL - 2.0 * half_w);
+    let cv = (iv + 0.5) * CELL + (h(4) - 0.5) * (CELL - 2.0 * half_h);
+    let (du, dv) = ((u - cu).abs(), (v - cv).abs());
+    if du > half_w || dv > half_h {
+        return None;
+    }
+    let frame = 0.02;
+    if du > half_w - frame || dv > half_h - frame {
+        let g = 0.05 + 0.1 * h(5);
+        return Some([g, g, g]);
+    }
+    // A horizon at a random height and slope splits the picture into two tones.
+    let slope = h(6) - 0.5;
+    let above = (v - cv) - slope * (u - cu) > (h(7) - 0.5) * half_h;
+    let tone = |k: u32| 0.1 + 0.8 * h(k);
+    let col = if above {
+        [tone(8), tone(9), tone(10)]
+    } else {
+        [tone(11), tone(12), tone(13)]
+    };
+    let n = pink_noise(4.0 * u, 4.0 * v, seed ^ 9);
+    Some(col.map(|x| x * (1.0 + 0.6 * n)))
 }
 
 /// A spot of random colour and radius in three cells of four (cells of 0.16 m), or none.
@@ -281,6 +402,13 @@ pub fn synthesize_room_clip(cfg: &RoomConfig) -> Result<RoomClip, SynthError> {
             cfg.object_turn_deg_per_frame
         )));
     }
+    if let Some(d) = cfg.orbit_deg {
+        if !(d.is_finite() && d > 0.0 && d <= 360.0) {
+            return Err(SynthError::Config(format!(
+                "the orbit's sweep must be above 0 and at most 360 degrees, got {d}"
+            )));
+        }
+    }
     let model = build_object(spec)?;
     let (w, h) = (cfg.width, cfg.height);
     let f = 0.95 * w.max(h) as f64;
@@ -295,12 +423,18 @@ pub fn synthesize_room_clip(cfg: &RoomConfig) -> Result<RoomClip, SynthError> {
     // The object spans about 40% of the image, leaving most of it to the background.
     let d = crate::motion::viewing_distance(&model, scale, &camera, 0.4);
     let moving = vec![true; model.tree.joints().len()];
-    let states = crate::motion::joint_states(&model, n, &moving, &mut motion_rng);
+    let mut states = crate::motion::joint_states(&model, n, &moving, &mut motion_rng);
+    if !cfg.hand {
+        // Nobody moves the object's joints.
+        let rest = model.tree.rest_states();
+        states.iter_mut().for_each(|s| *s = rest.clone());
+    }
     let start = UnitQuaternion::from_axis_angle(&Vector3::z_axis(), motion_rng.range(-PI, PI))
         * UnitQuaternion::from_axis_angle(&Vector3::x_axis(), motion_rng.range(-0.3, 0.3));
     let mut axis = crate::motion::random_axis(&mut motion_rng);
     let az0 = motion_rng.range(-PI, PI);
-    let sweep = motion_rng.range(50.0, 70.0).to_radians()
+    let drawn_sweep = motion_rng.range(50.0, 70.0);
+    let sweep = cfg.orbit_deg.unwrap_or(drawn_sweep).to_radians()
         * if motion_rng.uniform() < 0.5 {
             1.0
         } else {
@@ -316,7 +450,7 @@ pub fn synthesize_room_clip(cfg: &RoomConfig) -> Result<RoomClip, SynthError> {
             .norm()
         * scale;
     let hand_part = agentstar_geom::Part::new("hand", hand::hand_mesh(), hand::SKIN);
-    let hand_scale = (scale / 0.3).clamp(0.5, 1.0);
+    let hand_scale = hand::hand_scale_for(scale);
     let hand_phase = motion_rng.range(0.0, TAU);
     let mut rotation = start;
     let mut frames = Vec::with_capacity(n);
@@ -331,7 +465,11 @@ pub fn synthesize_room_clip(cfg: &RoomConfig) -> Result<RoomClip, SynthError> {
         }
         let wob = |i: usize| wobble[i].at(t);
         // The object's centre: near the world origin, drifting a little in the hand.
-        let mut centre = Point3::new(0.05 * d * wob(0), 0.05 * d * wob(1), 0.04 * d * wob(2));
+        let mut centre = if cfg.hand {
+            Point3::new(0.05 * d * wob(0), 0.05 * d * wob(1), 0.04 * d * wob(2))
+        } else {
+            Point3::origin()
+        };
         let camera_from_world = match cfg.camera {
             CameraPath::OrbitWobble => {
                 let az = az0 + sweep * t;
@@ -383,15 +521,17 @@ pub fn synthesize_room_clip(cfg: &RoomConfig) -> Result<RoomClip, SynthError> {
             .transform_point(&model.posed_bounds(&st).center());
         let phi = hand_phase + 0.6 * (TAU * t).sin();
         let hand_pose = hand::grip_pose(&centre_cam, radius, phi, hand_scale);
-        instances.push(Instance {
-            mesh: &hand_part.mesh,
-            bounds: hand_part.bounds,
-            camera_from_mesh: Affine::from_similarity(&hand_pose),
-            edges: hand_part.edges.as_deref().map(|e| e.as_slice()),
-            open_edges: hand_part.open_edges.as_deref().map(|e| e.as_slice()),
-            planes: hand_part.planes.as_deref().map(|q| q.as_slice()),
-            part_id: n_parts,
-        });
+        if cfg.hand {
+            instances.push(Instance {
+                mesh: &hand_part.mesh,
+                bounds: hand_part.bounds,
+                camera_from_mesh: Affine::from_similarity(&hand_pose),
+                edges: hand_part.edges.as_deref().map(|e| e.as_slice()),
+                open_edges: hand_part.open_edges.as_deref().map(|e| e.as_slice()),
+                planes: hand_part.planes.as_deref().map(|q| q.as_slice()),
+                part_id: n_parts,
+            });
+        }
         let buffers = render_full(&camera, &instances);
         let mask = BitMask::from_fn(w, h, |x, y| buffers.part[(y * w + x) as usize] < n_parts);
         let hand_mask = BitMask::from_fn(w, h, |x, y| {
@@ -461,7 +601,7 @@ pub fn synthesize_room_clip(cfg: &RoomConfig) -> Result<RoomClip, SynthError> {
             states: st,
             rgb,
             mask,
-            hand: Some(hand_mask),
+            hand: cfg.hand.then_some(hand_mask),
             depth_m: None,
             hand_coverage,
         });
@@ -543,8 +683,69 @@ mod tests {
     fn textured_walls_have_structure_and_plain_walls_do_not() {
         let textured = background_gradient(&small(Walls::Textured, CameraPath::OrbitWobble));
         let plain = background_gradient(&small(Walls::Plain, CameraPath::OrbitWobble));
+        let photographic =
+            background_gradient(&small(Walls::Photographic, CameraPath::OrbitWobble));
         assert!(textured > 4.0 * plain, "textured {textured}, plain {plain}");
+        assert!(
+            photographic > 4.0 * plain,
+            "photographic {photographic}, plain {plain}"
+        );
         assert!(plain < 2.0, "plain {plain}");
+    }
+
+    #[test]
+    fn photographic_texture_has_detail_at_every_scale() {
+        // Mean absolute difference of the noise at points `d` metres apart grows with d
+        // (structure at every scale), without saturating at the finest scale.
+        let diff = |d: f64| {
+            let mut sum = 0.0;
+            for i in 0..400 {
+                let (u, v) = (0.37 * i as f64, 0.11 * i as f64);
+                sum += (pink_noise(u, v, 9) - pink_noise(u + d, v, 9)).abs();
+            }
+            sum / 400.0
+        };
+        let (fine, mid, coarse) = (diff(0.01), diff(0.08), diff(0.6));
+        assert!(
+            fine > 0.005 && fine < mid && mid < coarse,
+            "{fine} {mid} {coarse}"
+        );
+    }
+
+    #[test]
+    fn without_a_hand_the_object_stands_still() {
+        let clip = synthesize_room_clip(&RoomConfig {
+            object: "microwave".into(),
+            frames: 5,
+            keyframe_every: 2,
+            width: 160,
+            height: 120,
+            object_turn_deg_per_frame: 0.0,
+            hand: false,
+            orbit_deg: Some(90.0),
+            ..RoomConfig::default()
+        })
+        .expect("clip");
+        let world_from_object =
+            |f: &SynthFrame| f.world_from_camera * f.camera_from_object.to_rigid();
+        let first = world_from_object(&clip.frames[0]);
+        for f in &clip.frames {
+            assert!(f.hand.is_none());
+            let w = world_from_object(f);
+            assert!((w.translation.vector - first.translation.vector).norm() < 1e-9);
+            assert!(w.rotation.angle_to(&first.rotation) < 1e-9);
+            assert_eq!(f.states, clip.frames[0].states);
+        }
+        // The orbit sweeps the 90° asked for (the camera's heading about the vertical).
+        let heading = |f: &SynthFrame| {
+            let c = f.world_from_camera.translation.vector;
+            c.y.atan2(c.x)
+        };
+        let sweep = (heading(&clip.frames[4]) - heading(&clip.frames[0]))
+            .abs()
+            .to_degrees();
+        let sweep = sweep.min(360.0 - sweep);
+        assert!((80.0..100.0).contains(&sweep), "{sweep}");
     }
 
     #[test]

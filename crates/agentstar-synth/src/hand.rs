@@ -8,10 +8,21 @@ use agentstar_geom::{Matrix3, Point3, TriMesh, UnitQuaternion, Vector3};
 /// Skin colour (linear RGB).
 pub const SKIN: [f32; 3] = [0.86, 0.64, 0.52];
 
+/// The palm's breadth across the knuckles (along X) of [`hand_mesh`], metres: an adult
+/// man's, before a capture's hand scale ([`hand_scale_for`]).
+pub const PALM_BREADTH_M: f64 = 0.085;
+
+/// The scale a capture draws its hands at for an object `size_m` across: full size for
+/// objects of 0.3 m and more, down to half for small ones (so that a hand does not hide a
+/// can whole). `agentstar scale --from hand` recovers the scale of captures at full size.
+pub fn hand_scale_for(size_m: f64) -> f64 {
+    (size_m / 0.3).clamp(0.5, 1.0)
+}
+
 /// The hand mesh in its own frame (metres): palm in the XY plane centred at the origin,
 /// fingers along +Y, the back of the hand toward −Z.
 pub fn hand_mesh() -> TriMesh {
-    let mut m = bevelled_box(0.085, 0.09, 0.028, 0.008, 2).unwrap_or_default();
+    let mut m = bevelled_box(PALM_BREADTH_M, 0.09, 0.028, 0.008, 2).unwrap_or_default();
     let along_y = UnitQuaternion::from_axis_angle(&Vector3::x_axis(), -std::f64::consts::FRAC_PI_2)
         .to_rotation_matrix()
         .into_inner();

@@ -233,7 +233,7 @@ pub fn synthesize(cfg: &SynthConfig) -> Result<SynthCapture, SynthError> {
     let traj = motion::trajectory(motion, &model, scale, &camera, cfg.frames, &mut motion_rng);
     let hand_mesh = hand::hand_mesh();
     let hand_part = agentstar_geom::Part::new("hand", hand_mesh, hand::SKIN);
-    let hand_scale = (scale / 0.3).clamp(0.5, 1.0);
+    let hand_scale = hand::hand_scale_for(scale);
     let background = Background::new(&mut look_rng, w, h);
     let light = Vector3::new(-0.3 + 0.6 * look_rng.uniform(), -0.6, -1.0).normalize();
     let colors: Vec<[f32; 3]> = model.parts.iter().map(|p| p.color).collect();

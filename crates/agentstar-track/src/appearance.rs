@@ -278,6 +278,14 @@ const MODEL_COLOUR_STEP: f32 = 0.1;
 /// differ by 0.1 (`MODEL_COLOUR_STEP`) in some channel. A model of one colour (or of parts
 /// painted alike) has none: only the frames' colours against each other rank its poses.
 pub fn model_has_appearance(model: &ObjectModel) -> bool {
+    // A texture, vertex colours or several materials on a part: a print of its own.
+    if model
+        .parts
+        .iter()
+        .any(|p| p.surface.as_ref().is_some_and(|s| s.varies()))
+    {
+        return true;
+    }
     model.parts.iter().enumerate().any(|(i, a)| {
         model.parts[i + 1..].iter().any(|b| {
             a.color
@@ -354,7 +362,10 @@ fn gather_from(
                 let a = frame.colour(x, y);
                 own.add(a, a);
                 if let (Some(g), Some(al)) = (model_group.as_mut(), albedo.as_ref()) {
-                    g.add(a, al[part as usize]);
+                    g.add(
+                        a,
+                        model_colour(model, part as usize, buffers.triangle[i], &local, al),
+                    );
                 }
                 for (r, view) in references.iter().enumerate() {
                     let qj = view.camera_from_part[part as usize].transform_point(&local);
@@ -393,6 +404,35 @@ fn gather_from(
         model: model_group,
         n_parts,
     }
+}
+
+/// The model's own colour (8-bit units) at `local`, a point of triangle `triangle` of part
+/// `part` in the part's frame: its texture and vertex colours there where it has them,
+/// else the part's colour (`albedo`).
+fn model_colour(
+    model: &ObjectModel,
+    part: usize,
+    triangle: u32,
+    local: &Point3,
+    albedo: &[[f64; 3]],
+) -> [f64; 3] {
+    let p = &model.parts[part];
+    let (Some(surface), Some(tri)) = (&p.surface, p.mesh.triangles.get(triangle as usize)) else {
+        return albedo[part];
+    };
+    let corner = |k: usize| {
+        let v = p.mesh.positions[tri[k] as usize];
+        [v.x, v.y, v.z]
+    };
+    let bary = agentstar_render::surface::barycentric(
+        [local.x, local.y, local.z],
+        corner(0),
+        corner(1),
+        corner(2),
+    );
+    surface
+        .color_at(triangle as usize, bary)
+        .map(|c| 255.0 * f64::from(c))
 }
 
 /// The score over the groups of the references in `refs` (indices into the gathered ones),
@@ -939,6 +979,82 @@ pub(crate) mod tests {
         assert_eq!(
             appearance_score(&plain, scale, &frame, &truth, &[], &cfg).ncc,
             None
+        );
+    }
+
+    /// [`cylinder_model`] as one part whose print is a texture: [`painted_label`] over the
+    /// angle about the axis and the height (issue 33: a textured can has no label part).
+    fn textured_can() -> ObjectModel {
+        use agentstar_geom::{Material, SurfaceAppearance, Texture};
+        let size = 64u32;
+        let rgb: Vec<u8> = (0..size * size)
+            .flat_map(|k| {
+                let (u, v) = (
+                    (f64::from(k % size) + 0.5) / f64::from(size),
+                    (f64::from(k / size) + 0.5) / f64::from(size),
+                );
+                let theta = (u - 0.5) * 2.0 * PI;
+                let p = Point3::new(theta.cos(), theta.sin(), 0.5 - v);
+                painted_label(&p).map(|c| (c * 255.0).round() as u8)
+            })
+            .collect();
+        let texture = Texture::new("label", size, size, rgb).expect("texture");
+        let mut model = cylinder_model();
+        let mesh = model.parts[0].mesh.clone();
+        let uv: Vec<[[f32; 2]; 3]> = mesh
+            .triangles
+            .iter()
+            .map(|t| {
+                let mut c = t.map(|i| {
+                    let p = mesh.positions[i as usize];
+                    let u = p.y.atan2(p.x) / (2.0 * PI) + 0.5;
+                    [u as f32, (0.5 - p.z) as f32]
+                });
+                // A triangle across the seam at the back: its corners on one side (the
+                // texture repeats).
+                if c.iter().any(|q| q[0] > 0.75) {
+                    c.iter_mut()
+                        .filter(|q| q[0] < 0.25)
+                        .for_each(|q| q[0] += 1.0);
+                }
+                c
+            })
+            .collect();
+        let surface = SurfaceAppearance::new(
+            vec![Material {
+                name: "print".into(),
+                color: [1.0; 3],
+                texture: Some(std::sync::Arc::new(texture)),
+            }],
+            vec![0; mesh.triangles.len()],
+            Some(uv),
+            None,
+        )
+        .expect("surface");
+        let part = Part::new("can", (*mesh).clone(), [0.6, 0.1, 0.1])
+            .with_surface(std::sync::Arc::new(surface))
+            .expect("part");
+        model.parts = vec![part];
+        model
+    }
+
+    #[test]
+    fn a_textured_models_print_tells_a_can_facing_from_its_twin() {
+        let textured = textured_can();
+        assert!(model_has_appearance(&textured));
+        let scale = 0.12;
+        let cam = label_camera();
+        let truth = pose(Vector3::y(), 0.0, -100.0);
+        let (rgb, mask) = shoot(&cylinder_model(), scale, &cam, &truth, &painted_label);
+        let frame = AppearanceFrame::new(&cam, &rgb, &mask);
+        let cfg = AppearanceConfig::default();
+        let at = |deg: f64| model_agreement(&textured, scale, &frame, &spun(&truth, deg), &cfg);
+        let (right, twin) = (at(0.0), at(180.0));
+        let r = right.ncc.expect("the print is seen");
+        assert!(r > 0.7, "{right:?}");
+        assert!(
+            r - twin.ncc.expect("evidence") > 0.5,
+            "{right:?} against {twin:?}"
         );
     }
 

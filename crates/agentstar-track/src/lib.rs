@@ -8,6 +8,7 @@ pub mod appearance;
 pub mod axis;
 pub mod hypotheses;
 pub mod objective;
+pub mod proportion;
 pub mod scale;
 pub mod search;
 pub mod sequence;

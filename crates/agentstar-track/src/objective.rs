@@ -127,6 +127,7 @@ impl<'a> FrameProblem<'a> {
             pose =
                 apply_object_rotation(&pose, self.scale, &self.pivot, &rotation_vector_deg(rotvec));
         }
+        pose.rotation.renormalize();
         GenPose { pose, states }
     }
 

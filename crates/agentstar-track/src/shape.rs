@@ -58,6 +58,10 @@ pub struct ShapeFitConfig {
     pub seed: u64,
     /// Stop when no parameter moved by more than this share of its range in a round.
     pub tolerance: f64,
+    /// The part kept in place when the poses are carried to each trial shape
+    /// ([`agentstar_geom::origin_shift_holding`]); `None`: the largest part that votes
+    /// ([`origin_shift`]).
+    pub held: Option<String>,
 }
 
 impl Default for ShapeFitConfig {
@@ -75,6 +79,7 @@ impl Default for ShapeFitConfig {
             },
             seed: 17,
             tolerance: 0.002,
+            held: None,
         }
     }
 }
@@ -136,9 +141,18 @@ pub fn frame_ious(
         .collect()
 }
 
-/// `poses` made for `from`, carried to `to` by the origin shift between them.
-fn carried(from: &ObjectModel, to: &ObjectModel, poses: &[GenPose], scale: f64) -> Vec<GenPose> {
-    let s = origin_shift(from, to);
+/// `poses` made for `from`, carried to `to` by the origin shift between them, holding the
+/// part `held` in place when it is a part of both.
+fn carried(
+    from: &ObjectModel,
+    to: &ObjectModel,
+    poses: &[GenPose],
+    scale: f64,
+    held: Option<&str>,
+) -> Vec<GenPose> {
+    let s = held
+        .and_then(|h| agentstar_geom::origin_shift_holding(from, to, h))
+        .unwrap_or_else(|| origin_shift(from, to));
     poses
         .iter()
         .map(|g| GenPose {
@@ -231,7 +245,7 @@ pub fn fit_shape(
             let v = to_values(u);
             match build(&v) {
                 Ok(m) => {
-                    let trial = carried(&base_model, &m, &base_poses, scale);
+                    let trial = carried(&base_model, &m, &base_poses, scale, cfg.held.as_deref());
                     n_evals += frames.len();
                     1.0 - mean(&frame_ious(&m, frames, &trial, scale))
                 }
@@ -262,7 +276,13 @@ pub fn fit_shape(
             TrackError::Invalid(format!("the model does not build at {trial_values:?}: {e}"))
         })?;
         builds += 1;
-        let mut trial_poses = carried(&base_model, &trial_model, &base_poses, scale);
+        let mut trial_poses = carried(
+            &base_model,
+            &trial_model,
+            &base_poses,
+            scale,
+            cfg.held.as_deref(),
+        );
         let iou_held = mean(&frame_ious(&trial_model, frames, &trial_poses, scale));
         // (b) Every frame's pose refined locally for the trial model.
         if cfg.refine_poses {
@@ -312,7 +332,11 @@ pub fn fit_shape(
         }
     }
     let after = frame_ious(&model, frames, &poses, scale);
-    let shift = origin_shift(&start_model, &model);
+    let shift = cfg
+        .held
+        .as_deref()
+        .and_then(|h| agentstar_geom::origin_shift_holding(&start_model, &model, h))
+        .unwrap_or_else(|| origin_shift(&start_model, &model));
     Ok(ShapeFit {
         values,
         before,

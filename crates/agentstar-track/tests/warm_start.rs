@@ -4,7 +4,9 @@
 use agentstar_geom::pose::ObjectPose;
 use agentstar_geom::{ObjectModel, UnitQuaternion, Vector3};
 use agentstar_render::ScoreTarget;
-use agentstar_track::tracker::{track_from, TrackConfig};
+use agentstar_track::tracker::{
+    track_from, track_from_with, BasinPolicy, TrackConfig, BASIN_ROTATION_DEG,
+};
 use agentstar_track::update::{apply_object_rotation, flip, GenPose};
 
 mod common;
@@ -193,4 +195,63 @@ fn the_sequence_choice_carries_a_neighbours_pose_into_a_frame_placed_far_too_dee
     );
     // The other frames stay where they were.
     assert_close_except(&gts, &r, &[5]);
+}
+
+/// Issue 34 item 2: the flipped block without anchors. The default warm start moves the
+/// block back to the truth's basin and names each frame it moved with the pass that moved
+/// it; keeping basins, every frame stays within the bound of its start (the block stays
+/// flipped: that is the agent's call) and none is reported.
+#[test]
+fn a_warm_start_names_the_frames_it_moves_to_another_basin_and_keep_basins_moves_none() {
+    let model = case_model();
+    let scale = 0.5;
+    let (gts, targets, start) = flipped_block(&model, scale);
+    let frames = frames_of(&targets);
+    let cfg = TrackConfig::default();
+    let free = track_from_with(
+        &model,
+        scale,
+        &frames,
+        (&start, &[]),
+        BasinPolicy::Search,
+        &cfg,
+        &|_: &str| {},
+    )
+    .expect("track");
+    assert_close(&gts, &free.result);
+    let moved: Vec<usize> = free.basin_moves.iter().map(|m| m.frame).collect();
+    assert_eq!(moved, [5, 6, 7, 8], "{:?}", free.basin_moves);
+    for m in &free.basin_moves {
+        assert!(m.rotation_deg > 170.0, "{m:?}");
+        assert!(m.pass.starts_with("the "), "{m:?}");
+        let line = free
+            .result
+            .log
+            .iter()
+            .find(|l| l.starts_with(&frames[m.frame].name) && l.contains("moved to another basin"))
+            .unwrap_or_else(|| panic!("{m:?} not in the log"));
+        assert!(line.contains(&m.pass), "{line}");
+    }
+    let kept = track_from_with(
+        &model,
+        scale,
+        &frames,
+        (&start, &[]),
+        BasinPolicy::Keep,
+        &cfg,
+        &|_: &str| {},
+    )
+    .expect("track");
+    assert!(kept.basin_moves.is_empty());
+    for (k, (s, e)) in start.iter().zip(&kept.result.poses).enumerate() {
+        let turned = s.pose.rotation.angle_to(&e.pose.rotation).to_degrees();
+        assert!(
+            turned <= BASIN_ROTATION_DEG,
+            "frame {k} turned {turned:.1}°"
+        );
+        let joint = (s.states[0] - e.states[0]).to_degrees().abs();
+        assert!(joint <= 30.0, "frame {k}: joint moved {joint:.1}°");
+    }
+    // The frames outside the block, 3° off, are polished onto the truth.
+    assert_close_except(&gts, &kept.result, &[5, 6, 7, 8]);
 }

@@ -111,6 +111,26 @@ impl Session {
         render_full(&self.capture.frames[i].camera, &self.posed(i).instances)
     }
 
+    /// Frame `i`'s full render and the model drawn from it with its textures, vertex
+    /// colours and part colours.
+    pub fn render_shaded(
+        &self,
+        i: usize,
+        opts: agentstar_render::views::ShadeOptions,
+    ) -> (RenderBuffers, image::RgbaImage) {
+        let camera = &self.capture.frames[i].camera;
+        let posed = self.posed(i);
+        let buffers = render_full(camera, &posed.instances);
+        let shaded = agentstar_render::views::shade_model(
+            &self.model.model,
+            &posed.instances,
+            camera,
+            &buffers,
+            opts,
+        );
+        (buffers, shaded)
+    }
+
     /// The score target (mask with hands excluded) and observed depth of frame `i`.
     pub fn target(&self, i: usize) -> Result<FrameInputs> {
         let target = ScoreTarget::new(self.capture.load_mask(i)?, self.capture.load_hand(i)?)?
@@ -121,6 +141,34 @@ impl Session {
     /// The generalised pose of frame `i`.
     pub fn gen_pose(&self, i: usize) -> agentstar_track::GenPose {
         self.poses[i].generalised.clone()
+    }
+
+    /// Which side of the model and of each part faces the camera in frame `i`; `None` when
+    /// the camera sits at the model's centre.
+    pub fn facing(&self, i: usize) -> Option<agentstar_reports::view::FrameFacing> {
+        let p = &self.poses[i].generalised;
+        let f = agentstar_geom::facing::facing(
+            &self.model.model,
+            &p.states,
+            &p.pose.with_scale(self.scale()),
+        )?;
+        Some(agentstar_reports::view::FrameFacing {
+            frame: self.capture.frames[i].name.clone(),
+            toward: f.model.axis.to_string(),
+            angle_deg: f.model.angle.to_degrees(),
+            axis_angles_deg: f.model.axis_angles.map(f64::to_degrees),
+            parts: f
+                .parts
+                .iter()
+                .map(|p| agentstar_reports::view::PartFacing {
+                    part: p.part.clone(),
+                    toward: p.side.axis.to_string(),
+                    angle_deg: p.side.angle.to_degrees(),
+                    moved: p.moved,
+                })
+                .collect(),
+            line: f.line(6),
+        })
     }
 
     /// Scores frame `i`; `depth_weight` enters the combined score when the capture has depth.

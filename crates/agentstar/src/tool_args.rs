@@ -64,12 +64,14 @@ fn samples() -> BTreeMap<&'static str, Vec<Value>> {
         ("scene_read", vec![json!({})]),
         (
             "scene_write",
-            vec![json!({"script": "part(\"body\", box(1.0, 0.6, 0.4));"})],
+            vec![json!({"script": "part(\"body\", box(1.0, 0.6, 0.4));", "hold": "body"})],
         ),
         ("scene_restore", vec![json!({"version": 1})]),
         (
             "fit_shape",
-            vec![json!({"params": ["width"], "frames": "all", "rounds": 2, "evals": 20})],
+            vec![
+                json!({"params": ["width"], "frames": "all", "rounds": 2, "evals": 20, "hold": "body"}),
+            ],
         ),
         (
             "render",
@@ -96,11 +98,15 @@ fn samples() -> BTreeMap<&'static str, Vec<Value>> {
             vec![
                 json!({}),
                 json!({"from": "pose.json", "anchors": "all", "scale": 0.25}),
+                json!({"from": "pose.json", "keep_basins": true}),
             ],
         ),
         (
             "scale",
-            vec![json!({"method": "size", "axis": "longest", "metres": 0.3, "frames": "all"})],
+            vec![
+                json!({"method": "size", "axis": "longest", "metres": 0.3, "frames": "all"}),
+                json!({"method": "hand", "frames": "0..3"}),
+            ],
         ),
         (
             "sweep",

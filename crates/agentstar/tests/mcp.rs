@@ -193,6 +193,21 @@ fn every_tool_runs_over_stdio_with_schema_arguments_and_typed_results() {
                 if r.verb == SearchVerb::Sweep {
                     report = Some(path.to_string());
                 }
+                if matches!(r.verb, SearchVerb::Osweep | SearchVerb::Oapply) {
+                    // Every candidate of a preset or a set is drawn, and each row says
+                    // where it ended (`asked → turn;joints [angle about axis]`).
+                    let f = &r.frames[0];
+                    let drawn: Vec<usize> = f.pages.iter().flat_map(|p| p.ranks.clone()).collect();
+                    assert_eq!(drawn, (0..f.ranked.len()).collect::<Vec<_>>(), "{name}");
+                    for c in &f.ranked {
+                        assert!(
+                            c.label.contains(" → rx:") && c.label.contains(";lid_hinge:"),
+                            "{name}: {}",
+                            c.label
+                        );
+                        assert!(body.contains(&c.label), "{name}: {body}");
+                    }
+                }
             }
             "pose_commit" => {
                 let r: CommitReport =
@@ -867,7 +882,11 @@ fn pose_commit_by_label_over_mcp_takes_that_candidate_in_every_frame() {
             .as_array()
             .expect("ranked")
             .iter()
-            .find(|c| c["label"] == "flip:z")
+            .find(|c| {
+                c["label"]
+                    .as_str()
+                    .is_some_and(|l| l.split(" → ").next() == Some("flip:z"))
+            })
             .expect("a flip:z candidate");
         let got = &committed["frames"][name]["object_pose"];
         for key in ["quaternion", "translation"] {

@@ -3,8 +3,49 @@
 
 mod support;
 
+use agentstar_geom::nalgebra::Quaternion;
+use agentstar_geom::UnitQuaternion;
 use agentstar_reports::{ScoreReport, TrackReport};
 use support::{agentstar, example, score_of, text, track_known};
+
+/// The candidate a search row was asked for: its label before ` → ` (where it ended).
+fn asked(row: &serde_json::Value) -> &str {
+    let label = row["label"].as_str().expect("label");
+    label.split(" → ").next().expect("label")
+}
+
+/// A pose file's or a candidate's rotation.
+fn rotation_of(pose: &serde_json::Value) -> UnitQuaternion {
+    let q: Vec<f64> = pose["quaternion"]
+        .as_array()
+        .expect("quaternion")
+        .iter()
+        .map(|v| v.as_f64().expect("number"))
+        .collect();
+    UnitQuaternion::from_quaternion(Quaternion::new(q[0], q[1], q[2], q[3]))
+}
+
+/// The turn a row's label says it ended at (`… → rx:A;ry:B;rz:C;…`), as a rotation.
+fn turn_in_label(label: &str) -> UnitQuaternion {
+    let v: Vec<f64> = label
+        .split(" → ")
+        .nth(1)
+        .unwrap_or_else(|| panic!("no refined turn: {label}"))
+        .split(';')
+        .take(3)
+        .map(|t| {
+            t.split_once(':')
+                .expect("term")
+                .1
+                .trim()
+                .parse()
+                .expect("deg")
+        })
+        .collect();
+    UnitQuaternion::from_scaled_axis(
+        agentstar_geom::Vector3::new(v[0], v[1], v[2]).map(f64::to_radians),
+    )
+}
 
 #[test]
 fn pose_verbs_track_commit_and_diagnose() {
@@ -42,10 +83,41 @@ fn pose_verbs_track_commit_and_diagnose() {
     let o = agentstar(&args.iter().map(String::as_str).collect::<Vec<_>>());
     assert!(o.status.success(), "{}", text(&o));
     let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("json");
+    let start: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&tracked).expect("read")).expect("json");
     for f in v["frames"].as_array().expect("frames") {
         let ranked = f["ranked"].as_array().expect("ranked");
         assert_eq!(ranked.len(), 5, "{f}");
-        assert_eq!(ranked[0]["label"], "identity");
+        assert_eq!(asked(&ranked[0]), "identity");
+        // Every candidate drawn, on pages that say which ranks they hold.
+        let drawn: Vec<u64> = f["pages"]
+            .as_array()
+            .expect("pages")
+            .iter()
+            .flat_map(|p| p["ranks"].as_array().expect("ranks").clone())
+            .map(|r| r.as_u64().expect("rank"))
+            .collect();
+        assert_eq!(drawn, [0, 1, 2, 3, 4], "{f}");
+        // Each row says where it ended: the turn from the frame's pose (the rotation vector
+        // of the candidate's own pose against the frame's), as an angle about an axis, and
+        // the final joint state.
+        let base =
+            rotation_of(&start["frames"][f["frame"].as_str().expect("frame")]["object_pose"]);
+        for r in ranked {
+            let label = r["label"].as_str().expect("label");
+            assert!(
+                label.contains(";hinge:")
+                    && (label.contains("° about (") || label.contains("[no turn")),
+                "{label}"
+            );
+            let ended = base.inverse() * rotation_of(&r["pose"]);
+            let said = turn_in_label(label);
+            assert!(
+                said.angle_to(&ended).to_degrees() < 0.2,
+                "{label}: the pose turned {:.1}° from what the label says",
+                said.angle_to(&ended).to_degrees()
+            );
+        }
         let swap = ranked
             .iter()
             .find(|r| r["label"].as_str().is_some_and(|l| l.starts_with("swap:")))
@@ -69,7 +141,7 @@ fn pose_verbs_track_commit_and_diagnose() {
         .as_array()
         .expect("ranked")
         .iter()
-        .filter_map(|r| r["label"].as_str())
+        .map(asked)
         .find(|l| l.starts_with("swap:"))
         .expect("a swap")
         .to_string();
@@ -92,7 +164,7 @@ fn pose_verbs_track_commit_and_diagnose() {
             .as_array()
             .expect("ranked")
             .iter()
-            .find(|r| r["label"] == swap_label.as_str())
+            .find(|r| asked(r) == swap_label.as_str())
             .expect("the swap");
         let got = committed.frames[name].object_pose.as_ref().expect("pose");
         for k in 0..4 {
@@ -159,6 +231,85 @@ fn pose_verbs_track_commit_and_diagnose() {
     let norm = turn.iter().map(|d| d * d).sum::<f64>().sqrt();
     assert!(norm < 3.0, "{best}");
 
+    // A preset's every candidate is ranked and drawn (play-test: `so3:24` drew 6 of 25),
+    // paged, each page naming its ranks; a turn of 135° is labelled where it ended.
+    let mut args = common("osweep", "osweep-so3");
+    args.extend([
+        "--frames".into(),
+        "000005".into(),
+        "--opreset".into(),
+        "so3:24".into(),
+        "--json".into(),
+    ]);
+    let o = agentstar(&args.iter().map(String::as_str).collect::<Vec<_>>());
+    assert!(o.status.success(), "{}", text(&o));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("json");
+    let f = &v["frames"][0];
+    assert_eq!(f["ranked"].as_array().expect("ranked").len(), 25, "{f}");
+    let pages = f["pages"].as_array().expect("pages");
+    let mut drawn: Vec<u64> = vec![];
+    for p in pages {
+        assert!(
+            std::path::Path::new(p["path"].as_str().expect("path")).is_file(),
+            "{p}"
+        );
+        drawn.extend(
+            p["ranks"]
+                .as_array()
+                .expect("ranks")
+                .iter()
+                .map(|r| r.as_u64().expect("rank")),
+        );
+    }
+    assert_eq!(drawn, (0..25).collect::<Vec<u64>>(), "{f}");
+    assert!(
+        pages.len() > 1,
+        "25 candidates at three tiles each fit no one page: {f}"
+    );
+    let note = f["notes"]
+        .as_array()
+        .expect("notes")
+        .iter()
+        .filter_map(|n| n.as_str())
+        .find(|n| n.starts_with("sheet: 25 of 25 candidates drawn"))
+        .unwrap_or_else(|| panic!("no page note: {f}"));
+    assert!(
+        note.contains(&format!("page {}/{}", pages.len(), pages.len())),
+        "{note}"
+    );
+    let mut args = common("oapply", "oapply-135");
+    args.extend([
+        "--frames".into(),
+        "000005".into(),
+        "--set".into(),
+        "rz:-135".into(),
+        "--json".into(),
+    ]);
+    let o = agentstar(&args.iter().map(String::as_str).collect::<Vec<_>>());
+    assert!(o.status.success(), "{}", text(&o));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("json");
+    let row = &v["frames"][0]["ranked"][0];
+    assert_eq!(asked(row), "rz:-135");
+    let start: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&tracked).expect("read")).expect("json");
+    let ended = rotation_of(&start["frames"]["000005.png"]["object_pose"]).inverse()
+        * rotation_of(&row["pose"]);
+    let label = row["label"].as_str().expect("label");
+    assert!(
+        turn_in_label(label).angle_to(&ended).to_degrees() < 0.2,
+        "{label}"
+    );
+    let said_deg: f64 = label
+        .split(" [")
+        .nth(1)
+        .and_then(|t| t.split('°').next())
+        .and_then(|d| d.parse().ok())
+        .unwrap_or_else(|| panic!("no angle: {label}"));
+    assert!(
+        (said_deg - ended.angle().to_degrees()).abs() < 0.6,
+        "{label}"
+    );
+
     // Apply a bad order, commit it, see it in the history, restore the original.
     let mut args = common("apply", "apply");
     args.extend([
@@ -211,13 +362,13 @@ fn pose_verbs_track_commit_and_diagnose() {
     let ranked = v["frames"][0]["ranked"].as_array().expect("ranked");
     let set = ranked
         .iter()
-        .find(|r| r["label"] == "flip:x;hinge:60")
+        .find(|r| asked(r) == "flip:x;hinge:60")
         .unwrap_or_else(|| panic!("{v}"));
     let hinge = set["joints"]["hinge"].as_f64().expect("hinge");
     assert!((hinge - 60.0).abs() < 1e-9, "{set}");
     let identity = ranked
         .iter()
-        .find(|r| r["label"] == "identity")
+        .find(|r| asked(r) == "identity")
         .expect("identity");
     assert!((identity["joints"]["hinge"].as_f64().expect("hinge") - 60.0).abs() > 1.0);
 

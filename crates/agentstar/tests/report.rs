@@ -85,6 +85,12 @@ fn the_demo_report_is_self_contained_and_renders_in_headless_chromium() {
         assert!(!html.contains(external), "the report references {external}");
     }
     assert_eq!(html.matches("<figure id=\"frame-").count(), 4);
+    // Each keyframe says which side of the model faces the camera.
+    assert_eq!(
+        html.matches("toward the camera (").count(),
+        4,
+        "no facing line"
+    );
     assert!(html.contains("Agent steps") && html.contains("evaluated against the ground truth"));
     assert!(html.contains("data:image/jpeg;base64,"));
     // The report command itself, with a ledger whose last line a crash cut short.

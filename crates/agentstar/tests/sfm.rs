@@ -424,3 +424,135 @@ fn a_colmap_that_hangs_on_its_probe_fails_within_the_time_limit() {
     );
     assert!(!cap.exists());
 }
+
+/// SfM reconstructs from a strided subset and registers every other frame that needs a camera
+/// against that model: with every frame a keyframe and at most 12 frames reconstructed, the
+/// other 18 get their cameras by registration, as accurate as the rest.
+#[test]
+fn frames_left_out_of_the_reconstruction_are_registered_against_it() {
+    if !have_colmap() {
+        return;
+    }
+    let dir = tempfile::tempdir().expect("tmp");
+    let clip = synthesize_room_clip(&RoomConfig {
+        frames: 30,
+        keyframe_every: 1,
+        seed: 8,
+        ..RoomConfig::default()
+    })
+    .expect("clip");
+    write_clip(dir.path(), &clip);
+    let cap = dir.path().join("cap");
+    let o = agentstar(&[
+        "capture",
+        "from-video",
+        s(&dir.path().join("frames")),
+        "--masks",
+        s(&dir.path().join("masks")),
+        "--hands",
+        s(&dir.path().join("hands")),
+        "--every",
+        "1",
+        "--cameras",
+        "sfm",
+        "--sfm-max-frames",
+        "12",
+        "--out",
+        s(&cap),
+        "--json",
+    ]);
+    assert!(o.status.success(), "capture --cameras sfm: {}", text(&o));
+    let err = String::from_utf8_lossy(&o.stderr);
+    for stage in ["features", "matching", "mapping", "registration"] {
+        assert!(
+            err.contains(&format!("sfm: {stage} (")) && err.contains(&format!("sfm: {stage} done")),
+            "progress of {stage} on stderr: {err}"
+        );
+    }
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("JSON");
+    let sfm = &v["sfm"];
+    assert_eq!(sfm["frames_needing_cameras"], 30, "{v}");
+    assert_eq!(sfm["frames_reconstructed"], 12, "{v}");
+    assert_eq!(sfm["frames_registered"], 30, "{v}");
+    let by_mapping = sfm["frames_placed_by_mapping"].as_u64().expect("count");
+    let by_registration = sfm["frames_placed_by_registration"]
+        .as_u64()
+        .expect("count");
+    assert_eq!(by_mapping + by_registration, 30, "{v}");
+    assert!(by_registration >= 18, "{v}");
+    assert!(
+        sfm["stage_seconds"]["registration"].as_f64().is_some(),
+        "{v}"
+    );
+    let capture = Capture::open(&cap).expect("a valid capture");
+    assert_eq!(capture.frames.len(), 30);
+    let estimated: Vec<Rigid> = capture.frames.iter().map(|f| f.world_from_camera).collect();
+    let truth: Vec<Rigid> = clip.frames.iter().map(|f| f.world_from_camera).collect();
+    let e = camera_errors(&estimated, &truth).expect("errors");
+    eprintln!(
+        "12 frames reconstructed, 18 registered: rotation max {:.3}° median {:.3}°; translation max {:.2}% median {:.2}% of the {:.3} m trajectory",
+        e.rotation_deg_max,
+        e.rotation_deg_median,
+        100.0 * e.translation_max_fraction,
+        100.0 * e.translation_median_fraction,
+        e.trajectory_length
+    );
+    assert!(e.rotation_deg_max < 1.0, "{e:?}");
+    assert!(e.translation_max_fraction < 0.02, "{e:?}");
+}
+
+/// The time limit is the whole run's: a COLMAP that answers its probe and then hangs in
+/// feature extraction is stopped at the limit, and the error names the stage.
+#[cfg(unix)]
+#[test]
+fn a_run_past_its_time_limit_names_the_stage_it_stopped_in() {
+    use std::os::unix::fs::PermissionsExt;
+    let dir = tempfile::tempdir().expect("tmp");
+    let clip = synthesize_room_clip(&RoomConfig {
+        frames: 6,
+        keyframe_every: 2,
+        width: 96,
+        height: 72,
+        ..RoomConfig::default()
+    })
+    .expect("clip");
+    write_clip(dir.path(), &clip);
+    let fake = dir.path().join("colmap");
+    std::fs::write(
+        &fake,
+        "#!/bin/sh\nif [ \"$1\" = help ]; then echo 'COLMAP 3.8 -- Structure-from-Motion'; exit 0; fi\nexec sleep 600\n",
+    )
+    .expect("write");
+    std::fs::set_permissions(&fake, std::fs::Permissions::from_mode(0o755)).expect("chmod");
+    let cap = dir.path().join("cap");
+    let t0 = std::time::Instant::now();
+    let o = Command::new(env!("CARGO_BIN_EXE_agentstar"))
+        .args([
+            "capture",
+            "from-video",
+            s(&dir.path().join("frames")),
+            "--masks",
+            s(&dir.path().join("masks")),
+            "--every",
+            "2",
+            "--cameras",
+            "sfm",
+            "--sfm-time-limit-s",
+            "3",
+            "--out",
+            s(&cap),
+        ])
+        .env("AGENTSTAR_COLMAP", &fake)
+        .output()
+        .expect("run");
+    assert!(t0.elapsed() < std::time::Duration::from_secs(60));
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success(), "{err}");
+    assert!(
+        err.contains("time limit (3 s for the whole run)")
+            && err.contains("stopped in its features stage")
+            && err.contains("feature_extractor"),
+        "{err}"
+    );
+    assert!(!cap.exists());
+}

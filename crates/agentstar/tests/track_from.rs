@@ -225,3 +225,106 @@ fn a_track_whose_final_write_fails_keeps_every_tracked_pose() {
     assert_eq!(flags.len(), 6);
     assert!(flags.iter().all(|f| f.1), "{flags:?}");
 }
+
+/// Issue 34 item 2 over MCP: the example's true poses with one frame turned end for end (a
+/// half-turn about the canonical z) and every other frame an anchor. The default warm start
+/// carries the anchors' poses into it, moving it to the other basin, and names it with the
+/// evidence; `keep_basins` polishes it within 45° of the pose it was given.
+#[test]
+fn track_over_mcp_names_frames_it_moves_to_another_basin_and_keep_basins_keeps_them() {
+    use agentstar_reports::TrackReport;
+    use serde_json::json;
+    use support::McpClient;
+    let dir = tempfile::tempdir().expect("tmp");
+    let (cap, model, poses) = example(dir.path());
+    let truth = read_json(Path::new(&poses));
+    let scale = truth["scale"].as_f64().expect("scale").to_string();
+    let run = dir.path().join("mcp_run");
+    let o = agentstar(&[
+        "init",
+        run.to_str().expect("utf8"),
+        "--capture",
+        &cap,
+        "--scene",
+        &model,
+        "--scale",
+        &scale,
+    ]);
+    assert!(o.status.success(), "{}", text(&o));
+    let mut names: Vec<String> = truth["frames"]
+        .as_object()
+        .expect("frames")
+        .keys()
+        .cloned()
+        .collect();
+    names.sort();
+    let turned = &names[3];
+    let mut bad = truth.clone();
+    let [w, x, y, z] = quaternion(&truth, turned);
+    bad["frames"][turned]["object_pose"]["quaternion"] = json!([-z, y, -x, w]);
+    std::fs::write(
+        run.join("turned.json"),
+        serde_json::to_vec(&bad).expect("json"),
+    )
+    .expect("write");
+    let given = quaternion(&bad, turned);
+    let anchors: Vec<&str> = names
+        .iter()
+        .filter(|n| *n != turned)
+        .map(String::as_str)
+        .collect();
+    let anchors = anchors.join(",");
+    let (mut c, _) = McpClient::initialised(&run);
+    // The default: the frame moved back by the carry from its anchors, and named.
+    c.call(
+        2,
+        "track",
+        json!({"from": "turned.json", "anchors": anchors}),
+    );
+    let (resp, _) = c.response(2);
+    let body = McpClient::text_of(&resp);
+    assert_eq!(resp["result"]["isError"], false, "{resp}");
+    let r: TrackReport =
+        serde_json::from_value(resp["result"]["structuredContent"].clone()).expect("report");
+    assert!(!r.keep_basins);
+    let moved: Vec<&str> = r.basin_moves.iter().map(|m| m.frame.as_str()).collect();
+    assert_eq!(moved, [turned.as_str()], "{body}");
+    let m = &r.basin_moves[0];
+    assert!(m.rotation_deg > 135.0 && m.bound_deg == 45.0, "{m:?}");
+    assert!(m.iou_after > m.iou_before, "{m:?}");
+    assert!(!m.pass.is_empty(), "{m:?}");
+    assert!(
+        body.contains("moved to another basin (1 frame(s)"),
+        "{body}"
+    );
+    assert!(body.contains(&m.line()), "{body}");
+    let now = read_json(&run.join("pose.json"));
+    assert!(angle_deg(quaternion(&now, turned), given) > 135.0, "{body}");
+    // Keeping basins: the frame stays within the bound of the pose it was given.
+    c.call(
+        3,
+        "track",
+        json!({"from": "turned.json", "anchors": anchors, "keep_basins": true}),
+    );
+    let (resp, _) = c.response(3);
+    let body = McpClient::text_of(&resp);
+    assert_eq!(resp["result"]["isError"], false, "{resp}");
+    let r: TrackReport =
+        serde_json::from_value(resp["result"]["structuredContent"].clone()).expect("report");
+    assert!(r.keep_basins && r.basin_moves.is_empty(), "{body}");
+    assert!(body.contains("basins kept"), "{body}");
+    let now = read_json(&run.join("pose.json"));
+    let kept = angle_deg(quaternion(&now, turned), given);
+    assert!(
+        kept <= 45.0,
+        "{kept:.1}° from the pose it was given\n{body}"
+    );
+    // Keeping the basins of nothing is a mistake the tool names.
+    c.call(4, "track", json!({"keep_basins": true}));
+    let (resp, _) = c.response(4);
+    assert_eq!(resp["result"]["isError"], true, "{resp}");
+    assert!(
+        McpClient::text_of(&resp).contains("give `from` too"),
+        "{resp}"
+    );
+}

@@ -49,6 +49,19 @@ pub(super) fn track_text(
             q.below_gate.join(", ")
         ));
     }
+    if r.keep_basins {
+        text.push_str("basins kept: every frame refined within its own basin (under 45° of rotation and 30° of joint from its pose in `from`)\n");
+    }
+    if !r.basin_moves.is_empty() {
+        text.push_str(&format!(
+            "moved to another basin ({} frame(s), further than {}° from their pose in `from`; check them, or track again with `keep_basins: true` to keep the basins you settled):\n",
+            r.basin_moves.len(),
+            r.basin_moves[0].bound_deg
+        ));
+        for m in &r.basin_moves {
+            text.push_str(&format!("  {}\n", m.line()));
+        }
+    }
     text.push_str("\nwhat the tracker did:\n");
     for line in &r.log {
         text.push_str(&format!("  {line}\n"));
@@ -120,6 +133,12 @@ pub struct TrackArgs {
     /// as `frames`).
     #[schemars(length(min = 1))]
     pub anchors: Option<String>,
+    /// With `from`: keep every keyframe in its own basin (polish only): each stays within
+    /// 45° of rotation of its pose in `from` (half a quarter turn: no flip or twin is
+    /// reached) and each joint within 30° (a sixth of a sliding joint's range); no wide
+    /// search, no sequence passes. Default false: the tracker may move frames to other
+    /// basins, and names each frame it moved further than 45°.
+    pub keep_basins: Option<bool>,
 }
 
 /// A sweep's search strategy.
@@ -195,7 +214,7 @@ pub struct DelegateArgs {
 }
 
 tool!(Track, "track", Pose, Poses, TrackArgs,
-    "Run the automatic tracker over every keyframe with the current model and scale (a pose step for all keyframes; the result is a new pose version, the previous ones stay in pose_history). Use it once the shape is right, then fix the frames it gets wrong with sweeps and flips. After a shape edit, `from: \"pose.json\"` refines the current poses instead of starting over (cheap), and `anchors` keeps the keyframes you trust exactly and carries them to their neighbours. Progress notifications carry its latest line; a run that is stopped keeps what it had tracked in pose.partial.json.",
+    "Run the automatic tracker over every keyframe with the current model and scale (a pose step for all keyframes; the result is a new pose version, the previous ones stay in pose_history). Use it once the shape is right, then fix the frames it gets wrong with sweeps and flips. After a shape edit, `from: \"pose.json\"` refines the current poses instead of starting over (cheap), and `anchors` keeps the keyframes you trust exactly and carries them to their neighbours; with `from`, it names every frame it moved to another basin (over 45° from its pose there), and `keep_basins: true` polishes only, keeping each frame within 45° of its pose (no flips or twins). Progress notifications carry its latest line; a run that is stopped keeps what it had tracked in pose.partial.json.",
     |tb, a, step| tb.track(&a, step));
 
 tool!(Sweep, "sweep", Pose, Nothing, SweepArgs,
@@ -547,6 +566,7 @@ impl Toolbox {
             json: bool,
             from: Option<PathBuf>,
             anchors: Option<String>,
+            keep_basins: bool,
             scale: Option<f64>,
             scale_from: Option<&'a Path>,
         }
@@ -556,6 +576,7 @@ impl Toolbox {
             json: true,
             from: None,
             anchors: None,
+            keep_basins: false,
             scale: a.scale,
             scale_from: None,
         };
@@ -574,8 +595,14 @@ impl Toolbox {
                     // The frame grammar, checked here so a bad name is the tool's error.
                     request.anchors = Some(self.frame_names(Some(spec))?.join(","));
                 }
+                request.keep_basins = a.keep_basins.unwrap_or(false);
             }
             (None, None) => {}
+        }
+        if from.is_none() && a.keep_basins == Some(true) {
+            return Ok(ToolOutput::error(
+                "track: `keep_basins` keeps the basins of a warm start; give `from` too (\"pose.json\" for the current poses)",
+            ));
         }
         if a.scale.is_none() && from.is_none() {
             request.scale_from = Some(&self.run.poses);

@@ -19,6 +19,11 @@ pub struct SceneWriteArgs {
     /// script into a JSON string. Give `script` or `path`, not both.
     #[schemars(length(min = 1))]
     pub path: Option<String>,
+    /// The part to keep in place when pose.json is carried to the new shape (a part of
+    /// both the old and the new script). Default: the part with the most visible pixels in
+    /// the keyframes at the current poses.
+    #[schemars(length(min = 1))]
+    pub hold: Option<String>,
 }
 
 /// The longest scene script `scene_write` takes, in bytes (its schema's bound on `script`).
@@ -76,8 +81,8 @@ tool!(SceneRead, "scene_read", Diagnostic, Nothing, NoArgs,
     |tb, _a, _step| tb.scene_read());
 
 tool!(SceneWrite, "scene_write", Shape, Scene, SceneWriteArgs,
-    "Replace scene.rhai with a whole new script (a shape step), given as `script` or as `path` (a file in the run directory holding it). The script is built in the sandbox first: on an error you get the message with its line and nothing changes. On success a new scene version is saved and pose.json gains new joints at rest (removed joints are dropped). Check the shape with `turntable` afterwards.",
-    |tb, a, step| tb.scene_write(&a.script(tb)?, step));
+    "Replace scene.rhai with a whole new script (a shape step), given as `script` or as `path` (a file in the run directory holding it). The script is built in the sandbox first: on an error you get the message with its line and nothing changes. On success a new scene version is saved and pose.json gains new joints at rest (removed joints are dropped); where the edit moved the canonical origin under the held part (`hold`, default the part most in view in the keyframes), every pose is carried so that part stays where it was in every image, and the result says which part was held. Check the shape with `turntable` afterwards.",
+    |tb, a, step| tb.scene_write(&a.script(tb)?, nonblank(&a.hold), step));
 
 tool!(
     SceneRestore,
@@ -98,7 +103,7 @@ tool!(
                 tb.run.list_scene_versions()
             ))
         })?;
-        tb.scene_write(&script, step)
+        tb.scene_write(&script, None, step)
     }
 );
 
@@ -130,7 +135,12 @@ impl Toolbox {
     /// Checks `script` in the sandbox from a candidate file of its own (beside the scene,
     /// so it reaches the same mesh files), then makes it the scene and a new version.
     /// Runs under the writer lock.
-    pub(super) fn scene_write(&self, script: &str, step: u64) -> Result<ToolOutput> {
+    pub(super) fn scene_write(
+        &self,
+        script: &str,
+        hold: Option<&str>,
+        step: u64,
+    ) -> Result<ToolOutput> {
         if self.window.is_some() {
             return Ok(ToolOutput::error(
                 "a pose sub-agent cannot change the shape",
@@ -178,10 +188,34 @@ impl Toolbox {
         let before_warnings = serde_json::from_str::<CheckReport>(&before_check)
             .map(|r| r.warnings)
             .unwrap_or_default();
-        // The model the poses were made for: a moved origin is compensated against it.
+        // The model the poses were made for: a moved origin is compensated against it,
+        // holding the part named, or the one most in view, in place.
         let before = agentstar_data::scenefile::load_model(&self.run.scene)
             .ok()
             .map(|m| m.model);
+        let held = match (
+            &before,
+            agentstar_data::scenefile::load_model(candidate.path()),
+        ) {
+            (Some(old), Ok(new)) => {
+                let visible = visible_pixels(old, &self.run.capture, &self.run.poses);
+                match agentstar_geom::held_part(
+                    old,
+                    &new.model,
+                    hold,
+                    visible.as_ref().map(|(v, n)| (v.as_slice(), *n)),
+                ) {
+                    Ok(h) => Some(h),
+                    Err(e) if hold.is_some() => {
+                        return Ok(ToolOutput::error(format!(
+                            "the scene was not changed: `hold`: {e}"
+                        )))
+                    }
+                    Err(_) => None,
+                }
+            }
+            _ => None,
+        };
         // The scene and its version change together under the run's scene lock, which
         // every process serving this run (two MCP servers, the loop) takes.
         let _scene_lock = self.run.lock_scene()?;
@@ -195,12 +229,16 @@ impl Toolbox {
         let (joints, pose_version) = agentstar_data::poses::reconcile(
             &self.run.scene,
             &self.run.poses,
-            before.as_ref(),
+            before.as_ref().zip(held.as_ref()),
             &format!("scene version {version} (step {step}): joints reconciled"),
         )?;
         Ok(ToolOutput {
             text: format!(
-                "scene version {version} saved.{}{}\ncheck:\n{}",
+                "scene version {version} saved.{}{}{}\ncheck:\n{}",
+                held.as_ref().map_or(String::new(), |h| format!(
+                    " Held in place: part `{}` ({}).",
+                    h.name, h.why
+                )),
                 if joints.is_empty() {
                     // Said, not left out (play-test 11 could not tell whether its poses
                     // had been carried).
@@ -224,6 +262,42 @@ impl Toolbox {
         })
     }
 }
+
+/// Each part's visible pixels in the keyframes at their poses (at most
+/// [`HELD_FRAMES`] of them, evenly spread), and how many keyframes were measured; `None`
+/// when the capture or the poses cannot be read or no keyframe has a pose of its own.
+pub(super) fn visible_pixels(
+    model: &agentstar_geom::ObjectModel,
+    capture: &Path,
+    poses: &Path,
+) -> Option<(Vec<u64>, usize)> {
+    let capture = agentstar_data::capture::Capture::open(capture).ok()?;
+    let pf = agentstar_data::posefile::PoseFile::read(poses).ok()?;
+    let resolved = pf.resolve(&capture, &model.tree).ok()?;
+    let posed: Vec<usize> = (0..resolved.len().min(capture.frames.len()))
+        .filter(|&i| !resolved[i].seeded)
+        .collect();
+    if posed.is_empty() {
+        return None;
+    }
+    let stride = posed.len().div_ceil(HELD_FRAMES).max(1);
+    let chosen: Vec<usize> = posed.into_iter().step_by(stride).collect();
+    let views = chosen.iter().map(|&i| {
+        let g = &resolved[i].generalised;
+        (
+            &capture.frames[i].camera,
+            g.pose.with_scale(pf.scale),
+            g.states.as_slice(),
+        )
+    });
+    Some((
+        agentstar_render::visible_part_pixels(model, views),
+        chosen.len(),
+    ))
+}
+
+/// Keyframes measured to find the part most in view.
+const HELD_FRAMES: usize = 24;
 
 /// `agentstar check SCRIPT --json`.
 pub(super) fn check_call(script: &Path) -> Result<Invocation> {

@@ -63,6 +63,10 @@ pub struct FitShapeArgs {
     /// Model builds per round (default 60).
     #[schemars(range(min = 5, max = 500))]
     pub evals: Option<u64>,
+    /// The part kept in place when the poses are carried to each new shape (a part of the
+    /// scene). Default: the part with the most visible pixels in the keyframes.
+    #[schemars(length(min = 1))]
+    pub hold: Option<String>,
 }
 
 /// A model axis a stated size is along.
@@ -78,7 +82,7 @@ pub enum SizeAxis {
 #[derive(Debug, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct ScaleArgs {
-    /// `depth` (the capture's depth against the render), `parallax` (metric cameras moving around an object that stays put) or `size` (give `axis` and `metres`).
+    /// `depth` (the capture's depth against the render), `parallax` (metric cameras moving around an object that stays put), `size` (give `axis` and `metres`) or `hand` (the hands' palm breadth in their masks against an adult hand, the hand at the object's depth: without depth or a known size only; its uncertainty, often ±10–20%, is stated).
     pub method: agentstar_reports::fit::ScaleMethod,
     /// With `size`: the model axis the size is along (default the longest side).
     pub axis: Option<SizeAxis>,
@@ -92,11 +96,11 @@ pub struct ScaleArgs {
 }
 
 tool!(FitShape, "fit_shape", Shape, Scene, FitShapeArgs,
-    "Fit shape parameters the scene declares with `let d = param(\"depth\", 0.6, 0.4, 0.9);` (value, min, max) against the committed poses over the keyframes (default all): only the parameters you name move, within their bounds, while every keyframe's pose is refined locally. Returns the values, the IoU change per keyframe and before/after silhouette comparisons; when the mean IoU rises, the fitted values become the script's `param` values (a new scene version) and the refined poses a pose version. Fit proportions you judged wrong by eye on poses that are right otherwise; then look at a turntable (a shape that games IoU from these views can still be wrong in 3-D).",
+    "Fit shape parameters the scene declares with `let d = param(\"depth\", 0.6, 0.4, 0.9);` (value, min, max) against the committed poses over the keyframes (default all): only the parameters you name move, within their bounds, while every keyframe's pose is refined locally. Returns the values, the IoU change per keyframe and before/after silhouette comparisons; when the mean IoU rises, the fitted values become the script's `param` values (a new scene version) and the refined poses a pose version. Fit proportions you judged wrong by eye on poses that are right otherwise; then look at a turntable (a shape that games IoU from these views can still be wrong in 3-D). Also returns the residuals grouped by viewing direction (frames face-on to each model axis, and what size change along X, Y, Z they want) and, where the axes disagree, the fixed proportion they point at.",
     |tb, a, step| tb.fit_shape(&a, step));
 
 tool!(Scale, "scale", Pose, Poses, ScaleArgs,
-    "Estimate the scale (metres per model unit) from the capture's depth, from the parallax of metric cameras moving around an object that stays put, or from a size you state along a model axis; with `apply: true` rescale pose.json to it (rotations kept, translations scaled, so every silhouette and IoU stays the same; a pose version). Silhouettes never say the scale: use this before reporting metric results.",
+    "Estimate the scale (metres per model unit) from the capture's depth, from the parallax of metric cameras moving around an object that stays put, from a size you state along a model axis, or from the hands holding it (their palm breadth in the hand masks against an adult hand's, about 7.9 cm: the weakest route, its uncertainty stated; use it when there is no depth, the object moves and you know no size); with `apply: true` rescale pose.json to it (rotations kept, translations scaled, so every silhouette and IoU stays the same; a pose version). Silhouettes never say the scale: use this before reporting metric results.",
     |tb, a, step| tb.scale(&a, step));
 
 impl Toolbox {
@@ -135,6 +139,7 @@ impl Toolbox {
             agentstar_reports::fit::ScaleMethod::Depth => "depth",
             agentstar_reports::fit::ScaleMethod::Parallax => "parallax",
             agentstar_reports::fit::ScaleMethod::Size => "size",
+            agentstar_reports::fit::ScaleMethod::Hand => "hand",
         };
         let (ok, stdout, stderr) = self.exec(call.args())?;
         if !ok {
@@ -145,12 +150,21 @@ impl Toolbox {
                 AgentError::Tool(format!("scale printed no scale report ({e}): {stdout}"))
             })?;
         let mut text = format!(
-            "scale from {method}: {} → {:.6} m per model unit (translations × {:.4}; spread {:.2}%, {} sample(s))\n",
+            "scale from {method}: {} → {:.6} m per model unit (translations × {:.4}; spread {:.2}%, {} sample(s){})\n",
             report.scale_before,
             report.scale_after,
             report.ratio,
             100.0 * report.spread,
-            report.samples
+            report.samples,
+            match report.uncertainty {
+                Some(u) => format!(
+                    "; ± {:.0}% one standard deviation: {:.6} to {:.6} m per unit",
+                    100.0 * u,
+                    report.scale_after * (1.0 - u),
+                    report.scale_after * (1.0 + u)
+                ),
+                None => String::new(),
+            }
         );
         for n in &report.notes {
             text.push_str(&format!("note: {n}\n"));
@@ -215,12 +229,14 @@ impl Toolbox {
             frames: Option<&'a str>,
             rounds: Option<u64>,
             evals: Option<u64>,
+            hold: Option<&'a str>,
         }
         let request = FitRequest {
             params: names.join(","),
             frames: nonblank(&a.frames),
             rounds: a.rounds,
             evals: a.evals,
+            hold: nonblank(&a.hold),
         };
         let (o, _, stdout) = self.cli(&["fit-shape"], step, FitShape::NAME, &request)?;
         if o.is_error {
@@ -257,6 +273,11 @@ impl Toolbox {
         if let Some(line) = unmoved_line(&report) {
             text.push_str(&line);
         }
+        if let Some(part) = &report.held_part {
+            text.push_str(&format!(
+                "poses carried to each shape holding part {part} in place\n"
+            ));
+        }
         if !report.held.is_empty() {
             text.push_str(&format!(
                 "held as they are: {}\n",
@@ -281,6 +302,14 @@ impl Toolbox {
                 "  {}  {:.4} → {:.4}{band}\n",
                 f.frame, f.iou_before, f.iou_after
             ));
+        }
+        if let Some(v) = &report.views {
+            text.push_str(&agentstar_reports::fit::views_text(v));
+            if !v.verdict.is_empty() && fit_saves_nothing(&report).is_some() {
+                // Play-test: a fit came back to its start with no hint that the error was
+                // one fixed proportion the fitted parameters do not set.
+                text.push_str("The fit came back near its start while the frames point at a fixed proportion: the parameters fitted do not set it, or the poses hold the wrong shape where it is. Change that proportion in the script (scene_write, or declare a `param` for it and fit that), then `track` from pose.json and fit again.\n");
+            }
         }
         let mut scores = BTreeMap::new();
         scores.insert("iou_mean_before".to_string(), report.iou_mean_before);
@@ -308,7 +337,7 @@ impl Toolbox {
             });
         }
         let script = agentstar_data::read_text(&report.scene)?;
-        let written = self.scene_write(&script, step)?;
+        let written = self.scene_write(&script, nonblank(&a.hold), step)?;
         if written.is_error {
             return Ok(written);
         }

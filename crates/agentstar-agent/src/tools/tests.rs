@@ -31,6 +31,8 @@ fn a_tracks_text_leads_with_its_summary_then_its_log_then_the_frames() {
         sequence: agentstar_reports::SequenceScore::of(&frames, GATE_IOU),
         frames,
         pose_version: Some(3),
+        keep_basins: false,
+        basin_moves: vec![],
     };
     let text = track_text(&report, None);
     assert!(text.starts_with("tracked 2 frame(s) in 4.0 s"), "{text}");
@@ -100,6 +102,8 @@ fn a_fit_is_saved_only_when_a_parameter_moved_and_the_iou_rose() {
             evaluations: 1,
             seconds: 0.0,
             written: false,
+            views: None,
+            held_part: None,
         }
     };
     // The play-test's case: the IoU rose (the poses were refined) but the width stayed.
@@ -304,6 +308,7 @@ fn the_render_description_names_the_colours_the_images_use() {
             sheet: "run/images/x/oapply_sheet_000000.png".into(),
             notes: vec![],
             search: json!({}),
+            pages: vec![],
             ranked: vec![agentstar_reports::Candidate {
                 rank: 0,
                 label: "flip:y;rz:30".into(),

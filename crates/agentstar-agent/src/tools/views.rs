@@ -4,7 +4,7 @@ use super::*;
 use crate::{AgentError, Result};
 use agentstar_render::GATE_IOU;
 use agentstar_reports::view::{RenderReport, TurntableReport};
-use agentstar_requests::TurntableArgs;
+use agentstar_requests::{Crop, TurntableArgs};
 use schemars::JsonSchema;
 use serde::Deserialize;
 
@@ -17,6 +17,14 @@ pub struct RenderArgs {
     /// mask beside the model rendered opaque over the same crop, with a sheet: to compare a
     /// print without one showing through the other). Default overlay,compare.
     pub views: Option<String>,
+    /// Output pixels per frame pixel of every view's crop (1 to 8; default 1): to look at a
+    /// detail of a few pixels (a hole, a letter). Above 1 the overlay and ids are cropped
+    /// too; reduced where an image would pass the size limits.
+    #[schemars(range(min = 1.0, max = 8.0))]
+    pub zoom: Option<f64>,
+    /// What the views show: `mask` (around the mask and the model; default) or
+    /// `x0,y0,x1,y1`, a box in frame pixels (the crops' positions are in the reply).
+    pub crop: Option<Crop>,
 }
 
 #[derive(Debug, Deserialize, JsonSchema)]
@@ -65,40 +73,63 @@ pub struct KeyframesArgs {
     pub zoom: Option<f64>,
     /// Boundaries drawn over the raw pixels (default none).
     pub outline: Option<Outline>,
+    /// What the crops show: `mask` (around the mask; default) or `x0,y0,x1,y1`, a box in
+    /// frame pixels, e.g. around a 10-pixel detail, with `zoom` up to 8.
+    pub crop: Option<Crop>,
+    /// Also the posed model with its own colours, opaque, beside each crop at the same
+    /// crop and zoom (to compare a print, a hole, letters), with a sheet of them.
+    pub model: Option<bool>,
 }
 
 tool!(Render, "render", Diagnostic, Nothing, RenderArgs,
-    "Render the posed model into keyframes: `overlay` (shaded model over the frame) and `compare` (silhouette comparison: green model and mask agree, magenta mask not covered by the model, yellow model outside the mask, grey hand (ignored), blue model under the hand, on a near-black background; the legend is on each image), `ids` (parts in flat colours, visible pixels each). With `overlay`, also a contact sheet of the overlays; with `compare`, a sheet of every frame's comparison cropped around mask and model. For the raw keyframes without the model, use `frames`.",
+    "Render the posed model into keyframes (each frame's text says which side of the model and of each part faces the camera, with angles): `overlay` (shaded model over the frame) and `compare` (silhouette comparison: green model and mask agree, magenta mask not covered by the model, yellow model outside the mask, grey hand (ignored), blue model under the hand, on a near-black background; the legend is on each image), `ids` (parts in flat colours, visible pixels each). With `overlay`, also a contact sheet of the overlays; with `compare`, a sheet of every frame's comparison cropped around mask and model. `zoom` (up to 8) and `crop` (`mask`, or a box `x0,y0,x1,y1` in frame pixels) apply to every view and sheet: to judge a detail of a few pixels. For the raw keyframes without the model, use `frames`.",
     |tb, a, step| {
         let request = RenderRequest {
             frames: nonblank(&a.frames),
             views: nonblank(&a.views).unwrap_or("overlay,compare"),
+            zoom: a.zoom,
+            crop: a.crop,
             ..Default::default()
         };
-        let (mut o, out, _) = tb.cli(&["render"], step, Render::NAME, &request)?;
+        let (mut o, out, stdout) = tb.cli(&["render"], step, Render::NAME, &request)?;
         if o.is_error {
             return Ok(o);
         }
+        let report: RenderReport = serde_json::from_str(&stdout)
+            .map_err(|e| AgentError::Tool(format!("render printed no render report ({e})")))?;
         let written = o.images.len();
         o.images.truncate(MAX_IMAGES_RETURNED);
-        o.text = format!(
+        let mut text = format!(
             "render: wrote {written} image(s) in {}; {} returned (sheets first){}",
             out.display(),
             o.images.len(),
             if written > o.images.len() { "; the rest are files there" } else { "" }
         );
+        for f in &report.frames {
+            if let (Some([x, y, w, h]), Some(z)) = (f.crop, f.zoom) {
+                text.push_str(&format!("\n- {}: crop at ({x}, {y}), {w}×{h} frame pixels, zoom {z:.2}", f.frame));
+            }
+        }
+        let facing: Vec<_> = report.frames.iter().filter_map(|f| f.facing.clone()).collect();
+        text.push('\n');
+        text.push_str(&agentstar_reports::view::facing_lines(&facing));
+        for n in &report.notes {
+            text.push_str(&format!("note: {n}\n"));
+        }
+        o.text = text;
         Ok(o)
     });
 
 tool!(Keyframes, "frames", Diagnostic, Nothing, KeyframesArgs,
-    "Look at the raw keyframes (the input itself, no model): each keyframe cropped around its object mask with a margin, optionally zoomed (to judge thin parts: an edge, a handle) and outlined (`mask`: the mask's boundary in magenta and the hand's in cyan; `model`: the posed model's boundary in yellow). Returns sheets of the crops (each labelled with the frame and the crop's position in the frame) and, for a few frames, the crops themselves.",
+    "Look at the raw keyframes (the input itself, no model): each keyframe cropped around its object mask with a margin, optionally zoomed (to judge thin parts: an edge, a handle) or cropped to a box of frame pixels (`crop`: a 10-pixel hole, 15-pixel letters), with the posed model in its own colours beside each crop at the same zoom (`model: true`: prints, holes and letters compared without one showing through the other), and outlined (`mask`: the mask's boundary in magenta and the hand's in cyan; `model`: the posed model's boundary in yellow). Returns sheets of the crops (each labelled with the frame and the crop's position in the frame) and, for a few frames, the crops themselves.",
     |tb, a, step| {
         let request = RenderRequest {
             frames: nonblank(&a.frames),
-            views: "frame",
+            views: if a.model.unwrap_or(false) { "frame,side" } else { "frame" },
             margin: a.margin,
             zoom: a.zoom,
             outline: a.outline.map(Outline::as_str),
+            crop: a.crop,
         };
         let (mut o, out, stdout) = tb.cli(&["render"], step, Keyframes::NAME, &request)?;
         if o.is_error {
@@ -132,7 +163,7 @@ tool!(Keyframes, "frames", Diagnostic, Nothing, KeyframesArgs,
     });
 
 tool!(Score, "score", Diagnostic, Nothing, FramesArgs,
-    "Per keyframe: band IoU (the visible IoU without ±2 px around the mask's outline, where segmenters err: the gate is 0.98 on it), visible IoU (hands excluded), raw IoU, pixel counts, depth error when the capture has depth, and the appearance figure (colour agreement with the neighbouring keyframes and, where the model's parts differ in colour, with the model's own colours, pooled), with the agreement with the model's own colours alone beside it (`model_ncc`: does the pose put the model's print where the frame shows it). Lists the keyframes under the gate.",
+    "Per keyframe: band IoU (the visible IoU without ±2 px around the mask's outline, where segmenters err: the gate is 0.98 on it), visible IoU (hands excluded), raw IoU, pixel counts, depth error when the capture has depth, and the appearance figure (colour agreement with the neighbouring keyframes and, where the model's parts differ in colour, with the model's own colours, pooled), with the agreement with the model's own colours alone beside it (`model_ncc`: does the pose put the model's print where the frame shows it). Lists the keyframes under the gate, and per keyframe which side of the model (+X … −Z, with each axis's angle to the camera ray: face-on or edge-on) and of each part (at its joint states) faces the camera.",
     |tb, a, _step| {
         let report = tb.score_report(a.frames.as_deref())?;
         let mut o = ToolOutput::default();
@@ -156,8 +187,9 @@ tool!(Score, "score", Diagnostic, Nothing, FramesArgs,
         }
         // The table a person reads; the report's numbers are the structured content.
         o.text = format!(
-            "{head}\n{}",
-            agentstar_reports::score_table(&report.frames, &report.sequence, &report.appearance)
+            "{head}\n{}{}",
+            agentstar_reports::score_table(&report.frames, &report.sequence, &report.appearance),
+            agentstar_reports::view::facing_lines(&report.facing)
         );
         o.structured = serde_json::to_value(&report).ok();
         Ok(o)
@@ -205,4 +237,5 @@ pub(super) struct RenderRequest<'a> {
     pub(super) margin: Option<f64>,
     pub(super) zoom: Option<f64>,
     pub(super) outline: Option<&'static str>,
+    pub(super) crop: Option<Crop>,
 }

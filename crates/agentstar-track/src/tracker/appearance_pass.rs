@@ -90,6 +90,13 @@ pub(super) fn appearance_pass(
                 .collect();
             if let Some((g, sc, text)) = s.settle(&frames[i], &poses[i], scores[i], &refs, &barred)
             {
+                if leaves_the_chain(s, frames, poses, i, &g) {
+                    log.push(format!(
+                        "{}: {text}: not taken, the video's motion from a neighbour keeps the frame where it is",
+                        frames[i].name
+                    ));
+                    continue;
+                }
                 log.push(format!(
                     "{}: {text} (final appearance pass)",
                     frames[i].name
@@ -103,6 +110,36 @@ pub(super) fn appearance_pass(
             break;
         }
     }
+}
+
+/// Whether turning frame `i` to `to` takes it out of the basin the video between it and a
+/// neighbouring keyframe carries ([`Searcher::carried`] across a gap a chain followed): `to`
+/// lies [`REJECTED_BASIN_DEG`] farther from every chained neighbour's pose carried here than
+/// the frame's pose does. One frame's colours against a few references do not outweigh the
+/// motion two chains measured (hard suite labelcan with in-between frames, seed 17: the final
+/// pass turned keyframe 170 upside down on an NCC gain of 0.09 that cost 0.003 IoU, after
+/// the sequence choice had put it back).
+pub(super) fn leaves_the_chain(
+    s: &Searcher<'_>,
+    frames: &[TrackFrame<'_>],
+    poses: &[GenPose],
+    i: usize,
+    to: &GenPose,
+) -> bool {
+    let n = frames.len();
+    let chained: Vec<usize> = [
+        i.checked_sub(1).filter(|&j| s.gap(j).is_some()),
+        (i + 1 < n && s.gap(i).is_some()).then_some(i + 1),
+    ]
+    .into_iter()
+    .flatten()
+    .collect();
+    !chained.is_empty()
+        && chained.iter().all(|&j| {
+            let predicted = s.carried(frames, poses, j, i).pose.rotation;
+            to.pose.rotation.angle_to(&predicted)
+                > poses[i].pose.rotation.angle_to(&predicted) + REJECTED_BASIN_DEG.to_radians()
+        })
 }
 
 /// Frames whose cameras see the object from within this angle of one another share most of

@@ -185,6 +185,9 @@ struct Log<'o> {
     observe: &'o dyn TrackObserver,
     phases: Vec<(&'static str, f64, usize)>,
     phase_start: (std::time::Instant, usize),
+    /// Every frame's rotation after each pass that ran, by the pass's name: what a warm start
+    /// reads to say which pass moved a frame to another basin ([`Log::pass_done`]).
+    passes: Vec<(&'static str, Vec<agentstar_geom::UnitQuaternion>)>,
 }
 
 impl<'o> Log<'o> {
@@ -194,7 +197,15 @@ impl<'o> Log<'o> {
             observe,
             phases: Vec::new(),
             phase_start: (std::time::Instant::now(), 0),
+            passes: Vec::new(),
         }
+    }
+
+    /// Records every frame's rotation after the pass `name` (the warm start's report of
+    /// frames moved to another basin names the pass that moved them).
+    fn pass_done(&mut self, name: &'static str, poses: &[GenPose]) {
+        self.passes
+            .push((name, poses.iter().map(|g| g.pose.rotation).collect()));
     }
 
     fn push(&mut self, line: String) {
@@ -701,21 +712,26 @@ fn after_propagation(
         consistency(s, frames, poses, scores, fixed, log)?;
         log.phase("consistency", s);
         log.all_poses(poses);
+        log.pass_done("the consistency pass", poses);
     }
     if cfg.sequence_choice && n >= 2 {
         if cfg.appearance {
             appearance_pass(s, frames, (poses, scores), fixed, first, &[], log);
             log.phase("appearance", s);
+            log.pass_done("the appearance pass before the sequence choice", poses);
         }
         rejected = choose_sequence(s, frames, (poses, scores), fixed, alternatives, log)?;
         log.phase("sequence choice", s);
         log.all_poses(poses);
+        log.pass_done("the sequence-level choice", poses);
     }
     if cfg.appearance && n >= 2 {
         appearance_pass(s, frames, (poses, scores), fixed, first, &rejected, log);
         log.phase("appearance", s);
+        log.pass_done("the appearance pass", poses);
         if axis_pass(s, frames, (poses, scores), fixed, log)? {
             log.phase("axis", s);
+            log.pass_done("the axis pass", poses);
         }
     }
     Ok(())

@@ -1,12 +1,94 @@
-//! The warm start: tracking from given poses (`track --from`), with anchors kept exactly.
+//! The warm start: tracking from given poses (`track --from`), with anchors kept exactly,
+//! and either free to move a frame to another basin (reporting each frame it moved) or
+//! keeping every frame in its own basin ([`BasinPolicy`]).
 
 use super::*;
 use crate::hypotheses::PRUNE_SLACK;
 use crate::objective::FrameProblem;
+use crate::space::joint_default;
 use crate::temporal::angle_deg;
 use crate::update::GenPose;
 use crate::TrackError;
-use agentstar_geom::ObjectModel;
+use agentstar_geom::{ObjectModel, UnitQuaternion};
+
+/// The rotation a frame may turn from its starting pose and stay in its basin: half the
+/// nearest twin the tracker weighs. Twins are half-turns (flips, principal half-turns, hinge
+/// swaps) and, for a body whose cross-section repeats, quarter turns about a principal axis
+/// ([`crate::hypotheses::basins`]): a pose under 45° from its start is nearer the start than
+/// any quarter turn of it, so no flip or twin is reached.
+pub const BASIN_ROTATION_DEG: f64 = 45.0;
+
+/// How far a joint may move from its starting state and stay in its basin: 30° for a
+/// revolute joint, a sixth of the range (30/180) for a prismatic one, just over the reach
+/// of the polish ([`crate::hypotheses::LocalWindow::polish`]: 20° in its first pass, 28.8°
+/// over all four).
+pub const BASIN_JOINT_DEG: f64 = 30.0;
+
+/// What `track --from` may do with a frame's basin.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum BasinPolicy {
+    /// Any pass may move a frame to another basin (a flip, a twin, a carried neighbour's
+    /// pose); every frame moved beyond [`BASIN_ROTATION_DEG`] is reported ([`BasinMove`]).
+    #[default]
+    Search,
+    /// Local refinement only: each frame is polished around its own pose and carried poses
+    /// are taken only within its basin; no wide search, and none of the passes over the
+    /// sequence (consistency, sequence choice, appearance, axis), which exist to move frames
+    /// between basins. Every frame ends within [`BASIN_ROTATION_DEG`] of its starting
+    /// rotation and each joint within [`BASIN_JOINT_DEG`] (a frame whose refinement ends
+    /// beyond keeps its starting pose).
+    Keep,
+}
+
+/// A frame the warm start moved to another basin: further than [`BASIN_ROTATION_DEG`] from
+/// its starting rotation.
+#[derive(Debug, Clone, PartialEq)]
+pub struct BasinMove {
+    pub frame: usize,
+    /// The rotation from the starting pose to the result, degrees.
+    pub rotation_deg: f64,
+    /// The score (gate IoU) at the starting pose and at the result.
+    pub iou_before: f64,
+    pub iou_after: f64,
+    /// The pass that moved it (the first after which it stayed beyond the bound).
+    pub pass: String,
+}
+
+/// A warm start's result: the track, and the frames it moved to another basin.
+#[derive(Debug, Clone, PartialEq)]
+pub struct WarmStart {
+    pub result: TrackResult,
+    pub basin_moves: Vec<BasinMove>,
+}
+
+/// Where `pose` left the basin of `start`: the rotation beyond [`BASIN_ROTATION_DEG`] or a
+/// joint beyond [`BASIN_JOINT_DEG`] (a prismatic joint: that share of 180° of its range);
+/// `None` within it.
+pub fn outside_basin(model: &ObjectModel, start: &GenPose, pose: &GenPose) -> Option<String> {
+    let turned = angle_deg(&(pose.pose.rotation * start.pose.rotation.inverse()));
+    if turned > BASIN_ROTATION_DEG {
+        return Some(format!("turned {turned:.1}° (over {BASIN_ROTATION_DEG}°)"));
+    }
+    for (j, jd) in model.tree.joints().iter().enumerate() {
+        let (Some(&a), Some(&b)) = (start.states.get(j), pose.states.get(j)) else {
+            continue;
+        };
+        let moved = (jd.to_interface(b) - jd.to_interface(a)).abs();
+        let bound = if jd.kind.is_angular() {
+            BASIN_JOINT_DEG
+        } else {
+            let (lo, hi) = joint_default(&model.tree, j);
+            BASIN_JOINT_DEG / 180.0 * (hi - lo).abs()
+        };
+        if moved > bound + 1e-9 {
+            return Some(format!(
+                "joint `{}` moved {moved:.3} (over {bound:.3})",
+                jd.name
+            ));
+        }
+    }
+    None
+}
 
 /// How much better than a frame's own refined pose a pose carried from the neighbour on the
 /// anchor's side must score to be taken; within it the carried pose wins (continuity: a
@@ -29,20 +111,117 @@ pub fn track_from(
     cfg: &TrackConfig,
     observe: &dyn TrackObserver,
 ) -> Result<TrackResult, TrackError> {
-    on_stand_in(model, scale, frames, cfg, anchors, observe, |searched| {
-        track_from_on(searched, scale, frames, start, anchors, cfg, observe)
+    track_from_with(
+        model,
+        scale,
+        frames,
+        (start, anchors),
+        BasinPolicy::Search,
+        cfg,
+        observe,
+    )
+    .map(|w| w.result)
+}
+
+/// [`track_from`] under a [`BasinPolicy`], with the frames it moved to another basin (none
+/// under [`BasinPolicy::Keep`]). `(start, anchors)`: the starting poses and the frames kept
+/// exactly.
+pub fn track_from_with(
+    model: &ObjectModel,
+    scale: f64,
+    frames: &[TrackFrame<'_>],
+    (start, anchors): (&[GenPose], &[usize]),
+    policy: BasinPolicy,
+    cfg: &TrackConfig,
+    observe: &dyn TrackObserver,
+) -> Result<WarmStart, TrackError> {
+    let mut passes = Vec::new();
+    let mut result = on_stand_in(model, scale, frames, cfg, anchors, observe, |searched| {
+        let (r, p) = track_from_on(
+            searched, scale, frames, start, anchors, policy, cfg, observe,
+        )?;
+        passes = p;
+        Ok(r)
+    })?;
+    let score_at = |i: usize, g: &GenPose| {
+        FrameProblem::new(model, frames[i].camera, frames[i].target, scale, g.clone())
+            .evaluator()
+            .combined(g)
+    };
+    let mut basin_moves = Vec::new();
+    for i in 0..frames.len().min(start.len()) {
+        if anchors.contains(&i) {
+            continue;
+        }
+        let Some(why) = outside_basin(model, &start[i], &result.poses[i]) else {
+            continue;
+        };
+        if policy == BasinPolicy::Keep {
+            // The refinement ended beyond the bound (the polish on a dense model's own
+            // mesh adds to the stand-in's): the frame keeps its starting pose.
+            result.log.push(format!(
+                "{}: kept its starting pose: its refinement {why}, out of its basin",
+                frames[i].name
+            ));
+            observe.line(result.log.last().map_or("", String::as_str));
+            result.poses[i] = start[i].clone();
+            result.scores[i] = score_at(i, &start[i]);
+            continue;
+        }
+        let rotation_deg =
+            angle_deg(&(result.poses[i].pose.rotation * start[i].pose.rotation.inverse()));
+        if rotation_deg <= BASIN_ROTATION_DEG {
+            // Moved in a joint only: the rotation's basin is kept (the report is of turns).
+            continue;
+        }
+        let within = |q: &UnitQuaternion| {
+            angle_deg(&(q * start[i].pose.rotation.inverse())) <= BASIN_ROTATION_DEG
+        };
+        // The pass after the last one that left it within the bound.
+        let last_within = passes
+            .iter()
+            .rposition(|(_, rots): &(String, Vec<UnitQuaternion>)| rots.get(i).is_some_and(within));
+        let pass = match last_within {
+            None => passes.first().map(|p| p.0.clone()),
+            Some(k) => passes.get(k + 1).map(|p| p.0.clone()),
+        }
+        .unwrap_or_else(|| "the polish on the model's own mesh".to_string());
+        let m = BasinMove {
+            frame: i,
+            rotation_deg,
+            iou_before: score_at(i, &start[i]),
+            iou_after: result.scores[i],
+            pass,
+        };
+        let line = format!(
+            "{}: moved to another basin: turned {:.1}° from its starting pose (over {BASIN_ROTATION_DEG}°), IoU {:.4} → {:.4}, by {}",
+            frames[i].name, m.rotation_deg, m.iou_before, m.iou_after, m.pass
+        );
+        observe.line(&line);
+        result.log.push(line);
+        basin_moves.push(m);
+    }
+    Ok(WarmStart {
+        result,
+        basin_moves,
     })
 }
 
-pub(super) fn track_from_on(
+/// Every frame's rotation after each pass of a warm start, by the pass's name.
+type Passes = Vec<(String, Vec<UnitQuaternion>)>;
+
+#[allow(clippy::too_many_arguments)]
+fn track_from_on(
     model: &ObjectModel,
     scale: f64,
     frames: &[TrackFrame<'_>],
     start: &[GenPose],
     anchors: &[usize],
+    policy: BasinPolicy,
     cfg: &TrackConfig,
     observe: &dyn TrackObserver,
-) -> Result<TrackResult, TrackError> {
+) -> Result<(TrackResult, Passes), TrackError> {
+    let keep = policy == BasinPolicy::Keep;
     let s = Searcher::new(model, scale, frames, cfg)?;
     let n = frames.len();
     if start.len() != n {
@@ -89,6 +268,10 @@ pub(super) fn track_from_on(
                 Ok((at_start, start[i].clone(), at_start))
             } else {
                 let (g, sc) = s.polish(&frames[i], &start[i], cfg.seed + 7919 * i as u64)?;
+                if keep && outside_basin(model, &start[i], &g).is_some() {
+                    // (The polish's reach is under the bound: kept should it ever not be.)
+                    return Ok((at_start, start[i].clone(), at_start));
+                }
                 Ok((at_start, g, sc))
             }
         })
@@ -118,6 +301,8 @@ pub(super) fn track_from_on(
             "{unmoved} frame(s) kept their starting pose: the polish found nothing better"
         ));
     }
+    let rotations = |poses: &[GenPose]| poses.iter().map(|g| g.pose.rotation).collect();
+    let mut passes: Passes = vec![("the polish of its own pose".to_string(), rotations(&poses))];
     // Outward from every anchor, nearest frames first, each frame from its neighbour on the
     // side of its nearest anchor.
     let mut order: Vec<(usize, usize, isize)> = Vec::new();
@@ -167,7 +352,7 @@ pub(super) fn track_from_on(
             .collect();
         let mut found = best_of(results)?;
         let reached = found.as_ref().map_or(f64::NEG_INFINITY, |r| r.1);
-        if reached.max(scores[i]) < scores[prev_i] - FAR_MARGIN {
+        if !keep && reached.max(scores[i]) < scores[prev_i] - FAR_MARGIN {
             let seed = cfg.seed + 65537 * (i as u64 + 1);
             if let Some(w) = s
                 .wide(
@@ -182,7 +367,11 @@ pub(super) fn track_from_on(
                 found = Some(w);
             }
         }
-        if let Some((g, sc)) = found.filter(|r| r.1 >= scores[i] - CARRY_TIE) {
+        // Keeping basins, a carried pose is taken only within the frame's own basin.
+        if let Some((g, sc)) = found
+            .filter(|r| r.1 >= scores[i] - CARRY_TIE)
+            .filter(|r| !keep || outside_basin(model, &start[i], &r.0).is_none())
+        {
             let moved = angle_deg(&(g.pose.rotation * poses[i].pose.rotation.inverse()));
             log.push(format!(
                 "{}: carried from {} (anchor side), IoU {:.4} → {sc:.4}, {moved:.1}° from its refined pose",
@@ -194,28 +383,46 @@ pub(super) fn track_from_on(
     }
     log.phase("warm start", &s);
     log.all_poses(&poses);
+    passes.push((
+        "the carry from its neighbour on the anchor's side".to_string(),
+        rotations(&poses),
+    ));
     let first = anchors.first().copied().unwrap_or(0);
-    after_propagation(
-        &s,
-        frames,
-        (&mut poses, &mut scores),
-        &fixed,
-        &[],
-        first,
-        &mut log,
-    )?;
+    if keep {
+        log.push(format!(
+            "basins kept: every frame refined within its own basin (under {BASIN_ROTATION_DEG}° of rotation and {BASIN_JOINT_DEG}° of joint from its starting pose); the wide search and the passes that move frames between basins (consistency, sequence choice, appearance, axis) did not run"
+        ));
+    } else {
+        after_propagation(
+            &s,
+            frames,
+            (&mut poses, &mut scores),
+            &fixed,
+            &[],
+            first,
+            &mut log,
+        )?;
+        passes.extend(
+            log.passes
+                .iter()
+                .map(|(name, rots)| (name.to_string(), rots.clone())),
+        );
+    }
     log.phases_line();
     let init_frame = anchors.first().copied().unwrap_or_else(|| {
         (0..n)
             .max_by(|&a, &b| scores[a].total_cmp(&scores[b]))
             .unwrap_or(0)
     });
-    Ok(TrackResult {
-        poses,
-        scores,
-        init_frame,
-        log: log.lines,
-        evaluations: s.evals.into_inner(),
-        between: vec![],
-    })
+    Ok((
+        TrackResult {
+            poses,
+            scores,
+            init_frame,
+            log: log.lines,
+            evaluations: s.evals.into_inner(),
+            between: vec![],
+        },
+        passes,
+    ))
 }

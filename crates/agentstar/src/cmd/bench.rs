@@ -19,7 +19,9 @@ use std::process::ExitCode;
 )]
 pub struct Args {
     /// The suite: quick (CI), full, hard (by hand: 7 × 20 keyframes at 640×480; use --methods
-    /// tracker) or general (by hand: 24 generated objects × 3 seeds in the hard suite's captures).
+    /// tracker), general (by hand: 24 generated objects × 3 seeds in the hard suite's captures)
+    /// or sfm (cameras by structure from motion for a 191-frame 640×480 clip in a textured
+    /// room: time per stage and camera errors; needs COLMAP).
     #[arg(long, default_value = "quick")]
     suite: String,
     /// Methods, comma separated: tracker, no-temporal, vlm-free.
@@ -63,6 +65,30 @@ pub struct Args {
     /// Print the results as JSON on stdout.
     #[arg(long)]
     json: bool,
+    /// The sfm suite: frames of the clip (every one needs a camera).
+    #[arg(long, default_value_t = 191)]
+    sfm_clip_frames: usize,
+    /// The sfm suite: frame width and height in pixels.
+    #[arg(long, default_value = "640x480")]
+    sfm_size: String,
+    /// The sfm suite: the orbit's sweep in degrees.
+    #[arg(long, default_value_t = 90.0)]
+    sfm_orbit_deg: f64,
+    /// The sfm suite: keyframes every this many frames.
+    #[arg(long, default_value_t = 10)]
+    sfm_every: usize,
+    /// The sfm suite: at most this many frames reconstructed (the others registered).
+    #[arg(long, default_value_t = agentstar_sfm::DEFAULT_RECONSTRUCT_MAX)]
+    sfm_max_frames: usize,
+    /// The sfm suite: the most SIFT features per frame.
+    #[arg(long, default_value_t = agentstar_sfm::DEFAULT_MAX_FEATURES)]
+    sfm_max_features: usize,
+    /// The sfm suite: matching overlap within the reconstructed frames.
+    #[arg(long, default_value_t = agentstar_sfm::DEFAULT_OVERLAP)]
+    sfm_overlap: usize,
+    /// The sfm suite: SIFT on the CPU even where COLMAP has a GPU.
+    #[arg(long)]
+    sfm_no_gpu: bool,
 }
 
 /// A line about this machine for recorded results.
@@ -84,7 +110,7 @@ pub fn machine() -> String {
     )
 }
 
-fn today() -> String {
+pub fn today() -> String {
     agentstar_import::process::output_within(
         std::process::Command::new("date").arg("+%Y-%m-%d"),
         agentstar_import::process::PROBE_LIMIT,
@@ -97,9 +123,33 @@ fn today() -> String {
 }
 
 pub fn run(a: Args) -> Result<ExitCode> {
+    if a.suite == "sfm" {
+        let (w, h) = a
+            .sfm_size
+            .split_once('x')
+            .and_then(|(w, h)| Some((w.parse::<u32>().ok()?, h.parse::<u32>().ok()?)))
+            .ok_or_else(|| anyhow!("--sfm-size {}: WIDTHxHEIGHT, e.g. 640x480", a.sfm_size))?;
+        return crate::cmd::bench_sfm::run(&crate::cmd::bench_sfm::SfmBench {
+            frames: a.sfm_clip_frames,
+            width: w,
+            height: h,
+            keyframe_every: a.sfm_every,
+            orbit_deg: a.sfm_orbit_deg,
+            seed: a.seed,
+            settings: crate::cmd::bench_sfm::settings(
+                a.sfm_max_frames,
+                a.sfm_max_features,
+                a.sfm_overlap,
+                !a.sfm_no_gpu,
+            ),
+            out: a.out.clone(),
+            results: a.results.clone(),
+            json: a.json,
+        });
+    }
     let mut specs = suite(&a.suite).ok_or_else(|| {
         anyhow!(
-            "unknown suite `{}`; choose one of {}",
+            "unknown suite `{}`; choose one of {}, sfm",
             a.suite,
             SUITES.join(", ")
         )

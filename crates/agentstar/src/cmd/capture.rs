@@ -13,7 +13,7 @@ pub enum CaptureCommand {
     /// from a segmenter's output folder and cameras by structure from motion (COLMAP), from a
     /// COLMAP or nerfstudio model, or a static camera.
     #[command(
-        after_help = "Frames keep their numbers: a video's frames are numbered by their index in the video, and a\nfolder whose file names are integers (000000.jpg, 000010.jpg, ...) keeps them as the frames'\nnames, frame_index and time_s = number / fps. Other names are numbered 0, 1, 2, ... in natural\norder (a note says so). Masks and hand masks are matched by file stem only (000010.png or\n000010_mask.png for frame 000010.jpg).\n\nWith --cameras sfm, COLMAP runs on the keyframes and the frames between them with the object\nand hand masks excluded from its features; --fov/--intrinsics then fix the intrinsics (else the\nvideo's metadata or SfM gives them). The cameras are in the first keyframe's camera frame, one unit\nthe median background depth unless --background-depth-m is given (docs/sfm.md); COLMAP's logs and\nmodel are kept in CAPTURE/sfm/.\n\nExamples:\n  agentstar capture from-video clip.mp4 --masks sam2_masks/ --hands hand_masks/ --every 10 --cameras sfm --out cap\n  agentstar capture from-video clip.mp4 --masks sam2_masks/ --fov 65 --every 10 --out cap\n  agentstar capture from-video frames/ --masks masks/ --hands hand_masks/ --colmap sparse/0 --out cap"
+        after_help = "Frames keep their numbers: a video's frames are numbered by their index in the video, and a\nfolder whose file names are integers (000000.jpg, 000010.jpg, ...) keeps them as the frames'\nnames, frame_index and time_s = number / fps. Other names are numbered 0, 1, 2, ... in natural\norder (a note says so). Masks and hand masks are matched by file stem only (000010.png or\n000010_mask.png for frame 000010.jpg).\n\nWith --cameras sfm, COLMAP reconstructs from at most --sfm-max-frames frames strided over the\nclip (the object and hand masks excluded from its features) and registers the other keyframes\nagainst that model, all under --sfm-time-limit-s; --fov/--intrinsics then fix the intrinsics (else the\nvideo's metadata or SfM gives them). The cameras are in the first keyframe's camera frame, one unit\nthe median background depth unless --background-depth-m is given (docs/sfm.md); COLMAP's logs and\nmodel are kept in CAPTURE/sfm/.\n\nExamples:\n  agentstar capture from-video clip.mp4 --masks sam2_masks/ --hands hand_masks/ --every 10 --cameras sfm --out cap\n  agentstar capture from-video clip.mp4 --masks sam2_masks/ --fov 65 --every 10 --out cap\n  agentstar capture from-video frames/ --masks masks/ --hands hand_masks/ --colmap sparse/0 --out cap"
     )]
     FromVideo(FromVideoArgs),
     /// One object of a BOP scene (also HOT3D clips converted to BOP) as capture/v1 with gt.json.
@@ -143,6 +143,11 @@ pub struct FromVideoArgs {
     /// At most this many frames (at least 1).
     #[arg(long)]
     max_frames: Option<usize>,
+    /// Keep the frames between keyframes too, as in-between frames that `track` follows
+    /// (docs/formats.md): every frame, or every N-th after each keyframe with `--between N`.
+    /// Every kept frame needs its object mask.
+    #[arg(long, num_args = 0..=1, default_missing_value = "1", value_name = "N")]
+    between: Option<usize>,
     /// Frames per second of the input, from 0.001 to 1000 (default 30): time_s = frame
     /// number / fps.
     #[arg(long, allow_negative_numbers = true)]
@@ -172,12 +177,24 @@ pub struct FromVideoArgs {
     /// background behind the object (the median depth), so that translations are in metres.
     #[arg(long, requires = "cameras")]
     background_depth_m: Option<f64>,
-    /// With --cameras sfm: at most this many frames go to SfM (keyframes and frames between
-    /// them, thinned evenly).
-    #[arg(long, default_value_t = 300, requires = "cameras")]
+    /// With --cameras sfm: SfM reconstructs from at most this many frames, evenly strided over
+    /// the clip, and registers every other frame that needs a camera against that model.
+    #[arg(long, default_value_t = agentstar_sfm::DEFAULT_RECONSTRUCT_MAX, requires = "cameras")]
     sfm_max_frames: usize,
-    /// With --cameras sfm: the time limit of the whole SfM run, in seconds.
-    #[arg(long, default_value_t = 1800, requires = "cameras")]
+    /// With --cameras sfm: the most SIFT features per frame (COLMAP's
+    /// SiftExtraction.max_num_features).
+    #[arg(long, default_value_t = agentstar_sfm::DEFAULT_MAX_FEATURES, requires = "cameras")]
+    sfm_max_features: usize,
+    /// With --cameras sfm: each reconstructed frame is matched with this many next ones.
+    #[arg(long, default_value_t = agentstar_sfm::DEFAULT_OVERLAP, requires = "cameras")]
+    sfm_overlap: usize,
+    /// With --cameras sfm: SIFT on the GPU where COLMAP was built with CUDA and an NVIDIA
+    /// device is present (`auto`), or never (`off`).
+    #[arg(long, value_enum, default_value = "auto", requires = "cameras")]
+    sfm_gpu: SfmGpu,
+    /// With --cameras sfm: the time limit of the whole SfM run (every stage together), in
+    /// seconds.
+    #[arg(long, default_value_t = agentstar_sfm::DEFAULT_TIME_LIMIT.as_secs(), requires = "cameras")]
     sfm_time_limit_s: u64,
     /// Where to write the capture (a new directory).
     #[arg(long)]
@@ -185,6 +202,14 @@ pub struct FromVideoArgs {
     /// Print the result as JSON on stdout.
     #[arg(long)]
     json: bool,
+}
+
+#[derive(Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum SfmGpu {
+    /// Where COLMAP has CUDA and the machine an NVIDIA device.
+    Auto,
+    /// On the CPU only.
+    Off,
 }
 
 #[derive(Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
@@ -304,6 +329,7 @@ fn from_video(a: FromVideoArgs) -> Result<ExitCode> {
             max_frames: a.max_frames,
             cameras,
             fps: a.fps,
+            between: a.between,
         },
         &frames,
         &a.out,
@@ -349,6 +375,52 @@ fn from_video(a: FromVideoArgs) -> Result<ExitCode> {
     Ok(ExitCode::SUCCESS)
 }
 
+/// Frames of the video that SfM may choose from (keyframes and the frames between them,
+/// thinned evenly).
+const SFM_CANDIDATES: usize = 300;
+
+/// Runs an SfM job with a progress bar on stderr and one line per stage as it starts and as
+/// it ends (with its seconds), which stays in logs where the bar is not drawn.
+pub fn run_sfm_with_progress(
+    job: &agentstar_sfm::SfmJob,
+    estimate: impl FnOnce(
+        &agentstar_sfm::SfmJob,
+        &mut dyn FnMut(agentstar_sfm::Progress),
+    ) -> Result<agentstar_sfm::SfmOutcome, agentstar_sfm::SfmError>,
+) -> Result<agentstar_sfm::SfmOutcome, agentstar_sfm::SfmError> {
+    let bar = crate::common::progress(job.frames.len(), "sfm");
+    let mut stage = "";
+    let mut started = std::time::Instant::now();
+    let run_start = started;
+    let outcome = estimate(job, &mut |p| {
+        if p.stage != stage {
+            if !stage.is_empty() {
+                let s = started.elapsed().as_secs_f64();
+                bar.suspend(|| eprintln!("sfm: {stage} done in {s:.1} s"));
+            }
+            stage = p.stage;
+            started = std::time::Instant::now();
+            let at = run_start.elapsed().as_secs_f64();
+            bar.suspend(|| eprintln!("sfm: {stage} ({} to do) at {at:.1} s", p.total));
+            bar.set_message(p.stage);
+            bar.set_length(p.total.max(1));
+        }
+        bar.set_position(p.done.min(p.total));
+    });
+    bar.finish_and_clear();
+    match &outcome {
+        Ok(_) => eprintln!(
+            "sfm: {stage} done; whole run {:.1} s",
+            run_start.elapsed().as_secs_f64()
+        ),
+        Err(_) => eprintln!(
+            "sfm: stopped in {stage} after {:.1} s",
+            run_start.elapsed().as_secs_f64()
+        ),
+    }
+    outcome
+}
+
 /// Runs structure from motion for `from-video --cameras sfm`: the camera source, the work
 /// folder (to attach to the capture, then remove) and the report.
 fn sfm_cameras(
@@ -360,7 +432,7 @@ fn sfm_cameras(
     agentstar_sfm::SfmReport,
 )> {
     use agentstar_sfm::video::{select_frames, sfm_frames};
-    use agentstar_sfm::{estimate_cameras, Intrinsics, SfmJob};
+    use agentstar_sfm::{estimate_cameras, GpuUse, Intrinsics, SfmJob, SfmSettings};
     if let Some(d) = a.background_depth_m {
         if !(d.is_finite() && d > 0.0) {
             anyhow::bail!("--background-depth-m {d}: a distance in metres, above 0");
@@ -368,6 +440,15 @@ fn sfm_cameras(
     }
     if a.sfm_time_limit_s == 0 {
         anyhow::bail!("--sfm-time-limit-s must be at least 1");
+    }
+    if a.sfm_max_frames < 2 {
+        anyhow::bail!("--sfm-max-frames {}: at least 2", a.sfm_max_frames);
+    }
+    if a.sfm_max_features < 100 {
+        anyhow::bail!("--sfm-max-features {}: at least 100", a.sfm_max_features);
+    }
+    if a.sfm_overlap == 0 {
+        anyhow::bail!("--sfm-overlap 0: at least 1");
     }
     let keyframes = frames.keyframe_indices(a.every, a.max_frames);
     if keyframes.len() < 2 {
@@ -379,9 +460,26 @@ fn sfm_cameras(
             keyframes.len()
         );
     }
-    let indices = select_frames(&keyframes, a.sfm_max_frames.max(keyframes.len()));
-    let (sfm_frames, skipped) =
-        sfm_frames(frames, &a.masks, a.hands.as_deref(), &keyframes, &indices)?;
+    // SfM may use the frames between keyframes (at most SFM_CANDIDATES of the video); it
+    // picks its own subset to reconstruct from and registers the keyframes it left out.
+    // The in-between frames the capture keeps need cameras too: SfM registers those it does
+    // not reconstruct from.
+    let in_between = a
+        .between
+        .map(|stride| agentstar_import::video::FrameFiles::between_indices(&keyframes, stride))
+        .unwrap_or_default();
+    let mut indices = select_frames(&keyframes, SFM_CANDIDATES.max(keyframes.len()));
+    indices.extend(&in_between);
+    indices.sort_unstable();
+    indices.dedup();
+    let (sfm_frames, skipped) = sfm_frames(
+        frames,
+        &a.masks,
+        a.hands.as_deref(),
+        &keyframes,
+        &in_between,
+        &indices,
+    )?;
     if !skipped.is_empty() {
         eprintln!(
             "note: {} frame(s) between keyframes have no mask and are left out of SfM (first: {})",
@@ -432,27 +530,27 @@ fn sfm_cameras(
         intrinsics,
         work_dir: work.clone(),
         time_limit: std::time::Duration::from_secs(a.sfm_time_limit_s),
+        settings: SfmSettings {
+            reconstruct_max: a.sfm_max_frames,
+            max_features: a.sfm_max_features,
+            overlap: a.sfm_overlap,
+            gpu: match a.sfm_gpu {
+                SfmGpu::Auto => GpuUse::Auto,
+                SfmGpu::Off => GpuUse::Off,
+            },
+        },
         background_depth_m: a.background_depth_m,
         colmap: None,
         threads: None,
     };
     eprintln!(
-        "structure from motion on {} frames ({} keyframes) with COLMAP; logs in {}",
+        "structure from motion with COLMAP: {} frames of the video to choose from, {} keyframes need cameras; at most {} s; logs in {}",
         job.frames.len(),
         keyframes.len(),
+        a.sfm_time_limit_s,
         work.join("logs").display()
     );
-    let bar = crate::common::progress(job.frames.len(), "sfm");
-    let mut stage = "";
-    let outcome = estimate_cameras(&job, &mut |p| {
-        if p.stage != stage {
-            stage = p.stage;
-            bar.set_message(p.stage);
-            bar.set_length(p.total.max(1));
-        }
-        bar.set_position(p.done.min(p.total));
-    });
-    bar.finish_and_clear();
+    let outcome = run_sfm_with_progress(&job, estimate_cameras);
     let outcome = match outcome {
         Ok(o) => o,
         Err(e) => anyhow::bail!(

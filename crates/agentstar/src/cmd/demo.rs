@@ -210,15 +210,10 @@ fn write_demo_ledger(
 
 /// A contact sheet of the model drawn over every keyframe.
 fn write_overlay_sheet(s: &crate::common::Session, path: &std::path::Path) -> Result<()> {
-    use agentstar_render::views::{contact_sheet, overlay, shade, ShadeOptions};
-    let colors: Vec<[f32; 3]> = s.model.model.parts.iter().map(|p| p.color).collect();
+    use agentstar_render::views::{contact_sheet, overlay, ShadeOptions};
     let mut tiles = vec![];
     for (i, f) in s.capture.frames.iter().enumerate() {
-        let shaded = shade(
-            &s.render_buffers(i),
-            &colors,
-            ShadeOptions { outlines: true },
-        );
+        let (_, shaded) = s.render_shaded(i, ShadeOptions { outlines: true });
         tiles.push((
             f.name.clone(),
             overlay(&s.capture.load_frame(i)?, &shaded, 0.6),

@@ -13,7 +13,7 @@ use agentstar_data::posefile::{FramePose, PoseFile};
 use agentstar_geom::pose::ObjectPose;
 use agentstar_geom::{PinholeCamera, UnitQuaternion, Vector3};
 use agentstar_render::views::{
-    comparison_legend, contact_sheet, overlay, shade, silhouette_comparison, with_legend,
+    comparison_legend, contact_sheet, overlay, shade_model, silhouette_comparison, with_legend,
     ShadeOptions,
 };
 use agentstar_render::{render_full, BitMask, PosedModel};
@@ -94,7 +94,6 @@ pub fn run(a: Args) -> Result<ExitCode> {
 
     // The capture: frames, masks, hand masks, cameras, keyframes.
     let names: Vec<String> = (0..n).map(|k| format!("{:06}.png", k * 5)).collect();
-    let colors: Vec<[f32; 3]> = model.parts.iter().map(|p| p.color).collect();
     for (k, name) in names.iter().enumerate() {
         let stem = &name[..6];
         let posed = PosedModel::new(
@@ -117,7 +116,13 @@ pub fn run(a: Args) -> Result<ExitCode> {
             }
         });
         let visible = silhouette.and_not(&hand);
-        let shaded = shade(&buffers, &colors, ShadeOptions { outlines: false });
+        let shaded = shade_model(
+            &model,
+            &posed.instances,
+            &camera,
+            &buffers,
+            ShadeOptions { outlines: false },
+        );
         let mut frame = RgbImage::from_fn(w, h, |x, y| {
             let g = 0.55 + 0.25 * (y as f32 / h as f32) + 0.08 * noise(x / 4, y / 4, 7);
             Rgb([(g * 200.0) as u8, (g * 190.0) as u8, (g * 175.0) as u8])
@@ -216,8 +221,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
     std::fs::create_dir_all(&views_dir)?;
     let mut tiles = Vec::new();
     for (i, (f, score)) in capture.frames.iter().zip(&scores).enumerate() {
-        let buffers = session.render_buffers(i);
-        let shaded = shade(&buffers, &colors, ShadeOptions::default());
+        let (buffers, shaded) = session.render_shaded(i, ShadeOptions::default());
         let over = overlay(&capture.load_frame(i)?, &shaded, 0.6);
         save_png_rgb(&over, &views_dir.join(format!("overlay_{}.png", f.stem)))?;
         let (img, _) = silhouette_comparison(

@@ -58,6 +58,10 @@ pub struct Args {
     /// Hold the poses as committed (no local refinement).
     #[arg(long)]
     no_refine: bool,
+    /// The part kept in place when the poses are carried to each new shape (default: the
+    /// part with the most visible pixels in the fitted keyframes at their poses).
+    #[arg(long)]
+    hold: Option<String>,
     /// Seed of the pose refinements.
     #[arg(long, default_value_t = 17)]
     seed: u64,
@@ -166,7 +170,30 @@ pub fn run(a: Args) -> Result<ExitCode> {
             pose: s.gen_pose(i),
         })
         .collect();
+    // The part held in place as the shape changes: named, or the one most in view.
+    let visible = agentstar_render::visible_part_pixels(
+        &s.model.model,
+        frames.iter().map(|f| {
+            (
+                &f.camera,
+                f.pose.pose.with_scale(s.scale()),
+                f.pose.states.as_slice(),
+            )
+        }),
+    );
+    let held = agentstar_geom::held_part(
+        &s.model.model,
+        &s.model.model,
+        a.hold.as_deref(),
+        Some((&visible, frames.len())),
+    )
+    .map_err(|e| anyhow!("--hold: {e}"))?;
+    eprintln!(
+        "fit-shape: holding part `{}` in place ({})",
+        held.name, held.why
+    );
     let cfg = ShapeFitConfig {
+        held: Some(held.name.clone()),
         rounds: a.rounds,
         evals_per_round: a.evals,
         refine_poses: !a.no_refine,
@@ -192,7 +219,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
     let fitted_source =
         set_param_values(&source, &values).map_err(|e| anyhow!("{}: {e}", model_path.display()))?;
     let mut pf: PoseFile = s.pose_file.clone();
-    agentstar_data::poses::carry_origin(&s.model.model, &fit.model, &mut pf);
+    agentstar_data::poses::carry_origin(&s.model.model, &fit.model, &mut pf, &held);
     let tree = &fit.model.tree;
     pf.joint_defs = tree.joints().iter().map(joint_json).collect();
     for (&i, g) in indices.iter().zip(&fit.poses) {
@@ -319,6 +346,8 @@ pub fn run(a: Args) -> Result<ExitCode> {
         evaluations: fit.evaluations,
         seconds: t0.elapsed().as_secs_f64(),
         written: false,
+        views: Some(view_residuals(&fit, &frames, s.scale())),
+        held_part: Some(format!("{} ({})", held.name, held.why)),
     };
     if a.write {
         agentstar_data::atomic::write_atomic(model_path, fitted_source.as_bytes())?;
@@ -350,6 +379,59 @@ pub fn run(a: Args) -> Result<ExitCode> {
         print_summary(&report);
     }
     Ok(ExitCode::SUCCESS)
+}
+
+/// The fitted silhouettes' residuals grouped by viewing direction, at the fitted poses.
+fn view_residuals(
+    fit: &agentstar_track::shape::ShapeFit,
+    frames: &[ShapeFrame<'_>],
+    scale: f64,
+) -> agentstar_reports::fit::ViewResiduals {
+    use agentstar_reports::fit as r;
+    use agentstar_track::proportion as p;
+    let silhouettes: Vec<agentstar_render::BitMask> = frames
+        .iter()
+        .zip(&fit.poses)
+        .map(|(f, g)| silhouette(&fit.model, g, scale, &f.camera))
+        .collect();
+    let views: Vec<p::ViewFrame<'_>> = frames
+        .iter()
+        .zip(&fit.poses)
+        .zip(&silhouettes)
+        .map(|((f, g), sil)| {
+            let bounds = fit.model.posed_bounds(&g.states);
+            p::ViewFrame {
+                name: f.name.clone(),
+                camera: f.camera,
+                mask: f.target.mask(),
+                keep: f.target.keep(),
+                silhouette: sil,
+                camera_from_object: g.pose.with_scale(scale),
+                centre: bounds.center(),
+                size: bounds.extent(),
+            }
+        })
+        .collect();
+    let v = p::view_residuals(&views);
+    let wants = |w: &p::AxisWants| r::AxisWants {
+        want: w.want,
+        equations: w.equations,
+    };
+    let all = wants(&v.all);
+    let groups: Vec<r::ViewGroup> = v
+        .groups
+        .iter()
+        .map(|g| r::ViewGroup {
+            face_on: g.face_on.clone(),
+            frames: g.frames.clone(),
+            wants: wants(&g.wants),
+        })
+        .collect();
+    r::ViewResiduals {
+        verdict: r::ViewResiduals::verdict_of(&all, &groups),
+        all,
+        groups,
+    }
 }
 
 /// The silhouette of `model` at `pose`.
@@ -397,6 +479,9 @@ fn print_summary(r: &FitReport) {
         r.builds,
         r.seconds
     );
+    if let Some(v) = &r.views {
+        print!("{}", agentstar_reports::fit::views_text(v));
+    }
     println!(
         "wrote {} and {}{}",
         r.scene.display(),

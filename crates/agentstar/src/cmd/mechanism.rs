@@ -17,7 +17,7 @@ use agentstar_geom::{
 };
 use agentstar_render::frames::{frame_view, FrameViewOptions};
 use agentstar_render::sheet::sheet_pages;
-use agentstar_render::views::{flatten, shade, ShadeOptions, TURNTABLE_BACKGROUND};
+use agentstar_render::views::{flatten, shade_model, ShadeOptions, TURNTABLE_BACKGROUND};
 use agentstar_render::{render_full, PosedModel};
 use agentstar_reports::mechanism::{
     ArmLabel, MechanismFrame, MechanismJoint, MechanismReport, MechanismView,
@@ -233,12 +233,14 @@ fn render_tile(
     camera: &PinholeCamera,
     pose: &Similarity,
 ) -> RgbImage {
-    let colors: Vec<[f32; 3]> = model.parts.iter().map(|p| p.color).collect();
     let posed = PosedModel::new(model, states, pose);
+    let buffers = render_full(camera, &posed.instances);
     flatten(
-        &shade(
-            &render_full(camera, &posed.instances),
-            &colors,
+        &shade_model(
+            model,
+            &posed.instances,
+            camera,
+            &buffers,
             ShadeOptions::default(),
         ),
         TURNTABLE_BACKGROUND,

@@ -3,6 +3,7 @@
 pub mod agent;
 pub mod batch;
 pub mod bench;
+pub mod bench_sfm;
 pub mod capture;
 pub mod check;
 pub mod demo;

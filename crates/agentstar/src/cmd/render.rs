@@ -8,11 +8,11 @@ use agentstar_data::images::{save_png_rgb, save_png_rgba};
 use agentstar_render::frames::{crop_box, crop_zoomed, frame_view, FrameViewOptions, MAX_ZOOM};
 use agentstar_render::sheet::{fit_to_limits, sheet_pages};
 use agentstar_render::views::{
-    comparison_legend, id_color, overlay, part_id_view, shade, side_by_side, silhouette_comparison,
+    comparison_legend, id_color, overlay, part_id_view, side_by_side, silhouette_comparison,
     with_legend, ShadeOptions,
 };
 use agentstar_reports::view::{RenderFrame, RenderReport};
-use anyhow::{bail, Result};
+use anyhow::{anyhow, bail, Result};
 use image::{Rgb, RgbImage};
 use rayon::prelude::*;
 use std::path::{Path, PathBuf};
@@ -63,13 +63,18 @@ pub struct Args {
     /// Draw no outlines on the shaded render.
     #[arg(long)]
     no_outlines: bool,
-    /// Frame view: margin around the mask's box, a fraction of its longer side.
+    /// Margin around the mask's box (and the model's), a fraction of its longer side.
     #[arg(long, default_value_t = 0.25)]
     margin: f64,
-    /// Frame view: scale of the crop (1 = the frame's pixels, at most 8); reduced where
-    /// the image would pass the size limits.
+    /// Output pixels per frame pixel of every view's crop (1 = the frame's pixels, at most
+    /// 8); reduced where an image would pass the size limits. Above 1 (or with --crop) the
+    /// overlay, ids and shaded views are cropped too.
     #[arg(long, default_value_t = 1.0)]
     zoom: f64,
+    /// What every view shows: `mask` (around the mask and the model with --margin; the
+    /// default) or `x0,y0,x1,y1`, a box in frame pixels (a detail to look at closely).
+    #[arg(long)]
+    crop: Option<agentstar_requests::Crop>,
     /// Frame view: boundaries drawn over the raw pixels.
     #[arg(long, value_enum, default_value_t = Outline::None)]
     outline: Outline,
@@ -90,22 +95,16 @@ struct FrameViews {
     note: Option<String>,
 }
 
+/// `img`'s `window` at `zoom` output pixels per frame pixel (nearest neighbour: the frame's
+/// own pixels, none invented), within the image limits.
+fn zoomed(img: &RgbImage, window: [u32; 4], zoom: f64) -> RgbImage {
+    let long = (window[2].max(window[3]) as f64 * zoom).round().max(1.0) as u32;
+    fit_to_limits(crop_zoomed(img, window, long))
+}
+
 /// The zoom that brings a `w`×`h` crop's long side to [`FRAME_TILE_PX`] on a sheet.
 fn tile_zoom(w: u32, h: u32) -> f64 {
     (FRAME_TILE_PX as f64 / w.max(h).max(1) as f64).min(MAX_ZOOM)
-}
-
-/// The silhouette comparison cropped around the mask and the model's silhouette (the whole
-/// frame when both are empty), its long side brought to [`FRAME_TILE_PX`] by whole pixels
-/// (nearest neighbour: the tile keeps the legend's exact colours).
-fn compare_tile(
-    img: &RgbImage,
-    mask: &agentstar_render::BitMask,
-    sil: &agentstar_render::BitMask,
-    margin: f64,
-) -> RgbImage {
-    let crop = crop_box(mask, Some(sil), margin).unwrap_or([0, 0, img.width(), img.height()]);
-    crop_zoomed(img, crop, FRAME_TILE_PX)
 }
 
 /// The compare sheet's title: what it shows and the legend's colours by name.
@@ -150,7 +149,6 @@ pub fn run(a: Args) -> Result<ExitCode> {
     let s = a.session.open()?;
     let frames = select_frames(&s.capture, a.frames.as_deref())?;
     let dir = out_dir(&a.out)?;
-    let colors: Vec<[f32; 3]> = s.model.model.parts.iter().map(|p| p.color).collect();
     let names = s.model.model.part_names();
     let opts = ShadeOptions {
         outlines: !a.no_outlines,
@@ -159,16 +157,19 @@ pub fn run(a: Args) -> Result<ExitCode> {
         margin: a.margin,
         zoom: a.zoom,
         mask_outline: matches!(a.outline, Outline::Mask | Outline::Both),
+        window: None,
     };
     let model_outline = matches!(a.outline, Outline::Model | Outline::Both);
+    // Overlay, ids and shaded are whole frames unless a crop or a zoom is asked for.
+    let crop_all = a.crop.is_some() || (a.zoom - 1.0).abs() > 1e-9;
+    let crop = a.crop.unwrap_or_default();
     let bar = crate::common::progress(frames.len(), "render");
     let results: Vec<Result<FrameViews>> = frames
         .par_iter()
         .map(|&i| {
             bar.inc(1);
             let f = &s.capture.frames[i];
-            let buffers = s.render_buffers(i);
-            let shaded = shade(&buffers, &colors, opts);
+            let (buffers, shaded) = s.render_shaded(i, opts);
             let mut written = Vec::new();
             let mut iou = None;
             let frame_img = s.capture.load_frame(i)?;
@@ -179,6 +180,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
                     iou_visible: None,
                     crop: None,
                     zoom: None,
+                    facing: s.facing(i),
                 },
                 overlay_tile: None,
                 frame_tile: None,
@@ -187,23 +189,42 @@ pub fn run(a: Args) -> Result<ExitCode> {
                 has_hand: false,
                 note: None,
             };
-            if views.contains(&"overlay") {
-                let over = fit_to_limits(overlay(&frame_img, &shaded, 0.6));
-                let p = dir.join(format!("overlay_{}.png", f.stem));
-                save_png_rgb(&over, &p)?;
-                written.push(p);
-                out.overlay_tile = Some((f.name.clone(), over));
-            }
             let needs_mask = ["compare", "frame", "side"]
                 .iter()
-                .any(|v| views.contains(v));
+                .any(|v| views.contains(v))
+                || (crop_all && crop == agentstar_requests::Crop::Mask);
             let (mask, hand) = if needs_mask {
                 (Some(s.capture.load_mask(i)?), s.capture.load_hand(i)?)
             } else {
                 (None, None)
             };
+            // Every view's window: the box asked for, or around the mask and the model.
+            let sil = buffers.silhouette();
+            let around = mask
+                .as_ref()
+                .and_then(|m| crop_box(m, Some(&sil), a.margin));
+            let window = crop
+                .window(f.camera.width, f.camera.height, around)
+                .map_err(|e| anyhow!("--crop: {e} ({})", f.name))?;
+            let window_tile = |img: &RgbImage| crop_zoomed(img, window, FRAME_TILE_PX);
+            if crop_all {
+                out.row.crop = Some(window);
+                out.row.zoom = Some(a.zoom);
+            }
+            if views.contains(&"overlay") {
+                let full = overlay(&frame_img, &shaded, 0.6);
+                let over = if crop_all {
+                    zoomed(&full, window, a.zoom)
+                } else {
+                    fit_to_limits(full.clone())
+                };
+                let p = dir.join(format!("overlay_{}.png", f.stem));
+                save_png_rgb(&over, &p)?;
+                written.push(p);
+                let tile = if crop_all { window_tile(&full) } else { over };
+                out.overlay_tile = Some((f.name.clone(), tile));
+            }
             if let (true, Some(mask)) = (views.contains(&"compare"), &mask) {
-                let sil = buffers.silhouette();
                 // With the boundary band: the gate reads the band IoU.
                 let score = agentstar_render::ScoreTarget::new(mask.clone(), hand.clone())?
                     .with_band(agentstar_render::DEFAULT_BAND_PX)
@@ -213,12 +234,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
                 let shown = |v: Option<f64>| v.map_or("n/a".into(), |v| format!("{v:.4}"));
                 // Cropped around the mask and the model, zoomed by whole pixels: the object,
                 // not the frame (play-test 5 could not judge a lid's edge on whole frames).
-                let crop = crop_box(mask, Some(&sil), a.margin).unwrap_or([
-                    0,
-                    0,
-                    img.width(),
-                    img.height(),
-                ]);
+                let crop = window;
                 let title = format!(
                     "{}  IoU band {}  visible {}  raw {:.4}",
                     f.name,
@@ -231,7 +247,12 @@ pub fn run(a: Args) -> Result<ExitCode> {
                     &with_legend(
                         // Enlarged to COMPARE_LONG_SIDE_PX, never shrunk: nearest-neighbour
                         // shrinking would drop the 1–2 px slivers this view exists to show.
-                        &crop_zoomed(&img, crop, COMPARE_LONG_SIDE_PX.max(crop[2].max(crop[3]))),
+                        &crop_zoomed(
+                            &img,
+                            crop,
+                            COMPARE_LONG_SIDE_PX
+                                .max((crop[2].max(crop[3]) as f64 * a.zoom).round() as u32),
+                        ),
                         &title,
                         &comparison_legend(hand.is_some()),
                     ),
@@ -244,11 +265,16 @@ pub fn run(a: Args) -> Result<ExitCode> {
                     (None, Some(v)) => format!("{} vis {v:.3}", f.stem),
                     _ => f.stem.clone(),
                 };
-                out.compare_tile = Some((label, compare_tile(&img, mask, &sil, a.margin)));
+                out.compare_tile = Some((label, window_tile(&img)));
                 out.has_hand = hand.is_some();
             }
             if views.contains(&"ids") {
                 let (img, vis) = part_id_view(&buffers, &names);
+                let img = if crop_all {
+                    zoomed(&img, window, a.zoom)
+                } else {
+                    img
+                };
                 let legend: Vec<_> = vis
                     .iter()
                     .enumerate()
@@ -260,7 +286,19 @@ pub fn run(a: Args) -> Result<ExitCode> {
             }
             if views.contains(&"shaded") {
                 let p = dir.join(format!("shaded_{}.png", f.stem));
-                save_png_rgba(&fit_to_limits(shaded.clone()), &p)?;
+                if crop_all {
+                    let [x0, y0, w, h] = window;
+                    let cut = image::imageops::crop_imm(&shaded, x0, y0, w, h).to_image();
+                    let (tw, th) = (
+                        ((w as f64 * a.zoom).round() as u32).max(1),
+                        ((h as f64 * a.zoom).round() as u32).max(1),
+                    );
+                    let big =
+                        image::imageops::resize(&cut, tw, th, image::imageops::FilterType::Nearest);
+                    save_png_rgba(&fit_to_limits(big), &p)?;
+                } else {
+                    save_png_rgba(&fit_to_limits(shaded.clone()), &p)?;
+                }
                 written.push(p);
             }
             if views.contains(&"depth") {
@@ -269,7 +307,11 @@ pub fn run(a: Args) -> Result<ExitCode> {
                 written.push(p);
             }
             if let (true, Some(mask)) = (views.contains(&"frame"), &mask) {
-                let sil = model_outline.then(|| buffers.silhouette());
+                let sil = model_outline.then(|| sil.clone());
+                let frame_opts = FrameViewOptions {
+                    window: a.crop.is_some().then_some(window),
+                    ..frame_opts
+                };
                 let v = frame_view(&frame_img, mask, hand.as_ref(), sil.as_ref(), &frame_opts);
                 let p = dir.join(format!("frame_{}.png", f.stem));
                 save_png_rgb(&v.image, &p)?;
@@ -292,16 +334,10 @@ pub fn run(a: Args) -> Result<ExitCode> {
                 out.row.crop = Some(v.crop);
                 out.row.zoom = Some(v.zoom);
             }
-            if let (true, Some(mask)) = (views.contains(&"side"), &mask) {
-                // Around the mask and the model's silhouette, so neither half is cut; the
-                // whole frame when both are empty.
-                let sil = buffers.silhouette();
-                let crop = crop_box(mask, Some(&sil), a.margin).unwrap_or([
-                    0,
-                    0,
-                    frame_img.width(),
-                    frame_img.height(),
-                ]);
+            if let (true, Some(_)) = (views.contains(&"side"), &mask) {
+                // Around the mask and the model's silhouette, so neither half is cut (the
+                // whole frame when both are empty), or the box asked for.
+                let crop = window;
                 let [x0, y0, w, h] = crop;
                 let background = Rgb([255, 255, 255]);
                 let img =

@@ -3,9 +3,10 @@
 
 use crate::common::{print_json, Session};
 use agentstar_data::ledger;
-use agentstar_render::views::{overlay, shade, ShadeOptions};
+use agentstar_render::views::{overlay, ShadeOptions};
 use agentstar_report::{
-    render_html, FrameEntry, Image, Report, Step, Temporal, Viewer, ViewerFrame, ViewerPart,
+    render_html, FrameEntry, Image, Report, Step, Temporal, Viewer, ViewerFrame, ViewerMaterial,
+    ViewerPart, ViewerSurface, ViewerTexture,
 };
 use anyhow::{anyhow, bail, Context, Result};
 use image::RgbImage;
@@ -88,7 +89,6 @@ pub fn build_report(
 ) -> Result<Report> {
     let model = &s.model.model;
     let scale = s.scale();
-    let colors: Vec<[f32; 3]> = model.parts.iter().map(|p| p.color).collect();
     let n = s.capture.frames.len();
     let bar = crate::common::progress(n, "report");
     let frames: Vec<FrameEntry> = (0..n)
@@ -97,11 +97,7 @@ pub fn build_report(
             bar.inc(1);
             let f = &s.capture.frames[i];
             let img = s.capture.load_frame(i)?;
-            let shaded = shade(
-                &s.render_buffers(i),
-                &colors,
-                ShadeOptions { outlines: true },
-            );
+            let (_, shaded) = s.render_shaded(i, ShadeOptions { outlines: true });
             let over = overlay(&img, &shaded, 0.6);
             let score = s.score(i, 0.0)?;
             Ok(FrameEntry {
@@ -110,6 +106,7 @@ pub fn build_report(
                 overlay: jpeg(&downscale(&over, max_width))?,
                 iou_visible: score.iou_visible,
                 iou_raw: score.iou_raw,
+                facing: s.facing(i).map(|f| f.line),
             })
         })
         .collect::<Result<_>>()?;
@@ -140,6 +137,7 @@ pub fn build_report(
                 })
                 .collect(),
             triangles: p.mesh.triangles.iter().flatten().copied().collect(),
+            surface: p.surface.as_deref().map(viewer_surface),
         })
         .collect();
     let viewer_frames: Vec<ViewerFrame> = s
@@ -409,4 +407,75 @@ pub fn run(a: Args) -> Result<ExitCode> {
         );
     }
     Ok(ExitCode::SUCCESS)
+}
+
+/// A part's textures and vertex colours for the report's 3-D view: its triangles grouped by
+/// material, each corner's colour and texture coordinates, the textures as PNG.
+fn viewer_surface(surface: &agentstar_geom::SurfaceAppearance) -> ViewerSurface {
+    use agentstar_geom::WrapMode;
+    let wrap = |m: WrapMode| match m {
+        WrapMode::Repeat => 10497,
+        WrapMode::MirroredRepeat => 33648,
+        WrapMode::ClampToEdge => 33071,
+    };
+    let mut textures: Vec<ViewerTexture> = Vec::new();
+    let mut texture_of: Vec<(*const agentstar_geom::Texture, u32)> = Vec::new();
+    let materials = surface
+        .materials()
+        .iter()
+        .map(|m| ViewerMaterial {
+            color: m.color,
+            texture: m.texture.as_ref().and_then(|t| {
+                let key = std::sync::Arc::as_ptr(t);
+                if let Some((_, i)) = texture_of.iter().find(|(k, _)| *k == key) {
+                    return Some(*i);
+                }
+                // A texture that does not encode is drawn in its material's colour.
+                let png = agentstar_data::texture::texture_png(t).ok()?;
+                textures.push(ViewerTexture {
+                    png,
+                    wrap: [wrap(t.wrap_u), wrap(t.wrap_v)],
+                });
+                let i = (textures.len() - 1) as u32;
+                texture_of.push((key, i));
+                Some(i)
+            }),
+        })
+        .collect();
+    let mut order: Vec<u32> = (0..surface.triangle_count() as u32).collect();
+    // Stable: triangles keep their order within a material.
+    order.sort_by_key(|&t| surface.triangle_material()[t as usize]);
+    let mut groups: Vec<(u32, u32)> = Vec::new();
+    for &t in &order {
+        let m = u32::from(surface.triangle_material()[t as usize]);
+        match groups.last_mut() {
+            Some((n, last)) if *last == m => *n += 1,
+            _ => groups.push((1, m)),
+        }
+    }
+    let corner_colors = order
+        .iter()
+        .flat_map(|&t| {
+            surface
+                .corner_color()
+                .map_or([[1.0; 3]; 3], |c| c[t as usize])
+        })
+        .flatten()
+        .collect();
+    let corner_uvs = match surface.corner_uv() {
+        Some(uv) => order
+            .iter()
+            .flat_map(|&t| uv[t as usize])
+            .flatten()
+            .collect(),
+        None => Vec::new(),
+    };
+    ViewerSurface {
+        order,
+        corner_colors,
+        corner_uvs,
+        groups,
+        materials,
+        textures,
+    }
 }

@@ -1,5 +1,6 @@
 //! `agentstar scale`: metres per model unit from the capture's depth, from the parallax of
-//! metric cameras that move around a static object, or from a size the agent states; and
+//! metric cameras that move around a static object, from a size the agent states, or from
+//! the hands' apparent palm breadth (hand masks without depth); and
 //! the poses rescaled to it (rotations kept, translations scaled, so every silhouette stays).
 
 use crate::common::OpenSession as _;
@@ -7,7 +8,8 @@ use crate::common::{print_json, select_frames, SessionArgs};
 use agentstar_data::history::PoseHistory;
 use agentstar_reports::fit::{ScaleFrame, ScaleMethod, ScaleReport};
 use agentstar_track::scale::{
-    ratio_from_depth, ratio_from_parallax, DepthFrame, ParallaxFrame, ScaleEstimate,
+    ratio_from_depth, ratio_from_hand, ratio_from_parallax, DepthFrame, HandFrame, ParallaxFrame,
+    ScaleEstimate, PALM_BREADTH_MEAN_M, PALM_BREADTH_SD_M,
 };
 use anyhow::{anyhow, bail, Result};
 use std::path::PathBuf;
@@ -28,11 +30,13 @@ pub enum Method {
     Depth,
     Parallax,
     Size,
+    /// The hands' palm breadth against an adult-hand prior (hand masks, no depth).
+    Hand,
 }
 
 #[derive(clap::Args)]
 #[command(
-    after_help = "Examples:\n  agentstar scale --capture cap --model run/scene.rhai --poses run/pose.json --from depth\n  agentstar scale --capture cap --model run/scene.rhai --poses run/pose.json --from size --axis x --metres 0.30 --write"
+    after_help = "Examples:\n  agentstar scale --capture cap --model run/scene.rhai --poses run/pose.json --from depth\n  agentstar scale --capture cap --model run/scene.rhai --poses run/pose.json --from size --axis x --metres 0.30 --write\n  agentstar scale --capture cap --model run/scene.rhai --poses run/pose.json --from hand"
 )]
 pub struct Args {
     #[command(flatten)]
@@ -64,6 +68,8 @@ pub fn run(a: Args) -> Result<ExitCode> {
     let s = a.session.open()?;
     let indices = select_frames(&s.capture, a.frames.as_deref())?;
     let scale = s.scale();
+    let mut uncertainty = None;
+    let mut palm_px: Vec<f64> = vec![];
     let (method, estimate, weak) = match a.method {
         Method::Depth => {
             let mut inputs = vec![];
@@ -144,6 +150,55 @@ pub fn run(a: Args) -> Result<ExitCode> {
                 false,
             )
         }
+        Method::Hand => {
+            let mut hands = vec![];
+            for &i in &indices {
+                if let Some(hand) = s.capture.load_hand(i)? {
+                    hands.push((i, hand));
+                }
+            }
+            if hands.is_empty() {
+                bail!(
+                    "{}: no keyframe asked for has a hand mask (mask_hand/<stem>.png); the hand route needs hands holding the object. Use depth, parallax or a stated size instead",
+                    a.session.capture.display()
+                );
+            }
+            let m = &s.model.model;
+            let frames: Vec<HandFrame<'_>> = hands
+                .iter()
+                .map(|(i, hand)| {
+                    let p = &s.poses[*i].generalised;
+                    let bounds = m.posed_bounds(&p.states);
+                    let placed = p.pose.with_scale(scale);
+                    let centre = placed.transform_point(&bounds.center());
+                    let cam = &s.capture.frames[*i].camera;
+                    HandFrame {
+                        name: s.capture.frames[*i].name.clone(),
+                        hand,
+                        focal_px: (cam.fx * cam.fy).sqrt(),
+                        object_depth_m: centre.z,
+                        object_radius_m: 0.5 * bounds.extent().norm() * scale,
+                    }
+                })
+                .collect();
+            let h = ratio_from_hand(&frames)?;
+            let mut e = h.estimate;
+            let weak = !e.notes.is_empty();
+            uncertainty = Some(h.uncertainty);
+            palm_px = h.palm_px;
+            e.notes.push(format!(
+                "assumes adult hands (palm breadth {:.1} ± {:.1} cm, approximate anthropometric figures) holding the object, so that the hand is at its depth: ± {:.0}% (one standard deviation; the truth lies within twice that about 95% of the time). Depth (`--from depth`) where the capture has it, parallax with metric cameras around an object that stays put, or a size you know (`--from size`) are better where they apply",
+                100.0 * PALM_BREADTH_MEAN_M,
+                100.0 * PALM_BREADTH_SD_M,
+                100.0 * h.uncertainty
+            ));
+            if s.capture.manifest.depth != "none" {
+                e.notes.push(
+                    "this capture has depth: `--from depth` measures the scale, the hand only estimates it".into(),
+                );
+            }
+            (ScaleMethod::Hand, e, weak)
+        }
     };
     let new_scale = scale * estimate.ratio;
     let mut pf = s.pose_file.clone();
@@ -159,13 +214,16 @@ pub fn run(a: Args) -> Result<ExitCode> {
         frames: estimate
             .per_frame
             .iter()
-            .map(|(f, v)| ScaleFrame {
+            .enumerate()
+            .map(|(k, (f, v))| ScaleFrame {
                 frame: f.clone(),
                 value: *v,
+                palm_px: palm_px.get(k).copied(),
             })
             .collect(),
         spread: estimate.spread,
         samples: estimate.samples,
+        uncertainty,
         notes: estimate.notes,
         weak,
         poses: a.out.clone(),
@@ -180,6 +238,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
                     ScaleMethod::Depth => "depth",
                     ScaleMethod::Parallax => "parallax",
                     ScaleMethod::Size => "size",
+                    ScaleMethod::Hand => "hand",
                 },
                 estimate.ratio
             ),
@@ -190,10 +249,14 @@ pub fn run(a: Args) -> Result<ExitCode> {
         print_json(&report)?;
     } else {
         println!(
-            "scale: {scale} -> {new_scale:.6} m per model unit (× {:.4}, spread {:.2}%, {} sample(s)){}",
+            "scale: {scale} -> {new_scale:.6} m per model unit (× {:.4}, spread {:.2}%, {} sample(s){}){}",
             report.ratio,
             100.0 * report.spread,
             report.samples,
+            match report.uncertainty {
+                Some(u) => format!(", ± {:.0}% one standard deviation", 100.0 * u),
+                None => String::new(),
+            },
             if report.written { "; pose.json rescaled" } else { "" }
         );
         for n in &report.notes {

@@ -67,14 +67,17 @@ pub fn run(a: Args) -> Result<ExitCode> {
     } else {
         appearance(&s, &frames)?
     };
+    let facing: Vec<_> = frames.iter().filter_map(|&i| s.facing(i)).collect();
     if a.json {
         print_json(&ScoreReport {
             frames: scores,
             sequence: summary.clone(),
             appearance,
+            facing,
         })?;
     } else {
         print_table(&scores, &summary, &appearance);
+        print!("{}", agentstar_reports::view::facing_lines(&facing));
     }
     Ok(if summary.below_gate.is_empty() {
         ExitCode::SUCCESS

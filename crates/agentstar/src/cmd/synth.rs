@@ -143,7 +143,7 @@ pub fn write_synth(dir: &Path, s: &SynthCapture) -> Result<()> {
             &model_dir.join("scene.rhai"),
             s.object.script.as_bytes(),
         )?;
-        let capture = crate::common::open_capture(root)
+        let capture = agentstar_data::capture::Capture::open(root)
             .map_err(|e| agentstar_data::DataError::invalid(root, e.to_string()))?;
         let poses: Vec<FramePose> = s
             .frames

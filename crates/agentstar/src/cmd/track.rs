@@ -9,9 +9,11 @@ use crate::common::{
 use agentstar_data::capture::{Capture, Frame};
 use agentstar_data::posefile::{partial_path, PoseFile};
 use agentstar_render::ScoreTarget;
+use agentstar_reports::BasinMoveRow;
 use agentstar_reports::TrackReport;
 use agentstar_track::tracker::{
-    track_from, track_video, TrackConfig, TrackFrame, TrackObserver, TrackSwitches,
+    track_from_with, track_video, BasinPolicy, TrackConfig, TrackFrame, TrackObserver,
+    TrackSwitches, BASIN_JOINT_DEG, BASIN_ROTATION_DEG,
 };
 use agentstar_track::GenPose;
 use anyhow::{anyhow, bail, Context, Result};
@@ -42,6 +44,13 @@ pub struct Args {
     /// stems or `a..b` ranges, comma separated, as --frames takes them).
     #[arg(long, requires = "from")]
     anchors: Option<String>,
+    /// With --from: keep every frame in its own basin: local refinement only, each frame
+    /// within 45° of rotation of its starting pose (half the nearest twin, a quarter turn:
+    /// no flip or twin is reached) and each joint within 30° (a prismatic joint: a sixth of
+    /// its range); no wide search and none of the passes that move frames between basins.
+    /// Without it, every frame moved further than 45° is named in the report.
+    #[arg(long, requires = "from")]
+    keep_basins: bool,
     /// Where to write the tracked poses. While the run goes, the poses so far are kept in
     /// OUT with the extension `.partial.json` (frames not tracked yet marked `"moved": false`),
     /// removed when the run finishes: a stopped run leaves them.
@@ -222,6 +231,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
             failed: std::sync::atomic::AtomicBool::new(false),
         },
     };
+    let mut basin_moves = Vec::new();
     let r = match (&from, &a.from) {
         (Some(f), Some(path)) => {
             let start: Vec<GenPose> = f
@@ -234,15 +244,33 @@ pub fn run(a: Args) -> Result<ExitCode> {
                 Some(spec) => select_frames(&capture, Some(spec)).context("--anchors")?,
                 None => vec![],
             };
-            track_from(
+            let policy = if a.keep_basins {
+                BasinPolicy::Keep
+            } else {
+                BasinPolicy::Search
+            };
+            let w = track_from_with(
                 &model.model,
                 scale,
                 &frames,
-                &start,
-                &anchors,
+                (&start, &anchors),
+                policy,
                 &cfg,
                 &observe,
-            )?
+            )?;
+            basin_moves = w
+                .basin_moves
+                .iter()
+                .map(|m| BasinMoveRow {
+                    frame: capture.frames[m.frame].name.clone(),
+                    rotation_deg: m.rotation_deg,
+                    bound_deg: BASIN_ROTATION_DEG,
+                    iou_before: m.iou_before,
+                    iou_after: m.iou_after,
+                    pass: m.pass.clone(),
+                })
+                .collect();
+            w.result
         }
         _ => track_video(&model.model, scale, &frames, &between, &cfg, &observe)?,
     };
@@ -289,6 +317,8 @@ pub fn run(a: Args) -> Result<ExitCode> {
             frames: scores,
             sequence: summary,
             pose_version: Some(version),
+            keep_basins: a.keep_basins,
+            basin_moves,
         })?;
     } else {
         println!(
@@ -298,6 +328,20 @@ pub fn run(a: Args) -> Result<ExitCode> {
             capture.frames[r.init_frame].name,
             a.out.display()
         );
+        if a.keep_basins {
+            println!(
+                "basins kept: every frame within {BASIN_ROTATION_DEG}° of rotation and {BASIN_JOINT_DEG}° of joint of its starting pose"
+            );
+        }
+        if !basin_moves.is_empty() {
+            println!(
+                "{} frame(s) moved to another basin (further than {BASIN_ROTATION_DEG}° from the --from pose; --keep-basins keeps them):",
+                basin_moves.len()
+            );
+            for m in &basin_moves {
+                println!("  {}", m.line());
+            }
+        }
         print_table(&scores, &summary, &[]);
     }
     Ok(ExitCode::SUCCESS)

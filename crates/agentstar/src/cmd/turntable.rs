@@ -9,7 +9,7 @@ use agentstar_data::posefile::PoseFile;
 use agentstar_geom::{KinematicTree, ObjectModel, UnitQuaternion};
 use agentstar_render::sheet::sheet_pages;
 use agentstar_render::views::{
-    flatten, shade, sphere8, turntable_camera, turntable_pose, ShadeOptions, TurntableView,
+    flatten, shade_model, sphere8, turntable_camera, turntable_pose, ShadeOptions, TurntableView,
     TURNTABLE_BACKGROUND,
 };
 use agentstar_render::{render_full, PosedModel};
@@ -83,16 +83,18 @@ pub fn turntable_tiles(
     fov: f64,
 ) -> Vec<(String, RgbImage, TurntableView)> {
     let camera = turntable_camera(size, fov);
-    let colors: Vec<[f32; 3]> = model.parts.iter().map(|p| p.color).collect();
     sphere8()
         .into_iter()
         .map(|v| {
             let pose = turntable_pose(model, states, reference_rotation, &v, fov);
             let posed = PosedModel::new(model, states, &pose);
+            let buffers = render_full(&camera, &posed.instances);
             let img = flatten(
-                &shade(
-                    &render_full(&camera, &posed.instances),
-                    &colors,
+                &shade_model(
+                    model,
+                    &posed.instances,
+                    &camera,
+                    &buffers,
                     ShadeOptions::default(),
                 ),
                 TURNTABLE_BACKGROUND,

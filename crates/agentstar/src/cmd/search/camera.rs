@@ -160,6 +160,8 @@ pub fn run_sweep(a: SweepArgs) -> Result<ExitCode> {
             rows: rows_from(r, &space, tree),
             extra,
             notes,
+            pages: vec![],
+            draw_all: false,
         });
     }
     write_outputs(
@@ -224,6 +226,8 @@ fn run_candidates(a: &SweepArgs, s: &Session, list: &str) -> Result<ExitCode> {
             rows,
             extra: json!({"method": "candidates", "n": orders.len()}),
             notes: vec![],
+            pages: vec![],
+            draw_all: false,
         });
     }
     write_outputs(SearchVerb::Sweep, s, &a.common, &frames, outputs, json!({}))
@@ -341,6 +345,8 @@ pub fn run_apply(a: ApplyArgs) -> Result<ExitCode> {
             rows: rows_from(r, &space, tree),
             extra: json!({"method": "apply", "order": a.order}),
             notes: space.notes.clone(),
+            pages: vec![],
+            draw_all: false,
         });
     }
     write_outputs(

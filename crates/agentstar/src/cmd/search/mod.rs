@@ -13,10 +13,10 @@ use agentstar_data::images::save_png_rgb;
 use agentstar_data::posefile::pose_json;
 use agentstar_geom::{KinematicTree, Point3, UnitQuaternion};
 use agentstar_render::frames::{crop_box, crop_zoomed, widened};
-use agentstar_render::sheet::sheet_pages;
-use agentstar_render::views::{overlay, shade, silhouette_comparison, ShadeOptions};
+use agentstar_render::sheet::{sheet_layout, sheet_pages};
+use agentstar_render::views::{overlay, shade_model, silhouette_comparison, ShadeOptions};
 use agentstar_render::{render_full, BitMask, PosedModel};
-use agentstar_reports::{Candidate, SearchFrame, SearchReport, SearchVerb};
+use agentstar_reports::{Candidate, SearchFrame, SearchReport, SearchVerb, SheetPage};
 use agentstar_track::hypotheses::{hinge_swaps, refine_each, refine_ranked, LocalWindow};
 use agentstar_track::objective::{CandidateScore, FrameProblem};
 use agentstar_track::search::{sweep, Strategy, SweepConfig, SweepResult};
@@ -147,24 +147,23 @@ fn space_json(space: &SearchSpace, tree: &KinematicTree) -> Value {
 /// of the box's longer side.
 const SHEET_MARGIN: f64 = 0.15;
 
-/// The candidate sheet of one frame, as pages within the image limits: per finalist, the
-/// render over the frame, the render opaque on the frame and the silhouette comparison (one
-/// finalist a row), cropped to
-/// the mask and every finalist's silhouette with a margin (the same crop for all, so they
-/// compare), labelled with rank, score and order.
+/// The candidate sheet of one frame, as pages within the image limits, each with the ranks
+/// it draws: per finalist, the render over the frame, the render opaque on the frame and the
+/// silhouette comparison (one finalist a row), cropped to the mask and every finalist's
+/// silhouette with a margin (the same crop for all, so they compare), labelled with rank,
+/// score and order.
 fn candidate_sheet(
     s: &Session,
     i: usize,
     rows: &[Row],
     limit: usize,
     title: &str,
-) -> Result<Vec<RgbImage>> {
+) -> Result<Vec<(RgbImage, Vec<usize>)>> {
     let frame = s.capture.load_frame(i)?;
     let (target, _) = s.target(i)?;
     let cam = s.capture.frames[i].camera;
-    let colors: Vec<[f32; 3]> = s.model.model.parts.iter().map(|p| p.color).collect();
     let hand = target.keep().map(|k| k.not());
-    let shown: Vec<(&Row, agentstar_render::RenderBuffers)> = rows
+    let shown: Vec<(&Row, agentstar_render::RenderBuffers, image::RgbaImage)> = rows
         .iter()
         .take(limit.max(1))
         .map(|r| {
@@ -173,10 +172,18 @@ fn candidate_sheet(
                 &r.pose.states,
                 &r.pose.pose.with_scale(s.scale()),
             );
-            (r, render_full(&cam, &posed.instances))
+            let buffers = render_full(&cam, &posed.instances);
+            let shaded = shade_model(
+                &s.model.model,
+                &posed.instances,
+                &cam,
+                &buffers,
+                ShadeOptions::default(),
+            );
+            (r, buffers, shaded)
         })
         .collect();
-    let silhouettes: Vec<BitMask> = shown.iter().map(|(_, b)| b.silhouette()).collect();
+    let silhouettes: Vec<BitMask> = shown.iter().map(|(_, b, _)| b.silhouette()).collect();
     let union = silhouettes
         .iter()
         .skip(1)
@@ -197,20 +204,46 @@ fn candidate_sheet(
     // opaque (its print against the frame's, as `render side` shows it: play-tests 8 and 10
     // could not tell the model's print from the frame's under the translucent overlay), and
     // the silhouette comparison.
-    for ((r, buffers), sil) in shown.iter().zip(&silhouettes) {
-        let shaded = shade(buffers, &colors, ShadeOptions::default());
+    for ((r, _, shaded), sil) in shown.iter().zip(&silhouettes) {
         let (cmp, _) = silhouette_comparison(sil, target.mask(), hand.as_ref());
         tiles.push((
             format!("#{} IoU {:.4} {}", r.rank, r.score.gate, r.label),
-            cut(&overlay(&frame, &shaded, 0.6)),
+            cut(&overlay(&frame, shaded, 0.6)),
         ));
         tiles.push((
             format!("#{} model (opaque)", r.rank),
-            cut(&overlay(&frame, &shaded, 1.0)),
+            cut(&overlay(&frame, shaded, 1.0)),
         ));
         tiles.push((format!("#{} compare", r.rank), cut(&cmp)));
     }
-    Ok(sheet_pages(&tiles, 3, title))
+    // One finalist a row of three tiles: a page holds whole rows, so whole finalists.
+    let layout = sheet_layout(&tiles, TILES_PER_CANDIDATE, title);
+    let per_page = (layout.columns * layout.rows_per_page / TILES_PER_CANDIDATE).max(1);
+    let ranks: Vec<usize> = shown.iter().map(|(r, _, _)| r.rank).collect();
+    let pages = sheet_pages(&tiles, TILES_PER_CANDIDATE, title);
+    let groups: Vec<Vec<usize>> = ranks.chunks(per_page).map(<[usize]>::to_vec).collect();
+    Ok(pages
+        .into_iter()
+        .zip(groups.into_iter().chain(std::iter::repeat(vec![])))
+        .collect())
+}
+
+/// Tiles per finalist on a candidate sheet (and its columns): over the frame, opaque,
+/// compared.
+const TILES_PER_CANDIDATE: usize = 3;
+
+/// The ranks `ranks` as people read them: `0–5`, or `0, 2, 7` where they are not a run.
+fn rank_list(ranks: &[usize]) -> String {
+    match ranks {
+        [] => "none".to_string(),
+        [one] => format!("#{one}"),
+        [first, .., last] if last - first + 1 == ranks.len() => format!("#{first}–#{last}"),
+        _ => ranks
+            .iter()
+            .map(|r| format!("#{r}"))
+            .collect::<Vec<_>>()
+            .join(", "),
+    }
 }
 
 /// The least width over height of a sweep sheet's tile, and the long side its crop is
@@ -281,6 +314,11 @@ struct FrameOutput {
     rows: Vec<Row>,
     extra: Value,
     notes: Vec<String>,
+    /// The sheet's pages, once drawn.
+    pages: Vec<SheetPage>,
+    /// Draw every row on the sheet (a preset's or a set's candidates), paged as needed;
+    /// else the first `--sheet` rows.
+    draw_all: bool,
 }
 
 fn write_outputs(
@@ -288,7 +326,7 @@ fn write_outputs(
     s: &Session,
     c: &Common,
     frames: &[usize],
-    outputs: Vec<FrameOutput>,
+    mut outputs: Vec<FrameOutput>,
     details: Value,
 ) -> Result<ExitCode> {
     let dir = out_dir(&c.out)?;
@@ -296,16 +334,18 @@ fn write_outputs(
     let report_path = verb.report_path(&dir);
     let mut text = String::new();
     let mut report_frames = Vec::new();
-    for (o, &i) in outputs.iter().zip(frames) {
+    for (o, &i) in outputs.iter_mut().zip(frames) {
         let sheet = verb.sheet_path(&dir, &s.capture.frames[i].stem);
+        let limit = if o.draw_all { o.rows.len() } else { c.sheet };
         let pages = candidate_sheet(
             s,
             i,
             &o.rows,
-            c.sheet,
+            limit,
             &format!("{} {}", verb.stem(), o.frame),
         )?;
-        for (k, page) in pages.iter().enumerate() {
+        let mut sheet_pages = Vec::new();
+        for (k, (page, ranks)) in pages.iter().enumerate() {
             // The first page is the report's sheet; further pages beside it.
             let p = if k == 0 {
                 sheet.clone()
@@ -318,7 +358,35 @@ fn write_outputs(
                 ))
             };
             save_png_rgb(page, &p)?;
+            sheet_pages.push(SheetPage {
+                path: p,
+                ranks: ranks.clone(),
+            });
         }
+        // Which page draws which candidates, and which are not drawn.
+        let drawn: usize = sheet_pages.iter().map(|p| p.ranks.len()).sum();
+        if sheet_pages.len() > 1 || drawn < o.rows.len() {
+            let mut line = format!("sheet: {} of {} candidates drawn", drawn, o.rows.len());
+            for (k, p) in sheet_pages.iter().enumerate() {
+                let name = p
+                    .path
+                    .file_name()
+                    .map(|n| n.to_string_lossy().into_owned())
+                    .unwrap_or_default();
+                line.push_str(&format!(
+                    "; page {}/{} ({name}): {}",
+                    k + 1,
+                    sheet_pages.len(),
+                    rank_list(&p.ranks)
+                ));
+            }
+            if drawn < o.rows.len() {
+                let rest: Vec<usize> = o.rows.iter().skip(drawn).map(|r| r.rank).collect();
+                line.push_str(&format!("; not drawn: {}", rank_list(&rest)));
+            }
+            o.notes.push(line);
+        }
+        o.pages = sheet_pages;
         text.push_str(&text_report(
             verb.stem(),
             &o.frame,
@@ -333,6 +401,7 @@ fn write_outputs(
             sheet,
             notes: o.notes.clone(),
             search: o.extra.clone(),
+            pages: o.pages.clone(),
             ranked: o
                 .rows
                 .iter()

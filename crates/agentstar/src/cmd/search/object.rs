@@ -166,8 +166,9 @@ pub fn run_osweep(a: OsweepArgs) -> Result<ExitCode> {
             (
                 space,
                 SweepConfig {
+                    // Every candidate of the preset is ranked (and drawn).
+                    topk: a.topk.max(cands.len()),
                     strategy: Strategy::Candidates(cands.iter().map(|c| c.1.to_vec()).collect()),
-                    topk: a.topk,
                     ..SweepConfig::default()
                 },
             )
@@ -203,6 +204,9 @@ pub fn run_osweep(a: OsweepArgs) -> Result<ExitCode> {
             rows,
             extra: json!({"method": "osweep", "space": space_json(&space, tree)}),
             notes: space.notes.clone(),
+            pages: vec![],
+            // Every candidate of a preset or a set is drawn.
+            draw_all: a.request.opreset.is_some(),
         });
     }
     write_outputs(
@@ -216,9 +220,11 @@ pub fn run_osweep(a: OsweepArgs) -> Result<ExitCode> {
 }
 
 /// Where a refined candidate ended, relative to the frame's pose: its object-frame rotation
-/// as one rotation vector (`rx:…;ry:…;rz:…`, degrees, as `oapply` reads it) and its joint
-/// states (interface units), then in brackets the named turn it is near, if any (not part
-/// of the order: copy up to the bracket).
+/// as one rotation vector (`rx:…;ry:…;rz:…`, degrees, as `oapply` reads it) and its final
+/// joint states (interface units), then in brackets the whole turn as an angle about an
+/// object axis and the named turn it is near, if any (not part of the order: copy up to the
+/// bracket). Play-test: an `oapply` row labelled `rz:-135` whose refinement ended 180° away
+/// moved the print by 180° when committed.
 fn refined_to(base: &GenPose, pose: &GenPose, tree: &KinematicTree) -> String {
     let q = base.pose.rotation.inverse() * pose.pose.rotation;
     let turn = q.scaled_axis().map(f64::to_degrees);
@@ -226,8 +232,16 @@ fn refined_to(base: &GenPose, pose: &GenPose, tree: &KinematicTree) -> String {
     for (name, value) in tree.states_to_interface(&pose.states) {
         out.push_str(&format!(";{name}:{value:.1}"));
     }
-    if let Some((name, deg)) = nearest_named_turn(&q) {
-        out.push_str(&format!(" [≈ {name}, {deg:.0}° from it]"));
+    let angle = q.angle().to_degrees();
+    let about = match q.axis() {
+        Some(a) if angle >= 0.05 => {
+            format!("{angle:.0}° about ({:.2}, {:.2}, {:.2})", a.x, a.y, a.z)
+        }
+        _ => "no turn".to_string(),
+    };
+    match nearest_named_turn(&q) {
+        Some((name, deg)) => out.push_str(&format!(" [{about}; ≈ {name}, {deg:.0}° from it]")),
+        None => out.push_str(&format!(" [{about}]")),
     }
     out
 }
@@ -475,6 +489,13 @@ pub fn run_oapply(a: OapplyArgs) -> Result<ExitCode> {
         rows.sort_by(|x, y| y.score.combined.total_cmp(&x.score.combined));
         for (k, r) in rows.iter_mut().enumerate() {
             r.rank = k;
+            // The candidate as asked, then where it ended (refined or as placed): its turn
+            // from the frame's pose and its final joint states.
+            r.label = format!(
+                "{} → {}",
+                r.label,
+                refined_to(&p.base, &r.pose, &s.model.model.tree)
+            );
         }
         with_model_agreement(&s, i, &mut rows)?;
         outputs.push(FrameOutput {
@@ -482,6 +503,9 @@ pub fn run_oapply(a: OapplyArgs) -> Result<ExitCode> {
             rows,
             extra: json!({"method": "oapply", "set": a.request.set()}),
             notes: vec![],
+            pages: vec![],
+            // Every candidate of a preset or a set is drawn.
+            draw_all: true,
         });
     }
     write_outputs(
@@ -526,6 +550,9 @@ pub fn run_oapply_all(a: OapplyAllArgs) -> Result<ExitCode> {
             }],
             extra: json!({"method": "oapply_all"}),
             notes: vec![],
+            pages: vec![],
+            // Every candidate of a preset or a set is drawn.
+            draw_all: false,
         });
     }
     // Where the rotated frames meet the others, the step before and after it: turning a

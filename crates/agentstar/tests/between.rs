@@ -1,0 +1,266 @@
+//! In-between frames (`formats.md` §2) end to end: a clip whose frames between keyframes are
+//! kept goes through `capture from-video`, `validate`, `track` (which follows them),
+//! `score`, `report` and `eval`; keyframe tools see the keyframes only.
+
+mod support;
+
+use serde_json::Value;
+use std::path::Path;
+use support::{agentstar, json_of, s, text};
+
+/// Copies the PNG files of `from` into `to` (a new folder).
+fn copy_pngs(from: &Path, to: &Path) {
+    std::fs::create_dir_all(to).expect("dir");
+    for entry in std::fs::read_dir(from).expect("read dir") {
+        let path = entry.expect("entry").path();
+        if path.extension().is_some_and(|e| e == "png") {
+            std::fs::copy(&path, to.join(path.file_name().expect("name"))).expect("copy");
+        }
+    }
+}
+
+#[test]
+fn a_clip_with_in_between_frames_goes_from_video_to_report() {
+    let dir = tempfile::tempdir().expect("tmp");
+    let p = |n: &str| dir.path().join(n);
+    // 5 keyframes 5 video frames apart, the 4 frames between each pair kept: 21 frames.
+    let o = agentstar(&[
+        "synth",
+        &s(&p("clip")),
+        "--object",
+        "box",
+        "--motion",
+        "handheld",
+        "--frames",
+        "5",
+        "--size",
+        "160x120",
+        "--seed",
+        "3",
+        "--between",
+        "4",
+        "--no-depth",
+    ]);
+    assert!(o.status.success(), "synth: {}", text(&o));
+    let v = json_of::<Value>(&agentstar(&["validate", &s(&p("clip")), "--json"]));
+    assert_eq!(v["valid"], true, "{v}");
+    assert_eq!(v["frames"], 5, "{v}");
+    assert_eq!(v["between_frames"], 16, "{v}");
+    // The same frames and masks as a frame folder, cut again by from-video.
+    copy_pngs(&p("clip/frames"), &p("frames"));
+    copy_pngs(&p("clip/mask_object"), &p("masks"));
+    let o = agentstar(&[
+        "capture",
+        "from-video",
+        &s(&p("frames")),
+        "--masks",
+        &s(&p("masks")),
+        "--every",
+        "5",
+        "--between",
+        "--intrinsics",
+        "152,152,80,60",
+        "--out",
+        &s(&p("cap")),
+    ]);
+    assert!(o.status.success(), "from-video: {}", text(&o));
+    let v = json_of::<Value>(&agentstar(&["validate", &s(&p("cap")), "--json"]));
+    assert_eq!(v["valid"], true, "{v}");
+    assert_eq!(
+        (v["frames"].clone(), v["between_frames"].clone()),
+        (5.into(), 16.into())
+    );
+    // A stride keeps fewer: every 2nd frame after each keyframe.
+    let o = agentstar(&[
+        "capture",
+        "from-video",
+        &s(&p("frames")),
+        "--masks",
+        &s(&p("masks")),
+        "--every",
+        "5",
+        "--between",
+        "2",
+        "--intrinsics",
+        "152,152,80,60",
+        "--out",
+        &s(&p("cap2")),
+    ]);
+    assert!(o.status.success(), "from-video --between 2: {}", text(&o));
+    let v = json_of::<Value>(&agentstar(&["validate", &s(&p("cap2")), "--json"]));
+    assert_eq!(v["between_frames"], 8, "{v}");
+    // Tracked through the video, the in-between poses written too.
+    let model = s(&p("clip/model/scene.rhai"));
+    let truth = s(&p("clip/model/pose.json"));
+    let o = agentstar(&[
+        "track",
+        &s(&p("cap")),
+        "--model",
+        &model,
+        "--scale-from",
+        &truth,
+        "--write-between",
+        "--out",
+        &s(&p("run/pose.json")),
+        "--json",
+    ]);
+    assert!(o.status.success(), "track: {}", text(&o));
+    let report: Value = json_of(&o);
+    assert_eq!(
+        report["frames"].as_array().map(Vec::len),
+        Some(5),
+        "keyframes scored"
+    );
+    let log = report["log"].to_string();
+    assert!(log.contains("followed 4 in-between frame(s)"), "{log}");
+    let poses: Value =
+        serde_json::from_str(&std::fs::read_to_string(p("run/pose.json")).expect("read"))
+            .expect("json");
+    let frames = poses["frames"].as_object().expect("frames");
+    let between: Vec<&String> = frames
+        .iter()
+        .filter(|(_, e)| e["between"] == true)
+        .map(|(k, _)| k)
+        .collect();
+    assert_eq!(between.len(), 16, "{between:?}");
+    assert_eq!(frames.len(), 21);
+    // Keyframe tools read the keyframes' poses and leave the in-between ones alone.
+    let o = agentstar(&[
+        "score",
+        "--capture",
+        &s(&p("cap")),
+        "--model",
+        &model,
+        "--poses",
+        &s(&p("run/pose.json")),
+        "--json",
+    ]);
+    let scored: Value = json_of(&o);
+    assert_eq!(
+        scored["frames"].as_array().map(Vec::len),
+        Some(5),
+        "{scored}"
+    );
+    assert!(
+        text(&o).contains("16 in-between frame(s) besides its 5 keyframes"),
+        "{}",
+        text(&o)
+    );
+    std::fs::copy(&model, p("run/scene.rhai")).expect("model");
+    let o = agentstar(&["report", &s(&p("run")), "--capture", &s(&p("cap"))]);
+    assert!(o.status.success(), "report: {}", text(&o));
+    // On the synthetic clip itself (it has ground truth), tracking through the video and
+    // keyframes alone both reach the truth; eval reads the keyframes.
+    for (label, extra) in [("video", None), ("keyframes", Some("--no-between"))] {
+        let out = p(&format!("{label}/pose.json"));
+        let mut args = vec![
+            "track".to_string(),
+            s(&p("clip")),
+            "--model".into(),
+            model.clone(),
+            "--scale-from".into(),
+            truth.clone(),
+            "--out".into(),
+            s(&out),
+        ];
+        args.extend(extra.map(String::from));
+        let args: Vec<&str> = args.iter().map(String::as_str).collect();
+        let o = agentstar(&args);
+        assert!(o.status.success(), "track ({label}): {}", text(&o));
+        let o = agentstar(&[
+            "eval",
+            "--capture",
+            &s(&p("clip")),
+            "--model",
+            &model,
+            "--poses",
+            &s(&out),
+            "--json",
+        ]);
+        assert!(o.status.success(), "eval ({label}): {}", text(&o));
+        let e: Value = json_of(&o);
+        assert_eq!(e["frames"], 5, "{e}");
+        let epe = e["epe_cm"].as_f64().expect("epe");
+        let rotation = e["rotation_mean_deg"].as_f64().expect("rotation");
+        assert!(
+            epe < 1.0 && rotation < 3.0,
+            "{label}: EPE {epe} cm, {rotation}°"
+        );
+    }
+}
+
+#[test]
+fn bad_in_between_options_are_refused_with_messages() {
+    let dir = tempfile::tempdir().expect("tmp");
+    let p = |n: &str| dir.path().join(n);
+    let o = agentstar(&[
+        "synth",
+        &s(&p("clip")),
+        "--object",
+        "box",
+        "--frames",
+        "3",
+        "--size",
+        "64x48",
+        "--between",
+        "60",
+    ]);
+    assert!(!o.status.success());
+    assert!(text(&o).contains("between must be 0 to 59"), "{}", text(&o));
+    let o = agentstar(&[
+        "synth",
+        &s(&p("clip")),
+        "--object",
+        "box",
+        "--frames",
+        "3",
+        "--size",
+        "64x48",
+        "--between",
+        "2",
+        "--no-depth",
+    ]);
+    assert!(o.status.success(), "{}", text(&o));
+    copy_pngs(&p("clip/frames"), &p("frames"));
+    copy_pngs(&p("clip/mask_object"), &p("masks"));
+    // The frame between the first two keyframes loses its mask: named, nothing written.
+    std::fs::remove_file(p("masks/000001.png")).expect("rm");
+    let o = agentstar(&[
+        "capture",
+        "from-video",
+        &s(&p("frames")),
+        "--masks",
+        &s(&p("masks")),
+        "--every",
+        "3",
+        "--between",
+        "--fov",
+        "60",
+        "--out",
+        &s(&p("cap")),
+    ]);
+    assert!(!o.status.success());
+    assert!(
+        text(&o).contains("000001") && text(&o).contains("in-between"),
+        "{}",
+        text(&o)
+    );
+    assert!(!p("cap").exists(), "nothing half-written");
+    let o = agentstar(&[
+        "capture",
+        "from-video",
+        &s(&p("frames")),
+        "--masks",
+        &s(&p("masks")),
+        "--every",
+        "3",
+        "--between",
+        "0",
+        "--fov",
+        "60",
+        "--out",
+        &s(&p("cap")),
+    ]);
+    assert!(!o.status.success());
+    assert!(text(&o).contains("between 0"), "{}", text(&o));
+}
