@@ -329,7 +329,7 @@ pub fn run_sequence_observed(
     let result = SequenceResult::from_metrics(
         RunInfo {
             id,
-            object: capture.object.name.into(),
+            object: capture.object.name.to_string(),
             family: capture.object.family.as_str().into(),
             motion: capture.motion.as_str().into(),
             method: method.as_str().into(),

@@ -69,11 +69,38 @@ pub fn hard_sequence(object: &str, seed: u64) -> SequenceSpec {
     }
 }
 
+/// The generated objects of the `general` suite: `gen-N` for N in this range of generator
+/// seeds ([`agentstar_synth::generate`]). Nothing is tuned to any of them; to look at a single
+/// case, pick its seed (`--only gen-7`), and to look at others, change this range, never a
+/// constant of the generator or the tracker.
+pub const GENERAL_OBJECT_SEEDS: std::ops::Range<u64> = 0..24;
+
+/// The capture seeds of each generated object in the `general` suite.
+pub const GENERAL_CAPTURE_SEEDS: usize = 3;
+
+/// The `general` suite: every generated object of [`GENERAL_OBJECT_SEEDS`] in
+/// [`GENERAL_CAPTURE_SEEDS`] captures of the hard suite's kind ([`hard_sequence`]), seeds
+/// `1000 + 10·N + k`.
+pub fn general_suite() -> Vec<SequenceSpec> {
+    GENERAL_OBJECT_SEEDS
+        .flat_map(|n| {
+            (0..GENERAL_CAPTURE_SEEDS as u64).map(move |k| {
+                hard_sequence(
+                    &agentstar_synth::generate::object_name(n),
+                    1000 + 10 * n + k,
+                )
+            })
+        })
+        .collect()
+}
+
 /// The suites: `quick` (one sequence per dataset family, small images, for CI), `full`
 /// (every object of the default library with its dataset's motion, 15 keyframes as HOT3D's
 /// protocol, plus sequences with segmenter noise on the masks) and `hard` (objects whose
 /// outlines repeat under rotations or part swaps, in captures like real hand-held ones; see
-/// [`hard_sequence`]; run by hand, not in CI). `None` for an unknown name.
+/// [`hard_sequence`]; run by hand, not in CI) and `general` (objects generated at random from
+/// primitives and joints, in the hard suite's captures, three seeds each; [`general_suite`];
+/// by hand). `None` for an unknown name.
 pub fn suite(name: &str) -> Option<Vec<SequenceSpec>> {
     match name {
         "quick" => Some(vec![
@@ -84,9 +111,9 @@ pub fn suite(name: &str) -> Option<Vec<SequenceSpec>> {
         "full" => {
             let mut v: Vec<SequenceSpec> = LIBRARY
                 .iter()
-                .filter(|o| !HARD_OBJECTS.contains(&o.name))
+                .filter(|o| !HARD_OBJECTS.contains(&o.name.as_ref()))
                 .enumerate()
-                .map(|(i, o)| SequenceSpec::new(o.name, None, 15, (320, 240), 100 + i as u64))
+                .map(|(i, o)| SequenceSpec::new(&o.name, None, 15, (320, 240), 100 + i as u64))
                 .collect();
             v.push(SequenceSpec::new("laptop", None, 15, (320, 240), 200).with_mask_noise(1.5));
             v.push(SequenceSpec::new("bottle", None, 15, (320, 240), 201).with_mask_noise(1.5));
@@ -100,9 +127,10 @@ pub fn suite(name: &str) -> Option<Vec<SequenceSpec>> {
                 .map(|(i, o)| hard_sequence(o, 300 + i as u64))
                 .collect(),
         ),
+        "general" => Some(general_suite()),
         _ => None,
     }
 }
 
 /// The names of the suites.
-pub const SUITES: [&str; 3] = ["quick", "full", "hard"];
+pub const SUITES: [&str; 4] = ["quick", "full", "hard", "general"];

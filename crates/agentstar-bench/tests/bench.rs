@@ -552,3 +552,142 @@ fn a_full_sequence_matches_an_independent_numpy_implementation() {
         .expect("door");
     assert!((door.state_error.expect("s") - 3f64.to_radians()).abs() < 1e-6);
 }
+
+#[test]
+fn the_general_suite_has_24_generated_objects_in_three_hard_captures_each() {
+    use agentstar_bench::suite::{hard_sequence, SUITES};
+    use agentstar_synth::{Motion, ObjectSpec, Symmetry};
+    assert!(SUITES.contains(&"general"));
+    let specs = agentstar_bench::suite("general").expect("general");
+    let mut objects: Vec<&str> = specs.iter().map(|s| s.synth.object.as_str()).collect();
+    objects.dedup();
+    assert!(objects.len() >= 24, "{objects:?}");
+    assert_eq!(specs.len(), 3 * objects.len());
+    for o in &objects {
+        let seeds: std::collections::BTreeSet<u64> = specs
+            .iter()
+            .filter(|s| s.synth.object == *o)
+            .map(|s| s.synth.seed)
+            .collect();
+        assert_eq!(seeds.len(), 3, "{o}: three capture seeds");
+    }
+    for s in &specs {
+        // The hard suite's captures, with only the object and seed changed.
+        assert_eq!(s.synth, hard_sequence(&s.synth.object, s.synth.seed).synth);
+        assert_eq!(s.synth.motion, Some(Motion::HardHeld));
+        assert_eq!(s.synth.frames, 20);
+        assert_eq!(s.synth.between, 0);
+    }
+    // A mix: rigid and articulated; real symmetries (a plain body), symmetric outlines told
+    // apart by a print, and objects with none.
+    let resolved: Vec<ObjectSpec> = objects
+        .iter()
+        .map(|o| ObjectSpec::resolve(o).expect("generated"))
+        .collect();
+    let articulated = resolved
+        .iter()
+        .filter(|o| o.family == agentstar_synth::Family::Arctic)
+        .count();
+    let symmetric = resolved
+        .iter()
+        .filter(|o| o.symmetry != Symmetry::None)
+        .count();
+    assert!(
+        articulated >= 6 && resolved.len() - articulated >= 6,
+        "{articulated}"
+    );
+    assert!(
+        symmetric >= 6 && resolved.len() - symmetric >= 6,
+        "{symmetric}"
+    );
+}
+
+#[test]
+fn a_generated_object_is_tracked_and_its_errors_reduced_by_its_symmetries() {
+    // gen-0: a plain body (its symmetries are real), in a short capture with in-between
+    // frames, as `--between 2` makes the general suite's.
+    let spec = agentstar_synth::ObjectSpec::resolve("gen-0").expect("generated");
+    assert_ne!(spec.symmetry, agentstar_synth::Symmetry::None);
+    let capture = synthesize(&SynthConfig {
+        between: 2,
+        ..small("gen-0", 4)
+    })
+    .expect("synth");
+    assert_eq!(capture.between.len(), 2 * (capture.frames.len() - 1));
+    let (r, poses) = run_sequence(
+        &capture,
+        Method::Tracker,
+        &RunConfig {
+            local_evals: 600,
+            samples: 2000,
+            ..RunConfig::default()
+        },
+    )
+    .expect("run");
+    assert_eq!(poses.len(), capture.frames.len());
+    let reduced = r
+        .symmetry_reduced
+        .as_ref()
+        .expect("reduced by its symmetries");
+    assert_eq!(reduced.symmetries, spec.symmetry.rotations().len());
+    // Reduction picks, per frame, the equivalent truth nearest the prediction: never worse.
+    let (raw, sym) = (
+        r.metrics.rotation_mean_deg.expect("raw"),
+        reduced.rotation_mean_deg.expect("sym"),
+    );
+    assert!(sym <= raw + 1e-9, "{sym} > {raw}");
+    assert_eq!(r.object, "gen-0");
+}
+
+#[test]
+fn the_general_table_gives_the_share_within_1cm_3deg_and_quantiles() {
+    use agentstar_bench::run::ReducedErrors;
+    use agentstar_bench::table::{general_table, histogram, quantile};
+    let reduced = |epe: f64, rot: f64| ReducedErrors {
+        symmetries: 3,
+        epe_cm: Some(epe),
+        rotation_mean_deg: Some(rot),
+        rotation_median_deg: Some(rot),
+        translation_mean_cm: Some(0.1),
+        translation_median_cm: Some(0.1),
+    };
+    let mut rs = vec![
+        fake("gen-0-hard-held-s1000", "hot3d", "tracker", 5.0, 0.95),
+        fake("gen-0-hard-held-s1001", "hot3d", "tracker", 0.4, 0.97),
+        fake("gen-2-hard-held-s1020", "arctic", "tracker", 0.8, 0.96),
+        fake("gen-2-hard-held-s1021", "arctic", "tracker", 2.0, 0.9),
+    ];
+    // gen-0 lists symmetries: its first sequence is within after reduction, not before.
+    rs[0].symmetry_reduced = Some(reduced(0.6, 2.0));
+    rs[1].symmetry_reduced = Some(reduced(0.4, 1.0));
+    for r in &mut rs {
+        r.object = r.id.split("-hard").next().unwrap_or_default().into();
+    }
+    let t = general_table(&rs);
+    // Within 1 cm and 3°: s1000 (after reduction), s1001, s1020; not s1021 (2 cm).
+    assert!(t.contains("| tracker · all | 2 | 4 | 3 (75%) |"), "{t}");
+    assert!(t.contains("| tracker · rigid | 1 | 2 | 2 (100%) |"), "{t}");
+    assert!(
+        t.contains("| tracker · no symmetry | 1 | 2 | 1 (50%) |"),
+        "{t}"
+    );
+    // EPE after reduction: 0.4, 0.6, 0.8, 2.0, by linear interpolation.
+    assert!(
+        t.contains("| 0.40 / 0.55 / 0.70 / 1.10 / 1.64 / 2.00 |"),
+        "{t}"
+    );
+    assert!(
+        t.contains("EPE sym. (cm): ≤ 0.5: 1 · 0.5–1: 2 · 1–2: 1 · 2–5: 0"),
+        "{t}"
+    );
+    assert!(
+        t.contains("| gen-2-hard-held-s1021 | tracker | articulated | 0 |"),
+        "{t}"
+    );
+    assert_eq!(quantile(&[], 0.5), None);
+    assert_eq!(quantile(&[1.0, 3.0], 0.5), Some(2.0));
+    assert_eq!(
+        histogram(&[0.5, 0.6, 11.0], &[0.5, 1.0, 10.0]),
+        vec![1, 1, 0, 1]
+    );
+}

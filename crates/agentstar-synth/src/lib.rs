@@ -11,13 +11,14 @@
 //! (`agentstar bench`).
 
 pub mod environment;
+pub mod generate;
 pub mod hand;
 pub mod motion;
 pub mod noise;
 pub mod objects;
 
 pub use motion::Motion;
-pub use objects::{Appearance, Family, ObjectSpec, Symmetry, LIBRARY};
+pub use objects::{Appearance, AxialGroup, Family, ObjectSpec, Symmetry, LIBRARY};
 
 use agentstar_geom::pose::{ObjectPose, Rigid, Similarity};
 use agentstar_geom::{ObjectModel, PinholeCamera, Point3, UnitQuaternion, Vector3};
@@ -28,7 +29,7 @@ use image::{Rgb, RgbImage};
 
 #[derive(Debug, thiserror::Error)]
 pub enum SynthError {
-    #[error("unknown object `{name}`; the library has: {known}")]
+    #[error("unknown object `{name}`; the library has: {known}; generated objects are named gen-N (N a seed, e.g. gen-0)")]
     UnknownObject { name: String, known: String },
     #[error("the scene script of `{object}` does not build: {message}")]
     Scene { object: String, message: String },
@@ -39,7 +40,7 @@ pub enum SynthError {
 /// What to synthesise.
 #[derive(Debug, Clone, PartialEq)]
 pub struct SynthConfig {
-    /// An object name of [`LIBRARY`].
+    /// An object name of [`LIBRARY`], or a generated object's (`gen-N`, [`generate`]).
     pub object: String,
     /// The motion; `None` takes the object's family default.
     pub motion: Option<Motion>,
@@ -110,7 +111,7 @@ pub struct SynthFrame {
 /// A synthesised capture and everything needed to write it and its ground truth.
 #[derive(Debug, Clone)]
 pub struct SynthCapture {
-    pub object: &'static ObjectSpec,
+    pub object: ObjectSpec,
     pub motion: Motion,
     pub seed: u64,
     /// Built from `object.script` (the "known model" of tracking).
@@ -154,23 +155,24 @@ impl SynthCapture {
 /// Builds a library object's model from its script.
 pub fn build_object(spec: &ObjectSpec) -> Result<ObjectModel, SynthError> {
     agentstar_scene::build_scene(
-        spec.script,
+        &spec.script,
         &agentstar_scene::NoMeshFiles,
         &agentstar_scene::Limits::default(),
     )
     .map(|b| b.model)
     .map_err(|e| SynthError::Scene {
-        object: spec.name.into(),
+        object: spec.name.to_string(),
         message: e.to_string(),
     })
 }
 
 /// Synthesises a capture. Deterministic for a configuration.
 pub fn synthesize(cfg: &SynthConfig) -> Result<SynthCapture, SynthError> {
-    let spec = ObjectSpec::find(&cfg.object).ok_or_else(|| SynthError::UnknownObject {
+    let spec = ObjectSpec::resolve(&cfg.object).ok_or_else(|| SynthError::UnknownObject {
         name: cfg.object.clone(),
         known: ObjectSpec::names().join(", "),
     })?;
+    let spec = &spec;
     if cfg.frames < 2 || cfg.frames > 2000 {
         return Err(SynthError::Config(format!(
             "frames must be 2 to 2000, got {}",
@@ -331,12 +333,9 @@ pub fn synthesize(cfg: &SynthConfig) -> Result<SynthCapture, SynthError> {
             )
         })
         .collect();
-    let symmetries = match spec.symmetry {
-        Symmetry::None => vec![],
-        Symmetry::ContinuousZ => agentstar_geom::truth::continuous_symmetry(&Vector3::z_axis()),
-    };
+    let symmetries = spec.symmetry.rotations();
     Ok(SynthCapture {
-        object: spec,
+        object: spec.clone(),
         motion,
         seed: cfg.seed,
         model,
@@ -384,7 +383,7 @@ impl FrameSeeds {
 /// What every frame of a capture shares.
 struct FrameScene<'a> {
     cfg: &'a SynthConfig,
-    spec: &'static ObjectSpec,
+    spec: &'a ObjectSpec,
     model: &'a ObjectModel,
     camera: &'a PinholeCamera,
     scale: f64,

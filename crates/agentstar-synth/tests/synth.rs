@@ -2,7 +2,7 @@
 //! model, hands occlude, depth is the rendered depth), and bad configurations are refused.
 
 use agentstar_render::{render_full, PosedModel, SilhouetteRenderer};
-use agentstar_synth::{synthesize, Motion, SynthConfig, SynthError, LIBRARY};
+use agentstar_synth::{synthesize, Family, Motion, SynthConfig, SynthError, LIBRARY};
 
 fn cfg(object: &str, motion: Option<Motion>, seed: u64) -> SynthConfig {
     SynthConfig {
@@ -129,7 +129,7 @@ fn every_object_synthesises_with_its_default_motion() {
             frames: 2,
             width: 96,
             height: 72,
-            ..cfg(o.name, None, 1)
+            ..cfg(&o.name, None, 1)
         })
         .unwrap_or_else(|e| panic!("{}: {e}", o.name));
         assert_eq!(s.motion, Motion::default_for(o.family));
@@ -277,4 +277,44 @@ fn printed_objects_differ_where_their_outlines_repeat() {
         agentstar_synth::Appearance::Plain
     ));
     assert_eq!(bottle.symmetry, agentstar_synth::Symmetry::ContinuousZ);
+}
+
+#[test]
+fn generated_objects_synthesise_with_their_symmetries_and_in_between_frames() {
+    // gen-0 is rigid without print (its symmetries are real), gen-2 articulated.
+    for name in ["gen-0", "gen-2"] {
+        let spec = agentstar_synth::ObjectSpec::resolve(name).expect("generated");
+        let config = SynthConfig {
+            frames: 3,
+            width: 96,
+            height: 72,
+            between: 2,
+            ..cfg(name, Some(Motion::HardHeld), 5)
+        };
+        let s = synthesize(&config).unwrap_or_else(|e| panic!("{name}: {e}"));
+        assert_eq!(s.object.name, name);
+        assert_eq!(s.frames.len(), 3);
+        assert_eq!(s.between.len(), 4, "{name}: two in-between frames a gap");
+        assert_eq!(s.symmetries, spec.symmetry.rotations());
+        assert_eq!(
+            s.model.tree.joints().is_empty(),
+            spec.family == Family::Hot3d
+        );
+        // The keyframes are those of the capture without in-between frames.
+        let plain = synthesize(&SynthConfig {
+            between: 0,
+            ..config
+        })
+        .expect("synth");
+        for (a, b) in s.frames.iter().zip(&plain.frames) {
+            assert_eq!(a.mask, b.mask, "{name}");
+        }
+    }
+    let gen0 = agentstar_synth::ObjectSpec::resolve("gen-0").expect("generated");
+    assert!(
+        !gen0.symmetry.rotations().is_empty(),
+        "a plain body has symmetries"
+    );
+    let err = synthesize(&cfg("gen-01", None, 1)).expect_err("not a canonical name");
+    assert!(err.to_string().contains("gen-N"), "{err}");
 }

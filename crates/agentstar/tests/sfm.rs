@@ -71,7 +71,7 @@ fn write_clip(dir: &Path, clip: &RoomClip) {
     )
     .expect("cameras.txt");
     std::fs::write(dir.join("truth/images.txt"), images).expect("images.txt");
-    std::fs::write(dir.join("scene.rhai"), clip.object.script).expect("scene");
+    std::fs::write(dir.join("scene.rhai"), clip.object.script.as_bytes()).expect("scene");
 }
 
 /// Ground truth of the clip's keyframes written into a capture (`gt.json`, meshes).

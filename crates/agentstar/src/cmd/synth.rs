@@ -230,9 +230,9 @@ pub fn run(a: Args) -> Result<ExitCode> {
     let Some(out) = a.out else {
         bail!("give the output directory (or --list)")
     };
-    if ObjectSpec::find(&a.object).is_none() {
+    if ObjectSpec::resolve(&a.object).is_none() {
         bail!(
-            "unknown object `{}`; the library has: {}",
+            "unknown object `{}`; the library has: {}; generated objects are named gen-N (N a seed, e.g. gen-0)",
             a.object,
             ObjectSpec::names().join(", ")
         );
