@@ -124,6 +124,28 @@ fn a_clip_with_in_between_frames_goes_from_video_to_report() {
         .collect();
     assert_eq!(between.len(), 16, "{between:?}");
     assert_eq!(frames.len(), 21);
+    // A warm start follows the video too (from the poses it refines), and reads a pose file
+    // holding in-between poses as keyframe poses only.
+    let o = agentstar(&[
+        "track",
+        &s(&p("cap")),
+        "--model",
+        &model,
+        "--from",
+        &s(&p("run/pose.json")),
+        "--out",
+        &s(&p("warm/pose.json")),
+        "--json",
+    ]);
+    assert!(o.status.success(), "track --from: {}", text(&o));
+    let warm: Value = json_of(&o);
+    assert!(
+        warm["log"]
+            .to_string()
+            .contains("followed the video across 4 gap(s)"),
+        "{}",
+        warm["log"]
+    );
     // Keyframe tools read the keyframes' poses and leave the in-between ones alone.
     let o = agentstar(&[
         "score",

@@ -254,8 +254,15 @@ pub(super) fn choose_sequence(
         })
         .collect();
     let mut changed = Vec::new();
+    // Hypotheses within a basin's width of the frame's pose (a neighbour's pose carried in and
+    // refined, a twin that came back) are adjustments, not another basin: counted apart, so
+    // that the log names only the frames that moved to another basin (play-test 12 read
+    // "changed basin" for all 12 keyframes).
+    let mut adjusted = 0;
     for (i, &k) in path.iter().enumerate() {
         if hyps[i][k].0 != poses[i] {
+            let other_basin = hyps[i][k].0.pose.rotation.angle_to(&poses[i].pose.rotation)
+                >= REJECTED_BASIN_DEG.to_radians();
             // Then polish: the twin was refined in a window centred where it was placed.
             let (g, sc) = hyps[i][k].clone();
             let seed = s.cfg.seed + 5_000_011 * (i as u64 + 1);
@@ -263,17 +270,21 @@ pub(super) fn choose_sequence(
                 (p, psc) if psc > sc => (p, psc),
                 _ => (g, sc),
             };
-            changed.push(format!(
-                "{} (IoU {:.4} → {sc:.4})",
-                frames[i].name, scores[i]
-            ));
+            if other_basin {
+                changed.push(format!(
+                    "{} (IoU {:.4} → {sc:.4})",
+                    frames[i].name, scores[i]
+                ));
+            } else {
+                adjusted += 1;
+            }
             poses[i] = g;
             scores[i] = sc;
         }
     }
     let colour_steps = appearance.iter().filter(|m| !m.is_empty()).count();
     log.push(format!(
-        "sequence choice: {alternatives} twin hypotheses kept over {n} frames, {}; {}",
+        "sequence choice: {alternatives} twin hypotheses kept over {n} frames, {}; {}{}",
         if colour_steps > 0 {
             format!("appearance compared at {colour_steps} of {} steps", n - 1)
         } else {
@@ -283,6 +294,11 @@ pub(super) fn choose_sequence(
             "every frame keeps its basin".to_string()
         } else {
             format!("changed basin: {}", changed.join(", "))
+        },
+        if adjusted == 0 {
+            String::new()
+        } else {
+            format!("; {adjusted} frame(s) moved within their basin (under {REJECTED_BASIN_DEG}°)")
         }
     ));
     Ok(rejected)

@@ -135,10 +135,34 @@ pub fn track_from_with(
     cfg: &TrackConfig,
     observe: &dyn TrackObserver,
 ) -> Result<WarmStart, TrackError> {
+    track_from_video(
+        model,
+        scale,
+        (frames, &[]),
+        (start, anchors),
+        policy,
+        cfg,
+        observe,
+    )
+}
+
+/// [`track_from_with`] with the video between keyframes (`between[g]`: the in-between frames
+/// between keyframes g and g + 1, as [`track_video`] takes them): outside
+/// [`BasinPolicy::Keep`], each gap's video is followed from its first keyframe's refined pose
+/// and the motion it measured enters the passes over the sequence ([`Searcher::carried`]).
+pub fn track_from_video(
+    model: &ObjectModel,
+    scale: f64,
+    (frames, between): (&[TrackFrame<'_>], &[Vec<TrackFrame<'_>>]),
+    (start, anchors): (&[GenPose], &[usize]),
+    policy: BasinPolicy,
+    cfg: &TrackConfig,
+    observe: &dyn TrackObserver,
+) -> Result<WarmStart, TrackError> {
     let mut passes = Vec::new();
     let mut result = on_stand_in(model, scale, frames, cfg, anchors, observe, |searched| {
         let (r, p) = track_from_on(
-            searched, scale, frames, start, anchors, policy, cfg, observe,
+            searched, scale, frames, between, start, anchors, policy, cfg, observe,
         )?;
         passes = p;
         Ok(r)
@@ -215,6 +239,7 @@ fn track_from_on(
     model: &ObjectModel,
     scale: f64,
     frames: &[TrackFrame<'_>],
+    between: &[Vec<TrackFrame<'_>>],
     start: &[GenPose],
     anchors: &[usize],
     policy: BasinPolicy,
@@ -393,6 +418,7 @@ fn track_from_on(
             "basins kept: every frame refined within its own basin (under {BASIN_ROTATION_DEG}° of rotation and {BASIN_JOINT_DEG}° of joint from its starting pose); the wide search and the passes that move frames between basins (consistency, sequence choice, appearance, axis) did not run"
         ));
     } else {
+        follow_gaps(&s, frames, between, &poses, &mut log)?;
         after_propagation(
             &s,
             frames,
@@ -425,4 +451,62 @@ fn track_from_on(
         },
         passes,
     ))
+}
+
+/// Follows the video of every gap that has in-between frames from its first keyframe's pose
+/// ([`follow`]), polishes the arrival at the next keyframe, and records the motion measured
+/// ([`Searcher::set_gap`]); the keyframes' poses are not changed here.
+fn follow_gaps(
+    s: &Searcher<'_>,
+    frames: &[TrackFrame<'_>],
+    between: &[Vec<TrackFrame<'_>>],
+    poses: &[GenPose],
+    log: &mut Log<'_>,
+) -> Result<(), TrackError> {
+    let flat: Vec<TrackFrame<'_>> = between.iter().flatten().cloned().collect();
+    if flat.is_empty() {
+        return Ok(());
+    }
+    let cs = Searcher::new(s.model, s.scale, &flat, &s.cfg)?;
+    let typical = typical_visible(frames);
+    let mut followed = 0;
+    for (g, gap) in between
+        .iter()
+        .enumerate()
+        .take(frames.len().saturating_sub(1))
+    {
+        if gap.is_empty() {
+            continue;
+        }
+        let path: Vec<&TrackFrame<'_>> = gap.iter().collect();
+        let seed = s.cfg.seed + 3_000_029 * (g as u64 + 1);
+        let chain = follow(
+            &cs,
+            &frames[g],
+            &poses[g],
+            &path,
+            &frames[g + 1],
+            typical,
+            seed,
+        )?;
+        let arrivals: Vec<Result<(GenPose, f64), TrackError>> = chain
+            .arrival
+            .par_iter()
+            .enumerate()
+            .map(|(k, a)| s.polish(&frames[g + 1], a, seed + 7 + k as u64))
+            .collect();
+        if let Some((arrival, _)) = best_of(arrivals)? {
+            s.set_gap(g, Gap::between(frames, g, &poses[g], &arrival));
+            followed += 1;
+        }
+    }
+    s.evals.fetch_add(
+        cs.evals.load(std::sync::atomic::Ordering::Relaxed),
+        std::sync::atomic::Ordering::Relaxed,
+    );
+    log.push(format!(
+        "followed the video across {followed} gap(s) between keyframes from the refined poses: the passes below carry poses by the motion measured"
+    ));
+    log.phase("video", s);
+    Ok(())
 }

@@ -12,7 +12,7 @@ use agentstar_render::ScoreTarget;
 use agentstar_reports::BasinMoveRow;
 use agentstar_reports::TrackReport;
 use agentstar_track::tracker::{
-    track_from_with, track_video, BasinPolicy, TrackConfig, TrackFrame, TrackObserver,
+    track_from_video, track_video, BasinPolicy, TrackConfig, TrackFrame, TrackObserver,
     TrackSwitches, BASIN_JOINT_DEG, BASIN_ROTATION_DEG,
 };
 use agentstar_track::GenPose;
@@ -249,10 +249,10 @@ pub fn run(a: Args) -> Result<ExitCode> {
             } else {
                 BasinPolicy::Search
             };
-            let w = track_from_with(
+            let w = track_from_video(
                 &model.model,
                 scale,
-                &frames,
+                (&frames, &between),
                 (&start, &anchors),
                 policy,
                 &cfg,
