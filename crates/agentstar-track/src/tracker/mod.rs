@@ -477,10 +477,7 @@ fn track_on(
                 followed.fitted
             ));
             if let Some(cs) = &chain_s {
-                s.evals.fetch_add(
-                    cs.evals.swap(0, std::sync::atomic::Ordering::Relaxed),
-                    std::sync::atomic::Ordering::Relaxed,
-                );
+                s.absorb_evals(cs);
             }
             log.phase("video", &s);
         } else if sc < cfg.drop_threshold || sc < scores[prev_i] - cfg.drop_margin {
@@ -663,10 +660,7 @@ fn track_on(
             )?;
             between_poses.push(followed.poses);
         }
-        s.evals.fetch_add(
-            cs.evals.swap(0, std::sync::atomic::Ordering::Relaxed),
-            std::sync::atomic::Ordering::Relaxed,
-        );
+        s.absorb_evals(cs);
         log.phase("video", &s);
     }
     log.phases_line();

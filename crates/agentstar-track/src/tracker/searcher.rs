@@ -68,6 +68,13 @@ impl<'m> Searcher<'m> {
         })
     }
 
+    /// Counts another searcher's evaluations as this one's (and zeroes them there): the
+    /// in-between frames' searcher reports through the keyframes'.
+    pub(super) fn absorb_evals(&self, other: &Searcher<'_>) {
+        use std::sync::atomic::Ordering::Relaxed;
+        self.evals.fetch_add(other.evals.swap(0, Relaxed), Relaxed);
+    }
+
     /// Records the motion a chain measured across gap `g` (keyframes g → g + 1).
     pub(super) fn set_gap(&self, g: usize, gap: Gap) {
         if let Ok(mut gaps) = self.gaps.write() {

@@ -471,3 +471,42 @@ fn the_switches_map_to_one_config_and_no_temporal_turns_the_choice_off() {
     });
     assert!(no_choice.consistency_pass && !no_choice.sequence_choice);
 }
+
+/// The motion a chain measured across a gap carries a pose forward and back exactly, and
+/// carries a twin of the pose to the same twin of the next (a left factor in the camera).
+#[test]
+fn a_gaps_motion_carries_poses_both_ways_and_twins_alike() {
+    let model = ell();
+    let target = ScoreTarget::new(BitMask::new(320, 240), None).expect("target");
+    let moved = agentstar_geom::pose::Rigid::from_parts(
+        Vector3::new(0.1, -0.05, 0.02).into(),
+        UnitQuaternion::from_euler_angles(0.1, -0.2, 0.05),
+    );
+    let frame = |world_from_camera| TrackFrame {
+        name: "f".into(),
+        camera: camera(),
+        target: &target,
+        world_from_camera: Some(world_from_camera),
+        rgb: None,
+    };
+    let frames = vec![frame(agentstar_geom::pose::Rigid::identity()), frame(moved)];
+    let s = Searcher::new(&model, 0.5, &frames, &TrackConfig::default()).expect("searcher");
+    let (a, b) = (truth(0), truth(5));
+    // The held-still carry first, then the gap's motion from the chain's two ends.
+    let still = s.carried(&frames, &[a.clone(), b.clone()], 0, 1);
+    assert!(still.pose.rotation.angle_to(&b.pose.rotation) > 0.5);
+    s.set_gap(0, Gap::between(&frames, 0, &a, &b));
+    let poses = [a.clone(), b.clone()];
+    let forward = s.carried(&frames, &poses, 0, 1);
+    assert!(forward.pose.rotation.angle_to(&b.pose.rotation) < 1e-9);
+    let back = s.carried(&frames, &poses, 1, 0);
+    assert!(back.pose.rotation.angle_to(&a.pose.rotation) < 1e-9);
+    // A twin of frame 0 (a half-turn about the object's own x) lands on the same twin of 1.
+    let half = UnitQuaternion::from_axis_angle(&Vector3::x_axis(), std::f64::consts::PI);
+    let twin = |g: &GenPose| GenPose {
+        pose: ObjectPose::new(g.pose.rotation * half, g.pose.translation),
+        states: vec![],
+    };
+    let twin_forward = s.carried(&frames, &[twin(&a), b.clone()], 0, 1);
+    assert!(twin_forward.pose.rotation.angle_to(&twin(&b).pose.rotation) < 1e-9);
+}

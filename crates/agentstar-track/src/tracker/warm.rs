@@ -500,10 +500,7 @@ fn follow_gaps(
             followed += 1;
         }
     }
-    s.evals.fetch_add(
-        cs.evals.load(std::sync::atomic::Ordering::Relaxed),
-        std::sync::atomic::Ordering::Relaxed,
-    );
+    s.absorb_evals(&cs);
     log.push(format!(
         "followed the video across {followed} gap(s) between keyframes from the refined poses: the passes below carry poses by the motion measured"
     ));
