@@ -254,15 +254,18 @@ pub(super) fn choose_sequence(
         })
         .collect();
     let mut changed = Vec::new();
-    // Hypotheses within a basin's width of the frame's pose (a neighbour's pose carried in and
-    // refined, a twin that came back) are adjustments, not another basin: counted apart, so
+    // Hypotheses within a basin's width of the frame's pose (turned under REJECTED_BASIN_DEG,
+    // moved under CHOICE_FAR_SHIFT of the depth) are adjustments, not another basin: counted apart, so
     // that the log names only the frames that moved to another basin (play-test 12 read
     // "changed basin" for all 12 keyframes).
     let mut adjusted = 0;
     for (i, &k) in path.iter().enumerate() {
         if hyps[i][k].0 != poses[i] {
-            let other_basin = hyps[i][k].0.pose.rotation.angle_to(&poses[i].pose.rotation)
-                >= REJECTED_BASIN_DEG.to_radians();
+            let (to, from) = (&hyps[i][k].0.pose, &poses[i].pose);
+            let depth = from.translation.z.abs().max(1e-9);
+            let other_basin = to.rotation.angle_to(&from.rotation)
+                >= REJECTED_BASIN_DEG.to_radians()
+                || (to.translation - from.translation).norm() / depth > CHOICE_FAR_SHIFT;
             // Then polish: the twin was refined in a window centred where it was placed.
             let (g, sc) = hyps[i][k].clone();
             let seed = s.cfg.seed + 5_000_011 * (i as u64 + 1);
@@ -298,7 +301,7 @@ pub(super) fn choose_sequence(
         if adjusted == 0 {
             String::new()
         } else {
-            format!("; {adjusted} frame(s) moved within their basin (under {REJECTED_BASIN_DEG}°)")
+            format!("; {adjusted} frame(s) moved within their basin (under {REJECTED_BASIN_DEG}° and {:.0}% of the depth)", 100.0 * CHOICE_FAR_SHIFT)
         }
     ));
     Ok(rejected)
