@@ -25,6 +25,16 @@ pub struct OsweepArgs {
     /// Give this or `opreset`.
     #[arg(long)]
     pub ranges: Option<String>,
+    /// The candidate sheet's tiles: `mask` (around the object and the finalists; the
+    /// default) or a box `x0,y0,x1,y1` in frame pixels around a detail that decides.
+    #[arg(skip)]
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub crop: Option<crate::Crop>,
+    /// Output pixels per frame pixel on the sheet's tiles (1 to 8).
+    #[arg(skip)]
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[schemars(range(min = 1.0, max = 8.0))]
+    pub zoom: Option<f64>,
 }
 
 /// What `oapply` scores: a set of object-frame rotations, in some keyframes.
@@ -41,6 +51,16 @@ pub struct OapplyArgs {
     /// candidate (degrees, or canonical units for a prismatic joint): `flip:x;hinge:115`.
     #[arg(long)]
     pub set: Option<String>,
+    /// The candidate sheet's tiles: `mask` (around the object and the finalists; the
+    /// default) or a box `x0,y0,x1,y1` in frame pixels around a detail that decides.
+    #[arg(skip)]
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub crop: Option<crate::Crop>,
+    /// Output pixels per frame pixel on the sheet's tiles (1 to 8).
+    #[arg(skip)]
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[schemars(range(min = 1.0, max = 8.0))]
+    pub zoom: Option<f64>,
 }
 
 impl OapplyArgs {
@@ -69,4 +89,14 @@ pub struct OapplyAllArgs {
     #[arg(long, help = FRAMES)]
     #[schemars(description = FRAMES)]
     pub frames: Option<String>,
+    /// The candidate sheet's tiles: `mask` (around the object and the finalists; the
+    /// default) or a box `x0,y0,x1,y1` in frame pixels around a detail that decides.
+    #[arg(skip)]
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub crop: Option<crate::Crop>,
+    /// Output pixels per frame pixel on the sheet's tiles (1 to 8).
+    #[arg(skip)]
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[schemars(range(min = 1.0, max = 8.0))]
+    pub zoom: Option<f64>,
 }

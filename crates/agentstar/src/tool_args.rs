@@ -113,6 +113,7 @@ fn samples() -> BTreeMap<&'static str, Vec<Value>> {
             vec![
                 json!({"frames": "all", "ranges": "yaw:-10,10", "strategy": "grid", "evals": 100}),
                 json!({"frames": "--", "ranges": "-1"}),
+                json!({"frames": "0", "ranges": "yaw:-5,5", "crop": "10,10,60,50", "zoom": 4}),
             ],
         ),
         ("apply", vec![json!({"frame": "all", "order": "yaw:5"})]),
@@ -125,11 +126,14 @@ fn samples() -> BTreeMap<&'static str, Vec<Value>> {
         ),
         (
             "oapply",
-            vec![json!({"frames": "all", "set": "flips|swaps"})],
+            vec![
+                json!({"frames": "all", "set": "flips|swaps"}),
+                json!({"frames": "0", "crop": "mask", "zoom": 2.5}),
+            ],
         ),
         (
             "oapply_all",
-            vec![json!({"rotation": "flip:x", "frames": "all"})],
+            vec![json!({"rotation": "flip:x", "frames": "all", "crop": "0,0,30,20"})],
         ),
         (
             "pose_commit",

@@ -588,3 +588,54 @@ fn sweep_scores_explicit_candidates_exactly() {
     assert_eq!(o.status.code(), Some(2));
     assert!(text(&o).contains("use osweep/oapply"), "{}", text(&o));
 }
+
+/// A candidate sheet shows the box asked for, zoomed (issue 34: a 10-pixel detail decides):
+/// a 100×75 box at zoom 8 gives a larger sheet than the same box unzoomed, a box
+/// outside the frame is refused naming the frame's size, and a zoom past 8 is refused.
+#[test]
+fn candidate_sheets_crop_to_a_box_and_zoom() {
+    let dir = tempfile::tempdir().expect("tmp");
+    let (cap, model, poses) = example(dir.path());
+    let run = |out: &str, extra: &[&str]| {
+        let out_dir = dir.path().join(out);
+        let mut args = vec![
+            "oapply",
+            "--capture",
+            &cap,
+            "--model",
+            &model,
+            "--poses",
+            &poses,
+            "--frames",
+            "000000",
+            "--set",
+            "identity|flip:z",
+            "--out",
+            out_dir.to_str().expect("utf8"),
+        ];
+        args.extend_from_slice(extra);
+        (agentstar(&args), out_dir)
+    };
+    let sheet_size = |d: &std::path::Path| {
+        let sheet = std::fs::read_dir(d)
+            .expect("out")
+            .map(|e| e.expect("entry").path())
+            .find(|p| p.to_string_lossy().contains("sheet"))
+            .expect("a sheet");
+        image::image_dimensions(&sheet).expect("png")
+    };
+    let (o, plain) = run("plain", &["--crop", "60,40,160,115"]);
+    assert!(o.status.success(), "{}", text(&o));
+    let (o, zoomed) = run("zoomed", &["--crop", "60,40,160,115", "--zoom", "8"]);
+    assert!(o.status.success(), "{}", text(&o));
+    let (pw, ph) = sheet_size(&plain);
+    let (zw, zh) = sheet_size(&zoomed);
+    // (The sheet keeps within the image limits, so it grows less than the tiles asked.)
+    assert!(zw * zh > pw * ph, "zoomed {zw}×{zh} against {pw}×{ph}");
+    let (o, _) = run("outside", &["--crop", "5000,5000,5100,5100"]);
+    assert!(!o.status.success());
+    assert!(text(&o).contains("lies outside the"), "{}", text(&o));
+    let (o, _) = run("far", &["--zoom", "9"]);
+    assert!(!o.status.success());
+    assert!(text(&o).contains("--zoom 9"), "{}", text(&o));
+}

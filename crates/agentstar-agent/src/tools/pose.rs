@@ -163,6 +163,14 @@ pub struct SweepArgs {
     /// dimensions).
     #[schemars(range(min = 50, max = 50000))]
     pub evals: Option<u64>,
+    /// The candidate sheet's tiles: `mask` (around the object and the finalists; the
+    /// default) or a box `x0,y0,x1,y1` in frame pixels around a detail that decides.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub crop: Option<agentstar_requests::Crop>,
+    /// Output pixels per frame pixel on the sheet's tiles (1 to 8).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[schemars(range(min = 1.0, max = 8.0))]
+    pub zoom: Option<f64>,
 }
 
 #[derive(Debug, Deserialize, JsonSchema, serde::Serialize)]
@@ -174,6 +182,14 @@ pub struct ApplyArgs {
     /// One value per DOF: `yaw:15;hinge:40` (increments; joint states absolute).
     #[schemars(length(min = 1))]
     pub order: String,
+    /// The candidate sheet's tiles: `mask` (around the object and the finalists; the
+    /// default) or a box `x0,y0,x1,y1` in frame pixels around a detail that decides.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub crop: Option<agentstar_requests::Crop>,
+    /// Output pixels per frame pixel on the sheet's tiles (1 to 8).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[schemars(range(min = 1.0, max = 8.0))]
+    pub zoom: Option<f64>,
 }
 
 #[derive(Debug, Deserialize, JsonSchema)]

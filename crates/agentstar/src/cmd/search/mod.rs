@@ -50,6 +50,15 @@ pub struct Common {
     /// Finalists rendered on the candidate sheet.
     #[arg(long, default_value_t = 6)]
     sheet: usize,
+    /// The part of the frame the candidate sheet's tiles show: `mask` (around the object
+    /// mask and every finalist's silhouette; the default) or a box `x0,y0,x1,y1` in frame
+    /// pixels, around a detail that decides (a drinking hole, a badge).
+    #[arg(long)]
+    crop: Option<agentstar_requests::Crop>,
+    /// Output pixels per frame pixel on the candidate sheet's tiles (1 to 8; tiles are at
+    /// least 320 px on their long side and at most 960 px).
+    #[arg(long, default_value_t = 1.0)]
+    zoom: f64,
     /// Print the result as JSON on stdout.
     #[arg(long)]
     json: bool,
@@ -158,6 +167,7 @@ fn candidate_sheet(
     rows: &[Row],
     limit: usize,
     title: &str,
+    (crop, zoom): (Option<agentstar_requests::Crop>, f64),
 ) -> Result<Vec<(RgbImage, Vec<usize>)>> {
     let frame = s.capture.load_frame(i)?;
     let (target, _) = s.target(i)?;
@@ -194,11 +204,20 @@ fn candidate_sheet(
         frame.width(),
         frame.height(),
     ]);
+    // A box asked for replaces the crop around the mask and the silhouettes.
+    let around = match crop {
+        Some(c) => c
+            .window(frame.width(), frame.height(), Some([x0, y0, w, h]))
+            .map_err(|e| anyhow!("--crop: {e} (frame {})", s.capture.frames[i].name))?,
+        None => [x0, y0, w, h],
+    };
     // At least 4:3 and 320 px on its long side, so that each tile's label (the order) has
-    // room under it.
-    let crop = widened([x0, y0, w, h], TILE_ASPECT, frame.width());
+    // room under it; zoomed, at most 960 px.
+    let crop = widened(around, TILE_ASPECT, frame.width());
     let long = crop[2].max(crop[3]);
-    let cut = |img: &RgbImage| crop_zoomed(img, crop, long.max(TILE_LONG_SIDE_PX));
+    let zoomed = ((long as f64 * zoom).round() as u32).min(TILE_LONG_SIDE_PX * 3);
+    let side = long.max(zoomed).max(TILE_LONG_SIDE_PX);
+    let cut = |img: &RgbImage| crop_zoomed(img, crop, side);
     let mut tiles = Vec::new();
     // Per candidate: the model over the frame (its outline against the frame's), the model
     // opaque (its print against the frame's, as `render side` shows it: play-tests 8 and 10
@@ -329,6 +348,12 @@ fn write_outputs(
     mut outputs: Vec<FrameOutput>,
     details: Value,
 ) -> Result<ExitCode> {
+    if !(c.zoom.is_finite() && (1.0..=8.0).contains(&c.zoom)) {
+        bail!(
+            "--zoom {}: output pixels per frame pixel, from 1 to 8",
+            c.zoom
+        );
+    }
     let dir = out_dir(&c.out)?;
     let tree = &s.model.model.tree;
     let report_path = verb.report_path(&dir);
@@ -343,6 +368,7 @@ fn write_outputs(
             &o.rows,
             limit,
             &format!("{} {}", verb.stem(), o.frame),
+            (c.crop, c.zoom),
         )?;
         let mut sheet_pages = Vec::new();
         for (k, (page, ranks)) in pages.iter().enumerate() {
