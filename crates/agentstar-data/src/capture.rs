@@ -431,7 +431,7 @@ impl Capture {
             Err(p) => p.problems,
             Ok(cap) => {
                 let mut problems = Vec::new();
-                for frame in cap.frames.iter().chain(&cap.between) {
+                for VideoFrame { frame, keyframe } in cap.video() {
                     for r in [
                         cap.load_frame_of(frame).map(|_| ()),
                         cap.load_mask_of(frame).map(|_| ()),
@@ -448,9 +448,8 @@ impl Capture {
                     }
                     // An in-between frame may show no object (it left the view or a hand covers
                     // it): the tracker carries its pose across; a keyframe must show it.
-                    let key = cap.between.iter().all(|b| b.name != frame.name);
                     if let Ok(m) = cap.load_mask_of(frame) {
-                        if key && m.count() == 0 {
+                        if keyframe.is_some() && m.count() == 0 {
                             problems.push(Problem {
                                 path: cap.mask_file(frame),
                                 message: "the object mask is empty".into(),

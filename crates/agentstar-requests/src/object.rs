@@ -27,6 +27,8 @@ pub struct OsweepArgs {
     pub ranges: Option<String>,
     /// The candidate sheet's tiles: `mask` (around the object and the finalists; the
     /// default) or a box `x0,y0,x1,y1` in frame pixels around a detail that decides.
+    // A tool's field only: it reaches the command as `--crop` (and `zoom` as `--zoom`),
+    // which every search verb reads among its common options, so clap skips both here.
     #[arg(skip)]
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub crop: Option<crate::Crop>,
@@ -53,6 +55,8 @@ pub struct OapplyArgs {
     pub set: Option<String>,
     /// The candidate sheet's tiles: `mask` (around the object and the finalists; the
     /// default) or a box `x0,y0,x1,y1` in frame pixels around a detail that decides.
+    // A tool's field only: it reaches the command as `--crop` (and `zoom` as `--zoom`),
+    // which every search verb reads among its common options, so clap skips both here.
     #[arg(skip)]
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub crop: Option<crate::Crop>,
@@ -91,6 +95,8 @@ pub struct OapplyAllArgs {
     pub frames: Option<String>,
     /// The candidate sheet's tiles: `mask` (around the object and the finalists; the
     /// default) or a box `x0,y0,x1,y1` in frame pixels around a detail that decides.
+    // A tool's field only: it reaches the command as `--crop` (and `zoom` as `--zoom`),
+    // which every search verb reads among its common options, so clap skips both here.
     #[arg(skip)]
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub crop: Option<crate::Crop>,

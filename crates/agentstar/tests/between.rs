@@ -19,6 +19,28 @@ fn copy_pngs(from: &Path, to: &Path) {
     }
 }
 
+/// `capture from-video DIR/frames --masks DIR/masks --every N … --out DIR/OUT`, with the
+/// in-between options and the camera given in `extra`.
+fn from_video(dir: &Path, every: &str, extra: &[&str], out: &str) -> std::process::Output {
+    let (frames, masks, out) = (
+        s(&dir.join("frames")),
+        s(&dir.join("masks")),
+        s(&dir.join(out)),
+    );
+    let mut args = vec![
+        "capture",
+        "from-video",
+        &frames,
+        "--masks",
+        &masks,
+        "--every",
+        every,
+    ];
+    args.extend_from_slice(extra);
+    args.extend_from_slice(&["--out", &out]);
+    agentstar(&args)
+}
+
 #[test]
 fn a_clip_with_in_between_frames_goes_from_video_to_report() {
     let dir = tempfile::tempdir().expect("tmp");
@@ -49,20 +71,12 @@ fn a_clip_with_in_between_frames_goes_from_video_to_report() {
     // The same frames and masks as a frame folder, cut again by from-video.
     copy_pngs(&p("clip/frames"), &p("frames"));
     copy_pngs(&p("clip/mask_object"), &p("masks"));
-    let o = agentstar(&[
-        "capture",
-        "from-video",
-        &s(&p("frames")),
-        "--masks",
-        &s(&p("masks")),
-        "--every",
+    let o = from_video(
+        dir.path(),
         "5",
-        "--between",
-        "--intrinsics",
-        "152,152,80,60",
-        "--out",
-        &s(&p("cap")),
-    ]);
+        &["--between", "--intrinsics", "152,152,80,60"],
+        "cap",
+    );
     assert!(o.status.success(), "from-video: {}", text(&o));
     let v = json_of::<Value>(&agentstar(&["validate", &s(&p("cap")), "--json"]));
     assert_eq!(v["valid"], true, "{v}");
@@ -71,21 +85,12 @@ fn a_clip_with_in_between_frames_goes_from_video_to_report() {
         (5.into(), 16.into())
     );
     // A stride keeps fewer: every 2nd frame after each keyframe.
-    let o = agentstar(&[
-        "capture",
-        "from-video",
-        &s(&p("frames")),
-        "--masks",
-        &s(&p("masks")),
-        "--every",
+    let o = from_video(
+        dir.path(),
         "5",
-        "--between",
-        "2",
-        "--intrinsics",
-        "152,152,80,60",
-        "--out",
-        &s(&p("cap2")),
-    ]);
+        &["--between", "2", "--intrinsics", "152,152,80,60"],
+        "cap2",
+    );
     assert!(o.status.success(), "from-video --between 2: {}", text(&o));
     let v = json_of::<Value>(&agentstar(&["validate", &s(&p("cap2")), "--json"]));
     assert_eq!(v["between_frames"], 8, "{v}");
@@ -252,20 +257,7 @@ fn bad_in_between_options_are_refused_with_messages() {
     copy_pngs(&p("clip/mask_object"), &p("masks"));
     // The frame between the first two keyframes loses its mask: named, nothing written.
     std::fs::remove_file(p("masks/000001.png")).expect("rm");
-    let o = agentstar(&[
-        "capture",
-        "from-video",
-        &s(&p("frames")),
-        "--masks",
-        &s(&p("masks")),
-        "--every",
-        "3",
-        "--between",
-        "--fov",
-        "60",
-        "--out",
-        &s(&p("cap")),
-    ]);
+    let o = from_video(dir.path(), "3", &["--between", "--fov", "60"], "cap");
     assert!(!o.status.success());
     assert!(
         text(&o).contains("000001") && text(&o).contains("in-between"),
@@ -273,21 +265,7 @@ fn bad_in_between_options_are_refused_with_messages() {
         text(&o)
     );
     assert!(!p("cap").exists(), "nothing half-written");
-    let o = agentstar(&[
-        "capture",
-        "from-video",
-        &s(&p("frames")),
-        "--masks",
-        &s(&p("masks")),
-        "--every",
-        "3",
-        "--between",
-        "0",
-        "--fov",
-        "60",
-        "--out",
-        &s(&p("cap")),
-    ]);
+    let o = from_video(dir.path(), "3", &["--between", "0", "--fov", "60"], "cap");
     assert!(!o.status.success());
     assert!(text(&o).contains("between 0"), "{}", text(&o));
 }

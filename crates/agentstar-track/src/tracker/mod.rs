@@ -289,11 +289,11 @@ pub fn track_video(
     cfg: &TrackConfig,
     observe: &dyn TrackObserver,
 ) -> Result<TrackResult, TrackError> {
-    if between.len() >= frames.len()
-        && between
-            .iter()
-            .skip(frames.len().saturating_sub(1))
-            .any(|g| !g.is_empty())
+    // Gap g lies between keyframes g and g + 1: none after the last keyframe.
+    if between
+        .iter()
+        .skip(frames.len().saturating_sub(1))
+        .any(|g| !g.is_empty())
     {
         return Err(TrackError::Invalid(format!(
             "{} gaps of in-between frames for {} keyframes",

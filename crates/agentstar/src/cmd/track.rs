@@ -175,23 +175,16 @@ pub fn run(a: Args) -> Result<ExitCode> {
         .iter()
         .map(|gap| gap.iter().map(|f| target_of(&capture, f)).collect())
         .collect::<Result<_>>()?;
-    let between_images: Vec<Vec<Option<image::RgbImage>>> = gaps
-        .iter()
-        .map(|gap| {
-            gap.iter()
-                .map(|f| (!a.no_appearance).then(|| image_of(&capture, f)).flatten())
-                .collect()
-        })
-        .collect();
+    // Their masks only: a chain searches each in-between frame by its silhouette (the
+    // colours are weighed at the keyframes), so their images are not read.
+    let no_image = None;
     let between: Vec<Vec<TrackFrame>> = gaps
         .iter()
         .zip(&between_targets)
-        .zip(&between_images)
-        .map(|((gap, targets), images)| {
+        .map(|(gap, targets)| {
             gap.iter()
                 .zip(targets)
-                .zip(images)
-                .map(|((f, t), img)| track_frame(f, t, img))
+                .map(|(f, t)| track_frame(f, t, &no_image))
                 .collect()
         })
         .collect();
