@@ -190,6 +190,20 @@ impl Footprint {
 /// axis; a mug's or a kettle's the axis of its body, about which only turns that hide the
 /// handle keep the outline; a box has none.
 pub fn body_axis(model: &ObjectModel, states: &[f64]) -> Option<SymmetryAxis> {
+    scored_body_axis(model, states).map(|b| b.1)
+}
+
+/// The axis of a body whose outline every turn about it keeps (its footprint along the axis
+/// keeps [`ROUND_IOU`] under turns): a can's or a bottle's, not a mug's (its handle shows
+/// the turn). Silhouettes cannot measure a turn about it at all.
+pub fn outline_axis(model: &ObjectModel, states: &[f64]) -> Option<SymmetryAxis> {
+    scored_body_axis(model, states)
+        .filter(|b| b.0 >= ROUND_IOU)
+        .map(|b| b.1)
+}
+
+/// [`body_axis`] with its footprint's score.
+fn scored_body_axis(model: &ObjectModel, states: &[f64]) -> Option<(f64, SymmetryAxis)> {
     let (centre, axes) = principal_axes(model, states)?;
     let transforms = model.tree.part_transforms(states);
     let mut positions: Vec<Point3> = Vec::new();
@@ -277,7 +291,7 @@ pub fn body_axis(model: &ObjectModel, states: &[f64]) -> Option<SymmetryAxis> {
             ));
         }
     }
-    best.map(|b| b.1)
+    best
 }
 
 /// The first tilt of [`body_axis`]'s search for the axis, the least, and the most from the

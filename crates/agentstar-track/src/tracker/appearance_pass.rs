@@ -137,8 +137,8 @@ pub(super) fn leaves_the_chain(
     !chained.is_empty()
         && chained.iter().all(|&j| {
             let predicted = s.carried(frames, poses, j, i).pose.rotation;
-            to.pose.rotation.angle_to(&predicted)
-                > poses[i].pose.rotation.angle_to(&predicted) + REJECTED_BASIN_DEG.to_radians()
+            s.off_chain(&predicted, &to.pose.rotation)
+                > s.off_chain(&predicted, &poses[i].pose.rotation) + REJECTED_BASIN_DEG.to_radians()
         })
 }
 

@@ -244,8 +244,13 @@ pub(super) fn choose_sequence(
             }
             None => (CHOICE_STEP_DEG, CHOICE_STEP_CAP_DEG),
         };
-        let rot =
-            angle_deg(&(to.pose.rotation * carried.rotation.inverse())).min(cap_deg) / unit_deg;
+        let off_deg = if s.gap(i - 1).is_some() {
+            s.off_chain(&carried.rotation, &to.pose.rotation)
+                .to_degrees()
+        } else {
+            angle_deg(&(to.pose.rotation * carried.rotation.inverse()))
+        };
+        let rot = off_deg.min(cap_deg) / unit_deg;
         let joint = from
             .states
             .iter()

@@ -32,6 +32,9 @@ pub(super) struct Searcher<'m> {
     /// The motion the video between keyframes g and g + 1 measured ([`Gap`]), where a chain
     /// followed it: how [`Searcher::carried`] carries a pose across that gap.
     pub(super) gaps: std::sync::RwLock<Vec<Option<Gap>>>,
+    /// The model's outline axis ([`crate::axis::outline_axis`], at rest), found when first
+    /// asked: a chain cannot measure a turn about it.
+    pub(super) outline_axis: std::sync::OnceLock<Option<agentstar_geom::Vector3>>,
 }
 
 impl<'m> Searcher<'m> {
@@ -65,6 +68,7 @@ impl<'m> Searcher<'m> {
                 .map(|f| std::ptr::from_ref(f.target) as usize)
                 .collect(),
             gaps: std::sync::RwLock::new(vec![None; frames.len().saturating_sub(1)]),
+            outline_axis: std::sync::OnceLock::new(),
         })
     }
 
@@ -82,6 +86,37 @@ impl<'m> Searcher<'m> {
                 *slot = Some(gap);
             }
         }
+    }
+
+    /// How far `to` is turned from the pose a chain predicts (`predicted`; both rotations of
+    /// one frame's camera from the object), in radians, leaving out any turn about the
+    /// model's outline axis ([`crate::axis::outline_axis`]: a can's, a bottle's): the masks
+    /// the chain followed cannot measure that turn, so a chain's motion is no evidence about
+    /// it (hard suite labelcan with in-between frames: the appearance pass's turns of 50–100°
+    /// about the can's axis, which its colours wanted, were refused as leaving the chain).
+    pub(super) fn off_chain(
+        &self,
+        predicted: &agentstar_geom::UnitQuaternion,
+        to: &agentstar_geom::UnitQuaternion,
+    ) -> f64 {
+        let axis = self.outline_axis.get_or_init(|| {
+            crate::axis::outline_axis(self.model, &self.model.tree.rest_states()).map(|a| a.axis)
+        });
+        // The turn in the object's frame, and its part about the axis (swing-twist).
+        let turn = predicted.inverse() * to;
+        let Some(axis) = axis.filter(|a| a.norm() > 1e-12) else {
+            return turn.angle();
+        };
+        let a = axis.normalize();
+        let q = turn.quaternion();
+        let along = a * q.imag().dot(&a);
+        let twist = agentstar_geom::nalgebra::Quaternion::new(q.w, along.x, along.y, along.z);
+        if twist.norm() < 1e-12 {
+            // A half-turn across the axis: no twist to leave out.
+            return turn.angle();
+        }
+        let twist = agentstar_geom::UnitQuaternion::from_quaternion(twist);
+        (turn * twist.inverse()).angle()
     }
 
     /// The motion measured across gap `g`, where a chain followed it.
