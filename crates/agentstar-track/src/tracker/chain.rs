@@ -34,6 +34,10 @@ const CHAIN_MIN_VISIBLE: f64 = 0.2;
 /// no pose near the prediction explains (a segmenter's miss) must not pull the chain away.
 const CHAIN_MIN_IOU: f64 = 0.5;
 
+/// A chain frame fitted this much IoU under the frame before it is searched again in a
+/// window twice as wide ([`follow`]): segmenter noise moves a frame's IoU by about 0.01.
+const CHAIN_DROP: f64 = 0.02;
+
 /// What one gap's chain found.
 #[derive(Debug, Clone)]
 pub(super) struct Followed {
@@ -114,29 +118,63 @@ pub(super) fn follow(
     };
     let mut poses = Vec::with_capacity(path.len());
     let mut fitted = 0;
+    // The IoU of the last frame fitted (the start keyframe's to begin with).
+    let mut last_score: Option<f64> = Some(s.problem_of(from, start).evaluator().combined(start));
     for (j, &frame) in path.iter().enumerate() {
         let (carried, extrapolated) = predict(&last, &before, frame);
         let prediction = extrapolated.clone().unwrap_or_else(|| carried.clone());
         let visible = visible_pixels(frame.target);
-        let (pose, score) = if (visible as f64) < CHAIN_MIN_VISIBLE * typical_visible as f64
-            || visible == 0
-        {
-            (prediction, None)
-        } else {
-            let seeds: Vec<GenPose> = std::iter::once(carried).chain(extrapolated).collect();
-            let results: Vec<Result<(GenPose, f64), TrackError>> = seeds
-                .par_iter()
-                .enumerate()
-                .map(|(k, g)| s.refine(frame, g, &CHAIN_WINDOW, seed + 17 * j as u64 + k as u64))
-                .collect();
-            match best_of(results)? {
-                Some((g, sc)) if sc >= CHAIN_MIN_IOU => {
-                    fitted += 1;
-                    (g, Some(sc))
+        let (pose, score) =
+            if (visible as f64) < CHAIN_MIN_VISIBLE * typical_visible as f64 || visible == 0 {
+                (prediction, None)
+            } else {
+                let seeds: Vec<GenPose> = std::iter::once(carried).chain(extrapolated).collect();
+                let search = |window: &LocalWindow, salt: u64| {
+                    let results: Vec<Result<(GenPose, f64), TrackError>> = seeds
+                        .par_iter()
+                        .enumerate()
+                        .map(|(k, g)| {
+                            s.refine(frame, g, window, seed + 17 * j as u64 + k as u64 + salt)
+                        })
+                        .collect();
+                    best_of(results)
+                };
+                let mut best = search(&CHAIN_WINDOW, 0)?;
+                // A fit clearly under the last one's: the object moved past the window (the
+                // chain's first frame has no velocity to extrapolate; a hand turns a box 15° a
+                // frame), so the search is made again in a window twice as wide.
+                if let (Some((_, sc)), Some(last_sc)) = (&best, last_score) {
+                    if *sc < last_sc - CHAIN_DROP {
+                        let wide = LocalWindow {
+                            angle_deg: 2.0 * CHAIN_WINDOW.angle_deg,
+                            shift: 2.0 * CHAIN_WINDOW.shift,
+                            depth: 2.0 * CHAIN_WINDOW.depth,
+                            joint_deg: 2.0 * CHAIN_WINDOW.joint_deg,
+                            evals: 2 * CHAIN_WINDOW.evals,
+                        };
+                        if let Some(w) = search(&wide, 1_000)? {
+                            if w.1 > *sc {
+                                best = Some(w);
+                            }
+                        }
+                    }
                 }
-                _ => (prediction, None),
-            }
-        };
+                match best {
+                    Some((g, sc)) if sc >= CHAIN_MIN_IOU => {
+                        fitted += 1;
+                        last_score = Some(sc);
+                        (g, Some(sc))
+                    }
+                    _ => (prediction, None),
+                }
+            };
+        if std::env::var_os("AGENTSTAR_DEBUG_CHAIN").is_some() {
+            let q = pose.pose.rotation.quaternion();
+            eprintln!(
+                "CHAIN {} {} {} {} {} {:?}",
+                frame.name, q.w, q.i, q.j, q.k, score
+            );
+        }
         poses.push((pose.clone(), score));
         before = Some(last);
         last = (frame, pose);
