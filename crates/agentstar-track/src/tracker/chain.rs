@@ -168,13 +168,6 @@ pub(super) fn follow(
                     _ => (prediction, None),
                 }
             };
-        if std::env::var_os("AGENTSTAR_DEBUG_CHAIN").is_some() {
-            let q = pose.pose.rotation.quaternion();
-            eprintln!(
-                "CHAIN {} {} {} {} {} {:?}",
-                frame.name, q.w, q.i, q.j, q.k, score
-            );
-        }
         poses.push((pose.clone(), score));
         before = Some(last);
         last = (frame, pose);
