@@ -8,6 +8,8 @@
 //! - the requests the MCP tools take and the commands flatten, one type each (the
 //!   object-frame pose verbs: [`OsweepArgs`], [`OapplyArgs`], [`OapplyAllArgs`]; and
 //!   [`TurntableArgs`], [`PoseDiffArgs`]);
+//! - [`SheetView`]: a search verb's candidate sheet (`crop`, `zoom`), and [`WithSheet`], a
+//!   search request with it as one flat set of tool arguments;
 //! - [`to_args`]: the one rule that turns any serialisable request into arguments: each
 //!   field `name` becomes `--name=VALUE` (snake case to kebab case), `true` a bare `--name`,
 //!   `false`, `null` and absent fields nothing, a list one `--name=ITEM` per item.
@@ -23,9 +25,11 @@ use serde_json::Value;
 use std::path::PathBuf;
 
 pub mod object;
+pub mod sheet;
 pub mod views;
 
 pub use object::{OapplyAllArgs, OapplyArgs, OsweepArgs};
+pub use sheet::{SheetView, WithSheet};
 pub use views::{Crop, PoseDiffArgs, TurntableArgs};
 
 /// What a `frames` argument takes (the one frame grammar, `Capture::select`).

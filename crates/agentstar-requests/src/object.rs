@@ -1,6 +1,8 @@
 //! The object-frame pose verbs' requests: what `osweep`, `oapply` and `oapply-all` search,
 //! as the MCP tools of the same names take it and the commands flatten it (each command
-//! adds its tuning flags and the session's inputs).
+//! adds its tuning flags and the session's inputs). The candidate sheet's `crop` and `zoom`
+//! are not here: the tools take each request as `WithSheet<…>` ([`crate::sheet`]), and the
+//! commands read them among the options every search verb shares.
 
 use crate::FRAMES;
 use schemars::JsonSchema;
@@ -25,18 +27,6 @@ pub struct OsweepArgs {
     /// Give this or `opreset`.
     #[arg(long)]
     pub ranges: Option<String>,
-    /// The candidate sheet's tiles: `mask` (around the object and the finalists; the
-    /// default) or a box `x0,y0,x1,y1` in frame pixels around a detail that decides.
-    // A tool's field only: it reaches the command as `--crop` (and `zoom` as `--zoom`),
-    // which every search verb reads among its common options, so clap skips both here.
-    #[arg(skip)]
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub crop: Option<crate::Crop>,
-    /// Output pixels per frame pixel on the sheet's tiles (1 to 8).
-    #[arg(skip)]
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    #[schemars(range(min = 1.0, max = 8.0))]
-    pub zoom: Option<f64>,
 }
 
 /// What `oapply` scores: a set of object-frame rotations, in some keyframes.
@@ -53,18 +43,6 @@ pub struct OapplyArgs {
     /// candidate (degrees, or canonical units for a prismatic joint): `flip:x;hinge:115`.
     #[arg(long)]
     pub set: Option<String>,
-    /// The candidate sheet's tiles: `mask` (around the object and the finalists; the
-    /// default) or a box `x0,y0,x1,y1` in frame pixels around a detail that decides.
-    // A tool's field only: it reaches the command as `--crop` (and `zoom` as `--zoom`),
-    // which every search verb reads among its common options, so clap skips both here.
-    #[arg(skip)]
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub crop: Option<crate::Crop>,
-    /// Output pixels per frame pixel on the sheet's tiles (1 to 8).
-    #[arg(skip)]
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    #[schemars(range(min = 1.0, max = 8.0))]
-    pub zoom: Option<f64>,
 }
 
 impl OapplyArgs {
@@ -93,16 +71,4 @@ pub struct OapplyAllArgs {
     #[arg(long, help = FRAMES)]
     #[schemars(description = FRAMES)]
     pub frames: Option<String>,
-    /// The candidate sheet's tiles: `mask` (around the object and the finalists; the
-    /// default) or a box `x0,y0,x1,y1` in frame pixels around a detail that decides.
-    // A tool's field only: it reaches the command as `--crop` (and `zoom` as `--zoom`),
-    // which every search verb reads among its common options, so clap skips both here.
-    #[arg(skip)]
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub crop: Option<crate::Crop>,
-    /// Output pixels per frame pixel on the sheet's tiles (1 to 8).
-    #[arg(skip)]
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    #[schemars(range(min = 1.0, max = 8.0))]
-    pub zoom: Option<f64>,
 }

@@ -9,7 +9,7 @@ use agentstar_reports::{
     CommitReport, FrameHistoryReport, HistoryReport, PoseDiffReport, RestoreReport, SearchReport,
     SearchVerb, TrackReport,
 };
-use agentstar_requests::{OapplyAllArgs, OapplyArgs, OsweepArgs, PoseDiffArgs};
+use agentstar_requests::{OapplyAllArgs, OapplyArgs, OsweepArgs, PoseDiffArgs, WithSheet};
 use schemars::JsonSchema;
 use serde::Deserialize;
 use std::collections::BTreeMap;
@@ -163,14 +163,6 @@ pub struct SweepArgs {
     /// dimensions).
     #[schemars(range(min = 50, max = 50000))]
     pub evals: Option<u64>,
-    /// The candidate sheet's tiles: `mask` (around the object and the finalists; the
-    /// default) or a box `x0,y0,x1,y1` in frame pixels around a detail that decides.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub crop: Option<agentstar_requests::Crop>,
-    /// Output pixels per frame pixel on the sheet's tiles (1 to 8).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    #[schemars(range(min = 1.0, max = 8.0))]
-    pub zoom: Option<f64>,
 }
 
 #[derive(Debug, Deserialize, JsonSchema, serde::Serialize)]
@@ -182,14 +174,6 @@ pub struct ApplyArgs {
     /// One value per DOF: `yaw:15;hinge:40` (increments; joint states absolute).
     #[schemars(length(min = 1))]
     pub order: String,
-    /// The candidate sheet's tiles: `mask` (around the object and the finalists; the
-    /// default) or a box `x0,y0,x1,y1` in frame pixels around a detail that decides.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub crop: Option<agentstar_requests::Crop>,
-    /// Output pixels per frame pixel on the sheet's tiles (1 to 8).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    #[schemars(range(min = 1.0, max = 8.0))]
-    pub zoom: Option<f64>,
 }
 
 #[derive(Debug, Deserialize, JsonSchema)]
@@ -233,19 +217,19 @@ tool!(Track, "track", Pose, Poses, TrackArgs,
     "Run the automatic tracker over every keyframe with the current model and scale (a pose step for all keyframes; the result is a new pose version, the previous ones stay in pose_history). Use it once the shape is right, then fix the frames it gets wrong with sweeps and flips. After a shape edit, `from: \"pose.json\"` refines the current poses instead of starting over (cheap), and `anchors` keeps the keyframes you trust exactly and carries them to their neighbours; with `from`, it names every frame it moved to another basin (over 45° from its pose there), and `keep_basins: true` polishes only, keeping each frame within 45° of its pose (no flips or twins). Progress notifications carry its latest line; a run that is stopped keeps what it had tracked in pose.partial.json.",
     |tb, a, step| tb.track(&a, step));
 
-tool!(Sweep, "sweep", Pose, Nothing, SweepArgs,
+tool!(Sweep, "sweep", Pose, Nothing, WithSheet<SweepArgs>,
     "Search a bounded region around the current pose of each given keyframe by silhouette IoU (differential evolution, 6 seeded restarts) and return the ranked candidates with a candidate sheet; rows labelled `seen` are other places the search passed through (at least 10° from the rest, not refined; another basin where the box holds one, else the slope of the same one: refine one with a narrower sweep around it). Ranges are camera-frame increments and absolute joint states, e.g. `yaw:-30,30;pitch:-20,20;tz:-0.1,0.1;lid_hinge:0,90`. Commit a candidate with pose_commit (the result names its report).",
     |tb, a, step| {
         tb.search(SearchVerb::Sweep, Some(&a.frames), &a, step)
     });
 
-tool!(Apply, "apply", Pose, Nothing, ApplyArgs,
+tool!(Apply, "apply", Pose, Nothing, WithSheet<ApplyArgs>,
     "Score one explicit order on one keyframe, e.g. `yaw:15;hinge:40`, and return it as a candidate (to compare with a sweep's).",
     |tb, a, step| {
         tb.search(SearchVerb::Apply, Some(&a.frame), &a, step)
     });
 
-tool!(Osweep, "osweep", Pose, Nothing, OsweepArgs,
+tool!(Osweep, "osweep", Pose, Nothing, WithSheet<OsweepArgs>,
     "Search object-frame rotations per keyframe: a preset (`z:flip`, `z:quarters`, `z:octants`, `so3:24`) or grid ranges (`rz:-180,180,9;rx:-15,15,3`). For objects that look alike from several sides.",
     |tb, a, step| {
         // The region is the agent's decision: no silent default grid, and not two at once.
@@ -261,13 +245,13 @@ tool!(Osweep, "osweep", Pose, Nothing, OsweepArgs,
         tb.search(SearchVerb::Osweep, a.frames.as_deref(), &a, step)
     });
 
-tool!(Oapply, "oapply", Pose, Nothing, OapplyArgs,
+tool!(Oapply, "oapply", Pose, Nothing, WithSheet<OapplyArgs>,
     "Score a set of object-frame rotations on each keyframe, default `flips|swaps` (identity, the 180° flips about x, y, z, and for each hinge the half-turn that swaps its two sides: lid and base), each refined before ranking. The flip check for near-symmetric objects: a flipped or swapped pose can score as well as the right one, so look at the sheet.",
     |tb, a, step| {
         tb.search(SearchVerb::Oapply, a.frames.as_deref(), &a, step)
     });
 
-tool!(OapplyAll, "oapply_all", Pose, Nothing, OapplyAllArgs,
+tool!(OapplyAll, "oapply_all", Pose, Nothing, WithSheet<OapplyAllArgs>,
     "Apply one object-frame rotation to every keyframe (`rz:90` or `flip:x`): for a model built the wrong way round; or to a block of keyframes (`frames`), to try a twin for a run of frames chained from a wrong pose: where the block meets the other frames, each frame's note gives the temporal step before and after the rotation. Nothing changes until `pose_commit`.",
     |tb, a, step| {
         tb.search(SearchVerb::OapplyAll, a.frames.as_deref(), &a, step)

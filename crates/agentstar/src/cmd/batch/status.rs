@@ -3,7 +3,7 @@
 
 use super::*;
 use crate::common::print_json;
-use agentstar_agent::run::RunDir;
+use agentstar_data::rundir::RunDir;
 use agentstar_batch::slurm::{self, TaskState};
 use agentstar_batch::state::summary;
 use agentstar_batch::table::{jobs_table, AgentSpend, JobRow};
