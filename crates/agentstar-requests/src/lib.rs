@@ -10,6 +10,8 @@
 //!   [`TurntableArgs`], [`PoseDiffArgs`]);
 //! - [`SheetView`]: a search verb's candidate sheet (`crop`, `zoom`), and [`WithSheet`], a
 //!   search request with it as one flat set of tool arguments;
+//! - the rules a command and its tool share, on the type both read: [`OsweepArgs::region`],
+//!   [`WarmStart::check`] (`track`);
 //! - [`to_args`]: the one rule that turns any serialisable request into arguments: each
 //!   field `name` becomes `--name=VALUE` (snake case to kebab case), `true` a bare `--name`,
 //!   `false`, `null` and absent fields nothing, a list one `--name=ITEM` per item.
@@ -26,10 +28,12 @@ use std::path::PathBuf;
 
 pub mod object;
 pub mod sheet;
+pub mod track;
 pub mod views;
 
-pub use object::{OapplyAllArgs, OapplyArgs, OsweepArgs};
+pub use object::{OapplyAllArgs, OapplyArgs, OsweepArgs, Region};
 pub use sheet::{SheetView, WithSheet};
+pub use track::WarmStart;
 pub use views::{Crop, PoseDiffArgs, TurntableArgs};
 
 /// What a `frames` argument takes (the one frame grammar, `Capture::select`).

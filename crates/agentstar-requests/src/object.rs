@@ -29,6 +29,29 @@ pub struct OsweepArgs {
     pub ranges: Option<String>,
 }
 
+/// Where an `osweep` searches: its preset or its grid ranges ([`OsweepArgs::region`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Region<'a> {
+    Preset(&'a str),
+    Ranges(&'a str),
+}
+
+impl OsweepArgs {
+    /// The region to search: exactly one of `opreset` and `ranges`. The region is the
+    /// caller's decision: there is no default grid, and two at once are refused. The
+    /// command and the tool both ask this before anything is searched.
+    pub fn region(&self) -> Result<Region<'_>, String> {
+        match (self.opreset.as_deref(), self.ranges.as_deref()) {
+            (Some(preset), None) => Ok(Region::Preset(preset)),
+            (None, Some(ranges)) => Ok(Region::Ranges(ranges)),
+            (None, None) => Err("osweep needs a region and searched nothing: give `opreset` (`z:flip`, `z:quarters`, `z:octants`, `so3:24`) or `ranges` (`rz:-180,180,9;rx:-15,15,3`), and `frames` (default: every keyframe)".into()),
+            (Some(_), Some(_)) => {
+                Err("osweep takes `opreset` or `ranges`, not both: nothing was searched".into())
+            }
+        }
+    }
+}
+
 /// What `oapply` scores: a set of object-frame rotations, in some keyframes.
 #[derive(clap::Args, Debug, Clone, PartialEq, Deserialize, Serialize, JsonSchema)]
 #[group(skip)]

@@ -19,7 +19,9 @@ use serde::{Deserialize, Serialize};
 use serde_json::{Map, Value};
 
 /// The candidate sheet's tiles: the part of the frame they show and how far it is enlarged.
-#[derive(clap::Args, Debug, Clone, Copy, PartialEq, Default, Deserialize, Serialize, JsonSchema)]
+#[derive(
+    clap::Args, Debug, Clone, Copy, PartialEq, Default, Deserialize, Serialize, JsonSchema,
+)]
 #[group(skip)]
 #[serde(deny_unknown_fields)]
 pub struct SheetView {
@@ -172,9 +174,10 @@ mod tests {
 
     #[test]
     fn a_request_with_a_sheet_is_one_flat_object_refusing_unknown_fields() {
-        let a: WithSheet<Request> =
-            serde_json::from_value(serde_json::json!({"frames": "1", "zoom": 4.0, "crop": "1,2,30,40"}))
-                .expect("parse");
+        let a: WithSheet<Request> = serde_json::from_value(
+            serde_json::json!({"frames": "1", "zoom": 4.0, "crop": "1,2,30,40"}),
+        )
+        .expect("parse");
         assert_eq!(a.frames, "1");
         assert_eq!(a.sheet.zoom, Some(4.0));
         assert_eq!(
@@ -207,13 +210,16 @@ mod tests {
             serde_json::json!({"frames": "1", "crop": "3,3,1,1"}),
         )
         .expect_err("bad crop");
-        assert!(bad_crop.to_string().contains("x1 must exceed x0"), "{bad_crop}");
+        assert!(
+            bad_crop.to_string().contains("x1 must exceed x0"),
+            "{bad_crop}"
+        );
     }
 
     #[test]
     fn the_schema_lists_the_sheet_view_beside_the_request_fields() {
-        let schema = serde_json::to_value(schemars::schema_for!(WithSheet<Request>))
-            .expect("schema");
+        let schema =
+            serde_json::to_value(schemars::schema_for!(WithSheet<Request>)).expect("schema");
         let props = schema["properties"].as_object().expect("properties");
         let mut names: Vec<&str> = props.keys().map(String::as_str).collect();
         names.sort_unstable();

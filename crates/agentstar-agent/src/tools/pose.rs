@@ -232,15 +232,8 @@ tool!(Apply, "apply", Pose, Nothing, WithSheet<ApplyArgs>,
 tool!(Osweep, "osweep", Pose, Nothing, WithSheet<OsweepArgs>,
     "Search object-frame rotations per keyframe: a preset (`z:flip`, `z:quarters`, `z:octants`, `so3:24`) or grid ranges (`rz:-180,180,9;rx:-15,15,3`). For objects that look alike from several sides.",
     |tb, a, step| {
-        // The region is the agent's decision: no silent default grid, and not two at once.
-        match (&a.opreset, &a.ranges) {
-            (None, None) => return Ok(ToolOutput::error(
-                "osweep needs a region and searched nothing: give `opreset` (`z:flip`, `z:quarters`, `z:octants`, `so3:24`) or `ranges` (`rz:-180,180,9;rx:-15,15,3`), and `frames` (default: every keyframe)",
-            )),
-            (Some(_), Some(_)) => return Ok(ToolOutput::error(
-                "osweep takes `opreset` or `ranges`, not both: nothing was searched",
-            )),
-            _ => {}
+        if let Err(e) = a.region() {
+            return Ok(ToolOutput::error(e));
         }
         tb.search(SearchVerb::Osweep, a.frames.as_deref(), &a, step)
     });
@@ -493,10 +486,8 @@ impl Toolbox {
             Err(e) => return Ok(ToolOutput::error(format!("pose_commit: {e}"))),
         };
         let label = nonblank(&a.label);
-        if label.is_some() && a.rank.is_some() {
-            return Ok(ToolOutput::error(
-                "pose_commit: give `rank` or `label`, not both".to_string(),
-            ));
+        if let Err(e) = agentstar_reports::CandidatePick::new(a.rank.map(|r| r as usize), label) {
+            return Ok(ToolOutput::error(format!("pose_commit: {e}")));
         }
         #[derive(serde::Serialize)]
         struct CommitRequest<'a> {
@@ -551,14 +542,16 @@ impl Toolbox {
                 "track changes every keyframe; a pose sub-agent works on its window with sweeps and flips",
             ));
         }
-        // A blank `from` is a mistake, not a request to start over (issue 35).
-        if a.from.as_deref().is_some_and(|f| f.trim().is_empty()) {
-            return Ok(ToolOutput::error(
-                "track: `from` is blank; name a pose file (\"pose.json\" for the current poses) or leave it out to track from scratch",
-            ));
+        let anchors = nonblank(&a.anchors);
+        let warm = agentstar_requests::WarmStart {
+            from: a.from.as_deref().map(Path::new),
+            anchors,
+            keep_basins: a.keep_basins == Some(true),
+        };
+        if let Err(e) = warm.check() {
+            return Ok(ToolOutput::error(format!("track: {e}")));
         }
         let from = nonblank(&a.from);
-        let anchors = nonblank(&a.anchors);
         #[derive(serde::Serialize)]
         struct TrackRequest<'a> {
             model: &'a Path,
@@ -580,29 +573,16 @@ impl Toolbox {
             scale: a.scale,
             scale_from: None,
         };
-        match (from, anchors) {
-            (None, Some(_)) => {
-                return Ok(ToolOutput::error(
-                    "track: `anchors` keeps keyframes of a warm start; give `from` too (\"pose.json\" for the current poses)",
-                ))
+        if let Some(f) = from {
+            request.from = match self.confine(f) {
+                Ok(p) => Some(p),
+                Err(e) => return Ok(ToolOutput::error(format!("track: {e}"))),
+            };
+            if let Some(spec) = anchors {
+                // The frame grammar, checked here so a bad name is the tool's error.
+                request.anchors = Some(self.frame_names(Some(spec))?.join(","));
             }
-            (Some(f), _) => {
-                request.from = match self.confine(f) {
-                    Ok(p) => Some(p),
-                    Err(e) => return Ok(ToolOutput::error(format!("track: {e}"))),
-                };
-                if let Some(spec) = anchors {
-                    // The frame grammar, checked here so a bad name is the tool's error.
-                    request.anchors = Some(self.frame_names(Some(spec))?.join(","));
-                }
-                request.keep_basins = a.keep_basins.unwrap_or(false);
-            }
-            (None, None) => {}
-        }
-        if from.is_none() && a.keep_basins == Some(true) {
-            return Ok(ToolOutput::error(
-                "track: `keep_basins` keeps the basins of a warm start; give `from` too (\"pose.json\" for the current poses)",
-            ));
+            request.keep_basins = a.keep_basins.unwrap_or(false);
         }
         if a.scale.is_none() && from.is_none() {
             request.scale_from = Some(&self.run.poses);
