@@ -7,7 +7,7 @@
 //! - [`Output`]: where a command writes its files, and `--json`;
 //! - the requests the MCP tools take and the commands flatten, one type each (the
 //!   object-frame pose verbs: [`OsweepArgs`], [`OapplyArgs`], [`OapplyAllArgs`]; and
-//!   [`TurntableArgs`], [`PoseDiffArgs`]);
+//!   [`TurntableArgs`], [`PoseDiffArgs`], [`TemporalArgs`]);
 //! - [`SheetView`]: a search verb's candidate sheet (`crop`, `zoom`), and [`WithSheet`], a
 //!   search request with it as one flat set of tool arguments;
 //! - the rules a command and its tool share, on the type both read: [`OsweepArgs::region`],
@@ -34,7 +34,7 @@ pub mod views;
 pub use object::{OapplyAllArgs, OapplyArgs, OsweepArgs, Region};
 pub use sheet::{SheetView, WithSheet};
 pub use track::WarmStart;
-pub use views::{Crop, PoseDiffArgs, TurntableArgs};
+pub use views::{Crop, PoseDiffArgs, TemporalArgs, TurntableArgs};
 
 /// What a `frames` argument takes (the one frame grammar, `Capture::select`).
 pub const FRAMES: &str = "Keyframes: `all`, names (`000010.png`), stems (`000010`), frame numbers, or ranges `a..b`, comma separated.";

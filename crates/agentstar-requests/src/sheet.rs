@@ -61,18 +61,6 @@ impl SheetView {
             ))
         }
     }
-
-    /// The window `[x0, y0, width, height]` of a `width`×`height` frame the tiles show:
-    /// `around` (or the whole frame) for `mask` or no crop, a box clamped to the frame, and
-    /// an error for a box wholly outside it (see [`Crop::window`]).
-    pub fn window(
-        &self,
-        width: u32,
-        height: u32,
-        around: Option<[u32; 4]>,
-    ) -> Result<[u32; 4], String> {
-        self.crop.unwrap_or_default().window(width, height, around)
-    }
 }
 
 /// A search request with its candidate sheet's view, as one flat object: the arguments of
@@ -234,29 +222,13 @@ mod tests {
     }
 
     #[test]
-    fn zoom_and_window_keep_their_bounds() {
-        let view = |crop: Option<&str>, zoom: Option<f64>| SheetView {
-            crop: crop.map(|c| c.parse().expect("crop")),
-            zoom,
-        };
-        assert_eq!(view(None, None).zoom(), Ok(1.0));
-        assert_eq!(view(None, Some(8.0)).zoom(), Ok(8.0));
+    fn zoom_keeps_its_bounds() {
+        let view = |zoom: Option<f64>| SheetView { crop: None, zoom };
+        assert_eq!(view(None).zoom(), Ok(1.0));
+        assert_eq!(view(Some(8.0)).zoom(), Ok(8.0));
         for bad in [0.5, 9.0, f64::NAN] {
-            let e = view(None, Some(bad)).zoom().expect_err("refused");
+            let e = view(Some(bad)).zoom().expect_err("refused");
             assert!(e.contains("from 1 to 8"), "{e}");
         }
-        assert_eq!(view(None, None).window(10, 8, None), Ok([0, 0, 10, 8]));
-        assert_eq!(
-            view(Some("mask"), None).window(10, 8, Some([1, 1, 2, 2])),
-            Ok([1, 1, 2, 2])
-        );
-        assert_eq!(
-            view(Some("2,2,20,20"), None).window(10, 8, None),
-            Ok([2, 2, 8, 6])
-        );
-        let e = view(Some("50,50,60,60"), None)
-            .window(10, 8, None)
-            .expect_err("outside");
-        assert!(e.contains("lies outside the 10×8 frame"), "{e}");
     }
 }

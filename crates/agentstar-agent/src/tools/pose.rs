@@ -9,7 +9,9 @@ use agentstar_reports::{
     CommitReport, FrameHistoryReport, HistoryReport, PoseDiffReport, RestoreReport, SearchReport,
     SearchVerb, TrackReport,
 };
-use agentstar_requests::{OapplyAllArgs, OapplyArgs, OsweepArgs, PoseDiffArgs, WithSheet};
+use agentstar_requests::{
+    OapplyAllArgs, OapplyArgs, OsweepArgs, PoseDiffArgs, TemporalArgs, WithSheet,
+};
 use schemars::JsonSchema;
 use serde::Deserialize;
 use std::collections::BTreeMap;
@@ -195,13 +197,6 @@ pub struct PoseCommitArgs {
     pub frames: Option<String>,
 }
 
-#[derive(Debug, Deserialize, JsonSchema)]
-#[serde(deny_unknown_fields)]
-pub struct TemporalArgs {
-    /// e.g. vel.rot, accel.rot, vel.trans, <joint>.vel
-    pub sort_by: Option<String>,
-}
-
 /// The arguments of the built-in loop's `delegate_pose` (run by the loop, not the toolbox).
 #[derive(Debug, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
@@ -281,13 +276,14 @@ tool!(Temporal, "temporal", Diagnostic, Nothing, TemporalArgs,
         std::fs::create_dir_all(&out).map_err(|e| agentstar_data::DataError::io(&out, e))?;
         let plot = out.join("temporal.png");
         #[derive(serde::Serialize)]
-        struct TemporalRequest<'a> {
+        struct Plot<'a> {
             plot: &'a Path,
-            sort_by: Option<&'a str>,
         }
+        let request = TemporalArgs { sort_by: nonblank(&a.sort_by).map(str::to_string) };
         let call = Invocation::new(&["temporal"])
             .with(&tb.session())?
-            .with(&TemporalRequest { plot: &plot, sort_by: nonblank(&a.sort_by) })?;
+            .with(&request)?
+            .with(&Plot { plot: &plot })?;
         let (ok, stdout, stderr) = tb.exec(call.args())?;
         if !ok {
             return Ok(ToolOutput::error(stderr.trim().to_string()));

@@ -201,7 +201,7 @@ fn candidate_sheet(
         frame.height(),
     ]);
     // A box asked for replaces the crop around the mask and the silhouettes.
-    let around = view
+    let around = (view.crop.unwrap_or_default())
         .window(frame.width(), frame.height(), Some([x0, y0, w, h]))
         .map_err(|e| anyhow!("--crop: {e} (frame {})", s.capture.frames[i].name))?;
     // At least 4:3 and 320 px on its long side, so that each tile's label (the order) has
