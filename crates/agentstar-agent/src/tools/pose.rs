@@ -151,6 +151,11 @@ pub enum Strategy {
     Grid,
 }
 
+/// The `sweep` tool's search (its sheet view comes beside it, `WithSheet<SweepArgs>`). Not
+/// a request the command flattens: the tool asks for `frames` and `ranges` outright where
+/// the command defaults them (or takes `--candidates` instead), names its strategy as an
+/// enum where the command reads text, bounds `evals`, and leaves the command's tuning flags
+/// (restarts, seed, grid steps, polish, runners-up) at their defaults.
 #[derive(Debug, Deserialize, JsonSchema, serde::Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct SweepArgs {
@@ -167,6 +172,8 @@ pub struct SweepArgs {
     pub evals: Option<u64>,
 }
 
+/// The `apply` tool's order (its sheet view comes beside it, `WithSheet<ApplyArgs>`). The
+/// tool asks for the frame outright; the command defaults it to the reference frame.
 #[derive(Debug, Deserialize, JsonSchema, serde::Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct ApplyArgs {
