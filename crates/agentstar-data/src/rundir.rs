@@ -143,9 +143,7 @@ impl RunDir {
 
     /// The run's step lock (`.agentstar/steps.lock`), held while a step number is given.
     fn step_lock(&self) -> Result<PoseLock> {
-        Ok(history::lock_file(
-            &self.dir.join(".agentstar").join("steps.lock"),
-        )?)
+        history::lock_file(&self.dir.join(".agentstar").join("steps.lock"))
     }
 
     /// Removes what writers killed mid-write (`kill -9`) left in the run's directories: the
@@ -184,9 +182,7 @@ impl RunDir {
     /// versions change, across processes: two servers on one run never give one version
     /// twice.
     pub fn lock_scene(&self) -> Result<PoseLock> {
-        Ok(history::lock_file(
-            &self.dir.join(".agentstar").join("scene.lock"),
-        )?)
+        history::lock_file(&self.dir.join(".agentstar").join("scene.lock"))
     }
     /// The output directory of step `step` of `tool`.
     pub fn step_dir(&self, step: u64, tool: &str) -> PathBuf {

@@ -103,11 +103,7 @@ tool!(Render, "render", Diagnostic, Nothing, RenderArgs,
             o.images.len(),
             if written > o.images.len() { "; the rest are files there" } else { "" }
         );
-        for f in &report.frames {
-            if let (Some([x, y, w, h]), Some(z)) = (f.crop, f.zoom) {
-                text.push_str(&format!("\n- {}: crop at ({x}, {y}), {w}×{h} frame pixels, zoom {z:.2}", f.frame));
-            }
-        }
+        text.push_str(&crop_lines(&report));
         let facing: Vec<_> = report.frames.iter().filter_map(|f| f.facing.clone()).collect();
         text.push('\n');
         text.push_str(&agentstar_reports::view::facing_lines(&facing));
@@ -146,11 +142,7 @@ tool!(Keyframes, "frames", Diagnostic, Nothing, KeyframesArgs,
                 ""
             }
         );
-        for f in &report.frames {
-            if let (Some([x, y, w, h]), Some(z)) = (f.crop, f.zoom) {
-                text.push_str(&format!("\n- {}: crop at ({x}, {y}), {w}×{h} frame pixels, zoom {z:.2}", f.frame));
-            }
-        }
+        text.push_str(&crop_lines(&report));
         for n in &report.notes {
             text.push_str(&format!("\nnote: {n}"));
         }
@@ -254,4 +246,19 @@ impl RenderRequest<'_> {
             .map_err(|e| AgentError::Tool(format!("render printed no render report ({e})")))?;
         Ok(Ok((o, out, report)))
     }
+}
+
+/// One line per frame of a render report that was cropped or zoomed: where its crop lies in
+/// the frame and at what zoom (each line starts with a line break).
+fn crop_lines(report: &RenderReport) -> String {
+    let mut text = String::new();
+    for f in &report.frames {
+        if let (Some([x, y, w, h]), Some(z)) = (f.crop, f.zoom) {
+            text.push_str(&format!(
+                "\n- {}: crop at ({x}, {y}), {w}×{h} frame pixels, zoom {z:.2}",
+                f.frame
+            ));
+        }
+    }
+    text
 }
