@@ -21,6 +21,7 @@ pub mod meshio;
 pub mod npz;
 pub mod posefile;
 pub mod poses;
+pub mod rundir;
 pub mod runfile;
 pub mod scenefile;
 pub mod texture;

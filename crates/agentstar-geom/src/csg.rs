@@ -522,7 +522,13 @@ fn bsp_boolean(a: &TriMesh, b: &TriMesh, op: Op, size: f64, budget: Budget) -> R
     let mut ta = Bsp::new(to_polygons(a), eps, budget)?;
     let mut tb = Bsp::new(to_polygons(b), eps, budget)?;
     match op {
-        Op::Union => {
+        // A − B is the complement of (complement A) ∪ B: the union's steps between two
+        // inversions of A.
+        Op::Union | Op::Difference => {
+            let difference = op == Op::Difference;
+            if difference {
+                ta.invert();
+            }
             ta.clip_to(&tb)?;
             tb.clip_to(&ta)?;
             tb.invert();
@@ -530,17 +536,9 @@ fn bsp_boolean(a: &TriMesh, b: &TriMesh, op: Op, size: f64, budget: Budget) -> R
             tb.invert();
             let polys = tb.all_polygons();
             ta.build(0, polys)?;
-        }
-        Op::Difference => {
-            ta.invert();
-            ta.clip_to(&tb)?;
-            tb.clip_to(&ta)?;
-            tb.invert();
-            tb.clip_to(&ta)?;
-            tb.invert();
-            let polys = tb.all_polygons();
-            ta.build(0, polys)?;
-            ta.invert();
+            if difference {
+                ta.invert();
+            }
         }
         Op::Intersection => {
             ta.invert();

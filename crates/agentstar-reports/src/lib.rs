@@ -132,6 +132,59 @@ pub struct SearchFrame {
     pub pages: Vec<SheetPage>,
 }
 
+/// Which candidate of a search report a commit takes in each frame.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum CandidatePick {
+    /// By rank (0, the best, when not given).
+    Rank(Option<usize>),
+    /// By label: the label itself, or (an `osweep` row, `start → where it ended`) its start.
+    Label(String),
+}
+
+impl CandidatePick {
+    /// A rank or a label, not both (the rule `pose commit` and the `pose_commit` tool
+    /// share); neither is rank 0, the best.
+    pub fn new(rank: Option<usize>, label: Option<&str>) -> Result<CandidatePick, String> {
+        match (rank, label) {
+            (Some(_), Some(_)) => Err("give `rank` or `label`, not both".into()),
+            (_, Some(label)) => Ok(CandidatePick::Label(label.to_string())),
+            (rank, None) => Ok(CandidatePick::Rank(rank)),
+        }
+    }
+
+    /// The candidate this pick takes in `frame`, or what the frame offers instead.
+    pub fn find<'c>(&self, frame: &'c SearchFrame) -> std::result::Result<&'c Candidate, String> {
+        match self {
+            CandidatePick::Rank(rank) => {
+                let rank = rank.unwrap_or(0);
+                frame.ranked.iter().find(|c| c.rank == rank).ok_or_else(|| {
+                    format!(
+                        "frame {}: no candidate of rank {rank} (ranks 0..{})",
+                        frame.frame,
+                        frame.ranked.len().saturating_sub(1)
+                    )
+                })
+            }
+            CandidatePick::Label(label) => {
+                let label = label.trim();
+                frame
+                    .ranked
+                    .iter()
+                    .find(|c| c.label == label || c.label.split(" → ").next() == Some(label))
+                    .ok_or_else(|| {
+                        let labels: Vec<&str> =
+                            frame.ranked.iter().map(|c| c.label.as_str()).collect();
+                        format!(
+                            "frame {}: no candidate labelled `{label}` (its labels: {})",
+                            frame.frame,
+                            labels.join(", ")
+                        )
+                    })
+            }
+        }
+    }
+}
+
 /// One page of a candidate sheet: its file and the ranks of the candidates it draws.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -888,6 +941,24 @@ pub fn score_table(
 mod tests {
     use super::*;
     use agentstar_render::GATE_IOU;
+
+    #[test]
+    fn a_pick_is_a_rank_or_a_label_not_both() {
+        assert_eq!(
+            CandidatePick::new(None, None),
+            Ok(CandidatePick::Rank(None))
+        );
+        assert_eq!(
+            CandidatePick::new(Some(2), None),
+            Ok(CandidatePick::Rank(Some(2)))
+        );
+        assert_eq!(
+            CandidatePick::new(None, Some("flip:x")),
+            Ok(CandidatePick::Label("flip:x".into()))
+        );
+        let e = CandidatePick::new(Some(1), Some("flip:x")).expect_err("both");
+        assert!(e.contains("not both"), "{e}");
+    }
 
     #[test]
     fn every_verb_names_its_command_and_files_consistently() {

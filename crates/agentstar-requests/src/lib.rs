@@ -7,7 +7,11 @@
 //! - [`Output`]: where a command writes its files, and `--json`;
 //! - the requests the MCP tools take and the commands flatten, one type each (the
 //!   object-frame pose verbs: [`OsweepArgs`], [`OapplyArgs`], [`OapplyAllArgs`]; and
-//!   [`TurntableArgs`], [`PoseDiffArgs`]);
+//!   [`TurntableArgs`], [`PoseDiffArgs`], [`TemporalArgs`]);
+//! - [`SheetView`]: a search verb's candidate sheet (`crop`, `zoom`), and [`WithSheet`], a
+//!   search request with it as one flat set of tool arguments;
+//! - the rules a command and its tool share, on the type both read: [`OsweepArgs::region`],
+//!   [`WarmStart::check`] (`track`);
 //! - [`to_args`]: the one rule that turns any serialisable request into arguments: each
 //!   field `name` becomes `--name=VALUE` (snake case to kebab case), `true` a bare `--name`,
 //!   `false`, `null` and absent fields nothing, a list one `--name=ITEM` per item.
@@ -23,10 +27,14 @@ use serde_json::Value;
 use std::path::PathBuf;
 
 pub mod object;
+pub mod sheet;
+pub mod track;
 pub mod views;
 
-pub use object::{OapplyAllArgs, OapplyArgs, OsweepArgs};
-pub use views::{Crop, PoseDiffArgs, TurntableArgs};
+pub use object::{OapplyAllArgs, OapplyArgs, OsweepArgs, Region};
+pub use sheet::{SheetView, WithSheet};
+pub use track::WarmStart;
+pub use views::{Crop, PoseDiffArgs, TemporalArgs, TurntableArgs};
 
 /// What a `frames` argument takes (the one frame grammar, `Capture::select`).
 pub const FRAMES: &str = "Keyframes: `all`, names (`000010.png`), stems (`000010`), frame numbers, or ranges `a..b`, comma separated.";

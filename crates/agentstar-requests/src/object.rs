@@ -1,6 +1,8 @@
 //! The object-frame pose verbs' requests: what `osweep`, `oapply` and `oapply-all` search,
 //! as the MCP tools of the same names take it and the commands flatten it (each command
-//! adds its tuning flags and the session's inputs).
+//! adds its tuning flags and the session's inputs). The candidate sheet's `crop` and `zoom`
+//! are not here: the tools take each request as `WithSheet<…>` ([`crate::sheet`]), and the
+//! commands read them among the options every search verb shares.
 
 use crate::FRAMES;
 use schemars::JsonSchema;
@@ -25,18 +27,29 @@ pub struct OsweepArgs {
     /// Give this or `opreset`.
     #[arg(long)]
     pub ranges: Option<String>,
-    /// The candidate sheet's tiles: `mask` (around the object and the finalists; the
-    /// default) or a box `x0,y0,x1,y1` in frame pixels around a detail that decides.
-    // A tool's field only: it reaches the command as `--crop` (and `zoom` as `--zoom`),
-    // which every search verb reads among its common options, so clap skips both here.
-    #[arg(skip)]
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub crop: Option<crate::Crop>,
-    /// Output pixels per frame pixel on the sheet's tiles (1 to 8).
-    #[arg(skip)]
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    #[schemars(range(min = 1.0, max = 8.0))]
-    pub zoom: Option<f64>,
+}
+
+/// Where an `osweep` searches: its preset or its grid ranges ([`OsweepArgs::region`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Region<'a> {
+    Preset(&'a str),
+    Ranges(&'a str),
+}
+
+impl OsweepArgs {
+    /// The region to search: exactly one of `opreset` and `ranges`. The region is the
+    /// caller's decision: there is no default grid, and two at once are refused. The
+    /// command and the tool both ask this before anything is searched.
+    pub fn region(&self) -> Result<Region<'_>, String> {
+        match (self.opreset.as_deref(), self.ranges.as_deref()) {
+            (Some(preset), None) => Ok(Region::Preset(preset)),
+            (None, Some(ranges)) => Ok(Region::Ranges(ranges)),
+            (None, None) => Err("osweep needs a region and searched nothing: give `opreset` (`z:flip`, `z:quarters`, `z:octants`, `so3:24`) or `ranges` (`rz:-180,180,9;rx:-15,15,3`), and `frames` (default: every keyframe)".into()),
+            (Some(_), Some(_)) => {
+                Err("osweep takes `opreset` or `ranges`, not both: nothing was searched".into())
+            }
+        }
+    }
 }
 
 /// What `oapply` scores: a set of object-frame rotations, in some keyframes.
@@ -53,18 +66,6 @@ pub struct OapplyArgs {
     /// candidate (degrees, or canonical units for a prismatic joint): `flip:x;hinge:115`.
     #[arg(long)]
     pub set: Option<String>,
-    /// The candidate sheet's tiles: `mask` (around the object and the finalists; the
-    /// default) or a box `x0,y0,x1,y1` in frame pixels around a detail that decides.
-    // A tool's field only: it reaches the command as `--crop` (and `zoom` as `--zoom`),
-    // which every search verb reads among its common options, so clap skips both here.
-    #[arg(skip)]
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub crop: Option<crate::Crop>,
-    /// Output pixels per frame pixel on the sheet's tiles (1 to 8).
-    #[arg(skip)]
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    #[schemars(range(min = 1.0, max = 8.0))]
-    pub zoom: Option<f64>,
 }
 
 impl OapplyArgs {
@@ -93,16 +94,4 @@ pub struct OapplyAllArgs {
     #[arg(long, help = FRAMES)]
     #[schemars(description = FRAMES)]
     pub frames: Option<String>,
-    /// The candidate sheet's tiles: `mask` (around the object and the finalists; the
-    /// default) or a box `x0,y0,x1,y1` in frame pixels around a detail that decides.
-    // A tool's field only: it reaches the command as `--crop` (and `zoom` as `--zoom`),
-    // which every search verb reads among its common options, so clap skips both here.
-    #[arg(skip)]
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub crop: Option<crate::Crop>,
-    /// Output pixels per frame pixel on the sheet's tiles (1 to 8).
-    #[arg(skip)]
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    #[schemars(range(min = 1.0, max = 8.0))]
-    pub zoom: Option<f64>,
 }

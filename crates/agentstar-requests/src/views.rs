@@ -1,5 +1,5 @@
-//! The requests of `turntable` and `pose-diff`, as the MCP tools of the same names take them
-//! and the commands flatten them.
+//! The requests of `turntable`, `pose-diff` and `temporal`, as the MCP tools of the same
+//! names take them and the commands flatten them.
 
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
@@ -41,6 +41,19 @@ pub struct PoseDiffArgs {
     #[arg(long, help = "The second keyframe.")]
     #[schemars(length(min = 1))]
     pub b: String,
+}
+
+/// How the `temporal` report's rows are sorted.
+#[derive(clap::Args, Debug, Clone, PartialEq, Deserialize, Serialize, JsonSchema)]
+#[group(skip)]
+#[serde(deny_unknown_fields)]
+pub struct TemporalArgs {
+    /// e.g. vel.rot, accel.rot, vel.trans, <joint>.vel
+    #[arg(
+        long,
+        help = "Sort by |value| descending: vel.rot, vel.trans, vel.radial, accel.rot, accel.trans, accel.radial, <joint>.vel, <joint>.accel."
+    )]
+    pub sort_by: Option<String>,
 }
 
 /// The part of a frame a view shows: around the object mask (and the model's silhouette)

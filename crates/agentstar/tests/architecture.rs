@@ -164,3 +164,62 @@ fn the_document_parser_reads_what_it_is_given() {
     );
     assert!(g["agentstar-b"].is_empty());
 }
+
+/// The binary's source files under `src/cmd/` that name `agentstar_agent`, as paths relative
+/// to `src/` (`cmd/agent.rs`).
+fn command_files_using_the_agent() -> BTreeSet<String> {
+    let src = workspace_root().join("crates/agentstar/src");
+    let mut found = BTreeSet::new();
+    let mut stack = vec![src.join("cmd")];
+    while let Some(dir) = stack.pop() {
+        for entry in std::fs::read_dir(&dir).expect("read cmd dir") {
+            let path = entry.expect("entry").path();
+            if path.is_dir() {
+                stack.push(path);
+            } else if path.extension().is_some_and(|e| e == "rs")
+                && std::fs::read_to_string(&path)
+                    .expect("read source")
+                    .contains("agentstar_agent")
+            {
+                let rel = path.strip_prefix(&src).expect("under src");
+                found.insert(rel.to_string_lossy().replace('\\', "/"));
+            }
+        }
+    }
+    found
+}
+
+/// The command files the Boundaries section says may use the agent crate: the backticked
+/// `cmd/…` paths on its line that starts "Command files that use `agentstar-agent`".
+fn documented_agent_commands(doc: &str) -> BTreeSet<String> {
+    let line = section(doc, "Boundaries")
+        .lines()
+        .find(|l| {
+            l.trim_start()
+                .starts_with("- Command files that use `agentstar-agent`")
+        })
+        .expect("Boundaries names the command files that use `agentstar-agent`");
+    line.split('`')
+        .skip(1)
+        .step_by(2)
+        .filter(|n| n.starts_with("cmd/"))
+        .map(str::to_string)
+        .collect()
+}
+
+/// Only the commands that drive a model link the agent harness: a command that reads a
+/// report, a run directory or a ledger takes it from `agentstar-reports` or `agentstar-data`.
+#[test]
+fn only_the_documented_commands_use_the_agent_crate() {
+    let documented = documented_agent_commands(&architecture());
+    assert!(
+        documented.len() <= 3,
+        "at most three command files may use the agent crate; the document lists {documented:?}"
+    );
+    let real = command_files_using_the_agent();
+    assert!(!real.is_empty(), "no command file names agentstar_agent");
+    assert_eq!(
+        real, documented,
+        "command files naming `agentstar_agent` (left) vs ARCHITECTURE.md's Boundaries (right)"
+    );
+}

@@ -199,7 +199,9 @@ fn pose_verbs_track_commit_and_diagnose() {
     let o = agentstar(&bare.iter().map(String::as_str).collect::<Vec<_>>());
     assert!(!o.status.success());
     assert!(
-        text(&o).contains("--ranges <RANGES>|--opreset <OPRESET>"),
+        text(&o).contains("`opreset`")
+            && text(&o).contains("`ranges`")
+            && text(&o).contains("searched nothing"),
         "{}",
         text(&o)
     );

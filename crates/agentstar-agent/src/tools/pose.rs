@@ -9,7 +9,9 @@ use agentstar_reports::{
     CommitReport, FrameHistoryReport, HistoryReport, PoseDiffReport, RestoreReport, SearchReport,
     SearchVerb, TrackReport,
 };
-use agentstar_requests::{OapplyAllArgs, OapplyArgs, OsweepArgs, PoseDiffArgs};
+use agentstar_requests::{
+    OapplyAllArgs, OapplyArgs, OsweepArgs, PoseDiffArgs, TemporalArgs, WithSheet,
+};
 use schemars::JsonSchema;
 use serde::Deserialize;
 use std::collections::BTreeMap;
@@ -149,6 +151,11 @@ pub enum Strategy {
     Grid,
 }
 
+/// The `sweep` tool's search (its sheet view comes beside it, `WithSheet<SweepArgs>`). Not
+/// a request the command flattens: the tool asks for `frames` and `ranges` outright where
+/// the command defaults them (or takes `--candidates` instead), names its strategy as an
+/// enum where the command reads text, bounds `evals`, and leaves the command's tuning flags
+/// (restarts, seed, grid steps, polish, runners-up) at their defaults.
 #[derive(Debug, Deserialize, JsonSchema, serde::Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct SweepArgs {
@@ -163,16 +170,10 @@ pub struct SweepArgs {
     /// dimensions).
     #[schemars(range(min = 50, max = 50000))]
     pub evals: Option<u64>,
-    /// The candidate sheet's tiles: `mask` (around the object and the finalists; the
-    /// default) or a box `x0,y0,x1,y1` in frame pixels around a detail that decides.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub crop: Option<agentstar_requests::Crop>,
-    /// Output pixels per frame pixel on the sheet's tiles (1 to 8).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    #[schemars(range(min = 1.0, max = 8.0))]
-    pub zoom: Option<f64>,
 }
 
+/// The `apply` tool's order (its sheet view comes beside it, `WithSheet<ApplyArgs>`). The
+/// tool asks for the frame outright; the command defaults it to the reference frame.
 #[derive(Debug, Deserialize, JsonSchema, serde::Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct ApplyArgs {
@@ -182,14 +183,6 @@ pub struct ApplyArgs {
     /// One value per DOF: `yaw:15;hinge:40` (increments; joint states absolute).
     #[schemars(length(min = 1))]
     pub order: String,
-    /// The candidate sheet's tiles: `mask` (around the object and the finalists; the
-    /// default) or a box `x0,y0,x1,y1` in frame pixels around a detail that decides.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub crop: Option<agentstar_requests::Crop>,
-    /// Output pixels per frame pixel on the sheet's tiles (1 to 8).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    #[schemars(range(min = 1.0, max = 8.0))]
-    pub zoom: Option<f64>,
 }
 
 #[derive(Debug, Deserialize, JsonSchema)]
@@ -211,13 +204,6 @@ pub struct PoseCommitArgs {
     pub frames: Option<String>,
 }
 
-#[derive(Debug, Deserialize, JsonSchema)]
-#[serde(deny_unknown_fields)]
-pub struct TemporalArgs {
-    /// e.g. vel.rot, accel.rot, vel.trans, <joint>.vel
-    pub sort_by: Option<String>,
-}
-
 /// The arguments of the built-in loop's `delegate_pose` (run by the loop, not the toolbox).
 #[derive(Debug, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
@@ -233,41 +219,34 @@ tool!(Track, "track", Pose, Poses, TrackArgs,
     "Run the automatic tracker over every keyframe with the current model and scale (a pose step for all keyframes; the result is a new pose version, the previous ones stay in pose_history). Use it once the shape is right, then fix the frames it gets wrong with sweeps and flips. After a shape edit, `from: \"pose.json\"` refines the current poses instead of starting over (cheap), and `anchors` keeps the keyframes you trust exactly and carries them to their neighbours; with `from`, it names every frame it moved to another basin (over 45° from its pose there), and `keep_basins: true` polishes only, keeping each frame within 45° of its pose (no flips or twins). Progress notifications carry its latest line; a run that is stopped keeps what it had tracked in pose.partial.json.",
     |tb, a, step| tb.track(&a, step));
 
-tool!(Sweep, "sweep", Pose, Nothing, SweepArgs,
+tool!(Sweep, "sweep", Pose, Nothing, WithSheet<SweepArgs>,
     "Search a bounded region around the current pose of each given keyframe by silhouette IoU (differential evolution, 6 seeded restarts) and return the ranked candidates with a candidate sheet; rows labelled `seen` are other places the search passed through (at least 10° from the rest, not refined; another basin where the box holds one, else the slope of the same one: refine one with a narrower sweep around it). Ranges are camera-frame increments and absolute joint states, e.g. `yaw:-30,30;pitch:-20,20;tz:-0.1,0.1;lid_hinge:0,90`. Commit a candidate with pose_commit (the result names its report).",
     |tb, a, step| {
         tb.search(SearchVerb::Sweep, Some(&a.frames), &a, step)
     });
 
-tool!(Apply, "apply", Pose, Nothing, ApplyArgs,
+tool!(Apply, "apply", Pose, Nothing, WithSheet<ApplyArgs>,
     "Score one explicit order on one keyframe, e.g. `yaw:15;hinge:40`, and return it as a candidate (to compare with a sweep's).",
     |tb, a, step| {
         tb.search(SearchVerb::Apply, Some(&a.frame), &a, step)
     });
 
-tool!(Osweep, "osweep", Pose, Nothing, OsweepArgs,
+tool!(Osweep, "osweep", Pose, Nothing, WithSheet<OsweepArgs>,
     "Search object-frame rotations per keyframe: a preset (`z:flip`, `z:quarters`, `z:octants`, `so3:24`) or grid ranges (`rz:-180,180,9;rx:-15,15,3`). For objects that look alike from several sides.",
     |tb, a, step| {
-        // The region is the agent's decision: no silent default grid, and not two at once.
-        match (&a.opreset, &a.ranges) {
-            (None, None) => return Ok(ToolOutput::error(
-                "osweep needs a region and searched nothing: give `opreset` (`z:flip`, `z:quarters`, `z:octants`, `so3:24`) or `ranges` (`rz:-180,180,9;rx:-15,15,3`), and `frames` (default: every keyframe)",
-            )),
-            (Some(_), Some(_)) => return Ok(ToolOutput::error(
-                "osweep takes `opreset` or `ranges`, not both: nothing was searched",
-            )),
-            _ => {}
+        if let Err(e) = a.region() {
+            return Ok(ToolOutput::error(e));
         }
         tb.search(SearchVerb::Osweep, a.frames.as_deref(), &a, step)
     });
 
-tool!(Oapply, "oapply", Pose, Nothing, OapplyArgs,
+tool!(Oapply, "oapply", Pose, Nothing, WithSheet<OapplyArgs>,
     "Score a set of object-frame rotations on each keyframe, default `flips|swaps` (identity, the 180° flips about x, y, z, and for each hinge the half-turn that swaps its two sides: lid and base), each refined before ranking. The flip check for near-symmetric objects: a flipped or swapped pose can score as well as the right one, so look at the sheet.",
     |tb, a, step| {
         tb.search(SearchVerb::Oapply, a.frames.as_deref(), &a, step)
     });
 
-tool!(OapplyAll, "oapply_all", Pose, Nothing, OapplyAllArgs,
+tool!(OapplyAll, "oapply_all", Pose, Nothing, WithSheet<OapplyAllArgs>,
     "Apply one object-frame rotation to every keyframe (`rz:90` or `flip:x`): for a model built the wrong way round; or to a block of keyframes (`frames`), to try a twin for a run of frames chained from a wrong pose: where the block meets the other frames, each frame's note gives the temporal step before and after the rotation. Nothing changes until `pose_commit`.",
     |tb, a, step| {
         tb.search(SearchVerb::OapplyAll, a.frames.as_deref(), &a, step)
@@ -304,13 +283,14 @@ tool!(Temporal, "temporal", Diagnostic, Nothing, TemporalArgs,
         std::fs::create_dir_all(&out).map_err(|e| agentstar_data::DataError::io(&out, e))?;
         let plot = out.join("temporal.png");
         #[derive(serde::Serialize)]
-        struct TemporalRequest<'a> {
+        struct Plot<'a> {
             plot: &'a Path,
-            sort_by: Option<&'a str>,
         }
+        let request = TemporalArgs { sort_by: nonblank(&a.sort_by).map(str::to_string) };
         let call = Invocation::new(&["temporal"])
             .with(&tb.session())?
-            .with(&TemporalRequest { plot: &plot, sort_by: nonblank(&a.sort_by) })?;
+            .with(&request)?
+            .with(&Plot { plot: &plot })?;
         let (ok, stdout, stderr) = tb.exec(call.args())?;
         if !ok {
             return Ok(ToolOutput::error(stderr.trim().to_string()));
@@ -509,10 +489,8 @@ impl Toolbox {
             Err(e) => return Ok(ToolOutput::error(format!("pose_commit: {e}"))),
         };
         let label = nonblank(&a.label);
-        if label.is_some() && a.rank.is_some() {
-            return Ok(ToolOutput::error(
-                "pose_commit: give `rank` or `label`, not both".to_string(),
-            ));
+        if let Err(e) = agentstar_reports::CandidatePick::new(a.rank.map(|r| r as usize), label) {
+            return Ok(ToolOutput::error(format!("pose_commit: {e}")));
         }
         #[derive(serde::Serialize)]
         struct CommitRequest<'a> {
@@ -567,14 +545,16 @@ impl Toolbox {
                 "track changes every keyframe; a pose sub-agent works on its window with sweeps and flips",
             ));
         }
-        // A blank `from` is a mistake, not a request to start over (issue 35).
-        if a.from.as_deref().is_some_and(|f| f.trim().is_empty()) {
-            return Ok(ToolOutput::error(
-                "track: `from` is blank; name a pose file (\"pose.json\" for the current poses) or leave it out to track from scratch",
-            ));
+        let anchors = nonblank(&a.anchors);
+        let warm = agentstar_requests::WarmStart {
+            from: a.from.as_deref().map(Path::new),
+            anchors,
+            keep_basins: a.keep_basins == Some(true),
+        };
+        if let Err(e) = warm.check() {
+            return Ok(ToolOutput::error(format!("track: {e}")));
         }
         let from = nonblank(&a.from);
-        let anchors = nonblank(&a.anchors);
         #[derive(serde::Serialize)]
         struct TrackRequest<'a> {
             model: &'a Path,
@@ -596,29 +576,16 @@ impl Toolbox {
             scale: a.scale,
             scale_from: None,
         };
-        match (from, anchors) {
-            (None, Some(_)) => {
-                return Ok(ToolOutput::error(
-                    "track: `anchors` keeps keyframes of a warm start; give `from` too (\"pose.json\" for the current poses)",
-                ))
+        if let Some(f) = from {
+            request.from = match self.confine(f) {
+                Ok(p) => Some(p),
+                Err(e) => return Ok(ToolOutput::error(format!("track: {e}"))),
+            };
+            if let Some(spec) = anchors {
+                // The frame grammar, checked here so a bad name is the tool's error.
+                request.anchors = Some(self.frame_names(Some(spec))?.join(","));
             }
-            (Some(f), _) => {
-                request.from = match self.confine(f) {
-                    Ok(p) => Some(p),
-                    Err(e) => return Ok(ToolOutput::error(format!("track: {e}"))),
-                };
-                if let Some(spec) = anchors {
-                    // The frame grammar, checked here so a bad name is the tool's error.
-                    request.anchors = Some(self.frame_names(Some(spec))?.join(","));
-                }
-                request.keep_basins = a.keep_basins.unwrap_or(false);
-            }
-            (None, None) => {}
-        }
-        if from.is_none() && a.keep_basins == Some(true) {
-            return Ok(ToolOutput::error(
-                "track: `keep_basins` keeps the basins of a warm start; give `from` too (\"pose.json\" for the current poses)",
-            ));
+            request.keep_basins = a.keep_basins.unwrap_or(false);
         }
         if a.scale.is_none() && from.is_none() {
             request.scale_from = Some(&self.run.poses);

@@ -91,12 +91,10 @@ tool!(Render, "render", Diagnostic, Nothing, RenderArgs,
             crop: a.crop,
             ..Default::default()
         };
-        let (mut o, out, stdout) = tb.cli(&["render"], step, Render::NAME, &request)?;
-        if o.is_error {
-            return Ok(o);
-        }
-        let report: RenderReport = serde_json::from_str(&stdout)
-            .map_err(|e| AgentError::Tool(format!("render printed no render report ({e})")))?;
+        let (mut o, out, report) = match request.run(tb, Render::NAME, step)? {
+            Ok(done) => done,
+            Err(failed) => return Ok(failed),
+        };
         let written = o.images.len();
         o.images.truncate(MAX_IMAGES_RETURNED);
         let mut text = format!(
@@ -105,11 +103,7 @@ tool!(Render, "render", Diagnostic, Nothing, RenderArgs,
             o.images.len(),
             if written > o.images.len() { "; the rest are files there" } else { "" }
         );
-        for f in &report.frames {
-            if let (Some([x, y, w, h]), Some(z)) = (f.crop, f.zoom) {
-                text.push_str(&format!("\n- {}: crop at ({x}, {y}), {w}×{h} frame pixels, zoom {z:.2}", f.frame));
-            }
-        }
+        text.push_str(&crop_lines(&report));
         let facing: Vec<_> = report.frames.iter().filter_map(|f| f.facing.clone()).collect();
         text.push('\n');
         text.push_str(&agentstar_reports::view::facing_lines(&facing));
@@ -131,12 +125,10 @@ tool!(Keyframes, "frames", Diagnostic, Nothing, KeyframesArgs,
             outline: a.outline.map(Outline::as_str),
             crop: a.crop,
         };
-        let (mut o, out, stdout) = tb.cli(&["render"], step, Keyframes::NAME, &request)?;
-        if o.is_error {
-            return Ok(o);
-        }
-        let report: RenderReport = serde_json::from_str(&stdout)
-            .map_err(|e| AgentError::Tool(format!("render printed no render report ({e})")))?;
+        let (mut o, out, report) = match request.run(tb, Keyframes::NAME, step)? {
+            Ok(done) => done,
+            Err(failed) => return Ok(failed),
+        };
         let crops = report.frames.len();
         let sheets = report.sheets.len();
         o.images.truncate(MAX_IMAGES_RETURNED);
@@ -150,11 +142,7 @@ tool!(Keyframes, "frames", Diagnostic, Nothing, KeyframesArgs,
                 ""
             }
         );
-        for f in &report.frames {
-            if let (Some([x, y, w, h]), Some(z)) = (f.crop, f.zoom) {
-                text.push_str(&format!("\n- {}: crop at ({x}, {y}), {w}×{h} frame pixels, zoom {z:.2}", f.frame));
-            }
-        }
+        text.push_str(&crop_lines(&report));
         for n in &report.notes {
             text.push_str(&format!("\nnote: {n}"));
         }
@@ -238,4 +226,39 @@ pub(super) struct RenderRequest<'a> {
     pub(super) zoom: Option<f64>,
     pub(super) outline: Option<&'static str>,
     pub(super) crop: Option<Crop>,
+}
+
+impl RenderRequest<'_> {
+    /// Runs `render` for the tool `tool` and reads its report: the output (with the images
+    /// it wrote), the step's folder and the report; `Err` with the tool's answer where the
+    /// command failed.
+    pub(super) fn run(
+        &self,
+        tb: &Toolbox,
+        tool: &str,
+        step: u64,
+    ) -> Result<std::result::Result<(ToolOutput, PathBuf, RenderReport), ToolOutput>> {
+        let (o, out, stdout) = tb.cli(&["render"], step, tool, self)?;
+        if o.is_error {
+            return Ok(Err(o));
+        }
+        let report: RenderReport = serde_json::from_str(&stdout)
+            .map_err(|e| AgentError::Tool(format!("render printed no render report ({e})")))?;
+        Ok(Ok((o, out, report)))
+    }
+}
+
+/// One line per frame of a render report that was cropped or zoomed: where its crop lies in
+/// the frame and at what zoom (each line starts with a line break).
+fn crop_lines(report: &RenderReport) -> String {
+    let mut text = String::new();
+    for f in &report.frames {
+        if let (Some([x, y, w, h]), Some(z)) = (f.crop, f.zoom) {
+            text.push_str(&format!(
+                "\n- {}: crop at ({x}, {y}), {w}×{h} frame pixels, zoom {z:.2}",
+                f.frame
+            ));
+        }
+    }
+    text
 }

@@ -13,8 +13,7 @@ use agentstar_data::posefile::{FrameEntry, PoseFile, PoseJson};
 use agentstar_data::runfile::RunFile;
 use agentstar_render::{PosedModel, ScoreTarget, SilhouetteRenderer};
 use agentstar_reports::{
-    Candidate, CommitReport, FrameHistoryReport, HistoryReport, PoseSource, RestoreReport,
-    SearchFrame,
+    CandidatePick, CommitReport, FrameHistoryReport, HistoryReport, PoseSource, RestoreReport,
 };
 use anyhow::{anyhow, bail, Result};
 use std::collections::BTreeMap;
@@ -35,7 +34,7 @@ pub enum PoseCommand {
         #[arg(long, visible_alias = "from")]
         report: PathBuf,
         /// The candidate's rank in a search report (0 = best; only for search reports).
-        #[arg(long, conflicts_with = "label")]
+        #[arg(long)]
         rank: Option<usize>,
         /// The candidate's label in a search report (`swap:hinge`, `flip:x`; for `osweep`
         /// the grid start before `→`): the same candidate in every frame, whatever its rank
@@ -150,10 +149,9 @@ pub fn run(cmd: PoseCommand) -> Result<ExitCode> {
             capture,
             json: as_json,
         } => {
-            let pick = match label {
-                Some(l) => Pick::Label(l),
-                None => Pick::Rank(rank),
-            };
+            // The rule the `pose_commit` tool checks too: a rank or a label, not both.
+            let pick = CandidatePick::new(rank, label.as_deref())
+                .map_err(|e| anyhow!("pose commit: {e}"))?;
             let source = PoseSource::read(&report)?;
             let hint = match &source {
                 PoseSource::Search(r) => Some(r.capture.clone()),
@@ -277,53 +275,12 @@ pub fn run(cmd: PoseCommand) -> Result<ExitCode> {
 /// One frame of a commit's source: its name, pose and joint states.
 type SourceFrame = (String, PoseJson, BTreeMap<String, f64>);
 
-/// Which candidate of a search report a commit takes in each frame.
-enum Pick {
-    /// By rank (0, the best, when not given).
-    Rank(Option<usize>),
-    /// By label: the label itself, or (an `osweep` row, `start → where it ended`) its start.
-    Label(String),
-}
-
-impl Pick {
-    fn find<'c>(&self, frame: &'c SearchFrame) -> std::result::Result<&'c Candidate, String> {
-        match self {
-            Pick::Rank(rank) => {
-                let rank = rank.unwrap_or(0);
-                frame.ranked.iter().find(|c| c.rank == rank).ok_or_else(|| {
-                    format!(
-                        "frame {}: no candidate of rank {rank} (ranks 0..{})",
-                        frame.frame,
-                        frame.ranked.len().saturating_sub(1)
-                    )
-                })
-            }
-            Pick::Label(label) => {
-                let label = label.trim();
-                frame
-                    .ranked
-                    .iter()
-                    .find(|c| c.label == label || c.label.split(" → ").next() == Some(label))
-                    .ok_or_else(|| {
-                        let labels: Vec<&str> =
-                            frame.ranked.iter().map(|c| c.label.as_str()).collect();
-                        format!(
-                            "frame {}: no candidate labelled `{label}` (its labels: {})",
-                            frame.frame,
-                            labels.join(", ")
-                        )
-                    })
-            }
-        }
-    }
-}
-
 /// Writes the wanted frames of `source` into `pf` (the candidate `pick` names in each frame
 /// of a search report); returns the frames written.
 fn commit(
     pf: &mut PoseFile,
     source: &PoseSource,
-    pick: &Pick,
+    pick: &CandidatePick,
     wanted: Option<&[String]>,
 ) -> std::result::Result<Vec<String>, String> {
     // The frames of the source, each with its pose and joints.
@@ -349,19 +306,19 @@ fn commit(
         }
         PoseSource::Poses(_) | PoseSource::Version(_) => {
             match pick {
-                Pick::Rank(Some(r)) if *r != 0 => {
+                CandidatePick::Rank(Some(r)) if *r != 0 => {
                     return Err(format!(
                         "--rank applies to search reports; this is a {}",
                         source.describe()
                     ))
                 }
-                Pick::Label(_) => {
+                CandidatePick::Label(_) => {
                     return Err(format!(
                         "--label applies to search reports; this is a {}",
                         source.describe()
                     ))
                 }
-                Pick::Rank(_) => {}
+                CandidatePick::Rank(_) => {}
             }
             let src: &PoseFile = match source {
                 PoseSource::Poses(p) => p.as_ref(),

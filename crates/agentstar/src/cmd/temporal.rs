@@ -28,9 +28,9 @@ pub struct Args {
     /// Columns: any of vel, accel and joint names (default all).
     #[arg(long)]
     columns: Option<String>,
-    /// Sort by |value| descending: vel.rot, vel.trans, vel.radial, accel.rot, accel.trans, accel.radial, <joint>.vel, <joint>.accel.
-    #[arg(long)]
-    sort_by: Option<String>,
+    /// The sort (the `temporal` tool's arguments).
+    #[command(flatten)]
+    request: agentstar_requests::TemporalArgs,
     /// Write a plot of the velocities over the sequence here (PNG).
     #[arg(long)]
     plot: Option<PathBuf>,
@@ -129,7 +129,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
             );
         }
     }
-    if let Some(key) = &a.sort_by {
+    if let Some(key) = &a.request.sort_by {
         let valid = [
             "vel.rot",
             "vel.trans",
@@ -232,10 +232,10 @@ pub fn run(a: Args) -> Result<ExitCode> {
         ));
     }
     println!("{head}");
-    if a.sort_by.is_some() {
+    if a.request.sort_by.is_some() {
         println!(
             "(sorted by |{}|, not in temporal order)",
-            a.sort_by.as_deref().unwrap_or("")
+            a.request.sort_by.as_deref().unwrap_or("")
         );
     }
     for r in rows {

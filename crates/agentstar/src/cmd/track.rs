@@ -42,14 +42,14 @@ pub struct Args {
     from: Option<PathBuf>,
     /// With --from: frames kept exactly as they are and carried to their neighbours (names,
     /// stems or `a..b` ranges, comma separated, as --frames takes them).
-    #[arg(long, requires = "from")]
+    #[arg(long)]
     anchors: Option<String>,
     /// With --from: keep every frame in its own basin: local refinement only, each frame
     /// within 45° of rotation of its starting pose (half the nearest twin, a quarter turn:
     /// no flip or twin is reached) and each joint within 30° (a prismatic joint: a sixth of
     /// its range); no wide search and none of the passes that move frames between basins.
     /// Without it, every frame moved further than 45° is named in the report.
-    #[arg(long, requires = "from")]
+    #[arg(long)]
     keep_basins: bool,
     /// Where to write the tracked poses. While the run goes, the poses so far are kept in
     /// OUT with the extension `.partial.json` (frames not tracked yet marked `"moved": false`),
@@ -137,6 +137,14 @@ fn track_frame<'a>(
 }
 
 pub fn run(a: Args) -> Result<ExitCode> {
+    // The rule the `track` tool checks too: anchors and keep-basins need --from.
+    agentstar_requests::WarmStart {
+        from: a.from.as_deref(),
+        anchors: a.anchors.as_deref(),
+        keep_basins: a.keep_basins,
+    }
+    .check()
+    .map_err(|e| anyhow::anyhow!("track: {e}"))?;
     let capture = open_capture(&a.capture)?;
     let model = open_model(&a.model)?;
     let from = a.from.as_deref().map(PoseFile::read).transpose()?;

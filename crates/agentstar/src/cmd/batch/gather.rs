@@ -2,11 +2,11 @@
 
 use super::*;
 use crate::common::print_json;
-use agentstar_agent::run::RunDir;
 use agentstar_batch::state::summary;
 use agentstar_batch::table::jobs_table;
 use agentstar_batch::{JobSpec, JobState, Method};
 use agentstar_bench::table::tables;
+use agentstar_data::rundir::RunDir;
 use anyhow::{bail, Result};
 use std::process::ExitCode;
 

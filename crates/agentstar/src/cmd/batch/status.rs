@@ -3,11 +3,11 @@
 
 use super::*;
 use crate::common::print_json;
-use agentstar_agent::run::RunDir;
 use agentstar_batch::slurm::{self, TaskState};
 use agentstar_batch::state::summary;
 use agentstar_batch::table::{jobs_table, AgentSpend, JobRow};
 use agentstar_batch::{classify, JobRecord, JobSpec, JobState, Method, Observation, Queue, Runner};
+use agentstar_data::rundir::RunDir;
 use anyhow::Result;
 use serde::Serialize;
 use std::path::PathBuf;

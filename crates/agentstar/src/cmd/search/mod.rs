@@ -50,15 +50,9 @@ pub struct Common {
     /// Finalists rendered on the candidate sheet.
     #[arg(long, default_value_t = 6)]
     sheet: usize,
-    /// The part of the frame the candidate sheet's tiles show: `mask` (around the object
-    /// mask and every finalist's silhouette; the default) or a box `x0,y0,x1,y1` in frame
-    /// pixels, around a detail that decides (a drinking hole, a badge).
-    #[arg(long)]
-    crop: Option<agentstar_requests::Crop>,
-    /// Output pixels per frame pixel on the candidate sheet's tiles (1 to 8; tiles are at
-    /// least 320 px on their long side and at most 960 px).
-    #[arg(long, default_value_t = 1.0)]
-    zoom: f64,
+    /// The candidate sheet's `--crop` and `--zoom` (the search tools' `crop` and `zoom`).
+    #[command(flatten)]
+    view: agentstar_requests::SheetView,
     /// Print the result as JSON on stdout.
     #[arg(long)]
     json: bool,
@@ -160,14 +154,16 @@ const SHEET_MARGIN: f64 = 0.15;
 /// it draws: per finalist, the render over the frame, the render opaque on the frame and the
 /// silhouette comparison (one finalist a row), cropped to the mask and every finalist's
 /// silhouette with a margin (the same crop for all, so they compare), labelled with rank,
-/// score and order.
+/// score and order; `zoom` is the sheet's zoom, checked ([`SheetView::zoom`]).
+///
+/// [`SheetView::zoom`]: agentstar_requests::SheetView::zoom
 fn candidate_sheet(
     s: &Session,
     i: usize,
     rows: &[Row],
     limit: usize,
     title: &str,
-    (crop, zoom): (Option<agentstar_requests::Crop>, f64),
+    (view, zoom): (&agentstar_requests::SheetView, f64),
 ) -> Result<Vec<(RgbImage, Vec<usize>)>> {
     let frame = s.capture.load_frame(i)?;
     let (target, _) = s.target(i)?;
@@ -205,12 +201,9 @@ fn candidate_sheet(
         frame.height(),
     ]);
     // A box asked for replaces the crop around the mask and the silhouettes.
-    let around = match crop {
-        Some(c) => c
-            .window(frame.width(), frame.height(), Some([x0, y0, w, h]))
-            .map_err(|e| anyhow!("--crop: {e} (frame {})", s.capture.frames[i].name))?,
-        None => [x0, y0, w, h],
-    };
+    let around = (view.crop.unwrap_or_default())
+        .window(frame.width(), frame.height(), Some([x0, y0, w, h]))
+        .map_err(|e| anyhow!("--crop: {e} (frame {})", s.capture.frames[i].name))?;
     // At least 4:3 and 320 px on its long side, so that each tile's label (the order) has
     // room under it; zoomed, at most 960 px.
     let crop = widened(around, TILE_ASPECT, frame.width());
@@ -348,12 +341,7 @@ fn write_outputs(
     mut outputs: Vec<FrameOutput>,
     details: Value,
 ) -> Result<ExitCode> {
-    if !(c.zoom.is_finite() && (1.0..=8.0).contains(&c.zoom)) {
-        bail!(
-            "--zoom {}: output pixels per frame pixel, from 1 to 8",
-            c.zoom
-        );
-    }
+    let zoom = c.view.zoom().map_err(|e| anyhow!("--{e}"))?;
     let dir = out_dir(&c.out)?;
     let tree = &s.model.model.tree;
     let report_path = verb.report_path(&dir);
@@ -368,7 +356,7 @@ fn write_outputs(
             &o.rows,
             limit,
             &format!("{} {}", verb.stem(), o.frame),
-            (c.crop, c.zoom),
+            (&c.view, zoom),
         )?;
         let mut sheet_pages = Vec::new();
         for (k, (page, ranks)) in pages.iter().enumerate() {

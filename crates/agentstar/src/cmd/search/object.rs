@@ -7,8 +7,7 @@ use agentstar_requests as requests;
 
 #[derive(clap::Args)]
 #[command(
-    after_help = "Example:\n  agentstar osweep --capture cap --model run/scene.rhai --poses run/pose.json --out reports --frames 000010 --opreset z:flip",
-    group(clap::ArgGroup::new("region").required(true).args(["ranges", "opreset"]))
+    after_help = "Example:\n  agentstar osweep --capture cap --model run/scene.rhai --poses run/pose.json --out reports --frames 000010 --opreset z:flip"
 )]
 pub struct OsweepArgs {
     #[command(flatten)]
@@ -142,6 +141,8 @@ fn opreset_candidates(spec: &str, seed: u64) -> Result<Vec<(String, [f64; 3])>> 
 }
 
 pub fn run_osweep(a: OsweepArgs) -> Result<ExitCode> {
+    // One of --opreset and --ranges (the rule the `osweep` tool checks too).
+    let region = a.request.region().map_err(|e| anyhow!(e))?;
     let s = a.common.session.open()?;
     let tree = &s.model.model.tree;
     let frames = select_frames(&s.capture, a.request.frames.as_deref())?;
@@ -149,7 +150,7 @@ pub fn run_osweep(a: OsweepArgs) -> Result<ExitCode> {
     for &i in progress(frames.len(), "osweep").wrap_iter(frames.iter()) {
         let inputs = s.target(i)?;
         let p = problem_for(&s, i, &inputs, a.common.depth_weight, s.gen_pose(i));
-        let (space, cfg) = if let Some(pre) = &a.request.opreset {
+        let (space, cfg) = if let requests::Region::Preset(pre) = region {
             let cands = opreset_candidates(pre, 0x5EED)?;
             let space = SearchSpace {
                 ranges: [Dof::Rx, Dof::Ry, Dof::Rz]
