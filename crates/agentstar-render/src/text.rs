@@ -9,8 +9,10 @@ pub fn text_width(text: &str, scale: u32) -> u32 {
 }
 
 /// Glyphs our labels use that the 8×8 fonts lack (rows top down, bit k = column k from the
-/// left): the arrows of candidate labels (`rz:-128 → rx:-20`), comparisons and dashes.
-const EXTRA_GLYPHS: [(char, [u8; 8]); 6] = [
+/// left): the arrows of candidate labels (`rz:-128 → rx:-20`), comparisons (the `≈` of a
+/// refined candidate's nearest named turn, which play-test 13 read as `?`) and dashes.
+const EXTRA_GLYPHS: [(char, [u8; 8]); 7] = [
+    ('≈', [0x00, 0x4C, 0x32, 0x00, 0x4C, 0x32, 0x00, 0x00]),
     ('→', [0x00, 0x10, 0x20, 0x7F, 0x20, 0x10, 0x00, 0x00]),
     ('←', [0x00, 0x08, 0x04, 0xFE, 0x04, 0x08, 0x00, 0x00]),
     ('≥', [0x02, 0x0C, 0x30, 0x0C, 0x02, 0x00, 0x3E, 0x00]),
@@ -91,7 +93,7 @@ mod tests {
     #[test]
     fn label_symbols_are_drawn_not_replaced_by_a_question_mark() {
         let unknown = drawn("?");
-        for ch in ['→', '←', '°', '×', '≥', '≤', '–', '—'] {
+        for ch in ['→', '←', '°', '×', '≥', '≤', '≈', '–', '—'] {
             let img = drawn(&ch.to_string());
             assert!(img.pixels().any(|p| p.0 != [0, 0, 0]), "{ch} draws nothing");
             assert_ne!(img, unknown, "{ch} is drawn as '?'");

@@ -455,7 +455,7 @@ fn track_on(
         let window = if chained.is_some() {
             LocalWindow::polish()
         } else {
-            step_window.clone()
+            step_window
         };
         let results: Vec<Result<(GenPose, f64), TrackError>> = seeds
             .par_iter()
