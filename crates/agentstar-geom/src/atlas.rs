@@ -426,7 +426,10 @@ mod tests {
         );
         let mut moved = a.clone();
         moved.parts[1] = Part::new("b", cuboid(0.1, 0.1, 0.12).expect("box"), [0.9, 0.1, 0.1]);
-        assert_ne!(tessellation_fingerprint(&a), tessellation_fingerprint(&moved));
+        assert_ne!(
+            tessellation_fingerprint(&a),
+            tessellation_fingerprint(&moved)
+        );
     }
 
     #[test]
