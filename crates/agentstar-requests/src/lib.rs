@@ -7,7 +7,7 @@
 //! - [`Output`]: where a command writes its files, and `--json`;
 //! - the requests the MCP tools take and the commands flatten, one type each (the
 //!   object-frame pose verbs: [`OsweepArgs`], [`OapplyArgs`], [`OapplyAllArgs`]; and
-//!   [`TurntableArgs`], [`PoseDiffArgs`]);
+//!   [`TurntableArgs`], [`PoseDiffArgs`], [`BakeArgs`]);
 //! - [`to_args`]: the one rule that turns any serialisable request into arguments: each
 //!   field `name` becomes `--name=VALUE` (snake case to kebab case), `true` a bare `--name`,
 //!   `false`, `null` and absent fields nothing, a list one `--name=ITEM` per item.
@@ -22,9 +22,11 @@ use serde::{Deserialize, Serialize};
 use serde_json::Value;
 use std::path::PathBuf;
 
+pub mod bake;
 pub mod object;
 pub mod views;
 
+pub use bake::BakeArgs;
 pub use object::{OapplyAllArgs, OapplyArgs, OsweepArgs};
 pub use views::{Crop, PoseDiffArgs, TurntableArgs};
 
