@@ -86,6 +86,18 @@ Alternate two kinds of steps; **each step changes the shape or the poses, never 
    there, with the IoU before and after and the pass that moved it); with
    `keep_basins: true` it only polishes, keeping every frame within 45° of rotation (half a
    quarter turn, so no flip or twin) and 30° of joint of the pose you settled.
+   `bake` paints the model with the video's colours: it gathers every keyframe's colours
+   (outside the hands) onto the model at the committed poses and stores them beside
+   `scene.rhai`, and from then on every tool draws, scores and tracks with that print. It
+   helps when the poses are right where the shape alone decides (a mug with its handle in
+   view) and the print must carry the frames where it does not (the handle hidden): bake
+   from the settled frames, then `track` with `from` or the object verbs on the rest. It
+   hurts when a frame it reads is wrong: the wrong pose's colours become the model's print
+   and pull every later search towards the error, so a bake whose frames disagree is
+   refused, naming them (check their poses, or leave them out with `frames`). It cannot
+   break a symmetry every frame shares: an uncoloured can is up-down ambiguous in all of
+   them, and a bake from either way up agrees with itself, so say so rather than guess. A
+   shape edit makes the bake stale (ignored, with a warning naming it): bake again.
 3. Keep notes with `notes`: what the object is, which parts move, what you ruled out. Notes
    survive when older images leave your context.
 
@@ -250,7 +262,7 @@ pub fn mcp_instructions(with_critic: bool) -> String {
 
 /// What an MCP client shows its model when it connects (with a critic model: see
 /// [`mcp_instructions`]).
-pub const MCP_INSTRUCTIONS: &str = "agentstar fits an object model written as code (scene.rhai) and its pose in every keyframe of a video to the object's masks. Read TASK.md in the run directory first (the tool `task` returns it): it explains the loop (each step changes the shape or the poses, never both), how to read the images, and the gates `finish` checks. Shape tools: scene_read, scene_write, scene_restore, fit_shape, scale, turntable, mechanism, mechanism_pick. Pose tools: track, sweep, apply, osweep, oapply, oapply_all, pose_commit, pose_history, pose_restore. Diagnostics: frames (the raw keyframes, cropped around the mask), render, score, temporal, pose_diff, critic. Images come back inline and as files under the run's images/ directory.";
+pub const MCP_INSTRUCTIONS: &str = "agentstar fits an object model written as code (scene.rhai) and its pose in every keyframe of a video to the object's masks. Read TASK.md in the run directory first (the tool `task` returns it): it explains the loop (each step changes the shape or the poses, never both), how to read the images, and the gates `finish` checks. Shape tools: scene_read, scene_write, scene_restore, fit_shape, bake, scale, turntable, mechanism, mechanism_pick. Pose tools: track, sweep, apply, osweep, oapply, oapply_all, pose_commit, pose_history, pose_restore. Diagnostics: frames (the raw keyframes, cropped around the mask), render, score, temporal, pose_diff, critic. Images come back inline and as files under the run's images/ directory.";
 
 #[cfg(test)]
 mod tests {
