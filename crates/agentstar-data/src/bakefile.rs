@@ -1,19 +1,28 @@
 //! A model's baked appearance on disk, beside the model file: `<stem>.bake.json` (what was
 //! baked from what: the capture, its frames, the pose file and its version, and the
-//! fingerprint of the tessellation it was baked on) and the atlas it names,
-//! `<stem>.bake-<hash>.png` (RGBA: the colours, alpha 255 where a frame saw the texel).
+//! fingerprint of the tessellation it was baked on), the atlas it names,
+//! `<stem>.bake-<hash>.png` (RGBA: the colours, alpha 255 where a frame saw the texel), and
+//! the triangles it was laid out on, `<stem>.bake-<hash>.tris` (per part, each triangle's
+//! corners as little-endian f64).
 //!
 //! Writing: the atlas under a name of its own content first, then the JSON (the commit
 //! point), then older atlases of the same model are removed; a writer stopped anywhere
 //! leaves the previous bake whole or the new one.
 //!
 //! Loading ([`crate::scenefile::load_model`] for every command): a bake whose tessellation
-//! fingerprint is the model's is applied (every part textured by the atlas); a stale one
-//! (the script changed the shape since) or a broken one is ignored with a warning naming
-//! the file, never applied to a shape it was not made for.
+//! fingerprint is the model's is applied (every part textured by the atlas). Another
+//! triangulation of the same surface (a script's booleans may split a flat face along other
+//! diagonals from one build to the next) gets the atlas moved onto its own layout, each
+//! texel reading the baked triangle that holds its point ([`AtlasTransfer`]). A stale bake
+//! (some texel's point lies on no baked triangle: the script changed the shape since) or a
+//! broken one is ignored with a warning naming the file, never applied to a shape it was
+//! not made for.
 
 use crate::{DataError, Result};
-use agentstar_geom::{tessellation_fingerprint, with_atlas, AtlasLayout, ObjectModel, Texture};
+use agentstar_geom::{
+    tessellation_fingerprint, with_atlas, AtlasLayout, AtlasTransfer, KinematicTree, ObjectModel,
+    Part, Point3, Texture, TriMesh,
+};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -32,6 +41,8 @@ pub struct BakeFile {
     pub tessellation: String,
     /// The atlas image's file name, beside this file.
     pub atlas: String,
+    /// The file of the triangles it was laid out on, beside this file.
+    pub triangles: String,
     pub atlas_width: u32,
     pub atlas_height: u32,
     /// The atlas's density, texels per model unit of length.
@@ -81,10 +92,79 @@ fn fnv_hex(bytes: &[u8]) -> String {
     format!("{h:016x}")
 }
 
-/// Writes the bake of the model file `model`: `atlas` (RGBA, `file.atlas_width` ×
-/// `file.atlas_height`) under a name of its content, then `file` naming it; older atlases of
-/// this model are removed after. Returns the JSON's path.
-pub fn write_bake(model: &Path, file: &mut BakeFile, atlas: &image::RgbaImage) -> Result<PathBuf> {
+const TRIANGLES_MAGIC: &[u8; 8] = b"ASTRIS1\0";
+
+/// The triangles of every part of `model`, as the `.tris` file holds them.
+fn encode_triangles(model: &ObjectModel) -> Vec<u8> {
+    let mut out = TRIANGLES_MAGIC.to_vec();
+    out.extend((model.parts.len() as u64).to_le_bytes());
+    for part in &model.parts {
+        out.extend((part.mesh.triangles.len() as u64).to_le_bytes());
+        for t in 0..part.mesh.triangles.len() {
+            for p in part.mesh.triangle(t) {
+                for v in [p.x, p.y, p.z] {
+                    out.extend(v.to_le_bytes());
+                }
+            }
+        }
+    }
+    out
+}
+
+/// A model of the parts a `.tris` file holds (unwelded: three vertices per triangle).
+fn decode_triangles(bytes: &[u8]) -> std::result::Result<ObjectModel, String> {
+    let mut at = 0usize;
+    let mut take = |n: usize| -> std::result::Result<&[u8], String> {
+        let s = bytes
+            .get(at..at + n)
+            .ok_or_else(|| "the triangles file ends early".to_string())?;
+        at += n;
+        Ok(s)
+    };
+    if take(8)? != TRIANGLES_MAGIC {
+        return Err("not a triangles file".into());
+    }
+    let u64_of = |b: &[u8]| u64::from_le_bytes(b.try_into().unwrap_or([0; 8]));
+    let parts = u64_of(take(8)?);
+    if parts > 65_535 {
+        return Err(format!("{parts} parts"));
+    }
+    let mut out = Vec::new();
+    for i in 0..parts {
+        let n = u64_of(take(8)?) as usize;
+        if n.saturating_mul(72) > bytes.len() {
+            return Err(format!("part {i}: {n} triangles in a file of {} bytes", bytes.len()));
+        }
+        let mut positions = Vec::with_capacity(3 * n);
+        for _ in 0..3 * n {
+            let mut v = [0.0; 3];
+            for c in &mut v {
+                *c = f64::from_le_bytes(take(8)?.try_into().unwrap_or([0; 8]));
+            }
+            if v.iter().any(|c| !c.is_finite()) {
+                return Err(format!("part {i}: a corner that is not finite"));
+            }
+            positions.push(Point3::new(v[0], v[1], v[2]));
+        }
+        let triangles = (0..n as u32).map(|t| [3 * t, 3 * t + 1, 3 * t + 2]).collect();
+        out.push(Part::new(format!("part {i}"), TriMesh::new(positions, triangles), [0.5; 3]));
+    }
+    Ok(ObjectModel {
+        tree: KinematicTree::rigid(out.len()),
+        parts: out,
+    })
+}
+
+/// Writes the bake of the model file `model` (`baked`: the model as it was baked on):
+/// `atlas` (RGBA, `file.atlas_width` × `file.atlas_height`) and the triangles under names of
+/// the atlas's content, then `file` naming them; older ones of this model are removed after.
+/// Returns the JSON's path.
+pub fn write_bake(
+    model: &Path,
+    baked: &ObjectModel,
+    file: &mut BakeFile,
+    atlas: &image::RgbaImage,
+) -> Result<PathBuf> {
     let json = bake_path(model);
     if (atlas.width(), atlas.height()) != (file.atlas_width, file.atlas_height) {
         return Err(DataError::invalid(
@@ -103,10 +183,13 @@ pub fn write_bake(model: &Path, file: &mut BakeFile, atlas: &image::RgbaImage) -
         .write_to(&mut png, image::ImageFormat::Png)
         .map_err(|e| DataError::invalid(&json, format!("cannot encode the atlas: {e}")))?;
     let png = png.into_inner();
-    let name = format!("{}{}.png", atlas_prefix(model), fnv_hex(&png));
-    let atlas_path = model.with_file_name(&name);
-    crate::atomic::write_atomic(&atlas_path, &png)?;
+    let hash = fnv_hex(&png);
+    let name = format!("{}{hash}.png", atlas_prefix(model));
+    let tris = format!("{}{hash}.tris", atlas_prefix(model));
+    crate::atomic::write_atomic(&model.with_file_name(&name), &png)?;
+    crate::atomic::write_atomic(&model.with_file_name(&tris), &encode_triangles(baked))?;
     file.atlas = name.clone();
+    file.triangles = tris.clone();
     crate::atomic::write_json(&json, file)?;
     // Older atlases of this model (best effort: a leftover is never read).
     let dir = match model.parent() {
@@ -117,7 +200,7 @@ pub fn write_bake(model: &Path, file: &mut BakeFile, atlas: &image::RgbaImage) -
         let prefix = atlas_prefix(model);
         for e in rd.flatten() {
             let n = e.file_name().to_string_lossy().to_string();
-            if n != name && n.starts_with(&prefix) && n.ends_with(".png") {
+            if n != name && n != tris && n.starts_with(&prefix) && (n.ends_with(".png") || n.ends_with(".tris")) {
                 let _ = std::fs::remove_file(e.path());
             }
         }
@@ -163,61 +246,94 @@ pub fn pick_up_bake(model_path: &Path, model: &ObjectModel) -> (Option<ObjectMod
     }
 }
 
+/// A file name beside the bake file, refused when it is not one.
+fn beside(path: &Path, name: &str) -> std::result::Result<PathBuf, String> {
+    let n = Path::new(name);
+    if n.components().count() != 1 || n.is_absolute() || name.is_empty() {
+        return Err(format!(
+            "{}: `{name}` is not a file name beside it; the baked colours are ignored",
+            path.display()
+        ));
+    }
+    Ok(path.with_file_name(name))
+}
+
 fn apply_bake(path: &Path, model: &ObjectModel) -> std::result::Result<ObjectModel, String> {
     let file = read_bake(path).map_err(|e| format!("{e}; the baked colours are ignored"))?;
-    let now = tessellation_fingerprint(model);
-    if file.tessellation != now {
-        return Err(format!(
-            "{} is stale: it was baked on tessellation {}, the model's is now {now} (its shape changed); the baked colours are ignored — run `agentstar bake` again",
-            path.display(),
-            file.tessellation
-        ));
-    }
-    let atlas_name = Path::new(&file.atlas);
-    if atlas_name.components().count() != 1 || atlas_name.is_absolute() {
-        return Err(format!(
-            "{}: the atlas `{}` is not a file name beside it; the baked colours are ignored",
-            path.display(),
-            file.atlas
-        ));
-    }
-    let atlas_path = path.with_file_name(&file.atlas);
+    let ignored = |what: String| format!("{}: {what}; the baked colours are ignored", path.display());
+    let atlas_path = beside(path, &file.atlas)?;
     let img = crate::images::decode_image(&atlas_path, "a baked atlas")
         .map_err(|e| format!("{e}; the baked colours are ignored"))?
-        .to_rgb8();
+        .to_rgba8();
     if (img.width(), img.height()) != (file.atlas_width, file.atlas_height) {
-        return Err(format!(
-            "{}: {}×{} texels, the bake says {}×{}; the baked colours are ignored",
+        return Err(ignored(format!(
+            "{} has {}×{} texels, the bake says {}×{}",
             atlas_path.display(),
             img.width(),
             img.height(),
             file.atlas_width,
             file.atlas_height
-        ));
+        )));
     }
-    let fail = |e: agentstar_geom::GeomError| {
-        format!(
-            "{}: {e}; the baked colours are ignored",
-            path.display()
-        )
+    let layout = |m: &ObjectModel| -> std::result::Result<AtlasLayout, String> {
+        let l = AtlasLayout::new(m, file.texels_per_unit, file.atlas_width)
+            .map_err(|e| ignored(e.to_string()))?;
+        Ok(l)
     };
-    let layout = AtlasLayout::new(model, file.texels_per_unit, file.atlas_width).map_err(fail)?;
-    if layout.height != file.atlas_height {
-        return Err(format!(
-            "{}: the atlas lays out {} texels high, the bake says {}; the baked colours are ignored",
-            path.display(),
-            layout.height,
-            file.atlas_height
-        ));
-    }
-    let texture = Texture::new(
-        atlas_path.display().to_string(),
-        img.width(),
-        img.height(),
-        img.into_raw(),
-    )
-    .map_err(fail)?;
-    with_atlas(model, &layout, Arc::new(texture)).map_err(fail)
+    let now = tessellation_fingerprint(model);
+    let rgba = if file.tessellation == now {
+        let l = layout(model)?;
+        if l.height != file.atlas_height {
+            return Err(ignored(format!(
+                "the atlas lays out {} texels high, the bake says {}",
+                l.height, file.atlas_height
+            )));
+        }
+        (l, img.into_raw())
+    } else {
+        // Another triangulation: of the same surface, or of another shape.
+        let stale = |why: &str| {
+            format!(
+                "{} is stale: it was baked on tessellation {}, the model's is now {now} ({why}); the baked colours are ignored — run `agentstar bake` again",
+                path.display(),
+                file.tessellation
+            )
+        };
+        let tris_path = beside(path, &file.triangles)?;
+        let bytes = crate::read_bounded(&tris_path, crate::limits::BINARY_BYTES)
+            .map_err(|e| format!("{e}; the baked colours are ignored"))?;
+        let baked = decode_triangles(&bytes).map_err(|e| ignored(format!("{}: {e}", tris_path.display())))?;
+        if tessellation_fingerprint(&baked) != file.tessellation {
+            return Err(ignored(format!(
+                "{} is not the tessellation the bake names",
+                tris_path.display()
+            )));
+        }
+        let baked_layout = layout(&baked)?;
+        if baked_layout.height != file.atlas_height {
+            return Err(ignored("the atlas does not lay out on its triangles".into()));
+        }
+        let l = layout(model).map_err(|_| stale("its shape changed"))?;
+        let size = model
+            .parts
+            .iter()
+            .map(|p| (p.bounds.max - p.bounds.min).norm())
+            .fold(0.0, f64::max);
+        let raw = img.into_raw();
+        let moved = AtlasTransfer {
+            baked: &baked,
+            baked_layout: &baked_layout,
+            baked_rgba: &raw,
+        }
+        .onto(model, &l, 1e-6 * size.max(1e-9))
+        .map_err(|_| stale("its shape changed"))?;
+        (l, moved)
+    };
+    let (l, rgba) = rgba;
+    let rgb: Vec<u8> = rgba.chunks_exact(4).flat_map(|c| [c[0], c[1], c[2]]).collect();
+    let texture = Texture::new(atlas_path.display().to_string(), l.width, l.height, rgb)
+        .map_err(|e| ignored(e.to_string()))?;
+    with_atlas(model, &l, Arc::new(texture)).map_err(|e| ignored(e.to_string()))
 }
 
 #[cfg(test)]
@@ -241,6 +357,7 @@ mod tests {
             model: "scene.rhai".into(),
             tessellation: tessellation_fingerprint(m),
             atlas: String::new(),
+            triangles: String::new(),
             atlas_width: layout.width,
             atlas_height: layout.height,
             texels_per_unit: 16.0,
@@ -265,7 +382,7 @@ mod tests {
         let m = model(0.25);
         assert_eq!(pick_up_bake(&script, &m).1, BakePickup::None);
         let (mut file, atlas) = bake_of(&m);
-        let json = write_bake(&script, &mut file, &atlas).expect("write");
+        let json = write_bake(&script, &m, &mut file, &atlas).expect("write");
         assert_eq!(json, dir.path().join("scene.bake.json"));
         let (applied, pickup) = pick_up_bake(&script, &m);
         assert_eq!(pickup, BakePickup::Applied(json.clone()));
@@ -284,9 +401,22 @@ mod tests {
         let first = dir.path().join(&file.atlas);
         let (mut again, mut atlas2) = bake_of(&m);
         atlas2.put_pixel(0, 0, image::Rgba([1, 2, 3, 255]));
-        write_bake(&script, &mut again, &atlas2).expect("again");
+        write_bake(&script, &m, &mut again, &atlas2).expect("again");
         assert_ne!(again.atlas, file.atlas);
         assert!(!first.exists() && dir.path().join(&again.atlas).is_file());
+        assert!(!dir.path().join(&file.triangles).exists());
+        assert!(dir.path().join(&again.triangles).is_file());
+        // The same surface with its triangles in another order and its vertices renumbered
+        // (what a script's booleans may return): applied, the same colours.
+        let mesh = &m.parts[0].mesh;
+        let mut reordered = m.clone();
+        let mut triangles = mesh.triangles.clone();
+        triangles.reverse();
+        reordered.parts[0] = Part::new("body", TriMesh::new(mesh.positions.clone(), triangles), [0.5; 3]);
+        let (moved, pickup) = pick_up_bake(&script, &reordered);
+        assert!(matches!(pickup, BakePickup::Applied(_)), "{pickup:?}");
+        let c = moved.expect("model").parts[0].color;
+        assert!((c[0] - 200.0 / 255.0).abs() < 1e-2, "{c:?}");
         // A missing atlas: ignored, naming it.
         std::fs::remove_file(dir.path().join(&again.atlas)).expect("rm");
         match pick_up_bake(&script, &m).1 {

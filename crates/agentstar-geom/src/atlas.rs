@@ -13,7 +13,10 @@
 //! The layout is a function of the tessellation, the density and the width: a bake stores
 //! the density and the width and a [`tessellation_fingerprint`], and whoever loads it lays
 //! the atlas out again, which is only valid on the same tessellation (the fingerprint says
-//! whether it is).
+//! whether it is). Both read each triangle by its corners' positions, not by its index or
+//! its vertices' indices: a script's booleans may return the same triangles in another
+//! order from one build to the next (measured on the printed mug: three fingerprints in four
+//! builds of one script when they read indices), and the layout follows the triangles.
 
 use crate::appearance::{Material, SurfaceAppearance, Texture, WrapMode};
 use crate::model::ObjectModel;
@@ -106,6 +109,20 @@ fn invalid(reason: String) -> GeomError {
     }
 }
 
+/// A triangle's corners as bits (`-0.0` read as `0.0`), starting from its smallest corner
+/// (its winding kept), and that corner's index: the same key however a mesh numbers its
+/// vertices or orders its triangles.
+fn triangle_key(t: [Point3; 3]) -> ([u64; 9], usize) {
+    let bits = |p: &Point3| [(p.x + 0.0).to_bits(), (p.y + 0.0).to_bits(), (p.z + 0.0).to_bits()];
+    let c = [bits(&t[0]), bits(&t[1]), bits(&t[2])];
+    let r = (0..3).min_by_key(|&i| c[i]).unwrap_or(0);
+    let mut key = [0u64; 9];
+    for m in 0..3 {
+        key[3 * m..3 * m + 3].copy_from_slice(&c[(r + m) % 3]);
+    }
+    (key, r)
+}
+
 /// A triangle laid flat: the corners' 2-D coordinates in model units (longest edge on the
 /// x axis from the origin, the third corner at y ≥ 0) and the bounding size.
 fn flatten(t: [Point3; 3]) -> ([[f64; 2]; 3], [f64; 2]) {
@@ -150,6 +167,7 @@ impl AtlasLayout {
         struct Item {
             part: usize,
             tri: usize,
+            key: [u64; 9],
             flat: [[f64; 2]; 3],
             w: u32,
             h: u32,
@@ -157,7 +175,15 @@ impl AtlasLayout {
         let mut items = Vec::new();
         for (p, part) in model.parts.iter().enumerate() {
             for t in 0..part.mesh.triangles.len() {
-                let (flat, size) = flatten(part.mesh.triangle(t));
+                // Laid flat from its smallest corner, so that the same triangle lies the same
+                // way whatever its corners' order in the mesh.
+                let tri = part.mesh.triangle(t);
+                let (key, r) = triangle_key(tri);
+                let (rotated, size) = flatten([tri[r], tri[(r + 1) % 3], tri[(r + 2) % 3]]);
+                let mut flat = [[0.0; 2]; 3];
+                for (m, c) in rotated.into_iter().enumerate() {
+                    flat[(r + m) % 3] = c;
+                }
                 let texels = |v: f64| -> Result<u32> {
                     let n = (v * texels_per_unit).ceil().max(1.0);
                     if n > f64::from(width) {
@@ -178,15 +204,23 @@ impl AtlasLayout {
                 items.push(Item {
                     part: p,
                     tri: t,
+                    key,
                     flat,
                     w,
                     h,
                 });
             }
         }
-        // Shelves, tallest first (ties in model order: deterministic).
+        // Shelves, tallest first (ties by part, then by the triangles' corners: the same
+        // order however the mesh orders its triangles).
         let mut order: Vec<usize> = (0..items.len()).collect();
-        order.sort_by(|&a, &b| items[b].h.cmp(&items[a].h).then(a.cmp(&b)));
+        order.sort_by(|&a, &b| {
+            let (x, y) = (&items[a], &items[b]);
+            y.h.cmp(&x.h)
+                .then(x.part.cmp(&y.part))
+                .then(x.key.cmp(&y.key))
+                .then(a.cmp(&b))
+        });
         let mut patches: Vec<Vec<Patch>> = model
             .parts
             .iter()
@@ -311,10 +345,11 @@ pub fn with_atlas(
     Ok(out)
 }
 
-/// A fingerprint of the model's tessellation (each part's vertex positions, bit for bit,
-/// and triangles, in order, and the layout rule's version): 16 hex digits of FNV-1a. Two
-/// models with the same fingerprint lay out the same atlas; a shape edit that moves a
-/// vertex or changes a triangle changes it. Part names, colours and joints do not enter.
+/// A fingerprint of the model's tessellation (each part's triangles by their corners'
+/// positions, bit for bit, in a canonical order, and the layout rule's version): 16 hex
+/// digits of FNV-1a. Two models with the same fingerprint lay out the same atlas; a shape
+/// edit that moves a vertex or changes a triangle changes it; renumbering the vertices or
+/// reordering the triangles does not. Part names, colours and joints do not enter.
 pub fn tessellation_fingerprint(model: &ObjectModel) -> String {
     let mut h: u64 = 0xcbf2_9ce4_8422_2325;
     let mut eat = |bytes: &[u8]| {
@@ -326,20 +361,147 @@ pub fn tessellation_fingerprint(model: &ObjectModel) -> String {
     eat(&ATLAS_LAYOUT_VERSION.to_le_bytes());
     eat(&(model.parts.len() as u64).to_le_bytes());
     for part in &model.parts {
-        eat(&(part.mesh.positions.len() as u64).to_le_bytes());
-        eat(&(part.mesh.triangles.len() as u64).to_le_bytes());
-        for p in &part.mesh.positions {
-            for v in [p.x, p.y, p.z] {
-                eat(&v.to_bits().to_le_bytes());
-            }
-        }
-        for t in &part.mesh.triangles {
-            for i in t {
-                eat(&i.to_le_bytes());
+        let mut keys: Vec<[u64; 9]> = (0..part.mesh.triangles.len())
+            .map(|t| triangle_key(part.mesh.triangle(t)).0)
+            .collect();
+        keys.sort_unstable();
+        eat(&(keys.len() as u64).to_le_bytes());
+        for k in &keys {
+            for v in k {
+                eat(&v.to_le_bytes());
             }
         }
     }
     format!("{h:016x}")
+}
+
+/// The barycentric coordinates of the point of triangle `t` nearest `p`, and its distance.
+fn closest_on_triangle(p: &Point3, t: &[Point3; 3]) -> ([f64; 3], f64) {
+    let (a, b, c) = (t[0], t[1], t[2]);
+    let (ab, ac, ap) = (b - a, c - a, p - a);
+    let (d1, d2) = (ab.dot(&ap), ac.dot(&ap));
+    let bary = 'found: {
+        if d1 <= 0.0 && d2 <= 0.0 {
+            break 'found [1.0, 0.0, 0.0];
+        }
+        let bp = p - b;
+        let (d3, d4) = (ab.dot(&bp), ac.dot(&bp));
+        if d3 >= 0.0 && d4 <= d3 {
+            break 'found [0.0, 1.0, 0.0];
+        }
+        let vc = d1 * d4 - d3 * d2;
+        if vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0 {
+            let v = d1 / (d1 - d3);
+            break 'found [1.0 - v, v, 0.0];
+        }
+        let cp = p - c;
+        let (d5, d6) = (ab.dot(&cp), ac.dot(&cp));
+        if d6 >= 0.0 && d5 <= d6 {
+            break 'found [0.0, 0.0, 1.0];
+        }
+        let vb = d5 * d2 - d1 * d6;
+        if vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0 {
+            let w = d2 / (d2 - d6);
+            break 'found [1.0 - w, 0.0, w];
+        }
+        let va = d3 * d6 - d5 * d4;
+        if va <= 0.0 && (d4 - d3) >= 0.0 && (d5 - d6) >= 0.0 {
+            let w = (d4 - d3) / ((d4 - d3) + (d5 - d6));
+            break 'found [0.0, 1.0 - w, w];
+        }
+        let denom = va + vb + vc;
+        if !(denom.is_finite() && denom.abs() > 0.0) {
+            break 'found [1.0 / 3.0; 3];
+        }
+        let (v, w) = (vb / denom, vc / denom);
+        [1.0 - v - w, v, w]
+    };
+    let q = a.coords * bary[0] + b.coords * bary[1] + c.coords * bary[2];
+    (bary, (p.coords - q).norm())
+}
+
+/// A baked atlas moved from the tessellation it was baked on to another triangulation of
+/// the same surface (a script's booleans may split a flat face along other diagonals from
+/// one build to the next).
+pub struct AtlasTransfer<'a> {
+    /// The baked model's triangles (per part, as its layout was made from) and layout.
+    pub baked: &'a ObjectModel,
+    pub baked_layout: &'a AtlasLayout,
+    /// RGBA texels of the baked atlas.
+    pub baked_rgba: &'a [u8],
+}
+
+impl AtlasTransfer<'_> {
+    fn sample(&self, part: usize, tri: usize, bary: [f64; 3]) -> [u8; 4] {
+        let patch = &self.baked_layout.patches[part][tri];
+        let x = bary[0] * patch.corners[0][0] + bary[1] * patch.corners[1][0] + bary[2] * patch.corners[2][0];
+        let y = bary[0] * patch.corners[0][1] + bary[1] * patch.corners[1][1] + bary[2] * patch.corners[2][1];
+        let w = self.baked_layout.width as i64;
+        let h = self.baked_layout.height as i64;
+        let (xi, yi) = ((x.floor() as i64).clamp(0, w - 1), (y.floor() as i64).clamp(0, h - 1));
+        let k = 4 * (yi * w + xi) as usize;
+        let mut out = [0u8; 4];
+        out.copy_from_slice(&self.baked_rgba[k..k + 4]);
+        out
+    }
+
+    /// The RGBA atlas of `layout` (`model`'s) with each texel the baked colour at its point:
+    /// a triangle found among the baked ones by its corners reads its own patch; any other
+    /// reads the baked triangle that holds its point within `tolerance` (model units).
+    /// `Err(n)`: `n` texels' points lie on no baked triangle (the shape changed).
+    pub fn onto(&self, model: &ObjectModel, layout: &AtlasLayout, tolerance: f64) -> std::result::Result<Vec<u8>, usize> {
+        if self.baked.parts.len() != model.parts.len()
+            || self.baked_rgba.len() != 4 * self.baked_layout.texel_count()
+        {
+            return Err(1);
+        }
+        let mut out = vec![0u8; 4 * layout.texel_count()];
+        let mut missing = 0usize;
+        for (p, part) in model.parts.iter().enumerate() {
+            let baked = &self.baked.parts[p].mesh;
+            let baked_tris: Vec<[Point3; 3]> = (0..baked.triangles.len()).map(|t| baked.triangle(t)).collect();
+            let mut by_key = std::collections::BTreeMap::new();
+            for (t, tri) in baked_tris.iter().enumerate() {
+                by_key.entry(triangle_key(*tri).0).or_insert(t);
+            }
+            let current_keys: std::collections::BTreeSet<[u64; 9]> = (0..part.mesh.triangles.len())
+                .map(|t| triangle_key(part.mesh.triangle(t)).0)
+                .collect();
+            // Baked triangles the current mesh does not have: where its other ones lie.
+            let unmatched: Vec<usize> = (0..baked_tris.len())
+                .filter(|&t| !current_keys.contains(&triangle_key(baked_tris[t]).0))
+                .collect();
+            for (t, patch) in layout.patches[p].iter().enumerate() {
+                let tri = part.mesh.triangle(t);
+                let own = by_key.get(&triangle_key(tri).0).copied();
+                for y in patch.y0..patch.y0 + patch.height {
+                    for x in patch.x0..patch.x0 + patch.width {
+                        let b = patch.texel_barycentric(x, y);
+                        let point = Point3::from(tri[0].coords * b[0] + tri[1].coords * b[1] + tri[2].coords * b[2]);
+                        let found = match own {
+                            Some(bt) => Some((bt, closest_on_triangle(&point, &baked_tris[bt]).0)),
+                            None => unmatched
+                                .iter()
+                                .map(|&bt| (bt, closest_on_triangle(&point, &baked_tris[bt])))
+                                .filter(|(_, (_, d))| *d <= tolerance)
+                                .min_by(|a, b| a.1 .1.total_cmp(&b.1 .1))
+                                .map(|(bt, (bary, _))| (bt, bary)),
+                        };
+                        let k = 4 * (y * layout.width + x) as usize;
+                        match found {
+                            Some((bt, bary)) => out[k..k + 4].copy_from_slice(&self.sample(p, bt, bary)),
+                            None => missing += 1,
+                        }
+                    }
+                }
+            }
+        }
+        if missing > 0 {
+            Err(missing)
+        } else {
+            Ok(out)
+        }
+    }
 }
 
 #[cfg(test)]
@@ -424,12 +586,99 @@ mod tests {
             tessellation_fingerprint(&a),
             tessellation_fingerprint(&renamed)
         );
+        // The same triangles in another order, their corners rotated and their vertices
+        // renumbered: the same fingerprint, and each triangle keeps its texels.
+        let mut shuffled = a.clone();
+        let mesh = &a.parts[0].mesh;
+        let n = mesh.positions.len() as u32;
+        let positions: Vec<_> = mesh.positions.iter().rev().copied().collect();
+        let triangles: Vec<[u32; 3]> = mesh
+            .triangles
+            .iter()
+            .rev()
+            .map(|t| [n - 1 - t[1], n - 1 - t[2], n - 1 - t[0]])
+            .collect();
+        shuffled.parts[0] = Part::new("a", crate::TriMesh::new(positions, triangles), [0.2; 3]);
+        assert_eq!(
+            tessellation_fingerprint(&a),
+            tessellation_fingerprint(&shuffled)
+        );
+        let (la, ls) = (
+            AtlasLayout::new(&a, 30.0, 128).expect("a"),
+            AtlasLayout::new(&shuffled, 30.0, 128).expect("shuffled"),
+        );
+        let count = mesh.triangles.len();
+        for t in 0..count {
+            let (pa, ps) = (la.patches[0][t], ls.patches[0][count - 1 - t]);
+            assert_eq!((pa.x0, pa.y0), (ps.x0, ps.y0), "triangle {t}");
+            // Corner c of the original is corner (c + 2) % 3 of the shuffled one.
+            for c in 0..3 {
+                let (x, y) = (pa.corners[c], ps.corners[(c + 2) % 3]);
+                assert!((x[0] - y[0]).abs() < 1e-9 && (x[1] - y[1]).abs() < 1e-9);
+            }
+        }
         let mut moved = a.clone();
         moved.parts[1] = Part::new("b", cuboid(0.1, 0.1, 0.12).expect("box"), [0.9, 0.1, 0.1]);
         assert_ne!(
             tessellation_fingerprint(&a),
             tessellation_fingerprint(&moved)
         );
+    }
+
+    #[test]
+    fn a_bake_moves_onto_another_triangulation_of_the_same_surface_only() {
+        // A square split along one diagonal, then along the other.
+        let square = |diagonal: bool| {
+            let positions = vec![
+                Point3::new(0.0, 0.0, 0.0),
+                Point3::new(1.0, 0.0, 0.0),
+                Point3::new(1.0, 1.0, 0.0),
+                Point3::new(0.0, 1.0, 0.0),
+            ];
+            let triangles = if diagonal {
+                vec![[0, 1, 2], [0, 2, 3]]
+            } else {
+                vec![[0, 1, 3], [1, 2, 3]]
+            };
+            ObjectModel {
+                parts: vec![Part::new("sq", crate::TriMesh::new(positions, triangles), [0.5; 3])],
+                tree: KinematicTree::rigid(1),
+            }
+        };
+        let (a, b) = (square(true), square(false));
+        let (la, lb) = (
+            AtlasLayout::new(&a, 16.0, 64).expect("a"),
+            AtlasLayout::new(&b, 16.0, 64).expect("b"),
+        );
+        // Red where x < 0.5, blue elsewhere, painted through a's layout.
+        let mut rgba = vec![0u8; 4 * la.texel_count()];
+        for (t, patch) in la.patches[0].iter().enumerate() {
+            let tri = a.parts[0].mesh.triangle(t);
+            for y in patch.y0..patch.y0 + patch.height {
+                for x in patch.x0..patch.x0 + patch.width {
+                    let w = patch.texel_barycentric(x, y);
+                    let px = w[0] * tri[0].x + w[1] * tri[1].x + w[2] * tri[2].x;
+                    let k = 4 * (y * la.width + x) as usize;
+                    let c = if px < 0.5 { [255, 0, 0, 255] } else { [0, 0, 255, 255] };
+                    rgba[k..k + 4].copy_from_slice(&c);
+                }
+            }
+        }
+        let transfer = AtlasTransfer { baked: &a, baked_layout: &la, baked_rgba: &rgba };
+        let moved = transfer.onto(&b, &lb, 1e-9).expect("same surface");
+        let tex = Texture::new("moved", lb.width, lb.height, moved.chunks_exact(4).flat_map(|c| [c[0], c[1], c[2]]).collect()).expect("texture");
+        let coloured = with_atlas(&b, &lb, Arc::new(tex)).expect("apply");
+        let s = coloured.parts[0].surface.as_ref().expect("surface");
+        // Triangle [0, 1, 3] of b: its corner at (0,0) is red, at (1,0) blue.
+        assert_eq!(s.color_at(0, [0.9, 0.05, 0.05]), [1.0, 0.0, 0.0]);
+        assert_eq!(s.color_at(0, [0.05, 0.9, 0.05]), [0.0, 0.0, 1.0]);
+        // A different surface (the square raised) finds no baked triangle.
+        let mut raised = b.clone();
+        let mut mesh = (*raised.parts[0].mesh).clone();
+        mesh.positions[2].z = 0.1;
+        raised.parts[0] = Part::new("sq", mesh, [0.5; 3]);
+        let lr = AtlasLayout::new(&raised, 16.0, 64).expect("raised");
+        assert!(transfer.onto(&raised, &lr, 1e-9).is_err());
     }
 
     #[test]

@@ -21,7 +21,7 @@ pub mod simplify;
 pub mod truth;
 
 pub use appearance::{AppearedMesh, Material, SurfaceAppearance, Texture, WrapMode};
-pub use atlas::{tessellation_fingerprint, with_atlas, AtlasLayout, Patch};
+pub use atlas::{tessellation_fingerprint, with_atlas, AtlasLayout, AtlasTransfer, Patch};
 pub use camera::PinholeCamera;
 pub use kinematics::{JointDef, JointKind, KinematicTree};
 pub use mesh::{Aabb, TriMesh};

@@ -14,8 +14,11 @@
 //! count as unseen.
 //!
 //! Baked from wrong poses, the atlas locks the error in. So the frames are checked against
-//! each other: each frame's colours are compared with the other frames' weighted mean at
-//! the same texels (after one gain per frame, for exposure), and a frame whose residual is
+//! each other: each frame's colours are compared with every other frame's at the texels
+//! both saw (after one gain, for exposure; the RMS over the tenth of those texels where
+//! they differ most, since a misplaced print covers only part of the surface), a frame's
+//! residual is the median over its partners (one wrong frame raises its own residual, not
+//! theirs), and a frame whose residual is
 //! more than [`BakeConfig::disagree_ratio`] times the median frame's and over
 //! [`BakeConfig::disagree_floor`] (8-bit units) disagrees — a frame in a twin of its true
 //! pose carries the print to the wrong texels. Where the median frame itself is over the
@@ -78,9 +81,11 @@ impl Default for BakeConfig {
             boundary_px: 3.0,
             min_cos: 0.15,
             depth_tolerance: 0.01,
-            // 6% of the 8-bit range: noise, compression and shading that a gain does not
-            // take out stay under it; print moved to the wrong place is well over it.
-            disagree_floor: 16.0,
+            // A tenth of the 8-bit range. Where two right poses differ most (the tenth of
+            // their shared texels on edges, noise, compression, shading a gain does not take
+            // out) they differ by 6–13 on the synthetic printed mug; a print moved to the
+            // wrong place differs by its contrast with what is there (119 on a test box).
+            disagree_floor: 24.0,
             // With three frames and one wrong, the good ones' residuals are about half the
             // wrong one's (the wrong one is half their reference); with more, less.
             disagree_ratio: 2.0,
@@ -99,9 +104,9 @@ pub struct FrameBake {
     pub shared_texels: usize,
     /// The frames it was compared with (sharing enough texels).
     pub partners: usize,
-    /// The median over those frames of the RMS difference of its colours from theirs at
-    /// the texels both saw (8-bit units, after one gain for exposure); `None` without a
-    /// partner.
+    /// The median over those frames of the RMS difference of its colours from theirs over
+    /// the tenth of the texels both saw where they differ most (8-bit units, after one gain
+    /// for exposure); `None` without a partner.
     pub residual: Option<f64>,
     pub disagrees: bool,
 }
@@ -184,7 +189,10 @@ fn fit_layout(
     texels_per_unit: f64,
     max_side: u32,
 ) -> Result<AtlasLayout, TrackError> {
-    let mut d = texels_per_unit;
+    // In 1/1024ths of a texel per unit: a binary fraction with a short decimal form, which
+    // the bake file's JSON carries exactly, so the loader lays out the same atlas.
+    let quantise = |d: f64| ((d * 1024.0).floor() / 1024.0).max(1.0 / 1024.0);
+    let mut d = quantise(texels_per_unit);
     for _ in 0..80 {
         // An atlas about square: the width from the rectangles' total area.
         let area: f64 = model
@@ -208,7 +216,7 @@ fn fit_layout(
                 return Ok(layout);
             }
         }
-        d *= 0.85;
+        d = quantise(d * 0.85);
     }
     Err(TrackError::Invalid(format!(
         "the model's {} triangles do not fit an atlas of {max_side}×{max_side} texels",
@@ -440,38 +448,60 @@ impl<'f> FrameView<'f> {
     }
 }
 
-/// The RMS difference (8-bit units, per channel, weighted by the lesser of the two weights,
-/// after the least-squares gain from `a` to `b`) between two frames' samples (sorted by
-/// texel) at the texels both saw, and how many those are.
+/// Share of the shared texels a pair's residual is taken over: those where the two frames
+/// differ most. A print moved to the wrong place covers only part of the surface (a badge
+/// on a mug), and over all shared texels its difference drowns in the plain ones.
+const DISAGREE_SHARE: f64 = 0.1;
+
+/// How far two frames' colours (8-bit units) differ at the texels both saw (`a`, `b`
+/// sorted by texel): after the least-squares gain from `a` to `b` (exposure), the weighted
+/// RMS over channels of the [`DISAGREE_SHARE`] of shared texels where they differ most;
+/// and how many texels they share.
 fn pair_residual(a: &[(u32, f32, [f32; 3])], b: &[(u32, f32, [f32; 3])]) -> (usize, Option<f64>) {
-    let (mut i, mut j, mut n) = (0, 0, 0usize);
-    let (mut sw, mut sab, mut saa, mut sbb) = (0.0f64, 0.0f64, 0.0f64, 0.0f64);
+    let (mut i, mut j) = (0, 0);
+    let mut pairs: Vec<(f64, [f64; 3], [f64; 3])> = Vec::new();
+    let (mut sab, mut saa) = (0.0f64, 0.0f64);
     while i < a.len() && j < b.len() {
         match a[i].0.cmp(&b[j].0) {
             std::cmp::Ordering::Less => i += 1,
             std::cmp::Ordering::Greater => j += 1,
             std::cmp::Ordering::Equal => {
                 let w = f64::from(a[i].1.min(b[j].1));
-                n += 1;
-                sw += w;
+                let x = a[i].2.map(f64::from);
+                let y = b[j].2.map(f64::from);
                 for c in 0..3 {
-                    let (x, y) = (f64::from(a[i].2[c]), f64::from(b[j].2[c]));
-                    sab += w * x * y;
-                    saa += w * x * x;
-                    sbb += w * y * y;
+                    sab += w * x[c] * y[c];
+                    saa += w * x[c] * x[c];
                 }
+                pairs.push((w, x, y));
                 i += 1;
                 j += 1;
             }
         }
     }
-    if sw <= 0.0 || saa <= 0.0 {
+    let n = pairs.len();
+    if n == 0 || saa <= 0.0 {
         return (n, None);
     }
-    (
-        n,
-        Some(((sbb - sab * sab / saa).max(0.0) / (3.0 * sw)).sqrt()),
-    )
+    let gain = sab / saa;
+    let mut d: Vec<(f64, f64)> = pairs
+        .iter()
+        .map(|(w, x, y)| {
+            let d2 = (0..3).map(|c| (y[c] - gain * x[c]).powi(2)).sum::<f64>() / 3.0;
+            (d2, *w)
+        })
+        .collect();
+    d.sort_by(|p, q| q.0.total_cmp(&p.0));
+    let top = ((n as f64 * DISAGREE_SHARE).ceil() as usize).clamp(1, n);
+    let (mut sd, mut sw) = (0.0, 0.0);
+    for &(d2, w) in &d[..top] {
+        sd += w * d2;
+        sw += w;
+    }
+    if sw <= 0.0 {
+        return (n, None);
+    }
+    (n, Some((sd / sw).sqrt()))
 }
 
 /// Per texel running sums.

@@ -59,6 +59,10 @@ fn bake_files(dir: &Path) -> Vec<String> {
 fn a_bake_from_true_poses_gives_an_uncoloured_mug_its_print_and_score_uses_it() {
     let dir = tempfile::tempdir().expect("tmp");
     let (cap, scene, poses) = uncoloured_mug(dir.path());
+    // The true model, its badge a part of its own colour: the agreement to reach.
+    let truth = score(&cap, &cap.join("model/scene.rhai"), &poses);
+    let true_nccs: Vec<f64> = truth.appearance.iter().filter_map(|a| a.model_ncc).collect();
+    let true_mean = true_nccs.iter().sum::<f64>() / true_nccs.len().max(1) as f64;
     // One colour: no model agreement to score.
     let before = score(&cap, &scene, &poses);
     assert!(
@@ -91,7 +95,13 @@ fn a_bake_from_true_poses_gives_an_uncoloured_mug_its_print_and_score_uses_it() 
     let nccs: Vec<f64> = after.appearance.iter().filter_map(|a| a.model_ncc).collect();
     assert_eq!(nccs.len(), 8, "{:?}", after.appearance);
     let mean = nccs.iter().sum::<f64>() / nccs.len() as f64;
-    assert!(mean > 0.5, "model agreement {mean:.2}: {nccs:?}");
+    // The frames agree with the baked print at least as well as with the true model's
+    // badge part (2026-12-04: 0.36 baked, 0.30 true; a body of one colour scores the
+    // frames' shading only).
+    assert!(
+        mean > 0.2 && mean >= true_mean - 0.05,
+        "model agreement {mean:.2} (true model {true_mean:.2}): {nccs:?}"
+    );
 
     // The shape changes: the bake is stale, said so, and not used.
     let script = std::fs::read_to_string(&scene).expect("scene");

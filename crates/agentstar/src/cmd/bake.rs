@@ -145,6 +145,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
                 .unwrap_or_default(),
             tessellation: agentstar_geom::tessellation_fingerprint(model),
             atlas: String::new(),
+            triangles: String::new(),
             atlas_width: b.layout.width,
             atlas_height: b.layout.height,
             texels_per_unit: b.layout.texels_per_unit,
@@ -164,7 +165,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
         };
         let atlas = image::RgbaImage::from_raw(b.layout.width, b.layout.height, b.rgba.clone())
             .ok_or_else(|| anyhow!("the baked atlas is not its layout's size"))?;
-        let json = write_bake(model_path, &mut file, &atlas)?;
+        let json = write_bake(model_path, model, &mut file, &atlas)?;
         report.atlas = Some(json.with_file_name(&file.atlas));
         report.bake_file = Some(json);
     }
