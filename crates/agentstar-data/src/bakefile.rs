@@ -133,7 +133,10 @@ fn decode_triangles(bytes: &[u8]) -> std::result::Result<ObjectModel, String> {
     for i in 0..parts {
         let n = u64_of(take(8)?) as usize;
         if n.saturating_mul(72) > bytes.len() {
-            return Err(format!("part {i}: {n} triangles in a file of {} bytes", bytes.len()));
+            return Err(format!(
+                "part {i}: {n} triangles in a file of {} bytes",
+                bytes.len()
+            ));
         }
         let mut positions = Vec::with_capacity(3 * n);
         for _ in 0..3 * n {
@@ -146,8 +149,14 @@ fn decode_triangles(bytes: &[u8]) -> std::result::Result<ObjectModel, String> {
             }
             positions.push(Point3::new(v[0], v[1], v[2]));
         }
-        let triangles = (0..n as u32).map(|t| [3 * t, 3 * t + 1, 3 * t + 2]).collect();
-        out.push(Part::new(format!("part {i}"), TriMesh::new(positions, triangles), [0.5; 3]));
+        let triangles = (0..n as u32)
+            .map(|t| [3 * t, 3 * t + 1, 3 * t + 2])
+            .collect();
+        out.push(Part::new(
+            format!("part {i}"),
+            TriMesh::new(positions, triangles),
+            [0.5; 3],
+        ));
     }
     Ok(ObjectModel {
         tree: KinematicTree::rigid(out.len()),
@@ -200,7 +209,11 @@ pub fn write_bake(
         let prefix = atlas_prefix(model);
         for e in rd.flatten() {
             let n = e.file_name().to_string_lossy().to_string();
-            if n != name && n != tris && n.starts_with(&prefix) && (n.ends_with(".png") || n.ends_with(".tris")) {
+            if n != name
+                && n != tris
+                && n.starts_with(&prefix)
+                && (n.ends_with(".png") || n.ends_with(".tris"))
+            {
                 let _ = std::fs::remove_file(e.path());
             }
         }
@@ -216,7 +229,10 @@ pub fn read_bake(path: &Path) -> Result<BakeFile> {
     if file.format != BAKE_FORMAT {
         return Err(DataError::invalid(
             path,
-            format!("format `{}`; this agentstar reads `{BAKE_FORMAT}`", file.format),
+            format!(
+                "format `{}`; this agentstar reads `{BAKE_FORMAT}`",
+                file.format
+            ),
         ));
     }
     Ok(file)
@@ -260,7 +276,8 @@ fn beside(path: &Path, name: &str) -> std::result::Result<PathBuf, String> {
 
 fn apply_bake(path: &Path, model: &ObjectModel) -> std::result::Result<ObjectModel, String> {
     let file = read_bake(path).map_err(|e| format!("{e}; the baked colours are ignored"))?;
-    let ignored = |what: String| format!("{}: {what}; the baked colours are ignored", path.display());
+    let ignored =
+        |what: String| format!("{}: {what}; the baked colours are ignored", path.display());
     let atlas_path = beside(path, &file.atlas)?;
     let img = crate::images::decode_image(&atlas_path, "a baked atlas")
         .map_err(|e| format!("{e}; the baked colours are ignored"))?
@@ -302,7 +319,8 @@ fn apply_bake(path: &Path, model: &ObjectModel) -> std::result::Result<ObjectMod
         let tris_path = beside(path, &file.triangles)?;
         let bytes = crate::read_bounded(&tris_path, crate::limits::BINARY_BYTES)
             .map_err(|e| format!("{e}; the baked colours are ignored"))?;
-        let baked = decode_triangles(&bytes).map_err(|e| ignored(format!("{}: {e}", tris_path.display())))?;
+        let baked = decode_triangles(&bytes)
+            .map_err(|e| ignored(format!("{}: {e}", tris_path.display())))?;
         if tessellation_fingerprint(&baked) != file.tessellation {
             return Err(ignored(format!(
                 "{} is not the tessellation the bake names",
@@ -311,7 +329,9 @@ fn apply_bake(path: &Path, model: &ObjectModel) -> std::result::Result<ObjectMod
         }
         let baked_layout = layout(&baked)?;
         if baked_layout.height != file.atlas_height {
-            return Err(ignored("the atlas does not lay out on its triangles".into()));
+            return Err(ignored(
+                "the atlas does not lay out on its triangles".into(),
+            ));
         }
         let l = layout(model).map_err(|_| stale("its shape changed"))?;
         let size = model
@@ -330,7 +350,10 @@ fn apply_bake(path: &Path, model: &ObjectModel) -> std::result::Result<ObjectMod
         (l, moved)
     };
     let (l, rgba) = rgba;
-    let rgb: Vec<u8> = rgba.chunks_exact(4).flat_map(|c| [c[0], c[1], c[2]]).collect();
+    let rgb: Vec<u8> = rgba
+        .chunks_exact(4)
+        .flat_map(|c| [c[0], c[1], c[2]])
+        .collect();
     let texture = Texture::new(atlas_path.display().to_string(), l.width, l.height, rgb)
         .map_err(|e| ignored(e.to_string()))?;
     with_atlas(model, &l, Arc::new(texture)).map_err(|e| ignored(e.to_string()))
@@ -344,14 +367,22 @@ mod tests {
 
     fn model(depth: f64) -> ObjectModel {
         ObjectModel {
-            parts: vec![Part::new("body", cuboid(1.0, 0.5, depth).expect("box"), [0.5; 3])],
+            parts: vec![Part::new(
+                "body",
+                cuboid(1.0, 0.5, depth).expect("box"),
+                [0.5; 3],
+            )],
             tree: KinematicTree::rigid(1),
         }
     }
 
     fn bake_of(m: &ObjectModel) -> (BakeFile, image::RgbaImage) {
         let layout = AtlasLayout::new(m, 16.0, 64).expect("layout");
-        let atlas = image::RgbaImage::from_pixel(layout.width, layout.height, image::Rgba([200, 30, 40, 255]));
+        let atlas = image::RgbaImage::from_pixel(
+            layout.width,
+            layout.height,
+            image::Rgba([200, 30, 40, 255]),
+        );
         let file = BakeFile {
             format: BAKE_FORMAT.into(),
             model: "scene.rhai".into(),
@@ -412,7 +443,11 @@ mod tests {
         let mut reordered = m.clone();
         let mut triangles = mesh.triangles.clone();
         triangles.reverse();
-        reordered.parts[0] = Part::new("body", TriMesh::new(mesh.positions.clone(), triangles), [0.5; 3]);
+        reordered.parts[0] = Part::new(
+            "body",
+            TriMesh::new(mesh.positions.clone(), triangles),
+            [0.5; 3],
+        );
         let (moved, pickup) = pick_up_bake(&script, &reordered);
         assert!(matches!(pickup, BakePickup::Applied(_)), "{pickup:?}");
         let c = moved.expect("model").parts[0].color;

@@ -113,7 +113,13 @@ fn invalid(reason: String) -> GeomError {
 /// (its winding kept), and that corner's index: the same key however a mesh numbers its
 /// vertices or orders its triangles.
 fn triangle_key(t: [Point3; 3]) -> ([u64; 9], usize) {
-    let bits = |p: &Point3| [(p.x + 0.0).to_bits(), (p.y + 0.0).to_bits(), (p.z + 0.0).to_bits()];
+    let bits = |p: &Point3| {
+        [
+            (p.x + 0.0).to_bits(),
+            (p.y + 0.0).to_bits(),
+            (p.z + 0.0).to_bits(),
+        ]
+    };
     let c = [bits(&t[0]), bits(&t[1]), bits(&t[2])];
     let r = (0..3).min_by_key(|&i| c[i]).unwrap_or(0);
     let mut key = [0u64; 9];
@@ -434,11 +440,18 @@ pub struct AtlasTransfer<'a> {
 impl AtlasTransfer<'_> {
     fn sample(&self, part: usize, tri: usize, bary: [f64; 3]) -> [u8; 4] {
         let patch = &self.baked_layout.patches[part][tri];
-        let x = bary[0] * patch.corners[0][0] + bary[1] * patch.corners[1][0] + bary[2] * patch.corners[2][0];
-        let y = bary[0] * patch.corners[0][1] + bary[1] * patch.corners[1][1] + bary[2] * patch.corners[2][1];
+        let x = bary[0] * patch.corners[0][0]
+            + bary[1] * patch.corners[1][0]
+            + bary[2] * patch.corners[2][0];
+        let y = bary[0] * patch.corners[0][1]
+            + bary[1] * patch.corners[1][1]
+            + bary[2] * patch.corners[2][1];
         let w = self.baked_layout.width as i64;
         let h = self.baked_layout.height as i64;
-        let (xi, yi) = ((x.floor() as i64).clamp(0, w - 1), (y.floor() as i64).clamp(0, h - 1));
+        let (xi, yi) = (
+            (x.floor() as i64).clamp(0, w - 1),
+            (y.floor() as i64).clamp(0, h - 1),
+        );
         let k = 4 * (yi * w + xi) as usize;
         let mut out = [0u8; 4];
         out.copy_from_slice(&self.baked_rgba[k..k + 4]);
@@ -449,7 +462,12 @@ impl AtlasTransfer<'_> {
     /// a triangle found among the baked ones by its corners reads its own patch; any other
     /// reads the baked triangle that holds its point within `tolerance` (model units).
     /// `Err(n)`: `n` texels' points lie on no baked triangle (the shape changed).
-    pub fn onto(&self, model: &ObjectModel, layout: &AtlasLayout, tolerance: f64) -> std::result::Result<Vec<u8>, usize> {
+    pub fn onto(
+        &self,
+        model: &ObjectModel,
+        layout: &AtlasLayout,
+        tolerance: f64,
+    ) -> std::result::Result<Vec<u8>, usize> {
         if self.baked.parts.len() != model.parts.len()
             || self.baked_rgba.len() != 4 * self.baked_layout.texel_count()
         {
@@ -459,7 +477,9 @@ impl AtlasTransfer<'_> {
         let mut missing = 0usize;
         for (p, part) in model.parts.iter().enumerate() {
             let baked = &self.baked.parts[p].mesh;
-            let baked_tris: Vec<[Point3; 3]> = (0..baked.triangles.len()).map(|t| baked.triangle(t)).collect();
+            let baked_tris: Vec<[Point3; 3]> = (0..baked.triangles.len())
+                .map(|t| baked.triangle(t))
+                .collect();
             let mut by_key = std::collections::BTreeMap::new();
             for (t, tri) in baked_tris.iter().enumerate() {
                 by_key.entry(triangle_key(*tri).0).or_insert(t);
@@ -477,7 +497,9 @@ impl AtlasTransfer<'_> {
                 for y in patch.y0..patch.y0 + patch.height {
                     for x in patch.x0..patch.x0 + patch.width {
                         let b = patch.texel_barycentric(x, y);
-                        let point = Point3::from(tri[0].coords * b[0] + tri[1].coords * b[1] + tri[2].coords * b[2]);
+                        let point = Point3::from(
+                            tri[0].coords * b[0] + tri[1].coords * b[1] + tri[2].coords * b[2],
+                        );
                         let found = match own {
                             Some(bt) => Some((bt, closest_on_triangle(&point, &baked_tris[bt]).0)),
                             None => unmatched
@@ -489,7 +511,9 @@ impl AtlasTransfer<'_> {
                         };
                         let k = 4 * (y * layout.width + x) as usize;
                         match found {
-                            Some((bt, bary)) => out[k..k + 4].copy_from_slice(&self.sample(p, bt, bary)),
+                            Some((bt, bary)) => {
+                                out[k..k + 4].copy_from_slice(&self.sample(p, bt, bary))
+                            }
                             None => missing += 1,
                         }
                     }
@@ -641,7 +665,11 @@ mod tests {
                 vec![[0, 1, 3], [1, 2, 3]]
             };
             ObjectModel {
-                parts: vec![Part::new("sq", crate::TriMesh::new(positions, triangles), [0.5; 3])],
+                parts: vec![Part::new(
+                    "sq",
+                    crate::TriMesh::new(positions, triangles),
+                    [0.5; 3],
+                )],
                 tree: KinematicTree::rigid(1),
             }
         };
@@ -659,14 +687,31 @@ mod tests {
                     let w = patch.texel_barycentric(x, y);
                     let px = w[0] * tri[0].x + w[1] * tri[1].x + w[2] * tri[2].x;
                     let k = 4 * (y * la.width + x) as usize;
-                    let c = if px < 0.5 { [255, 0, 0, 255] } else { [0, 0, 255, 255] };
+                    let c = if px < 0.5 {
+                        [255, 0, 0, 255]
+                    } else {
+                        [0, 0, 255, 255]
+                    };
                     rgba[k..k + 4].copy_from_slice(&c);
                 }
             }
         }
-        let transfer = AtlasTransfer { baked: &a, baked_layout: &la, baked_rgba: &rgba };
+        let transfer = AtlasTransfer {
+            baked: &a,
+            baked_layout: &la,
+            baked_rgba: &rgba,
+        };
         let moved = transfer.onto(&b, &lb, 1e-9).expect("same surface");
-        let tex = Texture::new("moved", lb.width, lb.height, moved.chunks_exact(4).flat_map(|c| [c[0], c[1], c[2]]).collect()).expect("texture");
+        let tex = Texture::new(
+            "moved",
+            lb.width,
+            lb.height,
+            moved
+                .chunks_exact(4)
+                .flat_map(|c| [c[0], c[1], c[2]])
+                .collect(),
+        )
+        .expect("texture");
         let coloured = with_atlas(&b, &lb, Arc::new(tex)).expect("apply");
         let s = coloured.parts[0].surface.as_ref().expect("surface");
         // Triangle [0, 1, 3] of b: its corner at (0,0) is red, at (1,0) blue.

@@ -15,10 +15,11 @@
 //!
 //! Baked from wrong poses, the atlas locks the error in. So the frames are checked against
 //! each other: each frame's colours are compared with every other frame's at the texels
-//! both saw (after one gain, for exposure; the RMS over the tenth of those texels where
-//! they differ most, since a misplaced print covers only part of the surface), a frame's
-//! residual is the median over its partners (one wrong frame raises its own residual, not
-//! theirs), and a frame whose residual is
+//! both saw (after one gain per direction of the surface's normal, for exposure and
+//! shading; the RMS over the tenth of those texels where they differ most, since a
+//! misplaced print covers only part of the surface), a frame's
+//! residual is the median over its partners weighted by the texels they share (one wrong
+//! frame raises its own residual, not theirs), and a frame whose residual is
 //! more than [`BakeConfig::disagree_ratio`] times the median frame's and over
 //! [`BakeConfig::disagree_floor`] (8-bit units) disagrees — a frame in a twin of its true
 //! pose carries the print to the wrong texels. Where the median frame itself is over the
@@ -83,8 +84,9 @@ impl Default for BakeConfig {
             depth_tolerance: 0.01,
             // A tenth of the 8-bit range. Where two right poses differ most (the tenth of
             // their shared texels on edges, noise, compression, shading a gain does not take
-            // out) they differ by 6–13 on the synthetic printed mug; a print moved to the
-            // wrong place differs by its contrast with what is there (119 on a test box).
+            // out) they differ by 6–12 on the synthetic printed mug; a print moved to the
+            // wrong place differs by its contrast with what is there (45 on the mug turned
+            // about its axis, 119 on a test box).
             disagree_floor: 24.0,
             // With three frames and one wrong, the good ones' residuals are about half the
             // wrong one's (the wrong one is half their reference); with more, less.
@@ -104,7 +106,8 @@ pub struct FrameBake {
     pub shared_texels: usize,
     /// The frames it was compared with (sharing enough texels).
     pub partners: usize,
-    /// The median over those frames of the RMS difference of its colours from theirs over
+    /// The median over those frames (weighted by the texels shared) of the RMS difference of
+    /// its colours from theirs over
     /// the tenth of the texels both saw where they differ most (8-bit units, after one gain
     /// for exposure); `None` without a partner.
     pub residual: Option<f64>,
@@ -453,14 +456,50 @@ impl<'f> FrameView<'f> {
 /// on a mug), and over all shared texels its difference drowns in the plain ones.
 const DISAGREE_SHARE: f64 = 0.1;
 
+/// Directions a surface's normal is binned into for the gains between two frames: each
+/// face of a cube in 4 × 4 cells.
+const NORMAL_BINS: usize = 96;
+
+/// Each texel's bin of its triangle's normal (part frame), for [`pair_residual`].
+fn normal_bins(model: &ObjectModel, layout: &AtlasLayout) -> Vec<u8> {
+    let mut bins = vec![0u8; layout.texel_count()];
+    for (p, patches) in layout.patches.iter().enumerate() {
+        let mesh = &model.parts[p].mesh;
+        for (t, patch) in patches.iter().enumerate() {
+            let [a, b, c] = mesh.triangle(t);
+            let n = (b - a).cross(&(c - a));
+            let len = n.norm();
+            let n = if len > 0.0 { n / len } else { n };
+            let k = (0..3)
+                .max_by(|&i, &j| n[i].abs().total_cmp(&n[j].abs()))
+                .unwrap_or(2);
+            let face = 2 * k + usize::from(n[k] < 0.0);
+            let (u, v) = (n[(k + 1) % 3], n[(k + 2) % 3]);
+            let cell = |x: f64| (((x + 1.0) * 2.0).floor() as usize).min(3);
+            let bin = (face * 16 + cell(u) * 4 + cell(v)) as u8;
+            for y in patch.y0..patch.y0 + patch.height {
+                let row = (y * layout.width) as usize;
+                bins[row + patch.x0 as usize..row + (patch.x0 + patch.width) as usize].fill(bin);
+            }
+        }
+    }
+    bins
+}
+
 /// How far two frames' colours (8-bit units) differ at the texels both saw (`a`, `b`
-/// sorted by texel): after the least-squares gain from `a` to `b` (exposure), the weighted
-/// RMS over channels of the [`DISAGREE_SHARE`] of shared texels where they differ most;
-/// and how many texels they share.
-fn pair_residual(a: &[(u32, f32, [f32; 3])], b: &[(u32, f32, [f32; 3])]) -> (usize, Option<f64>) {
+/// sorted by texel): after one least-squares gain from `a` to `b` per direction of the
+/// surface's normal ([`normal_bins`]: exposure, and the shading a light puts on each side,
+/// which a print moved elsewhere cannot imitate), the weighted RMS over channels of the
+/// [`DISAGREE_SHARE`] of shared texels where they differ most; and how many texels they
+/// share.
+fn pair_residual(
+    a: &[(u32, f32, [f32; 3])],
+    b: &[(u32, f32, [f32; 3])],
+    bins: &[u8],
+) -> (usize, Option<f64>) {
     let (mut i, mut j) = (0, 0);
-    let mut pairs: Vec<(f64, [f64; 3], [f64; 3])> = Vec::new();
-    let (mut sab, mut saa) = (0.0f64, 0.0f64);
+    let mut pairs: Vec<(f64, [f64; 3], [f64; 3], usize)> = Vec::new();
+    let mut sums = [(0.0f64, 0.0f64); NORMAL_BINS];
     while i < a.len() && j < b.len() {
         match a[i].0.cmp(&b[j].0) {
             std::cmp::Ordering::Less => i += 1,
@@ -469,24 +508,26 @@ fn pair_residual(a: &[(u32, f32, [f32; 3])], b: &[(u32, f32, [f32; 3])]) -> (usi
                 let w = f64::from(a[i].1.min(b[j].1));
                 let x = a[i].2.map(f64::from);
                 let y = b[j].2.map(f64::from);
+                let bin = usize::from(bins.get(a[i].0 as usize).copied().unwrap_or(0));
                 for c in 0..3 {
-                    sab += w * x[c] * y[c];
-                    saa += w * x[c] * x[c];
+                    sums[bin].0 += w * x[c] * y[c];
+                    sums[bin].1 += w * x[c] * x[c];
                 }
-                pairs.push((w, x, y));
+                pairs.push((w, x, y, bin));
                 i += 1;
                 j += 1;
             }
         }
     }
     let n = pairs.len();
-    if n == 0 || saa <= 0.0 {
+    if n == 0 {
         return (n, None);
     }
-    let gain = sab / saa;
     let mut d: Vec<(f64, f64)> = pairs
         .iter()
-        .map(|(w, x, y)| {
+        .map(|(w, x, y, bin)| {
+            let (sab, saa) = sums[*bin];
+            let gain = if saa > 0.0 { sab / saa } else { 1.0 };
             let d2 = (0..3).map(|c| (y[c] - gain * x[c]).powi(2)).sum::<f64>() / 3.0;
             (d2, *w)
         })
@@ -596,6 +637,7 @@ pub fn bake(
     // residual, not its partners'.
     let mut samples = samples;
     samples.par_iter_mut().for_each(|s| s.sort_by_key(|x| x.0));
+    let texel_bins = normal_bins(model, &layout);
     let partners_of = |i: usize| -> Vec<usize> {
         // Every other frame up to 24 frames; beyond, the 24 nearest in the sequence.
         let n = frames.len();
@@ -613,16 +655,23 @@ pub fn bake(
             let mut residuals = Vec::new();
             let mut shared_most = 0usize;
             for j in partners_of(i) {
-                let (n, r) = pair_residual(&samples[i], &samples[j]);
+                let (n, r) = pair_residual(&samples[i], &samples[j], &texel_bins);
                 shared_most = shared_most.max(n);
                 if n >= cfg.min_shared_texels {
                     if let Some(r) = r {
-                        residuals.push(r);
+                        residuals.push((r, n));
                     }
                 }
             }
-            residuals.sort_by(f64::total_cmp);
-            let median = (!residuals.is_empty()).then(|| residuals[(residuals.len() - 1) / 2]);
+            // The median weighted by the texels shared: a partner that saw little of what
+            // this frame saw (a grazing side, a rim) says little.
+            residuals.sort_by(|a, b| a.0.total_cmp(&b.0));
+            let half = residuals.iter().map(|r| r.1).sum::<usize>().div_ceil(2);
+            let mut seen = 0usize;
+            let median = residuals.iter().find_map(|&(r, n)| {
+                seen += n;
+                (seen >= half).then_some(r)
+            });
             (shared_most, residuals.len(), median)
         })
         .collect();

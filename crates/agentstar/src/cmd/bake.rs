@@ -217,7 +217,9 @@ fn print_summary(r: &BakeReport, refused: bool, dry_run: bool) {
         (Some(p), _, _) => println!(
             "wrote {} ({}); every command loading {} now draws and tracks with these colours",
             p.display(),
-            r.atlas.as_ref().map_or(String::new(), |a| a.display().to_string()),
+            r.atlas
+                .as_ref()
+                .map_or(String::new(), |a| a.display().to_string()),
             r.model.display()
         ),
         (None, true, _) => println!("refused: nothing written"),
