@@ -624,8 +624,8 @@ pub fn bake(
             let t = &mut texels[k as usize];
             let w = f64::from(w);
             t.weight += w;
-            for i in 0..3 {
-                let ci = f64::from(c[i]);
+            for (i, &ci) in c.iter().enumerate() {
+                let ci = f64::from(ci);
                 t.sum[i] += w * ci;
                 t.sum_sq[i] += w * ci * ci;
             }
@@ -633,8 +633,8 @@ pub fn bake(
         }
     }
     // Pass 2: each frame against each other frame at the texels both saw; a frame's
-    // residual is the (lower) median over its partners, so one wrong frame raises its own
-    // residual, not its partners'.
+    // residual is the median over its partners weighted by the texels shared, so one wrong
+    // frame raises its own residual, not its partners'.
     let mut samples = samples;
     samples.par_iter_mut().for_each(|s| s.sort_by_key(|x| x.0));
     let texel_bins = normal_bins(model, &layout);
@@ -872,8 +872,8 @@ mod tests {
                     }
                     let bary = patch.texel_barycentric(x, y).map(|v| v as f32);
                     let want = truth.color_at(t, bary);
-                    for i in 0..3 {
-                        let e = (f64::from(b.rgba[4 * k + i]) - f64::from(want[i]) * 255.0).abs();
+                    for (i, &w) in want.iter().enumerate() {
+                        let e = (f64::from(b.rgba[4 * k + i]) - f64::from(w) * 255.0).abs();
                         errors.push(e);
                     }
                 }
