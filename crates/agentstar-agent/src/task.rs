@@ -86,18 +86,7 @@ Alternate two kinds of steps; **each step changes the shape or the poses, never 
    there, with the IoU before and after and the pass that moved it); with
    `keep_basins: true` it only polishes, keeping every frame within 45° of rotation (half a
    quarter turn, so no flip or twin) and 30° of joint of the pose you settled.
-   `bake` paints the model with the video's colours: it gathers every keyframe's colours
-   (outside the hands) onto the model at the committed poses and stores them beside
-   `scene.rhai`, and from then on every tool draws, scores and tracks with that print. It
-   helps when the poses are right where the shape alone decides (a mug with its handle in
-   view) and the print must carry the frames where it does not (the handle hidden): bake
-   from the settled frames, then `track` with `from` or the object verbs on the rest. It
-   hurts when a frame it reads is wrong: the wrong pose's colours become the model's print
-   and pull every later search towards the error, so a bake whose frames disagree is
-   refused, naming them (check their poses, or leave them out with `frames`). It cannot
-   break a symmetry every frame shares: an uncoloured can is up-down ambiguous in all of
-   them, and a bake from either way up agrees with itself, so say so rather than guess. A
-   shape edit makes the bake stale (ignored, with a warning naming it): bake again.
+   `bake` paints the model from the video (its description says when that helps and hurts).
 3. Keep notes with `notes`: what the object is, which parts move, what you ruled out. Notes
    survive when older images leave your context.
 
