@@ -86,6 +86,7 @@ Alternate two kinds of steps; **each step changes the shape or the poses, never 
    there, with the IoU before and after and the pass that moved it); with
    `keep_basins: true` it only polishes, keeping every frame within 45° of rotation (half a
    quarter turn, so no flip or twin) and 30° of joint of the pose you settled.
+   `bake` paints the model from the video (its description says when that helps and hurts).
 3. Keep notes with `notes`: what the object is, which parts move, what you ruled out. Notes
    survive when older images leave your context.
 
@@ -250,7 +251,7 @@ pub fn mcp_instructions(with_critic: bool) -> String {
 
 /// What an MCP client shows its model when it connects (with a critic model: see
 /// [`mcp_instructions`]).
-pub const MCP_INSTRUCTIONS: &str = "agentstar fits an object model written as code (scene.rhai) and its pose in every keyframe of a video to the object's masks. Read TASK.md in the run directory first (the tool `task` returns it): it explains the loop (each step changes the shape or the poses, never both), how to read the images, and the gates `finish` checks. Shape tools: scene_read, scene_write, scene_restore, fit_shape, scale, turntable, mechanism, mechanism_pick. Pose tools: track, sweep, apply, osweep, oapply, oapply_all, pose_commit, pose_history, pose_restore. Diagnostics: frames (the raw keyframes, cropped around the mask), render, score, temporal, pose_diff, critic. Images come back inline and as files under the run's images/ directory.";
+pub const MCP_INSTRUCTIONS: &str = "agentstar fits an object model written as code (scene.rhai) and its pose in every keyframe of a video to the object's masks. Read TASK.md in the run directory first (the tool `task` returns it): it explains the loop (each step changes the shape or the poses, never both), how to read the images, and the gates `finish` checks. Shape tools: scene_read, scene_write, scene_restore, fit_shape, bake, scale, turntable, mechanism, mechanism_pick. Pose tools: track, sweep, apply, osweep, oapply, oapply_all, pose_commit, pose_history, pose_restore. Diagnostics: frames (the raw keyframes, cropped around the mask), render, score, temporal, pose_diff, critic. Images come back inline and as files under the run's images/ directory.";
 
 #[cfg(test)]
 mod tests {

@@ -264,6 +264,15 @@ impl PoseHistory {
         Ok(v)
     }
 
+    /// The newest version when it holds `pose` (the file as read), else `None`: which
+    /// version a reader of the file is working from.
+    pub fn version_of(&self, pose: &PoseFile) -> Result<Option<u64>> {
+        let Some((n, path)) = self.versions()?.pop() else {
+            return Ok(None);
+        };
+        Ok((Self::read_entry(&path)?.pose == *pose).then_some(n))
+    }
+
     /// Reads version file `path`.
     pub fn read_entry(path: &Path) -> Result<HistoryEntry> {
         let text = crate::read_text(path)?;

@@ -7,6 +7,7 @@
 
 pub mod animation;
 pub mod atomic;
+pub mod bakefile;
 pub mod capture;
 pub mod capture_writer;
 pub mod export;

@@ -96,6 +96,9 @@ pub struct LoadedModel {
     /// Warnings and the canonical report's observations, for people and models to read.
     pub warnings: Vec<String>,
     pub printed: Vec<String>,
+    /// The bake whose colours the model carries (`<stem>.bake.json` beside the file), when
+    /// one was applied.
+    pub bake: Option<PathBuf>,
 }
 
 fn last_good_path(script: &Path) -> PathBuf {
@@ -142,8 +145,27 @@ pub fn last_good_script(path: &Path) -> Option<PathBuf> {
     p.is_file().then_some(p)
 }
 
-/// Loads any supported model file by extension.
+/// Loads any supported model file by extension, with the colours baked for it
+/// (`<stem>.bake.json` beside it, [`crate::bakefile`]) where the bake is for its shape; a
+/// stale or broken bake is ignored with a warning naming it.
 pub fn load_model(path: &Path) -> Result<LoadedModel> {
+    let mut loaded = load_model_unbaked(path)?;
+    let (baked, pickup) = crate::bakefile::pick_up_bake(path, &loaded.model);
+    match pickup {
+        crate::bakefile::BakePickup::None => {}
+        crate::bakefile::BakePickup::Applied(p) => {
+            if let Some(m) = baked {
+                loaded.model = m;
+                loaded.bake = Some(p);
+            }
+        }
+        crate::bakefile::BakePickup::Ignored(why) => loaded.warnings.push(why),
+    }
+    Ok(loaded)
+}
+
+/// Loads a model file as its file gives it, without a bake beside it (what `bake` bakes on).
+pub fn load_model_unbaked(path: &Path) -> Result<LoadedModel> {
     let ext = path
         .extension()
         .and_then(|e| e.to_str())
@@ -152,12 +174,12 @@ pub fn load_model(path: &Path) -> Result<LoadedModel> {
     match ext.as_str() {
         "rhai" => {
             let b = load_scene_script(path, &Limits::default())?;
-            Ok(LoadedModel { model: b.model, warnings: b.warnings, printed: b.printed })
+            Ok(LoadedModel { model: b.model, warnings: b.warnings, printed: b.printed, bake: None })
         }
         "urdf" => {
             let (model, mut warnings) = load_urdf_with_warnings(path)?;
             warnings.extend(model.canonical_report().warnings);
-            Ok(LoadedModel { model, warnings, printed: vec![] })
+            Ok(LoadedModel { model, warnings, printed: vec![], bake: None })
         }
         "glb" => {
             let files = SideFiles::beside(path.parent().unwrap_or(Path::new(".")));
@@ -208,6 +230,7 @@ fn rigid(parts: Vec<Part>, mut warnings: Vec<String>) -> Result<LoadedModel> {
         model,
         warnings,
         printed: vec![],
+        bake: None,
     })
 }
 

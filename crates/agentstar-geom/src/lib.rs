@@ -6,6 +6,7 @@
 //! `pose.json`), where the conversion is named explicitly (`angle_deg`).
 
 pub mod appearance;
+pub mod atlas;
 pub mod camera;
 pub mod csg;
 pub mod facing;
@@ -20,6 +21,7 @@ pub mod simplify;
 pub mod truth;
 
 pub use appearance::{AppearedMesh, Material, SurfaceAppearance, Texture, WrapMode};
+pub use atlas::{tessellation_fingerprint, with_atlas, AtlasLayout, AtlasTransfer, Patch};
 pub use camera::PinholeCamera;
 pub use kinematics::{JointDef, JointKind, KinematicTree};
 pub use mesh::{Aabb, TriMesh};

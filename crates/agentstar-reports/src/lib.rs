@@ -406,6 +406,55 @@ pub struct TrackReport {
     pub basin_moves: Vec<BasinMoveRow>,
 }
 
+/// One frame of a [`BakeReport`].
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct BakeFrameRow {
+    pub frame: String,
+    /// Texels it saw.
+    pub texels: usize,
+    /// The most texels it shares with one other frame, and the frames it was compared with.
+    pub shared_texels: usize,
+    pub partners: usize,
+    /// The median over those frames of the RMS colour difference at shared texels (8-bit
+    /// units, after a gain for exposure); `None` without a partner.
+    pub residual: Option<f64>,
+    pub disagrees: bool,
+}
+
+/// What `bake --json` prints.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct BakeReport {
+    /// The model file baked for.
+    pub model: PathBuf,
+    /// The bake file written beside it (`None`: refused, nothing written).
+    pub bake_file: Option<PathBuf>,
+    /// The atlas image written beside it.
+    pub atlas: Option<PathBuf>,
+    pub atlas_width: u32,
+    pub atlas_height: u32,
+    /// Texels per model unit of length.
+    pub texels_per_unit: f64,
+    /// Texels of the triangles' rectangles, how many some frame saw and their share.
+    pub surface_texels: usize,
+    pub seen_texels: usize,
+    pub seen_fraction: f64,
+    /// Texels seen by two frames or more, and the weighted colour spread over them (8-bit
+    /// units).
+    pub multi_view_texels: usize,
+    pub spread: Option<f64>,
+    /// The pose file's history version the poses came from.
+    pub pose_version: Option<u64>,
+    pub frames: Vec<BakeFrameRow>,
+    /// Frames that disagree with the others, the worst first.
+    pub disagreeing: Vec<String>,
+    /// Keyframes left out because their pose was never written (seeded from the reference).
+    pub unposed: Vec<String>,
+    /// Stored although frames disagree (`--force`).
+    pub forced: bool,
+}
+
 /// A frame `track --from` moved to another basin.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]

@@ -7,7 +7,7 @@
 //! - [`Output`]: where a command writes its files, and `--json`;
 //! - the requests the MCP tools take and the commands flatten, one type each (the
 //!   object-frame pose verbs: [`OsweepArgs`], [`OapplyArgs`], [`OapplyAllArgs`]; and
-//!   [`TurntableArgs`], [`PoseDiffArgs`], [`TemporalArgs`]);
+//!   [`TurntableArgs`], [`PoseDiffArgs`], [`TemporalArgs`], [`BakeArgs`]);
 //! - [`SheetView`]: a search verb's candidate sheet (`crop`, `zoom`), and [`WithSheet`], a
 //!   search request with it as one flat set of tool arguments;
 //! - the rules a command and its tool share, on the type both read: [`OsweepArgs::region`],
@@ -26,11 +26,13 @@ use serde::{Deserialize, Serialize};
 use serde_json::Value;
 use std::path::PathBuf;
 
+pub mod bake;
 pub mod object;
 pub mod sheet;
 pub mod track;
 pub mod views;
 
+pub use bake::BakeArgs;
 pub use object::{OapplyAllArgs, OapplyArgs, OsweepArgs, Region};
 pub use sheet::{SheetView, WithSheet};
 pub use track::WarmStart;

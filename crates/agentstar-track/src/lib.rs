@@ -6,6 +6,7 @@
 
 pub mod appearance;
 pub mod axis;
+pub mod bake;
 pub mod hypotheses;
 pub mod objective;
 pub mod proportion;

@@ -34,6 +34,8 @@ enum Command {
     Render(cmd::render::Args),
     /// Score the posed model against the masks: IoU with hands excluded, raw IoU, depth, combined.
     Score(cmd::score::Args),
+    /// Bake the model's colours from the keyframes at the committed poses into a texture atlas beside the model file, which every command then loads with it.
+    Bake(cmd::bake::Args),
     /// Render turntables (8 views on a sphere) of the model, once per distinct joint state.
     Turntable(cmd::turntable::Args),
     /// The mechanism check: each joint swept about its declared axis and about the negated axis, as two blind arms A and B, from views off the swing plane.
@@ -148,6 +150,7 @@ fn main() -> ExitCode {
         Command::Check(a) => cmd::check::run(a),
         Command::Render(a) => cmd::render::run(a),
         Command::Score(a) => cmd::score::run(a),
+        Command::Bake(a) => cmd::bake::run(a),
         Command::Turntable(a) => cmd::turntable::run(a),
         Command::Mechanism(a) => cmd::mechanism::run(a),
         Command::Export(a) => cmd::export::run(a),

@@ -68,6 +68,13 @@ fn samples() -> BTreeMap<&'static str, Vec<Value>> {
         ),
         ("scene_restore", vec![json!({"version": 1})]),
         (
+            "bake",
+            vec![
+                json!({}),
+                json!({"frames": "all", "force": true, "model": "scene.rhai"}),
+            ],
+        ),
+        (
             "fit_shape",
             vec![
                 json!({"params": ["width"], "frames": "all", "rounds": 2, "evals": 20, "hold": "body"}),
@@ -158,6 +165,7 @@ fn samples() -> BTreeMap<&'static str, Vec<Value>> {
 /// The tools that run a command (the rest work in-process: the task, the notes, a pose
 /// restore; the critic needs a model).
 const RUN_A_COMMAND: &[&str] = &[
+    "bake",
     "scene_read",
     "scene_write",
     "scene_restore",

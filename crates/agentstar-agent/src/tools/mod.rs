@@ -21,7 +21,7 @@
 //! `scene.rs` (task, scene_read, scene_write, scene_restore), `views.rs` (render, frames,
 //! score, turntable), `mechanism.rs` (mechanism, mechanism_pick: the blind arms of each joint
 //! and the picks `finish` reads), `pose.rs` (track, the search verbs, pose_commit, pose_history,
-//! pose_restore, temporal, pose_diff), `shape.rs` (fit_shape, scale) and `finish.rs`
+//! pose_restore, temporal, pose_diff), `shape.rs` (fit_shape, scale), `bake.rs` (bake) and `finish.rs`
 //! (critic, notes, finish).
 //!
 //! Tools that write (`pose.json`, the scene, the notes) run one at a time per run, whoever
@@ -202,6 +202,7 @@ macro_rules! tool {
     };
 }
 
+mod bake;
 mod exec;
 mod finish;
 mod mechanism;
@@ -213,6 +214,7 @@ mod shape;
 mod tests;
 mod views;
 
+pub use bake::*;
 pub use exec::*;
 pub use finish::*;
 pub use mechanism::*;
@@ -234,6 +236,7 @@ pub static REGISTRY: &[ToolDef] = &[
     ToolDef::of::<SceneWrite>(),
     ToolDef::of::<SceneRestore>(),
     ToolDef::of::<FitShape>(),
+    ToolDef::of::<Bake>(),
     ToolDef::of::<Render>(),
     ToolDef::of::<Keyframes>(),
     ToolDef::of::<Score>(),

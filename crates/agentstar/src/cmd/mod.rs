@@ -1,6 +1,7 @@
 //! One module per subcommand.
 
 pub mod agent;
+pub mod bake;
 pub mod batch;
 pub mod bench;
 pub mod bench_sfm;
