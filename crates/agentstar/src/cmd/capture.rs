@@ -57,12 +57,9 @@ pub struct FromHot3dArgs {
     )]
     intrinsics: Vec<f64>,
     /// T_device_camera as qw,qx,qy,qz,tx,ty,tz (metres); identity when not given.
-    #[arg(
-        long,
-        value_delimiter = ',',
-        num_args = 7,
-        allow_negative_numbers = true
-    )]
+    // No `num_args = 7`: clap counts the arguments before splitting them at commas, so
+    // `qw,qx,...` was refused as one value; the count is checked when the pose is built.
+    #[arg(long, value_delimiter = ',', allow_negative_numbers = true)]
     device_from_camera: Option<Vec<f64>>,
     /// Object masks matched by stem; rendered from the ground truth when absent.
     #[arg(long)]
