@@ -15,8 +15,11 @@
 //! rendered from the ground truth (the whole object, hands not cut out), and the manifest
 //! says which. The egocentric camera (view 0, a moving camera) is not supported.
 
-use crate::import_common::{images_by_stem, mask_for, write_rows, GtModel, Row};
+use crate::import_common::{
+    check_between, images_by_stem, mask_for, select_frames, write_rows, GtModel, Row,
+};
 use crate::render_parts_mask;
+use crate::FramesWritten;
 use agentstar_data::capture_writer::CaptureInfo;
 use agentstar_data::gt::GtJoint;
 use agentstar_data::images::{load_mask, load_rgb};
@@ -43,8 +46,14 @@ pub struct ArcticImport {
     pub hands: Option<PathBuf>,
     /// Image number minus object row; `ioi_offset` of `misc.json` by default.
     pub offset: Option<i64>,
+    /// Keep every n-th image (the keyframes).
     pub every: usize,
+    /// At most this many keyframes.
     pub max_frames: Option<usize>,
+    /// Keep the images between keyframes too, as in-between frames (`formats.md` §2): every
+    /// N-th image after each keyframe, N from 1 to `every` − 1; `None`: keyframes only.
+    /// Their masks are read or rendered as the keyframes' are.
+    pub between: Option<usize>,
 }
 
 /// The revolute joint's axis in the template frame.
@@ -258,14 +267,15 @@ fn subject_camera(misc: &Path, subject: &str, camera: u32) -> Result<SubjectCame
     })
 }
 
-/// Imports the sequence into `out` (a new directory); returns the number of frames.
-pub fn import_arctic(cfg: &ArcticImport, out: &Path) -> Result<usize> {
+/// Imports the sequence into `out` (a new directory); returns the frames written.
+pub fn import_arctic(cfg: &ArcticImport, out: &Path) -> Result<FramesWritten> {
     let object = cfg
         .sequence
         .split('_')
         .next()
         .unwrap_or(&cfg.sequence)
         .to_string();
+    check_between(&cfg.root, cfg.every, cfg.between)?;
     let meta = cfg.root.join("meta");
     let misc = meta.join("misc.json");
     let cam = subject_camera(&misc, &cfg.subject, cfg.camera)?;
@@ -305,13 +315,8 @@ pub fn import_arctic(cfg: &ArcticImport, out: &Path) -> Result<usize> {
     }
     let (bottom, top) = (&meshes["bottom"], &meshes["top"]);
     let mut rows = vec![];
-    for (k, (n, stem, path)) in numbered.iter().enumerate() {
-        if !k.is_multiple_of(cfg.every.max(1)) {
-            continue;
-        }
-        if cfg.max_frames.is_some_and(|m| rows.len() >= m) {
-            break;
-        }
+    for (k, keyframe) in select_frames(numbered.len(), cfg.every, cfg.between, cfg.max_frames) {
+        let (n, stem, path) = numbered[k];
         let r = rows_in[(n - offset) as usize];
         let rgb = load_rgb(path)?;
         let (w, h) = rgb.dimensions();
@@ -328,7 +333,14 @@ pub fn import_arctic(cfg: &ArcticImport, out: &Path) -> Result<usize> {
             Some(m) => load_mask(mask_for(m, stem).ok_or_else(|| {
                 DataError::invalid(
                     cfg.masks.as_deref().unwrap_or(Path::new("")),
-                    format!("no mask for image `{stem}`"),
+                    format!(
+                        "no mask for {} `{stem}` (every image kept needs one)",
+                        if keyframe {
+                            "keyframe"
+                        } else {
+                            "in-between image"
+                        }
+                    ),
                 )
             })?)?,
             None => render_parts_mask(
@@ -342,7 +354,8 @@ pub fn import_arctic(cfg: &ArcticImport, out: &Path) -> Result<usize> {
         };
         rows.push(Row {
             name: format!("{stem}.png"),
-            frame_index: Some(*n),
+            keyframe,
+            frame_index: Some(n),
             time_s: None,
             camera,
             world_from_camera: cam.camera_from_world.inverse(),
@@ -363,6 +376,7 @@ pub fn import_arctic(cfg: &ArcticImport, out: &Path) -> Result<usize> {
             serde_json::json!({"producer": "agentstar capture from-arctic",
             "root": cfg.root, "subject": cfg.subject, "sequence": cfg.sequence,
             "camera": cfg.camera, "offset": offset, "every": cfg.every,
+            "between": cfg.between,
             "masks": if cfg.masks.is_some() { "given" } else { "rendered from the ground truth (hands not cut out)" }}),
         ),
         keyframes: None,
@@ -381,6 +395,5 @@ pub fn import_arctic(cfg: &ArcticImport, out: &Path) -> Result<usize> {
         }],
         symmetries: vec![],
     };
-    write_rows(out, &rows, &info, &model)?;
-    Ok(rows.len())
+    write_rows(out, &rows, &info, &model)
 }

@@ -11,7 +11,8 @@
 //! lists them (continuous ones in its steps, [`agentstar_geom::truth::continuous_symmetry`],
 //! alone and after each discrete one).
 
-use crate::import_common::{write_rows, GtModel, Row};
+use crate::import_common::{check_between, select_frames, write_rows, GtModel, Row};
+use crate::FramesWritten;
 use agentstar_data::capture_writer::CaptureInfo;
 use agentstar_data::images::{load_mask, load_rgb};
 use agentstar_data::meshio::load_mesh;
@@ -50,8 +51,12 @@ pub struct BopImport {
     /// The models directory (holding `obj_XXXXXX.ply`, optionally `models_info.json`).
     pub models: PathBuf,
     pub obj_id: u32,
-    /// Keep every n-th image holding the object.
+    /// Keep every n-th image holding the object (the keyframes).
     pub every: usize,
+    /// Keep the images between keyframes too, as in-between frames (`formats.md` §2):
+    /// every N-th image holding the object after each keyframe, N from 1 to `every` − 1;
+    /// `None`: keyframes only.
+    pub between: Option<usize>,
     pub depth: bool,
 }
 
@@ -119,9 +124,10 @@ fn symmetries(models: &Path, obj_id: u32) -> Result<Vec<[f64; 4]>> {
     Ok(out)
 }
 
-/// Imports one object of a BOP scene into `out` (a new directory). Returns the number of
-/// frames written.
-pub fn import_bop(cfg: &BopImport, out: &Path) -> Result<usize> {
+/// Imports one object of a BOP scene into `out` (a new directory). Returns the frames
+/// written.
+pub fn import_bop(cfg: &BopImport, out: &Path) -> Result<FramesWritten> {
+    check_between(&cfg.scene, cfg.every, cfg.between)?;
     let gt_path = cfg.scene.join("scene_gt.json");
     let cam_path = cfg.scene.join("scene_camera.json");
     let scene_gt: BTreeMap<String, Vec<GtEntry>> = serde_json::from_str(&read_text(&gt_path)?)
@@ -140,18 +146,21 @@ pub fn import_bop(cfg: &BopImport, out: &Path) -> Result<usize> {
     let model_path = cfg.models.join(format!("obj_{:06}.ply", cfg.obj_id));
     let mesh_mm = load_mesh(&model_path)?;
     let mesh_m = mesh_mm.transformed(&(Matrix3::identity() * 0.001), &Vector3::zeros());
+    // The images holding the object, with the object's entry in each.
+    let holding: Vec<(u64, usize)> = ids
+        .iter()
+        .filter_map(|&id| {
+            scene_gt[&id.to_string()]
+                .iter()
+                .position(|e| e.obj_id == cfg.obj_id)
+                .map(|gi| (id, gi))
+        })
+        .collect();
     let mut rows: Vec<Row> = vec![];
-    let mut kept = 0usize;
-    for id in ids {
+    for (at, keyframe) in select_frames(holding.len(), cfg.every, cfg.between, None) {
+        let (id, gi) = holding[at];
         let key = id.to_string();
         let entries = &scene_gt[&key];
-        let Some(gi) = entries.iter().position(|e| e.obj_id == cfg.obj_id) else {
-            continue;
-        };
-        kept += 1;
-        if !(kept - 1).is_multiple_of(cfg.every.max(1)) {
-            continue;
-        }
         let cam = scene_cam
             .get(&key)
             .ok_or_else(|| DataError::invalid(&cam_path, format!("image {id} has no camera")))?;
@@ -223,6 +232,7 @@ pub fn import_bop(cfg: &BopImport, out: &Path) -> Result<usize> {
         let t = Vector3::new(e.cam_t_m2c[0], e.cam_t_m2c[1], e.cam_t_m2c[2]) * 0.001;
         rows.push(Row {
             name: format!("{stem}.png"),
+            keyframe,
             frame_index: Some(id as i64),
             time_s: None,
             camera,
@@ -244,7 +254,8 @@ pub fn import_bop(cfg: &BopImport, out: &Path) -> Result<usize> {
     let info = CaptureInfo {
         dataset: Some("bop".into()),
         source: Some(serde_json::json!({"producer": "agentstar capture from-bop",
-            "scene": cfg.scene, "obj_id": cfg.obj_id, "every": cfg.every})),
+            "scene": cfg.scene, "obj_id": cfg.obj_id, "every": cfg.every,
+            "between": cfg.between})),
         keyframes: None,
     };
     let model = GtModel {
@@ -253,6 +264,5 @@ pub fn import_bop(cfg: &BopImport, out: &Path) -> Result<usize> {
         joints: vec![],
         symmetries: symmetries(&cfg.models, cfg.obj_id)?,
     };
-    write_rows(out, &rows, &info, &model)?;
-    Ok(rows.len())
+    write_rows(out, &rows, &info, &model)
 }

@@ -13,7 +13,9 @@
 //! when not given). Masks come from a folder, matched by stem; without one they are rendered
 //! from the ground truth (the whole object, hands not cut out), and the manifest says so.
 
-use crate::import_common::{images_by_stem, mask_for, write_rows, GtModel, Row};
+use crate::import_common::{
+    check_between, images_by_stem, mask_for, select_frames, write_rows, GtModel, Row,
+};
 use crate::render_parts_mask;
 use agentstar_data::capture_writer::CaptureInfo;
 use agentstar_data::images::{load_mask, load_rgb};
@@ -57,14 +59,21 @@ pub struct Hot3dImport {
     pub device_from_camera: Rigid,
     /// Largest time difference between a frame and a pose, in nanoseconds.
     pub max_dt_ns: u64,
-    /// Keep every n-th frame.
+    /// Keep every n-th frame (the keyframes).
     pub every: usize,
+    /// Keep the frames between keyframes too, as in-between frames (`formats.md` §2): every
+    /// N-th frame after each keyframe, N from 1 to `every` − 1; `None`: keyframes only.
+    /// Their masks are read or rendered as the keyframes' are.
+    pub between: Option<usize>,
 }
 
 /// What was imported.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Hot3dSummary {
+    /// Keyframes written.
     pub frames: usize,
+    /// In-between frames written (0 without `between`).
+    pub between: usize,
     /// Frames without an object or headset pose within `max_dt_ns`.
     pub skipped: usize,
     pub rendered_masks: bool,
@@ -186,6 +195,7 @@ pub fn load_glb_mesh(path: &Path) -> Result<TriMesh> {
 
 /// Imports one object of a HOT3D sequence into `out` (a new directory).
 pub fn import_hot3d(cfg: &Hot3dImport, out: &Path) -> Result<Hot3dSummary> {
+    check_between(&cfg.frames, cfg.every, cfg.between)?;
     let objects_csv = cfg.sequence.join("dynamic_objects.csv");
     let headset_csv = cfg.sequence.join("headset_trajectory.csv");
     let objects = read_pose_csv(&objects_csv)?;
@@ -226,13 +236,11 @@ pub fn import_hot3d(cfg: &Hot3dImport, out: &Path) -> Result<Hot3dSummary> {
     let mut rows = vec![];
     let mut skipped = 0usize;
     let t0 = stamped[0].0;
-    for (k, (t, stem, path)) in stamped.iter().enumerate() {
-        if !k.is_multiple_of(cfg.every.max(1)) {
-            continue;
-        }
+    for (k, keyframe) in select_frames(stamped.len(), cfg.every, cfg.between, None) {
+        let (t, stem, path) = stamped[k];
         let (Some(world_from_object), Some(world_from_device)) = (
-            nearest(object_track, *t, cfg.max_dt_ns),
-            nearest(headset_track, *t, cfg.max_dt_ns),
+            nearest(object_track, t, cfg.max_dt_ns),
+            nearest(headset_track, t, cfg.max_dt_ns),
         ) else {
             skipped += 1;
             continue;
@@ -248,7 +256,14 @@ pub fn import_hot3d(cfg: &Hot3dImport, out: &Path) -> Result<Hot3dSummary> {
                 let p = mask_for(m, stem).ok_or_else(|| {
                     DataError::invalid(
                         cfg.masks.as_deref().unwrap_or(Path::new("")),
-                        format!("no mask for frame `{stem}`"),
+                        format!(
+                            "no mask for {} `{stem}` (every frame kept needs one)",
+                            if keyframe {
+                                "keyframe"
+                            } else {
+                                "in-between frame"
+                            }
+                        ),
                     )
                 })?;
                 load_mask(p)?
@@ -261,6 +276,7 @@ pub fn import_hot3d(cfg: &Hot3dImport, out: &Path) -> Result<Hot3dSummary> {
         };
         rows.push(Row {
             name: format!("{stem}.png"),
+            keyframe,
             frame_index: Some(k as i64),
             time_s: Some((t - t0) as f64 * 1e-9),
             camera,
@@ -287,6 +303,7 @@ pub fn import_hot3d(cfg: &Hot3dImport, out: &Path) -> Result<Hot3dSummary> {
         source: Some(
             serde_json::json!({"producer": "agentstar capture from-hot3d",
             "sequence": cfg.sequence, "object_uid": cfg.object_uid, "every": cfg.every,
+            "between": cfg.between,
             "masks": if cfg.masks.is_some() { "given" } else { "rendered from the ground truth (hands not cut out)" }}),
         ),
         keyframes: None,
@@ -297,9 +314,10 @@ pub fn import_hot3d(cfg: &Hot3dImport, out: &Path) -> Result<Hot3dSummary> {
         joints: vec![],
         symmetries: vec![],
     };
-    write_rows(out, &rows, &info, &model)?;
+    let written = write_rows(out, &rows, &info, &model)?;
     Ok(Hot3dSummary {
-        frames: rows.len(),
+        frames: written.keyframes,
+        between: written.between,
         skipped,
         rendered_masks: cfg.masks.is_none(),
     })

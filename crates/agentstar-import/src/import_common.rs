@@ -1,6 +1,9 @@
-//! What the dataset importers share: an owned frame row, stem matching of mask folders, and
-//! a single-part ground truth written beside the capture.
+//! What the dataset importers share: which source frames are kept (keyframes and, on
+//! request, in-between frames), an owned frame row, stem matching of mask folders, and the
+//! ground truth written beside the capture (keyframes only).
 
+use crate::video::FrameFiles;
+use crate::FramesWritten;
 use agentstar_data::capture_writer::{write_capture, CaptureInfo, FrameOut};
 use agentstar_data::gt::{GroundTruth, GtFile, GtFrame, GtJoint, GtPartFile, FORMAT};
 use agentstar_data::posefile::PoseJson;
@@ -11,9 +14,49 @@ use agentstar_mask::BitMask;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
+/// The positions an import keeps among `n` source frames in order, each with whether it is
+/// a keyframe, ascending: every `every`-th from the first as keyframes (at most
+/// `max_keyframes`), and with `between` every N-th frame after each keyframe, before the
+/// next, as in-between frames (`formats.md` §2; the rule of `capture from-video --between`,
+/// [`FrameFiles::between_indices`]). The stride is checked by
+/// [`crate::between_stride_problem`] first.
+pub(crate) fn select_frames(
+    n: usize,
+    every: usize,
+    between: Option<usize>,
+    max_keyframes: Option<usize>,
+) -> Vec<(usize, bool)> {
+    let keyframes: Vec<usize> = (0..n)
+        .step_by(every.max(1))
+        .take(max_keyframes.unwrap_or(usize::MAX))
+        .collect();
+    let in_between = between
+        .map(|stride| FrameFiles::between_indices(&keyframes, stride))
+        .unwrap_or_default();
+    let mut kept: Vec<(usize, bool)> = keyframes
+        .iter()
+        .map(|&i| (i, true))
+        .chain(in_between.iter().map(|&i| (i, false)))
+        .collect();
+    kept.sort_unstable();
+    kept
+}
+
+/// Refuses an in-between stride that keeps nothing ([`crate::between_stride_problem`]),
+/// naming the source.
+pub(crate) fn check_between(source: &Path, every: usize, between: Option<usize>) -> Result<()> {
+    match crate::between_stride_problem(every, between) {
+        Some(problem) => Err(DataError::invalid(source, problem)),
+        None => Ok(()),
+    }
+}
+
 /// One imported frame, owned.
 pub(crate) struct Row {
     pub name: String,
+    /// A keyframe, or an in-between frame (kept on request; no ground truth is written for
+    /// it).
+    pub keyframe: bool,
     pub frame_index: Option<i64>,
     pub time_s: Option<f64>,
     pub camera: PinholeCamera,
@@ -37,13 +80,29 @@ pub(crate) struct GtModel {
 }
 
 /// Writes the rows as a capture with its `gt.json` (all into a temporary sibling renamed
-/// into place).
+/// into place). Where some rows are in-between frames, `capture.json` lists the keyframes
+/// (`info.keyframes` is set here) and `gt.json` holds the keyframes only.
 pub(crate) fn write_rows(
     out: &Path,
     rows: &[Row],
     info: &CaptureInfo,
     model: &GtModel,
-) -> Result<()> {
+) -> Result<FramesWritten> {
+    let keyframes: Vec<&Row> = rows.iter().filter(|r| r.keyframe).collect();
+    if keyframes.is_empty() {
+        return Err(DataError::invalid(
+            out,
+            format!(
+                "none of the {} frames kept is a keyframe (every keyframe was skipped); keep keyframes closer together (a smaller --every)",
+                rows.len()
+            ),
+        ));
+    }
+    let info = CaptureInfo {
+        keyframes: (keyframes.len() < rows.len())
+            .then(|| keyframes.iter().map(|r| r.name.clone()).collect()),
+        ..info.clone()
+    };
     let frames: Vec<FrameOut<'_>> = rows
         .iter()
         .map(|r| FrameOut {
@@ -58,10 +117,10 @@ pub(crate) fn write_rows(
             depth_m: r.depth_m.as_deref(),
         })
         .collect();
-    write_capture(out, &frames, info, |root| {
+    write_capture(out, &frames, &info, |root| {
         let mut joints = model.joints.clone();
         for j in &mut joints {
-            j.states = rows
+            j.states = keyframes
                 .iter()
                 .filter_map(|r| r.states.get(&j.name).map(|s| (r.name.clone(), *s)))
                 .collect();
@@ -82,7 +141,7 @@ pub(crate) fn write_rows(
                     )
                 })
                 .collect(),
-            frames: rows
+            frames: keyframes
                 .iter()
                 .map(|r| {
                     let mut f = GtFrame::default();
@@ -103,6 +162,10 @@ pub(crate) fn write_rows(
             symmetries: model.symmetries.clone(),
         };
         GroundTruth::from_parts(&root.join("gt.json"), file, model.meshes.clone()).write(root)
+    })?;
+    Ok(FramesWritten {
+        keyframes: keyframes.len(),
+        between: rows.len() - keyframes.len(),
     })
 }
 

@@ -21,6 +21,38 @@ use agentstar_geom::{PinholeCamera, TriMesh};
 use agentstar_mask::BitMask;
 use agentstar_render::{Affine, Instance, SilhouetteRenderer};
 
+/// The frames an import wrote: keyframes, and in-between frames where they were asked for.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct FramesWritten {
+    pub keyframes: usize,
+    pub between: usize,
+}
+
+/// What is wrong with an in-between stride (`--between N`, `formats.md` §2: every N-th
+/// source frame between keyframes `every` source frames apart is kept too), or `None` when
+/// it keeps frames: N must be at least 1 and under `every` (with `every` 1 every frame is
+/// already a keyframe). Phrased with the importers' option names, which the library's
+/// import configurations share.
+pub fn between_stride_problem(every: usize, between: Option<usize>) -> Option<String> {
+    let n = between?;
+    if n == 0 {
+        return Some(
+            "--between 0: keep every N-th frame between keyframes, N at least 1".to_string(),
+        );
+    }
+    if every <= 1 {
+        return Some(format!(
+            "--between {n} with --every {every}: every frame is a keyframe, so none lies between keyframes; keep keyframes K frames apart (--every K, K at least 2) to keep frames between them"
+        ));
+    }
+    (n >= every).then(|| {
+        format!(
+            "--between {n} with --every {every}: keyframes are {every} frames apart, so an in-between stride of {n} keeps no frame between them; give N from 1 to {}",
+            every - 1
+        )
+    })
+}
+
 /// The silhouette of ground-truth parts: each mesh with its `camera_from_part` pose. Used by
 /// importers whose datasets ship no masks (the mask is then the whole object, hands not cut
 /// out).

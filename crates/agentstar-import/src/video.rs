@@ -536,7 +536,8 @@ pub const MAX_FPS: f64 = 1000.0;
 
 /// Refuses options that would write nonsense: a frame rate outside [MIN_FPS, MAX_FPS] or not
 /// finite,
-/// `every` 0, `max_frames` 0.
+/// `every` 0, `max_frames` 0, an in-between stride that keeps nothing
+/// ([`crate::between_stride_problem`]).
 pub fn check_options(cfg: &VideoImport) -> Result<()> {
     if let Some(f) = cfg.fps {
         if !(f.is_finite() && (MIN_FPS..=MAX_FPS).contains(&f)) {
@@ -560,11 +561,8 @@ pub fn check_options(cfg: &VideoImport) -> Result<()> {
             "max_frames 0: a capture needs at least one frame",
         ));
     }
-    if cfg.between == Some(0) {
-        return Err(DataError::invalid(
-            &cfg.input,
-            "between 0: keep every N-th frame between keyframes, N at least 1",
-        ));
+    if let Some(problem) = crate::between_stride_problem(cfg.every, cfg.between) {
+        return Err(DataError::invalid(&cfg.input, problem));
     }
     Ok(())
 }

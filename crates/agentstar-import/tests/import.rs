@@ -2,155 +2,30 @@
 //! with COLMAP (binary and text) and nerfstudio cameras, a HOT3D sequence and an ARCTIC
 //! sequence, each compared with the dataset's own formulas written out independently.
 
+mod datasets;
+
 use agentstar_data::capture::Capture;
-use agentstar_data::export::glb_bytes;
-use agentstar_data::scenefile::load_scene_script;
 use agentstar_geom::nalgebra;
 use agentstar_geom::{Point3, UnitQuaternion, Vector3};
+use datasets::{arctic_sequence, hot3d_sequence, write_bop_scene};
 use image::{GrayImage, Luma, RgbImage};
-use std::path::Path;
-
-/// Writes a small BOP scene: a 60 × 40 × 30 mm box (object 3) and a second object
-/// (object 7) partly in front of it, seen by a moving camera in three images, with masks,
-/// 16-bit depth and models_info symmetries.
-fn write_bop_scene(
-    root: &Path,
-) -> (
-    Vec<agentstar_geom::pose::ObjectPose>,
-    agentstar_geom::PinholeCamera,
-) {
-    use agentstar_geom::pose::ObjectPose;
-    use agentstar_render::raster::Affine;
-    use agentstar_render::{render_full, Instance};
-    let scene = root.join("scene");
-    let models = root.join("models");
-    std::fs::create_dir_all(scene.join("rgb")).expect("mkdir");
-    std::fs::create_dir_all(scene.join("mask_visib")).expect("mkdir");
-    std::fs::create_dir_all(scene.join("depth")).expect("mkdir");
-    std::fs::create_dir_all(&models).expect("mkdir");
-    let mm = agentstar_geom::primitives::cuboid(60.0, 40.0, 30.0).expect("box");
-    let mut ply = format!(
-        "ply\nformat ascii 1.0\nelement vertex {}\nproperty float x\nproperty float y\nproperty float z\nelement face {}\nproperty list uchar int vertex_indices\nend_header\n",
-        mm.positions.len(),
-        mm.triangles.len()
-    );
-    for p in &mm.positions {
-        ply.push_str(&format!("{} {} {}\n", p.x, p.y, p.z));
-    }
-    for t in &mm.triangles {
-        ply.push_str(&format!("3 {} {} {}\n", t[0], t[1], t[2]));
-    }
-    std::fs::write(models.join("obj_000003.ply"), ply).expect("ply");
-    std::fs::write(
-        models.join("models_info.json"),
-        r#"{"3": {"diameter": 78.1, "symmetries_discrete": [[-1, 0, 0, 0, 0, -1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1]], "symmetries_continuous": [{"axis": [0, 1, 0], "offset": [0, 0, 0]}]}}"#,
-    )
-    .expect("info");
-    let cam = agentstar_geom::PinholeCamera::new(300.0, 300.0, 80.0, 60.0, 160, 120).expect("cam");
-    let m_box = mm.transformed(
-        &(agentstar_geom::Matrix3::identity() * 0.001),
-        &Vector3::zeros(),
-    );
-    let blocker = agentstar_geom::primitives::cuboid(0.02, 0.02, 0.02).expect("blocker");
-    let mut poses = vec![];
-    let (mut gt, mut cams) = (serde_json::Map::new(), serde_json::Map::new());
-    for id in [0u32, 2, 4] {
-        let k = id as f64;
-        let pose = ObjectPose::new(
-            UnitQuaternion::from_euler_angles(0.4 + 0.1 * k, -0.3, 0.2 * k),
-            Vector3::new(0.005 * k, -0.004, 0.4),
-        );
-        let other = ObjectPose::new(UnitQuaternion::identity(), Vector3::new(0.02, 0.01, 0.3));
-        let inst = |m: &'static agentstar_geom::TriMesh, p: &ObjectPose, id: u16| Instance {
-            mesh: m,
-            bounds: m.bounds(),
-            camera_from_mesh: Affine::from_similarity(&p.with_scale(1.0)),
-            edges: None,
-            open_edges: None,
-            planes: None,
-            part_id: id,
-        };
-        let m_box: &'static agentstar_geom::TriMesh = Box::leak(Box::new(m_box.clone()));
-        let b: &'static agentstar_geom::TriMesh = Box::leak(Box::new(blocker.clone()));
-        let buf = render_full(&cam, &[inst(m_box, &pose, 0), inst(b, &other, 1)]);
-        let stem = format!("{id:06}");
-        let rgb = RgbImage::from_fn(160, 120, |x, y| {
-            image::Rgb([
-                (x % 256) as u8,
-                (y % 256) as u8,
-                if buf.covered(x, y) { 200 } else { 40 },
-            ])
-        });
-        rgb.save(scene.join("rgb").join(format!("{stem}.png")))
-            .expect("rgb");
-        for (i, part) in [0u16, 1].iter().enumerate() {
-            let m = GrayImage::from_fn(160, 120, |x, y| {
-                Luma([if buf.part[(y * 160 + x) as usize] == *part {
-                    255
-                } else {
-                    0
-                }])
-            });
-            m.save(scene.join("mask_visib").join(format!("{stem}_{i:06}.png")))
-                .expect("mask");
-        }
-        let depth = image::ImageBuffer::<Luma<u16>, Vec<u16>>::from_fn(160, 120, |x, y| {
-            let z = buf.depth[(y * 160 + x) as usize];
-            Luma([if z.is_finite() {
-                (z * 10_000.0) as u16
-            } else {
-                0
-            }])
-        });
-        depth
-            .save(scene.join("depth").join(format!("{stem}.png")))
-            .expect("depth");
-        let r = pose.rotation.to_rotation_matrix();
-        let rm: Vec<f64> = (0..3)
-            .flat_map(|i| (0..3).map(move |j| r[(i, j)]))
-            .collect();
-        gt.insert(
-            id.to_string(),
-            serde_json::json!([
-                {"cam_R_m2c": rm, "cam_t_m2c": [pose.translation.x * 1000.0, pose.translation.y * 1000.0, pose.translation.z * 1000.0], "obj_id": 3},
-                {"cam_R_m2c": [1, 0, 0, 0, 1, 0, 0, 0, 1], "cam_t_m2c": [20, 10, 300], "obj_id": 7}
-            ]),
-        );
-        cams.insert(
-            id.to_string(),
-            serde_json::json!({"cam_K": [300, 0, 80, 0, 300, 60, 0, 0, 1], "depth_scale": 0.1,
-                               "cam_R_w2c": [1, 0, 0, 0, 1, 0, 0, 0, 1], "cam_t_w2c": [-10.0 * k, 0, 0]}),
-        );
-        poses.push(pose);
-    }
-    std::fs::write(
-        scene.join("scene_gt.json"),
-        serde_json::Value::Object(gt).to_string(),
-    )
-    .expect("gt");
-    std::fs::write(
-        scene.join("scene_camera.json"),
-        serde_json::Value::Object(cams).to_string(),
-    )
-    .expect("cam");
-    (poses, cam)
-}
 
 #[test]
 fn a_bop_scene_imports_with_metres_occluders_depth_and_ground_truth() {
     use agentstar_data::gt::GroundTruth;
     use agentstar_import::bop::{import_bop, BopImport};
     let dir = tempfile::tempdir().expect("tmp");
-    let (poses, cam) = write_bop_scene(dir.path());
+    let (poses, cam) = write_bop_scene(dir.path(), &[0, 2, 4]);
     let out = dir.path().join("cap");
     let cfg = BopImport {
         scene: dir.path().join("scene"),
         models: dir.path().join("models"),
         obj_id: 3,
         every: 1,
+        between: None,
         depth: true,
     };
-    assert_eq!(import_bop(&cfg, &out).expect("import"), 3);
+    assert_eq!(import_bop(&cfg, &out).expect("import").keyframes, 3);
     let capture = Capture::open(&out).expect("valid capture");
     assert_eq!(capture.frames.len(), 3);
     assert_eq!(capture.frames[1].name, "000002.png");
@@ -423,90 +298,13 @@ fn mask_centroid(m: &agentstar_render::BitMask) -> (f64, f64) {
     (sx / n, sy / n)
 }
 
-fn rigid(axis: [f64; 3], angle_deg: f64, t: [f64; 3]) -> agentstar_geom::pose::Rigid {
-    agentstar_geom::pose::Rigid::from_parts(
-        Vector3::new(t[0], t[1], t[2]).into(),
-        UnitQuaternion::from_axis_angle(
-            &nalgebra::Unit::new_normalize(Vector3::new(axis[0], axis[1], axis[2])),
-            angle_deg.to_radians(),
-        ),
-    )
-}
-
-fn csv_row(uid: &str, t: u64, p: &agentstar_geom::pose::Rigid) -> String {
-    let q = p.rotation;
-    let v = p.translation.vector;
-    // Columns in an order other than the documented one: found by name.
-    format!(
-        "{},{},{},{},{},{},{},{},{}\n",
-        t, uid, q.w, q.i, q.j, q.k, v.x, v.y, v.z
-    )
-}
-
 #[test]
 fn a_hot3d_sequence_imports_with_headset_cameras_and_nearest_poses() {
-    use agentstar_import::hot3d::{import_hot3d, Hot3dImport};
+    use agentstar_import::hot3d::import_hot3d;
     let dir = tempfile::tempdir().expect("tmp");
     let root = dir.path();
+    let (cfg, truth) = hot3d_sequence(root, 4);
     let seq = root.join("seq");
-    let models = root.join("object_models");
-    let frames = root.join("frames");
-    for d in [&seq, &models, &frames] {
-        std::fs::create_dir_all(d).expect("mkdir");
-    }
-    // A 12 × 6 × 4 cm box written as the object library's GLB.
-    std::fs::write(
-        root.join("s.rhai"),
-        "part(\"body\", box(0.12, 0.06, 0.04));",
-    )
-    .expect("w");
-    let model = load_scene_script(&root.join("s.rhai"), &Default::default())
-        .expect("model")
-        .model;
-    std::fs::write(models.join("1234.glb"), glb_bytes(&model)).expect("glb");
-    let header =
-        "timestamp[ns],object_uid,q_wo_w,q_wo_x,q_wo_y,q_wo_z,t_wo_x[m],t_wo_y[m],t_wo_z[m]\n";
-    let device_from_camera = rigid([0.0, 1.0, 0.0], 5.0, [0.01, -0.02, 0.0]);
-    let (mut objects, mut headset) = (header.to_string(), header.to_string());
-    let mut truth = vec![];
-    for k in 0..4u64 {
-        let t = 1_000_000_000 + k * 33_333_333;
-        let world_from_object = rigid(
-            [0.2, 1.0, 0.1],
-            20.0 * k as f64,
-            [0.05 * k as f64, 0.0, 0.6],
-        );
-        let world_from_device = rigid([1.0, 0.0, 0.0], 3.0 * k as f64, [0.0, 0.01 * k as f64, 0.0]);
-        objects += &csv_row("1234", t, &world_from_object);
-        objects += &csv_row("999", t, &rigid([0.0, 0.0, 1.0], 0.0, [9.0, 9.0, 9.0]));
-        // Headset poses 2 ms off the frame times: the nearest is taken.
-        headset += &csv_row("headset", t + 2_000_000, &world_from_device);
-        image::RgbImage::new(64, 48)
-            .save(frames.join(format!("{t}.png")))
-            .expect("frame");
-        truth.push((
-            t,
-            (world_from_device * device_from_camera).inverse() * world_from_object,
-        ));
-    }
-    std::fs::write(seq.join("dynamic_objects.csv"), &objects).expect("w");
-    std::fs::write(seq.join("headset_trajectory.csv"), &headset).expect("w");
-    // A frame with no pose near it is skipped and counted.
-    image::RgbImage::new(64, 48)
-        .save(frames.join("5000000000.png"))
-        .expect("frame");
-    let cfg = Hot3dImport {
-        sequence: seq.clone(),
-        models: models.clone(),
-        object_uid: "1234".into(),
-        frames: frames.clone(),
-        masks: None,
-        hands: None,
-        intrinsics: [60.0, 60.0, 32.0, 24.0],
-        device_from_camera,
-        max_dt_ns: 5_000_000,
-        every: 1,
-    };
     let out = root.join("cap");
     let summary = import_hot3d(&cfg, &out).expect("import");
     assert_eq!(
@@ -558,111 +356,13 @@ fn a_hot3d_sequence_imports_with_headset_cameras_and_nearest_poses() {
     assert!(!root.join("cap2").exists());
 }
 
-/// A `.npy` file (little-endian f8, C order).
-fn write_npy(path: &Path, shape: [usize; 2], data: &[f64]) {
-    let mut header = format!(
-        "{{'descr': '<f8', 'fortran_order': False, 'shape': ({}, {}), }}",
-        shape[0], shape[1]
-    );
-    while (10 + header.len() + 1) % 64 != 0 {
-        header.push(' ');
-    }
-    header.push('\n');
-    let mut bytes = b"\x93NUMPY\x01\x00".to_vec();
-    bytes.extend((header.len() as u16).to_le_bytes());
-    bytes.extend(header.as_bytes());
-    for v in data {
-        bytes.extend(v.to_le_bytes());
-    }
-    std::fs::write(path, bytes).expect("npy");
-}
-
 #[test]
 fn an_arctic_sequence_imports_two_parts_and_the_articulation() {
-    use agentstar_import::arctic::{import_arctic, ArcticImport};
+    use agentstar_import::arctic::import_arctic;
     let dir = tempfile::tempdir().expect("tmp");
-    let root = dir.path().join("arctic");
-    let tpl = root.join("meta/object_vtemplates/box");
-    let raw = root.join("raw_seqs/s01");
-    let images = root.join("images/s01/box_grab_01/3");
-    for d in [&tpl, &raw, &images] {
-        std::fs::create_dir_all(d).expect("mkdir");
-    }
-    // Template in millimetres: a bottom box (z 0..40) and a lid (z 40..50), with texture
-    // coordinates so that a reader merging v/vt pairs would reorder the vertices.
-    let bottom = agentstar_geom::primitives::cuboid(100.0, 80.0, 40.0).expect("box");
-    let lid = agentstar_geom::primitives::cuboid(100.0, 80.0, 10.0).expect("box");
-    let mut obj = String::new();
-    let mut labels = vec![];
-    for (mesh, dz, label) in [(&lid, 45.0, 0), (&bottom, 20.0, 1)] {
-        for p in &mesh.positions {
-            obj += &format!("v {} {} {}\n", p.x, p.y, p.z + dz);
-            labels.push(label);
-        }
-    }
-    obj += "vt 0 0\nvt 1 0\nvt 1 1\n";
-    let nl = lid.positions.len() as u32;
-    for (mesh, base) in [(&lid, 0), (&bottom, nl)] {
-        for t in &mesh.triangles {
-            obj += &format!(
-                "f {}/1 {}/2 {}/3\n",
-                t[0] + base + 1,
-                t[1] + base + 1,
-                t[2] + base + 1
-            );
-        }
-    }
-    std::fs::write(tpl.join("mesh.obj"), obj).expect("w");
-    std::fs::write(
-        tpl.join("parts.json"),
-        serde_json::to_string(&labels).expect("j"),
-    )
-    .expect("w");
-    // Camera 3 of subject s01 (index 2 of world2cam), full images 128 × 96, shown at 64 × 48.
-    let w2c = [
-        [1.0, 0.0, 0.0, 0.0],
-        [0.0, -1.0, 0.0, 0.0],
-        [0.0, 0.0, -1.0, 1.0],
-        [0.0, 0.0, 0.0, 1.0],
-    ];
-    let k = [[120.0, 0.0, 64.0], [0.0, 120.0, 48.0], [0.0, 0.0, 1.0]];
-    let misc = serde_json::json!({"s01": {
-        "world2cam": [w2c, w2c, w2c, w2c, w2c, w2c, w2c, w2c],
-        "intris_mat": [k, k, k, k, k, k, k, k],
-        "image_size": [[0, 0], [128, 96], [128, 96], [128, 96], [128, 96], [128, 96], [128, 96], [128, 96], [128, 96]],
-        "ioi_offset": 2}});
-    std::fs::write(root.join("meta/misc.json"), misc.to_string()).expect("w");
-    let rows: Vec<[f64; 7]> = (0..6)
-        .map(|i| {
-            let f = i as f64;
-            [0.3 * f, 0.1 * f, -0.2, 0.05 * f, 10.0 * f, -5.0, 20.0 * f]
-        })
-        .collect();
-    write_npy(
-        &raw.join("box_grab_01.object.npy"),
-        [rows.len(), 7],
-        &rows.concat(),
-    );
-    // Images 00002..00007 hold rows 0..5 (offset 2); 00001 falls before the array.
-    for n in 1..=7 {
-        image::RgbImage::new(64, 48)
-            .save(images.join(format!("{n:05}.jpg")))
-            .expect("img");
-    }
-    let cfg = ArcticImport {
-        root: root.clone(),
-        subject: "s01".into(),
-        sequence: "box_grab_01".into(),
-        camera: 3,
-        images: None,
-        masks: None,
-        hands: None,
-        offset: None,
-        every: 1,
-        max_frames: None,
-    };
+    let (cfg, rows, lid, tpl) = arctic_sequence(dir.path(), 6);
     let out = dir.path().join("cap");
-    assert_eq!(import_arctic(&cfg, &out).expect("import"), 6);
+    assert_eq!(import_arctic(&cfg, &out).expect("import").keyframes, 6);
     assert!(
         Capture::validate(&out).is_empty(),
         "{:?}",
@@ -720,4 +420,179 @@ fn an_arctic_sequence_imports_two_parts_and_the_articulation() {
         err.contains("parts.json") && err.contains("2 labels"),
         "{err}"
     );
+}
+
+/// The names of the keyframes and of the in-between frames of a capture.
+fn frame_names(cap: &Capture) -> (Vec<String>, Vec<String>) {
+    (
+        cap.frames.iter().map(|f| f.name.clone()).collect(),
+        cap.between.iter().map(|f| f.name.clone()).collect(),
+    )
+}
+
+fn names(list: &[&str]) -> Vec<String> {
+    list.iter().map(|s| s.to_string()).collect()
+}
+
+/// Every in-between frame of `cap` has a camera and a mask showing the object where the
+/// ground truth puts it (the masks read or rendered as the keyframes' are).
+fn assert_in_between_frames_complete(cap: &Capture) {
+    for f in &cap.between {
+        let mask = cap.load_mask_of(f).expect("in-between mask");
+        assert!(mask.count() > 0, "{}: empty mask", f.name);
+        assert!(f.camera.fx > 0.0, "{}: camera", f.name);
+    }
+}
+
+#[test]
+fn dataset_imports_keep_in_between_frames_on_request() {
+    use agentstar_data::gt::GroundTruth;
+    use agentstar_import::arctic::import_arctic;
+    use agentstar_import::bop::{import_bop, BopImport};
+    use agentstar_import::hot3d::import_hot3d;
+    let dir = tempfile::tempdir().expect("tmp");
+    let root = dir.path();
+    // BOP: images 0..6; keyframes every 3rd, the images between them too (every one, then
+    // every 2nd).
+    write_bop_scene(&root.join("bop"), &[0, 1, 2, 3, 4, 5, 6]);
+    let bop = BopImport {
+        scene: root.join("bop/scene"),
+        models: root.join("bop/models"),
+        obj_id: 3,
+        every: 3,
+        between: Some(1),
+        depth: true,
+    };
+    let written = import_bop(&bop, &root.join("bop1")).expect("import");
+    assert_eq!((written.keyframes, written.between), (3, 4));
+    assert!(Capture::validate(&root.join("bop1")).is_empty());
+    let cap = Capture::open(&root.join("bop1")).expect("capture");
+    assert_eq!(
+        frame_names(&cap),
+        (
+            names(&["000000.png", "000003.png", "000006.png"]),
+            names(&["000001.png", "000002.png", "000004.png", "000005.png"])
+        )
+    );
+    assert_in_between_frames_complete(&cap);
+    // In-between frames keep the occluders' masks and depth as keyframes do.
+    let f = &cap.between[0];
+    assert!(
+        cap.load_hand_of(f)
+            .expect("read")
+            .expect("occluder")
+            .count()
+            > 0
+    );
+    assert!(cap.load_depth_of(f).expect("read").is_some());
+    // Their cameras move with the source's: image 1's camera sits 10 mm along +X.
+    assert!((f.world_from_camera.translation.vector.x - 0.01).abs() < 1e-9);
+    // gt.json holds the keyframes only.
+    let gt = GroundTruth::load(&root.join("bop1/gt.json")).expect("gt");
+    assert_eq!(
+        gt.file.frames.keys().cloned().collect::<Vec<_>>(),
+        names(&["000000.png", "000003.png", "000006.png"])
+    );
+    let written = import_bop(
+        &BopImport {
+            between: Some(2),
+            ..bop.clone()
+        },
+        &root.join("bop2"),
+    )
+    .expect("import");
+    assert_eq!((written.keyframes, written.between), (3, 2));
+    let cap = Capture::open(&root.join("bop2")).expect("capture");
+    assert_eq!(cap.between.len(), 2);
+    assert_eq!(
+        (cap.between[0].name.as_str(), cap.between[1].name.as_str()),
+        ("000002.png", "000005.png")
+    );
+    // Without --between the import is as before: no `keyframes` key.
+    import_bop(
+        &BopImport {
+            between: None,
+            ..bop.clone()
+        },
+        &root.join("bop0"),
+    )
+    .expect("import");
+    let manifest = std::fs::read_to_string(root.join("bop0/capture.json")).expect("read");
+    assert!(!manifest.contains("\"keyframes\""), "{manifest}");
+    // A stride of 0, or one that reaches the next keyframe, is refused; nothing is written.
+    for (every, between, says) in [
+        (3, 0, "--between 0"),
+        (3, 3, "from 1 to 2"),
+        (1, 1, "every frame is a keyframe"),
+    ] {
+        let out = root.join(format!("bad-{every}-{between}"));
+        let e = import_bop(
+            &BopImport {
+                every,
+                between: Some(between),
+                ..bop.clone()
+            },
+            &out,
+        )
+        .expect_err("refused")
+        .to_string();
+        assert!(e.contains(says), "{e}");
+        assert!(!out.exists());
+    }
+    // HOT3D: 7 frames, keyframes every 3rd, masks rendered for every frame kept.
+    let (mut hot3d, truth) = hot3d_sequence(&root.join("hot3d"), 7);
+    hot3d.every = 3;
+    hot3d.between = Some(1);
+    let summary = import_hot3d(&hot3d, &root.join("hot3d1")).expect("import");
+    assert_eq!(
+        (summary.frames, summary.between, summary.skipped),
+        (3, 4, 0)
+    );
+    assert!(Capture::validate(&root.join("hot3d1")).is_empty());
+    let cap = Capture::open(&root.join("hot3d1")).expect("capture");
+    let stamp = |k: usize| format!("{}.png", truth[k].0);
+    let (key, between) = frame_names(&cap);
+    assert_eq!(key, vec![stamp(0), stamp(3), stamp(6)]);
+    assert_eq!(between, vec![stamp(1), stamp(2), stamp(4), stamp(5)]);
+    assert_in_between_frames_complete(&cap);
+    let gt = GroundTruth::load(&root.join("hot3d1/gt.json")).expect("gt");
+    assert_eq!(gt.file.frames.len(), 3);
+    assert!(gt.file.frames.contains_key(&stamp(3)) && !gt.file.frames.contains_key(&stamp(4)));
+    // ARCTIC: 8 rows; keyframes every 3rd image (at most 2), the images between them: the
+    // articulation's states are the keyframes' only.
+    let (mut arctic, _, _, _) = arctic_sequence(&root.join("arctic"), 8);
+    arctic.every = 3;
+    arctic.max_frames = Some(2);
+    arctic.between = Some(1);
+    let written = import_arctic(&arctic, &root.join("arctic1")).expect("import");
+    assert_eq!((written.keyframes, written.between), (2, 2));
+    assert!(Capture::validate(&root.join("arctic1")).is_empty());
+    let cap = Capture::open(&root.join("arctic1")).expect("capture");
+    assert_eq!(
+        frame_names(&cap),
+        (
+            names(&["00002.png", "00005.png"]),
+            names(&["00003.png", "00004.png"])
+        )
+    );
+    assert_in_between_frames_complete(&cap);
+    let gt = GroundTruth::load(&root.join("arctic1/gt.json")).expect("gt");
+    assert_eq!(
+        gt.file.joints[0].states.keys().cloned().collect::<Vec<_>>(),
+        names(&["00002.png", "00005.png"])
+    );
+    // An in-between image without its mask in a given mask folder is named.
+    let masks = root.join("arctic-masks");
+    std::fs::create_dir_all(&masks).expect("mkdir");
+    for n in [2, 3, 5] {
+        image::GrayImage::from_pixel(64, 48, image::Luma([255]))
+            .save(masks.join(format!("{n:05}.png")))
+            .expect("mask");
+    }
+    arctic.masks = Some(masks);
+    let e = import_arctic(&arctic, &root.join("arctic2"))
+        .expect_err("mask missing")
+        .to_string();
+    assert!(e.contains("in-between image `00004`"), "{e}");
+    assert!(!root.join("arctic2").exists());
 }

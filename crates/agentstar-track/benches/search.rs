@@ -2,7 +2,9 @@
 //! the setup-A pose from a start 35° and 0.2 units away, all 6 DoF), and the automatic
 //! tracker on a 20-keyframe articulated sequence (6 DoF + 1 joint). Prints medians.
 //!
-//! `cargo bench -p agentstar-track` (set `AGENTSTAR_BENCH_MESH` when `../shared` is elsewhere).
+//! `cargo bench -p agentstar-track` (set `AGENTSTAR_BENCH_MESH` when `../shared` is elsewhere);
+//! one of them by name: `cargo bench -p agentstar-track --bench search -- tracking` (or
+//! `setup-c`).
 
 use agentstar_geom::pose::ObjectPose;
 use agentstar_geom::{KinematicTree, ObjectModel, Part, PinholeCamera, UnitQuaternion, Vector3};
@@ -186,6 +188,21 @@ fn tracking() {
 }
 
 fn main() {
-    setup_c();
-    tracking();
+    // Names given after `--` choose benchmarks; cargo's own flags (`--bench`) are not names.
+    let names: Vec<String> = std::env::args()
+        .skip(1)
+        .filter(|a| !a.starts_with('-'))
+        .collect();
+    let chosen = |name: &str| names.is_empty() || names.iter().any(|n| n == name);
+    let mut ran = false;
+    for (name, bench) in [("setup-c", setup_c as fn()), ("tracking", tracking)] {
+        if chosen(name) {
+            bench();
+            ran = true;
+        }
+    }
+    if !ran {
+        eprintln!("no benchmark named {names:?}; the benchmarks are setup-c and tracking");
+        std::process::exit(2);
+    }
 }

@@ -1,7 +1,10 @@
 //! In-between frames (`formats.md` §2) end to end: a clip whose frames between keyframes are
 //! kept goes through `capture from-video`, `validate`, `track` (which follows them),
-//! `score`, `report` and `eval`; keyframe tools see the keyframes only.
+//! `score`, `report` and `eval`; keyframe tools see the keyframes only. The dataset
+//! importers keep them on request and `track` follows them there too.
 
+#[path = "../../agentstar-import/tests/datasets/mod.rs"]
+mod datasets;
 mod support;
 
 use serde_json::Value;
@@ -268,4 +271,155 @@ fn bad_in_between_options_are_refused_with_messages() {
     let o = from_video(dir.path(), "3", &["--between", "0", "--fov", "60"], "cap");
     assert!(!o.status.success());
     assert!(text(&o).contains("between 0"), "{}", text(&o));
+}
+
+/// `validate --json` of a capture: its keyframe and in-between counts.
+fn counts(capture: &Path) -> (Value, Value) {
+    let v = json_of::<Value>(&agentstar(&["validate", &s(capture), "--json"]));
+    assert_eq!(v["valid"], true, "{v}");
+    (v["frames"].clone(), v["between_frames"].clone())
+}
+
+/// Tracks `capture` with the true `model` (scale 1) and returns the tracker's log, after
+/// checking that every keyframe was scored.
+fn track_log(capture: &Path, model: &Path, keyframes: usize) -> String {
+    let o = agentstar(&[
+        "track",
+        &s(capture),
+        "--model",
+        &s(model),
+        "--scale",
+        "1",
+        "--out",
+        &s(&capture.with_extension("pose.json")),
+        "--json",
+    ]);
+    assert!(
+        o.status.success(),
+        "track {}: {}",
+        capture.display(),
+        text(&o)
+    );
+    let report: Value = json_of(&o);
+    assert_eq!(
+        report["frames"].as_array().map(Vec::len),
+        Some(keyframes),
+        "{report}"
+    );
+    report["log"].to_string()
+}
+
+#[test]
+fn dataset_imports_keep_in_between_frames_that_track_follows() {
+    let dir = tempfile::tempdir().expect("tmp");
+    let p = |n: &str| dir.path().join(n);
+    // BOP: images 0..6, keyframes every 3rd, every image between them kept.
+    datasets::write_bop_scene(&p("bop"), &[0, 1, 2, 3, 4, 5, 6]);
+    let o = agentstar(&[
+        "capture",
+        "from-bop",
+        &s(&p("bop/scene")),
+        "--models",
+        &s(&p("bop/models")),
+        "--obj-id",
+        "3",
+        "--every",
+        "3",
+        "--between",
+        "--out",
+        &s(&p("bop-cap")),
+    ]);
+    assert!(o.status.success(), "from-bop: {}", text(&o));
+    assert!(
+        text(&o).contains("3 keyframes and 4 in-between frames"),
+        "{}",
+        text(&o)
+    );
+    assert_eq!(counts(&p("bop-cap")), (3.into(), 4.into()));
+    let log = track_log(&p("bop-cap"), &p("bop-cap/gt_meshes/object.obj"), 3);
+    assert_eq!(
+        log.matches("followed 2 in-between frame(s)").count(),
+        2,
+        "{log}"
+    );
+    // HOT3D: 7 frames, keyframes every 3rd, every 2nd frame between them.
+    let (hot3d, _) = datasets::hot3d_sequence(&p("hot3d"), 7);
+    let q = hot3d.device_from_camera.rotation;
+    let t = hot3d.device_from_camera.translation.vector;
+    let device_from_camera = format!("{},{},{},{},{},{},{}", q.w, q.i, q.j, q.k, t.x, t.y, t.z);
+    let hot3d_args = |every: &str, between: &str, out: &str| {
+        agentstar(&[
+            "capture",
+            "from-hot3d",
+            &s(&hot3d.sequence),
+            "--models",
+            &s(&hot3d.models),
+            "--object-uid",
+            "1234",
+            "--frames",
+            &s(&hot3d.frames),
+            "--intrinsics",
+            "60,60,32,24",
+            "--device-from-camera",
+            &device_from_camera,
+            "--every",
+            every,
+            "--between",
+            between,
+            "--out",
+            &s(&p(out)),
+        ])
+    };
+    let o = hot3d_args("3", "2", "hot3d-cap");
+    assert!(o.status.success(), "from-hot3d: {}", text(&o));
+    assert_eq!(counts(&p("hot3d-cap")), (3.into(), 2.into()));
+    let log = track_log(&p("hot3d-cap"), &p("hot3d-cap/gt_meshes/object.obj"), 3);
+    assert_eq!(
+        log.matches("followed 1 in-between frame(s)").count(),
+        2,
+        "{log}"
+    );
+    // A stride that reaches the next keyframe is refused before anything is written.
+    let o = hot3d_args("3", "3", "hot3d-bad");
+    assert!(!o.status.success());
+    assert!(
+        text(&o).contains("--between 3 with --every 3"),
+        "{}",
+        text(&o)
+    );
+    assert!(!p("hot3d-bad").exists());
+    // ARCTIC: 8 rows, keyframes every 3rd image, every image between them; tracked with the
+    // template as a scene (the lid turning about -Z through the origin).
+    let (arctic, _, _, _) = datasets::arctic_sequence(&p("arctic"), 8);
+    let o = agentstar(&[
+        "capture",
+        "from-arctic",
+        &s(&arctic.root),
+        "--subject",
+        "s01",
+        "--sequence",
+        "box_grab_01",
+        "--camera",
+        "3",
+        "--every",
+        "3",
+        "--between",
+        "--out",
+        &s(&p("arctic-cap")),
+    ]);
+    assert!(o.status.success(), "from-arctic: {}", text(&o));
+    assert_eq!(counts(&p("arctic-cap")), (3.into(), 4.into()));
+    std::fs::write(
+        p("box.rhai"),
+        "part(\"bottom\", box(0.1, 0.08, 0.04).translate(0, 0, 0.02));\n\
+         part(\"top\", box(0.1, 0.08, 0.01).translate(0, 0, 0.045));\n\
+         joint(#{ name: \"articulation\", type: \"revolute\", child: \"top\", origin: [0, 0, 0], axis: [0, 0, -1], limit: [0, 180] });\n",
+    )
+    .expect("scene");
+    let log = track_log(&p("arctic-cap"), &p("box.rhai"), 3);
+    assert_eq!(
+        log.matches("followed 2 in-between frame(s)").count(),
+        2,
+        "{log}"
+    );
 }

@@ -62,6 +62,13 @@ pub struct Args {
     /// same keyframes, K + 1 video frames apart), which the tracker follows.
     #[arg(long, default_value_t = 0, value_name = "K")]
     between: usize,
+    /// Every sequence with this many keyframes instead of its suite's (quick 8, full 15,
+    /// hard and general 20); the same objects, motion kind and capture settings. With
+    /// `--keyframes 15 --between 9` a hard sequence is a 150-frame hand-held clip at
+    /// 640×480 with keyframes every 10 frames (141 frames tracked: none after the last
+    /// keyframe).
+    #[arg(long, value_name = "N")]
+    keyframes: Option<usize>,
     /// Print the results as JSON on stdout.
     #[arg(long)]
     json: bool,
@@ -164,8 +171,14 @@ pub fn run(a: Args) -> Result<ExitCode> {
             );
         }
     }
+    if a.keyframes.is_some_and(|n| n < 2) {
+        bail!("--keyframes must be at least 2 (a sequence to track)");
+    }
     for spec in &mut specs {
         spec.synth.between = a.between;
+        if let Some(n) = a.keyframes {
+            spec.synth.frames = n;
+        }
     }
     let methods: Vec<Method> = a
         .methods
@@ -267,7 +280,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
         md.push_str(&agentstar_bench::table::general_table(&results));
     }
     let header = format!(
-        "## agentstar bench: {} suite, {} sequence(s), methods {}\n\nRecorded {} on {}; tracker with the appearance term {}, sequence-level choice {}.\n\n",
+        "## agentstar bench: {} suite, {} sequence(s), methods {}\n\nRecorded {} on {}; tracker with the appearance term {}, sequence-level choice {}{}{}.\n\n",
         a.suite,
         specs.len(),
         methods
@@ -279,6 +292,13 @@ pub fn run(a: Args) -> Result<ExitCode> {
         machine(),
         if a.no_appearance { "off" } else { "on" },
         if a.no_sequence_choice { "off" } else { "on" },
+        a.keyframes
+            .map_or(String::new(), |n| format!("; {n} keyframes a sequence")),
+        if a.between > 0 {
+            format!("; {} in-between frames between keyframes", a.between)
+        } else {
+            String::new()
+        },
     );
     if let Some(p) = &a.results {
         agentstar_data::atomic::write_atomic(p, format!("{header}{md}").as_bytes())?;

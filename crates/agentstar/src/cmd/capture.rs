@@ -57,12 +57,9 @@ pub struct FromHot3dArgs {
     )]
     intrinsics: Vec<f64>,
     /// T_device_camera as qw,qx,qy,qz,tx,ty,tz (metres); identity when not given.
-    #[arg(
-        long,
-        value_delimiter = ',',
-        num_args = 7,
-        allow_negative_numbers = true
-    )]
+    // No `num_args = 7`: clap counts the arguments before splitting them at commas, so
+    // `qw,qx,...` was refused as one value; the count is checked when the pose is built.
+    #[arg(long, value_delimiter = ',', allow_negative_numbers = true)]
     device_from_camera: Option<Vec<f64>>,
     /// Object masks matched by stem; rendered from the ground truth when absent.
     #[arg(long)]
@@ -73,9 +70,15 @@ pub struct FromHot3dArgs {
     /// Largest time difference between a frame and a pose, in milliseconds.
     #[arg(long, default_value_t = 5.0)]
     max_dt_ms: f64,
-    /// Keep every N-th frame.
+    /// Keep every N-th frame (the keyframes).
     #[arg(long, default_value_t = 1)]
     every: usize,
+    /// Keep the frames between keyframes too, as in-between frames that `track` follows
+    /// (docs/formats.md): every frame, or every N-th after each keyframe with `--between N`
+    /// (N under --every). Their masks are read or rendered as the keyframes' are; gt.json
+    /// holds the keyframes only.
+    #[arg(long, num_args = 0..=1, default_missing_value = "1", value_name = "N")]
+    between: Option<usize>,
     /// Where to write the capture (a new directory).
     #[arg(long)]
     out: PathBuf,
@@ -109,12 +112,19 @@ pub struct FromArcticArgs {
     /// Image number minus object-array row (default: ioi_offset of misc.json).
     #[arg(long, allow_negative_numbers = true)]
     offset: Option<i64>,
-    /// Keep every N-th image.
+    /// Keep every N-th image (the keyframes).
     #[arg(long, default_value_t = 1)]
     every: usize,
-    /// At most this many frames.
+    /// At most this many keyframes.
     #[arg(long)]
     max_frames: Option<usize>,
+    /// Keep the images between keyframes too, as in-between frames that `track` follows
+    /// (docs/formats.md): every image, or every N-th after each keyframe with `--between N`
+    /// (N under --every). Their masks are read or rendered as the keyframes' are; gt.json
+    /// holds the keyframes only.
+    #[arg(long, num_args = 0..=1, default_missing_value = "1", value_name = "N")]
+    between: Option<usize>,
+
     /// Where to write the capture (a new directory).
     #[arg(long)]
     out: PathBuf,
@@ -233,9 +243,16 @@ pub struct FromBopArgs {
     /// Where to write the capture (a new directory).
     #[arg(long)]
     out: PathBuf,
-    /// Keep every N-th image holding the object.
+    /// Keep every N-th image holding the object (the keyframes).
     #[arg(long, default_value_t = 1)]
     every: usize,
+    /// Keep the images between keyframes too, as in-between frames that `track` follows
+    /// (docs/formats.md): every image holding the object, or every N-th after each keyframe with `--between N`
+    /// (N under --every). Their masks are read or rendered as the keyframes' are; gt.json
+    /// holds the keyframes only.
+    #[arg(long, num_args = 0..=1, default_missing_value = "1", value_name = "N")]
+    between: Option<usize>,
+
     /// Import depth/ too (16-bit PNGs with scene_camera depth_scale).
     #[arg(long)]
     depth: bool,
@@ -294,7 +311,28 @@ fn check_video_options(a: &FromVideoArgs) -> Result<()> {
     if a.max_frames == Some(0) {
         anyhow::bail!("--max-frames 0: a capture needs at least one frame");
     }
-    Ok(())
+    check_between(a.every, a.between)
+}
+
+/// Refuses an --every of 0 and a --between stride that keeps nothing, before anything is
+/// read or written.
+fn check_between(every: usize, between: Option<usize>) -> Result<()> {
+    if every == 0 {
+        anyhow::bail!("--every 0: keep every N-th frame, N at least 1");
+    }
+    match agentstar_import::between_stride_problem(every, between) {
+        Some(problem) => anyhow::bail!(problem),
+        None => Ok(()),
+    }
+}
+
+/// `N frames` or `N keyframes and M in-between frames`.
+fn frames_written(keyframes: usize, between: usize) -> String {
+    if between == 0 {
+        format!("{keyframes} frames")
+    } else {
+        format!("{keyframes} keyframes and {between} in-between frames")
+    }
 }
 
 fn from_video(a: FromVideoArgs) -> Result<ExitCode> {
@@ -573,22 +611,26 @@ pub fn run(c: CaptureCommand) -> Result<ExitCode> {
     match c {
         CaptureCommand::FromVideo(a) => from_video(a),
         CaptureCommand::FromBop(a) => {
+            check_between(a.every, a.between)?;
             let n = import_bop(
                 &BopImport {
                     scene: a.scene.clone(),
                     models: a.models.clone(),
                     obj_id: a.obj_id,
                     every: a.every,
+                    between: a.between,
                     depth: a.depth,
                 },
                 &a.out,
             )?;
             if a.json {
-                print_json(&json!({"capture": a.out, "frames": n, "gt": a.out.join("gt.json")}))?;
+                print_json(&json!({"capture": a.out, "frames": n.keyframes,
+                    "between_frames": n.between, "gt": a.out.join("gt.json")}))?;
             } else {
                 println!(
-                    "wrote {} ({n} frames of object {} from {}, with gt.json)",
+                    "wrote {} ({} of object {} from {}, with gt.json)",
                     a.out.display(),
+                    frames_written(n.keyframes, n.between),
                     a.obj_id,
                     a.scene.display()
                 );
@@ -598,6 +640,7 @@ pub fn run(c: CaptureCommand) -> Result<ExitCode> {
         CaptureCommand::FromHot3d(a) => {
             use agentstar_geom::pose::{quat_from_wxyz, Rigid};
             use agentstar_import::hot3d::{import_hot3d, Hot3dImport};
+            check_between(a.every, a.between)?;
             let intrinsics = four(&a.intrinsics, "--intrinsics")?;
             let device_from_camera = match &a.device_from_camera {
                 None => Rigid::identity(),
@@ -628,28 +671,38 @@ pub fn run(c: CaptureCommand) -> Result<ExitCode> {
                     device_from_camera,
                     max_dt_ns: (a.max_dt_ms * 1e6).round() as u64,
                     every: a.every,
+                    between: a.between,
                 },
                 &a.out,
             )?;
             if a.json {
                 print_json(
-                    &json!({"capture": a.out, "frames": s.frames, "skipped": s.skipped,
-                    "rendered_masks": s.rendered_masks, "gt": a.out.join("gt.json")}),
+                    &json!({"capture": a.out, "frames": s.frames, "between_frames": s.between,
+                    "skipped": s.skipped, "rendered_masks": s.rendered_masks,
+                    "gt": a.out.join("gt.json")}),
                 )?;
             } else {
                 println!(
-                    "wrote {} ({} frames of object {}, {} frames without a pose skipped{}; with gt.json)",
+                    "wrote {} ({} of object {}, {} frames without a pose skipped{}; with gt.json)",
                     a.out.display(),
-                    s.frames,
+                    frames_written(s.frames, s.between),
                     a.object_uid,
                     s.skipped,
-                    if s.rendered_masks { ", masks rendered from the ground truth" } else { "" }
+                    if s.rendered_masks {
+                        ", masks rendered from the ground truth"
+                    } else {
+                        ""
+                    }
                 );
             }
             Ok(ExitCode::SUCCESS)
         }
         CaptureCommand::FromArctic(a) => {
             use agentstar_import::arctic::{import_arctic, ArcticImport};
+            check_between(a.every, a.between)?;
+            if a.max_frames == Some(0) {
+                anyhow::bail!("--max-frames 0: a capture needs at least one frame");
+            }
             let n = import_arctic(
                 &ArcticImport {
                     root: a.root.clone(),
@@ -662,15 +715,18 @@ pub fn run(c: CaptureCommand) -> Result<ExitCode> {
                     offset: a.offset,
                     every: a.every,
                     max_frames: a.max_frames,
+                    between: a.between,
                 },
                 &a.out,
             )?;
             if a.json {
-                print_json(&json!({"capture": a.out, "frames": n, "gt": a.out.join("gt.json")}))?;
+                print_json(&json!({"capture": a.out, "frames": n.keyframes,
+                    "between_frames": n.between, "gt": a.out.join("gt.json")}))?;
             } else {
                 println!(
-                    "wrote {} ({n} frames of {}/{} from camera {}, with gt.json{})",
+                    "wrote {} ({} of {}/{} from camera {}, with gt.json{})",
                     a.out.display(),
+                    frames_written(n.keyframes, n.between),
                     a.subject,
                     a.sequence,
                     a.camera,
