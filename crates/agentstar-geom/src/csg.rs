@@ -694,6 +694,10 @@ struct Grid {
     origin: Point3,
     dims: [i64; 3],
     cells: std::collections::HashMap<(i64, i64, i64), Vec<u32>>,
+    /// How many points the grid holds: a query over more cells than the grid has visits
+    /// them all, in index order (never in the hash map's order, which changes from one
+    /// process to the next and with it which of two equal candidates a caller keeps).
+    points: usize,
 }
 
 impl Grid {
@@ -722,6 +726,7 @@ impl Grid {
             origin,
             dims,
             cells,
+            points: points.len(),
         }
     }
     fn key(origin: &Point3, cell: f64, p: &Point3) -> (i64, i64, i64) {
@@ -741,9 +746,7 @@ impl Grid {
             * (clamp(k1.1, self.dims[1]) - clamp(k0.1, self.dims[1]) + 1)
             * (clamp(k1.2, self.dims[2]) - clamp(k0.2, self.dims[2]) + 1);
         if cells_in_box > self.cells.len() as i64 {
-            for list in self.cells.values() {
-                list.iter().for_each(|&v| f(v));
-            }
+            (0..self.points as u32).for_each(&mut f);
             return;
         }
         for x in clamp(k0.0, self.dims[0])..=clamp(k1.0, self.dims[0]) {
