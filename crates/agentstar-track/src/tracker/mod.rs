@@ -449,14 +449,6 @@ fn track_on(
                 seeds.push(extrapolate(&p2t, &prevt, &model.tree));
             }
         }
-        // A chain arrives one video frame from the keyframe: its window, not a keyframe
-        // step's (the step's 30° let a box's keyframe slip a quarter turn into its twin from
-        // a chain that had kept the basin: hard suite drawerbox seed 18, keyframe 180).
-        let window = if chained.is_some() {
-            LocalWindow::polish()
-        } else {
-            step_window
-        };
         let results: Vec<Result<(GenPose, f64), TrackError>> = seeds
             .par_iter()
             .enumerate()
@@ -464,7 +456,7 @@ fn track_on(
                 s.refine(
                     &frames[i],
                     g,
-                    &window,
+                    &step_window,
                     cfg.seed + 7919 * i as u64 + k as u64,
                 )
             })
