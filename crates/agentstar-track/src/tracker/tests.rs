@@ -39,22 +39,21 @@ fn truth(k: usize) -> GenPose {
     }
 }
 
-/// Frame 2 left 60° off about an oblique axis (a wrong basin whose twins are as far from
-/// the truth), every other frame true; the chosen poses, with and without the truth among
-/// the basins frame 2's global search found.
-fn choice_with(alternatives_of_2: Vec<(GenPose, f64)>) -> (Vec<GenPose>, Vec<String>) {
-    let model = ell();
-    let scale = 0.5;
-    let truths: Vec<GenPose> = (0..5).map(truth).collect();
-    let targets: Vec<ScoreTarget> = truths
+/// Each pose's silhouette of `model` in [`camera`], as a target (masks only, no hands).
+fn silhouettes(model: &ObjectModel, scale: f64, poses: &[GenPose]) -> Vec<ScoreTarget> {
+    poses
         .iter()
         .map(|g| {
             let mut r = SilhouetteRenderer::new(320, 240);
-            let posed = PosedModel::new(&model, &g.states, &g.pose.with_scale(scale));
+            let posed = PosedModel::new(model, &g.states, &g.pose.with_scale(scale));
             ScoreTarget::new(r.render(&camera(), &posed.instances).clone(), None).expect("target")
         })
-        .collect();
-    let frames: Vec<TrackFrame<'_>> = targets
+        .collect()
+}
+
+/// Frames `000000`, … of [`camera`] over `targets`, without colours.
+fn silhouette_frames(targets: &[ScoreTarget]) -> Vec<TrackFrame<'_>> {
+    targets
         .iter()
         .enumerate()
         .map(|(k, t)| TrackFrame {
@@ -64,7 +63,18 @@ fn choice_with(alternatives_of_2: Vec<(GenPose, f64)>) -> (Vec<GenPose>, Vec<Str
             world_from_camera: None,
             rgb: None,
         })
-        .collect();
+        .collect()
+}
+
+/// Frame 2 left 60° off about an oblique axis (a wrong basin whose twins are as far from
+/// the truth), every other frame true; the chosen poses, with and without the truth among
+/// the basins frame 2's global search found.
+fn choice_with(alternatives_of_2: Vec<(GenPose, f64)>) -> (Vec<GenPose>, Vec<String>) {
+    let model = ell();
+    let scale = 0.5;
+    let truths: Vec<GenPose> = (0..5).map(truth).collect();
+    let targets = silhouettes(&model, scale, &truths);
+    let frames = silhouette_frames(&targets);
     let cfg = TrackConfig::default();
     let s = Searcher::new(&model, scale, &frames, &cfg).expect("searcher");
     let mut poses = truths.clone();
@@ -584,25 +594,8 @@ fn a_chain_searches_wider_where_the_object_moved_past_its_window() {
         states: vec![],
     };
     let truths: Vec<GenPose> = (0..5).map(|k| spin(16.0 * k as f64)).collect();
-    let targets: Vec<ScoreTarget> = truths
-        .iter()
-        .map(|g| {
-            let mut r = SilhouetteRenderer::new(320, 240);
-            let posed = PosedModel::new(&model, &g.states, &g.pose.with_scale(scale));
-            ScoreTarget::new(r.render(&camera(), &posed.instances).clone(), None).expect("target")
-        })
-        .collect();
-    let frames: Vec<TrackFrame<'_>> = targets
-        .iter()
-        .enumerate()
-        .map(|(k, t)| TrackFrame {
-            name: format!("{k:06}"),
-            camera: camera(),
-            target: t,
-            world_from_camera: None,
-            rgb: None,
-        })
-        .collect();
+    let targets = silhouettes(&model, scale, &truths);
+    let frames = silhouette_frames(&targets);
     let cfg = TrackConfig::default();
     let s = Searcher::new(&model, scale, &frames, &cfg).expect("searcher");
     let path: Vec<&TrackFrame<'_>> = frames[1..4].iter().collect();
