@@ -104,7 +104,7 @@ pub struct Candidate {
     pub depth_canon: Option<f64>,
     pub combined: f64,
     /// The frame's colours against the model's own part colours at this pose (NCC, −1..1),
-    /// where the model's parts differ in colour (`oapply`, `osweep`): where twins tie in IoU
+    /// where the model's parts differ in colour (every search verb): where twins tie in IoU
     /// (a lid and base swapped), the figure that tells them apart.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub model_ncc: Option<f64>,

@@ -331,6 +331,14 @@ fn pose_verbs_track_commit_and_diagnose() {
         text(&o)
     );
     let report = dir.path().join("apply/apply.json").display().to_string();
+    // Each row gives its agreement with the model's own colours, as the object-frame verbs
+    // do (play-test 14 committed candidates only to read that figure in `score`).
+    let applied: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&report).expect("read")).expect("json");
+    assert!(
+        applied["frames"][0]["ranked"][0]["model_ncc"].is_number(),
+        "{applied}"
+    );
     let o = agentstar(&["pose", "commit", "--poses", &tracked, "--report", &report]);
     assert!(o.status.success(), "{}", text(&o));
     let v: ScoreReport = score_of(&cap, &model, &tracked, Some("000005"));
@@ -466,6 +474,13 @@ fn pose_verbs_track_commit_and_diagnose() {
         "sweep_heatmap_000000.png",
     ] {
         assert!(dir.path().join("sweep").join(f).is_file(), "missing {f}");
+    }
+    let swept: serde_json::Value = serde_json::from_str(
+        &std::fs::read_to_string(dir.path().join("sweep/sweep.json")).expect("read"),
+    )
+    .expect("json");
+    for r in swept["frames"][0]["ranked"].as_array().expect("ranked") {
+        assert!(r["model_ncc"].is_number(), "{r}");
     }
     // The table names the gated figure: each row's band IoU, as the JSON report gives it.
     let table = std::fs::read_to_string(dir.path().join("sweep/sweep.txt")).expect("txt");

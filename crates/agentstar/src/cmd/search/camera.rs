@@ -155,9 +155,13 @@ pub fn run_sweep(a: SweepArgs) -> Result<ExitCode> {
             save_png_rgb(&img, &p)?;
             notes.push(format!("heat map: {}", p.display()));
         }
+        // Each row's agreement with the model's own colours, as the object-frame verbs give it
+        // (play-test 14 committed candidates only to read their colour figure in `score`).
+        let mut rows = rows_from(r, &space, tree);
+        with_model_agreement(&s, i, &mut rows)?;
         outputs.push(FrameOutput {
             frame: s.capture.frames[i].name.clone(),
-            rows: rows_from(r, &space, tree),
+            rows,
             extra,
             notes,
             pages: vec![],
@@ -221,6 +225,7 @@ fn run_candidates(a: &SweepArgs, s: &Session, list: &str) -> Result<ExitCode> {
         for (k, r) in rows.iter_mut().enumerate() {
             r.rank = k;
         }
+        with_model_agreement(s, i, &mut rows)?;
         outputs.push(FrameOutput {
             frame: s.capture.frames[i].name.clone(),
             rows,
@@ -340,9 +345,11 @@ pub fn run_apply(a: ApplyArgs) -> Result<ExitCode> {
                 ..SweepConfig::default()
             },
         )?;
+        let mut rows = rows_from(r, &space, tree);
+        with_model_agreement(&s, i, &mut rows)?;
         outputs.push(FrameOutput {
             frame: s.capture.frames[i].name.clone(),
-            rows: rows_from(r, &space, tree),
+            rows,
             extra: json!({"method": "apply", "order": a.order}),
             notes: space.notes.clone(),
             pages: vec![],
