@@ -52,6 +52,23 @@ impl SymmetryAxis {
     }
 }
 
+/// The angle of `turn` (radians) once its part about `axis` is taken out (the swing of a
+/// swing-twist decomposition): a turn about the axis alone gives 0, a tilt across it its
+/// own angle. A zero axis leaves the whole turn.
+pub fn angle_across(turn: &UnitQuaternion, axis: &Vector3) -> f64 {
+    let Some(a) = axis.try_normalize(1e-12) else {
+        return turn.angle();
+    };
+    let q = turn.quaternion();
+    let along = a * q.imag().dot(&a);
+    let twist = agentstar_geom::nalgebra::Quaternion::new(q.w, along.x, along.y, along.z);
+    if twist.norm() < 1e-12 {
+        // A half-turn across the axis: no twist to take out.
+        return turn.angle();
+    }
+    (turn * UnitQuaternion::from_quaternion(twist).inverse()).angle()
+}
+
 /// Turns that test an axis: not a multiple of 360°/n for small n, so a box's 90° symmetry
 /// does not pass for a continuous one. A regular hexagon's footprint keeps 0.92 under them
 /// and an octagon's 0.97: prisms that near round count as round bodies, and the tracker's

@@ -34,9 +34,18 @@ const CHAIN_MIN_VISIBLE: f64 = 0.2;
 /// no pose near the prediction explains (a segmenter's miss) must not pull the chain away.
 const CHAIN_MIN_IOU: f64 = 0.5;
 
-/// A chain frame fitted this much IoU under the frame before it is searched again in a
-/// window twice as wide ([`follow`]): segmenter noise moves a frame's IoU by about 0.01.
+/// A chain frame fitted this much IoU under the frame before it is searched again in
+/// [`CHAIN_WIDE`] ([`follow`]): segmenter noise moves a frame's IoU by about 0.01.
 const CHAIN_DROP: f64 = 0.02;
+
+/// [`CHAIN_WINDOW`] twice as wide, with twice its evaluations.
+const CHAIN_WIDE: LocalWindow = LocalWindow {
+    angle_deg: 2.0 * CHAIN_WINDOW.angle_deg,
+    shift: 2.0 * CHAIN_WINDOW.shift,
+    depth: 2.0 * CHAIN_WINDOW.depth,
+    joint_deg: 2.0 * CHAIN_WINDOW.joint_deg,
+    evals: 2 * CHAIN_WINDOW.evals,
+};
 
 /// What one gap's chain found.
 #[derive(Debug, Clone)]
@@ -142,21 +151,15 @@ pub(super) fn follow(
                 let mut best = search(&CHAIN_WINDOW, 0)?;
                 // A fit clearly under the last one's: the object moved past the window (the
                 // chain's first frame has no velocity to extrapolate; a hand turns a box 15° a
-                // frame), so the search is made again in a window twice as wide.
-                if let (Some((_, sc)), Some(last_sc)) = (&best, last_score) {
-                    if *sc < last_sc - CHAIN_DROP {
-                        let wide = LocalWindow {
-                            angle_deg: 2.0 * CHAIN_WINDOW.angle_deg,
-                            shift: 2.0 * CHAIN_WINDOW.shift,
-                            depth: 2.0 * CHAIN_WINDOW.depth,
-                            joint_deg: 2.0 * CHAIN_WINDOW.joint_deg,
-                            evals: 2 * CHAIN_WINDOW.evals,
-                        };
-                        if let Some(w) = search(&wide, 1_000)? {
-                            if w.1 > *sc {
-                                best = Some(w);
-                            }
-                        }
+                // frame), so the search is made again in a window twice as wide ([`CHAIN_WIDE`]).
+                let dropped = matches!(
+                    (&best, last_score),
+                    (Some((_, sc)), Some(last)) if *sc < last - CHAIN_DROP
+                );
+                if dropped {
+                    let wide = search(&CHAIN_WIDE, 1_000)?;
+                    if wide.as_ref().map(|w| w.1) > best.as_ref().map(|b| b.1) {
+                        best = wide;
                     }
                 }
                 match best {

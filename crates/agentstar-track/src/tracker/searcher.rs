@@ -102,21 +102,12 @@ impl<'m> Searcher<'m> {
         let axis = self.outline_axis.get_or_init(|| {
             crate::axis::outline_axis(self.model, &self.model.tree.rest_states()).map(|a| a.axis)
         });
-        // The turn in the object's frame, and its part about the axis (swing-twist).
+        // The turn in the object's frame.
         let turn = predicted.inverse() * to;
-        let Some(axis) = axis.filter(|a| a.norm() > 1e-12) else {
-            return turn.angle();
-        };
-        let a = axis.normalize();
-        let q = turn.quaternion();
-        let along = a * q.imag().dot(&a);
-        let twist = agentstar_geom::nalgebra::Quaternion::new(q.w, along.x, along.y, along.z);
-        if twist.norm() < 1e-12 {
-            // A half-turn across the axis: no twist to leave out.
-            return turn.angle();
+        match axis {
+            Some(axis) => crate::axis::angle_across(&turn, axis),
+            None => turn.angle(),
         }
-        let twist = agentstar_geom::UnitQuaternion::from_quaternion(twist);
-        (turn * twist.inverse()).angle()
     }
 
     /// The motion measured across gap `g`, where a chain followed it.
