@@ -55,6 +55,21 @@ fn score(cap: &Path, scene: &Path, poses: &Path) -> ScoreReport {
     serde_json::from_slice(&o.stdout).unwrap_or_else(|e| panic!("{e}: {}", text(&o)))
 }
 
+/// `agentstar bake` on a capture, model and pose file, with `extra` arguments.
+fn bake(cap: &Path, scene: &Path, poses: &Path, extra: &[&str]) -> std::process::Output {
+    let mut args = vec![
+        "bake".to_string(),
+        "--capture".into(),
+        s(cap),
+        "--model".into(),
+        s(scene),
+        "--poses".into(),
+        s(poses),
+    ];
+    args.extend(extra.iter().map(|a| a.to_string()));
+    agentstar(&args.iter().map(String::as_str).collect::<Vec<_>>())
+}
+
 fn bake_files(dir: &Path) -> Vec<String> {
     let mut v: Vec<String> = std::fs::read_dir(dir)
         .expect("dir")
@@ -85,16 +100,7 @@ fn a_bake_from_true_poses_gives_an_uncoloured_mug_its_print_and_score_uses_it() 
         "{:?}",
         before.appearance
     );
-    let o = agentstar(&[
-        "bake",
-        "--capture",
-        &s(&cap),
-        "--model",
-        &s(&scene),
-        "--poses",
-        &s(&poses),
-        "--json",
-    ]);
+    let o = bake(&cap, &scene, &poses, &["--json"]);
     let r: BakeReport = json_of(&o);
     assert!(r.disagreeing.is_empty(), "{:?}", r.frames);
     assert_eq!(r.frames.len(), 8);
@@ -160,16 +166,7 @@ fn a_frame_turned_into_its_twin_is_refused_by_name_and_nothing_is_written() {
     // q · (0, 0, 0, 1): a half-turn about the object's own z.
     *q = json!([-z, y, -x, w]);
     std::fs::write(&poses, pf.to_string()).expect("write poses");
-    let args = [
-        "bake",
-        "--capture",
-        &s(&cap),
-        "--model",
-        &s(&scene),
-        "--poses",
-        &s(&poses),
-    ];
-    let o = agentstar(&args);
+    let o = bake(&cap, &scene, &poses, &[]);
     assert!(!o.status.success(), "{}", text(&o));
     let err = String::from_utf8_lossy(&o.stderr);
     // That frame alone, although two others share most of their texels with it.
@@ -179,9 +176,12 @@ fn a_frame_turned_into_its_twin_is_refused_by_name_and_nothing_is_written() {
     );
     assert!(bake_files(&scene.with_file_name("")).is_empty());
     // Left out, the rest bake.
-    let mut without = args.to_vec();
-    without.extend(["--frames", "000000..000010,000020..000035", "--json"]);
-    let r: BakeReport = json_of(&agentstar(&without));
+    let r: BakeReport = json_of(&bake(
+        &cap,
+        &scene,
+        &poses,
+        &["--frames", "000000..000010,000020..000035", "--json"],
+    ));
     assert!(
         r.disagreeing.is_empty() && r.frames.len() == 7,
         "{:?}",
@@ -194,17 +194,7 @@ fn bad_inputs_are_named_and_leave_nothing_behind() {
     let dir = tempfile::tempdir().expect("tmp");
     let (cap, scene, poses) = uncoloured_mug(dir.path());
     let run = scene.with_file_name("");
-    let bake = |poses: &Path| {
-        agentstar(&[
-            "bake",
-            "--capture",
-            &s(&cap),
-            "--model",
-            &s(&scene),
-            "--poses",
-            &s(poses),
-        ])
-    };
+    let bake = |poses: &Path| bake(&cap, &scene, poses, &[]);
     let missing = run.join("nope.json");
     let o = bake(&missing);
     assert!(!o.status.success());
