@@ -1,11 +1,12 @@
 //! The benchmark harness. Ground truth in the evaluator's form ([`gt`]); suites of synthetic
 //! sequences ([`suite`]); one sequence synthesised, tracked by a method (the automatic
 //! tracker or one of the paper's agent-free ablations) and evaluated ([`run`]); the paper's
-//! tables as Markdown ([`table`]); tolerances recorded from a run and checked against
+//! tables as Markdown ([`table`]); where each miss comes from ([`misses`]); tolerances recorded from a run and checked against
 //! later ones ([`tolerance`]).
 //!
 //! No file I/O: everything runs in memory; the `agentstar bench` command writes results.
 
+pub mod misses;
 pub mod run;
 pub mod suite;
 pub mod table;

@@ -1,5 +1,6 @@
 //! One sequence tracked by one method and evaluated with the paper's metrics.
 
+use crate::misses::{misses, Misses};
 use crate::BenchError;
 use agentstar_data::gt::{model_ground_truth, GroundTruth};
 use agentstar_eval::sequence::{evaluate, EvalConfig, GtSequence, PredSequence, SequenceMetrics};
@@ -97,6 +98,10 @@ pub struct SequenceResult {
     /// How hard the capture is: object rotation between keyframes and hand coverage.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub capture_stats: Option<CaptureStats>,
+    /// The keyframes more than [`crate::misses::MISS_DEG`] off (after the symmetries), and
+    /// which evidence preferred the truth there.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub misses: Option<Misses>,
 }
 
 /// Errors after symmetry reduction.
@@ -160,6 +165,7 @@ impl SequenceResult {
             metrics,
             symmetry_reduced: None,
             capture_stats: None,
+            misses: None,
         }
     }
 
@@ -312,10 +318,23 @@ pub fn run_sequence_observed(
         poses: tracked.poses.clone(),
     };
     let (m, seq) = evaluate_against(capture, &truth, &pred, cfg)?;
+    let reduced = symmetry_reduced_truth(&truth, &pred.poses, &capture.symmetries);
+    let misses = misses(
+        capture,
+        &frames.iter().map(|f| f.camera).collect::<Vec<_>>(),
+        &targets,
+        &reduced
+            .iter()
+            .map(|(_, pose, states)| GenPose {
+                pose: *pose,
+                states: states.clone(),
+            })
+            .collect::<Vec<_>>(),
+        &pred.poses,
+    );
     let symmetry_reduced = if capture.symmetries.is_empty() {
         None
     } else {
-        let reduced = symmetry_reduced_truth(&truth, &pred.poses, &capture.symmetries);
         let (r, _) = evaluate_against(capture, &reduced, &pred, cfg)?;
         Some(ReducedErrors {
             symmetries: capture.symmetries.len(),
@@ -354,6 +373,7 @@ pub fn run_sequence_observed(
             width: capture.camera.width,
             height: capture.camera.height,
         }),
+        misses: Some(misses),
         ..result
     };
     Ok((result, tracked.poses))

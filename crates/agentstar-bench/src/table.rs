@@ -504,3 +504,65 @@ pub fn general_table(results: &[SequenceResult]) -> String {
     out.push_str("\n\"sym.\": reduced by the object's true symmetries (shape, print and joints; BOP's nearest equivalent pose per frame); \"symmetries\": how many rotations besides the identity (a continuous turn as 315). Objects with none have sym. = raw. A sequence not measured counts as outside 1 cm and 3°.\n");
     out
 }
+
+/// Where the misses come from ([`crate::misses`]): per method, the keyframes more than
+/// [`crate::misses::MISS_DEG`] off after the symmetries, by the evidence that preferred the
+/// truth there; then a row per sequence with any. Empty when no result has a miss.
+pub fn misses_table(results: &[SequenceResult]) -> String {
+    let with: Vec<&SequenceResult> = results
+        .iter()
+        .filter(|r| r.misses.as_ref().is_some_and(|m| m.total() > 0))
+        .collect();
+    if with.is_empty() {
+        return String::new();
+    }
+    let mut out = String::from(
+        "### Where the misses come from\n\nKeyframes more than 3° off after the symmetries, by what scored the truth higher there: **search**: the mask (gate IoU over 0.005 better; no search reached the truth), **colours**: the masks tie and the model's own colours prefer the truth (the choice did not weigh them), **evidence**: neither (only the frames' colours against each other, or the motion, could tell).\n\n| method | keyframes | missed | search | colours | evidence |\n|---|---|---|---|---|---|\n",
+    );
+    for m in methods(results) {
+        let rs: Vec<&SequenceResult> = of(results, None, m).collect();
+        let keyframes: usize = rs.iter().map(|r| r.metrics.frames).sum();
+        let sum = |f: fn(&crate::misses::Misses) -> usize| -> usize {
+            rs.iter().filter_map(|r| r.misses.as_ref()).map(f).sum()
+        };
+        let _ = writeln!(
+            out,
+            "| {m} | {keyframes} | {} | {} | {} | {} |",
+            sum(|x| x.total()),
+            sum(|x| x.search),
+            sum(|x| x.colours),
+            sum(|x| x.evidence)
+        );
+    }
+    out.push_str("\n| sequence | method | missed | search | colours | evidence | worst frame: rotation (°), gate IoU tracked / truth, model NCC tracked / truth |\n|---|---|---|---|---|---|---|\n");
+    for r in with {
+        let Some(m) = &r.misses else { continue };
+        let worst = m
+            .frames
+            .iter()
+            .max_by(|a, b| a.rotation_deg.total_cmp(&b.rotation_deg))
+            .map_or("–".into(), |f| {
+                format!(
+                    "{}: {:.1}°, {:.4} / {:.4}, {} / {}",
+                    f.frame,
+                    f.rotation_deg,
+                    f.gate_tracked,
+                    f.gate_truth,
+                    fmt(f.model_ncc_tracked, 2),
+                    fmt(f.model_ncc_truth, 2)
+                )
+            });
+        let _ = writeln!(
+            out,
+            "| {} | {} | {} | {} | {} | {} | {worst} |",
+            r.id,
+            r.method,
+            m.total(),
+            m.search,
+            m.colours,
+            m.evidence
+        );
+    }
+    out.push('\n');
+    out
+}

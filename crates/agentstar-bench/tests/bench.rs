@@ -182,6 +182,7 @@ fn fake(id: &str, family: &str, method: &str, epe: f64, iou: f64) -> SequenceRes
         },
         symmetry_reduced: None,
         capture_stats: None,
+        misses: None,
     }
 }
 
@@ -641,8 +642,9 @@ fn a_generated_object_is_tracked_and_its_errors_reduced_by_its_symmetries() {
 
 #[test]
 fn the_general_table_gives_the_share_within_1cm_3deg_and_quantiles() {
+    use agentstar_bench::misses::{FrameMiss, MissCause, Misses};
     use agentstar_bench::run::ReducedErrors;
-    use agentstar_bench::table::{general_table, histogram, quantile};
+    use agentstar_bench::table::{general_table, histogram, misses_table, quantile};
     let reduced = |epe: f64, rot: f64| ReducedErrors {
         symmetries: 3,
         epe_cm: Some(epe),
@@ -682,6 +684,33 @@ fn the_general_table_gives_the_share_within_1cm_3deg_and_quantiles() {
     );
     assert!(
         t.contains("| gen-2-hard-held-s1021 | tracker | articulated | 0 |"),
+        "{t}"
+    );
+    // Where the misses come from: none recorded, no section; two misses of one sequence,
+    // counted per method and named with its worst frame.
+    assert_eq!(misses_table(&rs), "");
+    let miss = |frame: &str, rotation_deg: f64, cause: MissCause| FrameMiss {
+        frame: frame.into(),
+        rotation_deg,
+        gate_tracked: 0.97,
+        gate_truth: 0.968,
+        model_ncc_tracked: Some(0.1),
+        model_ncc_truth: Some(0.5),
+        cause,
+    };
+    rs[3].misses = Some(Misses {
+        search: 1,
+        colours: 1,
+        evidence: 0,
+        frames: vec![
+            miss("000010.png", 12.0, MissCause::Search),
+            miss("000020.png", 178.5, MissCause::Colours),
+        ],
+    });
+    let t = misses_table(&rs);
+    assert!(t.contains("| tracker | 16 | 2 | 1 | 1 | 0 |"), "{t}");
+    assert!(
+        t.contains("| gen-2-hard-held-s1021 | tracker | 2 | 1 | 1 | 0 | 000020.png: 178.5°, 0.9700 / 0.9680, 0.10 / 0.50 |"),
         "{t}"
     );
     assert_eq!(quantile(&[], 0.5), None);

@@ -143,9 +143,12 @@ fn tracking() {
     if std::env::var_os("AGENTSTAR_BENCH_VERBOSE").is_some() {
         for (k, (g, e)) in gts.iter().zip(&r.poses).enumerate() {
             eprintln!(
-                "frame {k}: {:.2}° rotation, IoU {:.4}",
+                "frame {k}: {:.2}° rotation, {:.2}% of depth, {:.2}° joint, IoU {:.4}, {} mask px",
                 g.pose.rotation.angle_to(&e.pose.rotation).to_degrees(),
-                r.scores[k]
+                (g.pose.translation - e.pose.translation).norm() / g.pose.translation.z * 100.0,
+                (g.states[0] - e.states[0]).to_degrees().abs(),
+                r.scores[k],
+                targets[k].mask().count()
             );
         }
         for l in &r.log {

@@ -279,6 +279,10 @@ pub fn run(a: Args) -> Result<ExitCode> {
         md.push('\n');
         md.push_str(&agentstar_bench::table::general_table(&results));
     }
+    if a.suite == "hard" || a.suite == "general" {
+        md.push('\n');
+        md.push_str(&agentstar_bench::table::misses_table(&results));
+    }
     let header = format!(
         "## agentstar bench: {} suite, {} sequence(s), methods {}\n\nRecorded {} on {}; tracker with the appearance term {}, sequence-level choice {}{}{}.\n\n",
         a.suite,

@@ -1,0 +1,87 @@
+//! Where a miss comes from: a half-turn about a plain can's axis ties on the masks and has
+//! no colours to tell it (evidence), a tilt loses on the masks (search), the true pose is no
+//! miss, and on a labelled can the model's colours prefer the truth to the half-turn.
+
+use agentstar_bench::misses::{misses, MissCause, Misses};
+use agentstar_geom::{UnitQuaternion, Vector3};
+use agentstar_render::ScoreTarget;
+use agentstar_synth::{synthesize, SynthConfig};
+use agentstar_track::GenPose;
+
+/// Frame 0 as true, frame 1 turned half-way about the can's axis (its model z), frame 2
+/// tilted 40° about the model's x; the misses of those poses on a capture of `object`.
+fn misses_of_a_turn_and_a_tilt(object: &str) -> (Misses, Vec<String>) {
+    let capture = synthesize(&SynthConfig {
+        object: object.into(),
+        frames: 3,
+        width: 240,
+        height: 180,
+        seed: 3,
+        hands: false,
+        ..SynthConfig::default()
+    })
+    .expect("synth");
+    let targets: Vec<ScoreTarget> = capture
+        .frames
+        .iter()
+        .map(|f| ScoreTarget::new(f.mask.clone(), None).expect("target"))
+        .collect();
+    let cameras = vec![capture.camera; capture.frames.len()];
+    let truth: Vec<GenPose> = capture
+        .frames
+        .iter()
+        .map(|f| GenPose {
+            pose: f.camera_from_object,
+            states: f.states.clone(),
+        })
+        .collect();
+    let turned = |g: &GenPose, axis: Vector3, deg: f64| {
+        let mut g = g.clone();
+        g.pose.rotation =
+            g.pose.rotation * UnitQuaternion::from_scaled_axis(axis * deg.to_radians());
+        g
+    };
+    let tracked = vec![
+        truth[0].clone(),
+        turned(&truth[1], Vector3::z(), 180.0),
+        turned(&truth[2], Vector3::x(), 40.0),
+    ];
+    let names = capture.frames.iter().map(|f| f.name.clone()).collect();
+    (
+        misses(&capture, &cameras, &targets, &truth, &tracked),
+        names,
+    )
+}
+
+#[test]
+fn a_miss_is_put_down_to_the_evidence_that_prefers_the_truth() {
+    let (m, names) = misses_of_a_turn_and_a_tilt("can");
+    assert_eq!(m.total(), 2, "{m:?}");
+    let half_turn = &m.frames[0];
+    assert_eq!(half_turn.frame, names[1]);
+    assert!(
+        (half_turn.rotation_deg - 180.0).abs() < 1e-6,
+        "{half_turn:?}"
+    );
+    // The plain can: the same mask, one colour.
+    assert_eq!(half_turn.cause, MissCause::Evidence, "{half_turn:?}");
+    assert!(
+        (half_turn.gate_truth - half_turn.gate_tracked).abs() < 0.005,
+        "{half_turn:?}"
+    );
+    assert_eq!(half_turn.model_ncc_truth, None, "{half_turn:?}");
+    let tilt = &m.frames[1];
+    assert_eq!(tilt.frame, names[2]);
+    assert_eq!(tilt.cause, MissCause::Search, "{tilt:?}");
+    assert!(tilt.gate_truth > tilt.gate_tracked + 0.05, "{tilt:?}");
+    assert_eq!((m.search, m.colours, m.evidence), (1, 0, 1));
+
+    // The labelled can: its label tells the half-turn by the model's colours.
+    let (m, _) = misses_of_a_turn_and_a_tilt("labelcan");
+    let half_turn = &m.frames[0];
+    let (tracked, truth) = (
+        half_turn.model_ncc_tracked.expect("colours"),
+        half_turn.model_ncc_truth.expect("colours"),
+    );
+    assert!(truth > tracked + 0.3, "{half_turn:?}");
+}
