@@ -37,8 +37,7 @@ fn misses_of_a_turn_and_a_tilt(object: &str) -> (Misses, Vec<String>) {
         .collect();
     let turned = |g: &GenPose, axis: Vector3, deg: f64| {
         let mut g = g.clone();
-        g.pose.rotation =
-            g.pose.rotation * UnitQuaternion::from_scaled_axis(axis * deg.to_radians());
+        g.pose.rotation *= UnitQuaternion::from_scaled_axis(axis * deg.to_radians());
         g
     };
     let tracked = vec![
