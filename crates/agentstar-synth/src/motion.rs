@@ -153,13 +153,7 @@ pub fn trajectory(
             let d = viewing_distance(model, scale, camera, if hand_held { 0.6 } else { 0.5 });
             let moving = vec![hand_held; n_joints];
             let states = joint_states(model, n, &moving, rng);
-            // Start upright, tilted toward the camera, at a random heading.
-            let start = UnitQuaternion::from_axis_angle(&Vector3::y_axis(), rng.range(-PI, PI))
-                * UnitQuaternion::from_axis_angle(
-                    &Vector3::x_axis(),
-                    rng.range(100.0, 125.0).to_radians(),
-                );
-            let mut rotation = start;
+            let mut rotation = upright_start(rng, (100.0, 125.0));
             let mut axis = random_axis(rng);
             let drift = (rng.range(0.0, TAU), rng.range(0.0, TAU));
             let mut steps = Vec::with_capacity(n);
@@ -173,10 +167,7 @@ pub fn trajectory(
                     } else {
                         rng.range(3.0, 30.0)
                     };
-                    rotation = UnitQuaternion::from_axis_angle(
-                        &agentstar_geom::nalgebra::Unit::new_normalize(axis),
-                        angle_deg.to_radians(),
-                    ) * rotation;
+                    rotation = turned(rotation, axis, angle_deg);
                 }
                 let t = k as f64 / (n - 1).max(1) as f64;
                 let centre = Point3::new(
@@ -192,28 +183,23 @@ pub fn trajectory(
                 );
                 let aim = centre + Vector3::new(rng.normal(), rng.normal(), 0.0) * 0.03 * d;
                 let camera_from_world = look_at(&eye, &aim, &-Vector3::y());
-                // The object rotates about its bounding-box centre.
-                let pivot = model.posed_bounds(&st).center().coords * scale;
-                let world_from_object = ObjectPose::new(rotation, centre.coords - rotation * pivot);
-                steps.push(Step {
-                    world_from_camera: camera_from_world.inverse(),
-                    camera_from_object: compose(&camera_from_world, &world_from_object),
-                    states: st,
-                });
+                steps.push(held_step(
+                    model,
+                    scale,
+                    &camera_from_world,
+                    rotation,
+                    centre,
+                    st,
+                ));
             }
             steps
         }
         Motion::HardHeld => {
             let d = viewing_distance(model, scale, camera, 0.55);
             let states = joint_states(model, n, &vec![true; n_joints], rng);
-            let start = UnitQuaternion::from_axis_angle(&Vector3::y_axis(), rng.range(-PI, PI))
-                * UnitQuaternion::from_axis_angle(
-                    &Vector3::x_axis(),
-                    rng.range(90.0, 135.0).to_radians(),
-                );
+            let mut rotation = upright_start(rng, (90.0, 135.0));
             // The one step of 130°–150°.
             let biggest = 1 + ((n.saturating_sub(1)) as f64 * rng.uniform()) as usize;
-            let mut rotation = start;
             let mut axis = random_axis(rng);
             let drift = (
                 rng.range(0.0, TAU),
@@ -231,10 +217,7 @@ pub fn trajectory(
                     } else {
                         rng.range(12.0, 42.0)
                     };
-                    rotation = UnitQuaternion::from_axis_angle(
-                        &agentstar_geom::nalgebra::Unit::new_normalize(axis),
-                        angle_deg.to_radians(),
-                    ) * rotation;
+                    rotation = turned(rotation, axis, angle_deg);
                 }
                 let t = k as f64 / (n - 1).max(1) as f64;
                 let centre = Point3::new(
@@ -254,13 +237,14 @@ pub fn trajectory(
                     + Vector3::new(rng.normal(), rng.normal(), rng.normal()) * 0.02 * d;
                 let aim = centre + Vector3::new(rng.normal(), rng.normal(), 0.0) * 0.04 * d;
                 let camera_from_world = look_at(&eye, &aim, &-Vector3::y());
-                let pivot = model.posed_bounds(&st).center().coords * scale;
-                let world_from_object = ObjectPose::new(rotation, centre.coords - rotation * pivot);
-                steps.push(Step {
-                    world_from_camera: camera_from_world.inverse(),
-                    camera_from_object: compose(&camera_from_world, &world_from_object),
-                    states: st,
-                });
+                steps.push(held_step(
+                    model,
+                    scale,
+                    &camera_from_world,
+                    rotation,
+                    centre,
+                    st,
+                ));
             }
             steps
         }
@@ -328,6 +312,44 @@ pub fn between_step(a: &Step, b: &Step, model: &ObjectModel, scale: f64, s: f64)
     Step {
         world_from_camera,
         camera_from_object: compose(&world_from_camera.inverse(), &world_from_object),
+        states,
+    }
+}
+
+/// Upright, tilted toward the camera by an angle drawn from `tilt_deg`, at a random heading
+/// (drawn first).
+fn upright_start(rng: &mut Rng, tilt_deg: (f64, f64)) -> UnitQuaternion {
+    let heading = UnitQuaternion::from_axis_angle(&Vector3::y_axis(), rng.range(-PI, PI));
+    heading
+        * UnitQuaternion::from_axis_angle(
+            &Vector3::x_axis(),
+            rng.range(tilt_deg.0, tilt_deg.1).to_radians(),
+        )
+}
+
+/// `rotation` followed by a turn of `angle_deg` about `axis` (in the world frame).
+pub(crate) fn turned(rotation: UnitQuaternion, axis: Vector3, angle_deg: f64) -> UnitQuaternion {
+    UnitQuaternion::from_axis_angle(
+        &agentstar_geom::nalgebra::Unit::new_normalize(axis),
+        angle_deg.to_radians(),
+    ) * rotation
+}
+
+/// A keyframe of a held object: turned by `rotation` about its bounding-box centre, which
+/// stands at `centre` in the world, seen by `camera_from_world`.
+pub(crate) fn held_step(
+    model: &ObjectModel,
+    scale: f64,
+    camera_from_world: &Rigid,
+    rotation: UnitQuaternion,
+    centre: Point3,
+    states: Vec<f64>,
+) -> Step {
+    let pivot = model.posed_bounds(&states).center().coords * scale;
+    let world_from_object = ObjectPose::new(rotation, centre.coords - rotation * pivot);
+    Step {
+        world_from_camera: camera_from_world.inverse(),
+        camera_from_object: compose(camera_from_world, &world_from_object),
         states,
     }
 }

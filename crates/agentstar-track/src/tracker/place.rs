@@ -195,6 +195,14 @@ pub(super) fn transfer(
     }
 }
 
+/// `g` carried from `from`'s camera into `to`'s ([`transfer`]), its joint states kept.
+pub(super) fn carry(g: &GenPose, from: &TrackFrame<'_>, to: &TrackFrame<'_>) -> GenPose {
+    GenPose {
+        pose: transfer(&g.pose, from, to),
+        states: g.states.clone(),
+    }
+}
+
 /// Constant-velocity extrapolation from two previous poses (in the later one's camera).
 pub(super) fn extrapolate(
     prev2: &GenPose,
