@@ -16,7 +16,8 @@
 //! says which. The egocentric camera (view 0, a moving camera) is not supported.
 
 use crate::import_common::{
-    check_between, images_by_stem, mask_for, select_frames, write_rows, GtModel, Row,
+    check_between, images_by_stem, load_kept_mask, mask_for, select_frames, write_rows, GtModel,
+    Row,
 };
 use crate::render_parts_mask;
 use crate::FramesWritten;
@@ -330,19 +331,7 @@ pub fn import_arctic(cfg: &ArcticImport, out: &Path) -> Result<FramesWritten> {
         let camera_from_bottom = cam.camera_from_world * r.world_from_object();
         let camera_from_top = camera_from_bottom * r.bottom_from_top();
         let mask = match &masks {
-            Some(m) => load_mask(mask_for(m, stem).ok_or_else(|| {
-                DataError::invalid(
-                    cfg.masks.as_deref().unwrap_or(Path::new("")),
-                    format!(
-                        "no mask for {} `{stem}` (every image kept needs one)",
-                        if keyframe {
-                            "keyframe"
-                        } else {
-                            "in-between image"
-                        }
-                    ),
-                )
-            })?)?,
+            Some(m) => load_kept_mask(m, cfg.masks.as_deref(), stem, keyframe, "image")?,
             None => render_parts_mask(
                 &camera,
                 &[(bottom, camera_from_bottom), (top, camera_from_top)],
