@@ -212,6 +212,18 @@ pub(crate) fn load_kept_mask(
     agentstar_data::images::load_mask(path)
 }
 
+/// The mask of frame `stem` in a folder indexed by [`images_by_stem`] ([`mask_for`]), read,
+/// where there is a folder and it has one (hand masks: a frame without one has no hands).
+pub(crate) fn optional_mask(
+    masks: Option<&BTreeMap<String, PathBuf>>,
+    stem: &str,
+) -> Result<Option<BitMask>> {
+    masks
+        .and_then(|m| mask_for(m, stem))
+        .map(|p| agentstar_data::images::load_mask(p))
+        .transpose()
+}
+
 /// The mask of frame `stem` in a folder indexed by [`images_by_stem`]: `stem.png`, or a
 /// name that starts with the stem and a separator (`stem_mask.png`).
 pub(crate) fn mask_for<'a>(

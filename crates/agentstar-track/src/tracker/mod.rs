@@ -434,13 +434,15 @@ fn track_on(
             chained = Some(followed);
         } else if prev2_i >= 0 && (prev2_i as usize) < n {
             if let Some(p2) = &poses[prev2_i as usize] {
-                let p2t = carry(
-                    &carry(p2, &frames[prev2_i as usize], &frames[prev_i]),
+                let prevt = seeds[0].clone();
+                seeds.push(extrapolate_through(
+                    p2,
+                    &frames[prev2_i as usize],
                     &frames[prev_i],
                     &frames[i],
-                );
-                let prevt = seeds[0].clone();
-                seeds.push(extrapolate(&p2t, &prevt, &model.tree));
+                    &prevt,
+                    &model.tree,
+                ));
             }
         }
         let results: Vec<Result<(GenPose, f64), TrackError>> = seeds

@@ -351,12 +351,14 @@ fn track_from_on(
         let prev2 = prev_i as isize - dir;
         if prev2 >= 0 && (prev2 as usize) < n {
             let p2 = prev2 as usize;
-            let p2t = carry(
-                &carry(&poses[p2], &frames[p2], &frames[prev_i]),
+            seeds.push(extrapolate_through(
+                &poses[p2],
+                &frames[p2],
                 &frames[prev_i],
                 &frames[i],
-            );
-            seeds.push(extrapolate(&p2t, &carried, &model.tree));
+                &carried,
+                &model.tree,
+            ));
         }
         let results: Vec<Result<(GenPose, f64), TrackError>> = seeds
             .par_iter()
