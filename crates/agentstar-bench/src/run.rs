@@ -76,15 +76,9 @@ impl Default for RunConfig {
 /// Everything measured on one sequence with one method.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct SequenceResult {
-    pub id: String,
-    pub object: String,
-    pub family: String,
-    pub motion: String,
-    /// The method's name (`tracker`, `no-temporal`, `vlm-free`) or a label for a user's runs.
-    pub method: String,
-    /// Wall time of the tracking (not the synthesis or the evaluation), seconds.
-    pub seconds: f64,
-    pub evaluations: usize,
+    /// What the result is about (its fields stand at the top level of the JSON).
+    #[serde(flatten)]
+    pub info: RunInfo,
     pub iou_mean: f64,
     pub iou_min: f64,
     /// The paper's metrics (the record `eval` prints and `batch gather` tables).
@@ -129,13 +123,15 @@ pub struct CaptureStats {
 }
 
 /// What a result is about, beside its metrics.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct RunInfo {
     pub id: String,
     pub object: String,
     pub family: String,
     pub motion: String,
+    /// The method's name (`tracker`, `no-temporal`, `vlm-free`) or a label for a user's runs.
     pub method: String,
+    /// Wall time of the tracking (not the synthesis or the evaluation), seconds.
     pub seconds: f64,
     pub evaluations: usize,
 }
@@ -153,13 +149,7 @@ impl SequenceResult {
             j.revolute = g.revolute;
         }
         SequenceResult {
-            id: info.id,
-            object: info.object,
-            family: info.family,
-            motion: info.motion,
-            method: info.method,
-            seconds: info.seconds,
-            evaluations: info.evaluations,
+            info,
             iou_mean: iou.iter().sum::<f64>() / iou.len().max(1) as f64,
             iou_min: iou.iter().cloned().fold(f64::INFINITY, f64::min),
             metrics,

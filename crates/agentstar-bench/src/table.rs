@@ -31,8 +31,8 @@ fn sig(x: f64) -> String {
 fn methods(results: &[SequenceResult]) -> Vec<&str> {
     let mut m: Vec<&str> = Vec::new();
     for r in results {
-        if !m.contains(&r.method.as_str()) {
-            m.push(&r.method);
+        if !m.contains(&r.info.method.as_str()) {
+            m.push(&r.info.method);
         }
     }
     m
@@ -45,7 +45,7 @@ fn of<'a>(
 ) -> impl Iterator<Item = &'a SequenceResult> + 'a {
     results
         .iter()
-        .filter(move |r| r.method == method && family.is_none_or(|f| r.family == f))
+        .filter(move |r| r.info.method == method && family.is_none_or(|f| r.info.family == f))
 }
 
 fn collect(
@@ -61,7 +61,7 @@ fn collect(
 pub fn tables(results: &[SequenceResult], per_sequence: bool) -> String {
     let mut out = String::new();
     let ms = methods(results);
-    let has = |fam: &str| results.iter().any(|r| r.family == fam);
+    let has = |fam: &str| results.iter().any(|r| r.info.family == fam);
 
     if has("arctic") {
         let _ = writeln!(
@@ -87,12 +87,12 @@ pub fn tables(results: &[SequenceResult], per_sequence: bool) -> String {
             );
         }
         if per_sequence {
-            for r in results.iter().filter(|r| r.family == "arctic") {
+            for r in results.iter().filter(|r| r.info.family == "arctic") {
                 let _ = writeln!(
                     out,
                     "| {} · {} | 1 | {} | {} |",
-                    r.method,
-                    r.id,
+                    r.info.method,
+                    r.info.id,
                     fmt(r.metrics.epe_cm, 2),
                     fmt(r.metrics.chamfer_cm, 2)
                 );
@@ -124,8 +124,12 @@ pub fn tables(results: &[SequenceResult], per_sequence: bool) -> String {
             let _ = writeln!(out, "{}", row(m.into(), &rs));
         }
         if per_sequence {
-            for r in results.iter().filter(|r| r.family == "hot3d") {
-                let _ = writeln!(out, "{}", row(format!("{} · {}", r.method, r.id), &[r]));
+            for r in results.iter().filter(|r| r.info.family == "hot3d") {
+                let _ = writeln!(
+                    out,
+                    "{}",
+                    row(format!("{} · {}", r.info.method, r.info.id), &[r])
+                );
             }
         }
         out.push('\n');
@@ -209,7 +213,7 @@ pub fn tables(results: &[SequenceResult], per_sequence: bool) -> String {
     for &m in &ms {
         let epe = collect(results, None, m, |r| r.metrics.epe_cm);
         let iou = collect(results, None, m, |r| Some(r.iou_mean));
-        let mut secs = collect(results, None, m, |r| Some(r.seconds));
+        let mut secs = collect(results, None, m, |r| Some(r.info.seconds));
         secs.sort_by(f64::total_cmp);
         let median = secs.get(secs.len() / 2).copied();
         let _ = writeln!(
@@ -232,12 +236,12 @@ pub fn tables(results: &[SequenceResult], per_sequence: bool) -> String {
         let _ = writeln!(
             out,
             "| {} | {} | {} | {:.1} | {:.2} | {} | {:.4} | {:.4} | {} | {} |",
-            r.id,
-            r.method,
+            r.info.id,
+            r.info.method,
             r.metrics.frames,
-            r.seconds,
-            r.seconds / r.metrics.frames.max(1) as f64,
-            r.evaluations,
+            r.info.seconds,
+            r.info.seconds / r.metrics.frames.max(1) as f64,
+            r.info.evaluations,
             r.iou_mean,
             r.iou_min,
             fmt(r.metrics.epe_cm, 2),
@@ -264,20 +268,16 @@ pub fn result_table(r: &SequenceResult) -> String {
     );
     row("3D EPE (cm)", fmt(r.metrics.epe_cm, 3));
     row("Chamfer (cm)", fmt(r.metrics.chamfer_cm, 3));
+    let mean_median = |mean, median| format!("{} / {}", fmt(mean, 3), fmt(median, 3));
     row(
         "rotation error mean / median (°)",
-        format!(
-            "{} / {}",
-            fmt(r.metrics.rotation_mean_deg, 3),
-            fmt(r.metrics.rotation_median_deg, 3)
-        ),
+        mean_median(r.metrics.rotation_mean_deg, r.metrics.rotation_median_deg),
     );
     row(
         "translation error mean / median (cm)",
-        format!(
-            "{} / {}",
-            fmt(r.metrics.translation_mean_cm, 3),
-            fmt(r.metrics.translation_median_cm, 3)
+        mean_median(
+            r.metrics.translation_mean_cm,
+            r.metrics.translation_median_cm,
         ),
     );
     if !r.metrics.joints.is_empty() {
@@ -326,8 +326,8 @@ pub fn hard_table(results: &[SequenceResult]) -> String {
         let _ = writeln!(
             out,
             "| {} | {} | {stats} | {hands} | {:.4} / {:.4} | {} | {} | {} / {} | {} / {} | {} | {:.1} | {} |",
-            r.id,
-            r.method,
+            r.info.id,
+            r.info.method,
             r.iou_mean,
             r.iou_min,
             fmt(r.metrics.epe_cm, 2),
@@ -337,7 +337,7 @@ pub fn hard_table(results: &[SequenceResult]) -> String {
             fmt(r.metrics.rotation_median_deg, 1),
             fmt(r.metric("sym_rotation_median_deg"), 1),
             fmt(r.metrics.translation_median_cm, 2),
-            r.seconds,
+            r.info.seconds,
             if pass { "yes" } else { "no" }
         );
     }
@@ -418,8 +418,8 @@ pub fn general_table(results: &[SequenceResult]) -> String {
     type Kind = (&'static str, fn(&SequenceResult) -> bool);
     let kinds: [Kind; 5] = [
         ("all", |_| true),
-        ("rigid", |r| r.family == "hot3d"),
-        ("articulated", |r| r.family != "hot3d"),
+        ("rigid", |r| r.info.family == "hot3d"),
+        ("articulated", |r| r.info.family != "hot3d"),
         ("with symmetries", |r| r.symmetry_reduced.is_some()),
         ("no symmetry", |r| r.symmetry_reduced.is_none()),
     ];
@@ -429,7 +429,7 @@ pub fn general_table(results: &[SequenceResult]) -> String {
             if rs.is_empty() {
                 continue;
             }
-            let mut objects: Vec<&str> = rs.iter().map(|r| r.object.as_str()).collect();
+            let mut objects: Vec<&str> = rs.iter().map(|r| r.info.object.as_str()).collect();
             objects.sort_unstable();
             objects.dedup();
             let within = rs.iter().filter(|r| within_1cm_3deg(r)).count();
@@ -487,9 +487,9 @@ pub fn general_table(results: &[SequenceResult]) -> String {
         let _ = writeln!(
             out,
             "| {} | {} | {} | {} | {stats} | {hands} | {:.4} / {:.4} | {} / {} | {} / {} | {:.1} | {} |",
-            r.id,
-            r.method,
-            if r.family == "hot3d" { "rigid" } else { "articulated" },
+            r.info.id,
+            r.info.method,
+            if r.info.family == "hot3d" { "rigid" } else { "articulated" },
             r.symmetry_reduced.as_ref().map_or(0, |s| s.symmetries),
             r.iou_mean,
             r.iou_min,
@@ -497,7 +497,7 @@ pub fn general_table(results: &[SequenceResult]) -> String {
             fmt(r.metric("sym_epe_cm"), 2),
             fmt(r.metrics.rotation_mean_deg, 1),
             fmt(r.metric("sym_rotation_mean_deg"), 1),
-            r.seconds,
+            r.info.seconds,
             if within_1cm_3deg(r) { "yes" } else { "no" }
         );
     }

@@ -41,8 +41,8 @@ pub fn record(results: &[SequenceResult], suite: &str, recorded: &str) -> Tolera
     let mut entries: Vec<Tolerance> = results
         .iter()
         .map(|r| Tolerance {
-            id: r.id.clone(),
-            method: r.method.clone(),
+            id: r.info.id.clone(),
+            method: r.info.method.clone(),
             max: UPPER
                 .iter()
                 .filter_map(|&(name, floor)| {
@@ -72,7 +72,7 @@ pub fn check(results: &[SequenceResult], file: &ToleranceFile) -> Vec<String> {
     for t in &file.entries {
         let Some(r) = results
             .iter()
-            .find(|r| r.id == t.id && r.method == t.method)
+            .find(|r| r.info.id == t.id && r.info.method == t.method)
         else {
             out.push(format!(
                 "{} ({}): recorded in the tolerances but not run",

@@ -4,7 +4,7 @@
 
 use agentstar_bench::table::{result_table, tables};
 use agentstar_bench::tolerance::{check, record};
-use agentstar_bench::{run_sequence, Method, RunConfig, SequenceResult};
+use agentstar_bench::{run_sequence, Method, RunConfig, RunInfo, SequenceResult};
 use agentstar_data::gt::{model_ground_truth, GroundTruth};
 use agentstar_eval::{JointRecord, MetricsRecord};
 use agentstar_geom::GenPose;
@@ -35,7 +35,7 @@ fn the_tracker_recovers_an_articulated_hand_held_sequence() {
     .expect("synth");
     let (r, poses) = run_sequence(&capture, Method::Tracker, &RunConfig::default()).expect("run");
     assert_eq!(poses.len(), 8);
-    assert_eq!(r.method, "tracker");
+    assert_eq!(r.info.method, "tracker");
     assert!(r.iou_mean > 0.97, "IoU {}", r.iou_mean);
     let epe = r.metrics.epe_cm.expect("epe");
     assert!(epe < 1.0, "EPE {epe} cm");
@@ -146,13 +146,15 @@ fn ground_truth_of_the_true_poses_scores_zero() {
 
 fn fake(id: &str, family: &str, method: &str, epe: f64, iou: f64) -> SequenceResult {
     SequenceResult {
-        id: id.into(),
-        object: id.into(),
-        family: family.into(),
-        motion: "handheld".into(),
-        method: method.into(),
-        seconds: 1.5,
-        evaluations: 100,
+        info: RunInfo {
+            id: id.into(),
+            object: id.into(),
+            family: family.into(),
+            motion: "handheld".into(),
+            method: method.into(),
+            seconds: 1.5,
+            evaluations: 100,
+        },
         iou_mean: iou,
         iou_min: iou - 0.01,
         metrics: MetricsRecord {
@@ -637,7 +639,7 @@ fn a_generated_object_is_tracked_and_its_errors_reduced_by_its_symmetries() {
         reduced.rotation_mean_deg.expect("sym"),
     );
     assert!(sym <= raw + 1e-9, "{sym} > {raw}");
-    assert_eq!(r.object, "gen-0");
+    assert_eq!(r.info.object, "gen-0");
 }
 
 #[test]
@@ -663,7 +665,7 @@ fn the_general_table_gives_the_share_within_1cm_3deg_and_quantiles() {
     rs[0].symmetry_reduced = Some(reduced(0.6, 2.0));
     rs[1].symmetry_reduced = Some(reduced(0.4, 1.0));
     for r in &mut rs {
-        r.object = r.id.split("-hard").next().unwrap_or_default().into();
+        r.info.object = r.info.id.split("-hard").next().unwrap_or_default().into();
     }
     let t = general_table(&rs);
     // Within 1 cm and 3°: s1000 (after reduction), s1001, s1020; not s1021 (2 cm).

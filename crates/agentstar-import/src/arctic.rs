@@ -16,13 +16,14 @@
 //! says which. The egocentric camera (view 0, a moving camera) is not supported.
 
 use crate::import_common::{
-    check_between, images_by_stem, mask_for, select_frames, write_rows, GtModel, Row,
+    check_between, images_by_stem, load_kept_mask, optional_mask, select_frames, write_rows,
+    GtModel, Row,
 };
 use crate::render_parts_mask;
 use crate::FramesWritten;
 use agentstar_data::capture_writer::CaptureInfo;
 use agentstar_data::gt::GtJoint;
-use agentstar_data::images::{load_mask, load_rgb};
+use agentstar_data::images::load_rgb;
 use agentstar_data::npz::read_npy;
 use agentstar_data::{read_bytes, read_text, DataError, Result};
 use agentstar_geom::pose::Rigid;
@@ -330,28 +331,13 @@ pub fn import_arctic(cfg: &ArcticImport, out: &Path) -> Result<FramesWritten> {
         let camera_from_bottom = cam.camera_from_world * r.world_from_object();
         let camera_from_top = camera_from_bottom * r.bottom_from_top();
         let mask = match &masks {
-            Some(m) => load_mask(mask_for(m, stem).ok_or_else(|| {
-                DataError::invalid(
-                    cfg.masks.as_deref().unwrap_or(Path::new("")),
-                    format!(
-                        "no mask for {} `{stem}` (every image kept needs one)",
-                        if keyframe {
-                            "keyframe"
-                        } else {
-                            "in-between image"
-                        }
-                    ),
-                )
-            })?)?,
+            Some(m) => load_kept_mask(m, cfg.masks.as_deref(), stem, keyframe, "image")?,
             None => render_parts_mask(
                 &camera,
                 &[(bottom, camera_from_bottom), (top, camera_from_top)],
             ),
         };
-        let hand = match &hands {
-            Some(m) => mask_for(m, stem).map(|p| load_mask(p)).transpose()?,
-            None => None,
-        };
+        let hand = optional_mask(hands.as_ref(), stem)?;
         rows.push(Row {
             name: format!("{stem}.png"),
             keyframe,

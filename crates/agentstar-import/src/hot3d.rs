@@ -14,11 +14,12 @@
 //! from the ground truth (the whole object, hands not cut out), and the manifest says so.
 
 use crate::import_common::{
-    check_between, images_by_stem, mask_for, select_frames, write_rows, GtModel, Row,
+    check_between, images_by_stem, load_kept_mask, optional_mask, select_frames, write_rows,
+    GtModel, Row,
 };
 use crate::render_parts_mask;
 use agentstar_data::capture_writer::CaptureInfo;
-use agentstar_data::images::{load_mask, load_rgb};
+use agentstar_data::images::load_rgb;
 use agentstar_data::meshio::parse_glb_file_frame;
 use agentstar_data::{read_bytes, read_text, DataError, Result};
 use agentstar_geom::pose::Rigid;
@@ -252,28 +253,10 @@ pub fn import_hot3d(cfg: &Hot3dImport, out: &Path) -> Result<Hot3dSummary> {
         let world_from_camera = world_from_device * cfg.device_from_camera;
         let camera_from_object = world_from_camera.inverse() * world_from_object;
         let mask = match &masks {
-            Some(m) => {
-                let p = mask_for(m, stem).ok_or_else(|| {
-                    DataError::invalid(
-                        cfg.masks.as_deref().unwrap_or(Path::new("")),
-                        format!(
-                            "no mask for {} `{stem}` (every frame kept needs one)",
-                            if keyframe {
-                                "keyframe"
-                            } else {
-                                "in-between frame"
-                            }
-                        ),
-                    )
-                })?;
-                load_mask(p)?
-            }
+            Some(m) => load_kept_mask(m, cfg.masks.as_deref(), stem, keyframe, "frame")?,
             None => render_parts_mask(&camera, &[(&mesh, camera_from_object)]),
         };
-        let hand = match &hands {
-            Some(m) => mask_for(m, stem).map(|p| load_mask(p)).transpose()?,
-            None => None,
-        };
+        let hand = optional_mask(hands.as_ref(), stem)?;
         rows.push(Row {
             name: format!("{stem}.png"),
             keyframe,

@@ -186,6 +186,44 @@ pub(crate) fn images_by_stem(dir: &Path) -> Result<BTreeMap<String, PathBuf>> {
     Ok(out)
 }
 
+/// The mask of a kept frame `stem` in a folder `dir` indexed by [`images_by_stem`]
+/// ([`mask_for`]), read; where there is none, an error naming the keyframe or in-between
+/// `unit` (`image`, `frame`: what the dataset calls one).
+pub(crate) fn load_kept_mask(
+    masks: &BTreeMap<String, PathBuf>,
+    dir: Option<&Path>,
+    stem: &str,
+    keyframe: bool,
+    unit: &str,
+) -> Result<BitMask> {
+    let path = mask_for(masks, stem).ok_or_else(|| {
+        DataError::invalid(
+            dir.unwrap_or(Path::new("")),
+            format!(
+                "no mask for {} `{stem}` (every {unit} kept needs one)",
+                if keyframe {
+                    "keyframe".to_string()
+                } else {
+                    format!("in-between {unit}")
+                }
+            ),
+        )
+    })?;
+    agentstar_data::images::load_mask(path)
+}
+
+/// The mask of frame `stem` in a folder indexed by [`images_by_stem`] ([`mask_for`]), read,
+/// where there is a folder and it has one (hand masks: a frame without one has no hands).
+pub(crate) fn optional_mask(
+    masks: Option<&BTreeMap<String, PathBuf>>,
+    stem: &str,
+) -> Result<Option<BitMask>> {
+    masks
+        .and_then(|m| mask_for(m, stem))
+        .map(|p| agentstar_data::images::load_mask(p))
+        .transpose()
+}
+
 /// The mask of frame `stem` in a folder indexed by [`images_by_stem`]: `stem.png`, or a
 /// name that starts with the stem and a separator (`stem_mask.png`).
 pub(crate) fn mask_for<'a>(

@@ -84,21 +84,13 @@ fn setup(
     let target =
         ScoreTarget::new(renderer.render(&camera, &instances).clone(), None).expect("target");
     let mut rng = Rng(2026);
-    let poses: Vec<Similarity> = (0..1000)
-        .map(|_| {
-            let q =
-                nalgebra::Quaternion::new(rng.normal(), rng.normal(), rng.normal(), rng.normal());
-            Similarity {
-                scale: 1.0,
-                rotation: UnitQuaternion::from_quaternion(q),
-                translation: Vector3::new(
-                    rng.uniform() * 0.6 - 0.3,
-                    rng.uniform() * 0.4 - 0.2,
-                    z_range.0 + rng.uniform() * (z_range.1 - z_range.0),
-                ),
-            }
-        })
-        .collect();
+    let poses = random_poses(&mut rng, 1000, |rng| {
+        Vector3::new(
+            rng.uniform() * 0.6 - 0.3,
+            rng.uniform() * 0.4 - 0.2,
+            z_range.0 + rng.uniform() * (z_range.1 - z_range.0),
+        )
+    });
     let eval = |renderer: &mut SilhouetteRenderer,
                 builder: &mut InstanceBuilder,
                 instances: &mut Vec<_>,
@@ -161,21 +153,31 @@ fn setup(
     );
 }
 
-/// One colour evaluation: the full render of the pose and the textured model shaded from
-/// it (what every colour view and the appearance terms pay per image), at setup B's camera.
-fn colour_setup(model: &ObjectModel, camera: PinholeCamera) {
-    let mut rng = Rng(2027);
-    let poses: Vec<Similarity> = (0..100)
+/// `n` poses of unit scale, each a uniformly random rotation (drawn first) at the
+/// translation `translation` draws.
+fn random_poses(
+    rng: &mut Rng,
+    n: usize,
+    mut translation: impl FnMut(&mut Rng) -> Vector3,
+) -> Vec<Similarity> {
+    (0..n)
         .map(|_| {
             let q =
                 nalgebra::Quaternion::new(rng.normal(), rng.normal(), rng.normal(), rng.normal());
             Similarity {
                 scale: 1.0,
                 rotation: UnitQuaternion::from_quaternion(q),
-                translation: Vector3::new(0.0, 0.0, 1.2),
+                translation: translation(rng),
             }
         })
-        .collect();
+        .collect()
+}
+
+/// One colour evaluation: the full render of the pose and the textured model shaded from
+/// it (what every colour view and the appearance terms pay per image), at setup B's camera.
+fn colour_setup(model: &ObjectModel, camera: PinholeCamera) {
+    let mut rng = Rng(2027);
+    let poses = random_poses(&mut rng, 100, |_| Vector3::new(0.0, 0.0, 1.2));
     let mut renderer = agentstar_render::FullRenderer::default();
     let mut instances = Vec::new();
     let mut builder = InstanceBuilder::default();

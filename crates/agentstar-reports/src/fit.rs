@@ -248,20 +248,8 @@ impl FitReport {
     }
 }
 
-/// How `agentstar scale` measured the scale.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, schemars::JsonSchema)]
-#[serde(rename_all = "lowercase")]
-pub enum ScaleMethod {
-    /// Observed over rendered depth (the capture has depth).
-    Depth,
-    /// Metric cameras that move around an object that stays put.
-    Parallax,
-    /// A size the agent states along one model axis.
-    Size,
-    /// The hands' apparent palm breadth against an adult-hand prior, the hand at the
-    /// object's depth (hand masks, no depth): the weakest route, with its uncertainty.
-    Hand,
-}
+/// How `agentstar scale` measured the scale (the request's type, recorded as it was asked).
+pub use agentstar_requests::ScaleMethod;
 
 /// One keyframe's figure in a scale estimate.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]

@@ -8,6 +8,7 @@
 //! - the requests the MCP tools take and the commands flatten, one type each (the
 //!   object-frame pose verbs: [`OsweepArgs`], [`OapplyArgs`], [`OapplyAllArgs`]; and
 //!   [`TurntableArgs`], [`PoseDiffArgs`], [`TemporalArgs`], [`BakeArgs`]);
+//! - [`ScaleMethod`] and [`SizeAxis`]: `scale`'s choices, which its report records too;
 //! - [`SheetView`]: a search verb's candidate sheet (`crop`, `zoom`), and [`WithSheet`], a
 //!   search request with it as one flat set of tool arguments;
 //! - the rules a command and its tool share, on the type both read: [`OsweepArgs::region`],
@@ -28,12 +29,14 @@ use std::path::PathBuf;
 
 pub mod bake;
 pub mod object;
+pub mod scale;
 pub mod sheet;
 pub mod track;
 pub mod views;
 
 pub use bake::BakeArgs;
 pub use object::{OapplyAllArgs, OapplyArgs, OsweepArgs, Region};
+pub use scale::{ScaleMethod, SizeAxis};
 pub use sheet::{SheetView, WithSheet};
 pub use track::WarmStart;
 pub use views::{Crop, PoseDiffArgs, TemporalArgs, TurntableArgs};

@@ -13,16 +13,18 @@
 //! motion); keyframes are every `keyframe_every`-th frame.
 
 use crate::hand;
+use crate::motion::{held_step, Step};
 use crate::noise::hash01;
 use crate::objects::ObjectSpec;
-use crate::{build_object, srgb, to_u8, Foreground, SynthError, SynthFrame};
+use crate::{
+    build_object, hand_instance, object_and_hand_masks, part_from_camera, srgb, Foreground,
+    SynthError, SynthFrame,
+};
 use agentstar_geom::camera::look_at;
-use agentstar_geom::pose::{ObjectPose, Rigid, Similarity};
+use agentstar_geom::pose::Rigid;
 use agentstar_geom::{ObjectModel, PinholeCamera, Point3, UnitQuaternion, Vector3};
 use agentstar_optim::Rng;
-use agentstar_render::raster::Affine;
-use agentstar_render::{render_full, BitMask, Instance, PosedModel, NO_PART};
-use image::{Rgb, RgbImage};
+use agentstar_render::{render_full, Instance, PosedModel, NO_PART};
 use std::f64::consts::{PI, TAU};
 
 /// What the room's surfaces look like.
@@ -458,10 +460,7 @@ pub fn synthesize_room_clip(cfg: &RoomConfig) -> Result<RoomClip, SynthError> {
         let t = k as f64 / (n - 1) as f64;
         if k > 0 {
             axis = (axis + 0.15 * crate::motion::random_axis(&mut motion_rng)).normalize();
-            rotation = UnitQuaternion::from_axis_angle(
-                &agentstar_geom::nalgebra::Unit::new_normalize(axis),
-                cfg.object_turn_deg_per_frame.to_radians(),
-            ) * rotation;
+            rotation = crate::motion::turned(rotation, axis, cfg.object_turn_deg_per_frame);
         }
         let wob = |i: usize| wobble[i].at(t);
         // The object's centre: near the world origin, drifting a little in the hand.
@@ -502,11 +501,11 @@ pub fn synthesize_room_clip(cfg: &RoomConfig) -> Result<RoomClip, SynthError> {
                 look_at(&eye, &(eye + dir), &Vector3::z())
             }
         };
-        let world_from_camera = camera_from_world.inverse();
-        let pivot = model.posed_bounds(&st).center().coords * scale;
-        let world_from_object = ObjectPose::new(rotation, centre.coords - rotation * pivot);
-        let c = camera_from_world * world_from_object.to_rigid();
-        let camera_from_object = ObjectPose::new(c.rotation, c.translation.vector);
+        let Step {
+            world_from_camera,
+            camera_from_object,
+            states: st,
+        } = held_step(&model, scale, &camera_from_world, rotation, centre, st);
         let posed = PosedModel::new(&model, &st, &camera_from_object.with_scale(scale));
         // The whole silhouette, for the fraction the hand hides.
         let silhouette = render_full(&camera, &posed.instances)
@@ -522,32 +521,11 @@ pub fn synthesize_room_clip(cfg: &RoomConfig) -> Result<RoomClip, SynthError> {
         let phi = hand_phase + 0.6 * (TAU * t).sin();
         let hand_pose = hand::grip_pose(&centre_cam, radius, phi, hand_scale);
         if cfg.hand {
-            instances.push(Instance {
-                mesh: &hand_part.mesh,
-                bounds: hand_part.bounds,
-                camera_from_mesh: Affine::from_similarity(&hand_pose),
-                edges: hand_part.edges.as_deref().map(|e| e.as_slice()),
-                open_edges: hand_part.open_edges.as_deref().map(|e| e.as_slice()),
-                planes: hand_part.planes.as_deref().map(|q| q.as_slice()),
-                part_id: n_parts,
-            });
+            instances.push(hand_instance(&hand_part, &hand_pose, n_parts));
         }
         let buffers = render_full(&camera, &instances);
-        let mask = BitMask::from_fn(w, h, |x, y| buffers.part[(y * w + x) as usize] < n_parts);
-        let hand_mask = BitMask::from_fn(w, h, |x, y| {
-            let p = buffers.part[(y * w + x) as usize];
-            p != NO_PART && p >= n_parts
-        });
-        let object_from_parts = model.tree.part_transforms(&st);
-        let part_from_camera: Vec<Similarity> = object_from_parts
-            .iter()
-            .map(|tp| {
-                camera_from_object
-                    .with_scale(scale)
-                    .compose(&Similarity::from_rigid(tp))
-                    .inverse()
-            })
-            .collect();
+        let (mask, hand_mask) = object_and_hand_masks(&buffers, n_parts);
+        let part_from_camera = part_from_camera(&model, &st, &camera_from_object, scale);
         let eye = Point3::from(world_from_camera.translation.vector);
         let foreground = Foreground {
             camera: &camera,
@@ -557,40 +535,25 @@ pub fn synthesize_room_clip(cfg: &RoomConfig) -> Result<RoomClip, SynthError> {
             part_from_camera: &part_from_camera,
             n_parts,
         };
-        let mut rgb = RgbImage::new(w, h);
-        for y in 0..h {
-            for x in 0..w {
-                let i = (y * w + x) as usize;
-                let p = buffers.part[i];
-                let grain = 0.012 * (hash01(x, y, cfg.seed as u32 ^ (k as u32) << 8) - 0.5);
-                let c = if p == NO_PART {
-                    // 2×2 samples of the room.
-                    let mut acc = [0.0; 3];
-                    for (sx, sy) in [(0.25, 0.25), (0.75, 0.25), (0.25, 0.75), (0.75, 0.75)] {
-                        let ray = world_from_camera.rotation
-                            * camera.ray_direction(x as f64 + sx, y as f64 + sy);
-                        if let Some((surface, _, q)) = room.hit(&eye, &ray) {
-                            let c = room.colour(surface, &q);
-                            for j in 0..3 {
-                                acc[j] += 0.25 * c[j];
-                            }
+        let rgb = foreground.paint(
+            &buffers,
+            |x, y| 0.012 * (hash01(x, y, cfg.seed as u32 ^ (k as u32) << 8) - 0.5),
+            |x, y| {
+                // 2×2 samples of the room.
+                let mut acc = [0.0; 3];
+                for (sx, sy) in [(0.25, 0.25), (0.75, 0.25), (0.25, 0.75), (0.75, 0.75)] {
+                    let ray = world_from_camera.rotation
+                        * camera.ray_direction(x as f64 + sx, y as f64 + sy);
+                    if let Some((surface, _, q)) = room.hit(&eye, &ray) {
+                        let c = room.colour(surface, &q);
+                        for j in 0..3 {
+                            acc[j] += 0.25 * c[j];
                         }
                     }
-                    srgb(acc)
-                } else {
-                    foreground.shade(&buffers, x, y)
-                };
-                rgb.put_pixel(
-                    x,
-                    y,
-                    Rgb([
-                        to_u8(c[0] + grain),
-                        to_u8(c[1] + grain),
-                        to_u8(c[2] + grain),
-                    ]),
-                );
-            }
-        }
+                }
+                srgb(acc)
+            },
+        );
         let hand_coverage = 1.0 - mask.count() as f64 / silhouette.max(1) as f64;
         frames.push(SynthFrame {
             name: format!("{k:06}.png"),

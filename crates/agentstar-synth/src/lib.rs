@@ -408,7 +408,6 @@ impl FrameScene<'_> {
         frame_index: i64,
     ) -> SynthFrame {
         let (cfg, model, scale, camera) = (self.cfg, self.model, self.scale, self.camera);
-        let (w, h) = (camera.width, camera.height);
         let posed = PosedModel::new(
             model,
             &step.states,
@@ -484,29 +483,16 @@ impl FrameScene<'_> {
         } else {
             (1.0 - visible_count as f64 / full_count as f64).max(0.0)
         };
-        let mut mask = BitMask::from_fn(w, h, |x, y| buffers.part[(y * w + x) as usize] < n_parts);
-        let mut hand_mask = (hand_count > 0).then(|| {
-            BitMask::from_fn(w, h, |x, y| {
-                let p = buffers.part[(y * w + x) as usize];
-                p != NO_PART && p >= n_parts
-            })
-        });
+        let (mut mask, hand_mask) = object_and_hand_masks(&buffers, n_parts);
+        let mut hand_mask = (hand_count > 0).then_some(hand_mask);
         if cfg.mask_noise_px > 0.0 {
             let seed = seeds.mask_noise;
             mask = noise::jitter_boundary(&mask, cfg.mask_noise_px, seed);
             hand_mask = hand_mask.map(|m| noise::jitter_boundary(&m, cfg.mask_noise_px, seed + 1));
         }
         // Colour: textured, shaded parts and hands over the background.
-        let object_from_parts = model.tree.part_transforms(&step.states);
-        let part_from_camera: Vec<Similarity> = object_from_parts
-            .iter()
-            .map(|t| {
-                step.camera_from_object
-                    .with_scale(scale)
-                    .compose(&Similarity::from_rigid(t))
-                    .inverse()
-            })
-            .collect();
+        let part_from_camera =
+            part_from_camera(model, &step.states, &step.camera_from_object, scale);
         let foreground = Foreground {
             camera,
             light: self.light,
@@ -515,28 +501,11 @@ impl FrameScene<'_> {
             part_from_camera: &part_from_camera,
             n_parts,
         };
-        let mut rgb = RgbImage::new(w, h);
-        for y in 0..h {
-            for x in 0..w {
-                let i = (y * w + x) as usize;
-                let p = buffers.part[i];
-                let grain = 0.03 * (noise::hash01(x, y, seeds.grain) - 0.5);
-                let c = if p == NO_PART {
-                    self.background.at(x, y)
-                } else {
-                    foreground.shade(&buffers, x, y)
-                };
-                rgb.put_pixel(
-                    x,
-                    y,
-                    Rgb([
-                        to_u8(c[0] + grain),
-                        to_u8(c[1] + grain),
-                        to_u8(c[2] + grain),
-                    ]),
-                );
-            }
-        }
+        let rgb = foreground.paint(
+            &buffers,
+            |x, y| 0.03 * (noise::hash01(x, y, seeds.grain) - 0.5),
+            |x, y| self.background.at(x, y),
+        );
         let depth_m = self.depth.then(|| {
             buffers
                 .depth
@@ -560,7 +529,7 @@ impl FrameScene<'_> {
     }
 }
 
-fn hand_instance<'a>(
+pub(crate) fn hand_instance<'a>(
     hand: &'a agentstar_geom::Part,
     pose: &Similarity,
     part_id: u16,
@@ -607,6 +576,73 @@ impl Foreground<'_> {
             srgb(hand::SKIN.map(|v| v as f64 * shading))
         }
     }
+
+    /// The image: each pixel's colour, the foreground's where the buffers show a part or a
+    /// hand and `background`'s elsewhere, plus `grain` at that pixel, in 8 bits.
+    pub fn paint(
+        &self,
+        buffers: &agentstar_render::RenderBuffers,
+        grain: impl Fn(u32, u32) -> f64,
+        background: impl Fn(u32, u32) -> [f64; 3],
+    ) -> RgbImage {
+        let (w, h) = (buffers.width, buffers.height);
+        let mut rgb = RgbImage::new(w, h);
+        for y in 0..h {
+            for x in 0..w {
+                let grain = grain(x, y);
+                let c = if buffers.part[(y * w + x) as usize] == NO_PART {
+                    background(x, y)
+                } else {
+                    self.shade(buffers, x, y)
+                };
+                rgb.put_pixel(
+                    x,
+                    y,
+                    Rgb([
+                        to_u8(c[0] + grain),
+                        to_u8(c[1] + grain),
+                        to_u8(c[2] + grain),
+                    ]),
+                );
+            }
+        }
+        rgb
+    }
+}
+
+/// The object's mask (part ids below `n_parts`) and the hands' (the ids from `n_parts` on).
+pub(crate) fn object_and_hand_masks(
+    buffers: &agentstar_render::RenderBuffers,
+    n_parts: u16,
+) -> (BitMask, BitMask) {
+    let (w, h) = (buffers.width, buffers.height);
+    let object = BitMask::from_fn(w, h, |x, y| buffers.part[(y * w + x) as usize] < n_parts);
+    let hands = BitMask::from_fn(w, h, |x, y| {
+        let p = buffers.part[(y * w + x) as usize];
+        p != NO_PART && p >= n_parts
+    });
+    (object, hands)
+}
+
+/// Each part's frame from the camera's: the inverse of the scaled object pose composed with
+/// the part's transform at `states`.
+pub(crate) fn part_from_camera(
+    model: &ObjectModel,
+    states: &[f64],
+    camera_from_object: &ObjectPose,
+    scale: f64,
+) -> Vec<Similarity> {
+    model
+        .tree
+        .part_transforms(states)
+        .iter()
+        .map(|t| {
+            camera_from_object
+                .with_scale(scale)
+                .compose(&Similarity::from_rigid(t))
+                .inverse()
+        })
+        .collect()
 }
 
 /// The albedo (linear RGB) of part `part` at `local` (its canonical rest coordinates).

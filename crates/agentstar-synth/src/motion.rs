@@ -153,32 +153,24 @@ pub fn trajectory(
             let d = viewing_distance(model, scale, camera, if hand_held { 0.6 } else { 0.5 });
             let moving = vec![hand_held; n_joints];
             let states = joint_states(model, n, &moving, rng);
-            // Start upright, tilted toward the camera, at a random heading.
-            let start = UnitQuaternion::from_axis_angle(&Vector3::y_axis(), rng.range(-PI, PI))
-                * UnitQuaternion::from_axis_angle(
-                    &Vector3::x_axis(),
-                    rng.range(100.0, 125.0).to_radians(),
-                );
-            let mut rotation = start;
-            let mut axis = random_axis(rng);
+            let rotation = upright_start(rng, (100.0, 125.0));
+            let axis = random_axis(rng);
             let drift = (rng.range(0.0, TAU), rng.range(0.0, TAU));
-            let mut steps = Vec::with_capacity(n);
-            for (k, st) in states.into_iter().enumerate() {
-                if k > 0 {
-                    axis = (axis + 0.6 * random_axis(rng)).normalize();
-                    let angle_deg = if hand_held {
-                        rng.range(12.0, 35.0)
-                    } else if rng.uniform() < 0.3 {
-                        rng.range(40.0, 180.0)
-                    } else {
-                        rng.range(3.0, 30.0)
-                    };
-                    rotation = UnitQuaternion::from_axis_angle(
-                        &agentstar_geom::nalgebra::Unit::new_normalize(axis),
-                        angle_deg.to_radians(),
-                    ) * rotation;
+            let turns = Wander {
+                rotation,
+                axis,
+                axis_weight: 0.6,
+            };
+            let step_deg = |_: usize, rng: &mut Rng| {
+                if hand_held {
+                    rng.range(12.0, 35.0)
+                } else if rng.uniform() < 0.3 {
+                    rng.range(40.0, 180.0)
+                } else {
+                    rng.range(3.0, 30.0)
                 }
-                let t = k as f64 / (n - 1).max(1) as f64;
+            };
+            let place = |t: f64, rng: &mut Rng| {
                 let centre = Point3::new(
                     0.12 * d * (TAU * 0.7 * t + drift.0).sin(),
                     0.08 * d * (TAU * 0.9 * t + drift.1).sin(),
@@ -191,52 +183,37 @@ pub fn trajectory(
                     0.03 * d * rng.range(-1.0, 1.0),
                 );
                 let aim = centre + Vector3::new(rng.normal(), rng.normal(), 0.0) * 0.03 * d;
-                let camera_from_world = look_at(&eye, &aim, &-Vector3::y());
-                // The object rotates about its bounding-box centre.
-                let pivot = model.posed_bounds(&st).center().coords * scale;
-                let world_from_object = ObjectPose::new(rotation, centre.coords - rotation * pivot);
-                steps.push(Step {
-                    world_from_camera: camera_from_world.inverse(),
-                    camera_from_object: compose(&camera_from_world, &world_from_object),
-                    states: st,
-                });
-            }
-            steps
+                (centre, look_at(&eye, &aim, &-Vector3::y()))
+            };
+            held_steps(model, scale, states, turns, rng, step_deg, place)
         }
         Motion::HardHeld => {
             let d = viewing_distance(model, scale, camera, 0.55);
             let states = joint_states(model, n, &vec![true; n_joints], rng);
-            let start = UnitQuaternion::from_axis_angle(&Vector3::y_axis(), rng.range(-PI, PI))
-                * UnitQuaternion::from_axis_angle(
-                    &Vector3::x_axis(),
-                    rng.range(90.0, 135.0).to_radians(),
-                );
+            let rotation = upright_start(rng, (90.0, 135.0));
             // The one step of 130°–150°.
             let biggest = 1 + ((n.saturating_sub(1)) as f64 * rng.uniform()) as usize;
-            let mut rotation = start;
-            let mut axis = random_axis(rng);
+            let axis = random_axis(rng);
             let drift = (
                 rng.range(0.0, TAU),
                 rng.range(0.0, TAU),
                 rng.range(0.0, TAU),
             );
-            let mut steps = Vec::with_capacity(n);
-            for (k, st) in states.into_iter().enumerate() {
-                if k > 0 {
-                    axis = (axis + 0.8 * random_axis(rng)).normalize();
-                    let angle_deg = if k == biggest {
-                        rng.range(130.0, 150.0)
-                    } else if rng.uniform() < 0.12 {
-                        rng.range(80.0, 130.0)
-                    } else {
-                        rng.range(12.0, 42.0)
-                    };
-                    rotation = UnitQuaternion::from_axis_angle(
-                        &agentstar_geom::nalgebra::Unit::new_normalize(axis),
-                        angle_deg.to_radians(),
-                    ) * rotation;
+            let turns = Wander {
+                rotation,
+                axis,
+                axis_weight: 0.8,
+            };
+            let step_deg = |k: usize, rng: &mut Rng| {
+                if k == biggest {
+                    rng.range(130.0, 150.0)
+                } else if rng.uniform() < 0.12 {
+                    rng.range(80.0, 130.0)
+                } else {
+                    rng.range(12.0, 42.0)
                 }
-                let t = k as f64 / (n - 1).max(1) as f64;
+            };
+            let place = |t: f64, rng: &mut Rng| {
                 let centre = Point3::new(
                     0.15 * d * (TAU * 0.7 * t + drift.0).sin(),
                     0.1 * d * (TAU * 0.9 * t + drift.1).sin(),
@@ -253,16 +230,9 @@ pub fn trajectory(
                     )
                     + Vector3::new(rng.normal(), rng.normal(), rng.normal()) * 0.02 * d;
                 let aim = centre + Vector3::new(rng.normal(), rng.normal(), 0.0) * 0.04 * d;
-                let camera_from_world = look_at(&eye, &aim, &-Vector3::y());
-                let pivot = model.posed_bounds(&st).center().coords * scale;
-                let world_from_object = ObjectPose::new(rotation, centre.coords - rotation * pivot);
-                steps.push(Step {
-                    world_from_camera: camera_from_world.inverse(),
-                    camera_from_object: compose(&camera_from_world, &world_from_object),
-                    states: st,
-                });
-            }
-            steps
+                (centre, look_at(&eye, &aim, &-Vector3::y()))
+            };
+            held_steps(model, scale, states, turns, rng, step_deg, place)
         }
         Motion::StaticOrbit => {
             // One joint moves (the first with a state); the object stands upright at the world
@@ -328,6 +298,90 @@ pub fn between_step(a: &Step, b: &Step, model: &ObjectModel, scale: f64, s: f64)
     Step {
         world_from_camera,
         camera_from_object: compose(&world_from_camera.inverse(), &world_from_object),
+        states,
+    }
+}
+
+/// A held object's turning: its first orientation, and the axis it turns about, which
+/// wanders each step by `axis_weight` of a random axis.
+struct Wander {
+    rotation: UnitQuaternion,
+    axis: Vector3,
+    axis_weight: f64,
+}
+
+/// The keyframes of a held object, one per joint state: each after the first turned by
+/// `step_deg(k, rng)` degrees about the wandering axis (its draw first), then placed by
+/// `place(t, rng)` (t from 0 to 1: the centre in the world and `camera_from_world`).
+fn held_steps(
+    model: &ObjectModel,
+    scale: f64,
+    states: Vec<Vec<f64>>,
+    turns: Wander,
+    rng: &mut Rng,
+    step_deg: impl Fn(usize, &mut Rng) -> f64,
+    place: impl Fn(f64, &mut Rng) -> (Point3, Rigid),
+) -> Vec<Step> {
+    let n = states.len();
+    let Wander {
+        mut rotation,
+        mut axis,
+        axis_weight,
+    } = turns;
+    let mut steps = Vec::with_capacity(n);
+    for (k, st) in states.into_iter().enumerate() {
+        if k > 0 {
+            axis = (axis + axis_weight * random_axis(rng)).normalize();
+            rotation = turned(rotation, axis, step_deg(k, rng));
+        }
+        let t = k as f64 / (n - 1).max(1) as f64;
+        let (centre, camera_from_world) = place(t, rng);
+        steps.push(held_step(
+            model,
+            scale,
+            &camera_from_world,
+            rotation,
+            centre,
+            st,
+        ));
+    }
+    steps
+}
+
+/// Upright, tilted toward the camera by an angle drawn from `tilt_deg`, at a random heading
+/// (drawn first).
+fn upright_start(rng: &mut Rng, tilt_deg: (f64, f64)) -> UnitQuaternion {
+    let heading = UnitQuaternion::from_axis_angle(&Vector3::y_axis(), rng.range(-PI, PI));
+    heading
+        * UnitQuaternion::from_axis_angle(
+            &Vector3::x_axis(),
+            rng.range(tilt_deg.0, tilt_deg.1).to_radians(),
+        )
+}
+
+/// `rotation` followed by a turn of `angle_deg` about `axis` (in the world frame).
+pub(crate) fn turned(rotation: UnitQuaternion, axis: Vector3, angle_deg: f64) -> UnitQuaternion {
+    UnitQuaternion::from_axis_angle(
+        &agentstar_geom::nalgebra::Unit::new_normalize(axis),
+        angle_deg.to_radians(),
+    ) * rotation
+}
+
+/// A keyframe of a held object: turned by `rotation` about its bounding-box centre, which
+/// stands at `centre` in the world, seen by `camera_from_world`.
+pub(crate) fn held_step(
+    model: &ObjectModel,
+    scale: f64,
+    camera_from_world: &Rigid,
+    rotation: UnitQuaternion,
+    centre: Point3,
+    states: Vec<f64>,
+) -> Step {
+    let pivot = model.posed_bounds(&states).center().coords * scale;
+    let world_from_object = ObjectPose::new(rotation, centre.coords - rotation * pivot);
+    Step {
+        world_from_camera: camera_from_world.inverse(),
+        camera_from_object: compose(camera_from_world, &world_from_object),
         states,
     }
 }

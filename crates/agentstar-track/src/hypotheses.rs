@@ -6,7 +6,7 @@
 
 use crate::objective::{CandidateScore, FrameProblem};
 use crate::search::{rank, sweep, SweepConfig, SweepResult};
-use crate::space::{joint_default, Dof, DofRange, SearchSpace};
+use crate::space::{joint_default, pose_ranges, Dof, DofRange, SearchSpace};
 use crate::update::{apply_object_rotation, flip, GenPose};
 use crate::TrackError;
 use agentstar_geom::nalgebra::{Matrix3, Quaternion, Unit};
@@ -85,22 +85,7 @@ pub(crate) fn local_space(
     depth: f64,
     joint_deg: f64,
 ) -> SearchSpace {
-    let mut ranges: Vec<DofRange> = [
-        (Dof::Roll, angle),
-        (Dof::Yaw, angle),
-        (Dof::Pitch, angle),
-        (Dof::Dpx, shift),
-        (Dof::Dpy, shift),
-        (Dof::Tz, depth),
-    ]
-    .into_iter()
-    .map(|(dof, half)| DofRange {
-        dof,
-        lo: -half,
-        hi: half,
-        steps: None,
-    })
-    .collect();
+    let mut ranges = pose_ranges(angle, shift, depth);
     for (j, jd) in model.tree.joints().iter().enumerate() {
         if !jd.kind.has_state() {
             continue;

@@ -72,6 +72,52 @@ pub struct DofRange {
     pub steps: Option<usize>,
 }
 
+impl DofRange {
+    /// `dof` from −`half` to `half`.
+    pub fn symmetric(dof: Dof, half: f64) -> DofRange {
+        DofRange {
+            dof,
+            lo: -half,
+            hi: half,
+            steps: None,
+        }
+    }
+}
+
+/// The six camera-frame pose DOFs: ±`angle_deg` of roll, yaw and pitch, ±`shift` of `dpx`
+/// and `dpy`, ±`depth` of `tz`.
+pub fn pose_ranges(angle_deg: f64, shift: f64, depth: f64) -> Vec<DofRange> {
+    [
+        (Dof::Roll, angle_deg),
+        (Dof::Yaw, angle_deg),
+        (Dof::Pitch, angle_deg),
+        (Dof::Dpx, shift),
+        (Dof::Dpy, shift),
+        (Dof::Tz, depth),
+    ]
+    .into_iter()
+    .map(|(dof, half)| DofRange::symmetric(dof, half))
+    .collect()
+}
+
+/// Every joint with a state over its default range ([`joint_default`]).
+pub fn joint_ranges(tree: &KinematicTree) -> Vec<DofRange> {
+    tree.joints()
+        .iter()
+        .enumerate()
+        .filter(|(_, j)| j.kind.has_state())
+        .map(|(i, _)| {
+            let (lo, hi) = joint_default(tree, i);
+            DofRange {
+                dof: Dof::Joint(i),
+                lo,
+                hi,
+                steps: None,
+            }
+        })
+        .collect()
+}
+
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum SpaceKind {
     Pose,
@@ -293,40 +339,15 @@ pub fn joint_default(tree: &KinematicTree, j: usize) -> (f64, f64) {
 /// The reference's default boxes: pose ±15° angles, dpx/dpy ±0.08, tz ±0.1; joints over
 /// their limits; both = yaw ±15°, tz ±0.1 and the joints.
 pub fn default_space(kind: SpaceKind, tree: &KinematicTree) -> SearchSpace {
-    let joints: Vec<DofRange> = tree
-        .joints()
-        .iter()
-        .enumerate()
-        .filter(|(_, j)| j.kind.has_state())
-        .map(|(i, _)| {
-            let (lo, hi) = joint_default(tree, i);
-            DofRange {
-                dof: Dof::Joint(i),
-                lo,
-                hi,
-                steps: None,
-            }
-        })
-        .collect();
-    let r = |dof, h: f64| DofRange {
-        dof,
-        lo: -h,
-        hi: h,
-        steps: None,
-    };
     let ranges = match kind {
-        SpaceKind::Pose => vec![
-            r(Dof::Roll, 15.0),
-            r(Dof::Yaw, 15.0),
-            r(Dof::Pitch, 15.0),
-            r(Dof::Dpx, 0.08),
-            r(Dof::Dpy, 0.08),
-            r(Dof::Tz, 0.1),
-        ],
-        SpaceKind::Joint => joints,
+        SpaceKind::Pose => pose_ranges(15.0, 0.08, 0.1),
+        SpaceKind::Joint => joint_ranges(tree),
         SpaceKind::Both => {
-            let mut v = vec![r(Dof::Yaw, 15.0), r(Dof::Tz, 0.1)];
-            v.extend(joints);
+            let mut v = vec![
+                DofRange::symmetric(Dof::Yaw, 15.0),
+                DofRange::symmetric(Dof::Tz, 0.1),
+            ];
+            v.extend(joint_ranges(tree));
             v
         }
     };

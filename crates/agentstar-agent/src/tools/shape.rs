@@ -5,6 +5,7 @@ use crate::{AgentError, Result};
 use agentstar_data::history::PoseHistory;
 use agentstar_data::posefile::PoseFile;
 use agentstar_render::GATE_IOU;
+use agentstar_requests::{ScaleMethod, SizeAxis};
 use schemars::JsonSchema;
 use serde::Deserialize;
 use std::collections::BTreeMap;
@@ -69,21 +70,11 @@ pub struct FitShapeArgs {
     pub hold: Option<String>,
 }
 
-/// A model axis a stated size is along.
-#[derive(Debug, Clone, Copy, Deserialize, serde::Serialize, JsonSchema)]
-#[serde(rename_all = "lowercase")]
-pub enum SizeAxis {
-    X,
-    Y,
-    Z,
-    Longest,
-}
-
 #[derive(Debug, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct ScaleArgs {
     /// `depth` (the capture's depth against the render), `parallax` (metric cameras moving around an object that stays put), `size` (give `axis` and `metres`) or `hand` (the hands' palm breadth in their masks against an adult hand, the hand at the object's depth: without depth or a known size only; its uncertainty, often ±10–20%, is stated).
-    pub method: agentstar_reports::fit::ScaleMethod,
+    pub method: ScaleMethod,
     /// With `size`: the model axis the size is along (default the longest side).
     pub axis: Option<SizeAxis>,
     /// With `size`: the object's size along `axis`, metres ("the laptop is 30 cm wide": axis x, metres 0.3).
@@ -117,7 +108,7 @@ impl Toolbox {
         let scaled = out.join("scaled_pose.json");
         #[derive(serde::Serialize)]
         struct ScaleRequest<'a> {
-            from: agentstar_reports::fit::ScaleMethod,
+            from: ScaleMethod,
             out: &'a Path,
             json: bool,
             axis: Option<SizeAxis>,
@@ -135,12 +126,7 @@ impl Toolbox {
         let call = Invocation::new(&["scale"])
             .with(&self.session())?
             .with(&request)?;
-        let method = match a.method {
-            agentstar_reports::fit::ScaleMethod::Depth => "depth",
-            agentstar_reports::fit::ScaleMethod::Parallax => "parallax",
-            agentstar_reports::fit::ScaleMethod::Size => "size",
-            agentstar_reports::fit::ScaleMethod::Hand => "hand",
-        };
+        let method = a.method.as_str();
         let (ok, stdout, stderr) = self.exec(call.args())?;
         if !ok {
             return Ok(ToolOutput::error(stderr.trim().to_string()));

@@ -112,17 +112,10 @@ pub(super) fn follow(
     let predict = |last: &(&TrackFrame<'_>, GenPose),
                    before: &Option<(&TrackFrame<'_>, GenPose)>,
                    here: &TrackFrame<'_>| {
-        let carried = GenPose {
-            pose: transfer(&last.1.pose, last.0, here),
-            states: last.1.states.clone(),
-        };
-        let extrapolated = before.as_ref().map(|b| {
-            let b_here = GenPose {
-                pose: transfer(&b.1.pose, b.0, here),
-                states: b.1.states.clone(),
-            };
-            extrapolate(&b_here, &carried, tree)
-        });
+        let carried = carry(&last.1, last.0, here);
+        let extrapolated = before
+            .as_ref()
+            .map(|b| extrapolate(&carry(&b.1, b.0, here), &carried, tree));
         (carried, extrapolated)
     };
     let mut poses = Vec::with_capacity(path.len());

@@ -3,7 +3,7 @@
 use super::*;
 use crate::objective::FrameProblem;
 use crate::search::{sweep, SweepConfig};
-use crate::space::{joint_default, Dof, DofRange, SearchSpace};
+use crate::space::{joint_ranges, pose_ranges, SearchSpace};
 use crate::TrackError;
 use agentstar_geom::{ObjectModel, UnitQuaternion};
 
@@ -56,33 +56,8 @@ pub(super) fn track_independent_on(
             None,
         );
         let problem = FrameProblem::new(model, frame.camera, frame.target, scale, start.clone());
-        let mut ranges: Vec<DofRange> = [
-            (Dof::Roll, 180.0),
-            (Dof::Yaw, 180.0),
-            (Dof::Pitch, 180.0),
-            (Dof::Dpx, 0.1),
-            (Dof::Dpy, 0.1),
-            (Dof::Tz, 0.3),
-        ]
-        .into_iter()
-        .map(|(dof, half)| DofRange {
-            dof,
-            lo: -half,
-            hi: half,
-            steps: None,
-        })
-        .collect();
-        for (j, jd) in model.tree.joints().iter().enumerate() {
-            if jd.kind.has_state() {
-                let (lo, hi) = joint_default(&model.tree, j);
-                ranges.push(DofRange {
-                    dof: Dof::Joint(j),
-                    lo,
-                    hi,
-                    steps: None,
-                });
-            }
-        }
+        let mut ranges = pose_ranges(180.0, 0.1, 0.3);
+        ranges.extend(joint_ranges(&model.tree));
         let space = SearchSpace {
             ranges,
             notes: vec![],

@@ -411,10 +411,7 @@ fn track_on(
         let prev = poses[prev_i]
             .clone()
             .ok_or_else(|| TrackError::Invalid("propagation order".into()))?;
-        let mut seeds = vec![GenPose {
-            pose: transfer(&prev.pose, &frames[prev_i], &frames[i]),
-            states: prev.states.clone(),
-        }];
+        let mut seeds = vec![carry(&prev, &frames[prev_i], &frames[i])];
         let prev2_i = prev_i as isize + dir;
         // The video between the two keyframes, followed from the one tracked.
         let gap = i.min(prev_i);
@@ -437,16 +434,15 @@ fn track_on(
             chained = Some(followed);
         } else if prev2_i >= 0 && (prev2_i as usize) < n {
             if let Some(p2) = &poses[prev2_i as usize] {
-                let p2t = GenPose {
-                    pose: transfer(
-                        &transfer(&p2.pose, &frames[prev2_i as usize], &frames[prev_i]),
-                        &frames[prev_i],
-                        &frames[i],
-                    ),
-                    states: p2.states.clone(),
-                };
                 let prevt = seeds[0].clone();
-                seeds.push(extrapolate(&p2t, &prevt, &model.tree));
+                seeds.push(extrapolate_through(
+                    p2,
+                    &frames[prev2_i as usize],
+                    &frames[prev_i],
+                    &frames[i],
+                    &prevt,
+                    &model.tree,
+                ));
             }
         }
         let results: Vec<Result<(GenPose, f64), TrackError>> = seeds
@@ -581,10 +577,7 @@ fn track_on(
         // after the first frame and may be right where it is not.
         let mut carried_wide = Vec::new();
         for &k in &neighbours {
-            let carried = GenPose {
-                pose: transfer(&poses[k].pose, &frames[k], &frames[init]),
-                states: poses[k].states.clone(),
-            };
+            let carried = carry(&poses[k], &frames[k], &frames[init]);
             let seed = cfg.seed + 65_537 * (k as u64 + 1) + 3;
             carried_wide.extend(s.wide(
                 &frames[init],

@@ -195,6 +195,28 @@ pub(super) fn transfer(
     }
 }
 
+/// `g` carried from `from`'s camera into `to`'s ([`transfer`]), its joint states kept.
+pub(super) fn carry(g: &GenPose, from: &TrackFrame<'_>, to: &TrackFrame<'_>) -> GenPose {
+    GenPose {
+        pose: transfer(&g.pose, from, to),
+        states: g.states.clone(),
+    }
+}
+
+/// [`extrapolate`] into frame `to` from `before` (the pose of `before_frame`, carried through
+/// `via`, the frame between) and `carried`, `via`'s pose already carried into `to`.
+pub(super) fn extrapolate_through(
+    before: &GenPose,
+    before_frame: &TrackFrame<'_>,
+    via: &TrackFrame<'_>,
+    to: &TrackFrame<'_>,
+    carried: &GenPose,
+    tree: &agentstar_geom::KinematicTree,
+) -> GenPose {
+    let before_here = carry(&carry(before, before_frame, via), via, to);
+    extrapolate(&before_here, carried, tree)
+}
+
 /// Constant-velocity extrapolation from two previous poses (in the later one's camera).
 pub(super) fn extrapolate(
     prev2: &GenPose,

@@ -346,23 +346,19 @@ fn track_from_on(
     order.sort();
     for (_, i, dir) in order {
         let prev_i = (i as isize - dir) as usize;
-        let carried = GenPose {
-            pose: transfer(&poses[prev_i].pose, &frames[prev_i], &frames[i]),
-            states: poses[prev_i].states.clone(),
-        };
+        let carried = carry(&poses[prev_i], &frames[prev_i], &frames[i]);
         let mut seeds = vec![carried.clone()];
         let prev2 = prev_i as isize - dir;
         if prev2 >= 0 && (prev2 as usize) < n {
             let p2 = prev2 as usize;
-            let p2t = GenPose {
-                pose: transfer(
-                    &transfer(&poses[p2].pose, &frames[p2], &frames[prev_i]),
-                    &frames[prev_i],
-                    &frames[i],
-                ),
-                states: poses[p2].states.clone(),
-            };
-            seeds.push(extrapolate(&p2t, &carried, &model.tree));
+            seeds.push(extrapolate_through(
+                &poses[p2],
+                &frames[p2],
+                &frames[prev_i],
+                &frames[i],
+                &carried,
+                &model.tree,
+            ));
         }
         let results: Vec<Result<(GenPose, f64), TrackError>> = seeds
             .par_iter()

@@ -247,7 +247,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
             bar.suspend(|| {
                 eprintln!(
                     "bench   {:.1} s, IoU mean {:.4}, EPE {} cm, rot. median {} °",
-                    r.seconds,
+                    r.info.seconds,
                     r.iou_mean,
                     r.metrics.epe_cm.map_or("–".into(), |v| format!("{v:.2}")),
                     r.metrics

@@ -4,7 +4,7 @@ use crate::common::print_json;
 use agentstar_import::bop::{import_bop, BopImport};
 use anyhow::{Context, Result};
 use serde_json::json;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 #[derive(clap::Subcommand)]
@@ -607,6 +607,47 @@ fn sfm_cameras(
     ))
 }
 
+/// What an importer with ground truth wrote, as `--json` prints it (its keys in alphabetical
+/// order).
+#[derive(serde::Serialize)]
+struct ImportReport<'a> {
+    between_frames: usize,
+    capture: &'a Path,
+    frames: usize,
+    gt: PathBuf,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    rendered_masks: Option<bool>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    skipped: Option<usize>,
+}
+
+impl<'a> ImportReport<'a> {
+    fn new(out: &'a Path, keyframes: usize, between: usize) -> Self {
+        ImportReport {
+            between_frames: between,
+            capture: out,
+            frames: keyframes,
+            gt: out.join("gt.json"),
+            rendered_masks: None,
+            skipped: None,
+        }
+    }
+
+    /// Prints the report: JSON with `--json`, else `wrote OUT (N frames … what)`.
+    fn print(&self, json: bool, what: &str) -> Result<ExitCode> {
+        if json {
+            print_json(self)?;
+        } else {
+            println!(
+                "wrote {} ({} {what})",
+                self.capture.display(),
+                frames_written(self.frames, self.between_frames)
+            );
+        }
+        Ok(ExitCode::SUCCESS)
+    }
+}
+
 pub fn run(c: CaptureCommand) -> Result<ExitCode> {
     match c {
         CaptureCommand::FromVideo(a) => from_video(a),
@@ -623,19 +664,14 @@ pub fn run(c: CaptureCommand) -> Result<ExitCode> {
                 },
                 &a.out,
             )?;
-            if a.json {
-                print_json(&json!({"capture": a.out, "frames": n.keyframes,
-                    "between_frames": n.between, "gt": a.out.join("gt.json")}))?;
-            } else {
-                println!(
-                    "wrote {} ({} of object {} from {}, with gt.json)",
-                    a.out.display(),
-                    frames_written(n.keyframes, n.between),
+            ImportReport::new(&a.out, n.keyframes, n.between).print(
+                a.json,
+                &format!(
+                    "of object {} from {}, with gt.json",
                     a.obj_id,
                     a.scene.display()
-                );
-            }
-            Ok(ExitCode::SUCCESS)
+                ),
+            )
         }
         CaptureCommand::FromHot3d(a) => {
             use agentstar_geom::pose::{quat_from_wxyz, Rigid};
@@ -675,17 +711,15 @@ pub fn run(c: CaptureCommand) -> Result<ExitCode> {
                 },
                 &a.out,
             )?;
-            if a.json {
-                print_json(
-                    &json!({"capture": a.out, "frames": s.frames, "between_frames": s.between,
-                    "skipped": s.skipped, "rendered_masks": s.rendered_masks,
-                    "gt": a.out.join("gt.json")}),
-                )?;
-            } else {
-                println!(
-                    "wrote {} ({} of object {}, {} frames without a pose skipped{}; with gt.json)",
-                    a.out.display(),
-                    frames_written(s.frames, s.between),
+            ImportReport {
+                skipped: Some(s.skipped),
+                rendered_masks: Some(s.rendered_masks),
+                ..ImportReport::new(&a.out, s.frames, s.between)
+            }
+            .print(
+                a.json,
+                &format!(
+                    "of object {}, {} frames without a pose skipped{}; with gt.json",
                     a.object_uid,
                     s.skipped,
                     if s.rendered_masks {
@@ -693,9 +727,8 @@ pub fn run(c: CaptureCommand) -> Result<ExitCode> {
                     } else {
                         ""
                     }
-                );
-            }
-            Ok(ExitCode::SUCCESS)
+                ),
+            )
         }
         CaptureCommand::FromArctic(a) => {
             use agentstar_import::arctic::{import_arctic, ArcticImport};
@@ -719,14 +752,10 @@ pub fn run(c: CaptureCommand) -> Result<ExitCode> {
                 },
                 &a.out,
             )?;
-            if a.json {
-                print_json(&json!({"capture": a.out, "frames": n.keyframes,
-                    "between_frames": n.between, "gt": a.out.join("gt.json")}))?;
-            } else {
-                println!(
-                    "wrote {} ({} of {}/{} from camera {}, with gt.json{})",
-                    a.out.display(),
-                    frames_written(n.keyframes, n.between),
+            ImportReport::new(&a.out, n.keyframes, n.between).print(
+                a.json,
+                &format!(
+                    "of {}/{} from camera {}, with gt.json{}",
                     a.subject,
                     a.sequence,
                     a.camera,
@@ -735,9 +764,8 @@ pub fn run(c: CaptureCommand) -> Result<ExitCode> {
                     } else {
                         ""
                     }
-                );
-            }
-            Ok(ExitCode::SUCCESS)
+                ),
+            )
         }
     }
 }

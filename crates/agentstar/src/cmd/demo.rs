@@ -133,8 +133,8 @@ pub fn run(a: Args) -> Result<ExitCode> {
     println!(
         "  poses:   {} (tracked in {:.1} s, {} evaluations; {:.1} s in all)",
         pose_path.display(),
-        r.seconds,
-        r.evaluations,
+        r.info.seconds,
+        r.info.evaluations,
         total
     );
     println!("  report:  {} (open it in a browser)", report.display());

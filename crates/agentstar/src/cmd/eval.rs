@@ -224,8 +224,8 @@ pub(crate) fn entry_result(
         e.family.as_deref(),
         samples,
     )?;
-    r.seconds = e.seconds.unwrap_or(0.0);
-    r.evaluations = e
+    r.info.seconds = e.seconds.unwrap_or(0.0);
+    r.info.evaluations = e
         .evaluations
         .map_or(0, |n| usize::try_from(n).unwrap_or(usize::MAX));
     Ok((r, report))

@@ -6,7 +6,8 @@
 use crate::common::OpenSession as _;
 use crate::common::{print_json, select_frames, SessionArgs};
 use agentstar_data::history::PoseHistory;
-use agentstar_reports::fit::{ScaleFrame, ScaleMethod, ScaleReport};
+use agentstar_reports::fit::{ScaleFrame, ScaleReport};
+use agentstar_requests::{ScaleMethod, SizeAxis};
 use agentstar_track::scale::{
     ratio_from_depth, ratio_from_hand, ratio_from_parallax, DepthFrame, HandFrame, ParallaxFrame,
     ScaleEstimate, PALM_BREADTH_MEAN_M, PALM_BREADTH_SD_M,
@@ -14,25 +15,6 @@ use agentstar_track::scale::{
 use anyhow::{anyhow, bail, Result};
 use std::path::PathBuf;
 use std::process::ExitCode;
-
-/// A model axis a stated size is measured along.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
-pub enum Axis {
-    X,
-    Y,
-    Z,
-    /// The longest side of the bounding box at rest.
-    Longest,
-}
-
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
-pub enum Method {
-    Depth,
-    Parallax,
-    Size,
-    /// The hands' palm breadth against an adult-hand prior (hand masks, no depth).
-    Hand,
-}
 
 #[derive(clap::Args)]
 #[command(
@@ -43,10 +25,11 @@ pub struct Args {
     session: SessionArgs,
     /// What to measure the scale from.
     #[arg(long = "from", value_enum)]
-    method: Method,
-    /// With --from size: the model axis the size is along.
+    method: ScaleMethod,
+    /// With --from size: the model axis the size is along (`longest`: the longest side of the
+    /// bounding box at rest).
     #[arg(long, value_enum, default_value = "longest")]
-    axis: Axis,
+    axis: SizeAxis,
     /// With --from size: the object's size along --axis, metres.
     #[arg(long)]
     metres: Option<f64>,
@@ -71,7 +54,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
     let mut uncertainty = None;
     let mut palm_px: Vec<f64> = vec![];
     let (method, estimate, weak) = match a.method {
-        Method::Depth => {
+        ScaleMethod::Depth => {
             let mut inputs = vec![];
             for &i in &indices {
                 let (target, depth) = s.target(i)?;
@@ -98,7 +81,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
             let weak = !e.notes.is_empty();
             (ScaleMethod::Depth, e, weak)
         }
-        Method::Parallax => {
+        ScaleMethod::Parallax => {
             let frames: Vec<ParallaxFrame> = indices
                 .iter()
                 .map(|&i| ParallaxFrame {
@@ -116,7 +99,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
             );
             (ScaleMethod::Parallax, e, weak)
         }
-        Method::Size => {
+        ScaleMethod::Size => {
             let metres = a
                 .metres
                 .ok_or_else(|| anyhow!("the size method needs the object's size in metres (`--metres` here, `metres` in the agent's scale tool) along its axis (`--axis` / `axis`)"))?;
@@ -126,10 +109,10 @@ pub fn run(a: Args) -> Result<ExitCode> {
             let m = &s.model.model;
             let extent = m.posed_bounds(&m.tree.rest_states()).extent();
             let units = match a.axis {
-                Axis::X => extent.x,
-                Axis::Y => extent.y,
-                Axis::Z => extent.z,
-                Axis::Longest => extent.max(),
+                SizeAxis::X => extent.x,
+                SizeAxis::Y => extent.y,
+                SizeAxis::Z => extent.z,
+                SizeAxis::Longest => extent.max(),
             };
             if !(units.is_finite() && units > 1e-9) {
                 bail!("the model has no extent along {:?}", a.axis);
@@ -150,7 +133,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
                 false,
             )
         }
-        Method::Hand => {
+        ScaleMethod::Hand => {
             let mut hands = vec![];
             for &i in &indices {
                 if let Some(hand) = s.capture.load_hand(i)? {
@@ -234,12 +217,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
             pf,
             &format!(
                 "scale --from {}: {scale} -> {new_scale:.6} m per unit (translations × {:.6})",
-                match method {
-                    ScaleMethod::Depth => "depth",
-                    ScaleMethod::Parallax => "parallax",
-                    ScaleMethod::Size => "size",
-                    ScaleMethod::Hand => "hand",
-                },
+                method.as_str(),
                 estimate.ratio
             ),
         )?;

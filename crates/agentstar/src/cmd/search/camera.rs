@@ -23,15 +23,8 @@ pub struct SweepArgs {
     /// de | grid
     #[arg(long, default_value = "de")]
     strategy: String,
-    /// Grid steps for DOFs whose range gives none.
-    #[arg(long, default_value_t = 5)]
-    steps: usize,
-    /// Grid refinement passes (each re-centres the windows on the best point).
-    #[arg(long, default_value_t = 1)]
-    refine: usize,
-    /// Factor applied to each window's half-span per refinement pass.
-    #[arg(long, default_value_t = 0.5)]
-    shrink: f64,
+    #[command(flatten)]
+    grid: GridArgs,
     /// Independent DE restarts (seeds seed + i), one winner each.
     #[arg(long, default_value_t = 6)]
     restarts: usize,
@@ -97,11 +90,7 @@ pub fn run_sweep(a: SweepArgs) -> Result<ExitCode> {
     }
     let strategy = match a.strategy.as_str() {
         "de" => Strategy::De,
-        "grid" => Strategy::Grid {
-            default_steps: a.steps,
-            refine: a.refine,
-            shrink: a.shrink,
-        },
+        "grid" => a.grid.strategy(),
         o => bail!("unknown strategy `{o}`; use de or grid"),
     };
     let cfg = SweepConfig {

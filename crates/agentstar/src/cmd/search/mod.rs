@@ -58,6 +58,30 @@ pub struct Common {
     json: bool,
 }
 
+/// A grid search's options, shared by `sweep --strategy grid` and `osweep`.
+#[derive(clap::Args, Clone, Copy)]
+pub struct GridArgs {
+    /// Grid steps for the searched values whose range gives none.
+    #[arg(long, default_value_t = 5)]
+    steps: usize,
+    /// Grid refinement passes (each re-centres the windows on the best point).
+    #[arg(long, default_value_t = 1)]
+    refine: usize,
+    /// Factor applied to each window's half-span per refinement pass.
+    #[arg(long, default_value_t = 0.5)]
+    shrink: f64,
+}
+
+impl GridArgs {
+    fn strategy(self) -> Strategy {
+        Strategy::Grid {
+            default_steps: self.steps,
+            refine: self.refine,
+            shrink: self.shrink,
+        }
+    }
+}
+
 /// One ranked candidate for the report.
 struct Row {
     rank: usize,

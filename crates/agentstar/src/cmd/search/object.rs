@@ -17,15 +17,8 @@ pub struct OsweepArgs {
     /// rotations).
     #[command(flatten)]
     request: requests::OsweepArgs,
-    /// Grid steps for axes whose range gives none.
-    #[arg(long, default_value_t = 5)]
-    steps: usize,
-    /// Grid refinement passes.
-    #[arg(long, default_value_t = 1)]
-    refine: usize,
-    /// Window shrink per refinement pass.
-    #[arg(long, default_value_t = 0.5)]
-    shrink: f64,
+    #[command(flatten)]
+    grid: GridArgs,
     /// Ranked candidates kept per frame.
     #[arg(long, default_value_t = 10)]
     topk: usize,
@@ -178,11 +171,7 @@ pub fn run_osweep(a: OsweepArgs) -> Result<ExitCode> {
             (
                 space,
                 SweepConfig {
-                    strategy: Strategy::Grid {
-                        default_steps: a.steps,
-                        refine: a.refine,
-                        shrink: a.shrink,
-                    },
+                    strategy: a.grid.strategy(),
                     topk: a.topk,
                     ..SweepConfig::default()
                 },
