@@ -555,8 +555,8 @@ pub fn misses_table(results: &[SequenceResult]) -> String {
         let _ = writeln!(
             out,
             "| {} | {} | {} | {} | {} | {} | {worst} |",
-            r.id,
-            r.method,
+            r.info.id,
+            r.info.method,
             m.total(),
             m.search,
             m.colours,
