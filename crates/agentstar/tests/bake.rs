@@ -7,7 +7,7 @@ mod support;
 use agentstar_reports::{BakeReport, ScoreReport};
 use serde_json::json;
 use std::path::{Path, PathBuf};
-use support::{agentstar, json_of, s, text, McpClient};
+use support::{agentstar, init_run, json_of, on_poses, s, text, McpClient};
 
 /// The hard suite's printed mug (8 keyframes, 240×180) in `DIR/cap`, and in `DIR/run` its
 /// true model with the badge painted the mug's colour (an uncoloured model) and its true
@@ -42,16 +42,7 @@ fn uncoloured_mug(dir: &Path) -> (PathBuf, PathBuf, PathBuf) {
 }
 
 fn score(cap: &Path, scene: &Path, poses: &Path) -> ScoreReport {
-    let o = agentstar(&[
-        "score",
-        "--capture",
-        &s(cap),
-        "--model",
-        &s(scene),
-        "--poses",
-        &s(poses),
-        "--json",
-    ]);
+    let o = on_poses("score", &s(cap), &s(scene), &s(poses), &["--json"]);
     serde_json::from_slice(&o.stdout).unwrap_or_else(|e| panic!("{e}: {}", text(&o)))
 }
 
@@ -135,16 +126,7 @@ fn a_bake_from_true_poses_gives_an_uncoloured_mug_its_print_and_score_uses_it() 
         script.replace("cylinder(0.32, 0.8)", "cylinder(0.33, 0.8)"),
     )
     .expect("edit");
-    let o = agentstar(&[
-        "score",
-        "--capture",
-        &s(&cap),
-        "--model",
-        &s(&scene),
-        "--poses",
-        &s(&poses),
-        "--json",
-    ]);
+    let o = on_poses("score", &s(&cap), &s(&scene), &s(&poses), &["--json"]);
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(
         err.contains("scene.bake.json is stale"),
@@ -222,17 +204,7 @@ fn the_bake_tool_writes_beside_the_runs_model_and_refuses_a_model_outside_the_ru
     let dir = tempfile::tempdir().expect("tmp");
     let (cap, scene, _) = uncoloured_mug(dir.path());
     let run = dir.path().join("agent");
-    let o = agentstar(&[
-        "init",
-        &s(&run),
-        "--capture",
-        &s(&cap),
-        "--scene",
-        &s(&scene),
-        "--scale",
-        "0.12",
-    ]);
-    assert!(o.status.success(), "{}", text(&o));
+    init_run(&run, &cap, Some((&scene, "0.12")));
     // The true poses, committed.
     let o = agentstar(&[
         "pose",

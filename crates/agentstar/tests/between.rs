@@ -9,7 +9,7 @@ mod support;
 
 use serde_json::Value;
 use std::path::Path;
-use support::{agentstar, json_of, s, text};
+use support::{agentstar, json_of, on_poses, s, text};
 
 /// Copies the PNG files of `from` into `to` (a new folder).
 fn copy_pngs(from: &Path, to: &Path) {
@@ -155,16 +155,13 @@ fn a_clip_with_in_between_frames_goes_from_video_to_report() {
         warm["log"]
     );
     // Keyframe tools read the keyframes' poses and leave the in-between ones alone.
-    let o = agentstar(&[
+    let o = on_poses(
         "score",
-        "--capture",
         &s(&p("cap")),
-        "--model",
         &model,
-        "--poses",
         &s(&p("run/pose.json")),
-        "--json",
-    ]);
+        &["--json"],
+    );
     let scored: Value = json_of(&o);
     assert_eq!(
         scored["frames"].as_array().map(Vec::len),
@@ -197,16 +194,7 @@ fn a_clip_with_in_between_frames_goes_from_video_to_report() {
         let args: Vec<&str> = args.iter().map(String::as_str).collect();
         let o = agentstar(&args);
         assert!(o.status.success(), "track ({label}): {}", text(&o));
-        let o = agentstar(&[
-            "eval",
-            "--capture",
-            &s(&p("clip")),
-            "--model",
-            &model,
-            "--poses",
-            &s(&out),
-            "--json",
-        ]);
+        let o = on_poses("eval", &s(&p("clip")), &model, &s(&out), &["--json"]);
         assert!(o.status.success(), "eval ({label}): {}", text(&o));
         let e: Value = json_of(&o);
         assert_eq!(e["frames"], 5, "{e}");

@@ -5,7 +5,7 @@
 mod support;
 
 use agentstar_reports::ScoreReport;
-use support::{agentstar, s, small_run, text};
+use support::{agentstar, on_poses, s, small_run, text};
 
 #[test]
 fn frames_are_selected_by_names_stems_numbers_and_ranges() {
@@ -13,18 +13,13 @@ fn frames_are_selected_by_names_stems_numbers_and_ranges() {
     small_run(dir.path(), 3, true);
     let (cap, run) = (dir.path().join("cap"), dir.path().join("run"));
     let score = |spec: &str| {
-        agentstar(&[
+        on_poses(
             "score",
-            "--capture",
             &s(&cap),
-            "--model",
             &s(&run.join("scene.rhai")),
-            "--poses",
             &s(&run.join("pose.json")),
-            "--frames",
-            spec,
-            "--json",
-        ])
+            &["--frames", spec, "--json"],
+        )
     };
     let names = |spec: &str| -> Vec<String> {
         let o = score(spec);

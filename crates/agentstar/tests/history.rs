@@ -13,7 +13,7 @@ use agentstar_reports::{
 use serde_json::json;
 use std::collections::BTreeSet;
 use std::path::Path;
-use support::{agentstar, json_of, ledger, s, small_run, text, McpClient};
+use support::{agentstar, json_of, ledger, on_poses, s, small_run, text, McpClient};
 
 fn translation(pf: &PoseFile, frame: &str) -> [f64; 3] {
     pf.frames[frame]
@@ -69,20 +69,13 @@ fn a_track_is_a_version_and_frames_restore_commit_and_follow_across_versions() {
 
     // One rotation for every frame, committed: version 2, every frame moved.
     let out = s(&run.join("images/rot"));
-    let o = agentstar(&[
+    let o = on_poses(
         "oapply-all",
-        "--capture",
         &s(&cap),
-        "--model",
         &model,
-        "--poses",
         &poses,
-        "--out",
-        &out,
-        "--rotation",
-        "rz:40",
-        "--json",
-    ]);
+        &["--out", &out, "--rotation", "rz:40", "--json"],
+    );
     let rotated: SearchReport = json_of(&o);
     assert_eq!(rotated.frames.len(), 4);
     let report = s(&run.join("images/rot/oapply_all.json"));

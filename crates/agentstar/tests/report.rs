@@ -4,7 +4,7 @@
 mod support;
 
 use std::path::Path;
-use support::{agentstar, synth_box, text};
+use support::{agentstar, json_of, synth_box, text};
 
 /// A headless Chromium, where one is installed (`.ci/run` installs Debian's `chromium` and
 /// sets `AGENTSTAR_REQUIRE_CHROMIUM=1`, which turns its absence into a failure).
@@ -99,15 +99,13 @@ fn the_demo_report_is_self_contained_and_renders_in_headless_chromium() {
     l.push_str("{\"step\": 99, \"ti");
     std::fs::write(&ledger, l).expect("write");
     let page2 = dir.path().join("again.html");
-    let o = agentstar(&[
+    let v: serde_json::Value = json_of(&agentstar(&[
         "report",
         run.to_str().expect("utf8"),
         "--out",
         page2.to_str().expect("utf8"),
         "--json",
-    ]);
-    assert!(o.status.success(), "{}", text(&o));
-    let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("json");
+    ]));
     assert_eq!(v["frames"], 4);
     assert!(
         v["ground_truth"]

@@ -8,7 +8,7 @@ use agentstar_reports::fit::FitReport;
 use agentstar_reports::ScoreReport;
 use serde_json::json;
 use std::path::Path;
-use support::{agentstar, s, score_of, text, McpClient};
+use support::{agentstar, init_run, on_poses, s, score_of, text, McpClient};
 
 /// The synthetic box (`agentstar synth --object box`) with its proportions as parameters:
 /// the true values are width 1.0, depth 0.7, body height 0.48.
@@ -45,17 +45,7 @@ fn run_with(dir: &Path, frames: usize, script: &str) -> (std::path::PathBuf, std
     assert!(o.status.success(), "{}", text(&o));
     let scene = dir.join("start.rhai");
     std::fs::write(&scene, script).expect("write scene");
-    let o = agentstar(&[
-        "init",
-        &s(&run),
-        "--capture",
-        &s(&cap),
-        "--scene",
-        &s(&scene),
-        "--scale",
-        "0.24",
-    ]);
-    assert!(o.status.success(), "{}", text(&o));
+    init_run(&run, &cap, Some((&scene, "0.24")));
     std::fs::copy(cap.join("model/pose.json"), run.join("pose.json")).expect("true poses");
     (cap, run)
 }
@@ -85,19 +75,18 @@ fn fit_shape_recovers_two_wrong_proportions_and_holds_the_rest() {
     // Depth 15% short, body height 20% tall; the width is right.
     let (cap, run) = run_with(dir.path(), 6, &box_script("1.0", "0.595", "0.576"));
     // A parameter the script does not declare is named, with those it does.
-    let o = agentstar(&[
+    let o = on_poses(
         "fit-shape",
-        "--capture",
         &s(&cap),
-        "--model",
         &s(&run.join("scene.rhai")),
-        "--poses",
         &s(&run.join("pose.json")),
-        "--params",
-        "depth,lenght",
-        "--out",
-        &s(&dir.path().join("x")),
-    ]);
+        &[
+            "--params",
+            "depth,lenght",
+            "--out",
+            &s(&dir.path().join("x")),
+        ],
+    );
     assert!(!o.status.success());
     assert!(
         text(&o).contains("no parameter `lenght`") && text(&o).contains("width, depth, height"),
@@ -486,18 +475,13 @@ fn scale_comes_back_from_the_hands_within_its_stated_uncertainty() {
     let wrong = dir.path().join("wrong.json");
     let truth = rescaled(&cap.join("model/pose.json"), 0.6, &wrong);
     let scale_cli = |cap: &Path, poses: &Path, model: &Path| {
-        agentstar(&[
+        on_poses(
             "scale",
-            "--capture",
             &s(cap),
-            "--model",
             &s(model),
-            "--poses",
             &s(poses),
-            "--from",
-            "hand",
-            "--json",
-        ])
+            &["--from", "hand", "--json"],
+        )
     };
     let o = scale_cli(&cap, &wrong, &model);
     assert!(o.status.success(), "{}", text(&o));

@@ -3,7 +3,7 @@
 mod support;
 
 use agentstar_reports::{EvalReport, ScoreReport, TrackReport};
-use support::{agentstar, eval_of, example, score_of, text, track_known};
+use support::{agentstar, eval_of, example, json_of, on_poses, score_of, text, track_known};
 
 #[test]
 fn eval_scores_ground_truth_as_zero_and_tracking_as_small() {
@@ -29,17 +29,13 @@ fn eval_scores_ground_truth_as_zero_and_tracking_as_small() {
         "{v:?}"
     );
     // A missing ground truth is named.
-    let o = agentstar(&[
+    let o = on_poses(
         "eval",
-        "--capture",
         &cap,
-        "--model",
         &model,
-        "--poses",
         &tracked,
-        "--gt",
-        "/nonexistent/gt.json",
-    ]);
+        &["--gt", "/nonexistent/gt.json"],
+    );
     assert_eq!(o.status.code(), Some(2));
     assert!(text(&o).contains("/nonexistent/gt.json"), "{}", text(&o));
 }
@@ -48,7 +44,7 @@ fn eval_scores_ground_truth_as_zero_and_tracking_as_small() {
 fn synth_writes_a_valid_capture_whose_truth_scores_perfectly() {
     let dir = tempfile::tempdir().expect("tmp");
     let out = dir.path().join("cab");
-    let o = agentstar(&[
+    let v: serde_json::Value = json_of(&agentstar(&[
         "synth",
         out.to_str().expect("utf8"),
         "--object",
@@ -60,9 +56,7 @@ fn synth_writes_a_valid_capture_whose_truth_scores_perfectly() {
         "--seed",
         "5",
         "--json",
-    ]);
-    assert!(o.status.success(), "{}", text(&o));
-    let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("json");
+    ]));
     assert_eq!(v["motion"], "static-orbit");
     let cap = out.display().to_string();
     let o = agentstar(&["validate", &cap, "--json"]);
@@ -163,9 +157,8 @@ fn synth_writes_a_valid_capture_whose_truth_scores_perfectly() {
 fn demo_tracks_and_evaluates_the_built_in_capture() {
     let dir = tempfile::tempdir().expect("tmp");
     let out = dir.path().join("demo");
-    let o = agentstar(&["demo", out.to_str().expect("utf8"), "--json"]);
-    assert!(o.status.success(), "{}", text(&o));
-    let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("json");
+    let v: serde_json::Value =
+        json_of(&agentstar(&["demo", out.to_str().expect("utf8"), "--json"]));
     assert!(v["result"]["epe_cm"].as_f64().expect("epe") < 1.0, "{v}");
     assert!(v["result"]["iou_mean"].as_f64().expect("iou") > 0.97, "{v}");
     assert!(out.join("run/pose.json").is_file() && out.join("capture/gt.json").is_file());

@@ -4,7 +4,7 @@
 mod support;
 
 use std::path::Path;
-use support::{agentstar, example, text, track_known};
+use support::{agentstar, example, on_poses, text, track_known};
 
 fn read_json(p: &Path) -> serde_json::Value {
     serde_json::from_slice(&std::fs::read(p).expect("read")).expect("json")
@@ -173,17 +173,13 @@ fn a_stopped_track_leaves_its_poses_so_far_and_a_finished_one_removes_them() {
         let flags = moved_flags(&kept);
         assert_eq!(flags.len(), 6, "{kept}");
         assert!(flags.iter().any(|f| f.1), "no frame tracked: {flags:?}");
-        let o = agentstar(&[
+        let o = on_poses(
             "score",
-            "--capture",
             &cap,
-            "--model",
             &model,
-            "--poses",
             partial.to_str().expect("utf8"),
-            "--no-appearance",
-            "--json",
-        ]);
+            &["--no-appearance", "--json"],
+        );
         // (It exits 1 when frames are under the gate, as the carried ones are.)
         let scored: serde_json::Value =
             serde_json::from_slice(&o.stdout).unwrap_or_else(|e| panic!("{e}: {}", text(&o)));

@@ -3,7 +3,7 @@
 mod support;
 
 use std::path::Path;
-use support::{agentstar, text};
+use support::{agentstar, json_of, text};
 
 /// `ffmpeg`, where installed (`.ci/run` installs it and sets `AGENTSTAR_REQUIRE_FFMPEG=1`,
 /// which turns its absence into a failure).
@@ -68,7 +68,7 @@ fn a_video_file_imports_through_ffmpeg_frame_for_frame() {
         "{}",
         String::from_utf8_lossy(&ff.stderr)
     );
-    let o = agentstar(&[
+    let v: serde_json::Value = json_of(&agentstar(&[
         "capture",
         "from-video",
         &s(&p("clip.mkv")),
@@ -81,9 +81,7 @@ fn a_video_file_imports_through_ffmpeg_frame_for_frame() {
         "--out",
         &s(&p("cap")),
         "--json",
-    ]);
-    assert!(o.status.success(), "{}", text(&o));
-    let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("json");
+    ]));
     assert_eq!(v["frames"], 4);
     // A video's frames are named by their index in it: nothing was assumed.
     assert_eq!(v["notes"], serde_json::json!([]), "{v}");
