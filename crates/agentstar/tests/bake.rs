@@ -7,25 +7,18 @@ mod support;
 use agentstar_reports::{BakeReport, ScoreReport};
 use serde_json::json;
 use std::path::{Path, PathBuf};
-use support::{agentstar, init_run, json_of, on_poses, s, text, McpClient};
+use support::{agentstar, init_run, json_of, on_poses, s, synth_object, text, McpClient};
 
 /// The hard suite's printed mug (8 keyframes, 240×180) in `DIR/cap`, and in `DIR/run` its
 /// true model with the badge painted the mug's colour (an uncoloured model) and its true
 /// poses.
 fn uncoloured_mug(dir: &Path) -> (PathBuf, PathBuf, PathBuf) {
     let cap = dir.join("cap");
-    let o = agentstar(&[
-        "synth",
+    let o = synth_object(
         &s(&cap),
-        "--object",
         "printmug",
-        "--frames",
-        "8",
-        "--size",
-        "240x180",
-        "--seed",
-        "1",
-    ]);
+        &["--frames", "8", "--size", "240x180", "--seed", "1"],
+    );
     assert!(o.status.success(), "{}", text(&o));
     let run = dir.join("run");
     std::fs::create_dir_all(&run).expect("run");

@@ -9,7 +9,7 @@ mod support;
 
 use serde_json::Value;
 use std::path::Path;
-use support::{agentstar, json_of, on_poses, s, text};
+use support::{agentstar, json_of, on_poses, s, synth_object, text};
 
 /// Copies the PNG files of `from` into `to` (a new folder).
 fn copy_pngs(from: &Path, to: &Path) {
@@ -49,23 +49,23 @@ fn a_clip_with_in_between_frames_goes_from_video_to_report() {
     let dir = tempfile::tempdir().expect("tmp");
     let p = |n: &str| dir.path().join(n);
     // 5 keyframes 5 video frames apart, the 4 frames between each pair kept: 21 frames.
-    let o = agentstar(&[
-        "synth",
+    let o = synth_object(
         &s(&p("clip")),
-        "--object",
         "box",
-        "--motion",
-        "handheld",
-        "--frames",
-        "5",
-        "--size",
-        "160x120",
-        "--seed",
-        "3",
-        "--between",
-        "4",
-        "--no-depth",
-    ]);
+        &[
+            "--motion",
+            "handheld",
+            "--frames",
+            "5",
+            "--size",
+            "160x120",
+            "--seed",
+            "3",
+            "--between",
+            "4",
+            "--no-depth",
+        ],
+    );
     assert!(o.status.success(), "synth: {}", text(&o));
     let v = json_of::<Value>(&agentstar(&["validate", &s(&p("clip")), "--json"]));
     assert_eq!(v["valid"], true, "{v}");
@@ -216,33 +216,26 @@ fn a_clip_with_in_between_frames_goes_from_video_to_report() {
 fn bad_in_between_options_are_refused_with_messages() {
     let dir = tempfile::tempdir().expect("tmp");
     let p = |n: &str| dir.path().join(n);
-    let o = agentstar(&[
-        "synth",
+    let o = synth_object(
         &s(&p("clip")),
-        "--object",
         "box",
-        "--frames",
-        "3",
-        "--size",
-        "64x48",
-        "--between",
-        "60",
-    ]);
+        &["--frames", "3", "--size", "64x48", "--between", "60"],
+    );
     assert!(!o.status.success());
     assert!(text(&o).contains("between must be 0 to 59"), "{}", text(&o));
-    let o = agentstar(&[
-        "synth",
+    let o = synth_object(
         &s(&p("clip")),
-        "--object",
         "box",
-        "--frames",
-        "3",
-        "--size",
-        "64x48",
-        "--between",
-        "2",
-        "--no-depth",
-    ]);
+        &[
+            "--frames",
+            "3",
+            "--size",
+            "64x48",
+            "--between",
+            "2",
+            "--no-depth",
+        ],
+    );
     assert!(o.status.success(), "{}", text(&o));
     copy_pngs(&p("clip/frames"), &p("frames"));
     copy_pngs(&p("clip/mask_object"), &p("masks"));

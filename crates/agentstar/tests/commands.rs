@@ -161,20 +161,14 @@ fn example_and_every_subcommand_on_it() {
     }
 
     let tt = dir.path().join("tt");
-    let v: serde_json::Value = json_of(&agentstar(&[
-        "turntable",
-        "--model",
-        &model,
-        "--capture",
-        &cap,
-        "--poses",
-        &poses,
-        "--out",
-        tt.to_str().expect("utf8"),
-        "--size",
-        "96",
-        "--json",
-    ]));
+    // `turntable … --out TT --size 96 ARGS… --json`, its report.
+    let turntable = |args: &[&str]| -> serde_json::Value {
+        let mut all = vec!["--out", tt.to_str().expect("utf8"), "--size", "96"];
+        all.extend_from_slice(args);
+        all.push("--json");
+        json_of(&on_poses("turntable", &cap, &model, &poses, &all))
+    };
+    let v = turntable(&[]);
     // Every frame of the example has its own lid angle: by default the lid's minimum,
     // median and maximum, one sheet each, and no single views.
     let labels: Vec<&str> = v["states"]
@@ -191,23 +185,7 @@ fn example_and_every_subcommand_on_it() {
     assert!(tt.join("turntable_sheet_median.png").is_file());
     assert!(!tt.join("turntable_min_az000_el+20.png").exists());
     // Every distinct state, with the single views, on request.
-    let v: serde_json::Value = json_of(&agentstar(&[
-        "turntable",
-        "--model",
-        &model,
-        "--capture",
-        &cap,
-        "--poses",
-        &poses,
-        "--out",
-        tt.to_str().expect("utf8"),
-        "--size",
-        "96",
-        "--states",
-        "all",
-        "--each",
-        "--json",
-    ]));
+    let v = turntable(&["--states", "all", "--each"]);
     assert_eq!(v["states"].as_array().expect("states").len(), 6);
     assert!(tt.join("turntable_000000_az000_el+20.png").is_file());
     // States given outright, without poses (a shape checked before tracking); a state past

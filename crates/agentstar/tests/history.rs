@@ -86,18 +86,22 @@ fn a_track_is_a_version_and_frames_restore_commit_and_follow_across_versions() {
     let v2 = PoseFile::read(Path::new(&poses)).expect("v2");
     assert_ne!(quaternion(&v2, "000005.png"), quaternion(&v1, "000005.png"));
 
+    // `pose restore --poses POSES --version 1 --frames FRAMES --json`, its report.
+    let restore_from_1 = |frames: &str| -> RestoreReport {
+        json_of(&agentstar(&[
+            "pose",
+            "restore",
+            "--poses",
+            &poses,
+            "--version",
+            "1",
+            "--frames",
+            frames,
+            "--json",
+        ]))
+    };
     // Frame 000005 back from version 1, by its stem: the other frames keep version 2.
-    let r: RestoreReport = json_of(&agentstar(&[
-        "pose",
-        "restore",
-        "--poses",
-        &poses,
-        "--version",
-        "1",
-        "--frames",
-        "000005",
-        "--json",
-    ]));
+    let r = restore_from_1("000005");
     assert_eq!(
         (r.frames.as_slice(), r.version),
         (&["000005.png".to_string()][..], 3)
@@ -115,17 +119,7 @@ fn a_track_is_a_version_and_frames_restore_commit_and_follow_across_versions() {
         assert_eq!(v3.frames[f], v2.frames[f], "{f} changed");
     }
     // A range restores a set of frames with the same grammar.
-    let r: RestoreReport = json_of(&agentstar(&[
-        "pose",
-        "restore",
-        "--poses",
-        &poses,
-        "--version",
-        "1",
-        "--frames",
-        "000010..000015",
-        "--json",
-    ]));
+    let r = restore_from_1("000010..000015");
     assert_eq!(r.frames, ["000010.png", "000015.png"]);
     assert_eq!(r.version, 4);
     let v4 = PoseFile::read(Path::new(&poses)).expect("v4");

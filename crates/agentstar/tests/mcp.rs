@@ -12,8 +12,8 @@ use serde_json::{json, Value};
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
 use support::{
-    agentstar, init_run, ledger, ledger_tools, on_poses, s, shifted_poses, small_run, text,
-    McpClient,
+    agentstar, init_run, ledger, ledger_tools, on_poses, s, shifted_poses, small_run, synth_object,
+    text, McpClient,
 };
 
 /// A valid value for each argument a test call gives, by tool and property. The report
@@ -421,18 +421,11 @@ fn assert_compare_colours_are_the_legend(
 fn images_of_a_large_capture_keep_the_limits() {
     let dir = tempfile::tempdir().expect("tmp");
     let (cap, run) = (dir.path().join("cap"), dir.path().join("run"));
-    let o = agentstar(&[
-        "synth",
+    let o = synth_object(
         &s(&cap),
-        "--object",
         "box",
-        "--frames",
-        "2",
-        "--seed",
-        "7",
-        "--size",
-        "1600x1200",
-    ]);
+        &["--frames", "2", "--seed", "7", "--size", "1600x1200"],
+    );
     assert!(o.status.success(), "{}", text(&o));
     init_run(&run, &cap, Some((&cap.join("model/scene.rhai"), "0.24")));
     let (mut c, _) = McpClient::initialised(&run);

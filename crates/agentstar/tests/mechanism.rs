@@ -8,7 +8,7 @@ mod support;
 use agentstar_reports::mechanism::{ArmLabel, MechanismReport};
 use serde_json::{json, Value};
 use std::path::Path;
-use support::{agentstar, json_of, on_poses, s, small_run, McpClient};
+use support::{agentstar, json_of, on_poses, s, small_run, small_run_at_truth, McpClient};
 
 /// A client that numbers its own requests.
 struct Session {
@@ -78,14 +78,8 @@ fn mechanism_lines(finish: &Value) -> Vec<String> {
 #[test]
 fn a_mirrored_hinge_is_caught_by_the_blind_arms_and_finish_names_the_sign() {
     let dir = tempfile::tempdir().expect("tmp");
-    small_run(dir.path(), 3, true);
-    let run = dir.path().join("run");
     // The capture's poses: the lid opens over the keyframes.
-    std::fs::copy(
-        dir.path().join("cap/model/pose.json"),
-        run.join("pose.json"),
-    )
-    .expect("poses");
+    let run = small_run_at_truth(dir.path(), 3);
     let known = std::fs::read_to_string(run.join("scene.rhai")).expect("scene");
     assert!(known.contains("axis: [-1, 0, 0]"), "{known}");
     let mut c = Session::new(&run);

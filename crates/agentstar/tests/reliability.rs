@@ -8,7 +8,9 @@ use std::path::Path;
 use std::process::{Command, Output, Stdio};
 use std::time::{Duration, Instant};
 use support::model::{malformed_tool_call, mock_model, model_run, tool_calls, Act};
-use support::{agentstar, assert_failed_saying, init_run, ledger, s, shifted_poses, text};
+use support::{
+    agentstar, assert_failed_saying, init_run, ledger, s, shifted_poses, synth_object, text,
+};
 
 /// Runs and waits at most `limit`, killing the command past it (a hang fails the test
 /// instead of stalling the suite).
@@ -35,19 +37,19 @@ fn agentstar_within(args: &[&str], limit: Duration) -> Option<Output> {
 
 fn synth(out: &Path, frames: usize) {
     let n = frames.to_string();
-    let o = agentstar(&[
-        "synth",
+    let o = synth_object(
         &s(out),
-        "--object",
         "box",
-        "--frames",
-        &n,
-        "--size",
-        "64x48",
-        "--no-hands",
-        "--seed",
-        "7",
-    ]);
+        &[
+            "--frames",
+            &n,
+            "--size",
+            "64x48",
+            "--no-hands",
+            "--seed",
+            "7",
+        ],
+    );
     assert!(o.status.success(), "{}", text(&o));
 }
 

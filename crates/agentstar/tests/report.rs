@@ -4,7 +4,7 @@
 mod support;
 
 use std::path::Path;
-use support::{agentstar, json_of, synth_box, text};
+use support::{agentstar, json_of, on_poses, synth_box, text};
 
 /// A headless Chromium, where one is installed (`.ci/run` installs Debian's `chromium` and
 /// sets `AGENTSTAR_REQUIRE_CHROMIUM=1`, which turns its absence into a failure).
@@ -241,16 +241,12 @@ fn the_readme_walk_through_goes_from_frames_and_masks_to_a_report() {
         .expect("mean IoU in the summary");
     assert!(mean > 0.95, "tracked mean IoU {mean}");
     // 5. The motion for a simulator.
-    let o = agentstar(&[
+    let o = on_poses(
         "export",
-        "--model",
-        &s(&p("run/scene.rhai")),
-        "--capture",
         &s(&p("cap")),
-        "--poses",
+        &s(&p("run/scene.rhai")),
         &s(&p("run/pose.json")),
-        "--animated-glb",
-        &s(&p("run/motion.glb")),
-    ]);
+        &["--animated-glb", &s(&p("run/motion.glb"))],
+    );
     assert!(o.status.success(), "{}", text(&o));
 }

@@ -23,6 +23,18 @@ fn angle_deg(a: [f64; 4], b: [f64; 4]) -> f64 {
     2.0 * dot.abs().min(1.0).acos().to_degrees()
 }
 
+/// The frame names of a pose file read as JSON, sorted.
+fn frame_names(poses: &serde_json::Value) -> Vec<String> {
+    let mut names: Vec<String> = poses["frames"]
+        .as_object()
+        .expect("frames")
+        .keys()
+        .cloned()
+        .collect();
+    names.sort();
+    names
+}
+
 #[test]
 fn track_from_keeps_anchors_and_repairs_a_flipped_block() {
     let dir = tempfile::tempdir().expect("tmp");
@@ -30,13 +42,7 @@ fn track_from_keeps_anchors_and_repairs_a_flipped_block() {
     let tracked = dir.path().join("tracked.json");
     let _: serde_json::Value = track_known(&cap, &model, &poses, &tracked);
     let good = read_json(&tracked);
-    let mut names: Vec<String> = good["frames"]
-        .as_object()
-        .expect("frames")
-        .keys()
-        .cloned()
-        .collect();
-    names.sort();
+    let names = frame_names(&good);
     assert_eq!(names.len(), 6);
     // Frames 3 and 4 turned end for end: q · (0, 0, 0, 1), a half turn about the canonical z.
     let mut bad = good.clone();
@@ -247,13 +253,7 @@ fn track_over_mcp_names_frames_it_moves_to_another_basin_and_keep_basins_keeps_t
         &scale,
     ]);
     assert!(o.status.success(), "{}", text(&o));
-    let mut names: Vec<String> = truth["frames"]
-        .as_object()
-        .expect("frames")
-        .keys()
-        .cloned()
-        .collect();
-    names.sort();
+    let names = frame_names(&truth);
     let turned = &names[3];
     let mut bad = truth.clone();
     let [w, x, y, z] = quaternion(&truth, turned);

@@ -3,7 +3,7 @@
 mod support;
 
 use std::path::Path;
-use support::{agentstar, json_of, text};
+use support::{agentstar, json_of, synth_object, text};
 
 /// `ffmpeg`, where installed (`.ci/run` installs it and sets `AGENTSTAR_REQUIRE_FFMPEG=1`,
 /// which turns its absence into a failure).
@@ -30,18 +30,11 @@ fn a_video_file_imports_through_ffmpeg_frame_for_frame() {
     let dir = tempfile::tempdir().expect("tmp");
     let p = |n: &str| dir.path().join(n);
     let s = |path: &Path| path.to_str().expect("utf8").to_string();
-    let o = agentstar(&[
-        "synth",
+    let o = synth_object(
         &s(&p("clip")),
-        "--object",
         "mug",
-        "--frames",
-        "4",
-        "--size",
-        "160x120",
-        "--seed",
-        "2",
-    ]);
+        &["--frames", "4", "--size", "160x120", "--seed", "2"],
+    );
     assert!(o.status.success(), "{}", text(&o));
     let clip = agentstar_data::capture::Capture::open(&p("clip")).expect("clip");
     // The frames as a lossless video; the masks as a segmenter names them (by the frame's

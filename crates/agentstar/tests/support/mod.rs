@@ -103,20 +103,11 @@ pub fn score_of<T: serde::de::DeserializeOwned>(
     poses: &str,
     frames: Option<&str>,
 ) -> T {
-    let mut args = vec![
-        "score",
-        "--capture",
-        cap,
-        "--model",
-        model,
-        "--poses",
-        poses,
-        "--json",
-    ];
+    let mut args = vec!["--json"];
     if let Some(f) = frames {
         args.extend(["--frames", f]);
     }
-    let o = agentstar(&args);
+    let o = on_poses("score", cap, model, poses, &args);
     serde_json::from_slice(&o.stdout).unwrap_or_else(|e| panic!("{e}: {}", text(&o)))
 }
 
@@ -129,38 +120,31 @@ pub fn eval_of<T: serde::de::DeserializeOwned>(
     samples: usize,
 ) -> T {
     let n = samples.to_string();
-    json_of(&agentstar(&[
+    json_of(&on_poses(
         "eval",
-        "--capture",
         cap,
-        "--model",
         model,
-        "--poses",
         poses,
-        "--samples",
-        &n,
-        "--json",
-    ]))
+        &["--samples", &n, "--json"],
+    ))
+}
+
+/// `agentstar synth OUT --object OBJECT ARGS…` run to completion.
+pub fn synth_object(out: &str, object: &str, args: &[&str]) -> Output {
+    let mut all = vec!["synth", out, "--object", object];
+    all.extend_from_slice(args);
+    agentstar(&all)
 }
 
 /// The hand-held box with hands, seed 7 (the demo's clip), `frames` keyframes, at 160×120
 /// when `small` (else 320×240), written to `out`.
 pub fn synth_box(out: &Path, frames: usize, small: bool) {
     let n = frames.to_string();
-    let mut args = vec![
-        "synth",
-        out.to_str().expect("utf8"),
-        "--object",
-        "box",
-        "--frames",
-        &n,
-        "--seed",
-        "7",
-    ];
+    let mut args = vec!["--frames", &n, "--seed", "7"];
     if small {
         args.extend(["--size", "160x120"]);
     }
-    let o = agentstar(&args);
+    let o = synth_object(path_str(out), "box", &args);
     assert!(o.status.success(), "{}", text(&o));
 }
 
@@ -171,6 +155,15 @@ pub fn small_run(dir: &Path, frames: usize, known_scene: bool) {
     synth_box(&cap, frames, true);
     let scene = cap.join("model/scene.rhai");
     init_run(&run, &cap, known_scene.then_some((scene.as_path(), "0.24")));
+}
+
+/// `small_run` from the known scene, with the capture's true poses copied into the run's
+/// `pose.json`; returns the run.
+pub fn small_run_at_truth(dir: &Path, frames: usize) -> PathBuf {
+    small_run(dir, frames, true);
+    let run = dir.join("run");
+    std::fs::copy(dir.join("cap/model/pose.json"), run.join("pose.json")).expect("true poses");
+    run
 }
 
 /// `agentstar init RUN --capture CAP [--scene SCENE --scale SCALE]`, asserting that it
