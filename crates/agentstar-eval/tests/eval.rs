@@ -1,5 +1,7 @@
 //! Sequence metrics on constructed cases with known answers.
 
+mod numpy;
+
 use agentstar_eval::sequence::{evaluate, EvalConfig, GtJoint, GtSequence, PredSequence};
 use agentstar_geom::kinematics::{JointDef, JointKind};
 use agentstar_geom::pose::{GenPose, ObjectPose, Similarity};
@@ -230,14 +232,7 @@ fn monocular_scale_is_aligned_and_joints_match_by_geometry() {
 #[test]
 fn rigid_errors_match_an_independent_numpy_implementation() {
     use agentstar_eval::rigid::gauge_aligned_errors;
-    use std::io::Write;
-    let has_numpy = std::process::Command::new("python3")
-        .args(["-c", "import numpy"])
-        .output()
-        .map(|o| o.status.success())
-        .unwrap_or(false);
-    if !has_numpy {
-        eprintln!("python3 with numpy not found: the numpy cross-check did not run");
+    if !numpy::has_numpy() {
         return;
     }
     let f = frames();
@@ -269,27 +264,7 @@ fn rigid_errors_match_an_independent_numpy_implementation() {
         ]
     };
     let input = serde_json::json!({"gt": gt.iter().map(row).collect::<Vec<_>>(), "pred": pred.iter().map(row).collect::<Vec<_>>(), "pred_scale": 0.4, "depth_scale": 1.7});
-    let script =
-        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scripts/crosscheck_rigid.py");
-    let mut child = std::process::Command::new("python3")
-        .arg(script)
-        .stdin(std::process::Stdio::piped())
-        .stdout(std::process::Stdio::piped())
-        .spawn()
-        .expect("python3");
-    child
-        .stdin
-        .take()
-        .expect("stdin")
-        .write_all(input.to_string().as_bytes())
-        .expect("write");
-    let out = child.wait_with_output().expect("run");
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let theirs: serde_json::Value = serde_json::from_slice(&out.stdout).expect("json");
+    let theirs = numpy::crosscheck("crosscheck_rigid.py", &input);
     for (k, (a, b)) in ours
         .rotation_deg
         .iter()
