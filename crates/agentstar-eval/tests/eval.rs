@@ -2,7 +2,9 @@
 
 mod numpy;
 
-use agentstar_eval::sequence::{evaluate, EvalConfig, GtJoint, GtSequence, PredSequence};
+use agentstar_eval::sequence::{
+    evaluate, EvalConfig, GtJoint, GtSequence, PredSequence, SequenceMetrics,
+};
 use agentstar_geom::kinematics::{JointDef, JointKind};
 use agentstar_geom::pose::{GenPose, ObjectPose, Similarity};
 use agentstar_geom::primitives::cuboid;
@@ -96,25 +98,37 @@ fn camera() -> PinholeCamera {
     PinholeCamera::new(200.0, 200.0, 80.0, 60.0, 160, 120).expect("camera")
 }
 
+/// `gt` evaluated against `model` at `scale` and `poses`, seen by `camera()` in every frame,
+/// with `samples` surface samples for Chamfer.
+fn evaluated(
+    gt: &GtSequence,
+    model: &ObjectModel,
+    scale: f64,
+    poses: Vec<GenPose>,
+    samples: usize,
+) -> SequenceMetrics {
+    let cams = vec![camera(); poses.len()];
+    evaluate(
+        gt,
+        &PredSequence {
+            model,
+            scale,
+            poses,
+        },
+        &cams,
+        &EvalConfig {
+            samples,
+            ..Default::default()
+        },
+    )
+}
+
 #[test]
 fn a_perfect_prediction_scores_zero() {
     let m = model();
     let f = frames();
     let gt = ground_truth(&m, 0.3, &f);
-    let cams = vec![camera(); f.len()];
-    let r = evaluate(
-        &gt,
-        &PredSequence {
-            model: &m,
-            scale: 0.3,
-            poses: f.clone(),
-        },
-        &cams,
-        &EvalConfig {
-            samples: 3000,
-            ..Default::default()
-        },
-    );
+    let r = evaluated(&gt, &m, 0.3, f.clone(), 3000);
     assert!(
         (r.scale_alignment - 1.0).abs() < 1e-5,
         "{}",
@@ -126,19 +140,7 @@ fn a_perfect_prediction_scores_zero() {
     let floor = r.chamfer_cm.expect("cd");
     assert!(floor > 0.0 && floor < 0.5, "{floor}");
     assert!(r.cd_moving_cm.expect("cd") < 0.5 && r.cd_static_cm.expect("cd") < 0.5);
-    let r4 = evaluate(
-        &gt,
-        &PredSequence {
-            model: &m,
-            scale: 0.3,
-            poses: f.clone(),
-        },
-        &cams,
-        &EvalConfig {
-            samples: 12_000,
-            ..Default::default()
-        },
-    );
+    let r4 = evaluated(&gt, &m, 0.3, f.clone(), 12_000);
     let ratio = r4.chamfer_cm.expect("cd") / floor;
     assert!(
         (0.35..0.65).contains(&ratio),
@@ -180,20 +182,7 @@ fn monocular_scale_is_aligned_and_joints_match_by_geometry() {
         ..m.tree.joints()[0].clone()
     };
     renamed.tree = KinematicTree::new(vec![hinge], &["base".into(), "top".into()]).expect("tree");
-    let cams = vec![camera(); f.len()];
-    let r = evaluate(
-        &gt,
-        &PredSequence {
-            model: &renamed,
-            scale: 0.6,
-            poses: doubled,
-        },
-        &cams,
-        &EvalConfig {
-            samples: 3000,
-            ..Default::default()
-        },
-    );
+    let r = evaluated(&gt, &renamed, 0.6, doubled, 3000);
     assert!(
         (r.scale_alignment - 0.5).abs() < 1e-5,
         "{}",
@@ -209,19 +198,7 @@ fn monocular_scale_is_aligned_and_joints_match_by_geometry() {
         .iter()
         .map(|g| GenPose::new(g.pose, vec![g.states[0] + 10f64.to_radians()]))
         .collect();
-    let r = evaluate(
-        &gt,
-        &PredSequence {
-            model: &m,
-            scale: 0.3,
-            poses: off,
-        },
-        &cams,
-        &EvalConfig {
-            samples: 2000,
-            ..Default::default()
-        },
-    );
+    let r = evaluated(&gt, &m, 0.3, off, 2000);
     assert!((r.joints[0].state_error.expect("state") - 10f64.to_radians()).abs() < 1e-9);
     assert!(r.cd_moving_cm.expect("cd") > r.cd_static_cm.expect("cd"));
 }
