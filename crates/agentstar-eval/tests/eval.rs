@@ -1,14 +1,17 @@
 //! Sequence metrics on constructed cases with known answers.
 
+#[path = "../../agentstar-track/tests/common/hinged.rs"]
+mod hinged;
 mod numpy;
 
 use agentstar_eval::sequence::{
     evaluate, EvalConfig, GtJoint, GtSequence, PredSequence, SequenceMetrics,
 };
-use agentstar_geom::kinematics::{JointDef, JointKind};
+use agentstar_geom::kinematics::JointDef;
 use agentstar_geom::pose::{GenPose, ObjectPose, Similarity};
 use agentstar_geom::primitives::cuboid;
 use agentstar_geom::{KinematicTree, ObjectModel, Part, PinholeCamera, UnitQuaternion, Vector3};
+use hinged::with_lid_hinge;
 
 fn model() -> ObjectModel {
     let parts = vec![
@@ -21,19 +24,7 @@ fn model() -> ObjectModel {
             [0.5; 3],
         ),
     ];
-    let hinge = JointDef {
-        name: "hinge".into(),
-        kind: JointKind::Revolute,
-        parent: None,
-        child: vec!["lid".into()],
-        origin: Vector3::new(0.0, 0.3, 0.1),
-        axis: -Vector3::x(),
-        limit: Some((0.0, 120.0)),
-    };
-    ObjectModel {
-        tree: KinematicTree::new(vec![hinge], &["base".into(), "lid".into()]).expect("tree"),
-        parts,
-    }
+    with_lid_hinge(parts, Vector3::new(0.0, 0.3, 0.1), -Vector3::x(), 120.0)
 }
 
 fn frames() -> Vec<GenPose> {

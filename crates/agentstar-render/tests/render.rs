@@ -1,13 +1,15 @@
 //! Integration tests of the renderer: exactness against an independent ray caster over many
 //! poses, depth against ray-cast depth, and the silhouette/full renderers agreeing.
 
-use agentstar_geom::kinematics::{JointDef, JointKind};
+#[path = "../../agentstar-track/tests/common/hinged.rs"]
+mod hinged;
 use agentstar_geom::pose::Similarity;
 use agentstar_geom::primitives::{cone, cuboid, torus, uv_sphere};
 use agentstar_geom::{
     KinematicTree, ObjectModel, Part, PinholeCamera, Point3, TriMesh, UnitQuaternion, Vector3,
 };
 use agentstar_render::{render_full, BitMask, PosedModel, SilhouetteRenderer};
+use hinged::with_lid_hinge;
 
 /// A deterministic generator for test poses.
 struct Rng(u64);
@@ -103,20 +105,7 @@ fn test_model() -> ObjectModel {
         Part::new("ring", ring, [0.2, 0.2, 0.8]),
         Part::new("ball", ball, [0.8, 0.8, 0.2]),
     ];
-    let names: Vec<String> = parts.iter().map(|p| p.name.clone()).collect();
-    let hinge = JointDef {
-        name: "hinge".into(),
-        kind: JointKind::Revolute,
-        parent: None,
-        child: vec!["lid".into()],
-        origin: Vector3::new(0.0, -0.2, 0.15),
-        axis: Vector3::x(),
-        limit: Some((0.0, 120.0)),
-    };
-    ObjectModel {
-        tree: KinematicTree::new(vec![hinge], &names).expect("tree"),
-        parts,
-    }
+    with_lid_hinge(parts, Vector3::new(0.0, -0.2, 0.15), Vector3::x(), 120.0)
 }
 
 fn posed_meshes(model: &ObjectModel, states: &[f64], pose: &Similarity) -> Vec<TriMesh> {
