@@ -352,14 +352,8 @@ fn a_full_sequence_matches_an_independent_numpy_implementation() {
             .iter()
             .zip(&seq.poses[f])
             .enumerate()
-            .map(|(i, (m, p))| Instance {
-                mesh: m,
-                bounds: m.bounds(),
-                camera_from_mesh: Affine::from_similarity(&p.with_scale(1.0)),
-                edges: None,
-                open_edges: None,
-                planes: None,
-                part_id: i as u16,
+            .map(|(i, (m, p))| {
+                Instance::bare(m, Affine::from_similarity(&p.with_scale(1.0)), i as u16)
             })
             .collect();
         let g = render_full(&capture.camera, &gi);
