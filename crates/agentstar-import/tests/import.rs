@@ -295,7 +295,7 @@ fn mask_centroid(m: &agentstar_render::BitMask) -> (f64, f64) {
 }
 
 /// The capture an importer wrote at `out`, asserting that it validates, and its ground truth.
-fn imported(out: &Path) -> (Capture, agentstar_data::gt::GroundTruth) {
+fn imported(out: &std::path::Path) -> (Capture, agentstar_data::gt::GroundTruth) {
     let problems = Capture::validate(out);
     assert!(problems.is_empty(), "{}: {problems:?}", out.display());
     let cap = Capture::open(out).expect("capture");
