@@ -316,18 +316,6 @@ fn a_full_sequence_matches_an_independent_numpy_implementation() {
         },
     );
     // Inputs for the script, from the raw data.
-    let row7 = |p: &ObjectPose| {
-        let q = p.quaternion_wxyz();
-        vec![
-            q[0],
-            q[1],
-            q[2],
-            q[3],
-            p.translation.x,
-            p.translation.y,
-            p.translation.z,
-        ]
-    };
     let row8 = |s: &Similarity| {
         let q = agentstar_geom::pose::quat_to_wxyz(&s.rotation);
         vec![
@@ -399,7 +387,7 @@ fn a_full_sequence_matches_an_independent_numpy_implementation() {
         "samples": samples,
         "depth_pairs": depth_pairs,
         "gt_meshes": seq.meshes.iter().map(mesh).collect::<Vec<_>>(),
-        "gt_poses": seq.poses.iter().map(|r| r.iter().map(row7).collect::<Vec<_>>()).collect::<Vec<_>>(),
+        "gt_poses": seq.poses.iter().map(|r| r.iter().map(numpy::pose_row).collect::<Vec<_>>()).collect::<Vec<_>>(),
         "gt_joints": seq.joints.iter().map(|j| json!({"parent": j.parent, "child": j.child,
             "axis": [j.axis.x, j.axis.y, j.axis.z], "origin": [j.origin.x, j.origin.y, j.origin.z],
             "states": j.states, "revolute": j.revolute})).collect::<Vec<_>>(),

@@ -219,19 +219,7 @@ fn rigid_errors_match_an_independent_numpy_implementation() {
         })
         .collect();
     let ours = gauge_aligned_errors(&gt, &pred, 0.4, 1.7).expect("errors");
-    let row = |p: &ObjectPose| {
-        let q = p.quaternion_wxyz();
-        vec![
-            q[0],
-            q[1],
-            q[2],
-            q[3],
-            p.translation.x,
-            p.translation.y,
-            p.translation.z,
-        ]
-    };
-    let input = serde_json::json!({"gt": gt.iter().map(row).collect::<Vec<_>>(), "pred": pred.iter().map(row).collect::<Vec<_>>(), "pred_scale": 0.4, "depth_scale": 1.7});
+    let input = serde_json::json!({"gt": gt.iter().map(numpy::pose_row).collect::<Vec<_>>(), "pred": pred.iter().map(numpy::pose_row).collect::<Vec<_>>(), "pred_scale": 0.4, "depth_scale": 1.7});
     let theirs = numpy::crosscheck("crosscheck_rigid.py", &input);
     for (k, (a, b)) in ours
         .rotation_deg

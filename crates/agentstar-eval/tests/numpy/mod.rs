@@ -3,6 +3,7 @@
 //! this file by path).
 #![allow(dead_code)]
 
+use agentstar_geom::pose::ObjectPose;
 use std::io::Write;
 
 /// Whether `python3` with numpy runs here; where it does not, says that the cross-check is
@@ -44,4 +45,18 @@ pub fn crosscheck(script: &str, input: &serde_json::Value) -> serde_json::Value 
         String::from_utf8_lossy(&out.stderr)
     );
     serde_json::from_slice(&out.stdout).unwrap_or_else(|e| panic!("{script}: {e}"))
+}
+
+/// A pose as the scripts read it: `[qw, qx, qy, qz, tx, ty, tz]`.
+pub fn pose_row(p: &ObjectPose) -> Vec<f64> {
+    let q = p.quaternion_wxyz();
+    vec![
+        q[0],
+        q[1],
+        q[2],
+        q[3],
+        p.translation.x,
+        p.translation.y,
+        p.translation.z,
+    ]
 }
