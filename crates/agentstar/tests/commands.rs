@@ -295,36 +295,19 @@ fn bad_input_fails_clearly() {
     assert!(text(&o).contains("bad_pose.json"), "{}", text(&o));
 
     // Unknown frames and views are named with what is valid.
-    let o = on_poses(
-        "render",
-        &cap,
-        &model,
-        &poses,
-        &[
-            "--frames",
-            "999999",
-            "--out",
-            dir.path().join("v").to_str().expect("utf8"),
-        ],
-    );
-    assert!(text(&o).contains("unknown frame `999999`"), "{}", text(&o));
-    let o = on_poses(
-        "render",
-        &cap,
-        &model,
-        &poses,
-        &[
-            "--views",
-            "xray",
-            "--out",
-            dir.path().join("v").to_str().expect("utf8"),
-        ],
-    );
-    assert!(
-        text(&o).contains("unknown view `xray`; views are overlay"),
-        "{}",
-        text(&o)
-    );
+    let out = dir.path().join("v");
+    for (args, says) in [
+        (["--frames", "999999"], "unknown frame `999999`"),
+        (
+            ["--views", "xray"],
+            "unknown view `xray`; views are overlay",
+        ),
+    ] {
+        let mut all = args.to_vec();
+        all.extend(["--out", out.to_str().expect("utf8")]);
+        let o = on_poses("render", &cap, &model, &poses, &all);
+        assert!(text(&o).contains(says), "{args:?}: {}", text(&o));
+    }
 
     // A failing export leaves no partial file behind.
     let o = agentstar(&[

@@ -37,21 +37,23 @@ fn a_track_is_a_version_and_frames_restore_commit_and_follow_across_versions() {
     small_run(dir.path(), 4, true);
     let (cap, run) = (dir.path().join("cap"), dir.path().join("run"));
     let (model, poses) = (s(&run.join("scene.rhai")), s(&run.join("pose.json")));
+    let cap_dir = s(&cap);
     // The tracker, warm-started from the true poses, writes the run's pose.json: version 1
     // after the file init made (version 0), with its command.
-    let o = agentstar(&[
-        "track",
-        &s(&cap),
-        "--model",
-        &model,
-        "--from",
+    // `track CAP --model MODEL --from FROM --out OUT ARGS… --json`.
+    let track_from = |from: &str, out: &str, args: &[&str]| {
+        let mut all = vec![
+            "track", &cap_dir, "--model", &model, "--from", from, "--out", out,
+        ];
+        all.extend_from_slice(args);
+        all.push("--json");
+        agentstar(&all)
+    };
+    let o = track_from(
         &s(&cap.join("model/pose.json")),
-        "--out",
         &poses,
-        "--evals",
-        "300",
-        "--json",
-    ]);
+        &["--evals", "300"],
+    );
     let tracked: TrackReport = json_of(&o);
     assert_eq!(tracked.pose_version, Some(1), "{}", text(&o));
     let h: HistoryReport = json_of(&agentstar(&[
@@ -158,19 +160,7 @@ fn a_track_is_a_version_and_frames_restore_commit_and_follow_across_versions() {
         translation(&v2, "000005.png")
     );
     let elsewhere = run.join("alt/pose.json");
-    let o = agentstar(&[
-        "track",
-        &s(&cap),
-        "--model",
-        &model,
-        "--from",
-        &poses,
-        "--anchors",
-        "000000..000015",
-        "--out",
-        &s(&elsewhere),
-        "--json",
-    ]);
+    let o = track_from(&poses, &s(&elsewhere), &["--anchors", "000000..000015"]);
     // A new file starts its own history at version 0.
     assert_eq!(json_of::<TrackReport>(&o).pose_version, Some(0));
     let c: CommitReport = json_of(&agentstar(&[
