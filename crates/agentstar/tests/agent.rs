@@ -199,7 +199,6 @@ fn a_failing_model_stops_cleanly_and_the_run_resumes_within_its_budget() {
 fn pose_sub_agents_work_their_windows_in_parallel_and_report_back() {
     let dir = tempfile::tempdir().expect("tmp");
     let p = |n: &str| dir.path().join(n);
-    let s = |path: &Path| path.to_str().expect("utf8").to_string();
     small_run(dir.path(), 4, true);
     let finish = || {
         tool_call(

@@ -5,7 +5,7 @@ mod support;
 
 use agentstar_reports::ScoreReport;
 use std::path::Path;
-use support::{agentstar, example, json_of, on_poses, score_of, text};
+use support::{agentstar, assert_failed_saying, example, json_of, on_poses, score_of, text};
 
 #[test]
 fn example_and_every_subcommand_on_it() {
@@ -153,11 +153,7 @@ fn example_and_every_subcommand_on_it() {
             &poses,
             &["--views", "frame", "--out", fv.to_str().expect("utf8"), bad],
         );
-        assert!(
-            !o.status.success() && text(&o).contains(says),
-            "{}",
-            text(&o)
-        );
+        assert_failed_saying(&o, &[says]);
     }
 
     let tt = dir.path().join("tt");
@@ -220,11 +216,7 @@ fn example_and_every_subcommand_on_it() {
         "{v}"
     );
     let o = given("hinge:1000");
-    assert!(
-        !o.status.success() && text(&o).contains("hinge") && text(&o).contains("limit"),
-        "{}",
-        text(&o)
-    );
+    assert_failed_saying(&o, &["hinge", "limit"]);
 
     let glb = dir.path().join("object.glb");
     let o = agentstar(&[

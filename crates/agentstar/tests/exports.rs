@@ -4,7 +4,7 @@ mod support;
 
 use std::path::Path;
 use std::process::Command;
-use support::{agentstar, example, on_poses, text};
+use support::{example, on_poses, text};
 
 #[test]
 fn motion_exports_are_valid_gltf_and_posed_meshes() {

@@ -5,7 +5,7 @@
 mod support;
 
 use agentstar_reports::ScoreReport;
-use support::{agentstar, on_poses, s, small_run, small_run_at_truth, text};
+use support::{on_poses, s, small_run, small_run_at_truth, text};
 
 #[test]
 fn frames_are_selected_by_names_stems_numbers_and_ranges() {

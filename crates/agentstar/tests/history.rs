@@ -13,7 +13,9 @@ use agentstar_reports::{
 use serde_json::json;
 use std::collections::BTreeSet;
 use std::path::Path;
-use support::{agentstar, json_of, ledger, on_poses, s, small_run, text, McpClient};
+use support::{
+    agentstar, assert_failed_saying, json_of, ledger, on_poses, s, small_run, text, McpClient,
+};
 
 fn translation(pf: &PoseFile, frame: &str) -> [f64; 3] {
     pf.frames[frame]
@@ -184,17 +186,9 @@ fn a_track_is_a_version_and_frames_restore_commit_and_follow_across_versions() {
         "--rank",
         "2",
     ]);
-    assert!(
-        !o.status.success() && text(&o).contains("--rank applies to search reports"),
-        "{}",
-        text(&o)
-    );
+    assert_failed_saying(&o, &["--rank applies to search reports"]);
     let o = agentstar(&["pose", "restore", "--poses", &poses, "--version", "99"]);
-    assert!(
-        !o.status.success() && text(&o).contains("no version 99"),
-        "{}",
-        text(&o)
-    );
+    assert_failed_saying(&o, &["no version 99"]);
     let h: HistoryReport = json_of(&agentstar(&[
         "pose", "history", "--poses", &poses, "--last", "2", "--json",
     ]));

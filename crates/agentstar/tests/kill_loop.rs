@@ -13,7 +13,6 @@ mod support;
 
 use agentstar_data::history::{HistoryEntry, PoseHistory};
 use agentstar_data::posefile::PoseFile;
-use serde_json::Value;
 use std::path::Path;
 use std::process::Command;
 use std::time::Duration;

@@ -8,7 +8,7 @@ mod support;
 use agentstar_reports::mechanism::{ArmLabel, MechanismReport};
 use serde_json::{json, Value};
 use std::path::Path;
-use support::{agentstar, json_of, on_poses, s, small_run, small_run_at_truth, McpClient};
+use support::{json_of, on_poses, s, small_run_at_truth, McpClient};
 
 /// A client that numbers its own requests.
 struct Session {

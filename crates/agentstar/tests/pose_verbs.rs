@@ -6,7 +6,10 @@ mod support;
 use agentstar_geom::nalgebra::Quaternion;
 use agentstar_geom::UnitQuaternion;
 use agentstar_reports::{ScoreReport, TrackReport};
-use support::{agentstar, example, json_of, on_poses, path_str as s, score_of, text, track_known};
+use support::{
+    agentstar, assert_failed_saying, example, json_of, on_poses, path_str as s, score_of, text,
+    track_known,
+};
 
 /// The candidate a search row was asked for: its label before ` → ` (where it ended).
 fn asked(row: &serde_json::Value) -> &str {
@@ -173,12 +176,7 @@ fn pose_verbs_track_commit_and_diagnose() {
     let o = agentstar(&[
         "pose", "commit", "--poses", &swapped, "--report", &report, "--label", "flip:w",
     ]);
-    assert!(!o.status.success());
-    assert!(
-        text(&o).contains("no candidate labelled `flip:w`") && text(&o).contains(&swap_label),
-        "{}",
-        text(&o)
-    );
+    assert_failed_saying(&o, &["no candidate labelled `flip:w`", &swap_label]);
     let o = agentstar(&[
         "pose", "commit", "--poses", &swapped, "--report", &report, "--label", "identity",
         "--rank", "1",
@@ -190,14 +188,7 @@ fn pose_verbs_track_commit_and_diagnose() {
     // whatever grid value it started from.
     // Without a region (a preset or grid ranges) it searches nothing and says what it needs.
     let o = verb("osweep", "osweep", &[]);
-    assert!(!o.status.success());
-    assert!(
-        text(&o).contains("`opreset`")
-            && text(&o).contains("`ranges`")
-            && text(&o).contains("searched nothing"),
-        "{}",
-        text(&o)
-    );
+    assert_failed_saying(&o, &["`opreset`", "`ranges`", "searched nothing"]);
     let v: serde_json::Value = json_of(&verb(
         "osweep",
         "osweep",
@@ -573,9 +564,7 @@ fn candidate_sheets_crop_to_a_box_and_zoom() {
     // (The sheet keeps within the image limits, so it grows less than the tiles asked.)
     assert!(zw * zh > pw * ph, "zoomed {zw}×{zh} against {pw}×{ph}");
     let (o, _) = run("outside", &["--crop", "5000,5000,5100,5100"]);
-    assert!(!o.status.success());
-    assert!(text(&o).contains("lies outside the"), "{}", text(&o));
+    assert_failed_saying(&o, &["lies outside the"]);
     let (o, _) = run("far", &["--zoom", "9"]);
-    assert!(!o.status.success());
-    assert!(text(&o).contains("--zoom 9"), "{}", text(&o));
+    assert_failed_saying(&o, &["--zoom 9"]);
 }

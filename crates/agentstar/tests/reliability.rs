@@ -162,11 +162,7 @@ fn capture_misreads_are_errors_naming_the_file_and_field() {
     v["downscale"] = serde_json::json!(0.0);
     std::fs::write(cap.join("capture.json"), v.to_string()).expect("write");
     let o = validate();
-    assert!(
-        !o.status.success() && text(&o).contains("downscale"),
-        "{}",
-        text(&o)
-    );
+    assert_failed_saying(&o, &["downscale"]);
     // A byte-order mark.
     std::fs::write(cap.join("capture.json"), format!("\u{feff}{manifest}")).expect("write");
     let o = validate();
@@ -180,20 +176,12 @@ fn capture_misreads_are_errors_naming_the_file_and_field() {
     dup.push(kf[0].clone());
     std::fs::write(&kf_path, serde_json::to_string(&dup).expect("json")).expect("write");
     let o = validate();
-    assert!(
-        !o.status.success() && text(&o).contains("both list frame"),
-        "{}",
-        text(&o)
-    );
+    assert_failed_saying(&o, &["both list frame"]);
     let mut back = kf.clone();
     back[2]["time_s"] = serde_json::json!(-1.0);
     std::fs::write(&kf_path, serde_json::to_string(&back).expect("json")).expect("write");
     let o = validate();
-    assert!(
-        !o.status.success() && text(&o).contains("backwards"),
-        "{}",
-        text(&o)
-    );
+    assert_failed_saying(&o, &["backwards"]);
     std::fs::write(&kf_path, &kf_text).expect("write");
     // A half-truncated PNG frame.
     let frame = std::fs::read_dir(cap.join("frames"))

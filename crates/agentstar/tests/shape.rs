@@ -8,7 +8,9 @@ use agentstar_reports::fit::FitReport;
 use agentstar_reports::ScoreReport;
 use serde_json::json;
 use std::path::Path;
-use support::{agentstar, init_run, on_poses, s, score_of, synth_object, text, McpClient};
+use support::{
+    agentstar, assert_failed_saying, init_run, on_poses, s, score_of, synth_object, text, McpClient,
+};
 
 /// The synthetic box (`agentstar synth --object box`) with its proportions as parameters:
 /// the true values are width 1.0, depth 0.7, body height 0.48.
@@ -81,12 +83,7 @@ fn fit_shape_recovers_two_wrong_proportions_and_holds_the_rest() {
             &s(&dir.path().join("x")),
         ],
     );
-    assert!(!o.status.success());
-    assert!(
-        text(&o).contains("no parameter `lenght`") && text(&o).contains("width, depth, height"),
-        "{}",
-        text(&o)
-    );
+    assert_failed_saying(&o, &["no parameter `lenght`", "width, depth, height"]);
     let (mut c, _) = McpClient::initialised(&run);
     c.call(2, "fit_shape", json!({"params": ["depth", "height"]}));
     let (resp, _) = c.response(2);
@@ -394,11 +391,7 @@ fn scale_comes_back_from_depth_parallax_and_a_stated_size() {
     assert!((v["scale"].as_f64().expect("scale") / truth - 1.0).abs() < 0.03);
     // A capture without depth (the hand-held box's) says what to use instead.
     let o = scale_cli(&held, &held_model, &held_poses, &["--from", "depth"]);
-    assert!(
-        !o.status.success() && text(&o).contains("no keyframe has depth"),
-        "{}",
-        text(&o)
-    );
+    assert_failed_saying(&o, &["no keyframe has depth"]);
 }
 
 /// `agentstar scale --from hand`: the hands' palm breadth against the adult prior puts a
@@ -475,12 +468,7 @@ fn scale_comes_back_from_the_hands_within_its_stated_uncertainty() {
         &bare.join("model/pose.json"),
         &bare.join("model/scene.rhai"),
     );
-    assert!(!o.status.success(), "{}", text(&o));
-    assert!(
-        text(&o).contains("hand mask") && text(&o).contains("depth"),
-        "{}",
-        text(&o)
-    );
+    assert_failed_saying(&o, &["hand mask", "depth"]);
 }
 
 #[test]
