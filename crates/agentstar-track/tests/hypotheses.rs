@@ -12,8 +12,8 @@ use agentstar_track::objective::FrameProblem;
 use agentstar_track::update::{apply_object_rotation, flip, GenPose};
 
 mod common;
+use common::case::hinged::with_lid_hinge;
 use common::case::{case_model, truth};
-use common::hinged::with_lid_hinge;
 use common::view::{camera, target_of};
 
 fn tilt(deg: f64) -> UnitQuaternion {

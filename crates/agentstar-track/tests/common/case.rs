@@ -5,8 +5,12 @@ use agentstar_geom::pose::ObjectPose;
 use agentstar_geom::primitives::{bevelled_box, cuboid, torus};
 use agentstar_geom::{ObjectModel, Part, UnitQuaternion, Vector3};
 
-use super::hinged::with_lid_hinge;
 use agentstar_track::update::GenPose;
+use hinged::with_lid_hinge;
+
+// By path, so that the benchmark that includes this file finds it too.
+#[path = "hinged.rs"]
+pub mod hinged;
 
 /// A carrying case with a hinged lid and a handle on the front (no rotational symmetry).
 pub fn case_model() -> ObjectModel {

@@ -2,5 +2,4 @@
 #![allow(dead_code)]
 
 pub mod case;
-pub mod hinged;
 pub mod view;
