@@ -2,9 +2,11 @@
 //! scripted answers: retries with backoff on 5xx and timeouts, no retry on 401, both wire
 //! protocols, and the critic's JSON checked.
 
+mod support;
+
 use agentstar_agent::llm::{complete, LlmError, Message, ModelConfig, Part, Protocol};
 use serde_json::{json, Value};
-use std::io::{BufRead, BufReader, Read, Write};
+use std::io::Write;
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
@@ -13,8 +15,7 @@ type Seen = Arc<Mutex<Vec<(String, Value)>>>;
 
 /// (status, body, delay ms) per request, in order; every request body is kept.
 fn server(script: Vec<(u16, Value, u64)>) -> (String, Seen) {
-    let listener = std::net::TcpListener::bind("127.0.0.1:0").expect("bind");
-    let url = format!("http://{}", listener.local_addr().expect("addr"));
+    let (listener, url) = support::listen();
     let seen = Arc::new(Mutex::new(vec![]));
     let script = Arc::new(Mutex::new(std::collections::VecDeque::from(script)));
     let s2 = seen.clone();
@@ -23,22 +24,7 @@ fn server(script: Vec<(u16, Value, u64)>) -> (String, Seen) {
             let (seen, script) = (s2.clone(), script.clone());
             std::thread::spawn(move || {
                 let mut stream = stream;
-                let mut r = BufReader::new(stream.try_clone().expect("clone"));
-                let mut first = String::new();
-                let _ = r.read_line(&mut first);
-                let mut len = 0;
-                loop {
-                    let mut l = String::new();
-                    if r.read_line(&mut l).unwrap_or(0) == 0 || l.trim().is_empty() {
-                        break;
-                    }
-                    if let Some(v) = l.to_ascii_lowercase().strip_prefix("content-length:") {
-                        len = v.trim().parse().unwrap_or(0);
-                    }
-                }
-                let mut body = vec![0; len];
-                let _ = r.read_exact(&mut body);
-                let path = first.split_whitespace().nth(1).unwrap_or("").to_string();
+                let (path, body) = support::read_request(&stream);
                 seen.lock()
                     .expect("lock")
                     .push((path, serde_json::from_slice(&body).unwrap_or(Value::Null)));

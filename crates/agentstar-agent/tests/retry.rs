@@ -1,34 +1,23 @@
 //! The model client honours `Retry-After` on a 429 (issue 16: it retried after 0.2 s when
 //! the server asked for 3 s), and names every kind of failure when it gives up.
 
+mod support;
+
 use agentstar_agent::llm::{
     complete_with, parse_retry_after, LlmError, Message, ModelConfig, Part, Protocol,
 };
-use std::io::{BufRead, BufReader, Read, Write};
+use std::io::Write;
 use std::sync::Mutex;
 use std::time::{Duration, SystemTime, UNIX_EPOCH};
 
 /// A server answering each request with the next (status, extra headers, body).
 fn server(script: Vec<(u16, &'static str, String)>) -> String {
-    let listener = std::net::TcpListener::bind("127.0.0.1:0").expect("bind");
-    let url = format!("http://{}", listener.local_addr().expect("addr"));
+    let (listener, url) = support::listen();
     std::thread::spawn(move || {
         let mut script = std::collections::VecDeque::from(script);
         for stream in listener.incoming() {
             let Ok(mut stream) = stream else { continue };
-            let mut r = BufReader::new(stream.try_clone().expect("clone"));
-            let mut len = 0;
-            loop {
-                let mut l = String::new();
-                if r.read_line(&mut l).unwrap_or(0) == 0 || l.trim().is_empty() {
-                    break;
-                }
-                if let Some(v) = l.to_ascii_lowercase().strip_prefix("content-length:") {
-                    len = v.trim().parse().unwrap_or(0);
-                }
-            }
-            let mut body = vec![0; len];
-            let _ = r.read_exact(&mut body);
+            support::read_request(&stream);
             let (status, headers, text) =
                 script
                     .pop_front()
@@ -148,27 +137,14 @@ fn giving_up_names_every_kind_of_failure() {
 /// with a declared length of 10 GB, or (`declared` false) no length, streaming until the
 /// client hangs up. Counts the requests it saw.
 fn huge_reply_server(declared: bool) -> (String, std::sync::Arc<std::sync::atomic::AtomicUsize>) {
-    let listener = std::net::TcpListener::bind("127.0.0.1:0").expect("bind");
-    let url = format!("http://{}", listener.local_addr().expect("addr"));
+    let (listener, url) = support::listen();
     let seen = std::sync::Arc::new(std::sync::atomic::AtomicUsize::new(0));
     let counter = seen.clone();
     std::thread::spawn(move || {
         for stream in listener.incoming() {
             let Ok(mut stream) = stream else { continue };
             counter.fetch_add(1, std::sync::atomic::Ordering::SeqCst);
-            let mut r = BufReader::new(stream.try_clone().expect("clone"));
-            let mut len = 0;
-            loop {
-                let mut l = String::new();
-                if r.read_line(&mut l).unwrap_or(0) == 0 || l.trim().is_empty() {
-                    break;
-                }
-                if let Some(v) = l.to_ascii_lowercase().strip_prefix("content-length:") {
-                    len = v.trim().parse().unwrap_or(0);
-                }
-            }
-            let mut body = vec![0; len];
-            let _ = r.read_exact(&mut body);
+            support::read_request(&stream);
             let length = if declared {
                 "content-length: 10000000000\r\n"
             } else {

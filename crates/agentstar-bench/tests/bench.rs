@@ -2,13 +2,16 @@
 //! articulated hand-held capture, ground truth converts exactly, tables carry every section,
 //! and tolerances catch regressions.
 
+#[path = "../../agentstar-eval/tests/numpy/mod.rs"]
+mod numpy;
+
 use agentstar_bench::table::{result_table, tables};
 use agentstar_bench::tolerance::{check, record};
 use agentstar_bench::{run_sequence, Method, RunConfig, RunInfo, SequenceResult};
 use agentstar_data::gt::{model_ground_truth, GroundTruth};
 use agentstar_eval::{JointRecord, MetricsRecord};
 use agentstar_geom::GenPose;
-use agentstar_synth::{synthesize, SynthConfig};
+use agentstar_synth::{synthesize, SynthCapture, SynthConfig};
 
 fn small(object: &str, seed: u64) -> SynthConfig {
     SynthConfig {
@@ -93,20 +96,33 @@ fn a_short_clip_with_frames_in_a_wrong_basin_is_recovered_from_its_neighbours() 
     );
 }
 
-#[test]
-fn ground_truth_of_the_true_poses_scores_zero() {
-    let capture = synthesize(&small("cabinet", 2)).expect("synth");
+/// The capture's ground truth from its model at its true poses (as `model_ground_truth`
+/// writes it, in memory), its frame names, and the sequence of those frames read back.
+fn true_sequence(
+    capture: &SynthCapture,
+) -> (
+    GroundTruth,
+    Vec<String>,
+    agentstar_eval::sequence::GtSequence,
+) {
     let truth: Vec<_> = capture
         .frames
         .iter()
         .map(|f| (f.name.clone(), f.camera_from_object, f.states.clone()))
         .collect();
     let (file, meshes) = model_ground_truth(&capture.model, capture.scale, &truth, &[]);
-    assert_eq!(file.joints.len(), 2);
-    assert_eq!(file.base_part, "body");
     let gt = GroundTruth::from_parts(std::path::Path::new("mem/gt.json"), file, meshes);
     let names: Vec<String> = capture.frames.iter().map(|f| f.name.clone()).collect();
     let seq = gt.sequence(&names).expect("sequence");
+    (gt, names, seq)
+}
+
+#[test]
+fn ground_truth_of_the_true_poses_scores_zero() {
+    let capture = synthesize(&small("cabinet", 2)).expect("synth");
+    let (gt, names, seq) = true_sequence(&capture);
+    assert_eq!(gt.file.joints.len(), 2);
+    assert_eq!(gt.file.base_part, "body");
     let pred = agentstar_eval::sequence::PredSequence {
         model: &capture.model,
         scale: capture.scale,
@@ -256,27 +272,12 @@ fn a_full_sequence_matches_an_independent_numpy_implementation() {
     use agentstar_render::raster::Affine;
     use agentstar_render::{render_full, Instance, PosedModel};
     use serde_json::json;
-    use std::io::Write;
-    let has_numpy = std::process::Command::new("python3")
-        .args(["-c", "import numpy"])
-        .output()
-        .map(|o| o.status.success())
-        .unwrap_or(false);
-    if !has_numpy {
-        eprintln!("python3 with numpy not found: the numpy cross-check did not run");
+    if !numpy::has_numpy() {
         return;
     }
     let capture = synthesize(&small("cabinet", 3)).expect("synth");
     let n = capture.frames.len();
-    let truth: Vec<_> = capture
-        .frames
-        .iter()
-        .map(|f| (f.name.clone(), f.camera_from_object, f.states.clone()))
-        .collect();
-    let (file, meshes) = model_ground_truth(&capture.model, capture.scale, &truth, &[]);
-    let gt = GroundTruth::from_parts(std::path::Path::new("mem/gt.json"), file, meshes);
-    let names: Vec<String> = capture.frames.iter().map(|f| f.name.clone()).collect();
-    let seq = gt.sequence(&names).expect("sequence");
+    let (_, _, seq) = true_sequence(&capture);
     // The prediction: 1.2 times too large (and so 1.2 times too far), a few degrees and
     // millimetres off, joints off by 3° and 0.02 units.
     let k = 1.2;
@@ -318,18 +319,6 @@ fn a_full_sequence_matches_an_independent_numpy_implementation() {
         },
     );
     // Inputs for the script, from the raw data.
-    let row7 = |p: &ObjectPose| {
-        let q = p.quaternion_wxyz();
-        vec![
-            q[0],
-            q[1],
-            q[2],
-            q[3],
-            p.translation.x,
-            p.translation.y,
-            p.translation.z,
-        ]
-    };
     let row8 = |s: &Similarity| {
         let q = agentstar_geom::pose::quat_to_wxyz(&s.rotation);
         vec![
@@ -354,14 +343,8 @@ fn a_full_sequence_matches_an_independent_numpy_implementation() {
             .iter()
             .zip(&seq.poses[f])
             .enumerate()
-            .map(|(i, (m, p))| Instance {
-                mesh: m,
-                bounds: m.bounds(),
-                camera_from_mesh: Affine::from_similarity(&p.with_scale(1.0)),
-                edges: None,
-                open_edges: None,
-                planes: None,
-                part_id: i as u16,
+            .map(|(i, (m, p))| {
+                Instance::bare(m, Affine::from_similarity(&p.with_scale(1.0)), i as u16)
             })
             .collect();
         let g = render_full(&capture.camera, &gi);
@@ -407,7 +390,7 @@ fn a_full_sequence_matches_an_independent_numpy_implementation() {
         "samples": samples,
         "depth_pairs": depth_pairs,
         "gt_meshes": seq.meshes.iter().map(mesh).collect::<Vec<_>>(),
-        "gt_poses": seq.poses.iter().map(|r| r.iter().map(row7).collect::<Vec<_>>()).collect::<Vec<_>>(),
+        "gt_poses": seq.poses.iter().map(|r| r.iter().map(numpy::pose_row).collect::<Vec<_>>()).collect::<Vec<_>>(),
         "gt_joints": seq.joints.iter().map(|j| json!({"parent": j.parent, "child": j.child,
             "axis": [j.axis.x, j.axis.y, j.axis.z], "origin": [j.origin.x, j.origin.y, j.origin.z],
             "states": j.states, "revolute": j.revolute})).collect::<Vec<_>>(),
@@ -419,28 +402,7 @@ fn a_full_sequence_matches_an_independent_numpy_implementation() {
         "pred_object_poses": poses.iter().map(|p| row8(&p.pose.with_scale(pred_scale))).collect::<Vec<_>>(),
         "pred_scale": pred_scale,
     });
-    let script = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../../scripts/crosscheck_sequence.py");
-    let mut child = std::process::Command::new("python3")
-        .arg(script)
-        .stdin(std::process::Stdio::piped())
-        .stdout(std::process::Stdio::piped())
-        .stderr(std::process::Stdio::piped())
-        .spawn()
-        .expect("python3");
-    child
-        .stdin
-        .take()
-        .expect("stdin")
-        .write_all(input.to_string().as_bytes())
-        .expect("write");
-    let out = child.wait_with_output().expect("run");
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let t: serde_json::Value = serde_json::from_slice(&out.stdout).expect("json");
+    let t = numpy::crosscheck("crosscheck_sequence.py", &input);
     let close = |name: &str, a: f64, b: &serde_json::Value, rel: f64, abs: f64| {
         let b = b.as_f64().unwrap_or_else(|| panic!("{name}: {b}"));
         assert!(

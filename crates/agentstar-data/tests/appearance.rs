@@ -4,6 +4,9 @@
 //! perspective-correct; a texture that cannot be read is a warning naming it. Every file is
 //! written by the test.
 
+#[path = "../../agentstar-render/tests/support/mod.rs"]
+mod support;
+
 use agentstar_data::export::glb_bytes;
 use agentstar_data::scenefile::load_model;
 use agentstar_geom::pose::Similarity;
@@ -13,6 +16,7 @@ use agentstar_render::views::{flatten, shade_model, ShadeOptions};
 use agentstar_render::{render_full, PosedModel};
 use image::{Rgb, RgbImage};
 use std::path::Path;
+use support::assert_golden;
 
 /// A unit cube's eight corners, OBJ order (1-based in the files).
 const CORNERS: [[f64; 3]; 8] = [
@@ -116,39 +120,6 @@ fn render(model: &ObjectModel) -> RgbImage {
         ),
         Rgb([0, 0, 0]),
     )
-}
-
-/// Compares against a small committed golden image with explicit tolerances. Run with
-/// `AGENTSTAR_BLESS=1` to rewrite the golden after an intended change, then look at it.
-fn assert_golden(name: &str, img: &RgbImage) {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("tests/golden")
-        .join(name);
-    if std::env::var_os("AGENTSTAR_BLESS").is_some() {
-        std::fs::create_dir_all(path.parent().expect("dir")).expect("mkdir");
-        img.save(&path).expect("bless");
-    }
-    let golden = image::open(&path)
-        .unwrap_or_else(|e| panic!("{}: {e} (run with AGENTSTAR_BLESS=1 once)", path.display()))
-        .to_rgb8();
-    assert_eq!(golden.dimensions(), img.dimensions());
-    let (mut total, mut far) = (0u64, 0u32);
-    for (a, b) in golden.pixels().zip(img.pixels()) {
-        let d = (0..3)
-            .map(|k| (a[k] as i32 - b[k] as i32).unsigned_abs())
-            .max()
-            .unwrap_or(0);
-        total += u64::from(d);
-        if d > 24 {
-            far += 1;
-        }
-    }
-    let n = f64::from(img.width() * img.height());
-    assert!(
-        (total as f64) / n < 2.0 && f64::from(far) < 0.01 * n,
-        "{name}: mean diff {:.2}, {far} pixels far off",
-        total as f64 / n
-    );
 }
 
 /// How many pixels are near each of the print's four colours, by hue (lit, so darker).
@@ -265,15 +236,20 @@ fn a_missing_texture_is_a_warning_naming_it_and_the_part_keeps_its_colour() {
         "newmtl print\nKd 0.2 0.4 0.6\nmap_Kd missing_print.png\n",
     )
     .expect("mtl");
-    let loaded = load_model(&obj).expect("still loads");
-    assert!(
+    // The model still loads, with a warning naming the texture.
+    let load_warned = |case: &str| {
+        let loaded = load_model(&obj).expect("still loads");
+        assert!(
+            loaded
+                .warnings
+                .iter()
+                .any(|w| w.contains("missing_print.png")),
+            "{case}: {:?}",
+            loaded.warnings
+        );
         loaded
-            .warnings
-            .iter()
-            .any(|w| w.contains("missing_print.png")),
-        "{:?}",
-        loaded.warnings
-    );
+    };
+    let loaded = load_warned("a missing texture");
     let part = &loaded.model.parts[0];
     assert!(part
         .surface
@@ -287,15 +263,7 @@ fn a_missing_texture_is_a_warning_naming_it_and_the_part_keeps_its_colour() {
     );
     // A texture that is not an image: the same, naming it.
     std::fs::write(dir.path().join("missing_print.png"), b"not a png").expect("w");
-    let loaded = load_model(&obj).expect("still loads");
-    assert!(
-        loaded
-            .warnings
-            .iter()
-            .any(|w| w.contains("missing_print.png")),
-        "{:?}",
-        loaded.warnings
-    );
+    load_warned("a texture that is not an image");
 }
 
 #[test]

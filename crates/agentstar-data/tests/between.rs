@@ -1,12 +1,15 @@
 //! In-between frames (`formats.md` §2): a capture whose `keyframes` key names the frames that
 //! are tracked, scored and shown; the others are read, validated and kept apart.
 
+mod common;
+
 use agentstar_data::capture::Capture;
 use agentstar_data::capture_writer::{write_capture, CaptureInfo, FrameOut};
 use agentstar_data::posefile::{FrameEntry, PoseFile, PoseJson};
 use agentstar_geom::pose::Rigid;
 use agentstar_geom::{KinematicTree, PinholeCamera};
 use agentstar_mask::BitMask;
+use common::problems;
 use image::RgbImage;
 use std::path::Path;
 
@@ -52,14 +55,6 @@ fn manifest_edit(dir: &Path, edit: impl Fn(&mut serde_json::Value)) {
         serde_json::from_str(&std::fs::read_to_string(&path).expect("read")).expect("json");
     edit(&mut v);
     std::fs::write(&path, v.to_string()).expect("write");
-}
-
-fn problems(dir: &Path) -> String {
-    Capture::validate(dir)
-        .iter()
-        .map(|p| p.to_string())
-        .collect::<Vec<_>>()
-        .join("\n")
 }
 
 #[test]

@@ -1,6 +1,8 @@
 //! File formats end to end: a capture written by the test is read back; every kind of bad
 //! input gets its own message naming the file; pose files, URDF and exports round-trip.
 
+mod common;
+
 use agentstar_data::capture::{CamerasJson, Capture, Keyframe, Manifest};
 use agentstar_data::export::{glb_bytes, write_glb, write_urdf};
 use agentstar_data::meshio::parse_glb;
@@ -10,6 +12,7 @@ use agentstar_data::urdf::load_urdf;
 use agentstar_geom::pose::ObjectPose;
 use agentstar_geom::{Point3, UnitQuaternion, Vector3};
 use agentstar_scene::MeshSource;
+use common::problems;
 use image::{GrayImage, Luma, RgbImage};
 use std::path::Path;
 
@@ -124,20 +127,12 @@ fn capture_written_by_the_test_reads_back() {
     assert_eq!(c.frame_index("000010"), Some(1));
 }
 
-fn problems_of(dir: &Path) -> String {
-    Capture::validate(dir)
-        .iter()
-        .map(|p| p.to_string())
-        .collect::<Vec<_>>()
-        .join("\n")
-}
-
 #[test]
 fn missing_mask_is_named() {
     let dir = tempfile::tempdir().expect("tmp");
     write_capture(dir.path(), 2, vec![identity(), identity()]);
     std::fs::remove_file(dir.path().join("mask_object/000010.png")).expect("rm");
-    let p = problems_of(dir.path());
+    let p = problems(dir.path());
     assert!(
         p.contains("mask_object/000010.png") && p.contains("missing object mask"),
         "{p}"
@@ -151,7 +146,7 @@ fn mask_size_mismatch_is_named() {
     GrayImage::new(10, 10)
         .save(dir.path().join("mask_object/000000.png"))
         .expect("mask");
-    let p = problems_of(dir.path());
+    let p = problems(dir.path());
     assert!(
         p.contains("000000.png: size 10×10 differs from image_size 40×30"),
         "{p}"
@@ -170,7 +165,7 @@ fn non_orthonormal_rotation_and_nan_intrinsics_are_both_reported() {
     .expect("json");
     cams["intrinsics"][0][0][0] = serde_json::json!(-1.0);
     std::fs::write(dir.path().join("tracking/cameras.json"), cams.to_string()).expect("w");
-    let p = problems_of(dir.path());
+    let p = problems(dir.path());
     assert!(p.contains("c2w[1]") && p.contains("not orthonormal"), "{p}");
     assert!(
         p.contains("intrinsics[0]") && p.contains("positive focal"),
@@ -191,7 +186,7 @@ fn unknown_format_and_bad_stems_are_reported_together() {
         .expect("array")
         .push(serde_json::json!("frame_a.jpg"));
     std::fs::write(dir.path().join("capture.json"), m.to_string()).expect("w");
-    let p = problems_of(dir.path());
+    let p = problems(dir.path());
     assert!(p.contains("unknown format \"capture/v9\""), "{p}");
     assert!(
         p.contains("frame `frame_a.jpg`: the file stem must be a zero-padded integer"),
@@ -202,18 +197,18 @@ fn unknown_format_and_bad_stems_are_reported_together() {
 #[test]
 fn missing_manifest_cameras_and_corrupt_files() {
     let dir = tempfile::tempdir().expect("tmp");
-    assert!(problems_of(&dir.path().join("nope")).contains("does not exist"));
+    assert!(problems(&dir.path().join("nope")).contains("does not exist"));
     write_capture(dir.path(), 2, vec![identity(), identity()]);
     std::fs::remove_file(dir.path().join("tracking/cameras.json")).expect("rm");
-    assert!(problems_of(dir.path()).contains("no cameras"));
+    assert!(problems(dir.path()).contains("no cameras"));
     std::fs::write(dir.path().join("tracking/cameras.npz"), b"garbage").expect("w");
     assert!(
-        problems_of(dir.path()).contains("cameras.npz: not a readable .npz archive"),
+        problems(dir.path()).contains("cameras.npz: not a readable .npz archive"),
         "{}",
-        problems_of(dir.path())
+        problems(dir.path())
     );
     std::fs::write(dir.path().join("capture.json"), "{ not json").expect("w");
-    assert!(problems_of(dir.path()).contains("capture.json: invalid manifest"));
+    assert!(problems(dir.path()).contains("capture.json: invalid manifest"));
 }
 
 #[test]
@@ -223,7 +218,7 @@ fn keyframe_view_out_of_range() {
     let kf =
         r#"[{"view": 0, "frame_name": "000000.jpg"}, {"view": 7, "frame_name": "000010.jpg"}]"#;
     std::fs::write(dir.path().join("tracking/keyframes.json"), kf).expect("w");
-    let p = problems_of(dir.path());
+    let p = problems(dir.path());
     assert!(p.contains("view 7 is out of range"), "{p}");
 }
 
@@ -537,7 +532,7 @@ fn depth_files_read_back_and_missing_ones_are_reported() {
     m["depth"] = serde_json::json!("pi3x");
     m["depth_scale"] = serde_json::json!(0.001);
     std::fs::write(dir.path().join("capture.json"), m.to_string()).expect("w");
-    assert!(problems_of(dir.path()).contains("has no depth/000000.npz or .png"));
+    assert!(problems(dir.path()).contains("has no depth/000000.npz or .png"));
     // Frame 000000: a point map at half resolution with a rejected column; 000010: a PNG in mm.
     let (dw, dh) = (W as usize / 2, H as usize / 2);
     let mut local = Vec::new();
@@ -562,7 +557,7 @@ fn depth_files_read_back_and_missing_ones_are_reported() {
     assert!(
         Capture::validate(dir.path()).is_empty(),
         "{}",
-        problems_of(dir.path())
+        problems(dir.path())
     );
     let c = Capture::open(dir.path()).expect("open");
     let d0 = c.load_depth(0).expect("read").expect("depth");
@@ -678,14 +673,14 @@ fn camera_sizes_bottom_rows_and_keyframes_are_checked() {
         serde_json::json!([640, 480, 3]),
     ] {
         set(&|v| v["size"] = size.clone());
-        let p = problems_of(dir.path());
+        let p = problems(dir.path());
         assert!(
             p.contains("cameras.json") && p.contains("size"),
             "{size}: {p}"
         );
     }
     set(&|v| v["c2w"][1][3] = serde_json::json!([1.0, 2.0, 3.0, 4.0]));
-    let p = problems_of(dir.path());
+    let p = problems(dir.path());
     assert!(p.contains("c2w[1]") && p.contains("bottom row"), "{p}");
     std::fs::write(&cams_path, &cams_text).expect("restore");
     // The same in cameras.npz, where `size` is an array of any shape and value.
@@ -705,7 +700,7 @@ fn camera_sizes_bottom_rows_and_keyframes_are_checked() {
             &[("size", &[size.len()], &size)],
         )
         .expect("npz");
-        let p = problems_of(dir.path());
+        let p = problems(dir.path());
         assert!(
             p.contains("cameras.npz") && p.contains("`size`"),
             "{size:?}: {p}"
@@ -720,7 +715,7 @@ fn camera_sizes_bottom_rows_and_keyframes_are_checked() {
     assert!(
         Capture::validate(dir.path()).is_empty(),
         "{}",
-        problems_of(dir.path())
+        problems(dir.path())
     );
 }
 

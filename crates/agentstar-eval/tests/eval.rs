@@ -1,10 +1,17 @@
 //! Sequence metrics on constructed cases with known answers.
 
-use agentstar_eval::sequence::{evaluate, EvalConfig, GtJoint, GtSequence, PredSequence};
-use agentstar_geom::kinematics::{JointDef, JointKind};
+#[path = "../../agentstar-track/tests/common/hinged.rs"]
+mod hinged;
+mod numpy;
+
+use agentstar_eval::sequence::{
+    evaluate, EvalConfig, GtJoint, GtSequence, PredSequence, SequenceMetrics,
+};
+use agentstar_geom::kinematics::JointDef;
 use agentstar_geom::pose::{GenPose, ObjectPose, Similarity};
 use agentstar_geom::primitives::cuboid;
 use agentstar_geom::{KinematicTree, ObjectModel, Part, PinholeCamera, UnitQuaternion, Vector3};
+use hinged::with_lid_hinge;
 
 fn model() -> ObjectModel {
     let parts = vec![
@@ -17,19 +24,7 @@ fn model() -> ObjectModel {
             [0.5; 3],
         ),
     ];
-    let hinge = JointDef {
-        name: "hinge".into(),
-        kind: JointKind::Revolute,
-        parent: None,
-        child: vec!["lid".into()],
-        origin: Vector3::new(0.0, 0.3, 0.1),
-        axis: -Vector3::x(),
-        limit: Some((0.0, 120.0)),
-    };
-    ObjectModel {
-        tree: KinematicTree::new(vec![hinge], &["base".into(), "lid".into()]).expect("tree"),
-        parts,
-    }
+    with_lid_hinge(parts, Vector3::new(0.0, 0.3, 0.1), -Vector3::x(), 120.0)
 }
 
 fn frames() -> Vec<GenPose> {
@@ -94,25 +89,37 @@ fn camera() -> PinholeCamera {
     PinholeCamera::new(200.0, 200.0, 80.0, 60.0, 160, 120).expect("camera")
 }
 
+/// `gt` evaluated against `model` at `scale` and `poses`, seen by `camera()` in every frame,
+/// with `samples` surface samples for Chamfer.
+fn evaluated(
+    gt: &GtSequence,
+    model: &ObjectModel,
+    scale: f64,
+    poses: Vec<GenPose>,
+    samples: usize,
+) -> SequenceMetrics {
+    let cams = vec![camera(); poses.len()];
+    evaluate(
+        gt,
+        &PredSequence {
+            model,
+            scale,
+            poses,
+        },
+        &cams,
+        &EvalConfig {
+            samples,
+            ..Default::default()
+        },
+    )
+}
+
 #[test]
 fn a_perfect_prediction_scores_zero() {
     let m = model();
     let f = frames();
     let gt = ground_truth(&m, 0.3, &f);
-    let cams = vec![camera(); f.len()];
-    let r = evaluate(
-        &gt,
-        &PredSequence {
-            model: &m,
-            scale: 0.3,
-            poses: f.clone(),
-        },
-        &cams,
-        &EvalConfig {
-            samples: 3000,
-            ..Default::default()
-        },
-    );
+    let r = evaluated(&gt, &m, 0.3, f.clone(), 3000);
     assert!(
         (r.scale_alignment - 1.0).abs() < 1e-5,
         "{}",
@@ -124,19 +131,7 @@ fn a_perfect_prediction_scores_zero() {
     let floor = r.chamfer_cm.expect("cd");
     assert!(floor > 0.0 && floor < 0.5, "{floor}");
     assert!(r.cd_moving_cm.expect("cd") < 0.5 && r.cd_static_cm.expect("cd") < 0.5);
-    let r4 = evaluate(
-        &gt,
-        &PredSequence {
-            model: &m,
-            scale: 0.3,
-            poses: f.clone(),
-        },
-        &cams,
-        &EvalConfig {
-            samples: 12_000,
-            ..Default::default()
-        },
-    );
+    let r4 = evaluated(&gt, &m, 0.3, f.clone(), 12_000);
     let ratio = r4.chamfer_cm.expect("cd") / floor;
     assert!(
         (0.35..0.65).contains(&ratio),
@@ -178,20 +173,7 @@ fn monocular_scale_is_aligned_and_joints_match_by_geometry() {
         ..m.tree.joints()[0].clone()
     };
     renamed.tree = KinematicTree::new(vec![hinge], &["base".into(), "top".into()]).expect("tree");
-    let cams = vec![camera(); f.len()];
-    let r = evaluate(
-        &gt,
-        &PredSequence {
-            model: &renamed,
-            scale: 0.6,
-            poses: doubled,
-        },
-        &cams,
-        &EvalConfig {
-            samples: 3000,
-            ..Default::default()
-        },
-    );
+    let r = evaluated(&gt, &renamed, 0.6, doubled, 3000);
     assert!(
         (r.scale_alignment - 0.5).abs() < 1e-5,
         "{}",
@@ -207,19 +189,7 @@ fn monocular_scale_is_aligned_and_joints_match_by_geometry() {
         .iter()
         .map(|g| GenPose::new(g.pose, vec![g.states[0] + 10f64.to_radians()]))
         .collect();
-    let r = evaluate(
-        &gt,
-        &PredSequence {
-            model: &m,
-            scale: 0.3,
-            poses: off,
-        },
-        &cams,
-        &EvalConfig {
-            samples: 2000,
-            ..Default::default()
-        },
-    );
+    let r = evaluated(&gt, &m, 0.3, off, 2000);
     assert!((r.joints[0].state_error.expect("state") - 10f64.to_radians()).abs() < 1e-9);
     assert!(r.cd_moving_cm.expect("cd") > r.cd_static_cm.expect("cd"));
 }
@@ -230,14 +200,7 @@ fn monocular_scale_is_aligned_and_joints_match_by_geometry() {
 #[test]
 fn rigid_errors_match_an_independent_numpy_implementation() {
     use agentstar_eval::rigid::gauge_aligned_errors;
-    use std::io::Write;
-    let has_numpy = std::process::Command::new("python3")
-        .args(["-c", "import numpy"])
-        .output()
-        .map(|o| o.status.success())
-        .unwrap_or(false);
-    if !has_numpy {
-        eprintln!("python3 with numpy not found: the numpy cross-check did not run");
+    if !numpy::has_numpy() {
         return;
     }
     let f = frames();
@@ -256,40 +219,8 @@ fn rigid_errors_match_an_independent_numpy_implementation() {
         })
         .collect();
     let ours = gauge_aligned_errors(&gt, &pred, 0.4, 1.7).expect("errors");
-    let row = |p: &ObjectPose| {
-        let q = p.quaternion_wxyz();
-        vec![
-            q[0],
-            q[1],
-            q[2],
-            q[3],
-            p.translation.x,
-            p.translation.y,
-            p.translation.z,
-        ]
-    };
-    let input = serde_json::json!({"gt": gt.iter().map(row).collect::<Vec<_>>(), "pred": pred.iter().map(row).collect::<Vec<_>>(), "pred_scale": 0.4, "depth_scale": 1.7});
-    let script =
-        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scripts/crosscheck_rigid.py");
-    let mut child = std::process::Command::new("python3")
-        .arg(script)
-        .stdin(std::process::Stdio::piped())
-        .stdout(std::process::Stdio::piped())
-        .spawn()
-        .expect("python3");
-    child
-        .stdin
-        .take()
-        .expect("stdin")
-        .write_all(input.to_string().as_bytes())
-        .expect("write");
-    let out = child.wait_with_output().expect("run");
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let theirs: serde_json::Value = serde_json::from_slice(&out.stdout).expect("json");
+    let input = serde_json::json!({"gt": gt.iter().map(numpy::pose_row).collect::<Vec<_>>(), "pred": pred.iter().map(numpy::pose_row).collect::<Vec<_>>(), "pred_scale": 0.4, "depth_scale": 1.7});
+    let theirs = numpy::crosscheck("crosscheck_rigid.py", &input);
     for (k, (a, b)) in ours
         .rotation_deg
         .iter()

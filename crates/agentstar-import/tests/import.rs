@@ -71,15 +71,11 @@ fn a_bop_scene_imports_with_metres_occluders_depth_and_ground_truth() {
     let half = (std::f64::consts::PI / 315.0).sin();
     assert!((first[2] - half).abs() < 1e-9 && first[1].abs() < 1e-12 && first[3].abs() < 1e-12);
     // Rendering the ground truth gives back the visible mask outside the occluder.
-    let inst = agentstar_render::Instance {
-        mesh: &gt.meshes["object"],
-        bounds: gt.meshes["object"].bounds(),
-        camera_from_mesh: agentstar_render::raster::Affine::from_similarity(&p.with_scale(1.0)),
-        edges: None,
-        open_edges: None,
-        planes: None,
-        part_id: 0,
-    };
+    let inst = agentstar_render::Instance::bare(
+        &gt.meshes["object"],
+        agentstar_render::raster::Affine::from_similarity(&p.with_scale(1.0)),
+        0,
+    );
     let sil = agentstar_render::render_full(&cam, &[inst]).silhouette();
     let m2 = capture.load_mask(2).expect("mask");
     let h2 = capture.load_hand(2).expect("hand").expect("occluder");
@@ -298,6 +294,15 @@ fn mask_centroid(m: &agentstar_render::BitMask) -> (f64, f64) {
     (sx / n, sy / n)
 }
 
+/// The capture an importer wrote at `out`, asserting that it validates, and its ground truth.
+fn imported(out: &std::path::Path) -> (Capture, agentstar_data::gt::GroundTruth) {
+    let problems = Capture::validate(out);
+    assert!(problems.is_empty(), "{}: {problems:?}", out.display());
+    let cap = Capture::open(out).expect("capture");
+    let gt = agentstar_data::gt::GroundTruth::load(&out.join("gt.json")).expect("gt");
+    (cap, gt)
+}
+
 #[test]
 fn a_hot3d_sequence_imports_with_headset_cameras_and_nearest_poses() {
     use agentstar_import::hot3d::import_hot3d;
@@ -311,13 +316,7 @@ fn a_hot3d_sequence_imports_with_headset_cameras_and_nearest_poses() {
         (summary.frames, summary.skipped, summary.rendered_masks),
         (4, 1, true)
     );
-    assert!(
-        Capture::validate(&out).is_empty(),
-        "{:?}",
-        Capture::validate(&out)
-    );
-    let cap = Capture::open(&out).expect("capture");
-    let gt = agentstar_data::gt::GroundTruth::load(&out.join("gt.json")).expect("gt");
+    let (cap, gt) = imported(&out);
     let mesh = &gt.meshes["object"];
     let centre = mesh.bounds().center();
     for (t, camera_from_object) in &truth {
@@ -363,13 +362,7 @@ fn an_arctic_sequence_imports_two_parts_and_the_articulation() {
     let (cfg, rows, lid, tpl) = arctic_sequence(dir.path(), 6);
     let out = dir.path().join("cap");
     assert_eq!(import_arctic(&cfg, &out).expect("import").keyframes, 6);
-    assert!(
-        Capture::validate(&out).is_empty(),
-        "{:?}",
-        Capture::validate(&out)
-    );
-    let cap = Capture::open(&out).expect("capture");
-    let gt = agentstar_data::gt::GroundTruth::load(&out.join("gt.json")).expect("gt");
+    let (cap, gt) = imported(&out);
     assert_eq!(gt.file.base_part, "bottom");
     let joint = &gt.file.joints[0];
     assert_eq!(

@@ -275,7 +275,21 @@ pub(crate) fn project_point(c: &[f64; 3], camera: &PinholeCamera) -> [f64; 2] {
     ]
 }
 
-impl Instance<'_> {
+impl<'a> Instance<'a> {
+    /// `mesh` placed by `camera_from_mesh` as part `part_id`, without edge or plane tables
+    /// (filled triangle by triangle): a mesh that is no part of an `ObjectModel`.
+    pub fn bare(mesh: &'a TriMesh, camera_from_mesh: Affine, part_id: u16) -> Instance<'a> {
+        Instance {
+            mesh,
+            bounds: mesh.bounds(),
+            camera_from_mesh,
+            edges: None,
+            open_edges: None,
+            planes: None,
+            part_id,
+        }
+    }
+
     pub fn closed(&self) -> bool {
         self.edges.is_some()
     }

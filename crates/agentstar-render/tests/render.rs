@@ -1,13 +1,18 @@
 //! Integration tests of the renderer: exactness against an independent ray caster over many
 //! poses, depth against ray-cast depth, and the silhouette/full renderers agreeing.
 
-use agentstar_geom::kinematics::{JointDef, JointKind};
+#[path = "../../agentstar-track/tests/common/hinged.rs"]
+mod hinged;
+mod support;
+
 use agentstar_geom::pose::Similarity;
 use agentstar_geom::primitives::{cone, cuboid, torus, uv_sphere};
 use agentstar_geom::{
     KinematicTree, ObjectModel, Part, PinholeCamera, Point3, TriMesh, UnitQuaternion, Vector3,
 };
 use agentstar_render::{render_full, BitMask, PosedModel, SilhouetteRenderer};
+use hinged::with_lid_hinge;
+use support::assert_golden;
 
 /// A deterministic generator for test poses.
 struct Rng(u64);
@@ -103,20 +108,7 @@ fn test_model() -> ObjectModel {
         Part::new("ring", ring, [0.2, 0.2, 0.8]),
         Part::new("ball", ball, [0.8, 0.8, 0.2]),
     ];
-    let names: Vec<String> = parts.iter().map(|p| p.name.clone()).collect();
-    let hinge = JointDef {
-        name: "hinge".into(),
-        kind: JointKind::Revolute,
-        parent: None,
-        child: vec!["lid".into()],
-        origin: Vector3::new(0.0, -0.2, 0.15),
-        axis: Vector3::x(),
-        limit: Some((0.0, 120.0)),
-    };
-    ObjectModel {
-        tree: KinematicTree::new(vec![hinge], &names).expect("tree"),
-        parts,
-    }
+    with_lid_hinge(parts, Vector3::new(0.0, -0.2, 0.15), Vector3::x(), 120.0)
 }
 
 fn posed_meshes(model: &ObjectModel, states: &[f64], pose: &Similarity) -> Vec<TriMesh> {
@@ -386,40 +378,6 @@ fn a_reused_full_renderer_gives_what_a_fresh_one_gives() {
         assert_eq!(again.depth, fresh.depth, "trial {trial}");
         assert_eq!(again.normal, fresh.normal, "trial {trial}");
     }
-}
-
-/// Compares against a small committed golden image with explicit tolerances. Run with
-/// `AGENTSTAR_BLESS=1` to rewrite the golden after an intended change, then look at it.
-fn assert_golden(name: &str, img: &image::RgbImage) {
-    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("tests/golden")
-        .join(name);
-    if std::env::var_os("AGENTSTAR_BLESS").is_some() {
-        std::fs::create_dir_all(path.parent().expect("dir")).expect("mkdir");
-        img.save(&path).expect("bless");
-    }
-    let golden = image::open(&path)
-        .unwrap_or_else(|e| panic!("{}: {e} (run with AGENTSTAR_BLESS=1 once)", path.display()))
-        .to_rgb8();
-    assert_eq!(golden.dimensions(), img.dimensions());
-    let mut total = 0u64;
-    let mut far = 0u32;
-    for (a, b) in golden.pixels().zip(img.pixels()) {
-        let d: u32 = (0..3)
-            .map(|k| (a[k] as i32 - b[k] as i32).unsigned_abs())
-            .max()
-            .unwrap_or(0);
-        total += d as u64;
-        if d > 24 {
-            far += 1;
-        }
-    }
-    let n = (img.width() * img.height()) as f64;
-    assert!(
-        total as f64 / n < 2.0 && (far as f64) < 0.01 * n,
-        "{name}: mean diff {:.2}, {far} pixels far off",
-        total as f64 / n
-    );
 }
 
 #[test]

@@ -1,11 +1,13 @@
 //! The page from a hand-made report: every section, the viewer's data as it will be decoded,
 //! escaping, and nothing fetched from elsewhere.
 
+mod browser;
+
 use agentstar_report::{
     render_html, FrameEntry, Image, Report, Step, Temporal, Viewer, ViewerFrame, ViewerMaterial,
     ViewerPart, ViewerSurface, ViewerTexture,
 };
-use std::path::Path;
+use browser::{chromium, view_pixels, viewer_dom};
 
 fn identity() -> [f64; 16] {
     let mut m = [0.0; 16];
@@ -130,70 +132,6 @@ fn png_bytes(img: &image::RgbImage) -> Vec<u8> {
     out
 }
 
-/// A headless Chromium, where one is installed (`.ci/run` installs Debian's `chromium` and
-/// sets `AGENTSTAR_REQUIRE_CHROMIUM=1`, which turns its absence into a failure).
-fn chromium() -> Option<String> {
-    let found = ["chromium", "chromium-browser", "google-chrome"]
-        .into_iter()
-        .find(|b| {
-            std::process::Command::new(b)
-                .arg("--version")
-                .output()
-                .is_ok_and(|o| o.status.success())
-        })
-        .map(str::to_string);
-    if found.is_none() {
-        assert!(
-            std::env::var_os("AGENTSTAR_REQUIRE_CHROMIUM").is_none(),
-            "AGENTSTAR_REQUIRE_CHROMIUM is set but no chromium is installed"
-        );
-        eprintln!("chromium not installed (apt install chromium): the browser check is skipped");
-    }
-    found
-}
-
-/// The page's DOM after headless Chromium ran its scripts (with a time limit).
-fn dump_dom(bin: &str, page: &Path) -> String {
-    let stdout_path = page.with_extension("stdout");
-    let stdout = std::fs::File::create(&stdout_path).expect("stdout file");
-    let mut child = std::process::Command::new(bin)
-        .args([
-            "--headless",
-            "--no-sandbox",
-            "--disable-gpu",
-            "--use-angle=swiftshader",
-            "--enable-unsafe-swiftshader",
-            "--disable-background-networking",
-            "--disable-extensions",
-            "--no-first-run",
-            "--virtual-time-budget=15000",
-            "--window-size=1300,1400",
-            "--dump-dom",
-        ])
-        .arg(format!("file://{}", page.display()))
-        .stdout(stdout)
-        .stderr(std::process::Stdio::null())
-        .spawn()
-        .expect("start chromium");
-    let start = std::time::Instant::now();
-    while child.try_wait().expect("wait").is_none() {
-        if start.elapsed().as_secs() > 120 {
-            let _ = child.kill();
-            panic!("chromium did not finish in 120 s");
-        }
-        std::thread::sleep(std::time::Duration::from_millis(100));
-    }
-    String::from_utf8_lossy(&std::fs::read(&stdout_path).expect("stdout")).into_owned()
-}
-
-fn body_attr(dom: &str, name: &str) -> Option<String> {
-    let body = &dom[dom.find("<body")?..];
-    let body = &body[..body.find('>')?];
-    let key = format!("{name}=\"");
-    let at = body.find(&key)? + key.len();
-    Some(body[at..at + body[at..].find('"')?].to_string())
-}
-
 /// A textured, vertex-coloured part in the 3-D view (issue 33): the page carries its
 /// texture and corner colours, and in a browser the view starts and draws it without a
 /// script error.
@@ -257,21 +195,7 @@ fn a_textured_part_is_drawn_by_the_viewer() {
     let dir = tempfile::tempdir().expect("tmp");
     let page = dir.path().join("report.html");
     std::fs::write(&page, &html).expect("page");
-    let dom = dump_dom(&bin, &page);
-    assert_eq!(
-        body_attr(&dom, "data-viewer").as_deref(),
-        Some("ready"),
-        "{:?}",
-        body_attr(&dom, "data-error-text")
-    );
-    assert_eq!(
-        body_attr(&dom, "data-errors").as_deref(),
-        Some("0"),
-        "{:?}",
-        body_attr(&dom, "data-error-text")
-    );
-    let px: u64 = body_attr(&dom, "data-cam-pixels")
-        .and_then(|v| v.parse().ok())
-        .expect("camera pixels");
+    let dom = viewer_dom(&bin, &page);
+    let px = view_pixels(&dom, "data-cam-pixels");
     assert!(px > 200, "the camera view shows {px} pixels of the part");
 }

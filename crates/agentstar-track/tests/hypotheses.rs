@@ -2,7 +2,6 @@
 //! refined back to the truth, and the lid ↔ base twin of a laptop-like model is found from
 //! the wrong basin with both basins kept.
 
-use agentstar_geom::kinematics::{JointDef, JointKind};
 use agentstar_geom::pose::ObjectPose;
 use agentstar_geom::primitives::cuboid;
 use agentstar_geom::{KinematicTree, ObjectModel, Part, Point3, UnitQuaternion, Vector3};
@@ -13,6 +12,7 @@ use agentstar_track::objective::FrameProblem;
 use agentstar_track::update::{apply_object_rotation, flip, GenPose};
 
 mod common;
+use common::case::hinged::with_lid_hinge;
 use common::case::{case_model, truth};
 use common::view::{camera, target_of};
 
@@ -77,23 +77,15 @@ fn laptop() -> ObjectModel {
     let lid = cuboid(1.0, 0.7, 0.03)
         .expect("lid")
         .translated(Vector3::new(0.0, 0.0, 0.055));
-    let hinge = JointDef {
-        name: "hinge".into(),
-        kind: JointKind::Revolute,
-        parent: None,
-        child: vec!["lid".into()],
-        origin: Vector3::new(0.0, 0.35, 0.04),
-        axis: -Vector3::x(),
-        limit: Some((0.0, 150.0)),
-    };
-    ObjectModel {
-        tree: KinematicTree::new(vec![hinge], &["base".to_string(), "lid".to_string()])
-            .expect("tree"),
-        parts: vec![
+    with_lid_hinge(
+        vec![
             Part::new("base", base, [0.3, 0.3, 0.3]),
             Part::new("lid", lid, [0.6, 0.6, 0.6]),
         ],
-    }
+        Vector3::new(0.0, 0.35, 0.04),
+        -Vector3::x(),
+        150.0,
+    )
 }
 
 #[test]
@@ -175,23 +167,15 @@ fn twin_slabs() -> ObjectModel {
             .expect("slab")
             .translated(Vector3::new(0.0, 0.0, z))
     };
-    let hinge = JointDef {
-        name: "hinge".into(),
-        kind: JointKind::Revolute,
-        parent: None,
-        child: vec!["lid".into()],
-        origin: Vector3::new(0.0, 0.35, 0.0),
-        axis: -Vector3::x(),
-        limit: Some((0.0, 150.0)),
-    };
-    ObjectModel {
-        tree: KinematicTree::new(vec![hinge], &["base".to_string(), "lid".to_string()])
-            .expect("tree"),
-        parts: vec![
+    with_lid_hinge(
+        vec![
             Part::new("base", slab(-0.016), [0.3, 0.3, 0.3]),
             Part::new("lid", slab(0.016), [0.6, 0.6, 0.6]),
         ],
-    }
+        Vector3::new(0.0, 0.35, 0.0),
+        -Vector3::x(),
+        150.0,
+    )
 }
 
 #[test]

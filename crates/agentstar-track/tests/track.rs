@@ -38,15 +38,11 @@ fn sweep_recovers_a_perturbed_pose() {
         Grammar::Camera,
     )
     .expect("space");
-    let r = sweep(
-        &problem,
-        &space,
-        &SweepConfig {
-            polish_evals: 3000,
-            ..SweepConfig::default()
-        },
-    )
-    .expect("sweep");
+    let config = SweepConfig {
+        polish_evals: 3000,
+        ..SweepConfig::default()
+    };
+    let r = sweep(&problem, &space, &config).expect("sweep");
     let best = &r.ranked[0];
     assert!(
         best.score.gate >= 0.98,
@@ -59,15 +55,7 @@ fn sweep_recovers_a_perturbed_pose() {
         .windows(2)
         .all(|w| w[0].score.combined >= w[1].score.combined));
     // Deterministic for a seed.
-    let again = sweep(
-        &problem,
-        &space,
-        &SweepConfig {
-            polish_evals: 3000,
-            ..SweepConfig::default()
-        },
-    )
-    .expect("sweep");
+    let again = sweep(&problem, &space, &config).expect("sweep");
     assert_eq!(again.ranked[0].x, best.x);
 }
 

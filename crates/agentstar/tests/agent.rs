@@ -4,91 +4,10 @@
 mod support;
 
 use std::path::Path;
-use support::{agentstar, ledger_tools, small_run, synth_box, text};
-
-/// What the mock model server does with one request.
-enum Act {
-    /// Answer with this status and JSON body.
-    Json(u16, serde_json::Value),
-    /// Wait this many milliseconds first (past the client's timeout), then answer.
-    Slow(u64, serde_json::Value),
-}
-
-/// A model server on loopback that replays scripted answers in order and keeps every
-/// request body (OpenAI chat-completions paths).
-struct MockModel {
-    url: String,
-    requests: std::sync::Arc<std::sync::Mutex<Vec<serde_json::Value>>>,
-}
-
-fn mock_model(script: Vec<Act>) -> MockModel {
-    use std::io::{BufRead, BufReader, Read, Write};
-    let listener = std::net::TcpListener::bind("127.0.0.1:0").expect("bind");
-    let url = format!("http://{}/v1", listener.local_addr().expect("addr"));
-    let requests = std::sync::Arc::new(std::sync::Mutex::new(vec![]));
-    let script = std::sync::Arc::new(std::sync::Mutex::new(std::collections::VecDeque::from(
-        script,
-    )));
-    let reqs = requests.clone();
-    std::thread::spawn(move || {
-        for stream in listener.incoming() {
-            let Ok(mut stream) = stream else { continue };
-            let reqs = reqs.clone();
-            let script = script.clone();
-            std::thread::spawn(move || {
-                let mut reader = BufReader::new(stream.try_clone().expect("clone"));
-                let mut len = 0usize;
-                loop {
-                    let mut line = String::new();
-                    if reader.read_line(&mut line).unwrap_or(0) == 0 {
-                        return;
-                    }
-                    let l = line.trim_end().to_ascii_lowercase();
-                    if l.is_empty() {
-                        break;
-                    }
-                    if let Some(v) = l.strip_prefix("content-length:") {
-                        len = v.trim().parse().unwrap_or(0);
-                    }
-                }
-                let mut body = vec![0u8; len];
-                if reader.read_exact(&mut body).is_err() {
-                    return;
-                }
-                let act = {
-                    let v: serde_json::Value = serde_json::from_slice(&body).unwrap_or_default();
-                    reqs.lock().expect("lock").push(v);
-                    script.lock().expect("lock").pop_front()
-                };
-                let (status, answer) = match act {
-                    Some(Act::Json(s, v)) => (s, v),
-                    Some(Act::Slow(ms, v)) => {
-                        std::thread::sleep(std::time::Duration::from_millis(ms));
-                        (200, v)
-                    }
-                    None => (500, serde_json::json!({"error": "the script is exhausted"})),
-                };
-                let text = answer.to_string();
-                let _ = write!(
-                    stream,
-                    "HTTP/1.1 {status} X\r\ncontent-type: application/json\r\ncontent-length: {}\r\nconnection: close\r\n\r\n{text}",
-                    text.len()
-                );
-            });
-        }
-    });
-    MockModel { url, requests }
-}
-
-/// An OpenAI-style reply holding one tool call.
-fn tool_call(id: &str, name: &str, args: serde_json::Value) -> Act {
-    Act::Json(
-        200,
-        serde_json::json!({"choices": [{"message": {"role": "assistant", "content": format!("calling {name}"),
-            "tool_calls": [{"id": id, "type": "function", "function": {"name": name, "arguments": args.to_string()}}]}}],
-            "usage": {"prompt_tokens": 1000, "completion_tokens": 20}}),
-    )
-}
+use support::model::{
+    malformed_tool_call, mock_model, model_run, model_run_command, tool_call, Act,
+};
+use support::{agentstar, ledger_tools, on_poses, score_of, small_run, synth_box, text};
 
 #[test]
 fn the_agent_loop_builds_tracks_and_passes_the_gates_against_a_mock_model() {
@@ -130,26 +49,24 @@ fn the_agent_loop_builds_tracks_and_passes_the_gates_against_a_mock_model() {
         ),
         tool_call("c8", "finish", serde_json::json!({"summary": "done"})),
     ]);
-    let o = agentstar(&[
-        "run",
-        &s(&p("run")),
-        "--model",
-        "local:mock",
-        "--base-url",
-        &model.url,
-        "--request-timeout",
-        "1",
-        "--retries",
-        "3",
-        "--backoff-ms",
-        "10",
-        "--json",
-    ]);
+    let o = model_run(
+        &p("run"),
+        &model,
+        &[
+            "--request-timeout",
+            "1",
+            "--retries",
+            "3",
+            "--backoff-ms",
+            "10",
+            "--json",
+        ],
+    );
     assert!(o.status.success(), "{}", text(&o));
     let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("json");
     assert_eq!(v["finished"], true, "{v}");
     assert_eq!(v["steps"], 8);
-    let reqs = model.requests.lock().expect("lock").clone();
+    let reqs = model.requests();
     assert_eq!(reqs.len(), 10, "two failed attempts, then eight steps");
     // The request after `render` carries the rendered images.
     let after_render = reqs[3].to_string();
@@ -191,26 +108,17 @@ fn the_agent_loop_builds_tracks_and_passes_the_gates_against_a_mock_model() {
         ]
     );
     // The run holds the model and poses that pass the gate, and two scene versions.
-    let o = agentstar(&[
+    let o = on_poses(
         "score",
-        "--capture",
         &s(&p("cap")),
-        "--model",
         &s(&p("run/scene.rhai")),
-        "--poses",
         &s(&p("run/pose.json")),
-    ]);
+        &[],
+    );
     assert!(o.status.success(), "{}", text(&o));
     assert!(p("run/.agentstar/scenes/0002.rhai").is_file());
     // A finished run says so and does nothing; its report shows the steps.
-    let o = agentstar(&[
-        "run",
-        &s(&p("run")),
-        "--model",
-        "local:mock",
-        "--base-url",
-        &model.url,
-    ]);
+    let o = model_run(&p("run"), &model, &[]);
     assert!(
         o.status.success() && text(&o).contains("finished"),
         "{}",
@@ -229,30 +137,16 @@ fn a_failing_model_stops_cleanly_and_the_run_resumes_within_its_budget() {
     let s = |path: &Path| path.to_str().expect("utf8").to_string();
     small_run(dir.path(), 3, false);
     let poses_before = std::fs::read(p("run/pose.json")).expect("poses");
-    let malformed = || {
-        Act::Json(
-            200,
-            serde_json::json!({"choices": [{"message": {"content": "", "tool_calls": [
-            {"id": "x", "type": "function", "function": {"name": "sweep", "arguments": "{\"frames\": "}}]}}]}),
-        )
-    };
     // 1. Malformed tool calls, retried, then a clean stop.
-    let model = mock_model(vec![malformed(), malformed(), malformed()]);
-    let o = agentstar(&[
-        "run",
-        &s(&p("run")),
-        "--model",
-        "local:mock",
-        "--base-url",
-        &model.url,
-        "--retries",
-        "2",
-        "--backoff-ms",
-        "5",
+    let model = mock_model(vec![
+        malformed_tool_call(),
+        malformed_tool_call(),
+        malformed_tool_call(),
     ]);
+    let o = model_run(&p("run"), &model, &["--retries", "2", "--backoff-ms", "5"]);
     assert_eq!(o.status.code(), Some(4), "{}", text(&o));
     assert!(text(&o).contains("malformed"), "{}", text(&o));
-    assert_eq!(model.requests.lock().expect("lock").len(), 3);
+    assert_eq!(model.requests().len(), 3);
     assert_eq!(ledger_tools(&p("run")), ["init", "stop"]);
     assert_eq!(
         std::fs::read(p("run/pose.json")).expect("poses"),
@@ -268,16 +162,7 @@ fn a_failing_model_stops_cleanly_and_the_run_resumes_within_its_budget() {
         ),
         tool_call("c", "score", serde_json::json!({})),
     ]);
-    let o = agentstar(&[
-        "run",
-        &s(&p("run")),
-        "--model",
-        "local:mock",
-        "--base-url",
-        &model.url,
-        "--max-steps",
-        "2",
-    ]);
+    let o = model_run(&p("run"), &model, &["--max-steps", "2"]);
     assert_eq!(o.status.code(), Some(3), "{}", text(&o));
     assert!(text(&o).contains("step budget"), "{}", text(&o));
     assert_eq!(
@@ -285,20 +170,11 @@ fn a_failing_model_stops_cleanly_and_the_run_resumes_within_its_budget() {
         ["init", "stop", "score", "render", "stop"]
     );
     // The run is consistent: its poses still score, its capture still validates.
-    let o = agentstar(&[
-        "score",
-        "--capture",
+    let _: serde_json::Value = score_of(
         &s(&p("cap")),
-        "--model",
         &s(&p("run/scene.rhai")),
-        "--poses",
         &s(&p("run/pose.json")),
-        "--json",
-    ]);
-    assert!(
-        serde_json::from_slice::<serde_json::Value>(&o.stdout).is_ok(),
-        "{}",
-        text(&o)
+        None,
     );
     // 3. Resumed again: the model is told where the run stands.
     let model = mock_model(vec![tool_call(
@@ -306,18 +182,9 @@ fn a_failing_model_stops_cleanly_and_the_run_resumes_within_its_budget() {
         "notes",
         serde_json::json!({"text": "resumed"}),
     )]);
-    let o = agentstar(&[
-        "run",
-        &s(&p("run")),
-        "--model",
-        "local:mock",
-        "--base-url",
-        &model.url,
-        "--retries",
-        "0",
-    ]);
+    let o = model_run(&p("run"), &model, &["--retries", "0"]);
     assert_eq!(o.status.code(), Some(4), "{}", text(&o));
-    let first = model.requests.lock().expect("lock")[0].to_string();
+    let first = model.requests()[0].to_string();
     assert!(
         first.contains("resuming this run after 2 step(s)"),
         "{first}"
@@ -332,7 +199,6 @@ fn a_failing_model_stops_cleanly_and_the_run_resumes_within_its_budget() {
 fn pose_sub_agents_work_their_windows_in_parallel_and_report_back() {
     let dir = tempfile::tempdir().expect("tmp");
     let p = |n: &str| dir.path().join(n);
-    let s = |path: &Path| path.to_str().expect("utf8").to_string();
     small_run(dir.path(), 4, true);
     let finish = || {
         tool_call(
@@ -353,19 +219,10 @@ fn pose_sub_agents_work_their_windows_in_parallel_and_report_back() {
         finish(),
         tool_call("n", "notes", serde_json::json!({"text": "windows back"})),
     ]);
-    let o = agentstar(&[
-        "run",
-        &s(&p("run")),
-        "--model",
-        "local:mock",
-        "--base-url",
-        &model.url,
-        "--retries",
-        "0",
-    ]);
+    let o = model_run(&p("run"), &model, &["--retries", "0"]);
     // The script ends before the gates: a model error stop, with every step recorded.
     assert_eq!(o.status.code(), Some(4), "{}", text(&o));
-    let reqs = model.requests.lock().expect("lock").clone();
+    let reqs = model.requests();
     let briefed: Vec<&serde_json::Value> = reqs
         .iter()
         .filter(|r| {
@@ -444,17 +301,7 @@ fn external_agents_get_their_configuration_and_keys_stay_out_of_the_run() {
     assert!(p("run/.mcp.json").is_file() && p("run/CLAUDE.md").is_file());
     // A key given in the environment is used but never written into the run.
     let model = mock_model(vec![tool_call("a", "score", serde_json::json!({}))]);
-    let o = std::process::Command::new(env!("CARGO_BIN_EXE_agentstar"))
-        .args([
-            "run",
-            &s(&p("run")),
-            "--model",
-            "local:mock",
-            "--base-url",
-            &model.url,
-            "--retries",
-            "0",
-        ])
+    let o = model_run_command(&p("run"), &model, &["--retries", "0"])
         .env("AGENTSTAR_API_KEY", "sk-secret-0123456789")
         .output()
         .expect("run");

@@ -7,25 +7,20 @@ mod support;
 use agentstar_reports::{BakeReport, ScoreReport};
 use serde_json::json;
 use std::path::{Path, PathBuf};
-use support::{agentstar, json_of, s, text, McpClient};
+use support::{
+    agentstar, assert_failed_saying, init_run, json_of, on_poses, s, synth_object, text, McpClient,
+};
 
 /// The hard suite's printed mug (8 keyframes, 240×180) in `DIR/cap`, and in `DIR/run` its
 /// true model with the badge painted the mug's colour (an uncoloured model) and its true
 /// poses.
 fn uncoloured_mug(dir: &Path) -> (PathBuf, PathBuf, PathBuf) {
     let cap = dir.join("cap");
-    let o = agentstar(&[
-        "synth",
+    let o = synth_object(
         &s(&cap),
-        "--object",
         "printmug",
-        "--frames",
-        "8",
-        "--size",
-        "240x180",
-        "--seed",
-        "1",
-    ]);
+        &["--frames", "8", "--size", "240x180", "--seed", "1"],
+    );
     assert!(o.status.success(), "{}", text(&o));
     let run = dir.join("run");
     std::fs::create_dir_all(&run).expect("run");
@@ -42,16 +37,7 @@ fn uncoloured_mug(dir: &Path) -> (PathBuf, PathBuf, PathBuf) {
 }
 
 fn score(cap: &Path, scene: &Path, poses: &Path) -> ScoreReport {
-    let o = agentstar(&[
-        "score",
-        "--capture",
-        &s(cap),
-        "--model",
-        &s(scene),
-        "--poses",
-        &s(poses),
-        "--json",
-    ]);
+    let o = on_poses("score", &s(cap), &s(scene), &s(poses), &["--json"]);
     serde_json::from_slice(&o.stdout).unwrap_or_else(|e| panic!("{e}: {}", text(&o)))
 }
 
@@ -135,16 +121,7 @@ fn a_bake_from_true_poses_gives_an_uncoloured_mug_its_print_and_score_uses_it() 
         script.replace("cylinder(0.32, 0.8)", "cylinder(0.33, 0.8)"),
     )
     .expect("edit");
-    let o = agentstar(&[
-        "score",
-        "--capture",
-        &s(&cap),
-        "--model",
-        &s(&scene),
-        "--poses",
-        &s(&poses),
-        "--json",
-    ]);
+    let o = on_poses("score", &s(&cap), &s(&scene), &s(&poses), &["--json"]);
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(
         err.contains("scene.bake.json is stale"),
@@ -197,8 +174,7 @@ fn bad_inputs_are_named_and_leave_nothing_behind() {
     let bake = |poses: &Path| bake(&cap, &scene, poses, &[]);
     let missing = run.join("nope.json");
     let o = bake(&missing);
-    assert!(!o.status.success());
-    assert!(text(&o).contains("nope.json"), "{}", text(&o));
+    assert_failed_saying(&o, &["nope.json"]);
     // A pose that is not a number.
     let text_of_poses = std::fs::read_to_string(&poses).expect("poses");
     let nan = run.join("nan.json");
@@ -208,12 +184,7 @@ fn bad_inputs_are_named_and_leave_nothing_behind() {
         .expect("t");
     std::fs::write(&nan, text_of_poses.replacen(&t.to_string(), "NaN", 1)).expect("write");
     let o = bake(&nan);
-    assert!(!o.status.success());
-    assert!(
-        text(&o).contains("nan.json") && text(&o).contains("NaN"),
-        "{}",
-        text(&o)
-    );
+    assert_failed_saying(&o, &["nan.json", "NaN"]);
     assert!(bake_files(&run).is_empty(), "{:?}", bake_files(&run));
 }
 
@@ -222,17 +193,7 @@ fn the_bake_tool_writes_beside_the_runs_model_and_refuses_a_model_outside_the_ru
     let dir = tempfile::tempdir().expect("tmp");
     let (cap, scene, _) = uncoloured_mug(dir.path());
     let run = dir.path().join("agent");
-    let o = agentstar(&[
-        "init",
-        &s(&run),
-        "--capture",
-        &s(&cap),
-        "--scene",
-        &s(&scene),
-        "--scale",
-        "0.12",
-    ]);
-    assert!(o.status.success(), "{}", text(&o));
+    init_run(&run, &cap, Some((&scene, "0.12")));
     // The true poses, committed.
     let o = agentstar(&[
         "pose",

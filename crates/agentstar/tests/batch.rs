@@ -15,6 +15,19 @@ fn json(o: &Output) -> Value {
     serde_json::from_slice(&o.stdout).unwrap_or_else(|e| panic!("{e}: {}", text(o)))
 }
 
+/// `batch local BATCH --json` (which runs the jobs that need a run): its report and each
+/// job's attempts so far.
+fn run_local(batch: &Path) -> (Value, Vec<u64>) {
+    let v = json(&agentstar_in(&[], &["batch", "local", s(batch), "--json"]));
+    let attempts = v["jobs"]
+        .as_array()
+        .expect("jobs")
+        .iter()
+        .map(|j| j["attempts"].as_u64().expect("n"))
+        .collect();
+    (v, attempts)
+}
+
 /// Waits (bounded) until `done` holds, polling.
 fn wait_for(what: &str, limit: Duration, mut done: impl FnMut() -> bool) {
     let t0 = Instant::now();
@@ -216,14 +229,8 @@ fn a_batch_runs_locally_survives_a_killed_job_and_gathers_the_tables() {
     assert_eq!(v["jobs"][1]["exit"]["signal"], 9);
 
     // Resuming runs only the killed job.
-    let v = json(&agentstar_in(&[], &["batch", "local", s(&batch), "--json"]));
+    let (v, attempts) = run_local(&batch);
     assert_eq!(v["summary"], "3 jobs: 3 finished");
-    let attempts: Vec<u64> = v["jobs"]
-        .as_array()
-        .expect("jobs")
-        .iter()
-        .map(|j| j["attempts"].as_u64().expect("n"))
-        .collect();
     assert_eq!(attempts, [1, 2, 1]);
     let log = std::fs::read_to_string(batch.join("logs/laptop.log")).expect("log");
     assert_eq!(log.matches("== attempt").count(), 2, "{log}");
@@ -590,14 +597,8 @@ fn a_finished_job_whose_result_is_damaged_runs_again_and_gather_tables_the_rest(
     // Only the damaged jobs need a run, and `batch local` reruns them.
     let o = agentstar_in(&[], &["batch", "slurm", s(&batch), "--json"]);
     assert_eq!(json(&o)["tasks"], serde_json::json!([0, 1]));
-    let v = json(&agentstar_in(&[], &["batch", "local", s(&batch), "--json"]));
+    let (v, attempts) = run_local(&batch);
     assert_eq!(v["summary"], "3 jobs: 3 finished");
-    let attempts: Vec<u64> = v["jobs"]
-        .as_array()
-        .expect("jobs")
-        .iter()
-        .map(|j| j["attempts"].as_u64().expect("n"))
-        .collect();
     assert_eq!(attempts, [2, 2, 1]);
     assert_eq!(
         std::fs::read(batch.join("jobs/box/pose.json.damaged")).expect("kept aside"),

@@ -9,7 +9,7 @@ mod support;
 
 use serde_json::Value;
 use std::path::Path;
-use support::{agentstar, json_of, s, text};
+use support::{agentstar, assert_failed_saying, json_of, on_poses, s, synth_object, text};
 
 /// Copies the PNG files of `from` into `to` (a new folder).
 fn copy_pngs(from: &Path, to: &Path) {
@@ -49,23 +49,23 @@ fn a_clip_with_in_between_frames_goes_from_video_to_report() {
     let dir = tempfile::tempdir().expect("tmp");
     let p = |n: &str| dir.path().join(n);
     // 5 keyframes 5 video frames apart, the 4 frames between each pair kept: 21 frames.
-    let o = agentstar(&[
-        "synth",
+    let o = synth_object(
         &s(&p("clip")),
-        "--object",
         "box",
-        "--motion",
-        "handheld",
-        "--frames",
-        "5",
-        "--size",
-        "160x120",
-        "--seed",
-        "3",
-        "--between",
-        "4",
-        "--no-depth",
-    ]);
+        &[
+            "--motion",
+            "handheld",
+            "--frames",
+            "5",
+            "--size",
+            "160x120",
+            "--seed",
+            "3",
+            "--between",
+            "4",
+            "--no-depth",
+        ],
+    );
     assert!(o.status.success(), "synth: {}", text(&o));
     let v = json_of::<Value>(&agentstar(&["validate", &s(&p("clip")), "--json"]));
     assert_eq!(v["valid"], true, "{v}");
@@ -155,16 +155,13 @@ fn a_clip_with_in_between_frames_goes_from_video_to_report() {
         warm["log"]
     );
     // Keyframe tools read the keyframes' poses and leave the in-between ones alone.
-    let o = agentstar(&[
+    let o = on_poses(
         "score",
-        "--capture",
         &s(&p("cap")),
-        "--model",
         &model,
-        "--poses",
         &s(&p("run/pose.json")),
-        "--json",
-    ]);
+        &["--json"],
+    );
     let scored: Value = json_of(&o);
     assert_eq!(
         scored["frames"].as_array().map(Vec::len),
@@ -197,16 +194,7 @@ fn a_clip_with_in_between_frames_goes_from_video_to_report() {
         let args: Vec<&str> = args.iter().map(String::as_str).collect();
         let o = agentstar(&args);
         assert!(o.status.success(), "track ({label}): {}", text(&o));
-        let o = agentstar(&[
-            "eval",
-            "--capture",
-            &s(&p("clip")),
-            "--model",
-            &model,
-            "--poses",
-            &s(&out),
-            "--json",
-        ]);
+        let o = on_poses("eval", &s(&p("clip")), &model, &s(&out), &["--json"]);
         assert!(o.status.success(), "eval ({label}): {}", text(&o));
         let e: Value = json_of(&o);
         assert_eq!(e["frames"], 5, "{e}");
@@ -228,49 +216,35 @@ fn a_clip_with_in_between_frames_goes_from_video_to_report() {
 fn bad_in_between_options_are_refused_with_messages() {
     let dir = tempfile::tempdir().expect("tmp");
     let p = |n: &str| dir.path().join(n);
-    let o = agentstar(&[
-        "synth",
+    let o = synth_object(
         &s(&p("clip")),
-        "--object",
         "box",
-        "--frames",
-        "3",
-        "--size",
-        "64x48",
-        "--between",
-        "60",
-    ]);
-    assert!(!o.status.success());
-    assert!(text(&o).contains("between must be 0 to 59"), "{}", text(&o));
-    let o = agentstar(&[
-        "synth",
+        &["--frames", "3", "--size", "64x48", "--between", "60"],
+    );
+    assert_failed_saying(&o, &["between must be 0 to 59"]);
+    let o = synth_object(
         &s(&p("clip")),
-        "--object",
         "box",
-        "--frames",
-        "3",
-        "--size",
-        "64x48",
-        "--between",
-        "2",
-        "--no-depth",
-    ]);
+        &[
+            "--frames",
+            "3",
+            "--size",
+            "64x48",
+            "--between",
+            "2",
+            "--no-depth",
+        ],
+    );
     assert!(o.status.success(), "{}", text(&o));
     copy_pngs(&p("clip/frames"), &p("frames"));
     copy_pngs(&p("clip/mask_object"), &p("masks"));
     // The frame between the first two keyframes loses its mask: named, nothing written.
     std::fs::remove_file(p("masks/000001.png")).expect("rm");
     let o = from_video(dir.path(), "3", &["--between", "--fov", "60"], "cap");
-    assert!(!o.status.success());
-    assert!(
-        text(&o).contains("000001") && text(&o).contains("in-between"),
-        "{}",
-        text(&o)
-    );
+    assert_failed_saying(&o, &["000001", "in-between"]);
     assert!(!p("cap").exists(), "nothing half-written");
     let o = from_video(dir.path(), "3", &["--between", "0", "--fov", "60"], "cap");
-    assert!(!o.status.success());
-    assert!(text(&o).contains("between 0"), "{}", text(&o));
+    assert_failed_saying(&o, &["between 0"]);
 }
 
 /// `validate --json` of a capture: its keyframe and in-between counts.
@@ -381,12 +355,7 @@ fn dataset_imports_keep_in_between_frames_that_track_follows() {
     );
     // A stride that reaches the next keyframe is refused before anything is written.
     let o = hot3d_args("3", "3", "hot3d-bad");
-    assert!(!o.status.success());
-    assert!(
-        text(&o).contains("--between 3 with --every 3"),
-        "{}",
-        text(&o)
-    );
+    assert_failed_saying(&o, &["--between 3 with --every 3"]);
     assert!(!p("hot3d-bad").exists());
     // ARCTIC: 8 rows, keyframes every 3rd image, every image between them; tracked with the
     // template as a scene (the lid turning about -Z through the origin).

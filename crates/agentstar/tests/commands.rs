@@ -5,15 +5,13 @@ mod support;
 
 use agentstar_reports::ScoreReport;
 use std::path::Path;
-use support::{agentstar, example, score_of, text};
+use support::{agentstar, assert_failed_saying, example, json_of, on_poses, score_of, text};
 
 #[test]
 fn example_and_every_subcommand_on_it() {
     let dir = tempfile::tempdir().expect("tmp");
     let (cap, model, poses) = example(dir.path());
-    let o = agentstar(&["validate", &cap, "--json"]);
-    assert!(o.status.success(), "{}", text(&o));
-    let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("json");
+    let v: serde_json::Value = json_of(&agentstar(&["validate", &cap, "--json"]));
     assert_eq!(v["valid"], true);
     assert_eq!(v["frames"], 6);
 
@@ -22,22 +20,21 @@ fn example_and_every_subcommand_on_it() {
     assert_eq!(v.frames.len(), 6);
 
     let out = dir.path().join("views");
-    let o = agentstar(&[
+    let o = on_poses(
         "render",
-        "--capture",
         &cap,
-        "--model",
         &model,
-        "--poses",
         &poses,
-        "--frames",
-        "000000..000010",
-        "--views",
-        "overlay,compare,ids,shaded,depth",
-        "--out",
-        out.to_str().expect("utf8"),
-        "--json",
-    ]);
+        &[
+            "--frames",
+            "000000..000010",
+            "--views",
+            "overlay,compare,ids,shaded,depth",
+            "--out",
+            out.to_str().expect("utf8"),
+            "--json",
+        ],
+    );
     assert!(o.status.success(), "{}", text(&o));
     for f in [
         "overlay_000005.png",
@@ -62,28 +59,25 @@ fn example_and_every_subcommand_on_it() {
     // The raw keyframes cropped around the mask, outlined and zoomed; a call without the
     // overlay names no overlay sheet, and every file it names exists.
     let fv = dir.path().join("frames_view");
-    let o = agentstar(&[
+    let v: serde_json::Value = json_of(&on_poses(
         "render",
-        "--capture",
         &cap,
-        "--model",
         &model,
-        "--poses",
         &poses,
-        "--frames",
-        "000000,000005",
-        "--views",
-        "compare,frame,side",
-        "--outline",
-        "both",
-        "--zoom",
-        "2",
-        "--out",
-        fv.to_str().expect("utf8"),
-        "--json",
-    ]);
-    assert!(o.status.success(), "{}", text(&o));
-    let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("json");
+        &[
+            "--frames",
+            "000000,000005",
+            "--views",
+            "compare,frame,side",
+            "--outline",
+            "both",
+            "--zoom",
+            "2",
+            "--out",
+            fv.to_str().expect("utf8"),
+            "--json",
+        ],
+    ));
     let sheets: Vec<&str> = v["sheets"]
         .as_array()
         .expect("sheets")
@@ -152,44 +146,25 @@ fn example_and_every_subcommand_on_it() {
         ("--zoom=9", "--zoom"),
         ("--margin=-1", "--margin"),
     ] {
-        let o = agentstar(&[
+        let o = on_poses(
             "render",
-            "--capture",
             &cap,
-            "--model",
             &model,
-            "--poses",
             &poses,
-            "--views",
-            "frame",
-            "--out",
-            fv.to_str().expect("utf8"),
-            bad,
-        ]);
-        assert!(
-            !o.status.success() && text(&o).contains(says),
-            "{}",
-            text(&o)
+            &["--views", "frame", "--out", fv.to_str().expect("utf8"), bad],
         );
+        assert_failed_saying(&o, &[says]);
     }
 
     let tt = dir.path().join("tt");
-    let o = agentstar(&[
-        "turntable",
-        "--model",
-        &model,
-        "--capture",
-        &cap,
-        "--poses",
-        &poses,
-        "--out",
-        tt.to_str().expect("utf8"),
-        "--size",
-        "96",
-        "--json",
-    ]);
-    assert!(o.status.success(), "{}", text(&o));
-    let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("json");
+    // `turntable … --out TT --size 96 ARGS… --json`, its report.
+    let turntable = |args: &[&str]| -> serde_json::Value {
+        let mut all = vec!["--out", tt.to_str().expect("utf8"), "--size", "96"];
+        all.extend_from_slice(args);
+        all.push("--json");
+        json_of(&on_poses("turntable", &cap, &model, &poses, &all))
+    };
+    let v = turntable(&[]);
     // Every frame of the example has its own lid angle: by default the lid's minimum,
     // median and maximum, one sheet each, and no single views.
     let labels: Vec<&str> = v["states"]
@@ -206,25 +181,7 @@ fn example_and_every_subcommand_on_it() {
     assert!(tt.join("turntable_sheet_median.png").is_file());
     assert!(!tt.join("turntable_min_az000_el+20.png").exists());
     // Every distinct state, with the single views, on request.
-    let o = agentstar(&[
-        "turntable",
-        "--model",
-        &model,
-        "--capture",
-        &cap,
-        "--poses",
-        &poses,
-        "--out",
-        tt.to_str().expect("utf8"),
-        "--size",
-        "96",
-        "--states",
-        "all",
-        "--each",
-        "--json",
-    ]);
-    assert!(o.status.success(), "{}", text(&o));
-    let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("json");
+    let v = turntable(&["--states", "all", "--each"]);
     assert_eq!(v["states"].as_array().expect("states").len(), 6);
     assert!(tt.join("turntable_000000_az000_el+20.png").is_file());
     // States given outright, without poses (a shape checked before tracking); a state past
@@ -259,11 +216,7 @@ fn example_and_every_subcommand_on_it() {
         "{v}"
     );
     let o = given("hinge:1000");
-    assert!(
-        !o.status.success() && text(&o).contains("hinge") && text(&o).contains("limit"),
-        "{}",
-        text(&o)
-    );
+    assert_failed_saying(&o, &["hinge", "limit"]);
 
     let glb = dir.path().join("object.glb");
     let o = agentstar(&[
@@ -301,15 +254,7 @@ fn bad_input_fails_clearly() {
         "{}",
         text(&o)
     );
-    let o = agentstar(&[
-        "score",
-        "--capture",
-        &cap,
-        "--model",
-        &model,
-        "--poses",
-        &poses,
-    ]);
+    let o = on_poses("score", &cap, &model, &poses, &[]);
     assert_eq!(o.status.code(), Some(2));
     assert!(text(&o).contains("problem"), "{}", text(&o));
     std::fs::copy(
@@ -337,51 +282,24 @@ fn bad_input_fails_clearly() {
         1,
     );
     std::fs::write(&bad_pose, p).expect("w");
-    let o = agentstar(&[
-        "score",
-        "--capture",
-        &cap,
-        "--model",
-        &model,
-        "--poses",
-        bad_pose.to_str().expect("utf8"),
-    ]);
+    let o = on_poses("score", &cap, &model, bad_pose.to_str().expect("utf8"), &[]);
     assert_eq!(o.status.code(), Some(2));
     assert!(text(&o).contains("bad_pose.json"), "{}", text(&o));
 
     // Unknown frames and views are named with what is valid.
-    let o = agentstar(&[
-        "render",
-        "--capture",
-        &cap,
-        "--model",
-        &model,
-        "--poses",
-        &poses,
-        "--frames",
-        "999999",
-        "--out",
-        dir.path().join("v").to_str().expect("utf8"),
-    ]);
-    assert!(text(&o).contains("unknown frame `999999`"), "{}", text(&o));
-    let o = agentstar(&[
-        "render",
-        "--capture",
-        &cap,
-        "--model",
-        &model,
-        "--poses",
-        &poses,
-        "--views",
-        "xray",
-        "--out",
-        dir.path().join("v").to_str().expect("utf8"),
-    ]);
-    assert!(
-        text(&o).contains("unknown view `xray`; views are overlay"),
-        "{}",
-        text(&o)
-    );
+    let out = dir.path().join("v");
+    for (args, says) in [
+        (["--frames", "999999"], "unknown frame `999999`"),
+        (
+            ["--views", "xray"],
+            "unknown view `xray`; views are overlay",
+        ),
+    ] {
+        let mut all = args.to_vec();
+        all.extend(["--out", out.to_str().expect("utf8")]);
+        let o = on_poses("render", &cap, &model, &poses, &all);
+        assert!(text(&o).contains(says), "{args:?}: {}", text(&o));
+    }
 
     // A failing export leaves no partial file behind.
     let o = agentstar(&[

@@ -4,7 +4,7 @@ mod support;
 
 use std::path::Path;
 use std::process::Command;
-use support::{agentstar, example, text};
+use support::{example, on_poses, text};
 
 #[test]
 fn motion_exports_are_valid_gltf_and_posed_meshes() {
@@ -13,21 +13,20 @@ fn motion_exports_are_valid_gltf_and_posed_meshes() {
     let glb = dir.path().join("tracked.glb");
     let rest = dir.path().join("rest.glb");
     let posed = dir.path().join("posed");
-    let o = agentstar(&[
+    let o = on_poses(
         "export",
-        "--model",
-        &model,
-        "--glb",
-        rest.to_str().expect("utf8"),
-        "--capture",
         &cap,
-        "--poses",
+        &model,
         &poses,
-        "--animated-glb",
-        glb.to_str().expect("utf8"),
-        "--posed-meshes",
-        posed.to_str().expect("utf8"),
-    ]);
+        &[
+            "--glb",
+            rest.to_str().expect("utf8"),
+            "--animated-glb",
+            glb.to_str().expect("utf8"),
+            "--posed-meshes",
+            posed.to_str().expect("utf8"),
+        ],
+    );
     assert!(o.status.success(), "{}", text(&o));
     assert_eq!(std::fs::read_dir(&posed).expect("posed").count(), 6);
     // The animation reads back to the poses it was made from.
@@ -72,19 +71,13 @@ fn point_tracks_land_in_the_masks_and_bop_results_carry_the_poses() {
         ("--tracks", &npz_path),
         ("--bop", &bop),
     ] {
-        let o = agentstar(&[
+        let o = on_poses(
             "export",
-            "--model",
-            &model,
-            "--capture",
             &cap,
-            "--poses",
+            &model,
             &poses,
-            flag,
-            path.to_str().expect("utf8"),
-            "--stride",
-            "6",
-        ]);
+            &[flag, path.to_str().expect("utf8"), "--stride", "6"],
+        );
         assert!(o.status.success(), "{}", text(&o));
     }
     // The example's poses are its ground truth: every visible tracked point projects into

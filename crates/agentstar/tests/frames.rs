@@ -5,7 +5,7 @@
 mod support;
 
 use agentstar_reports::ScoreReport;
-use support::{agentstar, s, small_run, text};
+use support::{on_poses, s, small_run, small_run_at_truth, text};
 
 #[test]
 fn frames_are_selected_by_names_stems_numbers_and_ranges() {
@@ -13,18 +13,13 @@ fn frames_are_selected_by_names_stems_numbers_and_ranges() {
     small_run(dir.path(), 3, true);
     let (cap, run) = (dir.path().join("cap"), dir.path().join("run"));
     let score = |spec: &str| {
-        agentstar(&[
+        on_poses(
             "score",
-            "--capture",
             &s(&cap),
-            "--model",
             &s(&run.join("scene.rhai")),
-            "--poses",
             &s(&run.join("pose.json")),
-            "--frames",
-            spec,
-            "--json",
-        ])
+            &["--frames", spec, "--json"],
+        )
     };
     let names = |spec: &str| -> Vec<String> {
         let o = score(spec);
@@ -77,13 +72,7 @@ fn render_and_frames_zoom_into_a_box_and_say_which_side_faces_the_camera() {
     use serde_json::json;
     use support::McpClient;
     let dir = tempfile::tempdir().expect("tmp");
-    small_run(dir.path(), 3, true);
-    let run = dir.path().join("run");
-    std::fs::copy(
-        dir.path().join("cap/model/pose.json"),
-        run.join("pose.json"),
-    )
-    .expect("true poses");
+    let run = small_run_at_truth(dir.path(), 3);
     let (mut c, _) = McpClient::initialised(&run);
     let call = |c: &mut McpClient, id: u64, tool: &str, args: serde_json::Value| {
         c.call(id, tool, args);

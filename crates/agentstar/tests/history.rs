@@ -13,7 +13,9 @@ use agentstar_reports::{
 use serde_json::json;
 use std::collections::BTreeSet;
 use std::path::Path;
-use support::{agentstar, json_of, ledger, s, small_run, text, McpClient};
+use support::{
+    agentstar, assert_failed_saying, json_of, ledger, on_poses, s, small_run, text, McpClient,
+};
 
 fn translation(pf: &PoseFile, frame: &str) -> [f64; 3] {
     pf.frames[frame]
@@ -37,21 +39,23 @@ fn a_track_is_a_version_and_frames_restore_commit_and_follow_across_versions() {
     small_run(dir.path(), 4, true);
     let (cap, run) = (dir.path().join("cap"), dir.path().join("run"));
     let (model, poses) = (s(&run.join("scene.rhai")), s(&run.join("pose.json")));
+    let cap_dir = s(&cap);
     // The tracker, warm-started from the true poses, writes the run's pose.json: version 1
     // after the file init made (version 0), with its command.
-    let o = agentstar(&[
-        "track",
-        &s(&cap),
-        "--model",
-        &model,
-        "--from",
+    // `track CAP --model MODEL --from FROM --out OUT ARGS… --json`.
+    let track_from = |from: &str, out: &str, args: &[&str]| {
+        let mut all = vec![
+            "track", &cap_dir, "--model", &model, "--from", from, "--out", out,
+        ];
+        all.extend_from_slice(args);
+        all.push("--json");
+        agentstar(&all)
+    };
+    let o = track_from(
         &s(&cap.join("model/pose.json")),
-        "--out",
         &poses,
-        "--evals",
-        "300",
-        "--json",
-    ]);
+        &["--evals", "300"],
+    );
     let tracked: TrackReport = json_of(&o);
     assert_eq!(tracked.pose_version, Some(1), "{}", text(&o));
     let h: HistoryReport = json_of(&agentstar(&[
@@ -69,20 +73,13 @@ fn a_track_is_a_version_and_frames_restore_commit_and_follow_across_versions() {
 
     // One rotation for every frame, committed: version 2, every frame moved.
     let out = s(&run.join("images/rot"));
-    let o = agentstar(&[
+    let o = on_poses(
         "oapply-all",
-        "--capture",
         &s(&cap),
-        "--model",
         &model,
-        "--poses",
         &poses,
-        "--out",
-        &out,
-        "--rotation",
-        "rz:40",
-        "--json",
-    ]);
+        &["--out", &out, "--rotation", "rz:40", "--json"],
+    );
     let rotated: SearchReport = json_of(&o);
     assert_eq!(rotated.frames.len(), 4);
     let report = s(&run.join("images/rot/oapply_all.json"));
@@ -93,18 +90,22 @@ fn a_track_is_a_version_and_frames_restore_commit_and_follow_across_versions() {
     let v2 = PoseFile::read(Path::new(&poses)).expect("v2");
     assert_ne!(quaternion(&v2, "000005.png"), quaternion(&v1, "000005.png"));
 
+    // `pose restore --poses POSES --version 1 --frames FRAMES --json`, its report.
+    let restore_from_1 = |frames: &str| -> RestoreReport {
+        json_of(&agentstar(&[
+            "pose",
+            "restore",
+            "--poses",
+            &poses,
+            "--version",
+            "1",
+            "--frames",
+            frames,
+            "--json",
+        ]))
+    };
     // Frame 000005 back from version 1, by its stem: the other frames keep version 2.
-    let r: RestoreReport = json_of(&agentstar(&[
-        "pose",
-        "restore",
-        "--poses",
-        &poses,
-        "--version",
-        "1",
-        "--frames",
-        "000005",
-        "--json",
-    ]));
+    let r = restore_from_1("000005");
     assert_eq!(
         (r.frames.as_slice(), r.version),
         (&["000005.png".to_string()][..], 3)
@@ -122,17 +123,7 @@ fn a_track_is_a_version_and_frames_restore_commit_and_follow_across_versions() {
         assert_eq!(v3.frames[f], v2.frames[f], "{f} changed");
     }
     // A range restores a set of frames with the same grammar.
-    let r: RestoreReport = json_of(&agentstar(&[
-        "pose",
-        "restore",
-        "--poses",
-        &poses,
-        "--version",
-        "1",
-        "--frames",
-        "000010..000015",
-        "--json",
-    ]));
+    let r = restore_from_1("000010..000015");
     assert_eq!(r.frames, ["000010.png", "000015.png"]);
     assert_eq!(r.version, 4);
     let v4 = PoseFile::read(Path::new(&poses)).expect("v4");
@@ -171,19 +162,7 @@ fn a_track_is_a_version_and_frames_restore_commit_and_follow_across_versions() {
         translation(&v2, "000005.png")
     );
     let elsewhere = run.join("alt/pose.json");
-    let o = agentstar(&[
-        "track",
-        &s(&cap),
-        "--model",
-        &model,
-        "--from",
-        &poses,
-        "--anchors",
-        "000000..000015",
-        "--out",
-        &s(&elsewhere),
-        "--json",
-    ]);
+    let o = track_from(&poses, &s(&elsewhere), &["--anchors", "000000..000015"]);
     // A new file starts its own history at version 0.
     assert_eq!(json_of::<TrackReport>(&o).pose_version, Some(0));
     let c: CommitReport = json_of(&agentstar(&[
@@ -207,17 +186,9 @@ fn a_track_is_a_version_and_frames_restore_commit_and_follow_across_versions() {
         "--rank",
         "2",
     ]);
-    assert!(
-        !o.status.success() && text(&o).contains("--rank applies to search reports"),
-        "{}",
-        text(&o)
-    );
+    assert_failed_saying(&o, &["--rank applies to search reports"]);
     let o = agentstar(&["pose", "restore", "--poses", &poses, "--version", "99"]);
-    assert!(
-        !o.status.success() && text(&o).contains("no version 99"),
-        "{}",
-        text(&o)
-    );
+    assert_failed_saying(&o, &["no version 99"]);
     let h: HistoryReport = json_of(&agentstar(&[
         "pose", "history", "--poses", &poses, "--last", "2", "--json",
     ]));

@@ -13,11 +13,10 @@ mod support;
 
 use agentstar_data::history::{HistoryEntry, PoseHistory};
 use agentstar_data::posefile::PoseFile;
-use serde_json::Value;
 use std::path::Path;
 use std::process::Command;
 use std::time::Duration;
-use support::{s, small_run};
+use support::{s, shifted_poses, small_run};
 
 /// A seeded generator (splitmix64), so a failing run reproduces.
 struct Rng(u64);
@@ -30,18 +29,6 @@ impl Rng {
         z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
         (z ^ (z >> 31)) % n.max(1)
     }
-}
-
-/// A copy of the pose file `from` with every translation moved by `dx` metres along x.
-fn shifted(from: &Path, to: &Path, dx: f64) {
-    let mut v: Value =
-        serde_json::from_str(&std::fs::read_to_string(from).expect("pose.json")).expect("json");
-    for f in v["frames"].as_object_mut().expect("frames").values_mut() {
-        if let Some(t) = f["object_pose"]["translation"][0].as_f64() {
-            f["object_pose"]["translation"][0] = Value::from(t + dx);
-        }
-    }
-    std::fs::write(to, serde_json::to_string_pretty(&v).expect("json")).expect("write");
 }
 
 /// The pose file and its history agree (see the module's docs); returns the versions.
@@ -88,8 +75,8 @@ fn pose_files_and_their_history_agree_after_every_kill() {
     let run = dir.path().join("run");
     let poses = run.join("pose.json");
     let (a, b) = (dir.path().join("a.json"), dir.path().join("b.json"));
-    shifted(&poses, &a, 0.01);
-    shifted(&poses, &b, -0.01);
+    shifted_poses(&poses, &a, 0.01);
+    shifted_poses(&poses, &b, -0.01);
     let mut rng = Rng(0xA6E7_57A2);
     let exe = env!("CARGO_BIN_EXE_agentstar");
     for k in 0..kills {
@@ -198,7 +185,7 @@ fn a_writer_dying_between_the_version_and_the_file_leaves_a_version_not_a_stray_
     small_run(dir.path(), 2, true);
     let poses = dir.path().join("run/pose.json");
     let a = dir.path().join("a.json");
-    shifted(&poses, &a, 0.02);
+    shifted_poses(&poses, &a, 0.02);
     let exe = env!("CARGO_BIN_EXE_agentstar");
     let before = PoseFile::read(&poses).expect("before");
     let o = Command::new(exe)

@@ -11,7 +11,10 @@ use agentstar_reports::{
 use serde_json::{json, Value};
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
-use support::{agentstar, ledger, ledger_tools, s, small_run, text, McpClient};
+use support::{
+    agentstar, init_run, ledger, ledger_tools, on_poses, s, shifted_poses, small_run, synth_object,
+    text, McpClient,
+};
 
 /// A valid value for each argument a test call gives, by tool and property. The report
 /// path of `pose_commit` is filled in from the sweep's result.
@@ -418,31 +421,13 @@ fn assert_compare_colours_are_the_legend(
 fn images_of_a_large_capture_keep_the_limits() {
     let dir = tempfile::tempdir().expect("tmp");
     let (cap, run) = (dir.path().join("cap"), dir.path().join("run"));
-    let o = agentstar(&[
-        "synth",
+    let o = synth_object(
         &s(&cap),
-        "--object",
         "box",
-        "--frames",
-        "2",
-        "--seed",
-        "7",
-        "--size",
-        "1600x1200",
-    ]);
+        &["--frames", "2", "--seed", "7", "--size", "1600x1200"],
+    );
     assert!(o.status.success(), "{}", text(&o));
-    let scene = s(&cap.join("model/scene.rhai"));
-    let o = agentstar(&[
-        "init",
-        &s(&run),
-        "--capture",
-        &s(&cap),
-        "--scene",
-        &scene,
-        "--scale",
-        "0.24",
-    ]);
-    assert!(o.status.success(), "{}", text(&o));
+    init_run(&run, &cap, Some((&cap.join("model/scene.rhai"), "0.24")));
     let (mut c, _) = McpClient::initialised(&run);
     let mut id = 10;
     for (tool, args) in [
@@ -509,21 +494,20 @@ fn run_with_flip_report(dir: &Path) -> (PathBuf, PathBuf, PathBuf, PathBuf) {
         run.join("pose.json"),
     );
     let reports = run.join("reports");
-    let o = agentstar(&[
+    let o = on_poses(
         "oapply",
-        "--capture",
         &s(&cap),
-        "--model",
         &s(&model),
-        "--poses",
         &s(&poses),
-        "--out",
-        &s(&reports),
-        "--frames",
-        "000000..000010",
-        "--set",
-        "identity|flip:z",
-    ]);
+        &[
+            "--out",
+            &s(&reports),
+            "--frames",
+            "000000..000010",
+            "--set",
+            "identity|flip:z",
+        ],
+    );
     assert!(o.status.success(), "{}", text(&o));
     (run, model, poses, reports.join("oapply.json"))
 }
@@ -1086,18 +1070,8 @@ fn servers_killed_mid_commit_leave_no_pose_version_without_its_step() {
     let run = dir.path().join("run");
     small_run(dir.path(), 2, true);
     let truth = dir.path().join("cap/model/pose.json");
-    let mut shifted: Value =
-        serde_json::from_str(&std::fs::read_to_string(&truth).expect("pose")).expect("json");
-    for f in shifted["frames"]
-        .as_object_mut()
-        .expect("frames")
-        .values_mut()
-    {
-        let x = f["object_pose"]["translation"][0].as_f64().expect("x");
-        f["object_pose"]["translation"][0] = json!(x + 0.01);
-    }
     std::fs::copy(&truth, run.join("a.json")).expect("a");
-    std::fs::write(run.join("b.json"), shifted.to_string()).expect("b");
+    shifted_poses(&truth, &run.join("b.json"), 0.01);
     let mut seed: u64 = 35;
     for i in 0..30 {
         seed = seed

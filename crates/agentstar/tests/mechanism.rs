@@ -8,7 +8,7 @@ mod support;
 use agentstar_reports::mechanism::{ArmLabel, MechanismReport};
 use serde_json::{json, Value};
 use std::path::Path;
-use support::{agentstar, json_of, s, small_run, McpClient};
+use support::{json_of, on_poses, s, small_run_at_truth, McpClient};
 
 /// A client that numbers its own requests.
 struct Session {
@@ -36,18 +36,13 @@ impl Session {
 /// the labels in the harness's `.agentstar/mechanism/sheets.json`, which it never shows).
 fn report_of(dir: &Path) -> MechanismReport {
     let (cap, run) = (dir.join("cap"), dir.join("run"));
-    let mut report: MechanismReport = json_of(&agentstar(&[
+    let mut report: MechanismReport = json_of(&on_poses(
         "mechanism",
-        "--capture",
         &s(&cap),
-        "--model",
         &s(&run.join("scene.rhai")),
-        "--poses",
         &s(&run.join("pose.json")),
-        "--out",
-        &s(&dir.join("mech_cli")),
-        "--json",
-    ]));
+        &["--out", &s(&dir.join("mech_cli")), "--json"],
+    ));
     let sheets: Value = serde_json::from_str(
         &std::fs::read_to_string(run.join(".agentstar/mechanism/sheets.json")).expect("sheets"),
     )
@@ -83,14 +78,8 @@ fn mechanism_lines(finish: &Value) -> Vec<String> {
 #[test]
 fn a_mirrored_hinge_is_caught_by_the_blind_arms_and_finish_names_the_sign() {
     let dir = tempfile::tempdir().expect("tmp");
-    small_run(dir.path(), 3, true);
-    let run = dir.path().join("run");
     // The capture's poses: the lid opens over the keyframes.
-    std::fs::copy(
-        dir.path().join("cap/model/pose.json"),
-        run.join("pose.json"),
-    )
-    .expect("poses");
+    let run = small_run_at_truth(dir.path(), 3);
     let known = std::fs::read_to_string(run.join("scene.rhai")).expect("scene");
     assert!(known.contains("axis: [-1, 0, 0]"), "{known}");
     let mut c = Session::new(&run);

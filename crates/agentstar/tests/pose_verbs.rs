@@ -6,7 +6,10 @@ mod support;
 use agentstar_geom::nalgebra::Quaternion;
 use agentstar_geom::UnitQuaternion;
 use agentstar_reports::{ScoreReport, TrackReport};
-use support::{agentstar, example, score_of, text, track_known};
+use support::{
+    agentstar, assert_failed_saying, example, json_of, on_poses, path_str as s, score_of, text,
+    track_known,
+};
 
 /// The candidate a search row was asked for: its label before ` → ` (where it ended).
 fn asked(row: &serde_json::Value) -> &str {
@@ -62,27 +65,21 @@ fn pose_verbs_track_commit_and_diagnose() {
     for a in &v.appearance {
         assert!(a.model_ncc.is_some_and(|n| n > 0.5), "{a:?}");
     }
-    let common = |verb: &str, out: &str| -> Vec<String> {
-        vec![
-            verb.into(),
-            "--capture".into(),
-            cap.clone(),
-            "--model".into(),
-            model.clone(),
-            "--poses".into(),
-            tracked.clone(),
-            "--out".into(),
-            dir.path().join(out).display().to_string(),
-        ]
+    // `VERB --capture CAP --model MODEL --poses TRACKED --out DIR/OUT ARGS…`.
+    let verb = |verb: &str, out: &str, args: &[&str]| {
+        let out = dir.path().join(out).display().to_string();
+        let mut all = vec!["--out", out.as_str()];
+        all.extend_from_slice(args);
+        on_poses(verb, &cap, &model, &tracked, &all)
     };
 
     // A flip panel: every frame ranks identity first, every candidate is on the sheet: the
     // four flips and the swap of the hinge's two sides (the example is articulated).
-    let mut args = common("oapply", "oapply");
-    args.extend(["--frames".into(), "000000,000005".into(), "--json".into()]);
-    let o = agentstar(&args.iter().map(String::as_str).collect::<Vec<_>>());
-    assert!(o.status.success(), "{}", text(&o));
-    let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("json");
+    let v: serde_json::Value = json_of(&verb(
+        "oapply",
+        "oapply",
+        &["--frames", "000000,000005", "--json"],
+    ));
     let start: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&tracked).expect("read")).expect("json");
     for f in v["frames"].as_array().expect("frames") {
@@ -179,12 +176,7 @@ fn pose_verbs_track_commit_and_diagnose() {
     let o = agentstar(&[
         "pose", "commit", "--poses", &swapped, "--report", &report, "--label", "flip:w",
     ]);
-    assert!(!o.status.success());
-    assert!(
-        text(&o).contains("no candidate labelled `flip:w`") && text(&o).contains(&swap_label),
-        "{}",
-        text(&o)
-    );
+    assert_failed_saying(&o, &["no candidate labelled `flip:w`", &swap_label]);
     let o = agentstar(&[
         "pose", "commit", "--poses", &swapped, "--report", &report, "--label", "identity",
         "--rank", "1",
@@ -195,27 +187,13 @@ fn pose_verbs_track_commit_and_diagnose() {
     // the tracked (right) pose the best row ends within a few degrees of no turn at all,
     // whatever grid value it started from.
     // Without a region (a preset or grid ranges) it searches nothing and says what it needs.
-    let bare = common("osweep", "osweep");
-    let o = agentstar(&bare.iter().map(String::as_str).collect::<Vec<_>>());
-    assert!(!o.status.success());
-    assert!(
-        text(&o).contains("`opreset`")
-            && text(&o).contains("`ranges`")
-            && text(&o).contains("searched nothing"),
-        "{}",
-        text(&o)
-    );
-    let mut args = common("osweep", "osweep");
-    args.extend([
-        "--frames".into(),
-        "000005".into(),
-        "--ranges".into(),
-        "rz:-60,60,3".into(),
-        "--json".into(),
-    ]);
-    let o = agentstar(&args.iter().map(String::as_str).collect::<Vec<_>>());
-    assert!(o.status.success(), "{}", text(&o));
-    let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("json");
+    let o = verb("osweep", "osweep", &[]);
+    assert_failed_saying(&o, &["`opreset`", "`ranges`", "searched nothing"]);
+    let v: serde_json::Value = json_of(&verb(
+        "osweep",
+        "osweep",
+        &["--frames", "000005", "--ranges", "rz:-60,60,3", "--json"],
+    ));
     let ranked = v["frames"][0]["ranked"].as_array().expect("ranked");
     for r in ranked {
         let label = r["label"].as_str().expect("label");
@@ -235,17 +213,11 @@ fn pose_verbs_track_commit_and_diagnose() {
 
     // A preset's every candidate is ranked and drawn (play-test: `so3:24` drew 6 of 25),
     // paged, each page naming its ranks; a turn of 135° is labelled where it ended.
-    let mut args = common("osweep", "osweep-so3");
-    args.extend([
-        "--frames".into(),
-        "000005".into(),
-        "--opreset".into(),
-        "so3:24".into(),
-        "--json".into(),
-    ]);
-    let o = agentstar(&args.iter().map(String::as_str).collect::<Vec<_>>());
-    assert!(o.status.success(), "{}", text(&o));
-    let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("json");
+    let v: serde_json::Value = json_of(&verb(
+        "osweep",
+        "osweep-so3",
+        &["--frames", "000005", "--opreset", "so3:24", "--json"],
+    ));
     let f = &v["frames"][0];
     assert_eq!(f["ranked"].as_array().expect("ranked").len(), 25, "{f}");
     let pages = f["pages"].as_array().expect("pages");
@@ -279,17 +251,11 @@ fn pose_verbs_track_commit_and_diagnose() {
         note.contains(&format!("page {}/{}", pages.len(), pages.len())),
         "{note}"
     );
-    let mut args = common("oapply", "oapply-135");
-    args.extend([
-        "--frames".into(),
-        "000005".into(),
-        "--set".into(),
-        "rz:-135".into(),
-        "--json".into(),
-    ]);
-    let o = agentstar(&args.iter().map(String::as_str).collect::<Vec<_>>());
-    assert!(o.status.success(), "{}", text(&o));
-    let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("json");
+    let v: serde_json::Value = json_of(&verb(
+        "oapply",
+        "oapply-135",
+        &["--frames", "000005", "--set", "rz:-135", "--json"],
+    ));
     let row = &v["frames"][0]["ranked"][0];
     assert_eq!(asked(row), "rz:-135");
     let start: serde_json::Value =
@@ -313,14 +279,11 @@ fn pose_verbs_track_commit_and_diagnose() {
     );
 
     // Apply a bad order, commit it, see it in the history, restore the original.
-    let mut args = common("apply", "apply");
-    args.extend([
-        "--frame".into(),
-        "000005".into(),
-        "--order".into(),
-        "yaw:25;hinge:5".into(),
-    ]);
-    let o = agentstar(&args.iter().map(String::as_str).collect::<Vec<_>>());
+    let o = verb(
+        "apply",
+        "apply",
+        &["--frame", "000005", "--order", "yaw:25;hinge:5"],
+    );
     assert!(o.status.success(), "{}", text(&o));
     // The text says how to keep a candidate; it never offers pose numbers to paste.
     assert!(
@@ -357,18 +320,18 @@ fn pose_verbs_track_commit_and_diagnose() {
     assert!(v.frames[0].iou_visible.expect("iou") >= 0.98, "{v:?}");
 
     // A candidate may set a joint beside its rotation: as placed, it carries that state.
-    let mut args = common("oapply", "oapply-joint");
-    args.extend([
-        "--frames".into(),
-        "000005".into(),
-        "--set".into(),
-        "identity|flip:x;hinge:60".into(),
-        "--no-refine".into(),
-        "--json".into(),
-    ]);
-    let o = agentstar(&args.iter().map(String::as_str).collect::<Vec<_>>());
-    assert!(o.status.success(), "{}", text(&o));
-    let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("json");
+    let v: serde_json::Value = json_of(&verb(
+        "oapply",
+        "oapply-joint",
+        &[
+            "--frames",
+            "000005",
+            "--set",
+            "identity|flip:x;hinge:60",
+            "--no-refine",
+            "--json",
+        ],
+    ));
     let ranked = v["frames"][0]["ranked"].as_array().expect("ranked");
     let set = ranked
         .iter()
@@ -384,17 +347,17 @@ fn pose_verbs_track_commit_and_diagnose() {
 
     // One rotation over a block of frames names the steps at the block's edges, before and
     // after: a flip of the middle frames makes both edges turns of about 180°.
-    let mut args = common("oapply-all", "oapply-all-block");
-    args.extend([
-        "--rotation".into(),
-        "flip:z".into(),
-        "--frames".into(),
-        "000010..000015".into(),
-        "--json".into(),
-    ]);
-    let o = agentstar(&args.iter().map(String::as_str).collect::<Vec<_>>());
-    assert!(o.status.success(), "{}", text(&o));
-    let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("json");
+    let v: serde_json::Value = json_of(&verb(
+        "oapply-all",
+        "oapply-all-block",
+        &[
+            "--rotation",
+            "flip:z",
+            "--frames",
+            "000010..000015",
+            "--json",
+        ],
+    ));
     let edges: Vec<(f64, f64)> = v["frames"]
         .as_array()
         .expect("frames")
@@ -415,31 +378,13 @@ fn pose_verbs_track_commit_and_diagnose() {
 
     // A sweep that comes back to its start says so; one that moves does not.
     let converged = |shift: Option<&str>| -> bool {
-        let mut args = vec![
-            "sweep".to_string(),
-            "--capture".into(),
-            cap.clone(),
-            "--model".into(),
-            model.clone(),
-            "--poses".into(),
-            poses.clone(),
-            "--out".into(),
-            dir.path()
-                .join(format!("sweep-back-{}", shift.is_some()))
-                .display()
-                .to_string(),
-            "--frames".into(),
-            "000005".into(),
-            "--ranges".into(),
-            "yaw:-20,20;pitch:-10,10".into(),
-            "--json".into(),
-        ];
+        let out = dir.path().join(format!("sweep-back-{}", shift.is_some()));
+        let mut args = vec!["--out", s(&out), "--frames", "000005"];
+        args.extend(["--ranges", "yaw:-20,20;pitch:-10,10", "--json"]);
         if let Some(sh) = shift {
-            args.extend(["--start-shift".into(), sh.into()]);
+            args.extend(["--start-shift", sh]);
         }
-        let o = agentstar(&args.iter().map(String::as_str).collect::<Vec<_>>());
-        assert!(o.status.success(), "{}", text(&o));
-        let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("json");
+        let v: serde_json::Value = json_of(&on_poses("sweep", &cap, &model, &poses, &args));
         v["frames"][0]["notes"]
             .as_array()
             .expect("notes")
@@ -453,19 +398,19 @@ fn pose_verbs_track_commit_and_diagnose() {
     assert!(!converged(Some("yaw:12")));
 
     // A sweep with a bad range spec shows the grammar; a good one writes its three outputs.
-    let mut args = common("sweep", "sweep");
-    args.extend(["--ranges".into(), "yaw:-10".into()]);
-    let o = agentstar(&args.iter().map(String::as_str).collect::<Vec<_>>());
+    let o = verb("sweep", "sweep", &["--ranges", "yaw:-10"]);
     assert_eq!(o.status.code(), Some(2));
     assert!(text(&o).contains("dof:lower,upper[,steps]"), "{}", text(&o));
-    let mut args = common("sweep", "sweep");
-    args.extend([
-        "--ranges".into(),
-        "yaw:-10,10,5;hinge:0,60,5".into(),
-        "--strategy".into(),
-        "grid".into(),
-    ]);
-    let o = agentstar(&args.iter().map(String::as_str).collect::<Vec<_>>());
+    let o = verb(
+        "sweep",
+        "sweep",
+        &[
+            "--ranges",
+            "yaw:-10,10,5;hinge:0,60,5",
+            "--strategy",
+            "grid",
+        ],
+    );
     assert!(o.status.success(), "{}", text(&o));
     for f in [
         "sweep.json",
@@ -501,19 +446,19 @@ fn pose_verbs_track_commit_and_diagnose() {
     assert_eq!(first[column], format!("{band:.4}"), "{table}");
     // A region that leaves the start out: the start stays first (nothing in the region beats
     // it), labelled with where it lies.
-    let mut args = common("sweep", "sweep-out");
-    args.extend([
-        "--frames".into(),
-        "000000".into(),
-        "--ranges".into(),
-        "hinge:100,120,3".into(),
-        "--strategy".into(),
-        "grid".into(),
-        "--json".into(),
-    ]);
-    let o = agentstar(&args.iter().map(String::as_str).collect::<Vec<_>>());
-    assert!(o.status.success(), "{}", text(&o));
-    let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("json");
+    let v: serde_json::Value = json_of(&verb(
+        "sweep",
+        "sweep-out",
+        &[
+            "--frames",
+            "000000",
+            "--ranges",
+            "hinge:100,120,3",
+            "--strategy",
+            "grid",
+            "--json",
+        ],
+    ));
     let label = v["frames"][0]["ranked"][0]["label"]
         .as_str()
         .expect("label");
@@ -525,35 +470,26 @@ fn pose_verbs_track_commit_and_diagnose() {
     );
 
     // Temporal diagnostics and pose differences.
-    let o = agentstar(&[
+    let v: serde_json::Value = json_of(&on_poses(
         "temporal",
-        "--capture",
         &cap,
-        "--model",
         &model,
-        "--poses",
         &tracked,
-        "--json",
-        "--plot",
-        dir.path().join("t.png").to_str().expect("utf8"),
-    ]);
-    assert!(o.status.success(), "{}", text(&o));
-    let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("json");
+        &[
+            "--json",
+            "--plot",
+            dir.path().join("t.png").to_str().expect("utf8"),
+        ],
+    ));
     assert_eq!(v["frames"].as_array().expect("rows").len(), 6);
     assert!(dir.path().join("t.png").is_file());
-    let o = agentstar(&[
+    let o = on_poses(
         "pose-diff",
-        "--capture",
         &cap,
-        "--model",
         &model,
-        "--poses",
         &tracked,
-        "--a",
-        "000000",
-        "--b",
-        "000005",
-    ]);
+        &["--a", "000000", "--b", "000005"],
+    );
     let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("json");
     assert!(
         v["rotation_deg"].as_f64().expect("rot") > 1.0
@@ -566,42 +502,33 @@ fn sweep_scores_explicit_candidates_exactly() {
     let dir = tempfile::tempdir().expect("tmp");
     let (cap, model, poses) = example(dir.path());
     let out = dir.path().join("c").display().to_string();
-    let o = agentstar(&[
+    let v: serde_json::Value = json_of(&on_poses(
         "sweep",
-        "--capture",
         &cap,
-        "--model",
         &model,
-        "--poses",
         &poses,
-        "--frames",
-        "000005",
-        "--candidates",
-        "yaw:12|hinge:0|roll:0",
-        "--out",
-        &out,
-        "--json",
-    ]);
-    assert!(o.status.success(), "{}", text(&o));
-    let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("json");
+        &[
+            "--frames",
+            "000005",
+            "--candidates",
+            "yaw:12|hinge:0|roll:0",
+            "--out",
+            &out,
+            "--json",
+        ],
+    ));
     let ranked = v["frames"][0]["ranked"].as_array().expect("ranked");
     assert_eq!(ranked.len(), 3);
     // The example's poses are exact, so the zero increment ranks first with IoU 1.
     assert_eq!(ranked[0]["label"], "roll:0");
     assert_eq!(ranked[0]["iou_visible"], 1.0);
-    let o = agentstar(&[
+    let o = on_poses(
         "sweep",
-        "--capture",
         &cap,
-        "--model",
         &model,
-        "--poses",
         &poses,
-        "--candidates",
-        "rz:90",
-        "--out",
-        &out,
-    ]);
+        &["--candidates", "rz:90", "--out", &out],
+    );
     assert_eq!(o.status.code(), Some(2));
     assert!(text(&o).contains("use osweep/oapply"), "{}", text(&o));
 }
@@ -615,23 +542,10 @@ fn candidate_sheets_crop_to_a_box_and_zoom() {
     let (cap, model, poses) = example(dir.path());
     let run = |out: &str, extra: &[&str]| {
         let out_dir = dir.path().join(out);
-        let mut args = vec![
-            "oapply",
-            "--capture",
-            &cap,
-            "--model",
-            &model,
-            "--poses",
-            &poses,
-            "--frames",
-            "000000",
-            "--set",
-            "identity|flip:z",
-            "--out",
-            out_dir.to_str().expect("utf8"),
-        ];
+        let mut args = vec!["--frames", "000000", "--set", "identity|flip:z"];
+        args.extend(["--out", s(&out_dir)]);
         args.extend_from_slice(extra);
-        (agentstar(&args), out_dir)
+        (on_poses("oapply", &cap, &model, &poses, &args), out_dir)
     };
     let sheet_size = |d: &std::path::Path| {
         let sheet = std::fs::read_dir(d)
@@ -650,9 +564,7 @@ fn candidate_sheets_crop_to_a_box_and_zoom() {
     // (The sheet keeps within the image limits, so it grows less than the tiles asked.)
     assert!(zw * zh > pw * ph, "zoomed {zw}×{zh} against {pw}×{ph}");
     let (o, _) = run("outside", &["--crop", "5000,5000,5100,5100"]);
-    assert!(!o.status.success());
-    assert!(text(&o).contains("lies outside the"), "{}", text(&o));
+    assert_failed_saying(&o, &["lies outside the"]);
     let (o, _) = run("far", &["--zoom", "9"]);
-    assert!(!o.status.success());
-    assert!(text(&o).contains("--zoom 9"), "{}", text(&o));
+    assert_failed_saying(&o, &["--zoom 9"]);
 }

@@ -2,24 +2,15 @@
 //! never a panic (exit 101) or a hang; budgets are exact; the model client's failures are
 //! named.
 
+mod support;
+
 use std::path::Path;
 use std::process::{Command, Output, Stdio};
 use std::time::{Duration, Instant};
-
-fn agentstar(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_agentstar"))
-        .args(args)
-        .output()
-        .expect("run agentstar")
-}
-
-fn text(o: &Output) -> String {
-    format!(
-        "{}{}",
-        String::from_utf8_lossy(&o.stdout),
-        String::from_utf8_lossy(&o.stderr)
-    )
-}
+use support::model::{malformed_tool_call, mock_model, model_run, tool_calls, Act};
+use support::{
+    agentstar, assert_failed_saying, init_run, ledger, s, shifted_poses, synth_object, text,
+};
 
 /// Runs and waits at most `limit`, killing the command past it (a hang fails the test
 /// instead of stalling the suite).
@@ -44,25 +35,21 @@ fn agentstar_within(args: &[&str], limit: Duration) -> Option<Output> {
     }
 }
 
-fn s(p: &Path) -> String {
-    p.to_str().expect("utf8").to_string()
-}
-
 fn synth(out: &Path, frames: usize) {
     let n = frames.to_string();
-    let o = agentstar(&[
-        "synth",
+    let o = synth_object(
         &s(out),
-        "--object",
         "box",
-        "--frames",
-        &n,
-        "--size",
-        "64x48",
-        "--no-hands",
-        "--seed",
-        "7",
-    ]);
+        &[
+            "--frames",
+            &n,
+            "--size",
+            "64x48",
+            "--no-hands",
+            "--seed",
+            "7",
+        ],
+    );
     assert!(o.status.success(), "{}", text(&o));
 }
 
@@ -175,11 +162,7 @@ fn capture_misreads_are_errors_naming_the_file_and_field() {
     v["downscale"] = serde_json::json!(0.0);
     std::fs::write(cap.join("capture.json"), v.to_string()).expect("write");
     let o = validate();
-    assert!(
-        !o.status.success() && text(&o).contains("downscale"),
-        "{}",
-        text(&o)
-    );
+    assert_failed_saying(&o, &["downscale"]);
     // A byte-order mark.
     std::fs::write(cap.join("capture.json"), format!("\u{feff}{manifest}")).expect("write");
     let o = validate();
@@ -193,20 +176,12 @@ fn capture_misreads_are_errors_naming_the_file_and_field() {
     dup.push(kf[0].clone());
     std::fs::write(&kf_path, serde_json::to_string(&dup).expect("json")).expect("write");
     let o = validate();
-    assert!(
-        !o.status.success() && text(&o).contains("both list frame"),
-        "{}",
-        text(&o)
-    );
+    assert_failed_saying(&o, &["both list frame"]);
     let mut back = kf.clone();
     back[2]["time_s"] = serde_json::json!(-1.0);
     std::fs::write(&kf_path, serde_json::to_string(&back).expect("json")).expect("write");
     let o = validate();
-    assert!(
-        !o.status.success() && text(&o).contains("backwards"),
-        "{}",
-        text(&o)
-    );
+    assert_failed_saying(&o, &["backwards"]);
     std::fs::write(&kf_path, &kf_text).expect("write");
     // A half-truncated PNG frame.
     let frame = std::fs::read_dir(cap.join("frames"))
@@ -314,114 +289,25 @@ fn mesh_messages_say_what_is_wrong() {
     }
 }
 
-/// What the mock model server does with one request.
-enum Act {
-    Json(u16, serde_json::Value),
-    /// A body that is not JSON.
-    Raw(u16, String),
-}
-
-struct MockModel {
-    url: String,
-    requests: std::sync::Arc<std::sync::Mutex<usize>>,
-}
-
-fn mock_model(script: Vec<Act>) -> MockModel {
-    use std::io::{BufRead, BufReader, Read, Write};
-    let listener = std::net::TcpListener::bind("127.0.0.1:0").expect("bind");
-    let url = format!("http://{}/v1", listener.local_addr().expect("addr"));
-    let requests = std::sync::Arc::new(std::sync::Mutex::new(0));
-    let script = std::sync::Arc::new(std::sync::Mutex::new(std::collections::VecDeque::from(
-        script,
-    )));
-    let reqs = requests.clone();
-    std::thread::spawn(move || {
-        for stream in listener.incoming() {
-            let Ok(mut stream) = stream else { continue };
-            let mut reader = BufReader::new(stream.try_clone().expect("clone"));
-            let mut len = 0usize;
-            loop {
-                let mut line = String::new();
-                if reader.read_line(&mut line).unwrap_or(0) == 0 {
-                    break;
-                }
-                let l = line.trim_end().to_ascii_lowercase();
-                if l.is_empty() {
-                    break;
-                }
-                if let Some(v) = l.strip_prefix("content-length:") {
-                    len = v.trim().parse().unwrap_or(0);
-                }
-            }
-            let mut body = vec![0u8; len];
-            let _ = reader.read_exact(&mut body);
-            *reqs.lock().expect("lock") += 1;
-            let (status, text) = match script.lock().expect("lock").pop_front() {
-                Some(Act::Json(s, v)) => (s, v.to_string()),
-                Some(Act::Raw(s, t)) => (s, t),
-                None => (500, "{\"error\": \"the script is exhausted\"}".into()),
-            };
-            let _ = write!(
-                stream,
-                "HTTP/1.1 {status} X\r\ncontent-type: application/json\r\ncontent-length: {}\r\nconnection: close\r\n\r\n{text}",
-                text.len()
-            );
-        }
-    });
-    MockModel { url, requests }
-}
-
-fn calls(n: usize, name: &str, args: serde_json::Value, prompt_tokens: u64) -> Act {
-    let calls: Vec<serde_json::Value> = (0..n)
-        .map(|i| {
-            serde_json::json!({"id": format!("c{i}"), "type": "function",
-            "function": {"name": name, "arguments": args.to_string()}})
-        })
-        .collect();
-    Act::Json(
-        200,
-        serde_json::json!({"choices": [{"message": {"role": "assistant", "content": "",
-            "tool_calls": calls}}], "usage": {"prompt_tokens": prompt_tokens, "completion_tokens": 20}}),
-    )
-}
-
-fn ledger(run: &Path) -> Vec<serde_json::Value> {
-    std::fs::read_to_string(run.join("ledger.jsonl"))
-        .expect("ledger")
-        .lines()
-        .map(|l| serde_json::from_str(l).expect("ledger line"))
-        .collect()
-}
-
-fn init_run(dir: &Path) -> std::path::PathBuf {
+fn synth_run(dir: &Path) -> std::path::PathBuf {
     let (cap, run) = (dir.join("cap"), dir.join("run"));
     synth(&cap, 2);
-    let o = agentstar(&["init", &s(&run), "--capture", &s(&cap)]);
-    assert!(o.status.success(), "{}", text(&o));
+    init_run(&run, &cap, None);
     run
 }
 
 #[test]
 fn step_and_token_budgets_are_exact() {
     let dir = tempfile::tempdir().expect("tmp");
-    let run = init_run(dir.path());
+    let run = synth_run(dir.path());
     // One reply with 50 calls and a budget of 8: 8 run, 42 refused and recorded.
-    let model = mock_model(vec![calls(
+    let model = mock_model(vec![tool_calls(
         50,
         "notes",
         serde_json::json!({"text": "n"}),
         100,
     )]);
-    let o = agentstar(&[
-        "run",
-        &s(&run),
-        "--model",
-        "local:mock",
-        "--base-url",
-        &model.url,
-        "--max-steps",
-        "8",
-    ]);
+    let o = model_run(&run, &model, &["--max-steps", "8"]);
     assert_eq!(o.status.code(), Some(3), "{}", text(&o));
     let entries = ledger(&run);
     let notes: Vec<&serde_json::Value> = entries.iter().filter(|e| e["tool"] == "notes").collect();
@@ -437,24 +323,14 @@ fn step_and_token_budgets_are_exact() {
     );
     // A reply that is already over the token budget runs none of its calls.
     let run2 = dir.path().join("run2");
-    let o = agentstar(&["init", &s(&run2), "--capture", &s(&dir.path().join("cap"))]);
-    assert!(o.status.success(), "{}", text(&o));
-    let model = mock_model(vec![calls(
+    init_run(&run2, &dir.path().join("cap"), None);
+    let model = mock_model(vec![tool_calls(
         3,
         "notes",
         serde_json::json!({"text": "n"}),
         5000,
     )]);
-    let o = agentstar(&[
-        "run",
-        &s(&run2),
-        "--model",
-        "local:mock",
-        "--base-url",
-        &model.url,
-        "--max-tokens",
-        "1000",
-    ]);
+    let o = model_run(&run2, &model, &["--max-tokens", "1000"]);
     assert_eq!(o.status.code(), Some(3), "{}", text(&o));
     let entries = ledger(&run2);
     let notes: Vec<&serde_json::Value> = entries.iter().filter(|e| e["tool"] == "notes").collect();
@@ -469,32 +345,17 @@ fn step_and_token_budgets_are_exact() {
 #[test]
 fn the_stop_message_names_every_kind_of_failure() {
     let dir = tempfile::tempdir().expect("tmp");
-    let run = init_run(dir.path());
+    let run = synth_run(dir.path());
     let model = mock_model(vec![
         Act::Json(500, serde_json::json!({"error": "boom"})),
         Act::Json(429, serde_json::json!({"error": "slow down"})),
         Act::Raw(200, "this is not json".into()),
         Act::Json(200, serde_json::json!({"choices": []})),
-        Act::Json(
-            200,
-            serde_json::json!({"choices": [{"message": {"content": "", "tool_calls": [
-            {"id": "x", "type": "function", "function": {"name": "sweep", "arguments": "{\"frames\": "}}]}}]}),
-        ),
+        malformed_tool_call(),
     ]);
-    let o = agentstar(&[
-        "run",
-        &s(&run),
-        "--model",
-        "local:mock",
-        "--base-url",
-        &model.url,
-        "--retries",
-        "4",
-        "--backoff-ms",
-        "1",
-    ]);
+    let o = model_run(&run, &model, &["--retries", "4", "--backoff-ms", "1"]);
     assert_eq!(o.status.code(), Some(4), "{}", text(&o));
-    assert_eq!(*model.requests.lock().expect("lock"), 5);
+    assert_eq!(model.requests().len(), 5);
     let t = text(&o);
     for kind in [
         "HTTP 500",
@@ -538,17 +399,7 @@ fn track_killed_at_any_point_leaves_whole_files_and_the_next_run_cleans_up() {
     let dir = tempfile::tempdir().expect("tmp");
     let (cap, run) = (dir.path().join("cap"), dir.path().join("run"));
     synth(&cap, 4);
-    let o = agentstar(&[
-        "init",
-        &s(&run),
-        "--capture",
-        &s(&cap),
-        "--scene",
-        &s(&cap.join("model/scene.rhai")),
-        "--scale",
-        "0.24",
-    ]);
-    assert!(o.status.success(), "{}", text(&o));
+    init_run(&run, &cap, Some((&cap.join("model/scene.rhai"), "0.24")));
     let poses = run.join("pose.json");
     let args = [
         "track".to_string(),
@@ -656,17 +507,7 @@ fn pose_commit_killed_at_random_moments_keeps_pose_file_and_history_consistent()
     synth(&cap, 4);
     let a = cap.join("model/pose.json");
     let b = dir.path().join("b.json");
-    let mut shifted: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(&a).expect("pose")).expect("json");
-    for f in shifted["frames"]
-        .as_object_mut()
-        .expect("frames")
-        .values_mut()
-    {
-        let x = f["object_pose"]["translation"][0].as_f64().expect("x");
-        f["object_pose"]["translation"][0] = serde_json::json!(x + 0.01);
-    }
-    std::fs::write(&b, shifted.to_string()).expect("b");
+    shifted_poses(&a, &b, 0.01);
     let poses = dir.path().join("run/pose.json");
     std::fs::create_dir_all(poses.parent().expect("dir")).expect("run");
     std::fs::copy(&a, &poses).expect("pose.json");

@@ -1,75 +1,13 @@
 //! The run report: self-contained, rendering in headless Chromium, and the README's
 //! walk-through from frames and masks to a report.
 
+#[path = "../../agentstar-report/tests/browser/mod.rs"]
+mod browser;
 mod support;
 
+use browser::{chromium, run_chromium, view_pixels, viewer_dom};
 use std::path::Path;
-use support::{agentstar, synth_box, text};
-
-/// A headless Chromium, where one is installed (`.ci/run` installs Debian's `chromium` and
-/// sets `AGENTSTAR_REQUIRE_CHROMIUM=1`, which turns its absence into a failure).
-fn chromium() -> Option<String> {
-    let found = ["chromium", "chromium-browser", "google-chrome"]
-        .into_iter()
-        .find(|b| {
-            std::process::Command::new(b)
-                .arg("--version")
-                .output()
-                .is_ok_and(|o| o.status.success())
-        })
-        .map(str::to_string);
-    if found.is_none() {
-        assert!(
-            std::env::var_os("AGENTSTAR_REQUIRE_CHROMIUM").is_none(),
-            "AGENTSTAR_REQUIRE_CHROMIUM is set but no chromium is installed"
-        );
-        eprintln!("chromium not installed (apt install chromium): the browser check is skipped");
-    }
-    found
-}
-
-/// Runs headless Chromium on a page with a time limit; returns stdout (through a file: the
-/// DOM dump is larger than a pipe holds).
-fn run_chromium(bin: &str, extra: &[&str], page: &Path) -> String {
-    let stdout_path = page.with_extension("stdout");
-    let stdout = std::fs::File::create(&stdout_path).expect("stdout file");
-    let mut child = std::process::Command::new(bin)
-        .args([
-            "--headless",
-            "--no-sandbox",
-            "--disable-gpu",
-            "--use-angle=swiftshader",
-            "--enable-unsafe-swiftshader",
-            "--disable-background-networking",
-            "--disable-extensions",
-            "--no-first-run",
-            "--virtual-time-budget=15000",
-            "--window-size=1300,1400",
-        ])
-        .args(extra)
-        .arg(format!("file://{}", page.display()))
-        .stdout(stdout)
-        .stderr(std::process::Stdio::null())
-        .spawn()
-        .expect("start chromium");
-    let start = std::time::Instant::now();
-    while child.try_wait().expect("wait").is_none() {
-        if start.elapsed().as_secs() > 120 {
-            let _ = child.kill();
-            panic!("chromium did not finish in 120 s");
-        }
-        std::thread::sleep(std::time::Duration::from_millis(100));
-    }
-    String::from_utf8_lossy(&std::fs::read(&stdout_path).expect("stdout")).into_owned()
-}
-
-fn body_attr(dom: &str, name: &str) -> Option<String> {
-    let body = &dom[dom.find("<body")?..];
-    let body = &body[..body.find('>')?];
-    let key = format!("{name}=\"");
-    let at = body.find(&key)? + key.len();
-    Some(body[at..at + body[at..].find('"')?].to_string())
-}
+use support::{agentstar, json_of, on_poses, synth_box, text};
 
 #[test]
 fn the_demo_report_is_self_contained_and_renders_in_headless_chromium() {
@@ -99,15 +37,13 @@ fn the_demo_report_is_self_contained_and_renders_in_headless_chromium() {
     l.push_str("{\"step\": 99, \"ti");
     std::fs::write(&ledger, l).expect("write");
     let page2 = dir.path().join("again.html");
-    let o = agentstar(&[
+    let v: serde_json::Value = json_of(&agentstar(&[
         "report",
         run.to_str().expect("utf8"),
         "--out",
         page2.to_str().expect("utf8"),
         "--json",
-    ]);
-    assert!(o.status.success(), "{}", text(&o));
-    let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("json");
+    ]));
     assert_eq!(v["frames"], 4);
     assert!(
         v["ground_truth"]
@@ -128,23 +64,9 @@ fn the_demo_report_is_self_contained_and_renders_in_headless_chromium() {
     assert!(text(&o).contains("--capture"), "{}", text(&o));
     // In a browser: the viewer starts, both views show the model, no script errors.
     let Some(bin) = chromium() else { return };
-    let dom = run_chromium(&bin, &["--dump-dom"], &page);
-    assert_eq!(
-        body_attr(&dom, "data-viewer").as_deref(),
-        Some("ready"),
-        "{:?}",
-        body_attr(&dom, "data-error-text")
-    );
-    assert_eq!(
-        body_attr(&dom, "data-errors").as_deref(),
-        Some("0"),
-        "{:?}",
-        body_attr(&dom, "data-error-text")
-    );
+    let dom = viewer_dom(&bin, &page);
     for view in ["data-cam-pixels", "data-orbit-pixels"] {
-        let px: u64 = body_attr(&dom, view)
-            .and_then(|v| v.parse().ok())
-            .expect(view);
+        let px = view_pixels(&dom, view);
         assert!(px > 200, "{view} = {px}: the 3-D view is empty");
     }
     let shot = dir.path().join("shot.png");
@@ -243,16 +165,12 @@ fn the_readme_walk_through_goes_from_frames_and_masks_to_a_report() {
         .expect("mean IoU in the summary");
     assert!(mean > 0.95, "tracked mean IoU {mean}");
     // 5. The motion for a simulator.
-    let o = agentstar(&[
+    let o = on_poses(
         "export",
-        "--model",
-        &s(&p("run/scene.rhai")),
-        "--capture",
         &s(&p("cap")),
-        "--poses",
+        &s(&p("run/scene.rhai")),
         &s(&p("run/pose.json")),
-        "--animated-glb",
-        &s(&p("run/motion.glb")),
-    ]);
+        &["--animated-glb", &s(&p("run/motion.glb"))],
+    );
     assert!(o.status.success(), "{}", text(&o));
 }

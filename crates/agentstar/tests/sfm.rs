@@ -12,11 +12,11 @@ use agentstar_data::capture::Capture;
 use agentstar_data::gt::{model_ground_truth, GroundTruth};
 use agentstar_data::images::{mask_to_gray, save_png_gray, save_png_rgb};
 use agentstar_geom::pose::Rigid;
-use agentstar_sfm::gauge::camera_errors;
+use agentstar_sfm::gauge::{camera_errors, CameraErrors};
 use agentstar_synth::environment::{synthesize_room_clip, CameraPath, RoomClip, RoomConfig, Walls};
 use std::path::Path;
 use std::process::Command;
-use support::{agentstar, path_str as s, text};
+use support::{agentstar, on_poses, path_str as s, text};
 
 /// Whether COLMAP can run here; panics when it cannot and `AGENTSTAR_REQUIRE_COLMAP` is set.
 fn have_colmap() -> bool {
@@ -31,6 +31,12 @@ fn have_colmap() -> bool {
             false
         }
     }
+}
+
+/// A temporary folder for a test that needs COLMAP, or `None` (the test then passes, having
+/// said why) where COLMAP cannot run here.
+fn colmap_workdir() -> Option<tempfile::TempDir> {
+    have_colmap().then(|| tempfile::tempdir().expect("tmp"))
 }
 
 /// Writes the clip's frames, object masks and hand masks as a segmenter would leave them, the
@@ -74,6 +80,58 @@ fn write_clip(dir: &Path, clip: &RoomClip) {
     std::fs::write(dir.join("scene.rhai"), clip.object.script.as_bytes()).expect("scene");
 }
 
+/// The clip `config` makes, written into `dir` by `write_clip`.
+fn written_clip(dir: &Path, config: RoomConfig) -> RoomClip {
+    let clip = synthesize_room_clip(&config).expect("clip");
+    write_clip(dir, &clip);
+    clip
+}
+
+/// A small clip (96×72, the default seed) of `frames` frames, a keyframe every `every`,
+/// written into `dir` by `write_clip`.
+fn small_clip(dir: &Path, frames: usize, every: usize) -> RoomClip {
+    written_clip(
+        dir,
+        RoomConfig {
+            frames,
+            keyframe_every: every,
+            width: 96,
+            height: 72,
+            ..RoomConfig::default()
+        },
+    )
+}
+
+/// The errors of the capture's cameras against `truth` (one per capture frame), logged with
+/// `what` was estimated.
+fn logged_camera_errors(capture: &Capture, truth: &[Rigid], what: &str) -> CameraErrors {
+    let estimated: Vec<Rigid> = capture.frames.iter().map(|f| f.world_from_camera).collect();
+    let e = camera_errors(&estimated, truth).expect("errors");
+    eprintln!(
+        "{what}: rotation max {:.3}° median {:.3}°; translation max {:.2}% median {:.2}% of the {:.3} m trajectory; scale {:.4} m per unit",
+        e.rotation_deg_max,
+        e.rotation_deg_median,
+        100.0 * e.translation_max_fraction,
+        100.0 * e.translation_median_fraction,
+        e.trajectory_length,
+        e.alignment.scale
+    );
+    e
+}
+
+/// `agentstar capture from-video DIR/frames --masks DIR/masks [--hands DIR/hands] --every
+/// EVERY ARGS…` on a clip `write_clip` wrote into `dir`, not yet run.
+fn from_video(dir: &Path, every: usize, hands: bool, args: &[&str]) -> Command {
+    let mut c = Command::new(env!("CARGO_BIN_EXE_agentstar"));
+    c.args(["capture", "from-video", s(&dir.join("frames"))]);
+    c.args(["--masks", s(&dir.join("masks"))]);
+    if hands {
+        c.args(["--hands", s(&dir.join("hands"))]);
+    }
+    c.args(["--every", &every.to_string()]).args(args);
+    c
+}
+
 /// Ground truth of the clip's keyframes written into a capture (`gt.json`, meshes).
 fn write_gt(capture: &Path, clip: &RoomClip) {
     let truth: Vec<_> = clip
@@ -101,16 +159,7 @@ fn track_epe_cm(capture: &Path, scene: &Path, scale: f64) -> f64 {
         s(&poses),
     ]);
     assert!(o.status.success(), "track: {}", text(&o));
-    let o = agentstar(&[
-        "eval",
-        "--capture",
-        s(capture),
-        "--model",
-        s(scene),
-        "--poses",
-        s(&poses),
-        "--json",
-    ]);
+    let o = on_poses("eval", s(capture), s(scene), s(&poses), &["--json"]);
     assert!(o.status.success(), "eval: {}", text(&o));
     let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("eval JSON");
     v["epe_cm"].as_f64().expect("epe_cm")
@@ -139,22 +188,17 @@ fn background_depth_m(clip: &RoomClip) -> f64 {
 
 #[test]
 fn sfm_recovers_the_cameras_of_a_hand_held_clip_and_tracking_matches_the_true_cameras() {
-    if !have_colmap() {
+    let Some(dir) = colmap_workdir() else {
         return;
-    }
-    let dir = tempfile::tempdir().expect("tmp");
-    let clip = synthesize_room_clip(&RoomConfig {
-        seed: 5,
-        ..RoomConfig::default()
-    })
-    .expect("clip");
-    write_clip(dir.path(), &clip);
-    let every = clip.keyframe_every.to_string();
-    let (frames, masks, hands) = (
-        dir.path().join("frames"),
-        dir.path().join("masks"),
-        dir.path().join("hands"),
+    };
+    let clip = written_clip(
+        dir.path(),
+        RoomConfig {
+            seed: 5,
+            ..RoomConfig::default()
+        },
     );
+    let every = clip.keyframe_every;
     let cap = dir.path().join("cap_sfm");
     // The distance to the background a user would measure: the median depth of the room
     // behind the object in the first frame, so that translations are in metres (in
@@ -162,24 +206,22 @@ fn sfm_recovers_the_cameras_of_a_hand_held_clip_and_tracking_matches_the_true_ca
     // three runs: its seeds through the cameras were off).
     let depth_m = background_depth_m(&clip).to_string();
     // The intrinsics are estimated (no --fov): one camera shared by every frame.
-    let o = agentstar(&[
-        "capture",
-        "from-video",
-        s(&frames),
-        "--masks",
-        s(&masks),
-        "--hands",
-        s(&hands),
-        "--every",
-        &every,
-        "--cameras",
-        "sfm",
-        "--background-depth-m",
-        &depth_m,
-        "--out",
-        s(&cap),
-        "--json",
-    ]);
+    let o = from_video(
+        dir.path(),
+        every,
+        true,
+        &[
+            "--cameras",
+            "sfm",
+            "--background-depth-m",
+            &depth_m,
+            "--out",
+            s(&cap),
+            "--json",
+        ],
+    )
+    .output()
+    .expect("run");
     assert!(o.status.success(), "capture --cameras sfm: {}", text(&o));
     let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("JSON");
     assert_eq!(v["frames"], 10, "{v}");
@@ -212,17 +254,11 @@ fn sfm_recovers_the_cameras_of_a_hand_held_clip_and_tracking_matches_the_true_ca
     // The gauge: the first keyframe's camera is the world.
     let first = capture.frames[0].world_from_camera;
     assert!(first.translation.vector.norm() < 1e-9 && first.rotation.angle() < 1e-9);
-    let estimated: Vec<Rigid> = capture.frames.iter().map(|f| f.world_from_camera).collect();
     let true_cameras: Vec<Rigid> = truth.iter().map(|f| f.world_from_camera).collect();
-    let e = camera_errors(&estimated, &true_cameras).expect("errors");
-    eprintln!(
-        "SfM cameras against the truth (10 keyframes): rotation max {:.3}° median {:.3}°; translation max {:.2}% median {:.2}% of the {:.3} m trajectory; scale {:.4} m per unit",
-        e.rotation_deg_max,
-        e.rotation_deg_median,
-        100.0 * e.translation_max_fraction,
-        100.0 * e.translation_median_fraction,
-        e.trajectory_length,
-        e.alignment.scale
+    let e = logged_camera_errors(
+        &capture,
+        &true_cameras,
+        "SfM cameras against the truth (10 keyframes)",
     );
     assert!(e.rotation_deg_max < 1.0, "{e:?}");
     assert!(e.translation_max_fraction < 0.02, "{e:?}");
@@ -233,21 +269,19 @@ fn sfm_recovers_the_cameras_of_a_hand_held_clip_and_tracking_matches_the_true_ca
 
     // Tracking on the SfM cameras is as good as on the true ones.
     let cap_true = dir.path().join("cap_true");
-    let o = agentstar(&[
-        "capture",
-        "from-video",
-        s(&frames),
-        "--masks",
-        s(&masks),
-        "--hands",
-        s(&hands),
-        "--every",
-        &every,
-        "--colmap",
-        s(&dir.path().join("truth")),
-        "--out",
-        s(&cap_true),
-    ]);
+    let o = from_video(
+        dir.path(),
+        every,
+        true,
+        &[
+            "--colmap",
+            s(&dir.path().join("truth")),
+            "--out",
+            s(&cap_true),
+        ],
+    )
+    .output()
+    .expect("run");
     assert!(o.status.success(), "capture --colmap truth: {}", text(&o));
     write_gt(&cap, &clip);
     write_gt(&cap_true, &clip);
@@ -259,32 +293,21 @@ fn sfm_recovers_the_cameras_of_a_hand_held_clip_and_tracking_matches_the_true_ca
 }
 
 fn failing_capture(dir: &Path, walls: Walls, camera: CameraPath) -> String {
-    let clip = synthesize_room_clip(&RoomConfig {
-        frames: 12,
-        keyframe_every: 4,
-        walls,
-        camera,
-        seed: 2,
-        ..RoomConfig::default()
-    })
-    .expect("clip");
-    write_clip(dir, &clip);
+    written_clip(
+        dir,
+        RoomConfig {
+            frames: 12,
+            keyframe_every: 4,
+            walls,
+            camera,
+            seed: 2,
+            ..RoomConfig::default()
+        },
+    );
     let cap = dir.join("cap");
-    let o = agentstar(&[
-        "capture",
-        "from-video",
-        s(&dir.join("frames")),
-        "--masks",
-        s(&dir.join("masks")),
-        "--hands",
-        s(&dir.join("hands")),
-        "--every",
-        "4",
-        "--cameras",
-        "sfm",
-        "--out",
-        s(&cap),
-    ]);
+    let o = from_video(dir, 4, true, &["--cameras", "sfm", "--out", s(&cap)])
+        .output()
+        .expect("run");
     assert!(!o.status.success(), "must fail: {}", text(&o));
     assert!(!cap.exists(), "nothing half-written");
     String::from_utf8_lossy(&o.stderr).into_owned()
@@ -292,10 +315,9 @@ fn failing_capture(dir: &Path, walls: Walls, camera: CameraPath) -> String {
 
 #[test]
 fn a_static_camera_is_refused_with_the_static_camera_suggested() {
-    if !have_colmap() {
+    let Some(dir) = colmap_workdir() else {
         return;
-    }
-    let dir = tempfile::tempdir().expect("tmp");
+    };
     let err = failing_capture(dir.path(), Walls::Textured, CameraPath::Static);
     assert!(err.contains("the camera does not move"), "{err}");
     assert!(err.contains("--fov"), "{err}");
@@ -303,10 +325,9 @@ fn a_static_camera_is_refused_with_the_static_camera_suggested() {
 
 #[test]
 fn a_textureless_background_is_refused_with_a_fallback() {
-    if !have_colmap() {
+    let Some(dir) = colmap_workdir() else {
         return;
-    }
-    let dir = tempfile::tempdir().expect("tmp");
+    };
     let err = failing_capture(dir.path(), Walls::Plain, CameraPath::OrbitWobble);
     assert!(err.contains("too little background texture"), "{err}");
     assert!(err.contains("--fov") && err.contains("--colmap"), "{err}");
@@ -322,33 +343,17 @@ fn a_textureless_background_is_refused_with_a_fallback() {
 #[test]
 fn without_colmap_the_command_says_how_to_install_it() {
     let dir = tempfile::tempdir().expect("tmp");
-    let clip = synthesize_room_clip(&RoomConfig {
-        frames: 4,
-        keyframe_every: 2,
-        width: 96,
-        height: 72,
-        ..RoomConfig::default()
-    })
-    .expect("clip");
-    write_clip(dir.path(), &clip);
+    small_clip(dir.path(), 4, 2);
     let cap = dir.path().join("cap");
-    let o = Command::new(env!("CARGO_BIN_EXE_agentstar"))
-        .args([
-            "capture",
-            "from-video",
-            s(&dir.path().join("frames")),
-            "--masks",
-            s(&dir.path().join("masks")),
-            "--every",
-            "2",
-            "--cameras",
-            "sfm",
-            "--out",
-            s(&cap),
-        ])
-        .env("AGENTSTAR_COLMAP", dir.path().join("no-such-colmap"))
-        .output()
-        .expect("run");
+    let o = from_video(
+        dir.path(),
+        2,
+        false,
+        &["--cameras", "sfm", "--out", s(&cap)],
+    )
+    .env("AGENTSTAR_COLMAP", dir.path().join("no-such-colmap"))
+    .output()
+    .expect("run");
     assert!(!o.status.success());
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(err.contains("apt install colmap"), "{err}");
@@ -364,15 +369,7 @@ fn without_colmap_the_command_says_how_to_install_it() {
 fn a_colmap_that_hangs_on_its_probe_fails_within_the_time_limit() {
     use std::os::unix::fs::PermissionsExt;
     let dir = tempfile::tempdir().expect("tmp");
-    let clip = synthesize_room_clip(&RoomConfig {
-        frames: 4,
-        keyframe_every: 2,
-        width: 96,
-        height: 72,
-        ..RoomConfig::default()
-    })
-    .expect("clip");
-    write_clip(dir.path(), &clip);
+    small_clip(dir.path(), 4, 2);
     let bin = dir.path().join("bin");
     std::fs::create_dir_all(&bin).expect("mkdir");
     let fake = bin.join("colmap");
@@ -384,28 +381,25 @@ fn a_colmap_that_hangs_on_its_probe_fails_within_the_time_limit() {
         std::env::var("PATH").unwrap_or_default()
     );
     let cap = dir.path().join("cap");
-    let mut child = Command::new(env!("CARGO_BIN_EXE_agentstar"))
-        .args([
-            "capture",
-            "from-video",
-            s(&dir.path().join("frames")),
-            "--masks",
-            s(&dir.path().join("masks")),
-            "--every",
-            "2",
+    let mut child = from_video(
+        dir.path(),
+        2,
+        false,
+        &[
             "--cameras",
             "sfm",
             "--sfm-time-limit-s",
             "2",
             "--out",
             s(&cap),
-        ])
-        .env("PATH", path)
-        .env_remove("AGENTSTAR_COLMAP")
-        .stdout(std::process::Stdio::piped())
-        .stderr(std::process::Stdio::piped())
-        .spawn()
-        .expect("spawn");
+        ],
+    )
+    .env("PATH", path)
+    .env_remove("AGENTSTAR_COLMAP")
+    .stdout(std::process::Stdio::piped())
+    .stderr(std::process::Stdio::piped())
+    .spawn()
+    .expect("spawn");
     let t0 = std::time::Instant::now();
     while child.try_wait().expect("wait").is_none() {
         if t0.elapsed() > std::time::Duration::from_secs(60) {
@@ -430,37 +424,35 @@ fn a_colmap_that_hangs_on_its_probe_fails_within_the_time_limit() {
 /// other 18 get their cameras by registration, as accurate as the rest.
 #[test]
 fn frames_left_out_of_the_reconstruction_are_registered_against_it() {
-    if !have_colmap() {
+    let Some(dir) = colmap_workdir() else {
         return;
-    }
-    let dir = tempfile::tempdir().expect("tmp");
-    let clip = synthesize_room_clip(&RoomConfig {
-        frames: 30,
-        keyframe_every: 1,
-        seed: 8,
-        ..RoomConfig::default()
-    })
-    .expect("clip");
-    write_clip(dir.path(), &clip);
+    };
+    let clip = written_clip(
+        dir.path(),
+        RoomConfig {
+            frames: 30,
+            keyframe_every: 1,
+            seed: 8,
+            ..RoomConfig::default()
+        },
+    );
     let cap = dir.path().join("cap");
-    let o = agentstar(&[
-        "capture",
-        "from-video",
-        s(&dir.path().join("frames")),
-        "--masks",
-        s(&dir.path().join("masks")),
-        "--hands",
-        s(&dir.path().join("hands")),
-        "--every",
-        "1",
-        "--cameras",
-        "sfm",
-        "--sfm-max-frames",
-        "12",
-        "--out",
-        s(&cap),
-        "--json",
-    ]);
+    let o = from_video(
+        dir.path(),
+        1,
+        true,
+        &[
+            "--cameras",
+            "sfm",
+            "--sfm-max-frames",
+            "12",
+            "--out",
+            s(&cap),
+            "--json",
+        ],
+    )
+    .output()
+    .expect("run");
     assert!(o.status.success(), "capture --cameras sfm: {}", text(&o));
     let err = String::from_utf8_lossy(&o.stderr);
     for stage in ["features", "matching", "mapping", "registration"] {
@@ -486,17 +478,8 @@ fn frames_left_out_of_the_reconstruction_are_registered_against_it() {
     );
     let capture = Capture::open(&cap).expect("a valid capture");
     assert_eq!(capture.frames.len(), 30);
-    let estimated: Vec<Rigid> = capture.frames.iter().map(|f| f.world_from_camera).collect();
     let truth: Vec<Rigid> = clip.frames.iter().map(|f| f.world_from_camera).collect();
-    let e = camera_errors(&estimated, &truth).expect("errors");
-    eprintln!(
-        "12 frames reconstructed, 18 registered: rotation max {:.3}° median {:.3}°; translation max {:.2}% median {:.2}% of the {:.3} m trajectory",
-        e.rotation_deg_max,
-        e.rotation_deg_median,
-        100.0 * e.translation_max_fraction,
-        100.0 * e.translation_median_fraction,
-        e.trajectory_length
-    );
+    let e = logged_camera_errors(&capture, &truth, "12 frames reconstructed, 18 registered");
     // Tight on the median; on the worst frame, a bound that catches a frame misplaced, not
     // one registered loosely: COLMAP's multithreaded registration is not deterministic, and
     // in one of about six runs on 2026-12-04 (the machine busy with the whole test suite)
@@ -515,15 +498,7 @@ fn frames_left_out_of_the_reconstruction_are_registered_against_it() {
 fn a_run_past_its_time_limit_names_the_stage_it_stopped_in() {
     use std::os::unix::fs::PermissionsExt;
     let dir = tempfile::tempdir().expect("tmp");
-    let clip = synthesize_room_clip(&RoomConfig {
-        frames: 6,
-        keyframe_every: 2,
-        width: 96,
-        height: 72,
-        ..RoomConfig::default()
-    })
-    .expect("clip");
-    write_clip(dir.path(), &clip);
+    small_clip(dir.path(), 6, 2);
     let fake = dir.path().join("colmap");
     std::fs::write(
         &fake,
@@ -533,25 +508,22 @@ fn a_run_past_its_time_limit_names_the_stage_it_stopped_in() {
     std::fs::set_permissions(&fake, std::fs::Permissions::from_mode(0o755)).expect("chmod");
     let cap = dir.path().join("cap");
     let t0 = std::time::Instant::now();
-    let o = Command::new(env!("CARGO_BIN_EXE_agentstar"))
-        .args([
-            "capture",
-            "from-video",
-            s(&dir.path().join("frames")),
-            "--masks",
-            s(&dir.path().join("masks")),
-            "--every",
-            "2",
+    let o = from_video(
+        dir.path(),
+        2,
+        false,
+        &[
             "--cameras",
             "sfm",
             "--sfm-time-limit-s",
             "3",
             "--out",
             s(&cap),
-        ])
-        .env("AGENTSTAR_COLMAP", &fake)
-        .output()
-        .expect("run");
+        ],
+    )
+    .env("AGENTSTAR_COLMAP", &fake)
+    .output()
+    .expect("run");
     assert!(t0.elapsed() < std::time::Duration::from_secs(60));
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(!o.status.success(), "{err}");

@@ -8,7 +8,9 @@ use agentstar_reports::fit::FitReport;
 use agentstar_reports::ScoreReport;
 use serde_json::json;
 use std::path::Path;
-use support::{agentstar, s, score_of, text, McpClient};
+use support::{
+    agentstar, assert_failed_saying, init_run, on_poses, s, score_of, synth_object, text, McpClient,
+};
 
 /// The synthetic box (`agentstar synth --object box`) with its proportions as parameters:
 /// the true values are width 1.0, depth 0.7, body height 0.48.
@@ -31,31 +33,15 @@ joint(#{{ name: "lid_hinge", type: "revolute", child: "lid", origin: [0, d / 2, 
 fn run_with(dir: &Path, frames: usize, script: &str) -> (std::path::PathBuf, std::path::PathBuf) {
     let (cap, run) = (dir.join("cap"), dir.join("run"));
     let n = frames.to_string();
-    let o = agentstar(&[
-        "synth",
+    let o = synth_object(
         &s(&cap),
-        "--object",
         "box",
-        "--frames",
-        &n,
-        "--seed",
-        "3",
-        "--no-hands",
-    ]);
+        &["--frames", &n, "--seed", "3", "--no-hands"],
+    );
     assert!(o.status.success(), "{}", text(&o));
     let scene = dir.join("start.rhai");
     std::fs::write(&scene, script).expect("write scene");
-    let o = agentstar(&[
-        "init",
-        &s(&run),
-        "--capture",
-        &s(&cap),
-        "--scene",
-        &s(&scene),
-        "--scale",
-        "0.24",
-    ]);
-    assert!(o.status.success(), "{}", text(&o));
+    init_run(&run, &cap, Some((&scene, "0.24")));
     std::fs::copy(cap.join("model/pose.json"), run.join("pose.json")).expect("true poses");
     (cap, run)
 }
@@ -85,25 +71,19 @@ fn fit_shape_recovers_two_wrong_proportions_and_holds_the_rest() {
     // Depth 15% short, body height 20% tall; the width is right.
     let (cap, run) = run_with(dir.path(), 6, &box_script("1.0", "0.595", "0.576"));
     // A parameter the script does not declare is named, with those it does.
-    let o = agentstar(&[
+    let o = on_poses(
         "fit-shape",
-        "--capture",
         &s(&cap),
-        "--model",
         &s(&run.join("scene.rhai")),
-        "--poses",
         &s(&run.join("pose.json")),
-        "--params",
-        "depth,lenght",
-        "--out",
-        &s(&dir.path().join("x")),
-    ]);
-    assert!(!o.status.success());
-    assert!(
-        text(&o).contains("no parameter `lenght`") && text(&o).contains("width, depth, height"),
-        "{}",
-        text(&o)
+        &[
+            "--params",
+            "depth,lenght",
+            "--out",
+            &s(&dir.path().join("x")),
+        ],
     );
+    assert_failed_saying(&o, &["no parameter `lenght`", "width, depth, height"]);
     let (mut c, _) = McpClient::initialised(&run);
     c.call(2, "fit_shape", json!({"params": ["depth", "height"]}));
     let (resp, _) = c.response(2);
@@ -316,43 +296,26 @@ fn rescaled(poses: &Path, k: f64, out: &Path) -> f64 {
     truth
 }
 
+/// `OBJECT` moved by `MOTION` in 6 keyframes of 160×120 without hands (seed 2), in `out`.
+fn synth_small(out: &Path, object: &str, motion: &str) {
+    let mut args = vec!["--motion", motion, "--frames", "6", "--size", "160x120"];
+    args.extend(["--no-hands", "--seed", "2"]);
+    let o = synth_object(&s(out), object, &args);
+    assert!(o.status.success(), "{}", text(&o));
+}
+
 #[test]
 fn scale_comes_back_from_depth_parallax_and_a_stated_size() {
     let dir = tempfile::tempdir().expect("tmp");
     let cap = dir.path().join("cap");
     // A static microwave, an orbiting metric camera, depth (as iTACO has).
-    let o = agentstar(&[
-        "synth",
-        &s(&cap),
-        "--object",
-        "microwave",
-        "--motion",
-        "static-orbit",
-        "--frames",
-        "6",
-        "--size",
-        "160x120",
-        "--no-hands",
-        "--seed",
-        "2",
-    ]);
-    assert!(o.status.success(), "{}", text(&o));
+    synth_small(&cap, "microwave", "static-orbit");
     let model = cap.join("model/scene.rhai");
     let wrong = dir.path().join("wrong.json");
     let truth = rescaled(&cap.join("model/pose.json"), 0.8, &wrong);
     // `agentstar scale` on a capture, its model and poses.
     let scale_cli = |cap: &Path, model: &Path, poses: &Path, extra: &[&str]| {
-        let mut args = vec![
-            "scale".to_string(),
-            "--capture".into(),
-            s(cap),
-            "--model".into(),
-            s(model),
-            "--poses".into(),
-            s(poses),
-        ];
-        args.extend(extra.iter().map(|a| a.to_string()));
-        agentstar(&args.iter().map(String::as_str).collect::<Vec<_>>())
+        on_poses("scale", &s(cap), &s(model), &s(poses), extra)
     };
     let report_of = |o: std::process::Output| -> agentstar_reports::fit::ScaleReport {
         assert!(o.status.success(), "{}", text(&o));
@@ -403,22 +366,7 @@ fn scale_comes_back_from_depth_parallax_and_a_stated_size() {
     // An object turned in a hand moves in the world: parallax is weak there, and says why
     // (the capture has no depth: the last check uses it too).
     let held = dir.path().join("held");
-    let o = agentstar(&[
-        "synth",
-        &s(&held),
-        "--object",
-        "box",
-        "--motion",
-        "handheld",
-        "--frames",
-        "6",
-        "--size",
-        "160x120",
-        "--no-hands",
-        "--seed",
-        "2",
-    ]);
-    assert!(o.status.success(), "{}", text(&o));
+    synth_small(&held, "box", "handheld");
     let (held_model, held_poses) = (held.join("model/scene.rhai"), held.join("model/pose.json"));
     let r = report_of(scale_cli(
         &held,
@@ -443,11 +391,7 @@ fn scale_comes_back_from_depth_parallax_and_a_stated_size() {
     assert!((v["scale"].as_f64().expect("scale") / truth - 1.0).abs() < 0.03);
     // A capture without depth (the hand-held box's) says what to use instead.
     let o = scale_cli(&held, &held_model, &held_poses, &["--from", "depth"]);
-    assert!(
-        !o.status.success() && text(&o).contains("no keyframe has depth"),
-        "{}",
-        text(&o)
-    );
+    assert_failed_saying(&o, &["no keyframe has depth"]);
 }
 
 /// `agentstar scale --from hand`: the hands' palm breadth against the adult prior puts a
@@ -458,24 +402,12 @@ fn scale_comes_back_from_depth_parallax_and_a_stated_size() {
 fn scale_comes_back_from_the_hands_within_its_stated_uncertainty() {
     let dir = tempfile::tempdir().expect("tmp");
     let synth = |out: &Path, object: &str, hands: bool| {
-        let mut args = vec![
-            "synth".to_string(),
-            s(out),
-            "--object".into(),
-            object.into(),
-            "--motion".into(),
-            "handheld".into(),
-            "--frames".into(),
-            "10".into(),
-            "--size".into(),
-            "320x240".into(),
-            "--seed".into(),
-            "5".into(),
-        ];
+        let mut args = vec!["--motion", "handheld", "--frames", "10"];
+        args.extend(["--size", "320x240", "--seed", "5"]);
         if !hands {
-            args.push("--no-hands".into());
+            args.push("--no-hands");
         }
-        let o = agentstar(&args.iter().map(String::as_str).collect::<Vec<_>>());
+        let o = synth_object(&s(out), object, &args);
         assert!(o.status.success(), "{}", text(&o));
     };
     // The laptop (0.3 m) is drawn with full-size hands: a palm of 8.5 cm.
@@ -486,18 +418,13 @@ fn scale_comes_back_from_the_hands_within_its_stated_uncertainty() {
     let wrong = dir.path().join("wrong.json");
     let truth = rescaled(&cap.join("model/pose.json"), 0.6, &wrong);
     let scale_cli = |cap: &Path, poses: &Path, model: &Path| {
-        agentstar(&[
+        on_poses(
             "scale",
-            "--capture",
             &s(cap),
-            "--model",
             &s(model),
-            "--poses",
             &s(poses),
-            "--from",
-            "hand",
-            "--json",
-        ])
+            &["--from", "hand", "--json"],
+        )
     };
     let o = scale_cli(&cap, &wrong, &model);
     assert!(o.status.success(), "{}", text(&o));
@@ -541,12 +468,7 @@ fn scale_comes_back_from_the_hands_within_its_stated_uncertainty() {
         &bare.join("model/pose.json"),
         &bare.join("model/scene.rhai"),
     );
-    assert!(!o.status.success(), "{}", text(&o));
-    assert!(
-        text(&o).contains("hand mask") && text(&o).contains("depth"),
-        "{}",
-        text(&o)
-    );
+    assert_failed_saying(&o, &["hand mask", "depth"]);
 }
 
 #[test]

@@ -3,7 +3,9 @@
 mod support;
 
 use agentstar_reports::{EvalReport, ScoreReport, TrackReport};
-use support::{agentstar, eval_of, example, score_of, text, track_known};
+use support::{
+    agentstar, eval_of, example, json_of, on_poses, score_of, synth_object, text, track_known,
+};
 
 #[test]
 fn eval_scores_ground_truth_as_zero_and_tracking_as_small() {
@@ -29,17 +31,13 @@ fn eval_scores_ground_truth_as_zero_and_tracking_as_small() {
         "{v:?}"
     );
     // A missing ground truth is named.
-    let o = agentstar(&[
+    let o = on_poses(
         "eval",
-        "--capture",
         &cap,
-        "--model",
         &model,
-        "--poses",
         &tracked,
-        "--gt",
-        "/nonexistent/gt.json",
-    ]);
+        &["--gt", "/nonexistent/gt.json"],
+    );
     assert_eq!(o.status.code(), Some(2));
     assert!(text(&o).contains("/nonexistent/gt.json"), "{}", text(&o));
 }
@@ -48,21 +46,13 @@ fn eval_scores_ground_truth_as_zero_and_tracking_as_small() {
 fn synth_writes_a_valid_capture_whose_truth_scores_perfectly() {
     let dir = tempfile::tempdir().expect("tmp");
     let out = dir.path().join("cab");
-    let o = agentstar(&[
-        "synth",
+    let v: serde_json::Value = json_of(&synth_object(
         out.to_str().expect("utf8"),
-        "--object",
         "cabinet",
-        "--frames",
-        "4",
-        "--size",
-        "160x120",
-        "--seed",
-        "5",
-        "--json",
-    ]);
-    assert!(o.status.success(), "{}", text(&o));
-    let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("json");
+        &[
+            "--frames", "4", "--size", "160x120", "--seed", "5", "--json",
+        ],
+    ));
     assert_eq!(v["motion"], "static-orbit");
     let cap = out.display().to_string();
     let o = agentstar(&["validate", &cap, "--json"]);
@@ -135,15 +125,10 @@ fn synth_writes_a_valid_capture_whose_truth_scores_perfectly() {
         )
     );
     // The destination is not overwritten, and a bad object is named with the library.
-    let o = agentstar(&["synth", &cap, "--object", "cabinet"]);
+    let o = synth_object(&cap, "cabinet", &[]);
     assert_eq!(o.status.code(), Some(2));
     assert!(text(&o).contains("not empty"), "{}", text(&o));
-    let o = agentstar(&[
-        "synth",
-        dir.path().join("x").to_str().expect("utf8"),
-        "--object",
-        "teapot",
-    ]);
+    let o = synth_object(dir.path().join("x").to_str().expect("utf8"), "teapot", &[]);
     assert_eq!(o.status.code(), Some(2));
     assert!(
         text(&o).contains("teapot") && text(&o).contains("laptop"),
@@ -163,9 +148,8 @@ fn synth_writes_a_valid_capture_whose_truth_scores_perfectly() {
 fn demo_tracks_and_evaluates_the_built_in_capture() {
     let dir = tempfile::tempdir().expect("tmp");
     let out = dir.path().join("demo");
-    let o = agentstar(&["demo", out.to_str().expect("utf8"), "--json"]);
-    assert!(o.status.success(), "{}", text(&o));
-    let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("json");
+    let v: serde_json::Value =
+        json_of(&agentstar(&["demo", out.to_str().expect("utf8"), "--json"]));
     assert!(v["result"]["epe_cm"].as_f64().expect("epe") < 1.0, "{v}");
     assert!(v["result"]["iou_mean"].as_f64().expect("iou") > 0.97, "{v}");
     assert!(out.join("run/pose.json").is_file() && out.join("capture/gt.json").is_file());

@@ -4,7 +4,7 @@
 mod support;
 
 use std::path::Path;
-use support::{agentstar, example, text, track_known};
+use support::{agentstar, assert_failed_saying, example, on_poses, text, track_known};
 
 fn read_json(p: &Path) -> serde_json::Value {
     serde_json::from_slice(&std::fs::read(p).expect("read")).expect("json")
@@ -23,6 +23,18 @@ fn angle_deg(a: [f64; 4], b: [f64; 4]) -> f64 {
     2.0 * dot.abs().min(1.0).acos().to_degrees()
 }
 
+/// The frame names of a pose file read as JSON, sorted.
+fn frame_names(poses: &serde_json::Value) -> Vec<String> {
+    let mut names: Vec<String> = poses["frames"]
+        .as_object()
+        .expect("frames")
+        .keys()
+        .cloned()
+        .collect();
+    names.sort();
+    names
+}
+
 #[test]
 fn track_from_keeps_anchors_and_repairs_a_flipped_block() {
     let dir = tempfile::tempdir().expect("tmp");
@@ -30,13 +42,7 @@ fn track_from_keeps_anchors_and_repairs_a_flipped_block() {
     let tracked = dir.path().join("tracked.json");
     let _: serde_json::Value = track_known(&cap, &model, &poses, &tracked);
     let good = read_json(&tracked);
-    let mut names: Vec<String> = good["frames"]
-        .as_object()
-        .expect("frames")
-        .keys()
-        .cloned()
-        .collect();
-    names.sort();
+    let names = frame_names(&good);
     assert_eq!(names.len(), 6);
     // Frames 3 and 4 turned end for end: q · (0, 0, 0, 1), a half turn about the canonical z.
     let mut bad = good.clone();
@@ -173,17 +179,13 @@ fn a_stopped_track_leaves_its_poses_so_far_and_a_finished_one_removes_them() {
         let flags = moved_flags(&kept);
         assert_eq!(flags.len(), 6, "{kept}");
         assert!(flags.iter().any(|f| f.1), "no frame tracked: {flags:?}");
-        let o = agentstar(&[
+        let o = on_poses(
             "score",
-            "--capture",
             &cap,
-            "--model",
             &model,
-            "--poses",
             partial.to_str().expect("utf8"),
-            "--no-appearance",
-            "--json",
-        ]);
+            &["--no-appearance", "--json"],
+        );
         // (It exits 1 when frames are under the gate, as the carried ones are.)
         let scored: serde_json::Value =
             serde_json::from_slice(&o.stdout).unwrap_or_else(|e| panic!("{e}: {}", text(&o)));
@@ -218,8 +220,7 @@ fn a_track_whose_final_write_fails_keeps_every_tracked_pose() {
         ]
         .concat(),
     );
-    assert!(!o.status.success(), "{}", text(&o));
-    assert!(text(&o).contains("tracked.json"), "{}", text(&o));
+    assert_failed_saying(&o, &["tracked.json"]);
     let kept = read_json(&dir.path().join("tracked.partial.json"));
     let flags = moved_flags(&kept);
     assert_eq!(flags.len(), 6);
@@ -251,13 +252,7 @@ fn track_over_mcp_names_frames_it_moves_to_another_basin_and_keep_basins_keeps_t
         &scale,
     ]);
     assert!(o.status.success(), "{}", text(&o));
-    let mut names: Vec<String> = truth["frames"]
-        .as_object()
-        .expect("frames")
-        .keys()
-        .cloned()
-        .collect();
-    names.sort();
+    let names = frame_names(&truth);
     let turned = &names[3];
     let mut bad = truth.clone();
     let [w, x, y, z] = quaternion(&truth, turned);

@@ -3,7 +3,7 @@
 mod support;
 
 use std::path::Path;
-use support::{agentstar, text};
+use support::{agentstar, json_of, synth_object, text};
 
 /// `ffmpeg`, where installed (`.ci/run` installs it and sets `AGENTSTAR_REQUIRE_FFMPEG=1`,
 /// which turns its absence into a failure).
@@ -30,18 +30,11 @@ fn a_video_file_imports_through_ffmpeg_frame_for_frame() {
     let dir = tempfile::tempdir().expect("tmp");
     let p = |n: &str| dir.path().join(n);
     let s = |path: &Path| path.to_str().expect("utf8").to_string();
-    let o = agentstar(&[
-        "synth",
+    let o = synth_object(
         &s(&p("clip")),
-        "--object",
         "mug",
-        "--frames",
-        "4",
-        "--size",
-        "160x120",
-        "--seed",
-        "2",
-    ]);
+        &["--frames", "4", "--size", "160x120", "--seed", "2"],
+    );
     assert!(o.status.success(), "{}", text(&o));
     let clip = agentstar_data::capture::Capture::open(&p("clip")).expect("clip");
     // The frames as a lossless video; the masks as a segmenter names them (by the frame's
@@ -68,7 +61,7 @@ fn a_video_file_imports_through_ffmpeg_frame_for_frame() {
         "{}",
         String::from_utf8_lossy(&ff.stderr)
     );
-    let o = agentstar(&[
+    let v: serde_json::Value = json_of(&agentstar(&[
         "capture",
         "from-video",
         &s(&p("clip.mkv")),
@@ -81,9 +74,7 @@ fn a_video_file_imports_through_ffmpeg_frame_for_frame() {
         "--out",
         &s(&p("cap")),
         "--json",
-    ]);
-    assert!(o.status.success(), "{}", text(&o));
-    let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("json");
+    ]));
     assert_eq!(v["frames"], 4);
     // A video's frames are named by their index in it: nothing was assumed.
     assert_eq!(v["notes"], serde_json::json!([]), "{v}");

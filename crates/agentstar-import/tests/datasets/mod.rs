@@ -61,14 +61,8 @@ pub fn write_bop_scene(
             Vector3::new(0.005 * k, -0.004, 0.4),
         );
         let other = ObjectPose::new(UnitQuaternion::identity(), Vector3::new(0.02, 0.01, 0.3));
-        let inst = |m: &'static agentstar_geom::TriMesh, p: &ObjectPose, id: u16| Instance {
-            mesh: m,
-            bounds: m.bounds(),
-            camera_from_mesh: Affine::from_similarity(&p.with_scale(1.0)),
-            edges: None,
-            open_edges: None,
-            planes: None,
-            part_id: id,
+        let inst = |m: &'static agentstar_geom::TriMesh, p: &ObjectPose, id: u16| {
+            Instance::bare(m, Affine::from_similarity(&p.with_scale(1.0)), id)
         };
         let m_box: &'static agentstar_geom::TriMesh = Box::leak(Box::new(m_box.clone()));
         let b: &'static agentstar_geom::TriMesh = Box::leak(Box::new(blocker.clone()));

@@ -1,11 +1,16 @@
 //! The synthetic articulated object and motion shared by the tests and the benchmarks.
 
 use agentstar_geom::csg::{difference, union};
-use agentstar_geom::kinematics::{JointDef, JointKind};
 use agentstar_geom::pose::ObjectPose;
 use agentstar_geom::primitives::{bevelled_box, cuboid, torus};
-use agentstar_geom::{KinematicTree, ObjectModel, Part, UnitQuaternion, Vector3};
+use agentstar_geom::{ObjectModel, Part, UnitQuaternion, Vector3};
+
 use agentstar_track::update::GenPose;
+use hinged::with_lid_hinge;
+
+// By path, so that the benchmark that includes this file finds it too.
+#[path = "hinged.rs"]
+pub mod hinged;
 
 /// A carrying case with a hinged lid and a handle on the front (no rotational symmetry).
 pub fn case_model() -> ObjectModel {
@@ -29,20 +34,7 @@ pub fn case_model() -> ObjectModel {
         Part::new("base", base, [0.2, 0.4, 0.7]),
         Part::new("lid", lid, [0.9, 0.6, 0.2]),
     ];
-    let hinge = JointDef {
-        name: "hinge".into(),
-        kind: JointKind::Revolute,
-        parent: None,
-        child: vec!["lid".into()],
-        origin: Vector3::new(0.0, 0.31, 0.07),
-        axis: -Vector3::x(),
-        limit: Some((0.0, 120.0)),
-    };
-    ObjectModel {
-        tree: KinematicTree::new(vec![hinge], &["base".to_string(), "lid".to_string()])
-            .expect("tree"),
-        parts,
-    }
+    with_lid_hinge(parts, Vector3::new(0.0, 0.31, 0.07), -Vector3::x(), 120.0)
 }
 
 pub fn truth(t: f64) -> GenPose {

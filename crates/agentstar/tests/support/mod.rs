@@ -1,6 +1,9 @@
 //! Helpers shared by the binary's integration tests: running the executable, small
-//! synthetic captures and runs, an MCP client over stdio, and golden files.
+//! synthetic captures and runs, an MCP client over stdio, golden files, and a mock model
+//! server (`model`).
 #![allow(dead_code)]
+
+pub mod model;
 
 use std::io::{BufRead, Write};
 use std::path::{Path, PathBuf};
@@ -59,6 +62,14 @@ pub fn json_of<T: serde::de::DeserializeOwned>(o: &Output) -> T {
     serde_json::from_slice(&o.stdout).unwrap_or_else(|e| panic!("{e}: {}", text(o)))
 }
 
+/// `agentstar VERB --capture CAP --model MODEL --poses POSES ARGS…` run to completion (the
+/// shape of every command that reads a capture, a model and its poses).
+pub fn on_poses(verb: &str, cap: &str, model: &str, poses: &str, args: &[&str]) -> Output {
+    let mut all = vec![verb, "--capture", cap, "--model", model, "--poses", poses];
+    all.extend_from_slice(args);
+    agentstar(&all)
+}
+
 /// `agentstar track CAP --model MODEL --scale-from POSES --out OUT --evals 1200 --json`
 /// (the known model tracked from scratch at the true scale), its report (`TrackReport`, or
 /// `serde_json::Value`; generic so that this module links nothing of ours).
@@ -92,20 +103,11 @@ pub fn score_of<T: serde::de::DeserializeOwned>(
     poses: &str,
     frames: Option<&str>,
 ) -> T {
-    let mut args = vec![
-        "score",
-        "--capture",
-        cap,
-        "--model",
-        model,
-        "--poses",
-        poses,
-        "--json",
-    ];
+    let mut args = vec!["--json"];
     if let Some(f) = frames {
         args.extend(["--frames", f]);
     }
-    let o = agentstar(&args);
+    let o = on_poses("score", cap, model, poses, &args);
     serde_json::from_slice(&o.stdout).unwrap_or_else(|e| panic!("{e}: {}", text(&o)))
 }
 
@@ -118,38 +120,31 @@ pub fn eval_of<T: serde::de::DeserializeOwned>(
     samples: usize,
 ) -> T {
     let n = samples.to_string();
-    json_of(&agentstar(&[
+    json_of(&on_poses(
         "eval",
-        "--capture",
         cap,
-        "--model",
         model,
-        "--poses",
         poses,
-        "--samples",
-        &n,
-        "--json",
-    ]))
+        &["--samples", &n, "--json"],
+    ))
+}
+
+/// `agentstar synth OUT --object OBJECT ARGS…` run to completion.
+pub fn synth_object(out: &str, object: &str, args: &[&str]) -> Output {
+    let mut all = vec!["synth", out, "--object", object];
+    all.extend_from_slice(args);
+    agentstar(&all)
 }
 
 /// The hand-held box with hands, seed 7 (the demo's clip), `frames` keyframes, at 160×120
 /// when `small` (else 320×240), written to `out`.
 pub fn synth_box(out: &Path, frames: usize, small: bool) {
     let n = frames.to_string();
-    let mut args = vec![
-        "synth",
-        out.to_str().expect("utf8"),
-        "--object",
-        "box",
-        "--frames",
-        &n,
-        "--seed",
-        "7",
-    ];
+    let mut args = vec!["--frames", &n, "--seed", "7"];
     if small {
         args.extend(["--size", "160x120"]);
     }
-    let o = agentstar(&args);
+    let o = synth_object(path_str(out), "box", &args);
     assert!(o.status.success(), "{}", text(&o));
 }
 
@@ -158,14 +153,50 @@ pub fn synth_box(out: &Path, frames: usize, small: bool) {
 pub fn small_run(dir: &Path, frames: usize, known_scene: bool) {
     let (cap, run) = (dir.join("cap"), dir.join("run"));
     synth_box(&cap, frames, true);
-    let scene = s(&cap.join("model/scene.rhai"));
-    let mut args = vec!["init".to_string(), s(&run), "--capture".into(), s(&cap)];
-    if known_scene {
-        args.extend(["--scene".into(), scene, "--scale".into(), "0.24".into()]);
+    let scene = cap.join("model/scene.rhai");
+    init_run(&run, &cap, known_scene.then_some((scene.as_path(), "0.24")));
+}
+
+/// `small_run` from the known scene, with the capture's true poses copied into the run's
+/// `pose.json`; returns the run.
+pub fn small_run_at_truth(dir: &Path, frames: usize) -> PathBuf {
+    small_run(dir, frames, true);
+    let run = dir.join("run");
+    std::fs::copy(dir.join("cap/model/pose.json"), run.join("pose.json")).expect("true poses");
+    run
+}
+
+/// `agentstar init RUN --capture CAP [--scene SCENE --scale SCALE]`, asserting that it
+/// succeeded.
+pub fn init_run(run: &Path, cap: &Path, scene_at_scale: Option<(&Path, &str)>) {
+    let mut args = vec!["init", path_str(run), "--capture", path_str(cap)];
+    if let Some((scene, scale)) = scene_at_scale {
+        args.extend(["--scene", path_str(scene), "--scale", scale]);
     }
-    let args: Vec<&str> = args.iter().map(String::as_str).collect();
     let o = agentstar(&args);
-    assert!(o.status.success(), "{}", text(&o));
+    assert!(o.status.success(), "init {}: {}", run.display(), text(&o));
+}
+
+/// Writes to `to` a copy of the pose file `from` with every translation moved by `dx`
+/// metres along x.
+pub fn shifted_poses(from: &Path, to: &Path, dx: f64) {
+    let mut v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(from).expect("pose.json")).expect("json");
+    for f in v["frames"].as_object_mut().expect("frames").values_mut() {
+        let x = f["object_pose"]["translation"][0].as_f64().expect("x");
+        f["object_pose"]["translation"][0] = serde_json::Value::from(x + dx);
+    }
+    std::fs::write(to, serde_json::to_string_pretty(&v).expect("json")).expect("write");
+}
+
+/// Asserts that a command failed and that its output says every one of `needles`; the
+/// message names the missing one and shows the output.
+pub fn assert_failed_saying(o: &Output, needles: &[&str]) {
+    let t = text(o);
+    assert!(!o.status.success(), "the command succeeded: {t}");
+    for needle in needles {
+        assert!(t.contains(needle), "missing `{needle}` in: {t}");
+    }
 }
 
 /// Turns the mechanism gate off in `RUN/run.json` (`finish.mechanism_check: false`), for
