@@ -344,28 +344,22 @@ mod tests {
             seed: 42,
             ..DeConfig::default()
         };
-        let mut trace_a = Vec::new();
-        let a = differential_evolution(
-            &mut |x| {
-                trace_a.push(x.to_vec());
-                rastrigin(x)
-            },
-            &b,
-            None,
-            &cfg,
-        )
-        .expect("de");
-        let mut trace_b = Vec::new();
-        let bb = differential_evolution(
-            &mut |x| {
-                trace_b.push(x.to_vec());
-                rastrigin(x)
-            },
-            &b,
-            None,
-            &cfg,
-        )
-        .expect("de");
+        let traced = || {
+            let mut trace = Vec::new();
+            let r = differential_evolution(
+                &mut |x| {
+                    trace.push(x.to_vec());
+                    rastrigin(x)
+                },
+                &b,
+                None,
+                &cfg,
+            )
+            .expect("de");
+            (trace, r)
+        };
+        let (trace_a, a) = traced();
+        let (trace_b, bb) = traced();
         assert_eq!(trace_a, trace_b);
         assert_eq!(a, bb);
         let c = differential_evolution(

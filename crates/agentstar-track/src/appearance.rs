@@ -697,39 +697,74 @@ pub(crate) mod tests {
         }
     }
 
+    /// Three views of the can (scale 0.12) painted by `albedo`, at their true poses.
+    struct ThreeViews {
+        model: ObjectModel,
+        scale: f64,
+        cam: PinholeCamera,
+        truth: [GenPose; 3],
+        shots: Vec<(Vec<u8>, BitMask)>,
+    }
+
+    impl ThreeViews {
+        fn new(albedo: &dyn Fn(&Point3) -> [f64; 3]) -> ThreeViews {
+            let model = cylinder_model();
+            let scale = 0.12;
+            let cam = PinholeCamera::new(300.0, 300.0, 168.0, 112.0, 320, 240).expect("camera");
+            let truth = [
+                pose(Vector3::y(), 0.0, 10.0),
+                pose(Vector3::new(0.2, 1.0, 0.1), 35.0, 40.0),
+                pose(Vector3::new(-0.3, 1.0, 0.0), -30.0, -25.0),
+            ];
+            let shots = truth
+                .iter()
+                .map(|p| shoot(&model, scale, &cam, p, albedo))
+                .collect();
+            ThreeViews {
+                model,
+                scale,
+                cam,
+                truth,
+                shots,
+            }
+        }
+
+        fn frames(&self) -> Vec<AppearanceFrame<'_>> {
+            self.shots
+                .iter()
+                .map(|(rgb, mask)| AppearanceFrame {
+                    camera: &self.cam,
+                    rgb,
+                    mask,
+                })
+                .collect()
+        }
+
+        /// Frames 1 and 2 as references at their true poses.
+        fn refs<'a>(&'a self, frames: &[AppearanceFrame<'a>]) -> Vec<ReferenceView<'a>> {
+            (1..3)
+                .map(|k| {
+                    ReferenceView::new(&self.model, self.scale, frames[k], &self.truth[k])
+                        .expect("view")
+                })
+                .collect()
+        }
+    }
+
     /// Scores of the true pose of frame 0 and of its twin turned half way about the axis.
     fn true_and_twin(albedo: &dyn Fn(&Point3) -> [f64; 3]) -> (AppearanceScore, AppearanceScore) {
-        let model = cylinder_model();
-        let scale = 0.12;
-        let cam = PinholeCamera::new(300.0, 300.0, 168.0, 112.0, 320, 240).expect("camera");
-        let truth = [
-            pose(Vector3::y(), 0.0, 10.0),
-            pose(Vector3::new(0.2, 1.0, 0.1), 35.0, 40.0),
-            pose(Vector3::new(-0.3, 1.0, 0.0), -30.0, -25.0),
-        ];
-        let shots: Vec<(Vec<u8>, BitMask)> = truth
-            .iter()
-            .map(|p| shoot(&model, scale, &cam, p, albedo))
-            .collect();
-        let frames: Vec<AppearanceFrame<'_>> = shots
-            .iter()
-            .map(|(rgb, mask)| AppearanceFrame {
-                camera: &cam,
-                rgb,
-                mask,
-            })
-            .collect();
-        let refs: Vec<ReferenceView<'_>> = (1..3)
-            .map(|k| ReferenceView::new(&model, scale, frames[k], &truth[k]).expect("view"))
-            .collect();
+        let views = ThreeViews::new(albedo);
+        let (model, scale, cam, truth) = (&views.model, views.scale, &views.cam, &views.truth);
+        let frames = views.frames();
+        let refs = views.refs(&frames);
         let cfg = AppearanceConfig::default();
         let mut twin = truth[0].clone();
         twin.pose.rotation *= UnitQuaternion::from_axis_angle(&Vector3::z_axis(), PI);
         // The twin's silhouette is the true one's.
         let sil = |p: &GenPose| {
             render_full(
-                &cam,
-                &PosedModel::new(&model, &p.states, &p.pose.with_scale(scale)).instances,
+                cam,
+                &PosedModel::new(model, &p.states, &p.pose.with_scale(scale)).instances,
             )
             .silhouette()
         };
@@ -737,8 +772,8 @@ pub(crate) mod tests {
         let differ = a.and_not(&b).count() + b.and_not(&a).count();
         assert!(differ * 200 < a.count(), "{differ} of {} pixels", a.count());
         (
-            appearance_score(&model, scale, &frames[0], &truth[0], &refs, &cfg),
-            appearance_score(&model, scale, &frames[0], &twin, &refs, &cfg),
+            appearance_score(model, scale, &frames[0], &truth[0], &refs, &cfg),
+            appearance_score(model, scale, &frames[0], &twin, &refs, &cfg),
         )
     }
 
@@ -770,9 +805,6 @@ pub(crate) mod tests {
 
     #[test]
     fn per_reference_scores_add_up_to_the_pooled_score() {
-        let model = cylinder_model();
-        let scale = 0.12;
-        let cam = PinholeCamera::new(300.0, 300.0, 168.0, 112.0, 320, 240).expect("camera");
         let stripes = |p: &Point3| -> [f64; 3] {
             let theta = p.y.atan2(p.x);
             if (theta * 3.0).sin() > 0.0 {
@@ -781,55 +813,39 @@ pub(crate) mod tests {
                 [0.1, 0.2, 0.6]
             }
         };
-        let truth = [
-            pose(Vector3::y(), 0.0, 10.0),
-            pose(Vector3::new(0.2, 1.0, 0.1), 35.0, 40.0),
-            pose(Vector3::new(-0.3, 1.0, 0.0), -30.0, -25.0),
-        ];
-        let shots: Vec<(Vec<u8>, BitMask)> = truth
-            .iter()
-            .map(|p| shoot(&model, scale, &cam, p, &stripes))
-            .collect();
-        let frames: Vec<AppearanceFrame<'_>> = shots
-            .iter()
-            .map(|(rgb, mask)| AppearanceFrame {
-                camera: &cam,
-                rgb,
-                mask,
-            })
-            .collect();
-        let refs: Vec<ReferenceView<'_>> = (1..3)
-            .map(|k| ReferenceView::new(&model, scale, frames[k], &truth[k]).expect("view"))
-            .collect();
+        let views = ThreeViews::new(&stripes);
+        let (model, scale, truth) = (&views.model, views.scale, &views.truth[..]);
+        let frames = views.frames();
+        let refs = views.refs(&frames);
         let cfg = AppearanceConfig::default();
-        let each = appearance_each(&model, scale, &frames[0], &truth[0], &refs, &cfg);
+        let each = appearance_each(model, scale, &frames[0], &truth[0], &refs, &cfg);
         assert_eq!(each.len(), 2);
         for (k, e) in each.iter().enumerate() {
             let alone =
-                appearance_score(&model, scale, &frames[0], &truth[0], &refs[k..k + 1], &cfg);
+                appearance_score(model, scale, &frames[0], &truth[0], &refs[k..k + 1], &cfg);
             assert_eq!(*e, alone);
             assert!(e.ncc.expect("evidence") > 0.8, "{e:?}");
         }
-        let pooled = appearance_score(&model, scale, &frames[0], &truth[0], &refs, &cfg);
+        let pooled = appearance_score(model, scale, &frames[0], &truth[0], &refs, &cfg);
         assert_eq!(pooled.pairs, each.iter().map(|e| e.pairs).sum::<usize>());
         // As a sequence, the middle frame is judged against both neighbours, the first
         // against the second only; a frame without an image has no figure, and its
         // neighbours lose it as a reference.
         let seq: Vec<Option<AppearanceFrame<'_>>> = frames.iter().copied().map(Some).collect();
-        let mid = neighbour_consistency(&model, scale, &seq, &truth, 1, &cfg);
+        let mid = neighbour_consistency(model, scale, &seq, truth, 1, &cfg);
         let mid_refs: Vec<ReferenceView<'_>> = [0, 2]
             .iter()
-            .map(|&k| ReferenceView::new(&model, scale, frames[k], &truth[k]).expect("view"))
+            .map(|&k| ReferenceView::new(model, scale, frames[k], &truth[k]).expect("view"))
             .collect();
         assert_eq!(
             mid,
-            appearance_score(&model, scale, &frames[1], &truth[1], &mid_refs, &cfg)
+            appearance_score(model, scale, &frames[1], &truth[1], &mid_refs, &cfg)
         );
-        let first = neighbour_consistency(&model, scale, &seq, &truth, 0, &cfg);
+        let first = neighbour_consistency(model, scale, &seq, truth, 0, &cfg);
         assert_eq!(first, each[0]);
         let mut wrong = truth.to_vec();
         wrong[1].pose.rotation *= UnitQuaternion::from_axis_angle(&Vector3::z_axis(), PI);
-        let flipped = neighbour_consistency(&model, scale, &seq, &wrong, 1, &cfg);
+        let flipped = neighbour_consistency(model, scale, &seq, &wrong, 1, &cfg);
         assert!(
             mid.ncc.expect("evidence") - flipped.ncc.expect("evidence") > 0.3,
             "{mid:?} against {flipped:?}"
@@ -837,15 +853,15 @@ pub(crate) mod tests {
         let mut gap = seq.clone();
         gap[1] = None;
         assert_eq!(
-            neighbour_consistency(&model, scale, &gap, &truth, 1, &cfg).ncc,
+            neighbour_consistency(model, scale, &gap, truth, 1, &cfg).ncc,
             None
         );
         assert_eq!(
-            neighbour_consistency(&model, scale, &gap, &truth, 0, &cfg).ncc,
+            neighbour_consistency(model, scale, &gap, truth, 0, &cfg).ncc,
             None
         );
         assert_eq!(
-            neighbour_consistency(&model, scale, &seq, &truth, 7, &cfg).ncc,
+            neighbour_consistency(model, scale, &seq, truth, 7, &cfg).ncc,
             None
         );
     }

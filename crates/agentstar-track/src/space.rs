@@ -399,12 +399,13 @@ pub fn build_space(
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use agentstar_geom::kinematics::{JointDef, JointKind};
     use agentstar_geom::Vector3;
 
-    fn tree() -> KinematicTree {
+    /// A base and a lid on one revolute hinge about X at the origin, open 0° to `max_deg`.
+    pub(crate) fn hinged_tree(max_deg: f64) -> KinematicTree {
         let j = JointDef {
             name: "hinge".into(),
             kind: JointKind::Revolute,
@@ -412,9 +413,13 @@ mod tests {
             child: vec!["lid".into()],
             origin: Vector3::zeros(),
             axis: Vector3::x(),
-            limit: Some((0.0, 120.0)),
+            limit: Some((0.0, max_deg)),
         };
         KinematicTree::new(vec![j], &["base".into(), "lid".into()]).expect("tree")
+    }
+
+    fn tree() -> KinematicTree {
+        hinged_tree(120.0)
     }
 
     #[test]

@@ -313,19 +313,10 @@ pub fn pair_diff(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use agentstar_geom::kinematics::{JointDef, JointKind};
+    use agentstar_geom::kinematics::KinematicTree;
 
     fn tree() -> KinematicTree {
-        let j = JointDef {
-            name: "hinge".into(),
-            kind: JointKind::Revolute,
-            parent: None,
-            child: vec!["lid".into()],
-            origin: Vector3::zeros(),
-            axis: Vector3::x(),
-            limit: Some((0.0, 180.0)),
-        };
-        KinematicTree::new(vec![j], &["base".into(), "lid".into()]).expect("tree")
+        crate::space::tests::hinged_tree(180.0)
     }
 
     fn sample(k: u64, yaw_deg: f64, t: [f64; 3], hinge_deg: f64) -> Sample {
