@@ -154,6 +154,13 @@ pub struct AppearanceScore {
 }
 
 impl AppearanceScore {
+    /// No evidence: no informative group.
+    pub const NONE: AppearanceScore = AppearanceScore {
+        ncc: None,
+        pairs: 0,
+        groups: 0,
+    };
+
     /// `1 − ncc` (0 best, 2 worst); `None` without evidence.
     pub fn cost(&self) -> Option<f64> {
         self.ncc.map(|n| 1.0 - n)
@@ -443,11 +450,7 @@ fn finish(
     with_model: bool,
     cfg: &AppearanceConfig,
 ) -> AppearanceScore {
-    let none = AppearanceScore {
-        ncc: None,
-        pairs: 0,
-        groups: 0,
-    };
+    let none = AppearanceScore::NONE;
     let (mut sum, mut pairs, mut count) = (0.0, 0usize, 0usize);
     for group in &g.groups[refs.start * g.n_parts..refs.end * g.n_parts] {
         if let Some(ncc) = group.ncc(cfg) {
@@ -495,11 +498,7 @@ pub fn appearance_score(
     cfg: &AppearanceConfig,
 ) -> AppearanceScore {
     if !frame.valid() || (references.is_empty() && !model_has_appearance(model)) {
-        return AppearanceScore {
-            ncc: None,
-            pairs: 0,
-            groups: 0,
-        };
+        return AppearanceScore::NONE;
     }
     let g = gather(model, scale, frame, candidate, references, cfg);
     finish(&g, 0..references.len(), true, cfg)
@@ -516,11 +515,7 @@ pub fn model_agreement(
     cfg: &AppearanceConfig,
 ) -> AppearanceScore {
     if !frame.valid() || !model_has_appearance(model) {
-        return AppearanceScore {
-            ncc: None,
-            pairs: 0,
-            groups: 0,
-        };
+        return AppearanceScore::NONE;
     }
     let g = gather(model, scale, frame, candidate, &[], cfg);
     finish(&g, 0..0, true, cfg)
@@ -538,14 +533,7 @@ pub fn appearance_each(
     cfg: &AppearanceConfig,
 ) -> Vec<AppearanceScore> {
     if !frame.valid() || references.is_empty() {
-        return vec![
-            AppearanceScore {
-                ncc: None,
-                pairs: 0,
-                groups: 0,
-            };
-            references.len()
-        ];
+        return vec![AppearanceScore::NONE; references.len()];
     }
     let g = gather(model, scale, frame, candidate, references, cfg);
     (0..references.len())
@@ -566,11 +554,7 @@ pub fn neighbour_consistency(
     i: usize,
     cfg: &AppearanceConfig,
 ) -> AppearanceScore {
-    let none = AppearanceScore {
-        ncc: None,
-        pairs: 0,
-        groups: 0,
-    };
+    let none = AppearanceScore::NONE;
     let Some(Some(frame)) = frames.get(i) else {
         return none;
     };
