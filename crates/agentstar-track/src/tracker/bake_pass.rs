@@ -145,10 +145,8 @@ fn settled_one(
             },
         )
         .collect();
-    s.evals.fetch_add(
-        4 * placed.len(),
-        std::sync::atomic::Ordering::Relaxed,
-    );
+    s.evals
+        .fetch_add(4 * placed.len(), std::sync::atomic::Ordering::Relaxed);
     placed.retain(|(_, sc)| *sc >= iou - SETTLE_NEAR);
     placed.sort_by(|a, b| b.1.total_cmp(&a.1));
     placed.truncate(RIVALS_REFINED);
@@ -173,8 +171,7 @@ fn settled_one(
             rival = Some((deg, sc));
         }
     }
-    let settled =
-        iou >= s.cfg.drop_threshold && rival.is_none_or(|(_, sc)| sc < iou - CHOICE_KEEP);
+    let settled = iou >= s.cfg.drop_threshold && rival.is_none_or(|(_, sc)| sc < iou - CHOICE_KEEP);
     Ok(SettledFrame {
         frame: i,
         iou,

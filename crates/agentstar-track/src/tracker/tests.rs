@@ -621,3 +621,127 @@ fn a_chain_searches_wider_where_the_object_moved_past_its_window() {
         error_of(last, &truths[3])
     );
 }
+
+/// An uncoloured mug (the mug of [`mug`], every part one colour) printed all round, seen
+/// in three frames: its handle in view at either side in frames 0 and 2, hidden behind the
+/// body in frame 1, whose pose is left turned half way about the body (the handle in front,
+/// inside the body's outline: the masks tie). `print` paints frames 0 and 1; `print_2`
+/// frame 2. (model, scale, frames' images and masks, truths, the plain poses.)
+#[allow(clippy::type_complexity)]
+fn uncoloured_mug(
+    print_2: &dyn Fn(&Point3) -> [f64; 3],
+) -> (
+    ObjectModel,
+    f64,
+    PinholeCamera,
+    Vec<(Vec<u8>, BitMask)>,
+    Vec<GenPose>,
+    Vec<GenPose>,
+) {
+    use crate::appearance::tests::{pose, shoot};
+    let mut model = mug();
+    for p in &mut model.parts {
+        p.color = [0.6, 0.6, 0.6];
+    }
+    assert!(!crate::appearance::model_has_appearance(&model));
+    let scale = 0.12;
+    let cam = PinholeCamera::new(300.0, 300.0, 168.0, 112.0, 320, 240).expect("camera");
+    let truths: Vec<GenPose> = [-160.0, -100.0, -40.0]
+        .iter()
+        .map(|&spin| pose(Vector3::y(), 0.0, spin))
+        .collect();
+    let shots: Vec<(Vec<u8>, BitMask)> = truths
+        .iter()
+        .enumerate()
+        .map(|(k, g)| {
+            if k == 2 {
+                shoot(&model, scale, &cam, g, print_2)
+            } else {
+                shoot(&model, scale, &cam, g, &mug_print)
+            }
+        })
+        .collect();
+    let mut plain = truths.clone();
+    plain[1] = spin_about_z(&truths[1], 180.0);
+    (model, scale, cam, shots, truths, plain)
+}
+
+/// The mug's print: a label at +X, bands of colour of pseudo-random width above it, and
+/// stripes below it.
+fn mug_print(p: &Point3) -> [f64; 3] {
+    let cell = (p.y.atan2(p.x) / 0.35).floor() as i64;
+    match (p.z > 0.32, p.z < -0.32, (cell * 7919).rem_euclid(5)) {
+        (true, _, 0) => [0.1, 0.3, 0.8],
+        (true, _, 1 | 2) => [0.9, 0.9, 0.2],
+        (true, _, _) => [0.2, 0.6, 0.2],
+        (_, true, k) => [0.15 * k as f64, 0.2, 0.7 - 0.1 * k as f64],
+        _ => crate::appearance::tests::painted_label(p),
+    }
+}
+
+#[test]
+fn bake_explore() {
+    let (model, scale, cam, shots, truths, plain) = uncoloured_mug(&mug_print);
+    let targets: Vec<ScoreTarget> = shots
+        .iter()
+        .map(|(_, m)| ScoreTarget::new(m.clone(), None).expect("target"))
+        .collect();
+    let frames = coloured_frames(&cam, &targets, &shots);
+    let cfg = TrackConfig {
+        local_evals: 600,
+        ..TrackConfig::default()
+    };
+    let ious = scores_of(&model, scale, &frames, &truths);
+    let twin = scores_of(&model, scale, &frames, &plain);
+    eprintln!("truth {ious:?} plain {twin:?}");
+    let t0 = std::time::Instant::now();
+    let settled = settled_frames(&model, scale, &frames, &plain, &cfg).expect("settled");
+    eprintln!("{settled:?} {:?}", t0.elapsed());
+    let observe = |l: &str| eprintln!("{l}");
+    let w = track_from_with(
+        &model,
+        scale,
+        &frames,
+        (&plain, &[]),
+        BasinPolicy::Search,
+        &cfg,
+        &observe,
+    )
+    .expect("warm");
+    for (k, g) in w.result.poses.iter().enumerate() {
+        eprintln!("without: frame {k}: {:.1}°", error_of(g, &truths[k]));
+    }
+    eprintln!("{:?}", t0.elapsed());
+    let result = TrackResult {
+        poses: plain.clone(),
+        scores: twin.clone(),
+        init_frame: 0,
+        log: vec![],
+        evaluations: 0,
+        between: vec![],
+    };
+    let hands = vec![None; 3];
+    let pass = track_with_bake(
+        &model,
+        scale,
+        (&frames, &[]),
+        &hands,
+        &result,
+        &cfg,
+        &crate::bake::BakeConfig::default(),
+        &observe,
+    )
+    .expect("bake");
+    match &pass.outcome {
+        BakeOutcome::Used(b, w) => {
+            eprintln!("{:?}", b.frames);
+            for (k, g) in w.result.poses.iter().enumerate() {
+                eprintln!("with: frame {k}: {:.1}°", error_of(g, &truths[k]));
+            }
+            eprintln!("{:?}", w.basin_moves);
+        }
+        other => eprintln!("{other:?}"),
+    }
+    eprintln!("{:?}", t0.elapsed());
+    panic!("explore");
+}

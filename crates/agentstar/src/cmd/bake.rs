@@ -7,11 +7,11 @@ use agentstar_data::bakefile::{write_bake, BakeFile, BAKE_FORMAT};
 use agentstar_data::history::{command_line, PoseHistory};
 use agentstar_data::posefile::PoseFile;
 use agentstar_data::scenefile::load_model_unbaked;
+use agentstar_geom::ObjectModel;
 use agentstar_reports::{BakeFrameRow, BakeReport};
 use agentstar_requests::{BakeArgs, SessionArgs};
 use agentstar_track::bake::{bake, Bake, BakeConfig, BakeFrame};
 use anyhow::{anyhow, bail, Context, Result};
-use agentstar_geom::ObjectModel;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 

@@ -2,20 +2,18 @@
 //! masks, with no agent, and write `pose.json` (as a version of its history, with the
 //! command, like every writer of a pose file).
 
+use crate::cmd::bake::{store_bake, Provenance};
 use crate::cmd::score::{print_table, summarise};
 use crate::common::{
     open_capture, open_model, print_json, select_frames, write_tracked_version, Session, PASS_IOU,
 };
+use agentstar_data::bakefile::bake_path;
 use agentstar_data::capture::{Capture, Frame};
 use agentstar_data::posefile::{partial_path, PoseFile};
-use agentstar_render::ScoreTarget;
-use crate::cmd::bake::{store_bake, Provenance};
-use agentstar_data::bakefile::bake_path;
 use agentstar_data::scenefile::load_model_unbaked;
 use agentstar_render::BitMask;
-use agentstar_reports::{
-    BasinMoveRow, SettledRow, TrackBakeOutcome, TrackBakeReport, TrackReport,
-};
+use agentstar_render::ScoreTarget;
+use agentstar_reports::{BasinMoveRow, SettledRow, TrackBakeOutcome, TrackBakeReport, TrackReport};
 use agentstar_track::bake::BakeConfig;
 use agentstar_track::tracker::{
     track_from_video, track_video, track_with_bake, BakeOutcome, BakePass, BasinPolicy,
@@ -314,10 +312,8 @@ pub fn run(a: Args) -> Result<ExitCode> {
         _ => track_video(&model.model, scale, &frames, &between, &cfg, &observe)?,
     };
     let (r, baked) = if a.bake {
-        let hands: Vec<Option<BitMask>> = targets
-            .iter()
-            .map(|t| t.keep().map(BitMask::not))
-            .collect();
+        let hands: Vec<Option<BitMask>> =
+            targets.iter().map(|t| t.keep().map(BitMask::not)).collect();
         let pass = track_with_bake(
             &model.model,
             scale,
