@@ -9,13 +9,17 @@
 # cameras), the same about the body's axis alone with up and down not told apart (what an
 # outline symmetric about its axis and upside down can fix: the can's), and what --bake did.
 #
-#   scripts/track_bake_figures.sh [OUT]      (AGENTSTAR=path/to/agentstar, SEEDS="17 18 19")
+#   scripts/track_bake_figures.sh [OUT]
+#   (AGENTSTAR=path/to/agentstar, SEEDS="17 18 19", OBJECTS="labelcan:300 printmug:302",
+#    CASES="textured.glb,textured.obj,plain.glb,plain.glb --bake")
 #
 # Use a release build (`cargo build --release -p agentstar`); a debug build takes hours.
 set -euo pipefail
 BIN=${AGENTSTAR:-target/release/agentstar}
 OUT=${1:-/tmp/agentstar-track-bake-figures}
 SEEDS=${SEEDS:-"17 18 19"}
+OBJECTS=${OBJECTS:-"labelcan:300 printmug:302"}
+CASES=${CASES:-"textured.glb,textured.obj,plain.glb,plain.glb --bake"}
 mkdir -p "$OUT"
 date -u +"started %Y-%m-%dT%H:%M:%SZ on $(nproc) threads, load $(cut -d' ' -f1-3 /proc/loadavg)" >&2
 
@@ -73,11 +77,12 @@ PY
 }
 
 echo "run                                 rotation mean/median/max (deg)   axis up-down-reduced mean/median/max   s   bake"
-for spec in labelcan:300 printmug:302; do
+IFS=',' read -r -a cases <<<"$CASES"
+for spec in $OBJECTS; do
     object=${spec%%:*}
     cap=$(capture "$object" "${spec##*:}")
     for seed in $SEEDS; do
-        for case in "textured.glb" "textured.obj" "plain.glb" "plain.glb --bake"; do
+        for case in "${cases[@]}"; do
             model=${case%% *}
             flags=""
             [ "$case" != "$model" ] && flags=${case#* }

@@ -4,7 +4,10 @@
 //! A frame is settled when no pose of another basin explains its mask nearly as well: every
 //! twin the tracker weighs (flips, principal half-turns, hinge swaps) and every turn about
 //! the model's principal axes ([`TURN_STEP_DEG`] apart), placed on the mask as the appearance
-//! pass places them and the best refined, scores under the frame's own pose by more than
+//! pass places them and the best refined in a basin's window (those that slope back into the
+//! frame's own basin are none), either ends within [`REJECTED_BASIN_DEG`] of the frame's pose
+//! (the bound past which the appearance pass counts a pose as another basin: a flip, a
+//! half-turn, not a pose beside it) or scores under the frame's own pose by more than
 //! [`CHOICE_KEEP`] — the margin within which the sequence-level choice keeps a basin to weigh.
 //! A mug whose handle is in view is settled there; with the handle hidden behind the body,
 //! every turn about the body ties, and it is not. A can is settled nowhere (its outline is
@@ -38,7 +41,7 @@ pub struct SettledFrame {
     pub frame: usize,
     /// The frame's score (gate IoU) at its pose.
     pub iou: f64,
-    /// The best pose of another basin (at least [`DISTINCT_DEG`] away) after refinement: its
+    /// The best pose of another basin (at least [`REJECTED_BASIN_DEG`] away) after refinement: its
     /// rotation from the frame's pose (degrees) and its score; `None`: none came within
     /// [`SETTLE_NEAR`] when placed.
     pub rival: Option<(f64, f64)>,
@@ -120,7 +123,7 @@ fn settled_one(
                 .extend((1..steps).map(|m| turn.turn(pose, s.scale, m as f64 * TURN_STEP_DEG)));
         }
     }
-    candidates.retain(|g| apart(g) >= DISTINCT_DEG);
+    candidates.retain(|g| apart(g) >= REJECTED_BASIN_DEG);
     // Each placed as turned, or moved back onto the mask where that scores higher (a turn
     // about an axis off the outline shifts it).
     let stats = mask_stats(frame.target);
@@ -150,7 +153,8 @@ fn settled_one(
     placed.retain(|(_, sc)| *sc >= iou - SETTLE_NEAR);
     placed.sort_by(|a, b| b.1.total_cmp(&a.1));
     placed.truncate(RIVALS_REFINED);
-    // Refined: a rival that falls back into the frame's own basin is none.
+    // Refined in the window of a whole basin: a turn that only slopes back toward the
+    // frame's pose (a mug turned 30° with its handle in view) returns there and is no rival.
     let refined: Vec<Result<(GenPose, f64), TrackError>> = placed
         .par_iter()
         .enumerate()
@@ -158,7 +162,7 @@ fn settled_one(
             s.refine(
                 frame,
                 g,
-                &s.polish_window(),
+                &s.basin_window(),
                 s.cfg.seed + 9_973 * (i as u64 + 1) + k as u64,
             )
         })
@@ -167,7 +171,7 @@ fn settled_one(
     for r in refined {
         let (g, sc) = r?;
         let deg = apart(&g);
-        if deg >= DISTINCT_DEG && rival.is_none_or(|(_, best)| sc > best) {
+        if deg >= REJECTED_BASIN_DEG && rival.is_none_or(|(_, best)| sc > best) {
             rival = Some((deg, sc));
         }
     }
