@@ -19,8 +19,8 @@ pub fn plain_mesh_model(model: &ObjectModel) -> Result<ObjectModel, SynthError> 
     let (mut sum, mut total) = ([0.0f64; 3], 0.0);
     for p in &model.parts {
         let a = p.mesh.area();
-        for k in 0..3 {
-            sum[k] += a * f64::from(p.color[k]);
+        for (s, c) in sum.iter_mut().zip(p.color) {
+            *s += a * f64::from(c);
         }
         total += a;
     }
@@ -86,4 +86,52 @@ fn merge(model: &ObjectModel) -> Result<(agentstar_geom::TriMesh, Vec<usize>), S
         owner.extend(std::iter::repeat_n(k, p.mesh.triangles.len()));
     }
     Ok((merged, owner))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::objects::ObjectSpec;
+    use agentstar_geom::Point3;
+
+    /// A smooth paint: the texture at a triangle's centroid is the paint there.
+    fn ramp(_part: usize, p: &Point3) -> [f64; 3] {
+        [
+            0.2 + 0.3 * (p.x + 0.5),
+            0.2 + 0.3 * (p.y + 0.5),
+            0.2 + 0.3 * (p.z + 0.5),
+        ]
+    }
+
+    #[test]
+    fn the_texture_holds_the_print_as_a_camera_shows_it_and_joints_are_refused() {
+        let spec = ObjectSpec::resolve("labelcan").expect("labelcan");
+        let model = crate::build_object(&spec).expect("model");
+        let textured = textured_model(&model, Appearance::Printed(ramp), 64.0).expect("texture");
+        assert_eq!(textured.parts.len(), 1);
+        let part = &textured.parts[0];
+        let triangles: usize = model.parts.iter().map(|p| p.mesh.triangles.len()).sum();
+        assert_eq!(part.mesh.triangles.len(), triangles);
+        let mut worst = 0.0f64;
+        for t in 0..part.mesh.triangles.len() {
+            let [a, b, c] = part.mesh.triangle(t);
+            let centroid = Point3::from((a.coords + b.coords + c.coords) / 3.0);
+            let want = srgb(ramp(0, &centroid));
+            let got = part.color_at(t, [1.0 / 3.0; 3]);
+            for k in 0..3 {
+                worst = worst.max((f64::from(got[k]) - want[k]).abs());
+            }
+        }
+        assert!(worst < 4.0 / 255.0, "{worst}");
+        // The uncoloured mesh: one part, one colour, the same triangles.
+        let plain = plain_mesh_model(&model).expect("plain");
+        assert_eq!(plain.parts.len(), 1);
+        assert!(plain.parts[0].surface.is_none());
+        assert_eq!(plain.parts[0].mesh.triangles.len(), triangles);
+        // A model with joints is no one mesh.
+        let laptop =
+            crate::build_object(&ObjectSpec::resolve("laptop").expect("laptop")).expect("model");
+        assert!(textured_model(&laptop, Appearance::Plain, 64.0).is_err());
+        assert!(plain_mesh_model(&laptop).is_err());
+    }
 }

@@ -760,9 +760,11 @@ fn a_bake_from_the_frames_the_handle_settles_turns_an_uncoloured_mugs_twins_back
         &observe,
     )
     .expect("warm start");
-    for k in 1..4 {
-        let e = error_of(&without.result.poses[k], &truths[k]);
-        assert!(e > 90.0, "frame {k} {e:.1}° off without a bake");
+    for (k, (g, t)) in without.result.poses.iter().zip(&truths).enumerate() {
+        let e = error_of(g, t);
+        if (1..4).contains(&k) {
+            assert!(e > 90.0, "frame {k} {e:.1}° off without a bake");
+        }
     }
     // With it: the frames with the handle in view are settled, baked from, kept; the others
     // are turned back by the print and named.
