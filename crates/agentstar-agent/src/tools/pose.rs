@@ -190,7 +190,7 @@ pub struct TrackArgs {
     /// basins, and names each frame it moved further than 45°.
     pub keep_basins: Option<bool>,
     /// After tracking, bake the model's colours from the keyframes whose basin the outline
-    /// alone settles (a mug with its handle in view) and track the other frames again with
+    /// alone settles (a mug whose outline differs top to bottom, its handle in view) and track the other frames again with
     /// them, the settled frames kept: the print then tells twins apart where the outline
     /// cannot (the handle hidden). Nothing is baked when fewer than two keyframes settle (a
     /// can's outline settles none) or when they disagree; the report says which. The bake

@@ -9,7 +9,8 @@
 //! (the bound past which the appearance pass counts a pose as another basin: a flip, a
 //! half-turn, not a pose beside it) or scores under the frame's own pose by more than
 //! [`CHOICE_KEEP`] — the margin within which the sequence-level choice keeps a basin to weigh.
-//! A mug whose handle is in view is settled there; with the handle hidden behind the body,
+//! A mug whose handle is in view is settled there (when its outline also tells top from
+//! bottom: the hard suite's printed mug is the same upside down); with the handle hidden,
 //! every turn about the body ties, and it is not. A can is settled nowhere (its outline is
 //! the same upside down and under any turn about its axis): baking cannot break a symmetry
 //! every frame shares, and the report says so instead of guessing.

@@ -90,7 +90,7 @@ pub struct Args {
     /// After tracking, bake the model's colours from the keyframes whose basin the outline
     /// alone settles (no twin or turn about a principal axis explains the mask within 0.03
     /// of IoU) and track the other frames again with them, the settled frames anchored: an
-    /// uncoloured mug's handle fixes the basin where it is seen, and the baked print carries
+    /// uncoloured mug's handle fixes the turn about its body where it is seen, and the baked print carries
     /// it where the handle is hidden. Nothing is baked (the plain track kept) with fewer
     /// than two settled frames (a can's outline settles none: it is the same upside down)
     /// or when they disagree with each other. The bake is made on the model as its file
