@@ -86,7 +86,17 @@ Alternate two kinds of steps; **each step changes the shape or the poses, never 
    there, with the IoU before and after and the pass that moved it); with
    `keep_basins: true` it only polishes, keeping every frame within 45° of rotation (half a
    quarter turn, so no flip or twin) and 30° of joint of the pose you settled.
-   `bake` paints the model from the video (its description says when that helps and hurts).
+   `bake` paints the model from the video, and `track` with `bake: true` paints it from the
+   keyframes whose outline alone settles their pose and tracks the others again with that
+   print. Baking helps where the shape decides the pose in some keyframes and not in
+   others: a mug whose outline differs top to bottom, its handle in view in some
+   keyframes and hidden in others. It hurts when a
+   keyframe it reads is in a wrong pose: the error becomes the model's print, and every
+   later search agrees with it; both refuse when the keyframes they read disagree (named).
+   It cannot break a symmetry that every keyframe shares: a plain can is up-down ambiguous
+   in all of them, and `track` with `bake: true` then bakes nothing and says so (measured
+   2026-12-04: an uncoloured can and an uncoloured mug whose cup is the same upside down
+   settled none of 20 keyframes; the mug with its print as a texture tracked to 1.15°).
 3. Keep notes with `notes`: what the object is, which parts move, what you ruled out. Notes
    survive when older images leave your context.
 

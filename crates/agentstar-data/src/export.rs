@@ -70,6 +70,38 @@ pub fn write_glb(model: &ObjectModel, path: &Path) -> Result<()> {
     write_atomic(path, &bytes)
 }
 
+/// Writes a model of one part as `path` (OBJ) with, where the part has an appearance beyond
+/// its colour, its material library (`STEM.mtl`: `Kd`, `map_Kd`) and textures (`STEM_tJ.png`)
+/// beside it, each file atomically (the images and the library before the OBJ that names
+/// them). A model of several parts is refused: OBJ keeps no joints or part frames.
+pub fn write_obj(model: &ObjectModel, path: &Path) -> Result<()> {
+    let [part] = model.parts.as_slice() else {
+        return Err(DataError::invalid(
+            path,
+            format!(
+                "an OBJ file holds one part here; this model has {}",
+                model.parts.len()
+            ),
+        ));
+    };
+    let stem = path
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_else(|| "model".into());
+    let dir = path.parent().unwrap_or(Path::new("."));
+    match &part.surface {
+        None => write_atomic(path, obj_text(&part.mesh, &part.name).as_bytes()),
+        Some(surface) => {
+            let (obj, mtl, images) = obj_with_materials(&part.mesh, &part.name, &stem, surface);
+            for (name, png) in images {
+                write_atomic(&dir.join(name), &png)?;
+            }
+            write_atomic(&dir.join(format!("{stem}.mtl")), mtl.as_bytes())?;
+            write_atomic(path, obj.as_bytes())
+        }
+    }
+}
+
 /// A part with its appearance as OBJ text (`mtllib STEM.mtl`, a `usemtl` group per
 /// material, `vt` per corner with `v` up the image, and where the part has vertex colours
 /// one `v x y z r g b` per corner), its material library (`Kd`, `map_Kd`) and its textures

@@ -404,6 +404,58 @@ pub struct TrackReport {
     /// further from their starting pose than the basin's bound), with the evidence.
     #[serde(default)]
     pub basin_moves: Vec<BasinMoveRow>,
+    /// `track --bake`: the frames the outline alone settles, the bake from them and the
+    /// frames the baked colours moved to another basin.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub bake: Option<TrackBakeReport>,
+}
+
+/// What became of `track --bake`'s bake.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum TrackBakeOutcome {
+    /// Baked from the settled frames and tracked again with the colours.
+    Used,
+    /// Too few frames settled by the outline alone: nothing baked, the plain track kept.
+    TooFewSettled,
+    /// The settled frames disagree with each other: nothing used, the plain track kept.
+    Refused,
+}
+
+/// One keyframe as `track --bake` judged it: does its outline alone settle its basin?
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SettledRow {
+    pub frame: String,
+    /// The frame's score (gate IoU) at its plain-track pose.
+    pub iou: f64,
+    /// The best pose of another basin after refinement: how far it turns (degrees) and its
+    /// score; `None`: no pose of another basin came near.
+    pub rival_deg: Option<f64>,
+    pub rival_iou: Option<f64>,
+    pub settled: bool,
+}
+
+/// `track --bake`'s part of the track report.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TrackBakeReport {
+    pub outcome: TrackBakeOutcome,
+    /// Every keyframe's verdict.
+    pub frames: Vec<SettledRow>,
+    /// The frames baked from (the settled ones with an image).
+    pub baked_from: Vec<String>,
+    /// The fewest settled frames a bake needs.
+    pub min_settled: usize,
+    /// Texels of the model's surface and how many the settled frames saw (none: nothing baked).
+    pub surface_texels: Option<usize>,
+    pub seen_texels: Option<usize>,
+    /// Settled frames that disagree with the others (the bake refused), the worst first.
+    pub disagreeing: Vec<String>,
+    /// The frames the baked colours moved to another basin (from the plain track's pose).
+    pub basin_moves: Vec<BasinMoveRow>,
+    /// Where the bake was stored (`--store-bake`); `None`: it lived in memory only.
+    pub stored: Option<PathBuf>,
 }
 
 /// One frame of a [`BakeReport`].

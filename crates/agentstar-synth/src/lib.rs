@@ -16,6 +16,7 @@ pub mod hand;
 pub mod motion;
 pub mod noise;
 pub mod objects;
+pub mod textured;
 
 pub use motion::Motion;
 pub use objects::{Appearance, AxialGroup, Family, ObjectSpec, Symmetry, LIBRARY};

@@ -64,6 +64,9 @@ pub(super) fn track_text(
             text.push_str(&format!("  {}\n", m.line()));
         }
     }
+    if let Some(b) = &r.bake {
+        text.push_str(&bake_text(b));
+    }
     text.push_str("\nwhat the tracker did:\n");
     for line in &r.log {
         text.push_str(&format!("  {line}\n"));
@@ -95,6 +98,51 @@ pub(super) fn track_text(
         ));
     }
     text.push('\n');
+    text
+}
+
+/// `track`'s bake (`bake: true`) for an MCP client: which keyframes settled, what became of
+/// the bake, and the frames it moved.
+fn bake_text(b: &agentstar_reports::TrackBakeReport) -> String {
+    use agentstar_reports::TrackBakeOutcome;
+    let settled: Vec<&str> = b
+        .frames
+        .iter()
+        .filter(|f| f.settled)
+        .map(|f| f.frame.as_str())
+        .collect();
+    let mut text = format!(
+        "bake: {} of {} keyframe(s) settled by the outline alone{}\n",
+        settled.len(),
+        b.frames.len(),
+        if settled.is_empty() {
+            String::new()
+        } else {
+            format!(" ({})", settled.join(", "))
+        }
+    );
+    match b.outcome {
+        TrackBakeOutcome::TooFewSettled => text.push_str(&format!(
+            "bake: nothing baked ({} needed): the other keyframes' outlines fit another basin as well (a symmetry only a print can break); the plain track is kept\n",
+            b.min_settled
+        )),
+        TrackBakeOutcome::Refused => text.push_str(&format!(
+            "bake: refused: settled keyframe(s) {} disagree with the others; the plain track is kept\n",
+            b.disagreeing.join(", ")
+        )),
+        TrackBakeOutcome::Used => {
+            text.push_str(&format!(
+                "bake: baked from {} ({} of {} texels seen); {} keyframe(s) moved to another basin by the baked colours:\n",
+                b.baked_from.join(", "),
+                b.seen_texels.unwrap_or(0),
+                b.surface_texels.unwrap_or(0),
+                b.basin_moves.len()
+            ));
+            for m in &b.basin_moves {
+                text.push_str(&format!("  {}\n", m.line()));
+            }
+        }
+    }
     text
 }
 
@@ -141,6 +189,13 @@ pub struct TrackArgs {
     /// search, no sequence passes. Default false: the tracker may move frames to other
     /// basins, and names each frame it moved further than 45°.
     pub keep_basins: Option<bool>,
+    /// After tracking, bake the model's colours from the keyframes whose basin the outline
+    /// alone settles (a mug whose outline differs top to bottom, its handle in view) and track the other frames again with
+    /// them, the settled frames kept: the print then tells twins apart where the outline
+    /// cannot (the handle hidden). Nothing is baked when fewer than two keyframes settle (a
+    /// can's outline settles none) or when they disagree; the report says which. The bake
+    /// is used for this track only (the `bake` tool stores one). Default false.
+    pub bake: Option<bool>,
 }
 
 /// A sweep's search strategy.
@@ -216,7 +271,7 @@ pub struct DelegateArgs {
 }
 
 tool!(Track, "track", Pose, Poses, TrackArgs,
-    "Run the automatic tracker over every keyframe with the current model and scale (a pose step for all keyframes; the result is a new pose version, the previous ones stay in pose_history). Use it once the shape is right, then fix the frames it gets wrong with sweeps and flips. After a shape edit, `from: \"pose.json\"` refines the current poses instead of starting over (cheap), and `anchors` keeps the keyframes you trust exactly and carries them to their neighbours; with `from`, it names every frame it moved to another basin (over 45° from its pose there), and `keep_basins: true` polishes only, keeping each frame within 45° of its pose (no flips or twins). Progress notifications carry its latest line; a run that is stopped keeps what it had tracked in pose.partial.json.",
+    "Run the automatic tracker over every keyframe with the current model and scale (a pose step for all keyframes; the result is a new pose version, the previous ones stay in pose_history). Use it once the shape is right, then fix the frames it gets wrong with sweeps and flips. After a shape edit, `from: \"pose.json\"` refines the current poses instead of starting over (cheap), and `anchors` keeps the keyframes you trust exactly and carries them to their neighbours; with `from`, it names every frame it moved to another basin (over 45° from its pose there), and `keep_basins: true` polishes only, keeping each frame within 45° of its pose (no flips or twins). `bake: true` paints the model from the keyframes whose outline alone settles their basin and tracks the others again with that print (a model without a print whose twins only colours tell apart, once some keyframes show what the outline cannot: a mug's handle). Progress notifications carry its latest line; a run that is stopped keeps what it had tracked in pose.partial.json.",
     |tb, a, step| tb.track(&a, step));
 
 tool!(Sweep, "sweep", Pose, Nothing, WithSheet<SweepArgs>,
@@ -563,6 +618,7 @@ impl Toolbox {
             from: Option<PathBuf>,
             anchors: Option<String>,
             keep_basins: bool,
+            bake: bool,
             scale: Option<f64>,
             scale_from: Option<&'a Path>,
         }
@@ -573,6 +629,7 @@ impl Toolbox {
             from: None,
             anchors: None,
             keep_basins: false,
+            bake: a.bake == Some(true),
             scale: a.scale,
             scale_from: None,
         };

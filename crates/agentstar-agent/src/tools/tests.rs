@@ -33,6 +33,7 @@ fn a_tracks_text_leads_with_its_summary_then_its_log_then_the_frames() {
         pose_version: Some(3),
         keep_basins: false,
         basin_moves: vec![],
+        bake: None,
     };
     let text = track_text(&report, None);
     assert!(text.starts_with("tracked 2 frame(s) in 4.0 s"), "{text}");

@@ -11,7 +11,8 @@
 //! `searcher.rs` the searcher every pass uses (refinement, the global search, twins, rescue,
 //! the wide search, settling); `place.rs` placing a model on a mask; one file per pass:
 //! `appearance_pass.rs` (and the consistency pass), `choice.rs` (the sequence-level choice),
-//! `axis_pass.rs`, `warm.rs` (`track_from`), `independent.rs` (the per-frame baseline). Each
+//! `axis_pass.rs`, `warm.rs` (`track_from`), `independent.rs` (the per-frame baseline),
+//! `bake_pass.rs` (`track --bake`: the settled frames, the bake, the warm start on it). Each
 //! pass keeps its constants beside it; those several passes read are in `tuning.rs`.
 
 use crate::appearance::{AppearanceFrame, ReferenceView};
@@ -26,6 +27,7 @@ use rayon::prelude::*;
 
 mod appearance_pass;
 mod axis_pass;
+mod bake_pass;
 mod chain;
 mod choice;
 mod independent;
@@ -38,6 +40,7 @@ mod warm;
 
 use appearance_pass::*;
 use axis_pass::*;
+pub use bake_pass::*;
 use chain::*;
 use choice::*;
 pub use independent::*;

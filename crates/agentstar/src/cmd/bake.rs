@@ -7,10 +7,12 @@ use agentstar_data::bakefile::{write_bake, BakeFile, BAKE_FORMAT};
 use agentstar_data::history::{command_line, PoseHistory};
 use agentstar_data::posefile::PoseFile;
 use agentstar_data::scenefile::load_model_unbaked;
+use agentstar_geom::ObjectModel;
 use agentstar_reports::{BakeFrameRow, BakeReport};
 use agentstar_requests::{BakeArgs, SessionArgs};
 use agentstar_track::bake::{bake, Bake, BakeConfig, BakeFrame};
 use anyhow::{anyhow, bail, Context, Result};
+use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 #[derive(clap::Args)]
@@ -137,36 +139,15 @@ pub fn run(a: Args) -> Result<ExitCode> {
     };
     let refused = !disagreeing.is_empty() && !a.request.force;
     if !refused && !a.dry_run {
-        let mut file = BakeFile {
-            format: BAKE_FORMAT.into(),
-            model: model_path
-                .file_name()
-                .map(|n| n.to_string_lossy().to_string())
-                .unwrap_or_default(),
-            tessellation: agentstar_geom::tessellation_fingerprint(model),
-            atlas: String::new(),
-            triangles: String::new(),
-            atlas_width: b.layout.width,
-            atlas_height: b.layout.height,
-            texels_per_unit: b.layout.texels_per_unit,
-            capture: a.session.capture.clone(),
-            poses: a.session.poses.clone(),
+        let provenance = Provenance {
+            capture: &a.session.capture,
+            poses: &a.session.poses,
             pose_version,
             frames: frames.iter().map(|f| f.name.to_string()).collect(),
-            seen_fraction: b.seen_fraction(),
-            spread: b.spread,
-            disagreeing: disagreeing.clone(),
             forced: report.forced,
-            command: command_line(),
-            time_unix_s: std::time::SystemTime::now()
-                .duration_since(std::time::UNIX_EPOCH)
-                .map(|d| d.as_secs())
-                .unwrap_or(0),
         };
-        let atlas = image::RgbaImage::from_raw(b.layout.width, b.layout.height, b.rgba.clone())
-            .ok_or_else(|| anyhow!("the baked atlas is not its layout's size"))?;
-        let json = write_bake(model_path, model, &mut file, &atlas)?;
-        report.atlas = Some(json.with_file_name(&file.atlas));
+        let (json, atlas) = store_bake(model_path, model, &b, provenance)?;
+        report.atlas = Some(atlas);
         report.bake_file = Some(json);
     }
     if a.json {
@@ -187,6 +168,60 @@ pub fn run(a: Args) -> Result<ExitCode> {
         return Ok(ExitCode::from(1));
     }
     Ok(ExitCode::SUCCESS)
+}
+
+/// Where a bake's colours came from, as its bake file records it.
+pub(crate) struct Provenance<'a> {
+    pub capture: &'a Path,
+    pub poses: &'a Path,
+    /// The pose file's history version the poses came from.
+    pub pose_version: Option<u64>,
+    pub frames: Vec<String>,
+    /// Stored although frames disagree.
+    pub forced: bool,
+}
+
+/// Stores `b`, baked on `model` (the model as `model_path` gives it), beside the model file
+/// through the bake file (atomically) with its provenance; returns the bake file's path and
+/// its atlas image's. `bake` and `track --store-bake` both store through it.
+pub(crate) fn store_bake(
+    model_path: &Path,
+    model: &ObjectModel,
+    b: &Bake,
+    p: Provenance<'_>,
+) -> Result<(PathBuf, PathBuf)> {
+    let disagreeing: Vec<String> = b.disagreeing().iter().map(|f| f.name.clone()).collect();
+    let mut file = BakeFile {
+        format: BAKE_FORMAT.into(),
+        model: model_path
+            .file_name()
+            .map(|n| n.to_string_lossy().to_string())
+            .unwrap_or_default(),
+        tessellation: agentstar_geom::tessellation_fingerprint(model),
+        atlas: String::new(),
+        triangles: String::new(),
+        atlas_width: b.layout.width,
+        atlas_height: b.layout.height,
+        texels_per_unit: b.layout.texels_per_unit,
+        capture: p.capture.to_path_buf(),
+        poses: p.poses.to_path_buf(),
+        pose_version: p.pose_version,
+        frames: p.frames,
+        seen_fraction: b.seen_fraction(),
+        spread: b.spread,
+        disagreeing,
+        forced: p.forced,
+        command: command_line(),
+        time_unix_s: std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .map(|d| d.as_secs())
+            .unwrap_or(0),
+    };
+    let atlas = image::RgbaImage::from_raw(b.layout.width, b.layout.height, b.rgba.clone())
+        .ok_or_else(|| anyhow!("the baked atlas is not its layout's size"))?;
+    let json = write_bake(model_path, model, &mut file, &atlas)?;
+    let atlas_path = json.with_file_name(&file.atlas);
+    Ok((json, atlas_path))
 }
 
 fn print_summary(r: &BakeReport, refused: bool, dry_run: bool) {

@@ -57,6 +57,16 @@ pub struct Args {
     /// frames apart (else 5), and are the same keyframes as without in-between frames.
     #[arg(long, default_value_t = 0, value_name = "K")]
     between: usize,
+    /// Also write the true model as mesh files under `model/`, as a scan or a CAD export
+    /// would give it (a rigid object's parts merged at rest into one mesh): `textured.glb`
+    /// and `textured.obj` (with `textured.mtl`, `map_Kd textured_t0.png`), its print painted
+    /// into a texture at --mesh-texels per model unit; and `plain.glb`, the same mesh in one
+    /// colour (for `track --bake`).
+    #[arg(long)]
+    mesh_models: bool,
+    /// Texels per model unit of the mesh models' texture.
+    #[arg(long, default_value_t = 256.0, requires = "mesh_models")]
+    mesh_texels: f64,
     /// List the object library and the motions, then exit.
     #[arg(long)]
     list: bool,
@@ -172,6 +182,19 @@ pub fn write_synth(dir: &Path, s: &SynthCapture) -> Result<()> {
     .map_err(|e| anyhow!(e.to_string()))
 }
 
+/// The true model as mesh files in `dir`: `textured.glb`, `textured.obj` (+ `.mtl`, texture)
+/// and `plain.glb` ([`agentstar_synth::textured`]); refused for a model with joints.
+fn write_mesh_models(dir: &Path, s: &SynthCapture, texels_per_unit: f64) -> Result<()> {
+    use agentstar_synth::textured::{plain_mesh_model, textured_model};
+    let what = |e: agentstar_synth::SynthError| anyhow!("--mesh-models: {}: {e}", s.object.name);
+    let textured = textured_model(&s.model, s.object.appearance, texels_per_unit).map_err(what)?;
+    agentstar_data::export::write_glb(&textured, &dir.join("textured.glb"))?;
+    agentstar_data::export::write_obj(&textured, &dir.join("textured.obj"))?;
+    let plain = plain_mesh_model(&s.model).map_err(what)?;
+    agentstar_data::export::write_glb(&plain, &dir.join("plain.glb"))?;
+    Ok(())
+}
+
 /// A one-line description of a synthetic capture.
 pub fn describe(s: &SynthCapture) -> String {
     let hands = s.frames.iter().filter(|f| f.hand.is_some()).count();
@@ -262,8 +285,17 @@ pub fn run(a: Args) -> Result<ExitCode> {
             None
         },
     };
+    if a.mesh_models && !(a.mesh_texels.is_finite() && a.mesh_texels > 0.0) {
+        bail!(
+            "--mesh-texels {}: give a positive number of texels per model unit",
+            a.mesh_texels
+        );
+    }
     let s = synthesize(&cfg)?;
     write_synth(&out, &s)?;
+    if a.mesh_models {
+        write_mesh_models(&out.join("model"), &s, a.mesh_texels)?;
+    }
     if a.json {
         print_json(&json!({
             "capture": out, "object": s.object.name, "family": s.object.family.as_str(),

@@ -2,18 +2,23 @@
 //! masks, with no agent, and write `pose.json` (as a version of its history, with the
 //! command, like every writer of a pose file).
 
+use crate::cmd::bake::{store_bake, Provenance};
 use crate::cmd::score::{print_table, summarise};
 use crate::common::{
     open_capture, open_model, print_json, select_frames, write_tracked_version, Session, PASS_IOU,
 };
+use agentstar_data::bakefile::bake_path;
 use agentstar_data::capture::{Capture, Frame};
 use agentstar_data::posefile::{partial_path, PoseFile};
+use agentstar_data::scenefile::load_model_unbaked;
+use agentstar_render::BitMask;
 use agentstar_render::ScoreTarget;
-use agentstar_reports::BasinMoveRow;
-use agentstar_reports::TrackReport;
+use agentstar_reports::{BasinMoveRow, SettledRow, TrackBakeOutcome, TrackBakeReport, TrackReport};
+use agentstar_track::bake::BakeConfig;
 use agentstar_track::tracker::{
-    track_from_video, track_video, BasinPolicy, TrackConfig, TrackFrame, TrackObserver,
-    TrackSwitches, BASIN_JOINT_DEG, BASIN_ROTATION_DEG,
+    track_from_video, track_video, track_with_bake, BakeOutcome, BakePass, BasinPolicy,
+    TrackConfig, TrackFrame, TrackObserver, TrackSwitches, BASIN_JOINT_DEG, BASIN_ROTATION_DEG,
+    MIN_SETTLED,
 };
 use agentstar_track::GenPose;
 use anyhow::{anyhow, bail, Context, Result};
@@ -82,6 +87,22 @@ pub struct Args {
     /// followed from the final keyframe poses.
     #[arg(long, conflicts_with = "no_between")]
     write_between: bool,
+    /// After tracking, bake the model's colours from the keyframes whose basin the outline
+    /// alone settles (no twin or turn about a principal axis explains the mask within 0.03
+    /// of IoU) and track the other frames again with them, the settled frames anchored: an
+    /// uncoloured mug's handle fixes the turn about its body where it is seen, and the baked print carries
+    /// it where the handle is hidden. Nothing is baked (the plain track kept) with fewer
+    /// than two settled frames (a can's outline settles none: it is the same upside down)
+    /// or when they disagree with each other. The bake is made on the model as its file
+    /// gives it (a stored bake set aside); where a settled frame saw the surface its colours
+    /// replace the model's own (texture, vertex or part colours), elsewhere those stay.
+    #[arg(long, conflicts_with = "no_appearance")]
+    bake: bool,
+    /// With --bake: store the bake beside the model (`<stem>.bake.json` and its atlas,
+    /// atomically, as `agentstar bake` does), so every command loading the model uses it.
+    /// Without it the bake lives in memory for this run only.
+    #[arg(long, requires = "bake")]
+    store_bake: bool,
     /// Print the result as JSON on stdout.
     #[arg(long)]
     json: bool,
@@ -146,7 +167,22 @@ pub fn run(a: Args) -> Result<ExitCode> {
     .check()
     .map_err(|e| anyhow::anyhow!("track: {e}"))?;
     let capture = open_capture(&a.capture)?;
-    let model = open_model(&a.model)?;
+    // A bake is made on the model as its file gives it: a stored bake is set aside.
+    let model = if a.bake {
+        let m = load_model_unbaked(&a.model)?;
+        for w in &m.warnings {
+            eprintln!("warning: {}: {w}", a.model.display());
+        }
+        if bake_path(&a.model).is_file() {
+            eprintln!(
+                "track: --bake: the stored bake {} is set aside; this run bakes from its own settled frames",
+                bake_path(&a.model).display()
+            );
+        }
+        m
+    } else {
+        open_model(&a.model)?
+    };
     let from = a.from.as_deref().map(PoseFile::read).transpose()?;
     let scale = match (a.scale, &a.scale_from, &from) {
         (Some(s), _, _) => s,
@@ -275,6 +311,35 @@ pub fn run(a: Args) -> Result<ExitCode> {
         }
         _ => track_video(&model.model, scale, &frames, &between, &cfg, &observe)?,
     };
+    let (r, baked) = if a.bake {
+        let hands: Vec<Option<BitMask>> =
+            targets.iter().map(|t| t.keep().map(BitMask::not)).collect();
+        let pass = track_with_bake(
+            &model.model,
+            scale,
+            (&frames, &between),
+            &hands,
+            &r,
+            &cfg,
+            &BakeConfig::default(),
+            &observe,
+        )?;
+        let mut log = r.log.clone();
+        let result = match &pass.outcome {
+            BakeOutcome::Used(_, w) => {
+                let mut result = w.result.clone();
+                log.extend(result.log);
+                result.log = log;
+                result.evaluations += r.evaluations;
+                result.init_frame = r.init_frame;
+                result
+            }
+            _ => r,
+        };
+        (result, Some(pass))
+    } else {
+        (r, None)
+    };
     let between_poses: Vec<(String, GenPose)> = gaps
         .iter()
         .zip(&r.between)
@@ -301,6 +366,10 @@ pub fn run(a: Args) -> Result<ExitCode> {
             eprintln!("track: could not remove {}: {e}", partial_path.display());
         }
     }
+    let bake_report = match &baked {
+        Some(pass) => Some(bake_report(&capture, &a, &model.model, pass, version)?),
+        None => None,
+    };
     // Scored from what is in memory: the poses as written, not read back.
     let s = Session::from_memory(capture, model, pose_file, written);
     let capture = &s.capture;
@@ -320,6 +389,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
             pose_version: Some(version),
             keep_basins: a.keep_basins,
             basin_moves,
+            bake: bake_report,
         })?;
     } else {
         println!(
@@ -343,9 +413,138 @@ pub fn run(a: Args) -> Result<ExitCode> {
                 println!("  {}", m.line());
             }
         }
+        if let Some(b) = &bake_report {
+            print_bake(b);
+        }
         print_table(&scores, &summary, &[]);
     }
     Ok(ExitCode::SUCCESS)
+}
+
+/// `track --bake`'s report: each frame's verdict, what was baked, the frames it moved, and
+/// where it was stored (`--store-bake`, through the bake file with the poses just written as
+/// its provenance).
+fn bake_report(
+    capture: &Capture,
+    a: &Args,
+    model: &agentstar_geom::ObjectModel,
+    pass: &BakePass,
+    version: u64,
+) -> Result<TrackBakeReport> {
+    let name = |i: usize| capture.frames[i].name.clone();
+    let frames: Vec<SettledRow> = pass
+        .settled
+        .iter()
+        .map(|f| SettledRow {
+            frame: name(f.frame),
+            iou: f.iou,
+            rival_deg: f.rival.map(|r| r.0),
+            rival_iou: f.rival.map(|r| r.1),
+            settled: f.settled,
+        })
+        .collect();
+    let mut report = TrackBakeReport {
+        outcome: TrackBakeOutcome::TooFewSettled,
+        frames,
+        baked_from: vec![],
+        min_settled: MIN_SETTLED,
+        surface_texels: None,
+        seen_texels: None,
+        disagreeing: vec![],
+        basin_moves: vec![],
+        stored: None,
+    };
+    let b = match &pass.outcome {
+        BakeOutcome::TooFewSettled => return Ok(report),
+        BakeOutcome::Refused(b) => {
+            report.outcome = TrackBakeOutcome::Refused;
+            report.disagreeing = b.disagreeing().iter().map(|f| f.name.clone()).collect();
+            b
+        }
+        BakeOutcome::Used(b, w) => {
+            report.outcome = TrackBakeOutcome::Used;
+            report.basin_moves = w
+                .basin_moves
+                .iter()
+                .map(|m| BasinMoveRow {
+                    frame: name(m.frame),
+                    rotation_deg: m.rotation_deg,
+                    bound_deg: BASIN_ROTATION_DEG,
+                    iou_before: m.iou_before,
+                    iou_after: m.iou_after,
+                    pass: m.pass.clone(),
+                })
+                .collect();
+            b
+        }
+    };
+    report.baked_from = b.frames.iter().map(|f| f.name.clone()).collect();
+    report.surface_texels = Some(b.surface_texels);
+    report.seen_texels = Some(b.seen_texels);
+    if a.store_bake {
+        if report.outcome == TrackBakeOutcome::Used {
+            let provenance = Provenance {
+                capture: &a.capture,
+                poses: &a.out,
+                pose_version: Some(version),
+                frames: report.baked_from.clone(),
+                forced: false,
+            };
+            report.stored = Some(store_bake(&a.model, model, b, provenance)?.0);
+        } else {
+            eprintln!("track: --store-bake: the bake was not used; nothing stored");
+        }
+    }
+    Ok(report)
+}
+
+/// `track --bake`'s lines for people.
+fn print_bake(b: &TrackBakeReport) {
+    let settled: Vec<&str> = b
+        .frames
+        .iter()
+        .filter(|f| f.settled)
+        .map(|f| f.frame.as_str())
+        .collect();
+    println!(
+        "bake: {} of {} frame(s) settled by the outline alone{}",
+        settled.len(),
+        b.frames.len(),
+        if settled.is_empty() {
+            String::new()
+        } else {
+            format!(" ({})", settled.join(", "))
+        }
+    );
+    match b.outcome {
+        TrackBakeOutcome::TooFewSettled => println!(
+            "bake: nothing baked ({} needed): every other frame's outline is explained as well by another basin (a symmetry of the shape that only colours can break); the plain track is kept",
+            b.min_settled
+        ),
+        TrackBakeOutcome::Refused => println!(
+            "bake: refused: settled frame(s) {} disagree with the others; the plain track is kept",
+            b.disagreeing.join(", ")
+        ),
+        TrackBakeOutcome::Used => {
+            println!(
+                "bake: baked from {} ({} of {} texels seen); {} frame(s) moved to another basin by the baked colours",
+                b.baked_from.join(", "),
+                b.seen_texels.unwrap_or(0),
+                b.surface_texels.unwrap_or(0),
+                b.basin_moves.len()
+            );
+            for m in &b.basin_moves {
+                println!("  {}", m.line());
+            }
+        }
+    }
+    match &b.stored {
+        Some(p) => println!("bake: stored in {}", p.display()),
+        None if b.outcome == TrackBakeOutcome::Used => {
+            println!("bake: kept in memory for this run (--store-bake stores it)")
+        }
+        None => {}
+    }
 }
 
 /// The command's observer: each log line on stderr (under the progress bar), and the poses
