@@ -25,9 +25,9 @@ use crate::hypotheses::{refine_local, LocalWindow};
 use crate::objective::FrameProblem;
 use crate::update::GenPose;
 use crate::TrackError;
+use agentstar_geom::nalgebra::{DMatrix, DVector};
 use agentstar_geom::{origin_shift, ObjectModel, PinholeCamera};
 use agentstar_optim::{nelder_mead, NelderMeadConfig};
-use agentstar_geom::nalgebra::{DMatrix, DVector};
 use agentstar_render::{PosedModel, ScoreTarget, SilhouetteRenderer};
 use rayon::prelude::*;
 
@@ -353,7 +353,11 @@ pub fn fit_shape(
         // (c) The step the residuals ask for, from the best so far, again from its result
         // while it raises the IoU (the refined poses absorb part of each step).
         let mut guided = None;
-        for _ in 0..if cfg.guided { GUIDED_STEPS_PER_ROUND } else { 0 } {
+        for _ in 0..if cfg.guided {
+            GUIDED_STEPS_PER_ROUND
+        } else {
+            0
+        } {
             let g = guided_step(
                 build,
                 params,
@@ -872,7 +876,11 @@ mod tests {
             &frames.iter().map(|f| f.pose.clone()).collect::<Vec<_>>(),
             scale,
         );
-        let (x, y, z) = (wants[0].expect("x"), wants[1].expect("y"), wants[2].expect("z"));
+        let (x, y, z) = (
+            wants[0].expect("x"),
+            wants[1].expect("y"),
+            wants[2].expect("z"),
+        );
         assert!(x > y + 0.005 && x > z + 0.005, "{wants:?}");
         let held_only = fit(false);
         let guided = fit(true);
@@ -907,8 +915,12 @@ mod tests {
         }];
         let jacobian = [Some([0.0, 0.0, 1.0 / 0.4])];
         // X and Y want 3% more than Z: Z shrinks by 3% (0.012), nothing is left unmet.
-        let (step, unmet) =
-            solve_step(&params, &[0.4], &jacobian, [Some(0.03), Some(0.03), Some(0.0)]);
+        let (step, unmet) = solve_step(
+            &params,
+            &[0.4],
+            &jacobian,
+            [Some(0.03), Some(0.03), Some(0.0)],
+        );
         assert!((step[0] + 0.012).abs() < 1e-9, "{step:?}");
         assert!(unmet.is_empty(), "{unmet:?}");
         // X wants 3% more than Y, Z unmeasured: no free parameter changes X against Y. The
@@ -917,15 +929,25 @@ mod tests {
         assert_eq!(step, vec![0.0]);
         let named: Vec<(usize, f64)> = unmet.iter().map(|u| (u.axis, u.want)).collect();
         assert_eq!(named.len(), 2, "{named:?}");
-        assert!((named[0].1 - 0.015).abs() < 1e-9 && named[0].0 == 0, "{named:?}");
-        assert!((named[1].1 + 0.015).abs() < 1e-9 && named[1].0 == 1, "{named:?}");
+        assert!(
+            (named[0].1 - 0.015).abs() < 1e-9 && named[0].0 == 0,
+            "{named:?}"
+        );
+        assert!(
+            (named[1].1 + 0.015).abs() < 1e-9 && named[1].0 == 1,
+            "{named:?}"
+        );
         // One measured axis says nothing beyond the scale.
         let (step, unmet) = solve_step(&params, &[0.4], &jacobian, [None, None, Some(-0.2)]);
         assert_eq!(step, vec![0.0]);
         assert!(unmet.is_empty());
         // A step past a bound is clamped to it.
-        let (step, _) =
-            solve_step(&params, &[0.4], &jacobian, [Some(0.5), Some(0.5), Some(0.0)]);
+        let (step, _) = solve_step(
+            &params,
+            &[0.4],
+            &jacobian,
+            [Some(0.5), Some(0.5), Some(0.0)],
+        );
         assert!((step[0] + 0.1).abs() < 1e-9, "{step:?}");
     }
 

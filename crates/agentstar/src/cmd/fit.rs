@@ -336,12 +336,15 @@ pub fn run(a: Args) -> Result<ExitCode> {
                 iou_held: r.iou_held,
                 iou_refined: r.iou_refined,
                 builds: r.builds,
-                guided: r.guided.as_ref().map(|g| agentstar_reports::fit::GuidedRow {
-                    wanted: g.wanted,
-                    values: g.values.clone(),
-                    iou_refined: g.iou_refined,
-                    taken: g.taken,
-                }),
+                guided: r
+                    .guided
+                    .as_ref()
+                    .map(|g| agentstar_reports::fit::GuidedRow {
+                        wanted: g.wanted,
+                        values: g.values.clone(),
+                        iou_refined: g.iou_refined,
+                        taken: g.taken,
+                    }),
             })
             .collect(),
         origin_shift: fit.origin_shift.shift.into(),
