@@ -545,7 +545,10 @@ struct Guided {
 
 /// The parameter change whose extent change best gives the sizes `wanted` (relative, along
 /// X, Y, Z) up to a common scale, by least squares over the measured axes, clamped to the
-/// bounds; and the wanted changes left unmet beyond [`MIN_WANT`].
+/// bounds; and the wanted changes left unmet beyond [`MIN_WANT`]. Where some are unmet and
+/// more than two axes are measured, the step is solved again without the axis left most
+/// unmet, so that a change no parameter makes does not pull the common scale, and with it
+/// the parameters, away from what the other axes say.
 fn solve_step(
     params: &[ShapeParam],
     values: &[f64],
@@ -553,11 +556,33 @@ fn solve_step(
     wanted: [Option<f64>; 3],
 ) -> (Vec<f64>, Vec<UnmetAxis>) {
     let axes: Vec<usize> = (0..3).filter(|&b| wanted[b].is_some()).collect();
-    let mut step = vec![0.0; params.len()];
     if axes.len() < 2 {
-        return (step, vec![]);
+        return (vec![0.0; params.len()], vec![]);
     }
-    let want = |b: usize| wanted[b].unwrap_or(0.0);
+    let step = solve_over(params, values, jacobian, wanted, &axes);
+    let unmet = unmet_after(params, jacobian, wanted, &axes, &step);
+    let worst = unmet
+        .iter()
+        .max_by(|a, b| a.want.abs().total_cmp(&b.want.abs()))
+        .map(|u| u.axis);
+    match worst {
+        Some(w) if axes.len() > 2 => {
+            let rest: Vec<usize> = axes.iter().copied().filter(|&b| b != w).collect();
+            (solve_over(params, values, jacobian, wanted, &rest), unmet)
+        }
+        _ => (step, unmet),
+    }
+}
+
+/// The least-squares step over the measured axes `axes` (at least two), clamped.
+fn solve_over(
+    params: &[ShapeParam],
+    values: &[f64],
+    jacobian: &[Option<[f64; 3]>],
+    wanted: [Option<f64>; 3],
+    axes: &[usize],
+) -> Vec<f64> {
+    let mut step = vec![0.0; params.len()];
     let free: Vec<usize> = (0..params.len())
         .filter(|&i| jacobian[i].is_some_and(|c| axes.iter().any(|&b| c[b].abs() > 1e-9)))
         .collect();
@@ -571,7 +596,7 @@ fn solve_step(
             1.0
         }
     });
-    let b = DVector::from_fn(axes.len(), |r, _| want(axes[r]));
+    let b = DVector::from_fn(axes.len(), |r, _| wanted[axes[r]].unwrap_or(0.0));
     if let Ok(x) = a.svd(true, true).solve(&b, 1e-9) {
         for (c, &i) in free.iter().enumerate() {
             let p = &params[i];
@@ -581,22 +606,32 @@ fn solve_step(
             }
         }
     }
-    // What the clamped step leaves of each wanted change, the common scale fitted again.
-    let made = |b: usize| -> f64 {
-        (0..params.len())
-            .map(|i| jacobian[i].map_or(0.0, |j| j[b]) * step[i])
-            .sum()
+    step
+}
+
+/// What `step` leaves of each wanted change along `axes`, the common scale fitted again,
+/// where it is at least [`MIN_WANT`].
+fn unmet_after(
+    params: &[ShapeParam],
+    jacobian: &[Option<[f64; 3]>],
+    wanted: [Option<f64>; 3],
+    axes: &[usize],
+    step: &[f64],
+) -> Vec<UnmetAxis> {
+    let left = |b: usize| -> f64 {
+        wanted[b].unwrap_or(0.0)
+            - (0..params.len())
+                .map(|i| jacobian[i].map_or(0.0, |j| j[b]) * step[i])
+                .sum::<f64>()
     };
-    let common = axes.iter().map(|&b| want(b) - made(b)).sum::<f64>() / axes.len() as f64;
-    let unmet = axes
-        .iter()
+    let common = axes.iter().map(|&b| left(b)).sum::<f64>() / axes.len() as f64;
+    axes.iter()
         .map(|&b| UnmetAxis {
             axis: b,
-            want: want(b) - made(b) - common,
+            want: left(b) - common,
         })
         .filter(|u| u.want.abs() >= MIN_WANT)
-        .collect();
-    (step, unmet)
+        .collect()
 }
 
 /// The residual-guided step from `at` (values, model, poses): what the frames want, the
@@ -941,6 +976,16 @@ mod tests {
         let (step, unmet) = solve_step(&params, &[0.4], &jacobian, [None, None, Some(-0.2)]);
         assert_eq!(step, vec![0.0]);
         assert!(unmet.is_empty());
+        // X wants 8% more than Y and Z, which agree: X is unmet, and the height is not
+        // pulled by it (the step is solved again over Y and Z).
+        let (step, unmet) = solve_step(
+            &params,
+            &[0.4],
+            &jacobian,
+            [Some(0.08), Some(0.0), Some(0.0)],
+        );
+        assert!(step[0].abs() < 1e-9, "{step:?}");
+        assert_eq!(unmet.first().map(|u| u.axis), Some(0), "{unmet:?}");
         // A step past a bound is clamped to it.
         let (step, _) = solve_step(
             &params,
