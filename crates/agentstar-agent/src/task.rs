@@ -57,9 +57,10 @@ Alternate two kinds of steps; **each step changes the shape or the poses, never 
    declared as parameters, `param("depth", 0.9, 0.7, 1.1)`, and fitted with `fit_shape`
    (only the parameters you name move, within their bounds, against the committed poses);
    its reply groups the residuals by viewing direction (frames face-on to each model axis,
-   and the size change along X, Y, Z they want): when the fit comes back to its start and
-   the frames want one axis longer than another, a fixed proportion the fitted parameters
-   do not set is wrong, so change it in the script.
+   and the size change along X, Y, Z they want); each round also tries the step those
+   residuals ask for, and the reply names a wanted change no fitted parameter makes: when
+   the fit comes back to its start and the frames want one axis longer than another, a
+   fixed proportion the fitted parameters do not set is wrong, so change it in the script.
    `scale` estimates metres per model unit (from depth, camera parallax, a size you state,
    or, with none of these, the hands holding the object: `hand`, about ±10–20%) and
    rescales the poses.

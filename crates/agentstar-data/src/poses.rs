@@ -133,6 +133,7 @@ fn reconcile_file(
             }
         }
     }
+    let joints_touched = !added.is_empty() || !removed.is_empty();
     if !added.is_empty() {
         changes.push(format!(
             "joints added at rest: {}",
@@ -148,8 +149,70 @@ fn reconcile_file(
     for (name, n) in &clamped {
         changes.push(format!("{name} brought into its limit in {n} frame(s)"));
     }
-    pf.joint_defs = tree.joints().iter().map(joint_json).collect();
-    pf.parts = Some(model.part_names());
+    // The header: what changed there is said too (play-test 15: a new part bumped the pose
+    // version while the reply said pose.json was unchanged).
+    let defs: Vec<_> = tree.joints().iter().map(joint_json).collect();
+    let redefined: Vec<&str> = defs
+        .iter()
+        .filter(|d| {
+            pf.joint_defs
+                .iter()
+                .find(|o| o.name == d.name)
+                .is_some_and(|o| o != *d)
+        })
+        .map(|d| d.name.as_str())
+        .collect();
+    if !redefined.is_empty() {
+        changes.push(format!(
+            "joint definitions updated (origin, axis, limits or parts): {}",
+            redefined.join(", ")
+        ));
+    }
+    let joints_named = |defs: &[crate::posefile::JointDefJson]| {
+        defs.iter().map(|d| d.name.clone()).collect::<Vec<_>>()
+    };
+    if joints_named(&pf.joint_defs) != joints_named(&defs)
+        && !joints_touched
+        && redefined.is_empty()
+    {
+        changes.push(format!(
+            "joints listed: {}",
+            if defs.is_empty() {
+                "none".to_string()
+            } else {
+                joints_named(&defs).join(", ")
+            }
+        ));
+    }
+    let parts = model.part_names();
+    match &pf.parts {
+        Some(old) if *old != parts => {
+            let new: Vec<&str> = parts
+                .iter()
+                .filter(|p| !old.contains(p))
+                .map(String::as_str)
+                .collect();
+            let gone: Vec<&str> = old
+                .iter()
+                .filter(|p| !parts.contains(p))
+                .map(String::as_str)
+                .collect();
+            changes.push(match (new.is_empty(), gone.is_empty()) {
+                (true, true) => "parts listed in the scene's order".to_string(),
+                (false, true) => format!("parts listed, added: {}", new.join(", ")),
+                (true, false) => format!("parts listed, removed: {}", gone.join(", ")),
+                (false, false) => format!(
+                    "parts listed, added: {}; removed: {}",
+                    new.join(", "),
+                    gone.join(", ")
+                ),
+            });
+        }
+        None => changes.push(format!("parts listed: {}", parts.join(", "))),
+        Some(_) => {}
+    }
+    pf.joint_defs = defs;
+    pf.parts = Some(parts);
     changes
 }
 
@@ -180,7 +243,8 @@ mod tests {
             [
                 "joints added at rest: swing",
                 "joints removed: old",
-                "hinge brought into its limit in 1 frame(s)"
+                "hinge brought into its limit in 1 frame(s)",
+                "parts listed: base, lid, door"
             ]
         );
         let back = PoseFile::read(&poses).expect("read");
@@ -189,6 +253,60 @@ mod tests {
         assert_eq!(back.frames["b.png"].joints["swing"], 0.0);
         assert_eq!(back.joint_defs.len(), 2);
         // Nothing to change: nothing written, no version.
+        assert_eq!(
+            reconcile(&scene, &poses, None, "again").expect("again"),
+            (vec![], None)
+        );
+    }
+
+    #[test]
+    fn a_new_part_or_a_moved_hinge_is_said_when_it_makes_a_version() {
+        // Play-test 15: a printed patch added to the scene bumped the pose version while the
+        // reply said pose.json was unchanged. Every version reconcile records says why.
+        let dir = tempfile::tempdir().expect("tmp");
+        let scene = dir.path().join("scene.rhai");
+        let poses = dir.path().join("pose.json");
+        let lid = "part(\"base\", box(1, 1, 0.2));\npart(\"lid\", box(1, 1, 0.05).translate(0, 0, 0.2));\n";
+        let hinge = |y: f64| {
+            format!("joint(#{{ name: \"hinge\", type: \"revolute\", child: \"lid\", origin: [0, {y}, 0.1], axis: [1, 0, 0], limit: [0, 60] }});\n")
+        };
+        std::fs::write(&scene, format!("{lid}{}", hinge(0.5))).expect("w");
+        let pf = serde_json::json!({
+            "frame_convention": "camera_opencv", "canonical": "+Z up", "scale": 0.2,
+            "reference_frame": "a.png", "joint_defs": [],
+            "frames": {"a.png": {"object_pose": {"quaternion": [1, 0, 0, 0], "translation": [0, 0, 1]}, "joints": {"hinge": 10.0}}}
+        });
+        std::fs::write(&poses, pf.to_string()).expect("w");
+        let (_, v) = reconcile(&scene, &poses, None, "first").expect("first");
+        assert!(v.is_some());
+        // A part added, no joint touched: the part is named with the version.
+        std::fs::write(
+            &scene,
+            format!(
+                "{lid}part(\"patch\", box(0.2, 0.2, 0.01).translate(0, 0, 0.11));\n{}",
+                hinge(0.5)
+            ),
+        )
+        .expect("w");
+        let (changes, v) = reconcile(&scene, &poses, None, "patch").expect("patch");
+        assert!(v.is_some());
+        assert_eq!(changes, ["parts listed, added: patch"]);
+        // The hinge moved: its definition is named.
+        std::fs::write(
+            &scene,
+            format!(
+                "{lid}part(\"patch\", box(0.2, 0.2, 0.01).translate(0, 0, 0.11));\n{}",
+                hinge(0.4)
+            ),
+        )
+        .expect("w");
+        let (changes, v) = reconcile(&scene, &poses, None, "hinge").expect("hinge");
+        assert!(v.is_some());
+        assert_eq!(
+            changes,
+            ["joint definitions updated (origin, axis, limits or parts): hinge"]
+        );
+        // The same scene again: nothing said, no version.
         assert_eq!(
             reconcile(&scene, &poses, None, "again").expect("again"),
             (vec![], None)

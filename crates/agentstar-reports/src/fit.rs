@@ -57,6 +57,46 @@ pub struct FitRoundRow {
     pub iou_held: f64,
     pub iou_refined: f64,
     pub builds: usize,
+    /// The round's last residual-guided step; absent in older reports and with it off.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub guided: Option<GuidedRow>,
+}
+
+/// A residual-guided step: the size change along X, Y, Z the frames wanted at the best
+/// shape so far, the values that step tried, the mean visible IoU with its poses refined,
+/// and whether it was kept (it raised the mean).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct GuidedRow {
+    pub wanted: [Option<f64>; 3],
+    pub values: Option<Vec<f64>>,
+    pub iou_refined: Option<f64>,
+    pub taken: bool,
+}
+
+/// A size change along one model axis that the frames want beyond a common scale and no
+/// fitted parameter makes (relative: 0.017 is 1.7% longer).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct UnmetAxis {
+    /// `X`, `Y` or `Z`.
+    pub axis: String,
+    pub want: f64,
+}
+
+/// The line naming the wanted size changes no fitted parameter makes; `None` when there are
+/// none.
+pub fn unmet_line(unmet: &[UnmetAxis]) -> Option<String> {
+    (!unmet.is_empty()).then(|| {
+        format!(
+            "no fitted parameter makes what the frames want along {} (beyond a common scale): declare a `param` that sets that size and fit it, or change it by hand (scene_write), then track from pose.json.\n",
+            unmet
+                .iter()
+                .map(|u| format!("{} {}", u.axis, percent(u.want)))
+                .collect::<Vec<_>>()
+                .join(", ")
+        )
+    })
 }
 
 /// What a group of frames wants of the model's size along X, Y and Z: relative changes
@@ -238,6 +278,9 @@ pub struct FitReport {
     /// (`--hold`, or the part most in view).
     #[serde(default)]
     pub held_part: Option<String>,
+    /// What the last residual-guided step found no fitted parameter could make.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub unmet: Vec<UnmetAxis>,
 }
 
 impl FitReport {
@@ -331,5 +374,22 @@ mod tests {
             equations: 2,
         };
         assert!(ViewResiduals::verdict_of(&one, &[]).is_empty());
+    }
+
+    #[test]
+    fn unmet_sizes_are_named_with_their_axis_and_change() {
+        assert_eq!(unmet_line(&[]), None);
+        let line = unmet_line(&[
+            UnmetAxis {
+                axis: "X".into(),
+                want: 0.017,
+            },
+            UnmetAxis {
+                axis: "Z".into(),
+                want: -0.012,
+            },
+        ])
+        .expect("line");
+        assert!(line.contains("along X +1.7%, Z -1.2%"), "{line}");
     }
 }

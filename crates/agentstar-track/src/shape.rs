@@ -8,7 +8,14 @@
 //! fractions; a pose made for the round's starting model is carried to each trial model by
 //! [`origin_shift`], so re-centring geometry costs nothing), then refines every frame's pose
 //! locally around where it was for the new model (a small box: the fit corrects
-//! proportions, it does not re-track). Rounds stop when the values settle.
+//! proportions, it does not re-track). Then a residual-guided step: with the poses held, a
+//! pose's depth has absorbed the size error, so growing one axis alone may not raise the IoU
+//! although the silhouettes want it (play-test 15). The frames' residuals grouped by view
+//! ([`crate::proportion`]) say what size change along X, Y, Z they want beyond a common
+//! scale; the parameters' effect on the model's extents is measured by building at ±a
+//! small step, a bounded least-squares step is solved for, and the trial is kept only when
+//! its refined poses raise the mean IoU. What no free parameter can change is reported
+//! ([`UnmetAxis`]). Rounds stop when the values settle.
 //!
 //! The guard against the paper's failure mode (flat, silhouette-like geometry that games
 //! IoU from a few views) is in what may move: only the named parameters, only within the
@@ -18,10 +25,21 @@ use crate::hypotheses::{refine_local, LocalWindow};
 use crate::objective::FrameProblem;
 use crate::update::GenPose;
 use crate::TrackError;
+use agentstar_geom::nalgebra::{DMatrix, DVector};
 use agentstar_geom::{origin_shift, ObjectModel, PinholeCamera};
 use agentstar_optim::{nelder_mead, NelderMeadConfig};
-use agentstar_render::ScoreTarget;
+use agentstar_render::{PosedModel, ScoreTarget, SilhouetteRenderer};
 use rayon::prelude::*;
+
+/// The probe of a parameter's effect on the model's extents: this share of its range.
+const PROBE_SHARE: f64 = 0.01;
+/// A wanted size change (beyond the common scale) smaller than this is within what mask
+/// boundaries say: not asked of the parameters, not reported as unmet.
+const MIN_WANT: f64 = 0.01;
+/// The shares of the solved step the guided step tries, in order, until one raises the IoU.
+const GUIDED_SHARES: [f64; 2] = [1.0, 0.5];
+/// Guided steps a round takes at most, each from the last one kept.
+const GUIDED_STEPS_PER_ROUND: usize = 3;
 
 /// Builds the model for the values of the named parameters (in the order of the
 /// [`ShapeParam`] list); an error is a trial the fit cannot use.
@@ -62,6 +80,8 @@ pub struct ShapeFitConfig {
     /// ([`agentstar_geom::origin_shift_holding`]); `None`: the largest part that votes
     /// ([`origin_shift`]).
     pub held: Option<String>,
+    /// Try the residual-guided step in every round (off: the held-pose search alone).
+    pub guided: bool,
 }
 
 impl Default for ShapeFitConfig {
@@ -80,6 +100,7 @@ impl Default for ShapeFitConfig {
             seed: 17,
             tolerance: 0.002,
             held: None,
+            guided: true,
         }
     }
 }
@@ -93,6 +114,31 @@ pub struct FitRound {
     /// Mean visible IoU after the poses were refined.
     pub iou_refined: f64,
     pub builds: usize,
+    /// The round's last residual-guided step (`None`: off).
+    pub guided: Option<GuidedStep>,
+}
+
+/// A size change along one model axis (0 X, 1 Y, 2 Z) that the frames want, beyond a common
+/// scale, and that no free parameter makes: `want` relative (0.017: 1.7% longer).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct UnmetAxis {
+    pub axis: usize,
+    pub want: f64,
+}
+
+/// What one residual-guided step did.
+#[derive(Debug, Clone, PartialEq)]
+pub struct GuidedStep {
+    /// The relative size changes along X, Y, Z the frames wanted (`None`: not measurable).
+    pub wanted: [Option<f64>; 3],
+    /// The values tried (the last share tried); `None` when the step was zero.
+    pub values: Option<Vec<f64>>,
+    /// The mean visible IoU of the trial with its poses refined.
+    pub iou_refined: Option<f64>,
+    /// Whether the trial was kept (it raised the mean IoU).
+    pub taken: bool,
+    /// What the frames want and the free parameters cannot make.
+    pub unmet: Vec<UnmetAxis>,
 }
 
 #[derive(Debug, Clone)]
@@ -112,6 +158,8 @@ pub struct ShapeFit {
     pub rounds: Vec<FitRound>,
     pub builds: usize,
     pub evaluations: usize,
+    /// What the last guided step found no free parameter could make.
+    pub unmet: Vec<UnmetAxis>,
 }
 
 fn mean(v: &[f64]) -> f64 {
@@ -234,6 +282,7 @@ pub fn fit_shape(
     let mut rounds = vec![];
     let mut builds = 1usize;
     let mut evaluations = frames.len();
+    let mut unmet = vec![];
     for round in 0..cfg.rounds.max(1) {
         // (a) The parameters, poses held (carried to each trial model).
         let base_model = model.clone();
@@ -286,47 +335,71 @@ pub fn fit_shape(
         let iou_held = mean(&frame_ious(&trial_model, frames, &trial_poses, scale));
         // (b) Every frame's pose refined locally for the trial model.
         if cfg.refine_poses {
-            let refined: Vec<Result<(GenPose, usize), TrackError>> = frames
-                .par_iter()
-                .zip(&trial_poses)
-                .enumerate()
-                .map(|(k, (f, g))| {
-                    let p = FrameProblem::new(&trial_model, f.camera, f.target, scale, g.clone());
-                    let seed = cfg.seed + 7919 * round as u64 + k as u64;
-                    refine_local(&p, g, &cfg.window, seed).map(|(pose, _, n)| (pose, n))
-                })
-                .collect();
-            trial_poses = refined
-                .into_iter()
-                .map(|r| {
-                    r.map(|(g, n)| {
-                        evaluations += n;
-                        g
-                    })
-                })
-                .collect::<Result<_, _>>()?;
+            let (refined, n) = refine_all(&trial_model, frames, &trial_poses, scale, cfg, round)?;
+            trial_poses = refined;
+            evaluations += n;
         }
         let iou_refined = mean(&frame_ious(&trial_model, frames, &trial_poses, scale));
         evaluations += 2 * frames.len();
+        let start_values = values.clone();
+        let mut taken = false;
+        if iou_refined >= best_mean {
+            best_mean = iou_refined;
+            values = trial_values.clone();
+            model = trial_model;
+            poses = trial_poses;
+            taken = true;
+        }
+        // (c) The step the residuals ask for, from the best so far, again from its result
+        // while it raises the IoU (the refined poses absorb part of each step).
+        let mut guided = None;
+        for _ in 0..if cfg.guided {
+            GUIDED_STEPS_PER_ROUND
+        } else {
+            0
+        } {
+            let g = guided_step(
+                build,
+                params,
+                frames,
+                scale,
+                cfg,
+                round,
+                (&values, &model, &poses),
+                best_mean,
+            )?;
+            builds += g.builds;
+            evaluations += g.evaluations;
+            unmet = g.step.unmet.clone();
+            let kept = g.kept.is_some();
+            if let Some((v, m, p, iou)) = g.kept {
+                best_mean = iou;
+                values = v;
+                model = m;
+                poses = p;
+                taken = true;
+            }
+            guided = Some(g.step);
+            if !kept {
+                break;
+            }
+        }
         rounds.push(FitRound {
-            values: trial_values.clone(),
+            values: trial_values,
             iou_held,
             iou_refined,
             builds: n_builds + 1,
+            guided,
         });
-        if iou_refined < best_mean {
+        if !taken {
             break;
         }
-        let moved = trial_values
+        let moved = values
             .iter()
-            .zip(&values)
+            .zip(&start_values)
             .zip(&spans)
             .map(|((a, b), s)| (a - b).abs() / s)
             .fold(0.0, f64::max);
-        best_mean = iou_refined;
-        values = trial_values;
-        model = trial_model;
-        poses = trial_poses;
         if round > 0 && moved < cfg.tolerance {
             break;
         }
@@ -345,6 +418,297 @@ pub fn fit_shape(
         model,
         origin_shift: shift,
         rounds,
+        builds,
+        evaluations,
+        unmet,
+    })
+}
+
+/// Every frame's pose refined locally for `model` (seeded by the round and the frame), and
+/// the evaluations spent.
+fn refine_all(
+    model: &ObjectModel,
+    frames: &[ShapeFrame<'_>],
+    poses: &[GenPose],
+    scale: f64,
+    cfg: &ShapeFitConfig,
+    round: usize,
+) -> Result<(Vec<GenPose>, usize), TrackError> {
+    let refined: Vec<Result<(GenPose, usize), TrackError>> = frames
+        .par_iter()
+        .zip(poses)
+        .enumerate()
+        .map(|(k, (f, g))| {
+            let p = FrameProblem::new(model, f.camera, f.target, scale, g.clone());
+            let seed = cfg.seed + 7919 * round as u64 + k as u64;
+            refine_local(&p, g, &cfg.window, seed).map(|(pose, _, n)| (pose, n))
+        })
+        .collect();
+    let mut evaluations = 0;
+    let poses = refined
+        .into_iter()
+        .map(|r| {
+            r.map(|(g, n)| {
+                evaluations += n;
+                g
+            })
+        })
+        .collect::<Result<_, _>>()?;
+    Ok((poses, evaluations))
+}
+
+/// The relative size changes along X, Y, Z the frames want of `model` at `poses`: the
+/// silhouettes' residuals against the masks over all frames ([`crate::proportion`]).
+pub fn size_wants(
+    model: &ObjectModel,
+    frames: &[ShapeFrame<'_>],
+    poses: &[GenPose],
+    scale: f64,
+) -> [Option<f64>; 3] {
+    let silhouettes: Vec<agentstar_render::BitMask> = frames
+        .par_iter()
+        .zip(poses)
+        .map(|(f, g)| {
+            let posed = PosedModel::new(model, &g.states, &g.pose.with_scale(scale));
+            SilhouetteRenderer::new(f.camera.width, f.camera.height)
+                .render(&f.camera, &posed.instances)
+                .clone()
+        })
+        .collect();
+    let views: Vec<crate::proportion::ViewFrame<'_>> = frames
+        .iter()
+        .zip(poses)
+        .zip(&silhouettes)
+        .map(|((f, g), sil)| {
+            let bounds = model.posed_bounds(&g.states);
+            crate::proportion::ViewFrame {
+                name: f.name.clone(),
+                camera: f.camera,
+                mask: f.target.mask(),
+                keep: f.target.keep(),
+                silhouette: sil,
+                camera_from_object: g.pose.with_scale(scale),
+                centre: bounds.center(),
+                size: bounds.extent(),
+            }
+        })
+        .collect();
+    crate::proportion::view_residuals(&views).all.want
+}
+
+/// How each parameter changes the model's extents along X, Y, Z, relative to them, per unit
+/// of the parameter (central differences of [`PROBE_SHARE`] of its range, one-sided at a
+/// bound; at the first frame's joint states). `None` for a parameter whose probes do not
+/// build. Also the builds spent.
+fn extent_jacobian(
+    build: &ModelBuilder<'_>,
+    params: &[ShapeParam],
+    values: &[f64],
+    states: &[f64],
+) -> (Vec<Option<[f64; 3]>>, usize) {
+    let extent = |v: &[f64]| build(v).ok().map(|m| m.posed_bounds(states).extent());
+    let Some(base) = extent(values) else {
+        return (vec![None; params.len()], 1);
+    };
+    let columns = params
+        .iter()
+        .enumerate()
+        .map(|(i, p)| {
+            let h = PROBE_SHARE * (p.max - p.min);
+            let (lo, hi) = ((values[i] - h).max(p.min), (values[i] + h).min(p.max));
+            let at = |x: f64| {
+                let mut v = values.to_vec();
+                v[i] = x;
+                extent(&v)
+            };
+            let (a, b) = (at(lo)?, at(hi)?);
+            let mut col = [0.0; 3];
+            for axis in 0..3 {
+                if base[axis] > 1e-12 {
+                    col[axis] = (b[axis] - a[axis]) / ((hi - lo) * base[axis]);
+                }
+            }
+            Some(col)
+        })
+        .collect();
+    (columns, 1 + 2 * params.len())
+}
+
+/// A guided step and what it cost; `kept` holds the values, model, refined poses and mean
+/// IoU when it raised the IoU over `best_mean`.
+struct Guided {
+    step: GuidedStep,
+    kept: Option<(Vec<f64>, ObjectModel, Vec<GenPose>, f64)>,
+    builds: usize,
+    evaluations: usize,
+}
+
+/// The parameter change whose extent change best gives the sizes `wanted` (relative, along
+/// X, Y, Z) up to a common scale, by least squares over the measured axes, clamped to the
+/// bounds; and the wanted changes left unmet beyond [`MIN_WANT`]. Where some are unmet and
+/// more than two axes are measured, the step is solved again without the axis left most
+/// unmet, so that a change no parameter makes does not pull the common scale, and with it
+/// the parameters, away from what the other axes say.
+fn solve_step(
+    params: &[ShapeParam],
+    values: &[f64],
+    jacobian: &[Option<[f64; 3]>],
+    wanted: [Option<f64>; 3],
+) -> (Vec<f64>, Vec<UnmetAxis>) {
+    let axes: Vec<usize> = (0..3).filter(|&b| wanted[b].is_some()).collect();
+    if axes.len() < 2 {
+        return (vec![0.0; params.len()], vec![]);
+    }
+    let step = solve_over(params, values, jacobian, wanted, &axes);
+    let unmet = unmet_after(params, jacobian, wanted, &axes, &step);
+    let worst = unmet
+        .iter()
+        .max_by(|a, b| a.want.abs().total_cmp(&b.want.abs()))
+        .map(|u| u.axis);
+    match worst {
+        Some(w) if axes.len() > 2 => {
+            let rest: Vec<usize> = axes.iter().copied().filter(|&b| b != w).collect();
+            (solve_over(params, values, jacobian, wanted, &rest), unmet)
+        }
+        _ => (step, unmet),
+    }
+}
+
+/// The least-squares step over the measured axes `axes` (at least two), clamped.
+fn solve_over(
+    params: &[ShapeParam],
+    values: &[f64],
+    jacobian: &[Option<[f64; 3]>],
+    wanted: [Option<f64>; 3],
+    axes: &[usize],
+) -> Vec<f64> {
+    let mut step = vec![0.0; params.len()];
+    let free: Vec<usize> = (0..params.len())
+        .filter(|&i| jacobian[i].is_some_and(|c| axes.iter().any(|&b| c[b].abs() > 1e-9)))
+        .collect();
+    // Columns: each free parameter in units of its range (so the solve's minimum norm
+    // weighs them alike), then the common scale.
+    let a = DMatrix::from_fn(axes.len(), free.len() + 1, |r, c| {
+        if c < free.len() {
+            let i = free[c];
+            jacobian[i].map_or(0.0, |j| j[axes[r]]) * (params[i].max - params[i].min)
+        } else {
+            1.0
+        }
+    });
+    let b = DVector::from_fn(axes.len(), |r, _| wanted[axes[r]].unwrap_or(0.0));
+    if let Ok(x) = a.svd(true, true).solve(&b, 1e-9) {
+        for (c, &i) in free.iter().enumerate() {
+            let p = &params[i];
+            let target = values[i] + x[c] * (p.max - p.min);
+            if target.is_finite() {
+                step[i] = target.clamp(p.min, p.max) - values[i];
+            }
+        }
+    }
+    step
+}
+
+/// What `step` leaves of each wanted change along `axes`, the common scale fitted again,
+/// where it is at least [`MIN_WANT`].
+fn unmet_after(
+    params: &[ShapeParam],
+    jacobian: &[Option<[f64; 3]>],
+    wanted: [Option<f64>; 3],
+    axes: &[usize],
+    step: &[f64],
+) -> Vec<UnmetAxis> {
+    let left = |b: usize| -> f64 {
+        wanted[b].unwrap_or(0.0)
+            - (0..params.len())
+                .map(|i| jacobian[i].map_or(0.0, |j| j[b]) * step[i])
+                .sum::<f64>()
+    };
+    let common = axes.iter().map(|&b| left(b)).sum::<f64>() / axes.len() as f64;
+    axes.iter()
+        .map(|&b| UnmetAxis {
+            axis: b,
+            want: left(b) - common,
+        })
+        .filter(|u| u.want.abs() >= MIN_WANT)
+        .collect()
+}
+
+/// The residual-guided step from `at` (values, model, poses): what the frames want, the
+/// parameter change that makes it, and that trial with its poses refined, kept when its mean
+/// IoU rises over `best_mean` (a full step, then a half).
+#[allow(clippy::too_many_arguments)]
+fn guided_step(
+    build: &ModelBuilder<'_>,
+    params: &[ShapeParam],
+    frames: &[ShapeFrame<'_>],
+    scale: f64,
+    cfg: &ShapeFitConfig,
+    round: usize,
+    at: (&[f64], &ObjectModel, &[GenPose]),
+    best_mean: f64,
+) -> Result<Guided, TrackError> {
+    let (values, model, poses) = at;
+    let wanted = size_wants(model, frames, poses, scale);
+    let states = poses.first().map(|g| g.states.clone()).unwrap_or_default();
+    let (jacobian, mut builds) = extent_jacobian(build, params, values, &states);
+    let (step, unmet) = solve_step(params, values, &jacobian, wanted);
+    let mut evaluations = frames.len();
+    let mut out = GuidedStep {
+        wanted,
+        values: None,
+        iou_refined: None,
+        taken: false,
+        unmet,
+    };
+    let spans = params.iter().map(|p| p.max - p.min);
+    let largest = step
+        .iter()
+        .zip(spans)
+        .map(|(d, s)| d.abs() / s)
+        .fold(0.0, f64::max);
+    if largest < 1e-6 {
+        return Ok(Guided {
+            step: out,
+            kept: None,
+            builds,
+            evaluations,
+        });
+    }
+    for share in GUIDED_SHARES {
+        let trial: Vec<f64> = values
+            .iter()
+            .zip(&step)
+            .zip(params)
+            .map(|((v, d), p)| (v + share * d).clamp(p.min, p.max))
+            .collect();
+        builds += 1;
+        let Ok(trial_model) = build(&trial) else {
+            continue;
+        };
+        let mut trial_poses = carried(model, &trial_model, poses, scale, cfg.held.as_deref());
+        if cfg.refine_poses {
+            let (refined, n) = refine_all(&trial_model, frames, &trial_poses, scale, cfg, round)?;
+            trial_poses = refined;
+            evaluations += n;
+        }
+        let iou = mean(&frame_ious(&trial_model, frames, &trial_poses, scale));
+        evaluations += frames.len();
+        out.values = Some(trial.clone());
+        out.iou_refined = Some(iou);
+        if iou > best_mean {
+            out.taken = true;
+            return Ok(Guided {
+                step: out,
+                kept: Some((trial, trial_model, trial_poses, iou)),
+                builds,
+                evaluations,
+            });
+        }
+    }
+    Ok(Guided {
+        step: out,
+        kept: None,
         builds,
         evaluations,
     })
@@ -457,6 +821,179 @@ mod tests {
         for (p, v) in params.iter().zip(&fit.values) {
             assert!((p.min..=p.max).contains(v));
         }
+    }
+
+    #[test]
+    fn a_size_the_held_poses_absorbed_is_found_by_the_residual_guided_step() {
+        // The truth is 1.04 × 0.6 × 0.4; the model 1.0 × 0.6 × 0.4, its length along X free
+        // on [0.9, 1.15]. The poses were tracked on the short model: each frame's depth and
+        // place have absorbed what they could of the missing length (the turns are right).
+        let slab = |x: f64| -> Result<ObjectModel, String> {
+            let body = cuboid(x, 0.6, 0.4).map_err(|e| e.to_string())?;
+            Ok(ObjectModel {
+                tree: KinematicTree::rigid(1),
+                parts: vec![Part::new("body", body, [0.5; 3])],
+            })
+        };
+        let (true_x, start_x) = (1.04, 1.0);
+        let truth = slab(true_x).expect("truth");
+        let camera = PinholeCamera::new(300.0, 300.0, 160.0, 120.0, 320, 240).expect("camera");
+        let scale = 0.2;
+        let rotations = [
+            (0.3, 0.2, 0.4),
+            (-0.5, 0.1, 1.2),
+            (0.9, -0.3, -0.6),
+            (0.2, 0.7, 2.4),
+            (-1.1, 0.4, 0.2),
+            (0.6, -0.8, -1.9),
+        ];
+        let true_poses: Vec<GenPose> = rotations
+            .iter()
+            .map(|&(r, p, y)| GenPose {
+                pose: ObjectPose::new(
+                    UnitQuaternion::from_euler_angles(r, p, y),
+                    Vector3::new(0.0, 0.0, 0.6),
+                ),
+                states: vec![],
+            })
+            .collect();
+        let targets: Vec<ScoreTarget> = true_poses
+            .iter()
+            .map(|g| {
+                let posed = PosedModel::new(&truth, &[], &g.pose.with_scale(scale));
+                let mask = SilhouetteRenderer::new(320, 240)
+                    .render(&camera, &posed.instances)
+                    .clone();
+                ScoreTarget::new(mask, None).expect("target")
+            })
+            .collect();
+        let short = slab(start_x).expect("short");
+        let window = LocalWindow {
+            angle_deg: 0.2,
+            shift: 0.03,
+            depth: 0.1,
+            joint_deg: 0.0,
+            evals: 800,
+        };
+        let frames: Vec<ShapeFrame<'_>> = true_poses
+            .iter()
+            .zip(&targets)
+            .enumerate()
+            .map(|(k, (g, t))| {
+                let p = FrameProblem::new(&short, camera, t, scale, g.clone());
+                let (tracked, _, _) = refine_local(&p, g, &window, 5 + k as u64).expect("track");
+                ShapeFrame {
+                    name: format!("{k:06}.png"),
+                    camera,
+                    target: t,
+                    pose: tracked,
+                }
+            })
+            .collect();
+        let build = |v: &[f64]| slab(v[0]);
+        let params = [ShapeParam {
+            name: "length_x".into(),
+            start: start_x,
+            min: 0.9,
+            max: 1.15,
+        }];
+        let fit = |guided: bool| {
+            let cfg = ShapeFitConfig {
+                guided,
+                ..ShapeFitConfig::default()
+            };
+            fit_shape(&build, &params, &frames, scale, &cfg).expect("fit")
+        };
+        // The frames want X longer than Y and Z.
+        let wants = size_wants(
+            &short,
+            &frames,
+            &frames.iter().map(|f| f.pose.clone()).collect::<Vec<_>>(),
+            scale,
+        );
+        let (x, y, z) = (
+            wants[0].expect("x"),
+            wants[1].expect("y"),
+            wants[2].expect("z"),
+        );
+        assert!(x > y + 0.005 && x > z + 0.005, "{wants:?}");
+        let held_only = fit(false);
+        let guided = fit(true);
+        // The held-pose search alone stays where it started.
+        assert!(
+            (held_only.values[0] - start_x).abs() < 0.005,
+            "{:?}",
+            held_only.rounds
+        );
+        // The guided step goes most of the way to the truth, and the fit is better for it.
+        assert!(
+            (guided.values[0] - true_x).abs() < 0.5 * (true_x - start_x),
+            "{:?}",
+            guided.rounds
+        );
+        assert!(mean(&guided.after) > mean(&held_only.after), "{guided:?}");
+        assert!(guided.rounds[0]
+            .guided
+            .as_ref()
+            .is_some_and(|g| g.wanted[0].is_some()));
+        assert!(guided.unmet.is_empty(), "{:?}", guided.unmet);
+    }
+
+    #[test]
+    fn a_wanted_size_no_parameter_makes_is_named() {
+        // Only the height (Z) is free: relative 1/0.4 of Z's extent per unit.
+        let params = [ShapeParam {
+            name: "height".into(),
+            start: 0.4,
+            min: 0.3,
+            max: 0.5,
+        }];
+        let jacobian = [Some([0.0, 0.0, 1.0 / 0.4])];
+        // X and Y want 3% more than Z: Z shrinks by 3% (0.012), nothing is left unmet.
+        let (step, unmet) = solve_step(
+            &params,
+            &[0.4],
+            &jacobian,
+            [Some(0.03), Some(0.03), Some(0.0)],
+        );
+        assert!((step[0] + 0.012).abs() < 1e-9, "{step:?}");
+        assert!(unmet.is_empty(), "{unmet:?}");
+        // X wants 3% more than Y, Z unmeasured: no free parameter changes X against Y. The
+        // common scale takes half, and the rest is named on both axes.
+        let (step, unmet) = solve_step(&params, &[0.4], &jacobian, [Some(0.03), Some(0.0), None]);
+        assert_eq!(step, vec![0.0]);
+        let named: Vec<(usize, f64)> = unmet.iter().map(|u| (u.axis, u.want)).collect();
+        assert_eq!(named.len(), 2, "{named:?}");
+        assert!(
+            (named[0].1 - 0.015).abs() < 1e-9 && named[0].0 == 0,
+            "{named:?}"
+        );
+        assert!(
+            (named[1].1 + 0.015).abs() < 1e-9 && named[1].0 == 1,
+            "{named:?}"
+        );
+        // One measured axis says nothing beyond the scale.
+        let (step, unmet) = solve_step(&params, &[0.4], &jacobian, [None, None, Some(-0.2)]);
+        assert_eq!(step, vec![0.0]);
+        assert!(unmet.is_empty());
+        // X wants 8% more than Y and Z, which agree: X is unmet, and the height is not
+        // pulled by it (the step is solved again over Y and Z).
+        let (step, unmet) = solve_step(
+            &params,
+            &[0.4],
+            &jacobian,
+            [Some(0.08), Some(0.0), Some(0.0)],
+        );
+        assert!(step[0].abs() < 1e-9, "{step:?}");
+        assert_eq!(unmet.first().map(|u| u.axis), Some(0), "{unmet:?}");
+        // A step past a bound is clamped to it.
+        let (step, _) = solve_step(
+            &params,
+            &[0.4],
+            &jacobian,
+            [Some(0.5), Some(0.5), Some(0.0)],
+        );
+        assert!((step[0] + 0.1).abs() < 1e-9, "{step:?}");
     }
 
     #[test]

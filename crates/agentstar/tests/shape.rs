@@ -194,6 +194,17 @@ fn fit_shape_names_the_fixed_proportion_its_parameters_cannot_reach() {
     assert!(body.contains("residuals by viewing direction"), "{body}");
     assert!(body.contains("face-on to"), "{body}");
     assert!(body.contains("longer along X"), "{body}");
+    // The height cannot make X longer against Y: the reply names what no fitted parameter
+    // makes (play-test 15), along X.
+    assert!(
+        r.unmet.iter().any(|u| u.axis == "X" && u.want > 0.03),
+        "{:?}\n{body}",
+        r.unmet
+    );
+    assert!(
+        body.contains("no fitted parameter makes what the frames want along X +"),
+        "{body}"
+    );
 }
 
 #[test]
@@ -564,7 +575,13 @@ fn a_scene_edit_holds_the_part_most_in_view_or_the_named_one_and_names_hidden_pa
         body.contains("Held in place: part `body` (the largest part in view:"),
         "{body}"
     );
-    assert!(body.contains("the canonical origin did not move"), "{body}");
+    // No pose moved; the version the edit made is said with what it changed (play-test 15:
+    // "pose.json unchanged" beside a new pose version).
+    assert!(!body.contains("canonical origin moved"), "{body}");
+    assert!(
+        body.contains("pose.json version 1: parts listed: body, lid, handle."),
+        "{body}"
+    );
     assert_eq!(translations(&poses), start, "{body}");
     // Holding the handle, the edit back moves every pose by the handle's move (5 cm of
     // model along x: 1.2 cm at this scale).

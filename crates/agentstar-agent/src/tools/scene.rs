@@ -239,13 +239,7 @@ impl Toolbox {
                     " Held in place: part `{}` ({}).",
                     h.name, h.why
                 )),
-                if joints.is_empty() {
-                    // Said, not left out (play-test 11 could not tell whether its poses
-                    // had been carried).
-                    " pose.json unchanged: no joint was added or removed and the canonical origin did not move, so every pose stands as it was.".to_string()
-                } else {
-                    format!(" pose.json: {}.", joints.join("; "))
-                },
+                pose_line(&joints, pose_version),
                 self.mechanism_reminder()
                     .map(|r| format!("\n{r}"))
                     .unwrap_or_default(),
@@ -294,6 +288,19 @@ pub(super) fn visible_pixels(
         agentstar_render::visible_part_pixels(model, views),
         chosen.len(),
     ))
+}
+
+/// What a scene edit did to pose.json, in the reply: what changed with the version it
+/// made, or that nothing did (then no version was made: the two always agree; play-test 15
+/// read "unchanged" beside a new pose version).
+pub(super) fn pose_line(changes: &[String], pose_version: Option<u64>) -> String {
+    match (changes.is_empty(), pose_version) {
+        // Said, not left out (play-test 11 could not tell whether its poses had been carried).
+        (true, None) => " pose.json unchanged: no joint, part or joint definition changed and the canonical origin did not move, so every pose stands as it was (no pose version).".to_string(),
+        (true, Some(v)) => format!(" pose.json version {v}: its header brought in step with the scene; every pose stands as it was."),
+        (false, Some(v)) => format!(" pose.json version {v}: {}.", changes.join("; ")),
+        (false, None) => format!(" pose.json: {}.", changes.join("; ")),
+    }
 }
 
 /// Keyframes measured to find the part most in view.

@@ -105,6 +105,7 @@ fn a_fit_is_saved_only_when_a_parameter_moved_and_the_iou_rose() {
             written: false,
             views: None,
             held_part: None,
+            unmet: vec![],
         }
     };
     // The play-test's case: the IoU rose (the poses were refined) but the width stayed.
@@ -504,5 +505,19 @@ fn a_bad_call_is_answered_with_what_the_tool_takes() {
     assert_eq!(
         arguments_help("task", &schema_of::<NoArgs>()),
         "task takes no arguments: call it with {}"
+    );
+}
+
+#[test]
+fn a_scene_edit_says_pose_json_unchanged_only_when_no_version_was_made() {
+    let unchanged = scene::pose_line(&[], None);
+    assert!(unchanged.contains("unchanged") && unchanged.contains("no pose version"));
+    // Play-test 15: a new part made pose version 11 while the reply said "unchanged".
+    let added = scene::pose_line(&["parts listed, added: patch".to_string()], Some(11));
+    assert_eq!(added, " pose.json version 11: parts listed, added: patch.");
+    let header = scene::pose_line(&[], Some(11));
+    assert!(
+        !header.contains("unchanged") && header.contains("version 11"),
+        "{header}"
     );
 }

@@ -336,6 +336,15 @@ pub fn run(a: Args) -> Result<ExitCode> {
                 iou_held: r.iou_held,
                 iou_refined: r.iou_refined,
                 builds: r.builds,
+                guided: r
+                    .guided
+                    .as_ref()
+                    .map(|g| agentstar_reports::fit::GuidedRow {
+                        wanted: g.wanted,
+                        values: g.values.clone(),
+                        iou_refined: g.iou_refined,
+                        taken: g.taken,
+                    }),
             })
             .collect(),
         origin_shift: fit.origin_shift.shift.into(),
@@ -348,6 +357,14 @@ pub fn run(a: Args) -> Result<ExitCode> {
         written: false,
         views: Some(view_residuals(&fit, &frames, s.scale())),
         held_part: Some(format!("{} ({})", held.name, held.why)),
+        unmet: fit
+            .unmet
+            .iter()
+            .map(|u| agentstar_reports::fit::UnmetAxis {
+                axis: ["X", "Y", "Z"][u.axis].to_string(),
+                want: u.want,
+            })
+            .collect(),
     };
     if a.write {
         agentstar_data::atomic::write_atomic(model_path, fitted_source.as_bytes())?;
@@ -479,6 +496,9 @@ fn print_summary(r: &FitReport) {
         r.builds,
         r.seconds
     );
+    if let Some(line) = agentstar_reports::fit::unmet_line(&r.unmet) {
+        print!("{line}");
+    }
     if let Some(v) = &r.views {
         print!("{}", agentstar_reports::fit::views_text(v));
     }

@@ -188,7 +188,7 @@ fn candidate_sheet(
     limit: usize,
     title: &str,
     (view, zoom): (&agentstar_requests::SheetView, f64),
-) -> Result<Vec<(RgbImage, Vec<usize>)>> {
+) -> Result<CandidateSheet> {
     let frame = s.capture.load_frame(i)?;
     let (target, _) = s.target(i)?;
     let cam = s.capture.frames[i].camera;
@@ -232,8 +232,7 @@ fn candidate_sheet(
     // room under it; zoomed, at most 960 px.
     let crop = widened(around, TILE_ASPECT, frame.width());
     let long = crop[2].max(crop[3]);
-    let zoomed = ((long as f64 * zoom).round() as u32).min(TILE_LONG_SIDE_PX * 3);
-    let side = long.max(zoomed).max(TILE_LONG_SIDE_PX);
+    let side = tile_side(long, zoom);
     let cut = |img: &RgbImage| crop_zoomed(img, crop, side);
     let mut tiles = Vec::new();
     // Per candidate: the model over the frame (its outline against the frame's), the model
@@ -254,14 +253,61 @@ fn candidate_sheet(
     }
     // One finalist a row of three tiles: a page holds whole rows, so whole finalists.
     let layout = sheet_layout(&tiles, TILES_PER_CANDIDATE, title);
+    let drawn_zoom = side as f64 * layout.tile_factor / long.max(1) as f64;
     let per_page = (layout.columns * layout.rows_per_page / TILES_PER_CANDIDATE).max(1);
     let ranks: Vec<usize> = shown.iter().map(|(r, _, _)| r.rank).collect();
     let pages = sheet_pages(&tiles, TILES_PER_CANDIDATE, title);
     let groups: Vec<Vec<usize>> = ranks.chunks(per_page).map(<[usize]>::to_vec).collect();
-    Ok(pages
-        .into_iter()
-        .zip(groups.into_iter().chain(std::iter::repeat(vec![])))
-        .collect())
+    Ok(CandidateSheet {
+        pages: pages
+            .into_iter()
+            .zip(groups.into_iter().chain(std::iter::repeat(vec![])))
+            .collect(),
+        crop,
+        zoom: drawn_zoom,
+    })
+}
+
+/// A frame's candidate sheet: its pages with the ranks each draws, the crop its tiles show
+/// (`x0, y0, w, h`, frame pixels) and the zoom they are drawn at (output pixels per frame
+/// pixel, after the tile cap and the image limits).
+struct CandidateSheet {
+    pages: Vec<(RgbImage, Vec<usize>)>,
+    crop: [u32; 4],
+    zoom: f64,
+}
+
+/// A tile's long side for a crop `long` frame pixels long at `zoom`: at least
+/// [`TILE_LONG_SIDE_PX`], zoomed at most to [`MAX_TILE_LONG_SIDE_PX`], never shrunk.
+fn tile_side(long: u32, zoom: f64) -> u32 {
+    let zoomed = ((long as f64 * zoom).round() as u32).min(MAX_TILE_LONG_SIDE_PX);
+    long.max(zoomed).max(TILE_LONG_SIDE_PX)
+}
+
+/// The note that says at what zoom a sheet's tiles came out when a crop or zoom was asked:
+/// the tile cap and the image limits (three tiles a row) can undo a zoom (play-test 15:
+/// `zoom: 2` about the mask's box gave tiles no larger than without).
+fn zoom_note(
+    view: &agentstar_requests::SheetView,
+    asked: f64,
+    sheet: &CandidateSheet,
+) -> Option<String> {
+    if view.crop.is_none() && view.zoom.is_none() {
+        return None;
+    }
+    let [x0, y0, w, h] = sheet.crop;
+    let mut line = format!(
+        "sheet tiles: crop at ({x0}, {y0}), {w}×{h} frame pixels, drawn at zoom {:.2}",
+        sheet.zoom
+    );
+    if sheet.zoom < asked * 0.95 {
+        line.push_str(&format!(
+            " (zoom {asked:.2} asked: tiles are at most {MAX_TILE_LONG_SIDE_PX} px on their long side and a sheet of three tiles a row keeps the image limits, {} px and {:.2} megapixels; a smaller crop zooms further)",
+            agentstar_render::sheet::MAX_LONG_SIDE_PX,
+            agentstar_render::sheet::MAX_PIXELS as f64 / 1e6
+        ));
+    }
+    Some(line)
 }
 
 /// Tiles per finalist on a candidate sheet (and its columns): over the frame, opaque,
@@ -286,6 +332,8 @@ fn rank_list(ranks: &[usize]) -> String {
 /// enlarged to (never shrunk).
 const TILE_ASPECT: f64 = 4.0 / 3.0;
 const TILE_LONG_SIDE_PX: u32 = 320;
+/// The longest a zoomed tile's long side is drawn before the sheet's own limits.
+const MAX_TILE_LONG_SIDE_PX: u32 = 3 * TILE_LONG_SIDE_PX;
 
 /// The text a person reads at a shell: the ranked table, notes, and how to keep a
 /// candidate (the numbers are in the JSON report, never to be typed into pose.json).
@@ -374,7 +422,7 @@ fn write_outputs(
     for (o, &i) in outputs.iter_mut().zip(frames) {
         let sheet = verb.sheet_path(&dir, &s.capture.frames[i].stem);
         let limit = if o.draw_all { o.rows.len() } else { c.sheet };
-        let pages = candidate_sheet(
+        let drawn = candidate_sheet(
             s,
             i,
             &o.rows,
@@ -382,8 +430,11 @@ fn write_outputs(
             &format!("{} {}", verb.stem(), o.frame),
             (&c.view, zoom),
         )?;
+        if let Some(line) = zoom_note(&c.view, zoom, &drawn) {
+            o.notes.push(line);
+        }
         let mut sheet_pages = Vec::new();
-        for (k, (page, ranks)) in pages.iter().enumerate() {
+        for (k, (page, ranks)) in drawn.pages.iter().enumerate() {
             // The first page is the report's sheet; further pages beside it.
             let p = if k == 0 {
                 sheet.clone()
@@ -567,5 +618,55 @@ fn default_frame(s: &Session, spec: Option<&str>) -> Result<Vec<usize>> {
     match spec {
         None => Ok(vec![s.capture.ref_index]),
         Some(sp) => select_frames(&s.capture, Some(sp)),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The zoom a sheet of `finalists` draws a crop `long` frame pixels long at, asked `zoom`.
+    fn drawn(long: u32, zoom: f64, finalists: usize) -> CandidateSheet {
+        let side = tile_side(long, zoom);
+        let tile = RgbImage::new(side, side * 3 / 4);
+        let tiles: Vec<(String, RgbImage)> = (0..finalists * TILES_PER_CANDIDATE)
+            .map(|k| (format!("#{k}"), tile.clone()))
+            .collect();
+        let layout = sheet_layout(&tiles, TILES_PER_CANDIDATE, "osweep 000010.png");
+        CandidateSheet {
+            pages: vec![],
+            crop: [10, 20, long, long * 3 / 4],
+            zoom: side as f64 * layout.tile_factor / long as f64,
+        }
+    }
+
+    #[test]
+    fn the_reply_says_the_zoom_the_tiles_came_out_at() {
+        let view = |zoom: Option<f64>| agentstar_requests::SheetView { crop: None, zoom };
+        // Play-test 15: a crop about the mask's box (480 px), zoom 2: the three tiles a row
+        // keep the image limits, so the tiles come out near the size of an unzoomed sheet's.
+        let plain = drawn(480, 1.0, 2);
+        let zoomed = drawn(480, 2.0, 2);
+        assert!(
+            zoomed.zoom < 1.2 * plain.zoom,
+            "{} vs {}",
+            zoomed.zoom,
+            plain.zoom
+        );
+        let note = zoom_note(&view(Some(2.0)), 2.0, &zoomed).expect("a note");
+        assert!(
+            note.starts_with(&format!(
+                "sheet tiles: crop at (10, 20), 480×360 frame pixels, drawn at zoom {:.2} (zoom 2.00 asked",
+                zoomed.zoom
+            )),
+            "{note}"
+        );
+        // A small crop takes the zoom asked (and more: tiles are at least 320 px long).
+        let small = drawn(100, 2.0, 2);
+        assert!(small.zoom >= 2.0, "{}", small.zoom);
+        let note = zoom_note(&view(Some(2.0)), 2.0, &small).expect("a note");
+        assert!(!note.contains("asked"), "{note}");
+        // Neither asked: no note.
+        assert_eq!(zoom_note(&view(None), 1.0, &plain), None);
     }
 }
