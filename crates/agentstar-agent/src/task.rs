@@ -9,11 +9,10 @@ const TASK: &str = r#"# Your task
 You are given a video of an object: keyframes, a mask of the object in each (hands cut out
 and marked separately), and the camera of each keyframe. Build a model of the object **as
 code** and find its pose in every keyframe, so that the model drawn into each keyframe covers
-the object's mask. A capture may also keep the video frames between its keyframes
-(in-between frames): no tool shows, scores or asks poses of them, but `track` follows the
-object through them from one keyframe to the next (a 150° turn between keyframes is a few
-degrees a video frame), so each keyframe arrives in the basin the motion carries it to; the
-basin of the whole sequence (which way up, which side is which) is still yours to check.
+the object's mask. A capture may also keep the video frames between its keyframes:
+no tool shows or scores them, but `track` follows the object through them, so each
+keyframe arrives in the basin the motion carries it to; the basin of the whole sequence
+(which way up, which side is which) is still yours to check.
 
 - The model is `scene.rhai`: named parts built from primitives, joined by revolute or
   prismatic joints with limits (the API is at the end of this document). Real sizes come
@@ -57,10 +56,9 @@ Alternate two kinds of steps; **each step changes the shape or the poses, never 
    declared as parameters, `param("depth", 0.9, 0.7, 1.1)`, and fitted with `fit_shape`
    (only the parameters you name move, within their bounds, against the committed poses);
    its reply groups the residuals by viewing direction (frames face-on to each model axis,
-   and the size change along X, Y, Z they want); each round also tries the step those
-   residuals ask for, and the reply names a wanted change no fitted parameter makes: when
-   the fit comes back to its start and the frames want one axis longer than another, a
-   fixed proportion the fitted parameters do not set is wrong, so change it in the script.
+   and the size change along X, Y, Z they want; each round tries that change): a wanted
+   change the reply names as made by no fitted parameter is a fixed proportion in the
+   script that is wrong, so change it there.
    `scale` estimates metres per model unit (from depth, camera parallax, a size you state,
    or, with none of these, the hands holding the object: `hand`, about ±10–20%) and
    rescales the poses.
@@ -77,27 +75,20 @@ Alternate two kinds of steps; **each step changes the shape or the poses, never 
    commit the candidate you believe with `pose_commit` (the search's report and the
    candidate's rank). A high IoU on a wrong pose is still
    wrong: a mirror or 180° flip of a symmetric-looking object can score well. `oapply` and
-   `osweep` rows read `asked → where it ended`: the turn from the frame's current pose as
-   `rx;ry;rz` (the language `oapply` takes), the final joint states, and in brackets the
-   whole turn as an angle about an axis; commit by the row, never by the asked label's
-   angle. Every candidate of a preset or a set is drawn; a note says which sheet page holds
+   `osweep` rows read `asked → where it ended` (the turn from the frame's pose as
+   `rx;ry;rz`, the final joint states, the whole turn as an angle about an axis); commit by
+   the row, never by the asked label. Every candidate of a preset or a set is drawn; a note says which sheet page holds
    which ranks. `track` runs the automatic tracker over every keyframe; use it once the
    shape is right to start the poses. `track` with `from: "pose.json"` refines the current
    poses and names every frame it moved to another basin (turned over 45° from its pose
    there, with the IoU before and after and the pass that moved it); with
    `keep_basins: true` it only polishes, keeping every frame within 45° of rotation (half a
    quarter turn, so no flip or twin) and 30° of joint of the pose you settled.
-   `bake` paints the model from the video, and `track` with `bake: true` paints it from the
-   keyframes whose outline alone settles their pose and tracks the others again with that
-   print. Baking helps where the shape decides the pose in some keyframes and not in
-   others: a mug whose outline differs top to bottom, its handle in view in some
-   keyframes and hidden in others. It hurts when a
-   keyframe it reads is in a wrong pose: the error becomes the model's print, and every
-   later search agrees with it; both refuse when the keyframes they read disagree (named).
-   It cannot break a symmetry that every keyframe shares: a plain can is up-down ambiguous
-   in all of them, and `track` with `bake: true` then bakes nothing and says so (measured
-   2026-12-04: an uncoloured can and an uncoloured mug whose cup is the same upside down
-   settled none of 20 keyframes; the mug with its print as a texture tracked to 1.15°).
+   `bake` paints the model from the video; `track` with `bake: true` paints it from the
+   keyframes whose outline alone settles their pose and tracks the rest with that print
+   (a mug whose handle shows in some keyframes). Baked from a wrong pose, the error
+   becomes the print: both refuse when the keyframes they read disagree, and nothing is
+   baked where every keyframe shares a symmetry (a plain can, upside down).
 3. Keep notes with `notes`: what the object is, which parts move, what you ruled out. Notes
    survive when older images leave your context.
 
@@ -128,14 +119,11 @@ part (a lid at its joint state), so you need not compute it from pose.json.
   background, one sheet per joint state (each joint's min, median and max over the
   keyframes unless you ask for others); look for parts floating, intersecting, or missing
   from the back, and for joints that move the wrong part.
-- **mechanism**: each joint swept through its range twice, about the axis the scene
-  declares and about the negated axis, as two arms labelled A and B (one sheet each; which
-  is declared is not shown), the other joints at rest, from two views 40° off the joint's
-  axis, the framing fixed per joint so only the motion differs; one column per state
-  (both ends of the range and the interior states, labelled with their value), one row per
-  view; with the keyframe where the joint is most open. One arm opens the part the way the
-  frames show; the other swings it the mirror way (a lid into the box, a door through the
-  wall).
+- **mechanism**: each joint swept through its range about the declared axis and about
+  the negated one, as arms A and B (which is declared is not shown), the other joints at
+  rest, two views 40° off the axis, one column per state (labelled with its value), beside
+  the keyframe where the joint is most open. One arm opens the part the way the frames
+  show; the other swings it the mirror way (a lid into the box).
 - Every image is at most {MAX_SIDE} px on its long side and {MAX_MP} megapixels; larger
   sets come as several sheets (pages), never one stretched image.
 - **temporal plot**: rotation and translation from keyframe to keyframe after removing the

@@ -458,6 +458,52 @@ pub struct TrackBakeReport {
     pub stored: Option<PathBuf>,
 }
 
+impl TrackBakeReport {
+    /// The bake's lines for a person or a model: which keyframes settled, what became of the
+    /// bake and the frames it moved (`track --bake` prints them; the `track` tool replies
+    /// with them). Where it was stored is the caller's to say.
+    pub fn lines(&self) -> Vec<String> {
+        let settled: Vec<&str> = self
+            .frames
+            .iter()
+            .filter(|f| f.settled)
+            .map(|f| f.frame.as_str())
+            .collect();
+        let mut lines = vec![format!(
+            "bake: {} of {} keyframe(s) settled by the outline alone{}",
+            settled.len(),
+            self.frames.len(),
+            if settled.is_empty() {
+                String::new()
+            } else {
+                format!(" ({})", settled.join(", "))
+            }
+        )];
+        match self.outcome {
+            TrackBakeOutcome::TooFewSettled => lines.push(format!(
+                "bake: nothing baked ({} needed): every other keyframe's outline is explained as well by another basin (a symmetry of the shape that only colours can break); the plain track is kept",
+                self.min_settled
+            )),
+            TrackBakeOutcome::Refused => lines.push(format!(
+                "bake: refused: settled keyframe(s) {} disagree with the others; the plain track is kept",
+                self.disagreeing.join(", ")
+            )),
+            TrackBakeOutcome::Used => {
+                lines.push(format!(
+                    "bake: baked from {} ({} of {} texels seen); {} keyframe(s) moved to another basin by the baked colours{}",
+                    self.baked_from.join(", "),
+                    self.seen_texels.unwrap_or(0),
+                    self.surface_texels.unwrap_or(0),
+                    self.basin_moves.len(),
+                    if self.basin_moves.is_empty() { "" } else { ":" }
+                ));
+                lines.extend(self.basin_moves.iter().map(|m| format!("  {}", m.line())));
+            }
+        }
+        lines
+    }
+}
+
 /// One frame of a [`BakeReport`].
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]

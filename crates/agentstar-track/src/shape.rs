@@ -465,6 +465,17 @@ pub fn size_wants(
     poses: &[GenPose],
     scale: f64,
 ) -> [Option<f64>; 3] {
+    shape_view_residuals(model, frames, poses, scale).all.want
+}
+
+/// The silhouettes of `model` at `poses` against the frames' masks, grouped by viewing
+/// direction ([`crate::proportion::view_residuals`]).
+pub fn shape_view_residuals(
+    model: &ObjectModel,
+    frames: &[ShapeFrame<'_>],
+    poses: &[GenPose],
+    scale: f64,
+) -> crate::proportion::ViewResiduals {
     let silhouettes: Vec<agentstar_render::BitMask> = frames
         .par_iter()
         .zip(poses)
@@ -493,7 +504,7 @@ pub fn size_wants(
             }
         })
         .collect();
-    crate::proportion::view_residuals(&views).all.want
+    crate::proportion::view_residuals(&views)
 }
 
 /// How each parameter changes the model's extents along X, Y, Z, relative to them, per unit
@@ -546,9 +557,12 @@ struct Guided {
 /// The parameter change whose extent change best gives the sizes `wanted` (relative, along
 /// X, Y, Z) up to a common scale, by least squares over the measured axes, clamped to the
 /// bounds; and the wanted changes left unmet beyond [`MIN_WANT`]. Where some are unmet and
-/// more than two axes are measured, the step is solved again without the axis left most
-/// unmet, so that a change no parameter makes does not pull the common scale, and with it
-/// the parameters, away from what the other axes say.
+/// more than two axes are measured, the step is solved again without one of the unmet axes
+/// that no parameter changes, so that a change no parameter makes does not pull the common scale, and with it the
+/// parameters, away from what the other axes say. Which one: the axis whose leaving out
+/// needs the smallest change of the parameters (relative to their ranges), the first axis on
+/// a tie — of two explanations the frames cannot tell apart, the one that keeps the model as
+/// it is.
 fn solve_step(
     params: &[ShapeParam],
     values: &[f64],
@@ -561,17 +575,28 @@ fn solve_step(
     }
     let step = solve_over(params, values, jacobian, wanted, &axes);
     let unmet = unmet_after(params, jacobian, wanted, &axes, &step);
-    let worst = unmet
-        .iter()
-        .max_by(|a, b| a.want.abs().total_cmp(&b.want.abs()))
-        .map(|u| u.axis);
-    match worst {
-        Some(w) if axes.len() > 2 => {
-            let rest: Vec<usize> = axes.iter().copied().filter(|&b| b != w).collect();
-            (solve_over(params, values, jacobian, wanted, &rest), unmet)
-        }
-        _ => (step, unmet),
+    if axes.len() <= 2 || unmet.is_empty() {
+        return (step, unmet);
     }
+    let size = |step: &[f64]| -> f64 {
+        step.iter()
+            .zip(params)
+            .map(|(d, p)| (d / (p.max - p.min).max(1e-12)).powi(2))
+            .sum()
+    };
+    let mut best: Option<(f64, Vec<f64>)> = None;
+    // Only an axis no parameter changes can be left out: one a parameter does change is
+    // unmet because a bound stopped it, and the step must still go as far as it can.
+    let untouched = |b: usize| jacobian.iter().flatten().all(|c| c[b].abs() <= 1e-9);
+    for u in unmet.iter().filter(|u| untouched(u.axis)) {
+        let rest: Vec<usize> = axes.iter().copied().filter(|&b| b != u.axis).collect();
+        let candidate = solve_over(params, values, jacobian, wanted, &rest);
+        let cost = size(&candidate);
+        if best.as_ref().is_none_or(|(c, _)| cost < *c - 1e-12) {
+            best = Some((cost, candidate));
+        }
+    }
+    (best.map_or(step, |(_, s)| s), unmet)
 }
 
 /// The least-squares step over the measured axes `axes` (at least two), clamped.
@@ -722,6 +747,16 @@ mod tests {
     use agentstar_geom::{KinematicTree, Part, UnitQuaternion, Vector3};
     use agentstar_render::{PosedModel, SilhouetteRenderer};
 
+    /// The six views (roll, pitch, yaw in radians) the fits below see their object from.
+    const VIEWS: [(f64, f64, f64); 6] = [
+        (0.3, 0.2, 0.4),
+        (-0.5, 0.1, 1.2),
+        (0.9, -0.3, -0.6),
+        (0.2, 0.7, 2.4),
+        (-1.1, 0.4, 0.2),
+        (0.6, -0.8, -1.9),
+    ];
+
     /// A body width × depth × 0.4 centred on the origin with a handle bar of `handle` height
     /// on its front face (a deeper body moves the handle: the body, the larger part, keeps
     /// the origin where it is).
@@ -746,15 +781,7 @@ mod tests {
         let true_model = model(&truth).expect("model");
         let camera = PinholeCamera::new(300.0, 300.0, 160.0, 120.0, 320, 240).expect("camera");
         let scale = 0.2;
-        let rotations = [
-            (0.3, 0.2, 0.4),
-            (-0.5, 0.1, 1.2),
-            (0.9, -0.3, -0.6),
-            (0.2, 0.7, 2.4),
-            (-1.1, 0.4, 0.2),
-            (0.6, -0.8, -1.9),
-        ];
-        let targets: Vec<ScoreTarget> = rotations
+        let targets: Vec<ScoreTarget> = VIEWS
             .iter()
             .map(|&(r, p, y)| {
                 let pose = ObjectPose::new(
@@ -769,7 +796,7 @@ mod tests {
             })
             .collect();
         // Poses a little off, as committed poses made with the wrong model would be.
-        let frames: Vec<ShapeFrame<'_>> = rotations
+        let frames: Vec<ShapeFrame<'_>> = VIEWS
             .iter()
             .zip(&targets)
             .enumerate()
@@ -839,15 +866,7 @@ mod tests {
         let truth = slab(true_x).expect("truth");
         let camera = PinholeCamera::new(300.0, 300.0, 160.0, 120.0, 320, 240).expect("camera");
         let scale = 0.2;
-        let rotations = [
-            (0.3, 0.2, 0.4),
-            (-0.5, 0.1, 1.2),
-            (0.9, -0.3, -0.6),
-            (0.2, 0.7, 2.4),
-            (-1.1, 0.4, 0.2),
-            (0.6, -0.8, -1.9),
-        ];
-        let true_poses: Vec<GenPose> = rotations
+        let true_poses: Vec<GenPose> = VIEWS
             .iter()
             .map(|&(r, p, y)| GenPose {
                 pose: ObjectPose::new(

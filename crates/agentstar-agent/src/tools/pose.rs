@@ -101,49 +101,9 @@ pub(super) fn track_text(
     text
 }
 
-/// `track`'s bake (`bake: true`) for an MCP client: which keyframes settled, what became of
-/// the bake, and the frames it moved.
+/// `track`'s bake (`bake: true`) for an MCP client: the report's own lines.
 fn bake_text(b: &agentstar_reports::TrackBakeReport) -> String {
-    use agentstar_reports::TrackBakeOutcome;
-    let settled: Vec<&str> = b
-        .frames
-        .iter()
-        .filter(|f| f.settled)
-        .map(|f| f.frame.as_str())
-        .collect();
-    let mut text = format!(
-        "bake: {} of {} keyframe(s) settled by the outline alone{}\n",
-        settled.len(),
-        b.frames.len(),
-        if settled.is_empty() {
-            String::new()
-        } else {
-            format!(" ({})", settled.join(", "))
-        }
-    );
-    match b.outcome {
-        TrackBakeOutcome::TooFewSettled => text.push_str(&format!(
-            "bake: nothing baked ({} needed): the other keyframes' outlines fit another basin as well (a symmetry only a print can break); the plain track is kept\n",
-            b.min_settled
-        )),
-        TrackBakeOutcome::Refused => text.push_str(&format!(
-            "bake: refused: settled keyframe(s) {} disagree with the others; the plain track is kept\n",
-            b.disagreeing.join(", ")
-        )),
-        TrackBakeOutcome::Used => {
-            text.push_str(&format!(
-                "bake: baked from {} ({} of {} texels seen); {} keyframe(s) moved to another basin by the baked colours:\n",
-                b.baked_from.join(", "),
-                b.seen_texels.unwrap_or(0),
-                b.surface_texels.unwrap_or(0),
-                b.basin_moves.len()
-            ));
-            for m in &b.basin_moves {
-                text.push_str(&format!("  {}\n", m.line()));
-            }
-        }
-    }
-    text
+    b.lines().iter().map(|l| format!("{l}\n")).collect()
 }
 
 #[derive(Debug, Deserialize, JsonSchema)]

@@ -406,30 +406,7 @@ fn view_residuals(
 ) -> agentstar_reports::fit::ViewResiduals {
     use agentstar_reports::fit as r;
     use agentstar_track::proportion as p;
-    let silhouettes: Vec<agentstar_render::BitMask> = frames
-        .iter()
-        .zip(&fit.poses)
-        .map(|(f, g)| silhouette(&fit.model, g, scale, &f.camera))
-        .collect();
-    let views: Vec<p::ViewFrame<'_>> = frames
-        .iter()
-        .zip(&fit.poses)
-        .zip(&silhouettes)
-        .map(|((f, g), sil)| {
-            let bounds = fit.model.posed_bounds(&g.states);
-            p::ViewFrame {
-                name: f.name.clone(),
-                camera: f.camera,
-                mask: f.target.mask(),
-                keep: f.target.keep(),
-                silhouette: sil,
-                camera_from_object: g.pose.with_scale(scale),
-                centre: bounds.center(),
-                size: bounds.extent(),
-            }
-        })
-        .collect();
-    let v = p::view_residuals(&views);
+    let v = agentstar_track::shape::shape_view_residuals(&fit.model, frames, &fit.poses, scale);
     let wants = |w: &p::AxisWants| r::AxisWants {
         want: w.want,
         equations: w.equations,

@@ -16,7 +16,7 @@ use agentstar_render::ScoreTarget;
 use agentstar_reports::{BasinMoveRow, SettledRow, TrackBakeOutcome, TrackBakeReport, TrackReport};
 use agentstar_track::bake::BakeConfig;
 use agentstar_track::tracker::{
-    track_from_video, track_video, track_with_bake, BakeOutcome, BakePass, BasinPolicy,
+    track_from_video, track_video, track_with_bake, BakeOutcome, BakePass, BasinMove, BasinPolicy,
     TrackConfig, TrackFrame, TrackObserver, TrackSwitches, BASIN_JOINT_DEG, BASIN_ROTATION_DEG,
     MIN_SETTLED,
 };
@@ -295,18 +295,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
                 &cfg,
                 &observe,
             )?;
-            basin_moves = w
-                .basin_moves
-                .iter()
-                .map(|m| BasinMoveRow {
-                    frame: capture.frames[m.frame].name.clone(),
-                    rotation_deg: m.rotation_deg,
-                    bound_deg: BASIN_ROTATION_DEG,
-                    iou_before: m.iou_before,
-                    iou_after: m.iou_after,
-                    pass: m.pass.clone(),
-                })
-                .collect();
+            basin_moves = basin_move_rows(&w.basin_moves, |k| capture.frames[k].name.clone());
             w.result
         }
         _ => track_video(&model.model, scale, &frames, &between, &cfg, &observe)?,
@@ -463,18 +452,7 @@ fn bake_report(
         }
         BakeOutcome::Used(b, w) => {
             report.outcome = TrackBakeOutcome::Used;
-            report.basin_moves = w
-                .basin_moves
-                .iter()
-                .map(|m| BasinMoveRow {
-                    frame: name(m.frame),
-                    rotation_deg: m.rotation_deg,
-                    bound_deg: BASIN_ROTATION_DEG,
-                    iou_before: m.iou_before,
-                    iou_after: m.iou_after,
-                    pass: m.pass.clone(),
-                })
-                .collect();
+            report.basin_moves = basin_move_rows(&w.basin_moves, name);
             b
         }
     };
@@ -498,45 +476,25 @@ fn bake_report(
     Ok(report)
 }
 
-/// `track --bake`'s lines for people.
-fn print_bake(b: &TrackBakeReport) {
-    let settled: Vec<&str> = b
-        .frames
+/// The report's rows of the frames a warm start moved to another basin, named by `name`.
+fn basin_move_rows(moves: &[BasinMove], name: impl Fn(usize) -> String) -> Vec<BasinMoveRow> {
+    moves
         .iter()
-        .filter(|f| f.settled)
-        .map(|f| f.frame.as_str())
-        .collect();
-    println!(
-        "bake: {} of {} frame(s) settled by the outline alone{}",
-        settled.len(),
-        b.frames.len(),
-        if settled.is_empty() {
-            String::new()
-        } else {
-            format!(" ({})", settled.join(", "))
-        }
-    );
-    match b.outcome {
-        TrackBakeOutcome::TooFewSettled => println!(
-            "bake: nothing baked ({} needed): every other frame's outline is explained as well by another basin (a symmetry of the shape that only colours can break); the plain track is kept",
-            b.min_settled
-        ),
-        TrackBakeOutcome::Refused => println!(
-            "bake: refused: settled frame(s) {} disagree with the others; the plain track is kept",
-            b.disagreeing.join(", ")
-        ),
-        TrackBakeOutcome::Used => {
-            println!(
-                "bake: baked from {} ({} of {} texels seen); {} frame(s) moved to another basin by the baked colours",
-                b.baked_from.join(", "),
-                b.seen_texels.unwrap_or(0),
-                b.surface_texels.unwrap_or(0),
-                b.basin_moves.len()
-            );
-            for m in &b.basin_moves {
-                println!("  {}", m.line());
-            }
-        }
+        .map(|m| BasinMoveRow {
+            frame: name(m.frame),
+            rotation_deg: m.rotation_deg,
+            bound_deg: BASIN_ROTATION_DEG,
+            iou_before: m.iou_before,
+            iou_after: m.iou_after,
+            pass: m.pass.clone(),
+        })
+        .collect()
+}
+
+/// `track --bake`'s lines for people: the report's own, and where the bake went.
+fn print_bake(b: &TrackBakeReport) {
+    for line in b.lines() {
+        println!("{line}");
     }
     match &b.stored {
         Some(p) => println!("bake: stored in {}", p.display()),
