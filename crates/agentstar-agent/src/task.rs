@@ -97,7 +97,7 @@ Alternate two kinds of steps; **each step changes the shape or the poses, never 
 The tool `render` draws these views (`views`, e.g. `"compare,side"`; default overlay and
 compare; compare and side are cropped around the object, overlay shows the whole frame).
 `zoom` (up to 8) and `crop` (`mask`, or a box `x0,y0,x1,y1` in frame pixels) apply to every
-view and sheet of `render`, to `frames` and to the candidate sheets of `sweep`, `apply`,
+view of `render` (its sheets draw each crop at one size), to `frames` and to the candidate sheets of `sweep`, `apply`,
 `osweep`, `oapply` and `oapply_all`: to judge a detail of a few pixels (a drinking hole, a
 letter) or to tell two candidates apart by it, crop a box around it and zoom. `render` and `score` also say per keyframe
 which side of the model faces the camera (`+Z toward the camera (12° off the ray; …)`,

@@ -90,6 +90,14 @@ fn example_and_every_subcommand_on_it() {
             .map(|n| fv.join(n).display().to_string())
     );
     assert!(!fv.join("sheet_overlay.png").exists());
+    // The sheets draw every crop at one size whatever the zoom, and say so (play-test 16).
+    let notes = v["notes"].as_array().expect("notes");
+    assert!(
+        notes.iter().any(|n| n
+            .as_str()
+            .is_some_and(|n| n.contains("the zoom asked (2.00) is in the per-frame images"))),
+        "{notes:?}"
+    );
     // The compare sheet's crops keep the comparison's colours (nearest-neighbour zoom): the
     // agreement and the background, and no blend of them.
     let sheet = image::open(fv.join("sheet_compare.png"))

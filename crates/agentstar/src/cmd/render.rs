@@ -379,6 +379,15 @@ pub fn run(a: Args) -> Result<ExitCode> {
         rows.push(r.row);
     }
     let mut sheets = Vec::new();
+    // A sheet draws every frame's crop at one size, whatever the zoom (play-test 16: a
+    // `zoom: 2` side sheet came back no larger, the reply saying zoom 2.00).
+    let sheet_kinds = [&overlay_tiles, &compare_tiles, &frame_tiles, &side_tiles];
+    if crop_all && a.zoom > 1.0 && sheet_kinds.iter().any(|t| !t.is_empty()) {
+        notes.push(format!(
+            "the sheets draw each frame's crop at {FRAME_TILE_PX} px on its long side whatever the zoom; the zoom asked ({:.2}) is in the per-frame images (after the sheets, within the image limits), or crop a smaller box for a sheet that shows more of a detail",
+            a.zoom
+        ));
+    }
     let compare_title = compare_sheet_title(has_hand);
     for (tiles, stem, title) in [
         (&overlay_tiles, "sheet_overlay", "render over frame"),
