@@ -170,14 +170,14 @@ pub fn run(a: Args) -> Result<ExitCode> {
             uncertainty = Some(h.uncertainty);
             palm_px = h.palm_px;
             e.notes.push(format!(
-                "assumes adult hands (palm breadth {:.1} ± {:.1} cm, approximate anthropometric figures) holding the object, so that the hand is at its depth: ± {:.0}% (one standard deviation; the truth lies within twice that about 95% of the time). Depth (`--from depth`) where the capture has it, parallax with metric cameras around an object that stays put, or a size you know (`--from size`) are better where they apply",
+                "assumes adult hands (palm breadth {:.1} ± {:.1} cm, approximate anthropometric figures) holding the object, so that the hand is at its depth: ± {:.0}% (one standard deviation; the truth lies within twice that about 95% of the time). Depth (`--from depth`, method \"depth\" in the agent's scale tool) where the capture has it, parallax with metric cameras around an object that stays put (`--from parallax`, \"parallax\"), or a size you know (`--from size`, \"size\" with `metres`) are better where they apply",
                 100.0 * PALM_BREADTH_MEAN_M,
                 100.0 * PALM_BREADTH_SD_M,
                 100.0 * h.uncertainty
             ));
             if s.capture.manifest.depth != "none" {
                 e.notes.push(
-                    "this capture has depth: `--from depth` measures the scale, the hand only estimates it".into(),
+                    "this capture has depth: `--from depth` (method \"depth\") measures the scale, the hand only estimates it".into(),
                 );
             }
             (ScaleMethod::Hand, e, weak)
