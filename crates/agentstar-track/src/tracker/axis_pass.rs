@@ -108,7 +108,7 @@ pub(super) fn axis_pass(
         .map(|(i, &deg)| format!("{} {:+.0}°", frames[i].name, signed_deg(deg)))
         .collect();
     log.push(format!(
-        "axis: the model's round body turns about its {}; the angles about it chosen by colour over all frames: {}",
+        "axis: the model's round body turns about its {}; the angles about it chosen by colour over all frames (turns about that axis, which leave the outline alike: the print decides, not a change of basin): {}",
         crate::temporal::axis_label(&[axis.axis.x, axis.axis.y, axis.axis.z]),
         if moved.is_empty() {
             "every frame kept".to_string()
