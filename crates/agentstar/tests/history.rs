@@ -393,6 +393,11 @@ fn finish_takes_categorised_reasons_and_refuses_too_many_frames_under_the_gate()
         "pose_restore",
         json!({"version": best.version, "frames": "000000"}),
     );
+    // The run had finished: a change after it says that the gates must be checked again.
+    assert!(
+        McpClient::text_of(&r).contains("this run had finished (`finish` passed)"),
+        "{r}"
+    );
     let rr: RestoreReport =
         serde_json::from_value(r["result"]["structuredContent"].clone()).expect("restore");
     assert_eq!(rr.frames, ["000000.png"]);

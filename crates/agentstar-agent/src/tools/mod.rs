@@ -96,6 +96,11 @@ pub const MAX_IMAGES_RETURNED: usize = 8;
 
 use agentstar_requests::FRAMES;
 
+/// Said after a call that changed the poses or the scene of a run whose `finish` had passed
+/// (play-test 16 baked after finishing, and nothing said the gates were checked on what the
+/// run no longer ends with).
+pub const AFTER_FINISH: &str = "\nnote: this run had finished (`finish` passed); this call changed what the gates checked: call `finish` again so that they hold for what the run ends with.";
+
 /// One tool: its name, kind, what it writes, its arguments and its handler.
 pub trait Tool {
     const NAME: &'static str;
@@ -499,15 +504,22 @@ impl Toolbox {
             })
         };
         if def.writes == Writes::Nothing {
-            run()
-        } else {
-            // A poisoned lock only means another writer panicked; the files are whole.
-            let _guard = self
-                .writer
-                .lock()
-                .unwrap_or_else(std::sync::PoisonError::into_inner);
-            run()
+            return run();
         }
+        // A poisoned lock only means another writer panicked; the files are whole.
+        let _guard = self
+            .writer
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner);
+        let mut out = run();
+        if matches!(def.writes, Writes::Poses | Writes::Scene)
+            && def.name != Finish::NAME
+            && !out.is_error
+            && self.run.state().is_ok_and(|s| s.finished)
+        {
+            out.text.push_str(AFTER_FINISH);
+        }
+        out
     }
 
     /// Whether this toolbox serves the tool called `name`: every tool but `critic`, which
