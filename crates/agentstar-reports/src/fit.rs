@@ -281,6 +281,33 @@ pub struct FitReport {
     /// What the last residual-guided step found no fitted parameter could make.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub unmet: Vec<UnmetAxis>,
+    /// Parameters the masks cannot set: over their whole range the mean visible IoU moves
+    /// less than the fit can tell apart.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub unseen: Vec<UnseenParam>,
+}
+
+/// A fitted parameter the masks cannot set.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct UnseenParam {
+    pub name: String,
+    /// The most the mean visible IoU moves with it at either end of its range.
+    pub iou_span: f64,
+}
+
+/// The line naming the parameters the masks cannot set; `None` when there are none.
+pub fn unseen_line(unseen: &[UnseenParam]) -> Option<String> {
+    (!unseen.is_empty()).then(|| {
+        format!(
+            "the masks cannot set {}: over the whole range the mean IoU moves by less than the fit can tell, so the fitted value is what the search left, not a measurement. Set it from the frames' print or details (`frames` with `model: true`, a bake) and leave it out of the fit.\n",
+            unseen
+                .iter()
+                .map(|u| format!("`{}` (IoU ±{:.4})", u.name, u.iou_span))
+                .collect::<Vec<_>>()
+                .join(", ")
+        )
+    })
 }
 
 impl FitReport {

@@ -207,6 +207,35 @@ fn fit_shape_names_the_fixed_proportion_its_parameters_cannot_reach() {
     );
 }
 
+/// A parameter the masks cannot set (the height of a thin label on the box's front, whose
+/// outline moves only by the label's 4-thousandths lip) is named as such, beside one they
+/// can (the box's height), which is not (play-test 16 fitted a band's height on a can and
+/// believed it).
+#[test]
+fn fit_shape_names_a_parameter_the_masks_cannot_set() {
+    let dir = tempfile::tempdir().expect("tmp");
+    let script = format!(
+        "{}let lz = param(\"label_z\", 0.0, -0.08, 0.08);\npart(\"label\", box(0.3, 0.004, 0.12).translate(0, -d / 2 - 0.002, 0.2 - h / 2 + lz).color(\"#335c67\"));\n",
+        box_script("1.0", "0.7", "0.48")
+    );
+    let (_cap, run) = run_with(dir.path(), 6, &script);
+    let (mut c, _) = McpClient::initialised(&run);
+    c.call(
+        2,
+        "fit_shape",
+        json!({"params": ["height", "label_z"], "rounds": 1}),
+    );
+    let (resp, _) = c.response(2);
+    assert_eq!(resp["result"]["isError"], false, "{resp}");
+    let body = McpClient::text_of(&resp);
+    let r: FitReport =
+        serde_json::from_value(resp["result"]["structuredContent"].clone()).expect("report");
+    let unseen: Vec<&str> = r.unseen.iter().map(|u| u.name.as_str()).collect();
+    assert_eq!(unseen, ["label_z"], "{body}");
+    assert!(r.unseen[0].iou_span < 0.002, "{:?}", r.unseen);
+    assert!(body.contains("the masks cannot set `label_z`"), "{body}");
+}
+
 #[test]
 fn a_scene_edit_that_moves_the_centre_keeps_every_keyframes_iou() {
     let dir = tempfile::tempdir().expect("tmp");

@@ -292,6 +292,9 @@ impl Toolbox {
         if let Some(line) = agentstar_reports::fit::unmet_line(&report.unmet) {
             text.push_str(&line);
         }
+        if let Some(line) = agentstar_reports::fit::unseen_line(&report.unseen) {
+            text.push_str(&line);
+        }
         if let Some(v) = &report.views {
             text.push_str(&agentstar_reports::fit::views_text(v));
             if !v.verdict.is_empty() && fit_saves_nothing(&report).is_some() {

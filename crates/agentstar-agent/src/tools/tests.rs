@@ -106,6 +106,7 @@ fn a_fit_is_saved_only_when_a_parameter_moved_and_the_iou_rose() {
             views: None,
             held_part: None,
             unmet: vec![],
+            unseen: vec![],
         }
     };
     // The play-test's case: the IoU rose (the poses were refined) but the width stayed.

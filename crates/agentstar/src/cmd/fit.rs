@@ -365,6 +365,15 @@ pub fn run(a: Args) -> Result<ExitCode> {
                 want: u.want,
             })
             .collect(),
+        unseen: params
+            .iter()
+            .zip(&fit.iou_span)
+            .filter(|(_, &span)| span < agentstar_track::shape::UNSEEN_IOU)
+            .map(|(p, &span)| agentstar_reports::fit::UnseenParam {
+                name: p.name.clone(),
+                iou_span: span,
+            })
+            .collect(),
     };
     if a.write {
         agentstar_data::atomic::write_atomic(model_path, fitted_source.as_bytes())?;
@@ -474,6 +483,9 @@ fn print_summary(r: &FitReport) {
         r.seconds
     );
     if let Some(line) = agentstar_reports::fit::unmet_line(&r.unmet) {
+        print!("{line}");
+    }
+    if let Some(line) = agentstar_reports::fit::unseen_line(&r.unseen) {
         print!("{line}");
     }
     if let Some(v) = &r.views {
