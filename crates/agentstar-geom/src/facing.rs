@@ -30,6 +30,10 @@ pub struct PartSide {
     pub side: Side,
     /// True when the joints move the part from its rest place at these states.
     pub moved: bool,
+    /// Pixels of the part in view in the frame's render (not hidden by other parts), where
+    /// the caller rendered it: a part turned toward the camera may still be hidden (a
+    /// label on the far side of a can).
+    pub pixels_seen: Option<u64>,
 }
 
 /// The model's side and its parts' sides toward the camera at one pose.
@@ -92,6 +96,7 @@ pub fn facing(
                 part: part.name.clone(),
                 side: side_of(&toward),
                 moved: t.rotation.angle() > 1e-9 || t.translation.vector.norm() > 1e-9,
+                pixels_seen: None,
             })
         })
         .collect();
@@ -140,10 +145,15 @@ impl Facing {
                 .take(max_parts)
                 .map(|p| {
                     format!(
-                        "`{}` {} at {:.0}°{}",
+                        "`{}` {} at {:.0}°{}{}",
                         p.part,
                         p.side.axis,
                         p.side.angle.to_degrees(),
+                        match p.pixels_seen {
+                            Some(0) => " (hidden: 0 px in view)".to_string(),
+                            Some(n) => format!(" ({n} px in view)"),
+                            None => String::new(),
+                        },
                         if p.moved { " (moved by its joint)" } else { "" }
                     )
                 })
@@ -239,6 +249,17 @@ mod tests {
             line.contains("`lid`") && line.contains("moved by its joint"),
             "{line}"
         );
+        assert!(!line.contains("px in view"), "no render, no pixels: {line}");
+        // Where the caller rendered the frame, each part says how much of it is in view, and
+        // a part turned toward the camera but hidden says so.
+        let mut seen = f.clone();
+        for p in &mut seen.parts {
+            p.pixels_seen = Some(if p.part == "lid" { 0 } else { 1234 });
+        }
+        let line = seen.line(4);
+        assert!(line.contains("`body` +Z at "), "{line}");
+        assert!(line.contains("(1234 px in view)"), "{line}");
+        assert!(line.contains("(hidden: 0 px in view)"), "{line}");
         // A camera at the centre has no side toward it.
         let inside = Similarity {
             translation: -(pose.rotation * model.posed_bounds(&[0.0]).center().coords),

@@ -35,6 +35,9 @@ pub struct PartFacing {
     pub angle_deg: f64,
     /// True when its joints move it from its rest place in this frame.
     pub moved: bool,
+    /// Its pixels in view in the frame's render (not hidden by other parts).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub pixels_seen: Option<u64>,
 }
 
 /// Which side of the posed model faces the camera in one frame: the model's signed axis

@@ -147,11 +147,30 @@ impl Session {
     /// the camera sits at the model's centre.
     pub fn facing(&self, i: usize) -> Option<agentstar_reports::view::FrameFacing> {
         let p = &self.poses[i].generalised;
-        let f = agentstar_geom::facing::facing(
+        let mut f = agentstar_geom::facing::facing(
             &self.model.model,
             &p.states,
             &p.pose.with_scale(self.scale()),
         )?;
+        // Each part's pixels in view: a part turned toward the camera may still be hidden
+        // (play-test 16 read `label +Y at 23°` for a label on the far side).
+        let seen = agentstar_render::scene::visible_part_pixels(
+            &self.model.model,
+            [(
+                &self.capture.frames[i].camera,
+                p.pose.with_scale(self.scale()),
+                p.states.as_slice(),
+            )],
+        );
+        for side in &mut f.parts {
+            side.pixels_seen = self
+                .model
+                .model
+                .parts
+                .iter()
+                .position(|m| m.name == side.part)
+                .and_then(|k| seen.get(k).copied());
+        }
         Some(agentstar_reports::view::FrameFacing {
             frame: self.capture.frames[i].name.clone(),
             toward: f.model.axis.to_string(),
@@ -165,6 +184,7 @@ impl Session {
                     toward: p.side.axis.to_string(),
                     angle_deg: p.side.angle.to_degrees(),
                     moved: p.moved,
+                    pixels_seen: p.pixels_seen,
                 })
                 .collect(),
             line: f.line(6),

@@ -169,7 +169,8 @@ fn render_and_frames_zoom_into_a_box_and_say_which_side_faces_the_camera() {
             body.lines()
                 .any(|l| l.trim_start().starts_with(&format!("{f}: "))
                     && l.contains("toward the camera")
-                    && l.contains("° off the ray")),
+                    && l.contains("° off the ray")
+                    && l.contains("px in view)")),
             "{f}: {body}"
         );
     }
