@@ -365,6 +365,11 @@ fn finish_takes_categorised_reasons_and_refuses_too_many_frames_under_the_gate()
     let mut c = Session::new(&run);
     let r = c.call("finish", json!({"unreachable": {"000000..000005": note}}));
     assert!(McpClient::text_of(&r).starts_with("All gates hold"), "{r}");
+    // What the colours say of the finished poses, beside the gates (play-test 16).
+    assert!(
+        McpClient::text_of(&r).contains("Colours (not a gate): the keyframes' colours against their neighbours' at these poses, NCC mean "),
+        "{r}"
+    );
     // The first frame's story, and its good pose back from version 1.
     let r = c.call("pose_history", json!({"frame": "000000"}));
     let fh: FrameHistoryReport =
