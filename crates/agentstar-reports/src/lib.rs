@@ -12,6 +12,7 @@
 
 pub mod fit;
 pub mod mechanism;
+pub mod track;
 pub mod view;
 
 pub use agentstar_data::history::{FrameVersion, HistoryEntry, HistoryRow};
@@ -21,6 +22,8 @@ use serde::{Deserialize, Serialize};
 use serde_json::Value;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
+
+pub use track::*;
 
 /// A report that does not read names its file.
 pub type Result<T, E = DataError> = std::result::Result<T, E>;
@@ -381,129 +384,6 @@ pub struct FrameAppearance {
     pub model_ncc: Option<f64>,
 }
 
-/// What `track --json` prints.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct TrackReport {
-    /// The pose file written.
-    pub poses: PathBuf,
-    pub seconds: f64,
-    pub evaluations: usize,
-    pub init_frame: String,
-    /// What the tracker did, frame by frame.
-    pub log: Vec<String>,
-    pub frames: Vec<FrameScore>,
-    pub sequence: SequenceScore,
-    /// The version of the pose file's history the result was recorded as.
-    #[serde(default)]
-    pub pose_version: Option<u64>,
-    /// `track --from --keep-basins`: every frame refined within its own basin.
-    #[serde(default)]
-    pub keep_basins: bool,
-    /// `track --from` without `--keep-basins`: the frames it moved to another basin (turned
-    /// further from their starting pose than the basin's bound), with the evidence.
-    #[serde(default)]
-    pub basin_moves: Vec<BasinMoveRow>,
-    /// `track --bake`: the frames the outline alone settles, the bake from them and the
-    /// frames the baked colours moved to another basin.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub bake: Option<TrackBakeReport>,
-}
-
-/// What became of `track --bake`'s bake.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "snake_case")]
-pub enum TrackBakeOutcome {
-    /// Baked from the settled frames and tracked again with the colours.
-    Used,
-    /// Too few frames settled by the outline alone: nothing baked, the plain track kept.
-    TooFewSettled,
-    /// The settled frames disagree with each other: nothing used, the plain track kept.
-    Refused,
-}
-
-/// One keyframe as `track --bake` judged it: does its outline alone settle its basin?
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct SettledRow {
-    pub frame: String,
-    /// The frame's score (gate IoU) at its plain-track pose.
-    pub iou: f64,
-    /// The best pose of another basin after refinement: how far it turns (degrees) and its
-    /// score; `None`: no pose of another basin came near.
-    pub rival_deg: Option<f64>,
-    pub rival_iou: Option<f64>,
-    pub settled: bool,
-}
-
-/// `track --bake`'s part of the track report.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct TrackBakeReport {
-    pub outcome: TrackBakeOutcome,
-    /// Every keyframe's verdict.
-    pub frames: Vec<SettledRow>,
-    /// The frames baked from (the settled ones with an image).
-    pub baked_from: Vec<String>,
-    /// The fewest settled frames a bake needs.
-    pub min_settled: usize,
-    /// Texels of the model's surface and how many the settled frames saw (none: nothing baked).
-    pub surface_texels: Option<usize>,
-    pub seen_texels: Option<usize>,
-    /// Settled frames that disagree with the others (the bake refused), the worst first.
-    pub disagreeing: Vec<String>,
-    /// The frames the baked colours moved to another basin (from the plain track's pose).
-    pub basin_moves: Vec<BasinMoveRow>,
-    /// Where the bake was stored (`--store-bake`); `None`: it lived in memory only.
-    pub stored: Option<PathBuf>,
-}
-
-impl TrackBakeReport {
-    /// The bake's lines for a person or a model: which keyframes settled, what became of the
-    /// bake and the frames it moved (`track --bake` prints them; the `track` tool replies
-    /// with them). Where it was stored is the caller's to say.
-    pub fn lines(&self) -> Vec<String> {
-        let settled: Vec<&str> = self
-            .frames
-            .iter()
-            .filter(|f| f.settled)
-            .map(|f| f.frame.as_str())
-            .collect();
-        let mut lines = vec![format!(
-            "bake: {} of {} keyframe(s) settled by the outline alone{}",
-            settled.len(),
-            self.frames.len(),
-            if settled.is_empty() {
-                String::new()
-            } else {
-                format!(" ({})", settled.join(", "))
-            }
-        )];
-        match self.outcome {
-            TrackBakeOutcome::TooFewSettled => lines.push(format!(
-                "bake: nothing baked ({} needed): every other keyframe's outline is explained as well by another basin (a symmetry of the shape that only colours can break); the plain track is kept",
-                self.min_settled
-            )),
-            TrackBakeOutcome::Refused => lines.push(format!(
-                "bake: refused: settled keyframe(s) {} disagree with the others; the plain track is kept",
-                self.disagreeing.join(", ")
-            )),
-            TrackBakeOutcome::Used => {
-                lines.push(format!(
-                    "bake: baked from {} ({} of {} texels seen); {} keyframe(s) moved to another basin by the baked colours{}",
-                    self.baked_from.join(", "),
-                    self.seen_texels.unwrap_or(0),
-                    self.surface_texels.unwrap_or(0),
-                    self.basin_moves.len(),
-                    if self.basin_moves.is_empty() { "" } else { ":" }
-                ));
-                lines.extend(self.basin_moves.iter().map(|m| format!("  {}", m.line())));
-            }
-        }
-        lines
-    }
-}
-
 /// One frame of a [`BakeReport`].
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -551,37 +431,6 @@ pub struct BakeReport {
     pub unposed: Vec<String>,
     /// Stored although frames disagree (`--force`).
     pub forced: bool,
-}
-
-/// A frame `track --from` moved to another basin.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct BasinMoveRow {
-    pub frame: String,
-    /// The rotation from its starting pose to the tracked one, degrees.
-    pub rotation_deg: f64,
-    /// The bound it passed (the basin's half-width), degrees.
-    pub bound_deg: f64,
-    /// The gate IoU at its starting pose and at the tracked one.
-    pub iou_before: f64,
-    pub iou_after: f64,
-    /// The tracker's pass that moved it.
-    pub pass: String,
-}
-
-impl BasinMoveRow {
-    /// One line for people: `000003.png: turned 179.2° (bound 45°), IoU 0.41 → 0.99, by …`.
-    pub fn line(&self) -> String {
-        format!(
-            "{}: turned {:.1}° from its starting pose (bound {}°), IoU {:.4} → {:.4}, by {}",
-            self.frame,
-            self.rotation_deg,
-            self.bound_deg,
-            self.iou_before,
-            self.iou_after,
-            self.pass
-        )
-    }
 }
 
 /// What `eval --json` prints for one run, and each of `eval --batch --json`'s `results`
