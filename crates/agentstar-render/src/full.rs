@@ -41,6 +41,18 @@ impl RenderBuffers {
             triangle: vec![0; n],
         }
     }
+    /// Each of the first `parts` parts' pixels in view (the nearest surface), indexed by
+    /// part id.
+    pub fn part_pixels(&self, parts: usize) -> Vec<u64> {
+        let mut counts = vec![0u64; parts];
+        for &p in &self.part {
+            if let Some(c) = counts.get_mut(p as usize) {
+                *c += 1;
+            }
+        }
+        counts
+    }
+
     pub fn covered(&self, x: u32, y: u32) -> bool {
         self.part[(y * self.width + x) as usize] != NO_PART
     }

@@ -46,11 +46,11 @@ pub fn visible_part_pixels<'v>(
     let mut builder = InstanceBuilder::default();
     for (camera, pose, states) in views {
         builder.build(model, states, &pose, &mut instances);
-        let buffers = renderer.render(camera, &instances);
-        for &p in &buffers.part {
-            if let Some(c) = counts.get_mut(p as usize) {
-                *c += 1;
-            }
+        let seen = renderer
+            .render(camera, &instances)
+            .part_pixels(counts.len());
+        for (c, n) in counts.iter_mut().zip(seen) {
+            *c += n;
         }
     }
     counts

@@ -143,9 +143,18 @@ impl Session {
         self.poses[i].generalised.clone()
     }
 
-    /// Which side of the model and of each part faces the camera in frame `i`; `None` when
-    /// the camera sits at the model's centre.
+    /// Which side of the model and of each part faces the camera in frame `i`, with each
+    /// part's pixels in view; `None` when the camera sits at the model's centre.
     pub fn facing(&self, i: usize) -> Option<agentstar_reports::view::FrameFacing> {
+        self.facing_in(i, &self.render_buffers(i))
+    }
+
+    /// [`Self::facing`] from frame `i`'s full render `buffers`, where the caller has one.
+    pub fn facing_in(
+        &self,
+        i: usize,
+        buffers: &RenderBuffers,
+    ) -> Option<agentstar_reports::view::FrameFacing> {
         let p = &self.poses[i].generalised;
         let mut f = agentstar_geom::facing::facing(
             &self.model.model,
@@ -154,14 +163,7 @@ impl Session {
         )?;
         // Each part's pixels in view: a part turned toward the camera may still be hidden
         // (play-test 16 read `label +Y at 23°` for a label on the far side).
-        let seen = agentstar_render::scene::visible_part_pixels(
-            &self.model.model,
-            [(
-                &self.capture.frames[i].camera,
-                p.pose.with_scale(self.scale()),
-                p.states.as_slice(),
-            )],
-        );
+        let seen = buffers.part_pixels(self.model.model.parts.len());
         for side in &mut f.parts {
             side.pixels_seen = self
                 .model

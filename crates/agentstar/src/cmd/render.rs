@@ -180,7 +180,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
                     iou_visible: None,
                     crop: None,
                     zoom: None,
-                    facing: s.facing(i),
+                    facing: s.facing_in(i, &buffers),
                 },
                 overlay_tile: None,
                 frame_tile: None,

@@ -97,7 +97,7 @@ pub fn build_report(
             bar.inc(1);
             let f = &s.capture.frames[i];
             let img = s.capture.load_frame(i)?;
-            let (_, shaded) = s.render_shaded(i, ShadeOptions { outlines: true });
+            let (buffers, shaded) = s.render_shaded(i, ShadeOptions { outlines: true });
             let over = overlay(&img, &shaded, 0.6);
             let score = s.score(i, 0.0)?;
             Ok(FrameEntry {
@@ -106,7 +106,7 @@ pub fn build_report(
                 overlay: jpeg(&downscale(&over, max_width))?,
                 iou_visible: score.iou_visible,
                 iou_raw: score.iou_raw,
-                facing: s.facing(i).map(|f| f.line),
+                facing: s.facing_in(i, &buffers).map(|f| f.line),
             })
         })
         .collect::<Result<_>>()?;
