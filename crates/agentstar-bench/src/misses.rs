@@ -11,7 +11,8 @@
 //! - [`MissCause::Evidence`]: neither the masks nor the model's colours prefer the truth (only
 //!   the frames' colours against each other, or the motion, could tell).
 
-use agentstar_geom::PinholeCamera;
+use agentstar_geom::pose::ObjectPose;
+use agentstar_geom::{PinholeCamera, UnitQuaternion};
 use agentstar_render::ScoreTarget;
 use agentstar_synth::SynthCapture;
 use agentstar_track::appearance::{model_agreement, AppearanceConfig, AppearanceFrame};
@@ -84,8 +85,35 @@ pub fn cause(
     }
 }
 
-/// The misses of `tracked` against `truth` (per keyframe, already reduced by the object's
-/// symmetries), with `cameras` and `targets` as the tracker saw them.
+/// The true pose of a frame turned by whichever of the object's `symmetries` (rotations in
+/// the model's frame, about its origin; the identity is always one) brings it nearest to
+/// `tracked`: a pose equivalent to the truth in shape, print and joints, and the one a miss is
+/// measured from. The sequence's errors align the whole sequence by one gauge; a frame's
+/// evidence needs a pose the frame could show, so it is chosen per frame (BOP's rule): a
+/// tracker that put every frame of a two-fold object in its half-turn twin has no miss.
+pub fn nearest_equivalent(
+    truth: &GenPose,
+    tracked: &GenPose,
+    symmetries: &[UnitQuaternion],
+) -> GenPose {
+    std::iter::once(UnitQuaternion::identity())
+        .chain(symmetries.iter().copied())
+        .map(|s| GenPose {
+            pose: ObjectPose::new(truth.pose.rotation * s, truth.pose.translation),
+            states: truth.states.clone(),
+        })
+        .min_by(|a, b| {
+            a.pose
+                .rotation
+                .angle_to(&tracked.pose.rotation)
+                .total_cmp(&b.pose.rotation.angle_to(&tracked.pose.rotation))
+        })
+        .unwrap_or_else(|| truth.clone())
+}
+
+/// The misses of `tracked` against `truth` (per keyframe), each frame's truth taken as its
+/// equivalent under the object's `symmetries` nearest the tracked pose
+/// ([`nearest_equivalent`]), with `cameras` and `targets` as the tracker saw them.
 pub fn misses(
     capture: &SynthCapture,
     cameras: &[PinholeCamera],
@@ -96,6 +124,7 @@ pub fn misses(
     let cfg = AppearanceConfig::default();
     let mut out = Misses::default();
     for (i, (t, p)) in truth.iter().zip(tracked).enumerate() {
+        let t = &nearest_equivalent(t, p, &capture.symmetries);
         let rotation_deg = t.pose.rotation.angle_to(&p.pose.rotation).to_degrees();
         if rotation_deg <= MISS_DEG {
             continue;
@@ -168,5 +197,39 @@ mod tests {
         );
         // A model of one colour has no colour evidence.
         assert_eq!(cause(0.97, 0.97, None, None, 0.02), MissCause::Evidence);
+    }
+
+    #[test]
+    fn a_frame_in_a_true_symmetry_of_the_truth_is_measured_from_that_equivalent() {
+        use agentstar_geom::Vector3;
+        let truth = GenPose {
+            pose: ObjectPose::new(
+                UnitQuaternion::from_euler_angles(0.3, -0.2, 1.1),
+                Vector3::new(0.0, 0.0, 0.6),
+            ),
+            states: vec![],
+        };
+        let half_turn = UnitQuaternion::from_axis_angle(&Vector3::x_axis(), std::f64::consts::PI);
+        let nudge = UnitQuaternion::from_axis_angle(&Vector3::z_axis(), 1f64.to_radians());
+        // Tracked 1° off the truth's half-turn twin, which is one of the object's symmetries.
+        let tracked = GenPose {
+            pose: ObjectPose::new(
+                truth.pose.rotation * half_turn * nudge,
+                truth.pose.translation,
+            ),
+            states: vec![],
+        };
+        let deg = |t: &GenPose| {
+            t.pose
+                .rotation
+                .angle_to(&tracked.pose.rotation)
+                .to_degrees()
+        };
+        assert!(deg(&truth) > 170.0, "{}", deg(&truth));
+        let near = nearest_equivalent(&truth, &tracked, &[half_turn]);
+        assert!((deg(&near) - 1.0).abs() < 1e-6, "{}", deg(&near));
+        assert_eq!(near.pose.translation, truth.pose.translation);
+        // Without the symmetry, the truth itself.
+        assert_eq!(nearest_equivalent(&truth, &tracked, &[]), truth);
     }
 }
