@@ -6,6 +6,7 @@ use crate::appearance::{
     appearance_each, model_agreement, model_has_appearance, AppearanceConfig, AppearanceFrame,
     ReferenceView,
 };
+use crate::axis::{body_axis, AngleGrid};
 use crate::hypotheses::{refine_each_above, same_basin, twin_candidates, LocalWindow, PRUNE_SLACK};
 use crate::objective::FrameProblem;
 use crate::sequence::cheapest_path;
@@ -174,6 +175,25 @@ pub(super) fn choose_sequence(
             Ok(h)
         })
         .collect::<Result<_, _>>()?;
+    // A round body with a print (a labelled can, a printed mug): every hypothesis turned about
+    // the body's axis to where the frame agrees best with the model's print, so that a twin is
+    // weighed at its best angle, and a frame's own pose too (a pass before the choice may have
+    // spun it off its print: hard suite labelcan, seed 17, 2026-12-04, three keyframes spun
+    // 50° whose half-turn twins then agreed better and were taken).
+    let hyps: Vec<Vec<(GenPose, f64)>> = if s.cfg.appearance && model_has_appearance(s.model) {
+        hyps.into_par_iter()
+            .enumerate()
+            .map(|(i, h)| match frames[i].appearance() {
+                Some(app) if !fixed[i] => h
+                    .into_iter()
+                    .map(|(g, sc)| turned_to_print(s, &frames[i], &app, g, sc))
+                    .collect(),
+                _ => h,
+            })
+            .collect()
+    } else {
+        hyps
+    };
     let alternatives: usize = hyps
         .iter()
         .zip(poses.iter())
@@ -423,4 +443,49 @@ pub(super) fn hypothesis_views<'a>(
     hyps.iter()
         .map(|(g, _)| ReferenceView::new(s.model, s.scale, frame, g))
         .collect()
+}
+
+/// `g` (placed at IoU `score`) turned about the model's round body's axis ([`body_axis`]) to
+/// the angle where the frame's colours agree best with the model's own ([`model_agreement`]):
+/// every [`AXIS_COARSE_DEG`] round the circle, then every [`AXIS_FINE_DEG`] around the best,
+/// among the turns that keep the IoU within [`APPEARANCE_TIE`] of `score` (a can: every turn;
+/// a mug: those that keep its handle where the mask has it, or hidden). `g` itself when the
+/// model has no round body, or no turn agrees better.
+fn turned_to_print(
+    s: &Searcher<'_>,
+    frame: &TrackFrame<'_>,
+    app: &AppearanceFrame<'_>,
+    g: GenPose,
+    score: f64,
+) -> (GenPose, f64) {
+    let Some(axis) = body_axis(s.model, &g.states) else {
+        return (g, score);
+    };
+    let cfg = AppearanceConfig::default();
+    let agreement = |p: &GenPose| model_agreement(s.model, s.scale, app, p, &cfg).ncc;
+    let problem = s.problem_of(frame, &g);
+    let mut ev = problem.evaluator();
+    let mut best = (agreement(&g), g.clone(), score);
+    let mut evaluated = 0;
+    for grid in [
+        AngleGrid::circle(AXIS_COARSE_DEG),
+        AngleGrid::around(AXIS_FINE_DEG, AXIS_COARSE_DEG),
+    ] {
+        let centre = best.1.clone();
+        for &deg in grid.angles_deg.iter().filter(|&&d| d != 0.0) {
+            let turned = axis.turn(&centre, s.scale, deg);
+            let iou = ev.combined(&turned);
+            evaluated += 1;
+            if iou < score - APPEARANCE_TIE {
+                continue;
+            }
+            let ncc = agreement(&turned);
+            if ncc.unwrap_or(f64::NEG_INFINITY) > best.0.unwrap_or(f64::NEG_INFINITY) {
+                best = (ncc, turned, iou);
+            }
+        }
+    }
+    s.evals
+        .fetch_add(evaluated, std::sync::atomic::Ordering::Relaxed);
+    (best.1, best.2)
 }
