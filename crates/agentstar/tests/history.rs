@@ -370,6 +370,15 @@ fn finish_takes_categorised_reasons_and_refuses_too_many_frames_under_the_gate()
         McpClient::text_of(&r).contains("Colours (not a gate): the keyframes' colours against their neighbours' at these poses, NCC mean "),
         "{r}"
     );
+    // A writer that leaves the scene and the poses as they were changed nothing the gates
+    // checked: no call to finish again (play-test 17 read it after a fit that moved nothing).
+    let script = std::fs::read_to_string(run.join("scene.rhai")).expect("scene");
+    let r = c.call("scene_write", json!({"script": script}));
+    assert_eq!(r["result"]["isError"], false, "{r}");
+    assert!(
+        !McpClient::text_of(&r).contains("this run had finished"),
+        "{r}"
+    );
     // The first frame's story, and its good pose back from version 1.
     let r = c.call("pose_history", json!({"frame": "000000"}));
     let fh: FrameHistoryReport =

@@ -511,15 +511,25 @@ impl Toolbox {
             .writer
             .lock()
             .unwrap_or_else(std::sync::PoisonError::into_inner);
+        let writes =
+            matches!(def.writes, Writes::Poses | Writes::Scene) && def.name != Finish::NAME;
+        let before = writes.then(|| self.gated_files());
         let mut out = run();
-        if matches!(def.writes, Writes::Poses | Writes::Scene)
-            && def.name != Finish::NAME
+        if writes
             && !out.is_error
+            && before != Some(self.gated_files())
             && self.run.state().is_ok_and(|s| s.finished)
         {
             out.text.push_str(AFTER_FINISH);
         }
         out
+    }
+
+    /// What `finish`'s gates check, as bytes: the scene and the poses (`None` for a file
+    /// that cannot be read). A call that leaves both as they were changed nothing the gates
+    /// checked (a `fit_shape` whose parameters did not move: play-test 17).
+    fn gated_files(&self) -> [Option<Vec<u8>>; 2] {
+        [&self.run.scene, &self.run.poses].map(|p| agentstar_data::read_bytes(p).ok())
     }
 
     /// Whether this toolbox serves the tool called `name`: every tool but `critic`, which
