@@ -52,6 +52,17 @@ impl SymmetryAxis {
     }
 }
 
+/// The part of `turn` about `axis` (degrees, signed, in (−180°, 180°]: the twist of a
+/// swing-twist decomposition); 0 for a zero axis.
+pub fn twist_deg(turn: &UnitQuaternion, axis: &Vector3) -> f64 {
+    let Some(a) = axis.try_normalize(1e-12) else {
+        return 0.0;
+    };
+    let q = turn.as_ref();
+    let along = q.imag().dot(&a);
+    signed_deg(2.0 * along.atan2(q.w).to_degrees())
+}
+
 /// The angle of `turn` (radians) once its part about `axis` is taken out (the swing of a
 /// swing-twist decomposition): a turn about the axis alone gives 0, a tilt across it its
 /// own angle. A zero axis leaves the whole turn.
@@ -601,6 +612,19 @@ mod tests {
     };
     use agentstar_geom::{primitives, KinematicTree, Part, PinholeCamera};
     use agentstar_render::BitMask;
+
+    #[test]
+    fn a_twist_is_the_part_of_a_turn_about_the_axis() {
+        let about = |axis: Vector3, deg: f64| {
+            UnitQuaternion::from_axis_angle(&Unit::new_normalize(axis), deg.to_radians())
+        };
+        // A swing across the axis after a twist about it leaves the twist.
+        let turn = about(Vector3::x(), 20.0) * about(Vector3::z(), -70.0);
+        assert!((twist_deg(&turn, &Vector3::z()) + 70.0).abs() < 1e-9);
+        assert!((twist_deg(&about(Vector3::z(), 200.0), &Vector3::z()) + 160.0).abs() < 1e-9);
+        assert!(twist_deg(&about(Vector3::y(), 50.0), &Vector3::z()).abs() < 1e-9);
+        assert_eq!(twist_deg(&turn, &Vector3::zeros()), 0.0);
+    }
 
     #[test]
     fn grids_start_at_no_turn_and_keys_read_the_short_way_round() {

@@ -25,6 +25,11 @@ const CHAIN_WINDOW: LocalWindow = LocalWindow {
     evals: 300,
 };
 
+/// A chain frame's turn about its round body's axis and its joint states go back to the
+/// motion's prediction when that costs less IoU than this ([`Searcher::hold_unseen`]): the
+/// mask does not see them there. A lever in view moves the IoU by more when turned away.
+pub(super) const CHAIN_HOLD_TIE: f64 = 0.002;
+
 /// A chain frame whose mask shows less than this share of the object seen in the keyframes
 /// (visible pixels, outside the hands; median over the keyframes) is carried at constant
 /// velocity, not fitted: a hand over most of it, or the object leaving the image.
@@ -137,6 +142,7 @@ pub(super) fn follow(
                         .enumerate()
                         .map(|(k, g)| {
                             s.refine(frame, g, window, seed + 17 * j as u64 + k as u64 + salt)
+                                .map(|fit| s.hold_unseen(frame, fit, &prediction, CHAIN_HOLD_TIE))
                         })
                         .collect();
                     best_of(results)

@@ -452,12 +452,16 @@ fn track_on(
             .par_iter()
             .enumerate()
             .map(|(k, g)| {
-                s.refine(
-                    &frames[i],
-                    g,
-                    &step_window,
-                    cfg.seed + 7919 * i as u64 + k as u64,
-                )
+                let seed = cfg.seed + 7919 * i as u64 + k as u64;
+                // Arriving from a chain, the motion predicts the keyframe as it predicted
+                // the chain's frames.
+                let fit = s.refine(&frames[i], g, &step_window, seed)?;
+                Ok(match seeds.last() {
+                    Some(predicted) if chained.is_some() => {
+                        s.hold_unseen(&frames[i], fit, predicted, CHAIN_HOLD_TIE)
+                    }
+                    _ => fit,
+                })
             })
             .collect();
         let (mut g, mut sc) =

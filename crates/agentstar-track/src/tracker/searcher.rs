@@ -35,6 +35,9 @@ pub(super) struct Searcher<'m> {
     /// The model's outline axis ([`crate::axis::outline_axis`], at rest), found when first
     /// asked: a chain cannot measure a turn about it.
     pub(super) outline_axis: std::sync::OnceLock<Option<agentstar_geom::Vector3>>,
+    /// The model's round body's axis ([`crate::axis::body_axis`], at rest), found when first
+    /// asked for.
+    pub(super) body_axis: std::sync::OnceLock<Option<crate::axis::SymmetryAxis>>,
 }
 
 impl<'m> Searcher<'m> {
@@ -69,6 +72,7 @@ impl<'m> Searcher<'m> {
                 .collect(),
             gaps: std::sync::RwLock::new(vec![None; frames.len().saturating_sub(1)]),
             outline_axis: std::sync::OnceLock::new(),
+            body_axis: std::sync::OnceLock::new(),
         })
     }
 
@@ -163,6 +167,59 @@ impl<'m> Searcher<'m> {
         self.evals
             .fetch_add(n, std::sync::atomic::Ordering::Relaxed);
         Ok((best, score))
+    }
+
+    /// `fitted` (scoring `score` on `frame`) with what the mask does not see of it held where
+    /// `predicted` has it: its turn about the model's round body's axis
+    /// ([`crate::axis::body_axis`]), then each joint state, each set back to the prediction's
+    /// and kept when the score stays within `tie`. A search ends anywhere along a direction
+    /// the mask cannot see (a round body's turn while its lever is hidden, a hidden part's
+    /// joint); the motion's prediction is the better guess there, and where the mask does see
+    /// the direction (the lever in view), setting it back costs more than the tie and the fit
+    /// stays.
+    pub(super) fn hold_unseen(
+        &self,
+        frame: &TrackFrame<'_>,
+        (fitted, score): (GenPose, f64),
+        predicted: &GenPose,
+        tie: f64,
+    ) -> (GenPose, f64) {
+        let problem = self.problem_of(frame, &fitted);
+        let mut ev = problem.evaluator();
+        let (mut g, mut sc) = (fitted, score);
+        let mut tried = 0;
+        let axis = self
+            .body_axis
+            .get_or_init(|| crate::axis::body_axis(self.model, &self.model.tree.rest_states()));
+        if let Some(axis) = axis {
+            let deg = crate::axis::twist_deg(
+                &(predicted.pose.rotation.inverse() * g.pose.rotation),
+                &axis.axis,
+            );
+            if deg.abs() > 0.5 {
+                let back = axis.turn(&g, self.scale, -deg);
+                let back_score = ev.combined(&back);
+                tried += 1;
+                if back_score >= sc - tie {
+                    (g, sc) = (back, back_score);
+                }
+            }
+        }
+        for j in 0..g.states.len().min(predicted.states.len()) {
+            if (g.states[j] - predicted.states[j]).abs().to_degrees() <= 0.5 {
+                continue;
+            }
+            let mut back = g.clone();
+            back.states[j] = predicted.states[j];
+            let back_score = ev.combined(&back);
+            tried += 1;
+            if back_score >= sc - tie {
+                (g, sc) = (back, back_score);
+            }
+        }
+        self.evals
+            .fetch_add(tried, std::sync::atomic::Ordering::Relaxed);
+        (g, sc)
     }
 
     /// `frame`'s target at half the resolution (frames are the ones the searcher was made
