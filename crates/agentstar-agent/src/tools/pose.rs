@@ -176,7 +176,7 @@ pub enum Strategy {
 pub struct SweepArgs {
     #[schemars(description = FRAMES, length(min = 1))]
     pub frames: String,
-    /// DOF:min,max terms separated by `;` (roll, yaw, pitch in degrees; dpx, dpy, tz fractions; joints by name).
+    /// DOF:min,max terms separated by `;` (roll, yaw, pitch in degrees; dpx, dpy, tz fractions; joints by name). With `strategy: "grid"`, `DOF:min,max,steps` scores that many evenly spaced values of the DOF (5 where a term gives none), then a finer pass around the best, e.g. `slide:-0.24,0.24,9`.
     #[schemars(length(min = 1))]
     pub ranges: String,
     pub strategy: Option<Strategy>,
