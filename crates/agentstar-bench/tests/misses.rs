@@ -1,6 +1,7 @@
 //! Where a miss comes from: a half-turn about a plain can's axis ties on the masks and has
-//! no colours to tell it (evidence), a tilt loses on the masks (search), the true pose is no
-//! miss, and on a labelled can the model's colours prefer the truth to the half-turn.
+//! no colours to tell it (evidence, when the can's symmetries are not declared; with them it
+//! is no miss at all), a tilt loses on the masks (search), the true pose is no miss, and on a
+//! labelled can the model's colours prefer the truth to the half-turn.
 
 use agentstar_bench::misses::{misses, MissCause, Misses};
 use agentstar_geom::{UnitQuaternion, Vector3};
@@ -9,9 +10,10 @@ use agentstar_synth::{synthesize, SynthConfig};
 use agentstar_track::GenPose;
 
 /// Frame 0 as true, frame 1 turned half-way about the can's axis (its model z), frame 2
-/// tilted 40° about the model's x; the misses of those poses on a capture of `object`.
-fn misses_of_a_turn_and_a_tilt(object: &str) -> (Misses, Vec<String>) {
-    let capture = synthesize(&SynthConfig {
+/// tilted 40° about the model's x; the misses of those poses on a capture of `object`, its
+/// true symmetries declared or not.
+fn misses_of_a_turn_and_a_tilt(object: &str, symmetries: bool) -> (Misses, Vec<String>) {
+    let mut capture = synthesize(&SynthConfig {
         object: object.into(),
         frames: 3,
         width: 240,
@@ -21,6 +23,9 @@ fn misses_of_a_turn_and_a_tilt(object: &str) -> (Misses, Vec<String>) {
         ..SynthConfig::default()
     })
     .expect("synth");
+    if !symmetries {
+        capture.symmetries.clear();
+    }
     let targets: Vec<ScoreTarget> = capture
         .frames
         .iter()
@@ -54,7 +59,12 @@ fn misses_of_a_turn_and_a_tilt(object: &str) -> (Misses, Vec<String>) {
 
 #[test]
 fn a_miss_is_put_down_to_the_evidence_that_prefers_the_truth() {
-    let (m, names) = misses_of_a_turn_and_a_tilt("can");
+    // The plain can's half-turn about its axis is one of its symmetries: no miss.
+    let (m, names) = misses_of_a_turn_and_a_tilt("can", true);
+    assert_eq!(m.total(), 1, "{m:?}");
+    assert_eq!(m.frames[0].frame, names[2]);
+    // Without its symmetries declared, the half-turn is a miss nothing scored can tell.
+    let (m, names) = misses_of_a_turn_and_a_tilt("can", false);
     assert_eq!(m.total(), 2, "{m:?}");
     let half_turn = &m.frames[0];
     assert_eq!(half_turn.frame, names[1]);
@@ -76,7 +86,7 @@ fn a_miss_is_put_down_to_the_evidence_that_prefers_the_truth() {
     assert_eq!((m.search, m.colours, m.evidence), (1, 0, 1));
 
     // The labelled can: its label tells the half-turn by the model's colours.
-    let (m, _) = misses_of_a_turn_and_a_tilt("labelcan");
+    let (m, _) = misses_of_a_turn_and_a_tilt("labelcan", true);
     let half_turn = &m.frames[0];
     let (tracked, truth) = (
         half_turn.model_ncc_tracked.expect("colours"),

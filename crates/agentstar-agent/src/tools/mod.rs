@@ -525,11 +525,17 @@ impl Toolbox {
         out
     }
 
-    /// What `finish`'s gates check, as bytes: the scene and the poses (`None` for a file
-    /// that cannot be read). A call that leaves both as they were changed nothing the gates
-    /// checked (a `fit_shape` whose parameters did not move: play-test 17).
-    fn gated_files(&self) -> [Option<Vec<u8>>; 2] {
-        [&self.run.scene, &self.run.poses].map(|p| agentstar_data::read_bytes(p).ok())
+    /// What `finish`'s gates check: the scene's text and the poses' scale and frames (`None`
+    /// for a file that cannot be read). A call that leaves both as they were changed nothing
+    /// the gates checked (a `fit_shape` whose parameters did not move: play-test 17; a scene
+    /// saved again as it was, which lists the parts in pose.json).
+    fn gated_files(&self) -> GatedInputs {
+        GatedInputs {
+            scene: agentstar_data::read_text(&self.run.scene).ok(),
+            poses: agentstar_data::posefile::PoseFile::read(&self.run.poses)
+                .ok()
+                .map(|p| (p.scale, p.frames)),
+        }
     }
 
     /// Whether this toolbox serves the tool called `name`: every tool but `critic`, which
@@ -537,4 +543,15 @@ impl Toolbox {
     pub fn offers(&self, name: &str) -> bool {
         name != Critic::NAME || self.critic.is_some()
     }
+}
+
+/// What `finish`'s gates read of a run ([`Toolbox::call`] compares them before and after a
+/// writer).
+#[derive(Debug, PartialEq)]
+struct GatedInputs {
+    scene: Option<String>,
+    poses: Option<(
+        f64,
+        std::collections::BTreeMap<String, agentstar_data::posefile::FrameEntry>,
+    )>,
 }
