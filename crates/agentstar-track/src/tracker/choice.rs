@@ -319,8 +319,10 @@ pub(super) fn choose_sequence(
             };
             if other_basin {
                 changed.push(format!(
-                    "{} (IoU {:.4} → {sc:.4})",
-                    frames[i].name, scores[i]
+                    "{} (IoU {:.4} → {sc:.4}{})",
+                    frames[i].name,
+                    scores[i],
+                    own_cost_line(&hyps[i], &poses[i], &unary[i], &path, i, k, &step)
                 ));
             } else {
                 adjusted += 1;
@@ -488,4 +490,34 @@ fn turned_to_print(
     s.evals
         .fetch_add(evaluated, std::sync::atomic::Ordering::Relaxed);
     (best.1, best.2)
+}
+
+/// What the choice weighed at frame `i`, where it took hypothesis `k` over the hypothesis of
+/// the frame's own basin (when one was kept): the unary cost (IoU shortfall and the model's
+/// colours) and the cost of the steps to the neighbours on the path, for each; so that a log
+/// says why a frame moved.
+pub(super) fn own_cost_line(
+    hyps: &[(GenPose, f64)],
+    own: &GenPose,
+    unary: &[f64],
+    path: &[usize],
+    i: usize,
+    k: usize,
+    step: &dyn Fn(usize, usize, usize) -> f64,
+) -> String {
+    let Some(o) = hyps.iter().position(|(g, _)| same_basin(g, own)) else {
+        return String::new();
+    };
+    let steps = |at: usize| {
+        let before = i.checked_sub(1).map_or(0.0, |p| step(i, path[p], at));
+        let after = path.get(i + 1).map_or(0.0, |&next| step(i + 1, at, next));
+        before + after
+    };
+    format!(
+        "; cost {:.1} + steps {:.1} against its own basin's {:.1} + {:.1}",
+        unary[k],
+        steps(k),
+        unary[o],
+        steps(o)
+    )
 }

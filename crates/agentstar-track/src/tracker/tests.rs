@@ -919,3 +919,29 @@ fn a_chain_holds_what_the_mask_cannot_see_where_the_motion_put_it() {
     let (g, sc) = s.hold_unseen(&frames[0], (truths[0].clone(), at), &wrong, CHAIN_HOLD_TIE);
     assert_eq!((g, sc), (truths[0].clone(), at));
 }
+
+#[test]
+fn a_changed_basin_is_logged_with_what_the_choice_weighed() {
+    let own = truth(1);
+    let twin = spin_about_z(&own, 180.0);
+    let hyps = vec![(twin.clone(), 0.95), (own.clone(), 0.9)];
+    // Frame 1 took hypothesis 0 (the twin); steps cost 1 into and 2 out of the twin, 3 and
+    // 4 for the own basin.
+    let step = |i: usize, a: usize, b: usize| match (i, a, b) {
+        (1, _, 0) => 1.0,
+        (2, 0, _) => 2.0,
+        (1, _, 1) => 3.0,
+        (2, 1, _) => 4.0,
+        _ => 100.0,
+    };
+    let line = own_cost_line(&hyps, &own, &[0.5, 2.0], &[0, 0, 0], 1, 0, &step);
+    assert_eq!(
+        line,
+        "; cost 0.5 + steps 3.0 against its own basin's 2.0 + 7.0"
+    );
+    // No hypothesis in the frame's own basin: nothing to compare with.
+    assert_eq!(
+        own_cost_line(&hyps[..1], &own, &[0.5], &[0, 0, 0], 1, 0, &step),
+        ""
+    );
+}
