@@ -67,17 +67,12 @@ pub fn twist_deg(turn: &UnitQuaternion, axis: &Vector3) -> f64 {
 /// swing-twist decomposition): a turn about the axis alone gives 0, a tilt across it its
 /// own angle. A zero axis leaves the whole turn.
 pub fn angle_across(turn: &UnitQuaternion, axis: &Vector3) -> f64 {
-    let Some(a) = axis.try_normalize(1e-12) else {
+    let Some(a) = Unit::try_new(*axis, 1e-12) else {
         return turn.angle();
     };
-    let q = turn.quaternion();
-    let along = a * q.imag().dot(&a);
-    let twist = agentstar_geom::nalgebra::Quaternion::new(q.w, along.x, along.y, along.z);
-    if twist.norm() < 1e-12 {
-        // A half-turn across the axis: no twist to take out.
-        return turn.angle();
-    }
-    (turn * UnitQuaternion::from_quaternion(twist).inverse()).angle()
+    // A half-turn across the axis has no twist (0): the whole turn is left.
+    (turn * UnitQuaternion::from_axis_angle(&a, twist_deg(turn, axis).to_radians()).inverse())
+        .angle()
 }
 
 /// Turns that test an axis: not a multiple of 360°/n for small n, so a box's 90° symmetry

@@ -455,7 +455,8 @@ pub(super) fn hypothesis_views<'a>(
         .collect()
 }
 
-/// `g` (placed at IoU `score`) turned about the model's round body's axis ([`body_axis`]) to
+/// `g` (placed at IoU `score`) turned about the model's round body's axis
+/// ([`body_axis`], at its joint states) to
 /// the angle where the frame's colours agree best with the model's own ([`model_agreement`]):
 /// every [`AXIS_COARSE_DEG`] round the circle, then every [`AXIS_FINE_DEG`] around the best,
 /// among the turns that keep the IoU within [`APPEARANCE_TIE`] of `score` (a can: every turn;
@@ -468,7 +469,13 @@ fn turned_to_print(
     g: GenPose,
     score: f64,
 ) -> (GenPose, f64) {
-    let Some(axis) = body_axis(s.model, &g.states) else {
+    // The body's axis at the hypothesis's joint states (at rest: the searcher's, found once).
+    let axis = if g.states == s.model.tree.rest_states() {
+        s.round_body().copied()
+    } else {
+        body_axis(s.model, &g.states)
+    };
+    let Some(axis) = axis else {
         return (g, score);
     };
     let cfg = AppearanceConfig::default();

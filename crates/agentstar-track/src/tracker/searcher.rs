@@ -40,6 +40,11 @@ pub(super) struct Searcher<'m> {
     pub(super) body_axis: std::sync::OnceLock<Option<crate::axis::SymmetryAxis>>,
 }
 
+/// The least difference [`Searcher::hold_unseen`] sets back, in a joint's units or radians of
+/// turn: 0.5° of a turn or of a revolute joint, 0.0087 model units (under 1% of the model's
+/// longest side) of a prismatic one.
+const HOLD_MIN: f64 = 0.5 * std::f64::consts::PI / 180.0;
+
 impl<'m> Searcher<'m> {
     /// Checks the inputs every tracker shares.
     pub(super) fn new(
@@ -169,14 +174,24 @@ impl<'m> Searcher<'m> {
         Ok((best, score))
     }
 
+    /// The model's round body's axis ([`crate::axis::body_axis`], at rest; found when first
+    /// asked for): what the passes turn a pose about where only colours, or the motion, see
+    /// the turn.
+    pub(super) fn round_body(&self) -> Option<&crate::axis::SymmetryAxis> {
+        self.body_axis
+            .get_or_init(|| crate::axis::body_axis(self.model, &self.model.tree.rest_states()))
+            .as_ref()
+    }
+
     /// `fitted` (scoring `score` on `frame`) with what the mask does not see of it held where
-    /// `predicted` has it: its turn about the model's round body's axis
-    /// ([`crate::axis::body_axis`]), then each joint state, each set back to the prediction's
-    /// and kept when the score stays within `tie`. A search ends anywhere along a direction
-    /// the mask cannot see (a round body's turn while its lever is hidden, a hidden part's
-    /// joint); the motion's prediction is the better guess there, and where the mask does see
-    /// the direction (the lever in view), setting it back costs more than the tie and the fit
-    /// stays.
+    /// `predicted` has it: its turn about the model's round body's axis ([`Self::round_body`]),
+    /// then each joint state, each set back to the prediction's and kept when the score stays
+    /// within `tie` of the pose before it (so `k` directions held may lose `k · tie`; the
+    /// figures of 2026-12-05 were measured so). A search ends
+    /// anywhere along a direction the mask cannot see (a round body's turn while its lever is
+    /// hidden, a hidden part's joint); the motion's prediction is the better guess there, and
+    /// where the mask does see the direction (the lever in view), setting it back costs more
+    /// than the tie and the fit stays. Differences under [`HOLD_MIN`] are left as they are.
     pub(super) fn hold_unseen(
         &self,
         frame: &TrackFrame<'_>,
@@ -186,40 +201,37 @@ impl<'m> Searcher<'m> {
     ) -> (GenPose, f64) {
         let problem = self.problem_of(frame, &fitted);
         let mut ev = problem.evaluator();
-        let (mut g, mut sc) = (fitted, score);
         let mut tried = 0;
-        let axis = self
-            .body_axis
-            .get_or_init(|| crate::axis::body_axis(self.model, &self.model.tree.rest_states()));
-        if let Some(axis) = axis {
-            let deg = crate::axis::twist_deg(
-                &(predicted.pose.rotation.inverse() * g.pose.rotation),
-                &axis.axis,
-            );
-            if deg.abs() > 0.5 {
-                let back = axis.turn(&g, self.scale, -deg);
-                let back_score = ev.combined(&back);
-                tried += 1;
-                if back_score >= sc - tie {
-                    (g, sc) = (back, back_score);
-                }
-            }
-        }
-        for j in 0..g.states.len().min(predicted.states.len()) {
-            if (g.states[j] - predicted.states[j]).abs().to_degrees() <= 0.5 {
-                continue;
-            }
-            let mut back = g.clone();
-            back.states[j] = predicted.states[j];
+        let mut try_back = |(g, sc): (GenPose, f64), back: GenPose| {
             let back_score = ev.combined(&back);
             tried += 1;
             if back_score >= sc - tie {
-                (g, sc) = (back, back_score);
+                (back, back_score)
+            } else {
+                (g, sc)
+            }
+        };
+        let mut held = (fitted, score);
+        if let Some(axis) = self.round_body() {
+            let deg = crate::axis::twist_deg(
+                &(predicted.pose.rotation.inverse() * held.0.pose.rotation),
+                &axis.axis,
+            );
+            if deg.abs().to_radians() > HOLD_MIN {
+                let back = axis.turn(&held.0, self.scale, -deg);
+                held = try_back(held, back);
+            }
+        }
+        for j in 0..held.0.states.len().min(predicted.states.len()) {
+            if (held.0.states[j] - predicted.states[j]).abs() > HOLD_MIN {
+                let mut back = held.0.clone();
+                back.states[j] = predicted.states[j];
+                held = try_back(held, back);
             }
         }
         self.evals
             .fetch_add(tried, std::sync::atomic::Ordering::Relaxed);
-        (g, sc)
+        held
     }
 
     /// `frame`'s target at half the resolution (frames are the ones the searcher was made
