@@ -534,7 +534,7 @@ pub fn misses_table(results: &[SequenceResult]) -> String {
             sum(|x| x.evidence)
         );
     }
-    out.push_str("\n| sequence | method | missed | search | colours | evidence | worst frame: rotation (°), gate IoU tracked / truth, model NCC tracked / truth |\n|---|---|---|---|---|---|---|\n");
+    out.push_str("\n| sequence | method | missed | search | colours | evidence | worst frame: rotation (°), gate IoU tracked / truth, model colours (`score`'s `model`) tracked / truth |\n|---|---|---|---|---|---|---|\n");
     for r in with {
         let Some(m) = &r.misses else { continue };
         let worst = m

@@ -106,9 +106,12 @@ pub struct Candidate {
     pub gate: f64,
     pub depth_canon: Option<f64>,
     pub combined: f64,
-    /// The frame's colours against the model's own part colours at this pose (NCC, −1..1),
-    /// where the model's parts differ in colour (every search verb): where twins tie in IoU
-    /// (a lid and base swapped), the figure that tells them apart.
+    /// The frame's colours against the model's own colours at this pose, where the model has
+    /// a print (parts of different colours, a texture; every search verb): the share of the
+    /// frame's colours that shading alone leaves unexplained and the print, lit, explains
+    /// (−1..1; 0 where the pose shows no print, below 0 where it puts the print where the
+    /// frame does not show it). Where twins tie in IoU (a lid and base swapped), the figure
+    /// that tells them apart.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub model_ncc: Option<f64>,
     /// Where a kept start lies outside the region searched, one entry per coordinate
@@ -376,10 +379,12 @@ pub struct FrameAppearance {
     pub ncc: Option<f64>,
     /// Colour pairs compared.
     pub pairs: usize,
-    /// The frame's colours against the model's own part colours alone at the pose
+    /// The frame's colours against the model's own colours alone at the pose
     /// (`agentstar_track::appearance::model_agreement`; part of `ncc`): does the pose put
-    /// the model's print (a label part, a badge) where the frame shows it? `None` for a
-    /// model of one colour or a frame without an image.
+    /// the model's print (a label part, a badge) where the frame shows it? The share of the
+    /// frame's colours that shading alone leaves unexplained and the print explains, −1..1:
+    /// 0 where the pose shows no print, below 0 where it puts the print where the frame is
+    /// plain. `None` for a model of one colour or a frame without an image.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub model_ncc: Option<f64>,
 }

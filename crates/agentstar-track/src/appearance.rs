@@ -14,10 +14,14 @@
 //! [`AppearanceScore::cost`] is `1 − ncc` (0 best, 2 worst).
 //!
 //! Where the model's own parts differ in colour ([`model_has_appearance`]: a label part on a
-//! can, a badge on a mug), the frame's sampled colours are also correlated with the colour
-//! of the part the candidate puts at each pixel, in one more group that weighs at least as
-//! much as all the other frames' together: the one reference that does not depend on other
-//! poses being right ([`model_agreement`] scores it alone). With a model of one colour, a
+//! can, a badge on a mug, a texture), the frame's sampled colours are also compared with the
+//! model's own colours at each pixel the candidate puts its surface on, in one more group
+//! that weighs at least as much as all the other frames' together: the one reference that
+//! does not depend on other poses being right ([`model_agreement`] scores it alone). That
+//! group scores the share of the frame's colours that a lit fit of shading alone leaves
+//! unexplained and the model's print, lit the same way, explains ([`ModelFit`]): 0 for a
+//! pose that shows no print, positive where the print lands where the frame shows it,
+//! negative where it lands where the frame is plain. With a model of one colour, a
 //! can's angle about its axis is unobservable: every turn scores alike in the masks and in
 //! colour across frames.
 //!
@@ -211,59 +215,214 @@ impl Group {
         }
         Some((cov / (va * vb).sqrt()).clamp(-1.0, 1.0))
     }
+}
 
-    /// How much of the frame's colours `a` the model's albedo `b` leaves unexplained: the
-    /// least-squares residual of `a ≈ G·b` with one gain per channel (exposure and white
-    /// balance; no offset, so a flat albedo predicts a flat frame), over `Σ a²`. In [0, 1];
-    /// `None` under `min_pairs` samples. (The share of the colours off their main direction,
-    /// which shading cannot change, did worse on the hard suite, 2026-12-03: prints that
-    /// differ from their ground in brightness more than in hue, a wooden drawer in a darker
-    /// case, went unseen; printmug 0.90 → 6.39 cm, drawerbox 0.56 → 2.24 cm on seed 17.)
-    fn albedo_residual(&self, cfg: &AppearanceConfig) -> Option<f64> {
-        if self.n < cfg.min_pairs.max(2) {
-            return None;
-        }
-        let (mut residual, mut total) = (0.0, 0.0);
+/// The terms of [`LitGroup`]'s fit: albedo, albedo times each normal component, and one.
+const LIT_TERMS: usize = 5;
+
+/// The frame's colours against an albedo under a light fitted to them: per channel,
+/// `frame ≈ g · albedo · (1 + l · n) + o` by least squares over the samples (`n` the
+/// surface's unit normal in the camera; one light `l` for the three channels; a gain `g` per
+/// channel for exposure and white balance, no lower than [`LIT_MIN_GAIN`] of the frame's
+/// mean over the albedo's; an offset `o` per channel for haze, flare and a camera's black
+/// level, which flatten a print's contrast: a yellow badge on an orange box, 21% brighter
+/// in green than its ground in the model, was 10% brighter in the frame). [`ModelFit`]
+/// compares its residual with the model's albedo and with one albedo everywhere.
+#[derive(Debug, Clone, Copy, Default)]
+struct LitGroup {
+    n: usize,
+    /// Per channel: the upper triangle of `Σ x xᵀ` for `x = [albedo · [1, n], 1]`, `Σ x·y`,
+    /// `Σ y`, `Σ y²` (`y` the frame's colour).
+    xx: [[f64; 15]; 3],
+    xy: [[f64; LIT_TERMS]; 3],
+    sy: [f64; 3],
+    syy: [f64; 3],
+}
+
+impl LitGroup {
+    fn add(&mut self, frame: [f64; 3], albedo: [f64; 3], normal: [f64; 3]) {
+        self.n += 1;
         for c in 0..3 {
-            let fit = if self.sbb[c] > 0.0 {
-                self.sab[c] * self.sab[c] / self.sbb[c]
-            } else {
-                0.0
-            };
-            residual += (self.saa[c] - fit).max(0.0);
-            total += self.saa[c];
+            let x = [
+                albedo[c],
+                albedo[c] * normal[0],
+                albedo[c] * normal[1],
+                albedo[c] * normal[2],
+                1.0,
+            ];
+            let mut k = 0;
+            for i in 0..LIT_TERMS {
+                for j in i..LIT_TERMS {
+                    self.xx[c][k] += x[i] * x[j];
+                    k += 1;
+                }
+                self.xy[c][i] += x[i] * frame[c];
+            }
+            self.sy[c] += frame[c];
+            self.syy[c] += frame[c] * frame[c];
         }
-        (total > 0.0).then(|| (residual / total).clamp(0.0, 1.0))
     }
 
-    /// The frame's colours `a` against the model's albedo `b` as a correlation: [`Group::ncc`]
-    /// where the pose shows some of the model's print; where it shows none (one colour in
-    /// view), how plain the frame is there instead: `1 − residual / PLAIN_RESIDUAL`, floored
-    /// at 0 ([`Group::albedo_residual`]). A correlation has no evidence there, yet a frame as
-    /// plain as the model predicts is agreement (a mug's badge turned away, and the frame shows
-    /// none), and a print the pose hides is not.
-    fn model_ncc(&self, cfg: &AppearanceConfig) -> Option<f64> {
-        if self.n < cfg.min_pairs.max(2) {
-            return None;
+    /// `sqrt(R²)` of the lit fit over the three channels (explained share of the frame's
+    /// colour variance about its mean; the variance floored at `min_std` per channel so that
+    /// a plain frame that a plain pose explains agrees and one a print pose cannot, does not),
+    /// in [0, 1]: an NCC between the frame and the lit model. `None` under `min_pairs`.
+    fn matrices(&self) -> ([LitMatrix; 3], [LitVector; 3]) {
+        let mut xx = [LitMatrix::zeros(); 3];
+        let mut xy = [LitVector::zeros(); 3];
+        for c in 0..3 {
+            let mut k = 0;
+            for i in 0..LIT_TERMS {
+                for j in i..LIT_TERMS {
+                    xx[c][(i, j)] = self.xx[c][k];
+                    xx[c][(j, i)] = self.xx[c][k];
+                    k += 1;
+                }
+            }
+            xy[c] = LitVector::from(self.xy[c]);
         }
-        let n = self.n as f64;
-        let albedo_var: f64 = (0..3)
-            .map(|c| (self.sbb[c] - self.sb[c] * self.sb[c] / n).max(0.0))
-            .sum();
-        if albedo_var < n * 3.0 * cfg.min_std * cfg.min_std {
-            let residual = self.albedo_residual(cfg)?;
-            return Some((1.0 - residual / PLAIN_RESIDUAL).max(0.0));
+        (xx, xy)
+    }
+
+    /// Per channel the gain and offset under `light` (β_c = [g_c, g_c·l, o_c]).
+    fn gains_under(
+        xx: &[LitMatrix; 3],
+        xy: &[LitVector; 3],
+        light: &agentstar_geom::Vector3,
+    ) -> [LitVector; 3] {
+        let mut m = agentstar_geom::nalgebra::SMatrix::<f64, LIT_TERMS, 2>::zeros();
+        m[(0, 0)] = 1.0;
+        for k in 0..3 {
+            m[(1 + k, 0)] = light[k];
         }
-        self.ncc(cfg)
+        m[(4, 1)] = 1.0;
+        let mut beta = [LitVector::zeros(); 3];
+        for c in 0..3 {
+            let mut a = m.transpose() * xx[c] * m;
+            let r = lit_ridge(a.trace());
+            a[(0, 0)] += r;
+            a[(1, 1)] += r;
+            let b = m.transpose() * xy[c];
+            let mut p = a.cholesky().map(|ch| ch.solve(&b)).unwrap_or_default();
+            // The gain no lower than LIT_MIN_GAIN of the frame's mean over the lit albedo's
+            // (then the offset that fits best under it): haze lowers a print's contrast, it
+            // does not remove it.
+            let (n, sum_y) = (xx[c][(4, 4)], xy[c][4]);
+            let sum_x = a[(0, 1)];
+            if n > 0.0 && sum_x.abs() > 0.0 {
+                let floor = LIT_MIN_GAIN * sum_y / sum_x;
+                if floor > 0.0 && p[0] < floor {
+                    p[0] = floor;
+                    p[1] = (sum_y - floor * sum_x) / n;
+                }
+            }
+            beta[c] = m * p;
+        }
+        beta
+    }
+
+    /// One light for the three channels, a gain and an offset per channel: alternately
+    /// the gains and offsets under the light, then the light under them (from none).
+    fn fit_light(&self) -> agentstar_geom::Vector3 {
+        let (xx, xy) = self.matrices();
+        let mut light = agentstar_geom::Vector3::zeros();
+        for _ in 0..LIT_ROUNDS {
+            let beta = Self::gains_under(&xx, &xy, &light);
+            // β_c = u_c + g_c · E · l, E taking l into the light's three terms.
+            let mut a = agentstar_geom::Matrix3::zeros();
+            let mut b = agentstar_geom::Vector3::zeros();
+            for c in 0..3 {
+                let g = beta[c][0];
+                let mut e = agentstar_geom::nalgebra::SMatrix::<f64, LIT_TERMS, 3>::zeros();
+                for k in 0..3 {
+                    e[(1 + k, k)] = g;
+                }
+                let mut u = LitVector::zeros();
+                u[0] = g;
+                u[4] = beta[c][4];
+                a += e.transpose() * xx[c] * e;
+                b += e.transpose() * (xy[c] - xx[c] * u);
+            }
+            let r = lit_ridge(a.trace());
+            for k in 0..3 {
+                a[(k, k)] += r;
+            }
+            light = a.cholesky().map(|ch| ch.solve(&b)).unwrap_or_default();
+        }
+        light
+    }
+
+    /// The fit's residual under `light` (the least squares' sum over channels).
+    fn residual_under(&self, light: &agentstar_geom::Vector3) -> f64 {
+        let (xx, xy) = self.matrices();
+        let beta = Self::gains_under(&xx, &xy, light);
+        (0..3)
+            .map(|c| {
+                let b = &beta[c];
+                (self.syy[c] - 2.0 * b.dot(&xy[c]) + b.dot(&(xx[c] * b))).max(0.0)
+            })
+            .sum()
     }
 }
 
-/// The share of a frame's colours ([`Group::albedo_residual`]) that one albedo may leave
-/// unexplained for the frame to count as plain there. Shading over a plain surface leaves
-/// 0.1–0.5% on the hard suite's mug with its badge turned away, and 0.75% under the harsh
-/// light of this module's test can; the same mug's badge in view, against a pose hiding it,
-/// leaves about 1%.
-const PLAIN_RESIDUAL: f64 = 0.01;
+/// The model's colours against one frame: the lit fit with the model's albedo
+/// ([`LitGroup`]), and the same fit with one albedo everywhere (shading alone).
+#[derive(Debug, Clone, Copy, Default)]
+struct ModelFit {
+    printed: LitGroup,
+    plain: LitGroup,
+}
+
+impl ModelFit {
+    fn add(&mut self, frame: [f64; 3], albedo: [f64; 3], normal: [f64; 3]) {
+        self.printed.add(frame, albedo, normal);
+        self.plain.add(frame, [255.0; 3], normal);
+    }
+
+    /// The share of the frame's colours that shading alone leaves unexplained and the
+    /// model's print explains: `(r₀ − r) / r₀` for the residuals `r` of the lit fit with the
+    /// model's albedo and `r₀` with one albedo (`r₀` floored at `min_std` per channel and
+    /// sample, the noise), in [−1, 1]. A pose showing no print scores 0, one placing the print
+    /// where the frame shows it up to 1, one placing it where the frame is plain, or showing
+    /// the wrong print, below 0: poses showing the print and poses hiding it on one scale.
+    /// `None` under `min_pairs`.
+    ///
+    /// Before 2026-12-05 poses showing the print were scored by NCC of the albedo against
+    /// the shaded frame, and poses showing none by how plain the frame looked. Hiding a
+    /// small badge (NCC 0.3–0.75 where shown, under shading the albedo cannot explain)
+    /// scored 0.85–0.97 as plain: a box with a badge on one face was tracked wholly in the
+    /// twin whose badge faces away (gen-37, gen-57 outside the general suite; play-test 18's
+    /// drum, where the agent found "hiding the only print scores best").
+    fn agreement(&self, cfg: &AppearanceConfig) -> Option<f64> {
+        let n = self.printed.n;
+        if n < cfg.min_pairs.max(LIT_TERMS) {
+            return None;
+        }
+        let printed = self.printed.residual_under(&self.printed.fit_light());
+        let plain = self.plain.residual_under(&self.plain.fit_light());
+        let floor = n as f64 * 3.0 * cfg.min_std * cfg.min_std;
+        Some(((plain - printed) / plain.max(floor)).clamp(-1.0, 1.0))
+    }
+}
+
+type LitMatrix = agentstar_geom::nalgebra::SMatrix<f64, LIT_TERMS, LIT_TERMS>;
+type LitVector = agentstar_geom::nalgebra::SVector<f64, LIT_TERMS>;
+
+/// A ridge far under the data's scale: a direction the samples do not span (one flat face
+/// in view, a plain albedo whose gain and offset coincide) is left out.
+fn lit_ridge(trace: f64) -> f64 {
+    1e-9 * (trace + 1.0)
+}
+
+/// The least gain [`LitGroup`]'s fit may give a channel, as a share of the frame's mean
+/// over the lit albedo's: without it a pose putting a print where the frame is plain fitted
+/// it with a gain of 0.007 and the frame's mean as offset, as well as the pose showing no
+/// print (a test's can, 0.8175 against 0.8169). The hard suite's frames need 0.47 (a badge
+/// 21% brighter than its ground in the model, 10% in the frame).
+const LIT_MIN_GAIN: f64 = 0.25;
+
+/// Rounds of [`LitGroup::agreement`]'s alternating fit (gains and offsets, then the light).
+const LIT_ROUNDS: usize = 3;
 
 /// What one candidate's samples gathered: per (reference, part) groups, per reference the
 /// samples hidden there, and the candidate frame's own colours.
@@ -273,7 +432,7 @@ struct Gathered {
     own: Group,
     /// The frame's colours against the model's own part colours, where the model has them
     /// ([`model_has_appearance`]).
-    model: Option<Group>,
+    model: Option<ModelFit>,
     n_parts: usize,
 }
 
@@ -354,7 +513,7 @@ fn gather_from(
             .map(|p| p.color.map(|c| 255.0 * c as f64))
             .collect()
     });
-    let mut model_group = albedo.as_ref().map(|_| Group::default());
+    let mut model_group = albedo.as_ref().map(|_| ModelFit::default());
     let (w, h) = (cam.width, cam.height);
     let mut y = stride / 2;
     while y < h {
@@ -369,9 +528,18 @@ fn gather_from(
                 let a = frame.colour(x, y);
                 own.add(a, a);
                 if let (Some(g), Some(al)) = (model_group.as_mut(), albedo.as_ref()) {
+                    let triangle = buffers.triangle[i];
+                    let normal = camera_normal(
+                        model,
+                        part as usize,
+                        triangle,
+                        &part_from_camera[part as usize],
+                        &q,
+                    );
                     g.add(
                         a,
-                        model_colour(model, part as usize, buffers.triangle[i], &local, al),
+                        model_colour(model, part as usize, triangle, &local, al),
+                        normal,
                     );
                 }
                 for (r, view) in references.iter().enumerate() {
@@ -411,6 +579,33 @@ fn gather_from(
         model: model_group,
         n_parts,
     }
+}
+
+/// The unit normal, in the camera, of triangle `triangle` of part `part` (its face normal,
+/// turned toward the camera point `q` it is seen at); zero for a degenerate triangle.
+fn camera_normal(
+    model: &ObjectModel,
+    part: usize,
+    triangle: u32,
+    part_from_camera: &Similarity,
+    q: &Point3,
+) -> [f64; 3] {
+    let p = &model.parts[part];
+    let Some(tri) = p.mesh.triangles.get(triangle as usize) else {
+        return [0.0; 3];
+    };
+    let v = |k: usize| p.mesh.positions[tri[k] as usize];
+    let local = (v(1) - v(0)).cross(&(v(2) - v(0)));
+    let mut n = part_from_camera.rotation.inverse() * local;
+    let len = n.norm();
+    if len.is_nan() || len <= 0.0 {
+        return [0.0; 3];
+    }
+    n /= len;
+    if n.dot(&q.coords) > 0.0 {
+        n = -n;
+    }
+    [n.x, n.y, n.z]
 }
 
 /// The model's own colour (8-bit units) at `local`, a point of triangle `triangle` of part
@@ -468,7 +663,7 @@ fn finish(
         .model
         .as_ref()
         .filter(|_| with_model)
-        .and_then(|m| Some((m.model_ncc(cfg)?, m.n)));
+        .and_then(|m| Some((m.agreement(cfg)?, m.printed.n)));
     if let Some((ncc, n)) = model {
         let w = weight.max(n as f64);
         sum += ncc * w;
@@ -1072,19 +1267,57 @@ pub(crate) mod tests {
         let at = |deg: f64| spun(&truth, deg);
         let right = model_agreement(&labelled, scale, &frame, &at(0.0), &cfg);
         let twin = model_agreement(&labelled, scale, &frame, &at(180.0), &cfg);
-        // No print in view at the true pose, and none in the frame: agreement, though a
-        // correlation has nothing to correlate there.
-        // (Under this harsh light shading leaves 0.75% of the colours unexplained: 0.25.)
+        // No print in view at the true pose, and none in the frame: the print explains
+        // nothing beyond shading (0), which is evidence all the same.
         let r = right
             .ncc
             .expect("a plain frame where the pose shows no print is evidence");
-        assert!(r > 0.2, "{right:?}");
-        // The twin puts the label where the frame is plain: no agreement at all.
-        assert_eq!(twin.ncc, Some(0.0), "{twin:?}");
+        let t = twin.ncc.expect("the twin shows the label");
+        assert!(r.abs() < 0.02, "{right:?}");
+        // The twin puts the label where the frame is plain: its lit fit explains the frame
+        // worse than shading alone (−0.07).
+        assert!(t < r - 0.03, "{twin:?} against {right:?}");
         // A model of one colour has no print to place.
         assert_eq!(
             model_agreement(&plain, scale, &frame, &at(0.0), &cfg).ncc,
             None
         );
+    }
+
+    #[test]
+    fn a_small_low_contrast_badge_tells_the_pose_showing_it_from_one_hiding_it() {
+        // A narrow badge, a little greener than its ground, in a hazy frame (the general
+        // suite's badges: a yellow badge on an orange box): the pose showing the badge where
+        // the frame has it must agree better than its twin hiding it. Before 2026-12-05 the
+        // twin, plain in view, scored as plain agreement above the truth's correlation of
+        // the albedo with the shaded frame.
+        let (ground, print) = ([0.95, 0.64, 0.38], [0.91, 0.77, 0.42]);
+        let mut badged = label_of_half_width(0.3);
+        badged.parts[0].color = ground.map(|c| c as f32);
+        badged.parts[1].color = print.map(|c| c as f32);
+        let scale = 0.12;
+        let cam = label_camera();
+        let truth = pose(Vector3::y(), 0.0, -100.0);
+        let badge = |p: &Point3| {
+            if p.z.abs() < 0.3 && p.y.atan2(p.x).abs() < 0.3 {
+                print
+            } else {
+                ground
+            }
+        };
+        let (mut rgb, mask) = shoot(&badged, scale, &cam, &truth, &badge);
+        // Haze: 40% of every pixel a grey.
+        for v in rgb.iter_mut() {
+            *v = (0.6 * f64::from(*v) + 0.4 * 140.0).round() as u8;
+        }
+        let frame = AppearanceFrame::new(&cam, &rgb, &mask);
+        let cfg = AppearanceConfig::default();
+        let at = |deg: f64| model_agreement(&badged, scale, &frame, &spun(&truth, deg), &cfg);
+        let right = at(0.0).ncc.expect("the badge is seen");
+        let twin = at(180.0).ncc.expect("the twin has colours in view");
+        // The badge explains 13% of what shading leaves; the twin shows no print (0). Before:
+        // NCC 0.00 against plain agreement 0.96.
+        assert!(right > 0.08, "{right}");
+        assert!(twin.abs() < 0.02, "{twin}");
     }
 }

@@ -107,10 +107,10 @@ fn a_bake_from_true_poses_gives_an_uncoloured_mug_its_print_and_score_uses_it() 
     assert_eq!(nccs.len(), 8, "{:?}", after.appearance);
     let mean = nccs.iter().sum::<f64>() / nccs.len() as f64;
     // The frames agree with the baked print at least as well as with the true model's
-    // badge part (2026-12-04: 0.36 baked, 0.30 true; a body of one colour scores the
-    // frames' shading only).
+    // badge part: the share of their colours it explains beyond shading (2026-12-05: 0.18
+    // baked, −0.02 true: the painted badge is not the model's badge part).
     assert!(
-        mean > 0.2 && mean >= true_mean - 0.05,
+        mean > 0.1 && mean >= true_mean - 0.05,
         "model agreement {mean:.2} (true model {true_mean:.2}): {nccs:?}"
     );
 

@@ -487,7 +487,7 @@ fn colour_line(appearance: &[agentstar_reports::FrameAppearance]) -> Option<Stri
     };
     let neighbours = figure(&|a| a.ncc)?;
     let model = figure(&|a| a.model_ncc)
-        .map(|m| format!("; against the model's own colours, {m}"))
+        .map(|m| format!("; against the model's own colours (the share its print explains beyond shading; 0 with no print in view), {m}"))
         .unwrap_or_default();
     Some(format!(
         "Colours (not a gate): the keyframes' colours against their neighbours' at these poses, NCC {neighbours}{model}. The gates read outlines only: where the object has a print and these are low, a pose may put it on the wrong side (a turn about a round body's axis keeps the outline); look at the lowest frames with `frames` and `model: true`."

@@ -378,7 +378,7 @@ pub fn search_text(report: &SearchReport, path: &Path) -> String {
             ));
         }
         if with_model {
-            t.push_str("model: the frame's colours against the model's own part colours at the candidate (NCC, −1..1): where candidates tie in IoU (a flipped or swapped twin), the higher one puts the model's print where the frame shows it.\n");
+            t.push_str("model: the frame's colours against the model's own colours at the candidate: the share of them that shading alone leaves and the model's print explains (−1..1; 0: no print in view; below 0: the print placed where the frame does not show it). Where candidates tie in IoU (a flipped or swapped twin), the higher one puts the model's print where the frame shows it.\n");
         }
         for n in &f.notes {
             t.push_str(&format!("note: {n}\n"));
