@@ -263,10 +263,7 @@ impl LitGroup {
         }
     }
 
-    /// `sqrt(R²)` of the lit fit over the three channels (explained share of the frame's
-    /// colour variance about its mean; the variance floored at `min_std` per channel so that
-    /// a plain frame that a plain pose explains agrees and one a print pose cannot, does not),
-    /// in [0, 1]: an NCC between the frame and the lit model. `None` under `min_pairs`.
+    /// The running sums as matrices: per channel `Σ x xᵀ` and `Σ x·y`.
     fn matrices(&self) -> ([LitMatrix; 3], [LitVector; 3]) {
         let mut xx = [LitMatrix::zeros(); 3];
         let mut xy = [LitVector::zeros(); 3];
@@ -321,9 +318,11 @@ impl LitGroup {
         beta
     }
 
-    /// One light for the three channels, a gain and an offset per channel: alternately
-    /// the gains and offsets under the light, then the light under them (from none).
-    fn fit_light(&self) -> agentstar_geom::Vector3 {
+    /// The least-squares residual (summed over channels) of the fit: one light for the three
+    /// channels, a gain and an offset per channel, found alternately (the gains and offsets
+    /// under the light, then the light under them, from none; [`LIT_ROUNDS`] rounds), the
+    /// gains and offsets then fitted under the last light.
+    fn residual(&self) -> f64 {
         let (xx, xy) = self.matrices();
         let mut light = agentstar_geom::Vector3::zeros();
         for _ in 0..LIT_ROUNDS {
@@ -349,13 +348,7 @@ impl LitGroup {
             }
             light = a.cholesky().map(|ch| ch.solve(&b)).unwrap_or_default();
         }
-        light
-    }
-
-    /// The fit's residual under `light` (the least squares' sum over channels).
-    fn residual_under(&self, light: &agentstar_geom::Vector3) -> f64 {
-        let (xx, xy) = self.matrices();
-        let beta = Self::gains_under(&xx, &xy, light);
+        let beta = Self::gains_under(&xx, &xy, &light);
         (0..3)
             .map(|c| {
                 let b = &beta[c];
@@ -389,7 +382,7 @@ impl ModelFit {
     ///
     /// Before 2026-12-05 poses showing the print were scored by NCC of the albedo against
     /// the shaded frame, and poses showing none by how plain the frame looked. Hiding a
-    /// small badge (NCC 0.3–0.75 where shown, under shading the albedo cannot explain)
+    /// small badge (NCC 0.0–0.75 where shown, under shading the albedo cannot explain)
     /// scored 0.85–0.97 as plain: a box with a badge on one face was tracked wholly in the
     /// twin whose badge faces away (gen-37, gen-57 outside the general suite; play-test 18's
     /// drum, where the agent found "hiding the only print scores best").
@@ -398,8 +391,7 @@ impl ModelFit {
         if n < cfg.min_pairs.max(LIT_TERMS) {
             return None;
         }
-        let printed = self.printed.residual_under(&self.printed.fit_light());
-        let plain = self.plain.residual_under(&self.plain.fit_light());
+        let (printed, plain) = (self.printed.residual(), self.plain.residual());
         let floor = n as f64 * 3.0 * cfg.min_std * cfg.min_std;
         Some(((plain - printed) / plain.max(floor)).clamp(-1.0, 1.0))
     }
@@ -417,11 +409,13 @@ fn lit_ridge(trace: f64) -> f64 {
 /// The least gain [`LitGroup`]'s fit may give a channel, as a share of the frame's mean
 /// over the lit albedo's: without it a pose putting a print where the frame is plain fitted
 /// it with a gain of 0.007 and the frame's mean as offset, as well as the pose showing no
-/// print (a test's can, 0.8175 against 0.8169). The hard suite's frames need 0.47 (a badge
-/// 21% brighter than its ground in the model, 10% in the frame).
+/// print (a test's can: 0.8175 against 0.8169 with an earlier form of the score, sqrt(R²) of
+/// the lit fit). A badged box's frames outside the suites (gen-37) need 0.47 (a badge 21%
+/// brighter than its ground in the model, 10% in the frame). Set once, not tuned: haze and
+/// flare may flatten a print's contrast fourfold, not remove it.
 const LIT_MIN_GAIN: f64 = 0.25;
 
-/// Rounds of [`LitGroup::agreement`]'s alternating fit (gains and offsets, then the light).
+/// Rounds of [`LitGroup::residual`]'s alternating fit (gains and offsets, then the light).
 const LIT_ROUNDS: usize = 3;
 
 /// What one candidate's samples gathered: per (reference, part) groups, per reference the
@@ -493,10 +487,8 @@ fn gather_from(
     cfg: &AppearanceConfig,
 ) -> Gathered {
     let cam = frame.camera;
-    let part_from_camera: Vec<Similarity> = camera_from_parts(model, scale, candidate)
-        .iter()
-        .map(|s| s.inverse())
-        .collect();
+    let camera_from_part = camera_from_parts(model, scale, candidate);
+    let part_from_camera: Vec<Similarity> = camera_from_part.iter().map(|s| s.inverse()).collect();
     let n_parts = model.parts.len();
     let mut groups = vec![Group::default(); references.len() * n_parts];
     let stride = cfg.stride.max(1);
@@ -533,7 +525,7 @@ fn gather_from(
                         model,
                         part as usize,
                         triangle,
-                        &part_from_camera[part as usize],
+                        &camera_from_part[part as usize].rotation,
                         &q,
                     );
                     g.add(
@@ -587,7 +579,7 @@ fn camera_normal(
     model: &ObjectModel,
     part: usize,
     triangle: u32,
-    part_from_camera: &Similarity,
+    camera_from_part: &agentstar_geom::UnitQuaternion,
     q: &Point3,
 ) -> [f64; 3] {
     let p = &model.parts[part];
@@ -596,7 +588,7 @@ fn camera_normal(
     };
     let v = |k: usize| p.mesh.positions[tri[k] as usize];
     let local = (v(1) - v(0)).cross(&(v(2) - v(0)));
-    let mut n = part_from_camera.rotation.inverse() * local;
+    let mut n = camera_from_part * local;
     let len = n.norm();
     if len.is_nan() || len <= 0.0 {
         return [0.0; 3];
