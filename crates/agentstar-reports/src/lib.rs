@@ -114,12 +114,117 @@ pub struct Candidate {
     /// that tells them apart.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub model_ncc: Option<f64>,
+    /// The turn from each neighbouring keyframe's committed pose (the one before, then the
+    /// one after, where `pose.json` states one) carried into this frame through the cameras,
+    /// to this candidate: a candidate that keeps the sequence's basin turns about as far as
+    /// the hand moved; its twin, by a half-turn more.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub neighbour_steps: Vec<NeighbourStep>,
     /// Where a kept start lies outside the region searched, one entry per coordinate
     /// (`hinge 10 not in 100..120`); empty inside it and for every other row.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub outside_region: Vec<String>,
     /// Search diagnostics (restart, seed, pass, raw vector).
     pub extra: Value,
+}
+
+/// The turn between a candidate and a neighbouring keyframe's committed pose
+/// ([`Candidate::neighbour_steps`]).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct NeighbourStep {
+    /// The neighbouring keyframe.
+    pub frame: String,
+    /// The rotation between its pose carried here and the candidate's, in degrees.
+    pub angle_deg: f64,
+}
+
+/// Candidates within this much of the best score tie in IoU ([`twin_columns`]): twins of
+/// one outline (a lid and base swapped, a box's quarter turn) score alike to a few
+/// thousandths, the segmenter's noise.
+pub const IOU_TIE: f64 = 0.005;
+
+/// A model figure higher than every other IoU tie's by more than this marks its candidate
+/// ([`twin_columns`]): the margin by which the tracker's appearance term calls a choice.
+pub const MODEL_MARGIN: f64 = 0.05;
+
+/// The columns of a search table that tell twins apart where their outlines tie, as both
+/// the command's text and the agent's tool print them: `model` (the model's print against
+/// the frame, the highest among the IoU ties marked `*`) and `step°` (the turns from the
+/// neighbouring keyframes' committed poses), with the notes that explain them.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct TwinColumns {
+    /// The header cells (each with its leading space), empty where no candidate has one.
+    pub header: String,
+    /// One string of cells per candidate, in the order given.
+    pub cells: Vec<String>,
+    /// Lines explaining the columns shown.
+    pub notes: Vec<String>,
+}
+
+/// [`TwinColumns`] of one frame's ranked candidates.
+pub fn twin_columns(ranked: &[Candidate]) -> TwinColumns {
+    let with_model = ranked.iter().any(|c| c.model_ncc.is_some());
+    let with_steps = ranked.iter().any(|c| !c.neighbour_steps.is_empty());
+    let mut out = TwinColumns {
+        cells: vec![String::new(); ranked.len()],
+        ..TwinColumns::default()
+    };
+    if with_model {
+        // The candidate with the highest model figure among those tied in IoU with the best,
+        // where two or more tie.
+        let best = ranked
+            .iter()
+            .map(|c| c.gate)
+            .fold(f64::NEG_INFINITY, f64::max);
+        let tied: Vec<usize> = (0..ranked.len())
+            .filter(|&k| ranked[k].gate >= best - IOU_TIE && ranked[k].model_ncc.is_some())
+            .collect();
+        let mut by_model: Vec<(usize, f64)> = tied
+            .iter()
+            .filter_map(|&k| Some((k, ranked[k].model_ncc?)))
+            .collect();
+        by_model.sort_by(|a, b| b.1.total_cmp(&a.1));
+        let marked = match by_model.as_slice() {
+            [(k, first), (_, second), ..] if first - second > MODEL_MARGIN => Some(*k),
+            _ => None,
+        };
+        out.header.push_str("    model");
+        for (k, c) in ranked.iter().enumerate() {
+            let mark = if Some(k) == marked { "*" } else { " " };
+            let v = c.model_ncc.map_or("n/a".into(), |v| format!("{v:.2}"));
+            out.cells[k].push_str(&format!(" {v:>7}{mark}"));
+        }
+        out.notes.push("model: the frame's colours against the model's own colours at the candidate: the share of them that shading alone leaves and the model's print explains (−1..1; 0: no print in view; below 0: the print placed where the frame does not show it). Where candidates tie in IoU (a flipped or swapped twin), the higher one puts the model's print where the frame shows it.".into());
+        if marked.is_some() {
+            out.notes.push(format!("*: of the {} candidates within {IOU_TIE} of the best score (their outlines tie), the one whose model figure is highest by more than {MODEL_MARGIN}.", tied.len()));
+        } else if by_model.len() > 1 {
+            out.notes.push(format!("The model figures of the {} candidates within {IOU_TIE} of the best score (their outlines tie) are within {MODEL_MARGIN} of each other: the colours do not tell them apart here.", by_model.len()));
+        }
+    }
+    if with_steps {
+        out.header.push_str(&format!(" {:>11}", "step°"));
+        for (k, c) in ranked.iter().enumerate() {
+            let steps: Vec<String> = c
+                .neighbour_steps
+                .iter()
+                .map(|s| format!("{:.0}", s.angle_deg))
+                .collect();
+            let cell = if steps.is_empty() {
+                "-".to_string()
+            } else {
+                steps.join("/")
+            };
+            out.cells[k].push_str(&format!(" {cell:>11}"));
+        }
+        let frames: Vec<&str> = ranked
+            .iter()
+            .find(|c| !c.neighbour_steps.is_empty())
+            .map(|c| c.neighbour_steps.iter().map(|s| s.frame.as_str()).collect())
+            .unwrap_or_default();
+        out.notes.push(format!("step°: the turn from the committed pose of {} carried here through the cameras (the object held still) to the candidate: one that keeps the sequence's basin turns about as far as the hand moved between the keyframes, its twin by a half or quarter turn more.", frames.join(" / ")));
+    }
+    out
 }
 
 /// One frame of a search report.
@@ -942,6 +1047,78 @@ pub fn score_table(
 mod tests {
     use super::*;
     use agentstar_render::GATE_IOU;
+
+    fn candidate(rank: usize, gate: f64, model: Option<f64>, steps: &[f64]) -> Candidate {
+        Candidate {
+            rank,
+            label: format!("c{rank}"),
+            pose: PoseJson {
+                quaternion: [1.0, 0.0, 0.0, 0.0],
+                translation: [0.0, 0.0, 1.0],
+                scale: Some(0.2),
+            },
+            joints: BTreeMap::new(),
+            iou_visible: Some(gate),
+            iou_raw: gate,
+            iou_band: Some(gate),
+            gate,
+            depth_canon: None,
+            combined: gate,
+            model_ncc: model,
+            neighbour_steps: steps
+                .iter()
+                .zip(["a.png", "c.png"])
+                .map(|(&angle_deg, frame)| NeighbourStep {
+                    frame: frame.into(),
+                    angle_deg,
+                })
+                .collect(),
+            outside_region: vec![],
+            extra: Value::Null,
+        }
+    }
+
+    #[test]
+    fn twin_columns_mark_the_print_that_decides_an_iou_tie_and_show_the_neighbours_turns() {
+        // Two twins tied in IoU, the second's print clearly where the frame shows it; a third
+        // scores higher in colours but is not tied.
+        let ranked = vec![
+            candidate(0, 0.981, Some(0.40), &[170.0, 174.0]),
+            candidate(1, 0.979, Some(0.90), &[20.0, 26.0]),
+            candidate(2, 0.950, Some(0.95), &[90.0, 95.0]),
+        ];
+        let t = twin_columns(&ranked);
+        assert!(
+            t.header.contains("model") && t.header.contains("step°"),
+            "{t:?}"
+        );
+        assert!(t.cells[1].contains("0.90*"), "{t:?}");
+        assert!(
+            !t.cells[0].contains('*') && !t.cells[2].contains('*'),
+            "{t:?}"
+        );
+        assert!(
+            t.cells[0].contains("170/174") && t.cells[1].contains("20/26"),
+            "{t:?}"
+        );
+        assert!(t.notes.iter().any(|n| n.contains("a.png / c.png")), "{t:?}");
+        // Figures within the margin mark nothing, and say the colours do not decide.
+        let close = vec![
+            candidate(0, 0.981, Some(0.87), &[]),
+            candidate(1, 0.980, Some(0.90), &[]),
+        ];
+        let t = twin_columns(&close);
+        assert!(t.cells.iter().all(|c| !c.contains('*')), "{t:?}");
+        assert!(
+            t.notes.iter().any(|n| n.contains("do not tell them apart")),
+            "{t:?}"
+        );
+        assert!(!t.header.contains("step°"), "{t:?}");
+        // Neither figure: no columns at all.
+        let plain = vec![candidate(0, 0.98, None, &[])];
+        let t = twin_columns(&plain);
+        assert!(t.header.is_empty() && t.notes.is_empty() && t.cells == vec![String::new()]);
+    }
 
     #[test]
     fn a_pick_is_a_rank_or_a_label_not_both() {

@@ -7,6 +7,7 @@
 use crate::objective::{CandidateScore, FrameProblem};
 use crate::search::{rank, sweep, SweepConfig, SweepResult};
 use crate::space::{joint_default, pose_ranges, Dof, DofRange, SearchSpace};
+use crate::symmetry::fold_turns;
 use crate::update::{apply_object_rotation, flip, GenPose};
 use crate::TrackError;
 use agentstar_geom::nalgebra::{Matrix3, Quaternion, Unit};
@@ -404,6 +405,24 @@ pub fn refine_ranked(
 /// whatever its triangulation: a face split along one diagonal tilted them by several
 /// degrees, and the half-turn then missed the twin.
 pub fn principal_axes(model: &ObjectModel, states: &[f64]) -> Option<(Point3, [Vector3; 3])> {
+    principal_frame(model, states).map(|f| (f.middle, f.axes))
+}
+
+/// What [`principal_axes`] computes, with what it computes it from.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct PrincipalFrame {
+    /// The centroid of the solid (or of the surface, when a part is open).
+    pub centroid: Point3,
+    /// The middle of the posed vertices' extent along each axis: [`principal_axes`]'s centre.
+    pub middle: Point3,
+    /// Largest spread first.
+    pub axes: [Vector3; 3],
+    /// Whether the moments are the solid's (every part closed with a positive volume).
+    pub solid: bool,
+}
+
+/// [`principal_axes`] with its centroid and the kind of moments it used.
+pub(crate) fn principal_frame(model: &ObjectModel, states: &[f64]) -> Option<PrincipalFrame> {
     let transforms = model.tree.part_transforms(states);
     let solid = model
         .parts
@@ -476,7 +495,12 @@ pub fn principal_axes(model: &ObjectModel, states: &[f64]) -> Option<(Point3, [V
             c
         }
     });
-    Some((Point3::from(middle), axes))
+    Some(PrincipalFrame {
+        centroid: Point3::from(centre),
+        middle: Point3::from(middle),
+        axes,
+        solid,
+    })
 }
 
 /// The least ratio of the reaches of a hinge's two sides (their farthest points from its
@@ -570,8 +594,10 @@ pub fn hinge_swaps(model: &ObjectModel, states: &[f64]) -> Vec<(usize, UnitQuate
 
 /// The twins of a pose that every comparison of basins should include: its 180° flips about
 /// the object's axes through the pivot, the half-turns about the model's principal axes
-/// through its centroid (lid ↔ base swaps and the symmetries of box-like shapes), and the
-/// half-turns that swap the sides of each hinge ([`hinge_swaps`]).
+/// through its centroid (lid ↔ base swaps and the symmetries of box-like shapes), the turns
+/// of an n-fold outline ([`fold_turns`]: a square prism's quarter turns and the half-turns
+/// across them, which compose the flips into the whole group), and the half-turns that
+/// swap the sides of each hinge ([`hinge_swaps`]).
 pub fn twin_candidates(model: &ObjectModel, scale: f64, around: &GenPose) -> Vec<GenPose> {
     let pivot = model.pivot(&around.states);
     let mut moves: Vec<(UnitQuaternion, Point3)> = ['x', 'y', 'z']
@@ -592,6 +618,14 @@ pub fn twin_candidates(model: &ObjectModel, scale: f64, around: &GenPose) -> Vec
         states: around.states.clone(),
     };
     let mut twins: Vec<GenPose> = moves.iter().map(place).collect();
+    // The turns of an n-fold outline (a square prism's quarter turns and the half-turns
+    // across them), each unless a flip or a principal half-turn already is it.
+    for turn in fold_turns(model, &around.states) {
+        let g = place(&turn);
+        if !twins.iter().any(|t| same_basin(t, &g)) {
+            twins.push(g);
+        }
+    }
     // A hinge swap that a principal half-turn already nearly makes (two like slabs: the
     // bisector through the hinge is about a principal axis through the centroid) is not
     // searched twice: one refinement reaches both.
@@ -621,8 +655,9 @@ fn vertex_mean(mesh: &agentstar_geom::TriMesh) -> Option<Point3> {
 
 /// Distinct basins of one frame around a pose: the pose itself, its 180° flips about the
 /// object's axes through the pivot, the candidate twins of the model's own shape (half and
-/// quarter turns about its principal axes through its centroid, half turns about 24 axes
-/// spread over the sphere), and `covering` seeded uniform rotations about the pivot. The
+/// quarter turns about its principal axes through its centroid, the turns of an n-fold
+/// outline ([`fold_turns`]), half turns about 24 axes spread over the sphere), and
+/// `covering` seeded uniform rotations about the pivot. The
 /// pose, its flips and the principal half-turns are always refined; the rest by their
 /// placed score, at least 30° apart, up to `refine` in all. The refined hypotheses come back
 /// best first, merged where two reached the same basin (within 5° of rotation and of every
@@ -660,6 +695,9 @@ pub fn basins(
                 moves.push((q, centre));
             }
         }
+        // The turns of an n-fold outline: where two moments are equal the principal
+        // quarter turns above are about arbitrary axes across the third.
+        moves.extend(fold_turns(problem.model, &around.states));
         // Half turns about axes spread over a hemisphere (golden-angle spiral).
         let n = 24;
         for k in 0..n {
@@ -839,6 +877,75 @@ mod tests {
             parts: vec![model.parts[0].clone()],
         };
         assert!(hinge_swaps(&rigid, &[]).is_empty());
+    }
+
+    #[test]
+    fn the_twins_of_a_square_prism_are_its_whole_group_of_eight() {
+        // A box 0.83 × 0.83 × 1 with a thin badge: its principal axes across the long one are
+        // arbitrary (equal moments), so their half-turns are no symmetry. The seven other
+        // poses of its outline (three turns about the long axis, four half-turns across it,
+        // among them the products of a quarter turn and a flip) must all be twins.
+        use agentstar_geom::primitives::cuboid;
+        let body = cuboid(0.83, 0.83, 1.0).expect("box");
+        let badge = cuboid(0.005, 0.17, 0.27)
+            .expect("badge")
+            .translated(Vector3::new(0.4175, 0.16, 0.15));
+        let model = ObjectModel {
+            tree: agentstar_geom::KinematicTree::rigid(2),
+            parts: vec![
+                agentstar_geom::Part::new("body", body, [0.2, 0.3, 0.3]),
+                agentstar_geom::Part::new("badge", badge, [0.4, 0.3, 0.6]),
+            ],
+        };
+        let turn = |axis: Vector3, deg: f64| {
+            UnitQuaternion::from_axis_angle(&Unit::new_normalize(axis), deg.to_radians())
+        };
+        let pose = GenPose {
+            pose: agentstar_geom::pose::ObjectPose::new(
+                turn(Vector3::new(0.3, 1.0, 0.2), 50.0),
+                Vector3::new(0.05, -0.02, 3.0),
+            ),
+            states: vec![],
+        };
+        let twins = twin_candidates(&model, 1.0, &pose);
+        let group = [
+            turn(Vector3::z(), 90.0),
+            turn(Vector3::z(), 180.0),
+            turn(Vector3::z(), 270.0),
+            turn(Vector3::x(), 180.0),
+            turn(Vector3::y(), 180.0),
+            turn(Vector3::new(1.0, 1.0, 0.0), 180.0),
+            turn(Vector3::new(1.0, -1.0, 0.0), 180.0),
+        ];
+        for symmetry in group {
+            // The box is centred at the origin: the symmetry turns about it.
+            let want = GenPose {
+                pose: agentstar_geom::pose::ObjectPose::new(
+                    pose.pose.rotation * symmetry,
+                    pose.pose.translation,
+                ),
+                states: vec![],
+            };
+            let nearest = twins
+                .iter()
+                .map(|t| {
+                    let angle = t.pose.rotation.angle_to(&want.pose.rotation).to_degrees();
+                    (angle, (t.pose.translation - want.pose.translation).norm())
+                })
+                .fold((f64::INFINITY, f64::INFINITY), |a, b| {
+                    if b.0 < a.0 {
+                        b
+                    } else {
+                        a
+                    }
+                });
+            assert!(
+                nearest.0 < 0.5 && nearest.1 < 0.01,
+                "{symmetry:?}: nearest twin {:.2}° and {:.3} away",
+                nearest.0,
+                nearest.1
+            );
+        }
     }
 
     #[test]

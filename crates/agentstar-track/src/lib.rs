@@ -16,6 +16,7 @@ pub mod sequence;
 pub mod shape;
 pub mod space;
 pub mod standin;
+pub mod symmetry;
 pub mod temporal;
 pub mod tracker;
 pub mod tracks;

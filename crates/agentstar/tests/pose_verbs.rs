@@ -126,6 +126,26 @@ fn pose_verbs_track_commit_and_diagnose() {
             model(&ranked[0]) > 0.5 && model(swap) < model(&ranked[0]) - 0.3,
             "{f}"
         );
+        // Each row turns from the neighbouring keyframe's committed pose by what it says: the
+        // frame's own pose about as far as the object moved, the swap half a turn more.
+        let step = |r: &serde_json::Value| {
+            let steps = r["neighbour_steps"].as_array().expect("neighbour_steps");
+            assert!(!steps.is_empty(), "{r}");
+            let other = if f["frame"] == "000000.png" {
+                "000005.png"
+            } else {
+                "000000.png"
+            };
+            assert!(steps.iter().any(|s| s["frame"] == other), "{r}");
+            steps
+                .iter()
+                .map(|s| s["angle_deg"].as_f64().expect("angle"))
+                .fold(f64::INFINITY, f64::min)
+        };
+        assert!(
+            step(&ranked[0]) < 60.0 && step(swap) > step(&ranked[0]) + 90.0,
+            "{f}"
+        );
     }
     // The swap committed by its label in both frames (into a copy: this file's history stays
     // as the test below counts it): each frame gets the candidate of that label, whatever its

@@ -345,7 +345,7 @@ tool!(
 pub fn search_text(report: &SearchReport, path: &Path) -> String {
     let mut t = String::new();
     for f in &report.frames {
-        let with_model = f.ranked.iter().any(|c| c.model_ncc.is_some());
+        let twins = agentstar_reports::twin_columns(&f.ranked);
         t.push_str(&format!(
             "{} {}\n{:<5} {:>8} {:>8} {:>8} {:>8}{}  order\n",
             report.verb.stem(),
@@ -355,20 +355,12 @@ pub fn search_text(report: &SearchReport, path: &Path) -> String {
             "iou_band",
             "iou_vis",
             "iou_raw",
-            if with_model { "    model" } else { "" }
+            twins.header
         ));
         let or_na = |v: Option<f64>| v.map_or("n/a".into(), |v| format!("{v:.4}"));
-        for c in &f.ranked {
-            let model = if with_model {
-                format!(
-                    " {:>8}",
-                    c.model_ncc.map_or("n/a".into(), |v| format!("{v:.2}"))
-                )
-            } else {
-                String::new()
-            };
+        for (c, cells) in f.ranked.iter().zip(&twins.cells) {
             t.push_str(&format!(
-                "{:<5} {:>8.4} {:>8} {:>8} {:>8.4}{model}  {}\n",
+                "{:<5} {:>8.4} {:>8} {:>8} {:>8.4}{cells}  {}\n",
                 c.rank,
                 c.gate,
                 or_na(c.iou_band),
@@ -377,8 +369,9 @@ pub fn search_text(report: &SearchReport, path: &Path) -> String {
                 c.label
             ));
         }
-        if with_model {
-            t.push_str("model: the frame's colours against the model's own colours at the candidate: the share of them that shading alone leaves and the model's print explains (−1..1; 0: no print in view; below 0: the print placed where the frame does not show it). Where candidates tie in IoU (a flipped or swapped twin), the higher one puts the model's print where the frame shows it.\n");
+        for n in &twins.notes {
+            t.push_str(n);
+            t.push('\n');
         }
         for n in &f.notes {
             t.push_str(&format!("note: {n}\n"));

@@ -328,6 +328,7 @@ fn the_render_description_names_the_colours_the_images_use() {
                 depth_canon: None,
                 combined: 0.97,
                 model_ncc: None,
+                neighbour_steps: vec![],
                 outside_region: vec![],
                 extra: json!({}),
             }],

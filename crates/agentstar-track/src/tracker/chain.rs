@@ -182,6 +182,27 @@ pub(super) fn follow(
     })
 }
 
+/// Whether the video between two keyframes joins their poses: followed from `from`'s pose
+/// through `path` (the in-between frames in that order), it arrives at `to`'s frame within
+/// a chain step's window ([`CHAIN_WINDOW`], leaving out any turn about a round body's axis,
+/// [`Searcher::off_chain`]) of `to`'s pose. A chain that lost the object on the way arrives
+/// in another basin, and then the two poses are joined by no motion the video shows.
+pub(super) fn video_joins(
+    s: &Searcher<'_>,
+    (from, from_pose): (&TrackFrame<'_>, &GenPose),
+    path: &[&TrackFrame<'_>],
+    (to, to_pose): (&TrackFrame<'_>, &GenPose),
+    typical_visible: usize,
+    seed: u64,
+) -> Result<bool, TrackError> {
+    let followed = follow(s, from, from_pose, path, to, typical_visible, seed)?;
+    let window = CHAIN_WINDOW.angle_deg.to_radians();
+    Ok(followed
+        .arrival
+        .iter()
+        .any(|a| s.off_chain(&a.pose.rotation, &to_pose.pose.rotation) < window))
+}
+
 /// The keyframes' median visible pixels: what a frame showing the whole object shows.
 pub(super) fn typical_visible(frames: &[TrackFrame<'_>]) -> usize {
     let mut v: Vec<usize> = frames.iter().map(|f| visible_pixels(f.target)).collect();

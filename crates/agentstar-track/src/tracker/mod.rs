@@ -542,6 +542,32 @@ fn track_on(
                 (g, sc) = r;
                 how = "global";
                 note = format!("; {text}");
+                // The gap's motion was measured to the chain's arrival, which the mask refused:
+                // it joins the neighbour to a pose no longer held.
+                if let (Some(cs), true) = (&chain_s, chained.is_some()) {
+                    let mut back: Vec<&TrackFrame<'_>> = gap_frames(gap).iter().collect();
+                    if dir == -1 {
+                        back.reverse();
+                    }
+                    let seed = cfg.seed + 1_500_007 * (gap as u64 + 1) + (dir == 1) as u64;
+                    let joined = video_joins(
+                        cs,
+                        (&frames[i], &g),
+                        &back,
+                        (&frames[prev_i], &prev),
+                        typical,
+                        seed,
+                    )?;
+                    s.absorb_evals(cs);
+                    if joined {
+                        let (at_g, at_next) = if dir == -1 { (&prev, &g) } else { (&g, &prev) };
+                        s.set_gap(gap, Gap::between(frames, gap, at_g, at_next));
+                        note.push_str(&format!("; the video followed back from it reaches {}'s basin: the gap's motion measured again", frames[prev_i].name));
+                    } else {
+                        s.clear_gap(gap);
+                        note.push_str(&format!("; the video followed back from it misses {}'s basin: no motion kept for the gap", frames[prev_i].name));
+                    }
+                }
             }
             alternatives[i] = rescue.basins;
             alternatives[i].extend(arrival);

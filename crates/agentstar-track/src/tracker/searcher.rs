@@ -97,6 +97,15 @@ impl<'m> Searcher<'m> {
         }
     }
 
+    /// Forgets the motion recorded across gap `g` (its chain's arrival was replaced).
+    pub(super) fn clear_gap(&self, g: usize) {
+        if let Ok(mut gaps) = self.gaps.write() {
+            if let Some(slot) = gaps.get_mut(g) {
+                *slot = None;
+            }
+        }
+    }
+
     /// How far `to` is turned from the pose a chain predicts (`predicted`; both rotations of
     /// one frame's camera from the object), in radians, leaving out any turn about the
     /// model's outline axis ([`crate::axis::outline_axis`]: a can's, a bottle's): the masks

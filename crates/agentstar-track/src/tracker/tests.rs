@@ -622,6 +622,54 @@ fn a_chain_searches_wider_where_the_object_moved_past_its_window() {
     );
 }
 
+#[test]
+fn the_video_joins_two_keyframes_poses_only_where_it_leads_from_one_to_the_other() {
+    // The L turning 16° a frame: followed back from keyframe 4's true pose, the video
+    // reaches keyframe 0's true pose, not its twin (its half-turn about the long side, which
+    // a global search there may find as well), nor a pose the chain cannot have come from.
+    let model = ell();
+    let scale = 0.5;
+    let spin = |deg: f64| GenPose {
+        pose: ObjectPose::new(
+            UnitQuaternion::from_axis_angle(
+                &agentstar_geom::nalgebra::Unit::new_normalize(Vector3::new(0.3, 1.0, 0.2)),
+                deg.to_radians(),
+            ),
+            Vector3::new(0.0, 0.0, 1.2),
+        ),
+        states: vec![],
+    };
+    let truths: Vec<GenPose> = (0..5).map(|k| spin(16.0 * k as f64)).collect();
+    let targets = silhouettes(&model, scale, &truths);
+    let frames = silhouette_frames(&targets);
+    let cfg = TrackConfig::default();
+    let s = Searcher::new(&model, scale, &frames, &cfg).expect("searcher");
+    let back: Vec<&TrackFrame<'_>> = frames[1..4].iter().rev().collect();
+    let typical = typical_visible(&frames);
+    let joins = |to: &GenPose| {
+        video_joins(
+            &s,
+            (&frames[4], &truths[4]),
+            &back,
+            (&frames[0], to),
+            typical,
+            9,
+        )
+        .expect("follow")
+    };
+    assert!(joins(&truths[0]));
+    let flipped = GenPose {
+        pose: ObjectPose::new(
+            truths[0].pose.rotation
+                * UnitQuaternion::from_axis_angle(&Vector3::x_axis(), std::f64::consts::PI),
+            truths[0].pose.translation,
+        ),
+        states: vec![],
+    };
+    assert!(!joins(&flipped));
+    assert!(!joins(&spin(-40.0)));
+}
+
 /// An uncoloured mug (the mug of [`mug`], every part one colour) printed all round, seen
 /// level from five directions: its handle in view at the side in frames 0 and 4, hidden
 /// behind the body in frames 1–3, whose poses are left turned half way about the body (the

@@ -147,7 +147,7 @@ pub fn run_sweep(a: SweepArgs) -> Result<ExitCode> {
         // Each row's agreement with the model's own colours, as the object-frame verbs give it
         // (play-test 14 committed candidates only to read their colour figure in `score`).
         let mut rows = rows_from(r, &space, tree);
-        with_model_agreement(&s, i, &mut rows)?;
+        annotate(&s, i, &mut rows)?;
         outputs.push(FrameOutput {
             frame: s.capture.frames[i].name.clone(),
             rows,
@@ -206,6 +206,7 @@ fn run_candidates(a: &SweepArgs, s: &Session, list: &str) -> Result<ExitCode> {
                     score,
                     extra: json!({"candidate": k}),
                     model_ncc: None,
+                    neighbour_steps: vec![],
                     outside_region: vec![],
                 }
             })
@@ -214,7 +215,7 @@ fn run_candidates(a: &SweepArgs, s: &Session, list: &str) -> Result<ExitCode> {
         for (k, r) in rows.iter_mut().enumerate() {
             r.rank = k;
         }
-        with_model_agreement(s, i, &mut rows)?;
+        annotate(s, i, &mut rows)?;
         outputs.push(FrameOutput {
             frame: s.capture.frames[i].name.clone(),
             rows,
@@ -335,7 +336,7 @@ pub fn run_apply(a: ApplyArgs) -> Result<ExitCode> {
             },
         )?;
         let mut rows = rows_from(r, &space, tree);
-        with_model_agreement(&s, i, &mut rows)?;
+        annotate(&s, i, &mut rows)?;
         outputs.push(FrameOutput {
             frame: s.capture.frames[i].name.clone(),
             rows,

@@ -92,8 +92,43 @@ struct Row {
     /// The frame's colours against the model's own part colours at this pose
     /// ([`with_model_agreement`]); `None` for a model of one colour.
     model_ncc: Option<f64>,
+    /// The turns from the neighbouring keyframes' committed poses ([`annotate`]).
+    neighbour_steps: Vec<agentstar_reports::NeighbourStep>,
     /// Where a kept start lies outside the region ([`outside_region`]).
     outside_region: Vec<String>,
+}
+
+/// Fills each row of frame `i` with what tells twins apart where their outlines tie: the
+/// turns from the neighbouring keyframes' committed poses ([`neighbour_steps`]) and the
+/// agreement of the frame's colours with the model's own ([`with_model_agreement`]).
+fn annotate(s: &Session, i: usize, rows: &mut [Row]) -> Result<()> {
+    for r in rows.iter_mut() {
+        r.neighbour_steps = neighbour_steps(s, i, &r.pose);
+    }
+    with_model_agreement(s, i, rows)
+}
+
+/// The turns from the committed poses of frame `i`'s neighbouring keyframes (the one before
+/// and the one after, where `pose.json` states a pose, not one seeded through the cameras),
+/// each carried into frame `i` through the cameras (the object held still), to `pose`.
+fn neighbour_steps(s: &Session, i: usize, pose: &GenPose) -> Vec<agentstar_reports::NeighbourStep> {
+    [i.checked_sub(1), Some(i + 1)]
+        .into_iter()
+        .flatten()
+        .filter_map(|k| {
+            let neighbour = s.poses.get(k).filter(|p| !p.seeded)?;
+            let frames = &s.capture.frames;
+            let carried = agentstar_geom::pose::seed_from_reference(
+                &frames[i].world_from_camera,
+                &frames[k].world_from_camera,
+                &neighbour.generalised.pose,
+            );
+            Some(agentstar_reports::NeighbourStep {
+                frame: frames[k].name.clone(),
+                angle_deg: carried.rotation.angle_to(&pose.pose.rotation).to_degrees(),
+            })
+        })
+        .collect()
 }
 
 /// Fills each row's agreement of frame `i`'s colours with the model's own part colours
@@ -157,6 +192,7 @@ fn candidate(r: &Row, scale: f64, tree: &KinematicTree) -> Candidate {
         depth_canon: r.score.depth_canon,
         combined: r.score.combined,
         model_ncc: r.model_ncc,
+        neighbour_steps: r.neighbour_steps.clone(),
         outside_region: r.outside_region.clone(),
         extra: r.extra.clone(),
     }
@@ -340,50 +376,37 @@ const MAX_TILE_LONG_SIDE_PX: u32 = 3 * TILE_LONG_SIDE_PX;
 fn text_report(
     verb: &str,
     frame: &str,
-    rows: &[Row],
+    ranked: &[Candidate],
     notes: &[String],
     report_path: &Path,
     poses: &Path,
 ) -> String {
-    let with_model = rows.iter().any(|r| r.model_ncc.is_some());
+    let twins = agentstar_reports::twin_columns(ranked);
     let mut t = format!(
         "{verb} {frame}\n{:<5} {:>8} {:>8} {:>8} {:>8} {:>9}{}  order\n",
-        "rank",
-        "combined",
-        "iou_band",
-        "iou_vis",
-        "iou_raw",
-        "dp_canon",
-        if with_model { "    model" } else { "" }
+        "rank", "combined", "iou_band", "iou_vis", "iou_raw", "dp_canon", twins.header
     );
-    for r in rows {
+    let or_na = |v: Option<f64>| v.map_or("n/a".into(), |v| format!("{v:.4}"));
+    for (c, cells) in ranked.iter().zip(&twins.cells) {
         t.push_str(&format!(
-            "{:<5} {:>8.4} {:>8} {:>8} {:>8.4} {:>9}{}  {}\n",
-            r.rank,
-            r.score.combined,
-            r.score.iou_band.map_or("n/a".into(), |v| format!("{v:.4}")),
-            r.score
-                .iou_visible
-                .map_or("n/a".into(), |v| format!("{v:.4}")),
-            r.score.iou_raw,
-            r.score
-                .depth_canon
-                .map_or("-".into(), |v| format!("{v:.4}")),
-            if with_model {
-                format!(
-                    " {:>8}",
-                    r.model_ncc.map_or("n/a".into(), |v| format!("{v:.2}"))
-                )
-            } else {
-                String::new()
-            },
-            r.label
+            "{:<5} {:>8.4} {:>8} {:>8} {:>8.4} {:>9}{cells}  {}\n",
+            c.rank,
+            c.combined,
+            or_na(c.iou_band),
+            or_na(c.iou_visible),
+            c.iou_raw,
+            c.depth_canon.map_or("-".into(), |v| format!("{v:.4}")),
+            c.label
         ));
+    }
+    for n in &twins.notes {
+        t.push_str(n);
+        t.push('\n');
     }
     for n in notes {
         t.push_str(&format!("note: {n}\n"));
     }
-    if !rows.is_empty() {
+    if !ranked.is_empty() {
         t.push_str(&format!(
             "keep a candidate after looking at the sheet: agentstar pose commit --poses {} --report {} --rank N --frames {frame}\n",
             poses.display(),
@@ -476,10 +499,15 @@ fn write_outputs(
             o.notes.push(line);
         }
         o.pages = sheet_pages;
+        let ranked: Vec<Candidate> = o
+            .rows
+            .iter()
+            .map(|r| candidate(r, s.scale(), tree))
+            .collect();
         text.push_str(&text_report(
             verb.stem(),
             &o.frame,
-            &o.rows,
+            &ranked,
             &o.notes,
             &report_path,
             &c.session.poses,
@@ -491,11 +519,7 @@ fn write_outputs(
             notes: o.notes.clone(),
             search: o.extra.clone(),
             pages: o.pages.clone(),
-            ranked: o
-                .rows
-                .iter()
-                .map(|r| candidate(r, s.scale(), tree))
-                .collect(),
+            ranked,
         });
     }
     let gates: Vec<f64> = outputs
@@ -582,6 +606,7 @@ fn rows_from(result: SweepResult, space: &SearchSpace, tree: &KinematicTree) -> 
             pose: c.pose,
             score: c.score,
             model_ncc: None,
+            neighbour_steps: vec![],
             outside_region: outside,
         }
         })

@@ -182,7 +182,7 @@ pub fn run_osweep(a: OsweepArgs) -> Result<ExitCode> {
             r = refine_ranked(&p, r, &LocalWindow::basin(), 17)?;
         }
         let mut rows = rows_from(r, &space, tree);
-        with_model_agreement(&s, i, &mut rows)?;
+        annotate(&s, i, &mut rows)?;
         if !a.no_refine {
             // Each row names its grid start and where the refinement took it.
             for row in &mut rows {
@@ -462,6 +462,7 @@ pub fn run_oapply(a: OapplyArgs) -> Result<ExitCode> {
                     score,
                     extra: json!({}),
                     model_ncc: None,
+                    neighbour_steps: vec![],
                     outside_region: vec![],
                 }
             })
@@ -487,7 +488,7 @@ pub fn run_oapply(a: OapplyArgs) -> Result<ExitCode> {
                 refined_to(&p.base, &r.pose, &s.model.model.tree)
             );
         }
-        with_model_agreement(&s, i, &mut rows)?;
+        annotate(&s, i, &mut rows)?;
         outputs.push(FrameOutput {
             frame: s.capture.frames[i].name.clone(),
             rows,
@@ -536,6 +537,7 @@ pub fn run_oapply_all(a: OapplyAllArgs) -> Result<ExitCode> {
                 score,
                 extra: json!({}),
                 model_ncc: None,
+                neighbour_steps: vec![],
                 outside_region: vec![],
             }],
             extra: json!({"method": "oapply_all"}),
