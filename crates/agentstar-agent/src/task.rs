@@ -135,9 +135,9 @@ Every score here compares silhouettes. Four kinds of error leave the silhouette 
 so a high IoU does not rule them out:
 
 - **Symmetric twins.** An object that looks alike from two sides (a box, a bottle, a mug
-  seen end-on) has a flipped pose with the same outline. Check: `oapply` with `flips` and
-  compare the candidates' tiles, not their scores; look at `frames` for print, a handle,
-  a logo that tells the sides apart; a spike in `temporal` is often a flip.
+  seen end-on) has a flipped pose with the same outline (a square prism, quarter turns
+  too). Check: `oapply` and compare the candidates' tiles and `step°`, not their scores;
+  look at `frames` for print, a handle, a logo that tells the sides apart.
 - **Joint aliasing.** A revolute joint with a full-turn limit (`[0, 360]`) reaches both θ
   and 360−θ, and a part symmetric about its axis looks the same at both; a joint that
   sits at its limit in many keyframes often has its axis reversed or its limit too tight.

@@ -198,8 +198,8 @@ pub fn twin_columns(ranked: &[Candidate]) -> TwinColumns {
         out.notes.push("model: the frame's colours against the model's own colours at the candidate: the share of them that shading alone leaves and the model's print explains (−1..1; 0: no print in view; below 0: the print placed where the frame does not show it). Where candidates tie in IoU (a flipped or swapped twin), the higher one puts the model's print where the frame shows it.".into());
         if marked.is_some() {
             out.notes.push(format!("*: of the {} candidates within {IOU_TIE} of the best score (their outlines tie), the one whose model figure is highest by more than {MODEL_MARGIN}.", tied.len()));
-        } else if by_model.len() > 1 {
-            out.notes.push(format!("The model figures of the {} candidates within {IOU_TIE} of the best score (their outlines tie) are within {MODEL_MARGIN} of each other: the colours do not tell them apart here.", by_model.len()));
+        } else if let [(_, first), (_, second), ..] = by_model.as_slice() {
+            out.notes.push(format!("Of the {} candidates within {IOU_TIE} of the best score (their outlines tie), the two highest model figures ({first:.2} and {second:.2}) lie within {MODEL_MARGIN} of each other: the colours do not single one out here.", by_model.len()));
         }
     }
     if with_steps {
@@ -222,7 +222,7 @@ pub fn twin_columns(ranked: &[Candidate]) -> TwinColumns {
             .find(|c| !c.neighbour_steps.is_empty())
             .map(|c| c.neighbour_steps.iter().map(|s| s.frame.as_str()).collect())
             .unwrap_or_default();
-        out.notes.push(format!("step°: the turn from the committed pose of {} carried here through the cameras (the object held still) to the candidate: one that keeps the sequence's basin turns about as far as the hand moved between the keyframes, its twin by a half or quarter turn more.", frames.join(" / ")));
+        out.notes.push(format!("step°: the turn from the committed pose of the keyframe before / after ({}) carried here through the cameras (the object held still) to the candidate: one that keeps the sequence's basin turns about as far as the hand moved between the keyframes, its twin by a half or quarter turn more.", frames.join(" / ")));
     }
     out
 }
@@ -1110,7 +1110,9 @@ mod tests {
         let t = twin_columns(&close);
         assert!(t.cells.iter().all(|c| !c.contains('*')), "{t:?}");
         assert!(
-            t.notes.iter().any(|n| n.contains("do not tell them apart")),
+            t.notes
+                .iter()
+                .any(|n| n.contains("(0.90 and 0.87)") && n.contains("do not single one out")),
             "{t:?}"
         );
         assert!(!t.header.contains("step°"), "{t:?}");

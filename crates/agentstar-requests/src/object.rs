@@ -61,7 +61,10 @@ pub struct OapplyArgs {
     #[schemars(description = FRAMES)]
     pub frames: Option<String>,
     /// `flips`, `swaps` (for each hinge, the half-turn that puts its two sides in each
-    /// other's place: a laptop's lid and base), or candidates separated by `|`, terms by `;`:
+    /// other's place: a laptop's lid and base), `folds` (the turns that map the model's
+    /// outline onto itself about its own n-fold axes: a square prism's quarter turns, a
+    /// triangular prism's thirds, and the half-turns across them, each about the axis
+    /// through the section's centroid), or candidates separated by `|`, terms by `;`:
     /// `identity|flip:x|rz:90;rx:10|swaps`; a term `JOINT:value` sets a joint in that
     /// candidate (degrees, or canonical units for a prismatic joint): `flip:x;hinge:115`.
     #[arg(long)]
@@ -70,7 +73,7 @@ pub struct OapplyArgs {
 
 impl OapplyArgs {
     /// The set when none is named.
-    pub const DEFAULT_SET: &'static str = "flips|swaps";
+    pub const DEFAULT_SET: &'static str = "flips|swaps|folds";
 
     /// The set to score.
     pub fn set(&self) -> &str {

@@ -75,10 +75,12 @@ impl Fold {
     }
 }
 
-/// The n-fold axes (3 ≤ n ≤ [`MAX_FOLD`]) of the posed model's outline: principal axes
-/// across which the cross-section's harmonics vanish below the n-th and the n-th does not.
-/// A round body (no harmonic up to [`MAX_FOLD`]) has none here: every turn about its axis
-/// is a symmetry of the outline, which the axis pass ([`crate::axis`]) searches.
+/// The n-fold axes (3 ≤ n ≤ [`MAX_FOLD`]) of the posed model's outline: principal axes, or
+/// normals of its large flat faces, across which the cross-section's harmonics vanish below
+/// the n-th and the n-th does not, and whose turns each map the surface onto itself
+/// ([`MAPPED_SHARE`] of it). A round body (no harmonic up to [`MAX_FOLD`]) has none here:
+/// every turn about its axis is a symmetry of the outline, which the axis pass
+/// ([`crate::axis`]) searches.
 pub fn folds(model: &ObjectModel, states: &[f64]) -> Vec<Fold> {
     let Some(frame) = principal_frame(model, states) else {
         return Vec::new();
@@ -102,10 +104,26 @@ pub fn folds(model: &ObjectModel, states: &[f64]) -> Vec<Fold> {
         return Vec::new();
     }
     let cut = extent / CUTS_PER_EXTENT;
-    let mut out = Vec::new();
-    for k in 0..3 {
-        let axis = frame.axes[k];
-        let (e1, e2) = (frame.axes[(k + 1) % 3], frame.axes[(k + 2) % 3]);
+    // The axes whose sections are tried: the principal axes, and the normals of the model's
+    // large flat faces. Where all three moments are equal (a cube) the principal axes are
+    // any three, and only the faces say where the box's own axes lie.
+    let mut axes: Vec<Vector3> = frame.axes.to_vec();
+    for normal in face_axes(model, &transforms) {
+        if axes.iter().all(|a| a.dot(&normal).abs() < SAME_AXIS_COS) {
+            axes.push(normal);
+        }
+    }
+    let mut out: Vec<Fold> = Vec::new();
+    let mut surface: Option<Surface> = None;
+    for axis in axes {
+        let e1 = axis.cross(&frame.axes[2]);
+        let e1 = if e1.norm() > 0.5 {
+            e1
+        } else {
+            axis.cross(&frame.axes[1])
+        }
+        .normalize();
+        let e2 = axis.cross(&e1);
         let harmonics = section_harmonics(model, &transforms, &frame, axis, (e1, e2), cut);
         let strength: Vec<f64> = harmonics
             .iter()
@@ -128,21 +146,243 @@ pub fn folds(model: &ObjectModel, states: &[f64]) -> Vec<Fold> {
         // real along it: its phase is n·φ (mod π, as either sign of the real part).
         let phase = harmonics[order - 1].0.arg() / order as f64;
         let across = e1 * phase.cos() + e2 * phase.sin();
-        let along = (frame.middle - frame.centroid).dot(&axis);
-        out.push(Fold {
+        // The middle of the posed vertices' extent along the axis.
+        let (lo, hi) = model.parts.iter().zip(&transforms).fold(
+            (f64::INFINITY, f64::NEG_INFINITY),
+            |(lo, hi), (part, t)| {
+                part.mesh.positions.iter().fold((lo, hi), |(lo, hi), p| {
+                    let d = (t * p - frame.centroid).dot(&axis);
+                    (lo.min(d), hi.max(d))
+                })
+            },
+        );
+        let fold = Fold {
             axis,
-            centre: frame.centroid + axis * along,
+            centre: frame.centroid + axis * (0.5 * (lo + hi)),
             order,
             across,
-        });
+        };
+        // The harmonics of the solid's thickness across an axis are a test the true axes
+        // pass and some others too (a cube's about any axis): each turn must also map the
+        // surface onto itself.
+        let surface = surface.get_or_insert_with(|| Surface::sample(model, &transforms, cut));
+        if fold.turns().iter().all(|t| surface.maps_onto_itself(t)) {
+            out.push(fold);
+        }
     }
     out
+}
+
+/// Two axes within 10° of each other are one.
+const SAME_AXIS_COS: f64 = 0.985;
+
+/// A flat face counts as large ([`face_axes`]) from this share of the model's surface.
+const LARGE_FACE_SHARE: f64 = 0.1;
+
+/// The most face directions [`face_axes`] keeps apart: a curved surface's triangles each
+/// face their own way, and past this many new directions are not counted.
+const MAX_FACE_DIRECTIONS: usize = 64;
+
+/// The normals (sign aside) of the posed model's large flat faces ([`LARGE_FACE_SHARE`] of
+/// its surface or more, triangles within 10° of one direction together), largest first, at
+/// most three.
+fn face_axes(model: &ObjectModel, transforms: &[agentstar_geom::pose::Rigid]) -> Vec<Vector3> {
+    // (area-weighted sum of the normals, each turned to the first's side; area)
+    let mut directions: Vec<(Vector3, f64)> = Vec::new();
+    let mut total = 0.0;
+    for (part, t) in model.parts.iter().zip(transforms) {
+        let mesh = &part.mesh;
+        for tri in &mesh.triangles {
+            let [a, b, c] = tri.map(|k| (t * mesh.positions[k as usize]).coords);
+            let area_vector = 0.5 * (b - a).cross(&(c - a));
+            let area = area_vector.norm();
+            if !(area > 0.0 && area.is_finite()) {
+                continue;
+            }
+            total += area;
+            let normal = area_vector / area;
+            let found = directions
+                .iter_mut()
+                .find(|(sum, _)| sum.normalize().dot(&normal).abs() >= SAME_AXIS_COS);
+            if let Some((sum, weight)) = found {
+                let sign = sum.dot(&normal).signum();
+                *sum += normal * (sign * area);
+                *weight += area;
+            } else if directions.len() < MAX_FACE_DIRECTIONS {
+                directions.push((normal * area, area));
+            }
+        }
+    }
+    directions.sort_by(|a, b| b.1.total_cmp(&a.1));
+    directions
+        .into_iter()
+        .filter(|(_, area)| *area >= LARGE_FACE_SHARE * total)
+        .take(3)
+        .map(|(sum, _)| sum.normalize())
+        .collect()
+}
+
+/// The share of the surface (by area) that a turn must put back on the surface
+/// ([`Surface::maps_onto_itself`]) to count as a symmetry of the outline: a badge or a knob
+/// (a few percent) may land anywhere.
+const MAPPED_SHARE: f64 = 0.9;
+
+/// The most points [`Surface::maps_onto_itself`] moves for one turn.
+const MAX_CHECKED: usize = 2000;
+
+/// Points spread over the posed model's surface by area, in a grid to find the nearest
+/// quickly: what [`folds`] checks a turn against.
+struct Surface {
+    /// (point, area it stands for)
+    points: Vec<(Vector3, f64)>,
+    /// The grid's cell and the distance within which a moved point is on the surface: 2% of
+    /// the model's extent, or the points' spacing where that is larger.
+    tolerance: f64,
+    grid: std::collections::HashMap<[i64; 3], Vec<usize>>,
+}
+
+impl Surface {
+    fn sample(
+        model: &ObjectModel,
+        transforms: &[agentstar_geom::pose::Rigid],
+        cut: f64,
+    ) -> Surface {
+        let mut points = Vec::new();
+        let mut spacing: f64 = 0.0;
+        for (part, t) in model.parts.iter().zip(transforms) {
+            let mesh = &part.mesh;
+            for tri in &mesh.triangles {
+                let [a, b, c] = tri.map(|k| (t * mesh.positions[k as usize]).coords);
+                let area = 0.5 * (b - a).cross(&(c - a)).norm();
+                if !(area > 0.0 && area.is_finite()) {
+                    continue;
+                }
+                let longest = (b - a).norm().max((c - b).norm()).max((a - c).norm());
+                let m = ((longest / cut).ceil() as usize).clamp(1, MAX_CUTS);
+                spacing = spacing.max(longest / m as f64);
+                let centres = split_centres(m);
+                let share = area / centres.len() as f64;
+                points.extend(
+                    centres
+                        .iter()
+                        .map(|&(u, v)| (a + (b - a) * u + (c - a) * v, share)),
+                );
+            }
+        }
+        let tolerance = (0.02 * CUTS_PER_EXTENT * cut).max(spacing);
+        let mut grid: std::collections::HashMap<[i64; 3], Vec<usize>> = Default::default();
+        for (k, (p, _)) in points.iter().enumerate() {
+            grid.entry(Self::cell(p, tolerance)).or_default().push(k);
+        }
+        Surface {
+            points,
+            tolerance,
+            grid,
+        }
+    }
+
+    fn cell(p: &Vector3, size: f64) -> [i64; 3] {
+        [0, 1, 2].map(|k| (p[k] / size).floor() as i64)
+    }
+
+    /// Whether a point of the surface lies within the tolerance of `p`.
+    fn near(&self, p: &Vector3) -> bool {
+        let [x, y, z] = Self::cell(p, self.tolerance);
+        (-1..=1).any(|dx| {
+            (-1..=1).any(|dy| {
+                (-1..=1).any(|dz| {
+                    self.grid.get(&[x + dx, y + dy, z + dz]).is_some_and(|ks| {
+                        ks.iter()
+                            .any(|&k| (self.points[k].0 - p).norm() <= self.tolerance)
+                    })
+                })
+            })
+        })
+    }
+
+    /// Whether `(q, c)` puts at least [`MAPPED_SHARE`] of the surface back on it (at most
+    /// [`MAX_CHECKED`] points moved, spread over the surface).
+    fn maps_onto_itself(&self, (q, c): &(UnitQuaternion, Point3)) -> bool {
+        let step = self.points.len().div_ceil(MAX_CHECKED).max(1);
+        let checked = self.points.iter().step_by(step);
+        let all: f64 = checked.clone().map(|(_, area)| area).sum();
+        // Stops at the first point that puts the share off the surface over the allowance.
+        let mut off = 0.0;
+        for (p, area) in checked {
+            if !self.near(&(c.coords + q * (p - c.coords))) {
+                off += area;
+                if off > (1.0 - MAPPED_SHARE) * all {
+                    return false;
+                }
+            }
+        }
+        all > 0.0
+    }
+}
+
+/// Barycentric centres of the m² like triangles a triangle splits into: the upright ones
+/// (i + j ≤ m − 1) and the inverted ones (i + j ≤ m − 2).
+fn split_centres(m: usize) -> Vec<(f64, f64)> {
+    let f = m as f64;
+    let mut centres = Vec::with_capacity(m * m);
+    for i in 0..m {
+        for j in 0..m - i {
+            centres.push(((i as f64 + 1.0 / 3.0) / f, (j as f64 + 1.0 / 3.0) / f));
+            if i + j + 2 <= m {
+                centres.push(((i as f64 + 2.0 / 3.0) / f, (j as f64 + 2.0 / 3.0) / f));
+            }
+        }
+    }
+    centres
 }
 
 /// Every non-trivial turn of [`folds`]: what [`crate::hypotheses::twin_candidates`] adds to
 /// the flips and principal half-turns.
 pub fn fold_turns(model: &ObjectModel, states: &[f64]) -> Vec<(UnitQuaternion, Point3)> {
-    folds(model, states).iter().flat_map(Fold::turns).collect()
+    folds_remembered(model, states)
+        .iter()
+        .flat_map(Fold::turns)
+        .collect()
+}
+
+/// The models and joint states [`folds_remembered`] keeps the folds of.
+const REMEMBERED: usize = 64;
+
+/// [`folds`], remembered for the last [`REMEMBERED`] models and joint states it was asked
+/// about: every pass of the tracker asks again for each frame's twins, and a rigid model's
+/// folds never change.
+fn folds_remembered(model: &ObjectModel, states: &[f64]) -> Vec<Fold> {
+    use std::hash::{Hash, Hasher};
+    static MEMORY: std::sync::Mutex<Vec<(u64, Vec<Fold>)>> = std::sync::Mutex::new(Vec::new());
+    let mut hasher = std::collections::hash_map::DefaultHasher::new();
+    for s in states {
+        s.to_bits().hash(&mut hasher);
+    }
+    for part in &model.parts {
+        part.mesh.triangles.hash(&mut hasher);
+        for p in &part.mesh.positions {
+            [p.x, p.y, p.z].map(f64::to_bits).hash(&mut hasher);
+        }
+    }
+    for t in model.tree.part_transforms(states) {
+        t.to_homogeneous()
+            .iter()
+            .for_each(|v| v.to_bits().hash(&mut hasher));
+    }
+    let key = hasher.finish();
+    if let Ok(memory) = MEMORY.lock() {
+        if let Some((_, found)) = memory.iter().find(|(k, _)| *k == key) {
+            return found.clone();
+        }
+    }
+    let found = folds(model, states);
+    if let Ok(mut memory) = MEMORY.lock() {
+        if memory.len() >= REMEMBERED {
+            memory.remove(0);
+        }
+        memory.push((key, found.clone()));
+    }
+    found
 }
 
 /// `(∫ zⁿ, ∫ |z|ⁿ)` for n = 1..=[`MAX_FOLD`], z = x + iy the offset across `axis` from the
@@ -158,23 +398,11 @@ fn section_harmonics(
     cut: f64,
 ) -> [(Complex<f64>, f64); MAX_FOLD] {
     let mut acc = [(Complex::new(0.0, 0.0), 0.0); MAX_FOLD];
-    // Barycentric centres of the m² like triangles a triangle splits into, for each m used:
-    // the upright ones (i + j ≤ m − 1) and the inverted ones (i + j ≤ m − 2).
+    // The centres of each split used, made once.
     let mut splits: Vec<Vec<(f64, f64)>> = Vec::new();
     let centres_of = |m: usize, splits: &mut Vec<Vec<(f64, f64)>>| {
         while splits.len() < m {
-            let k = splits.len() + 1;
-            let f = k as f64;
-            let mut centres = Vec::with_capacity(k * k);
-            for i in 0..k {
-                for j in 0..k - i {
-                    centres.push(((i as f64 + 1.0 / 3.0) / f, (j as f64 + 1.0 / 3.0) / f));
-                    if i + j + 2 <= k {
-                        centres.push(((i as f64 + 2.0 / 3.0) / f, (j as f64 + 2.0 / 3.0) / f));
-                    }
-                }
-            }
-            splits.push(centres);
+            splits.push(split_centres(splits.len() + 1));
         }
     };
     for (part, t) in model.parts.iter().zip(transforms) {
@@ -269,6 +497,37 @@ mod tests {
         for t in &turns {
             let off = vertex_mismatch(&model, t);
             assert!(off < 1e-6, "{:?} moves a corner {off}", t.0);
+        }
+    }
+
+    #[test]
+    fn a_cube_turned_anyhow_has_its_three_quarter_turn_axes_from_its_faces() {
+        // All three second moments equal: the principal axes are any three, and only the
+        // faces say where the cube's own axes lie. Every fold found maps corners on corners.
+        let turned = UnitQuaternion::from_axis_angle(
+            &Unit::new_normalize(Vector3::new(0.3, -0.5, 0.8)),
+            37f64.to_radians(),
+        );
+        let mesh = cuboid(1.0, 1.0, 1.0)
+            .expect("cube")
+            .transformed(turned.to_rotation_matrix().matrix(), &Vector3::zeros());
+        let model = model_of(vec![Part::new("body", mesh, [0.5, 0.5, 0.5])]);
+        let found = folds(&model, &[]);
+        assert_eq!(found.len(), 3, "{found:?}");
+        for axis in [Vector3::x(), Vector3::y(), Vector3::z()] {
+            let axis = turned * axis;
+            assert!(
+                found
+                    .iter()
+                    .any(|f| f.order == 4 && f.axis.cross(&axis).norm() < 1e-6),
+                "no quarter turns about {axis:?}: {found:?}"
+            );
+        }
+        for f in &found {
+            for t in f.turns() {
+                let off = vertex_mismatch(&model, &t);
+                assert!(off < 1e-6, "{:?} moves a corner {off}", t.0);
+            }
         }
     }
 

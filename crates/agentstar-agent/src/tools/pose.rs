@@ -256,7 +256,7 @@ tool!(Osweep, "osweep", Pose, Nothing, WithSheet<OsweepArgs>,
     });
 
 tool!(Oapply, "oapply", Pose, Nothing, WithSheet<OapplyArgs>,
-    "Score a set of object-frame rotations on each keyframe, default `flips|swaps` (identity, the 180° flips about x, y, z, and for each hinge the half-turn that swaps its two sides: lid and base), each refined before ranking. The flip check for near-symmetric objects: a flipped or swapped pose can score as well as the right one, so look at the sheet.",
+    "Score a set of object-frame rotations on each keyframe, default `flips|swaps|folds` (identity, the 180° flips about x, y, z, for each hinge the half-turn that swaps its two sides: lid and base, and the turns that map the model's outline onto itself about its own n-fold axes: a square prism's quarter turns, a triangular prism's thirds, the half-turns across them), each refined before ranking. The flip check for near-symmetric objects: a flipped or swapped pose can score as well as the right one, so look at the sheet.",
     |tb, a, step| {
         tb.search(SearchVerb::Oapply, a.frames.as_deref(), &a, step)
     });

@@ -264,6 +264,8 @@ type SetCandidate = (String, UnitQuaternion, Vec<(usize, f64)>);
 struct RotationSet {
     rotations: Vec<SetCandidate>,
     swaps: bool,
+    /// The turns of the model's n-fold outline (`folds`).
+    folds: bool,
 }
 
 /// Parses a candidate set of the model with joints `tree`: `identity|flip:x|rz:90;rx:10`,
@@ -271,10 +273,14 @@ struct RotationSet {
 fn rotation_set(spec: &str, tree: &KinematicTree) -> Result<RotationSet> {
     let expanded = spec.replace("flips", "identity|flip:x|flip:y|flip:z");
     let mut out: Vec<SetCandidate> = Vec::new();
-    let mut swaps = false;
+    let (mut swaps, mut folds) = (false, false);
     for cand in expanded.split('|').map(str::trim).filter(|c| !c.is_empty()) {
         if cand == "swaps" {
             swaps = true;
+            continue;
+        }
+        if cand == "folds" {
+            folds = true;
             continue;
         }
         let (q, joints) = parse_candidate(cand, tree)?;
@@ -285,12 +291,13 @@ fn rotation_set(spec: &str, tree: &KinematicTree) -> Result<RotationSet> {
             out.push((cand.to_string(), q, joints));
         }
     }
-    if out.is_empty() && !swaps {
+    if out.is_empty() && !swaps && !folds {
         bail!("the candidate set is empty; e.g. `identity|flip:x|rz:90`");
     }
     Ok(RotationSet {
         rotations: out,
         swaps,
+        folds,
     })
 }
 
@@ -419,6 +426,29 @@ fn parse_rotation(cand: &str) -> Result<UnitQuaternion> {
     Ok(total)
 }
 
+/// The turns of one n-fold axis of the model's outline as `oapply` candidates, about the
+/// axis through the section's centroid: `fold4:turn:90` (a quarter turn about the axis),
+/// `fold4:across:45` (the half-turn about the direction across it at 45° from the first of
+/// them).
+fn fold_moves(fold: &agentstar_track::symmetry::Fold) -> Vec<(SetCandidate, Point3)> {
+    let n = fold.order;
+    fold.turns()
+        .into_iter()
+        .enumerate()
+        .map(|(k, (q, c))| {
+            let label = if k + 1 < n {
+                format!("fold{n}:turn:{}", fmt6(360.0 * (k + 1) as f64 / n as f64))
+            } else {
+                format!(
+                    "fold{n}:across:{}",
+                    fmt6(180.0 * (k + 1 - n) as f64 / n as f64)
+                )
+            };
+            ((label, q, vec![]), c)
+        })
+        .collect()
+}
+
 pub fn run_oapply(a: OapplyArgs) -> Result<ExitCode> {
     let s = a.common.session.open()?;
     let set = rotation_set(a.request.set(), &s.model.model.tree)?;
@@ -439,9 +469,14 @@ pub fn run_oapply(a: OapplyArgs) -> Result<ExitCode> {
                     .map(|(j, q, c)| ((format!("swap:{}", tree.joints()[j].name), q, vec![]), c)),
             );
         }
+        if set.folds {
+            for fold in agentstar_track::symmetry::folds(&s.model.model, &p.base.states) {
+                moves.extend(fold_moves(&fold));
+            }
+        }
         if moves.is_empty() {
             bail!(
-                "`{}`: the model has no revolute joint to swap the sides of, and the set names no other rotation; e.g. `flips|swaps`",
+                "`{}`: the model has no revolute joint to swap the sides of nor an n-fold outline to turn, and the set names no other rotation; e.g. `flips|swaps|folds`",
                 a.request.set()
             );
         }
@@ -588,6 +623,39 @@ pub fn run_oapply_all(a: OapplyAllArgs) -> Result<ExitCode> {
 mod tests {
     use super::*;
 
+    use agentstar_geom::Vector3;
+
+    #[test]
+    fn an_n_fold_axis_gives_its_turns_and_half_turns_labelled_by_angle() {
+        let fold = agentstar_track::symmetry::Fold {
+            axis: Vector3::z(),
+            centre: Point3::new(0.1, 0.0, 0.0),
+            order: 4,
+            across: Vector3::x(),
+        };
+        let moves = fold_moves(&fold);
+        let labels: Vec<&str> = moves.iter().map(|((l, _, _), _)| l.as_str()).collect();
+        assert_eq!(
+            labels,
+            [
+                "fold4:turn:90",
+                "fold4:turn:180",
+                "fold4:turn:270",
+                "fold4:across:0",
+                "fold4:across:45",
+                "fold4:across:90",
+                "fold4:across:135"
+            ]
+        );
+        let ((_, quarter, _), centre) = &moves[0];
+        assert!((quarter * Vector3::x() - Vector3::y()).norm() < 1e-12);
+        assert_eq!(*centre, fold.centre);
+        let ((_, diagonal, _), _) = &moves[4];
+        let axis = Vector3::new(1.0, 1.0, 0.0).normalize();
+        assert!((diagonal * axis - axis).norm() < 1e-12);
+        assert!((diagonal.angle() - std::f64::consts::PI).abs() < 1e-9);
+    }
+
     #[test]
     fn flips_compose_with_rotation_vectors_in_a_compound_candidate() {
         let close = |a: &UnitQuaternion, b: &UnitQuaternion| a.angle_to(b) < 1e-9;
@@ -631,9 +699,11 @@ mod tests {
         assert!(!set.swaps);
         // The hinge swaps alone are a set (of none for a rigid model: the run says so).
         let set = rotation_set("swaps", &rigid).expect("set");
-        assert!(set.swaps && set.rotations.is_empty());
+        assert!(set.swaps && !set.folds && set.rotations.is_empty());
         let set = rotation_set("flips|swaps", &rigid).expect("set");
         assert!(set.swaps && set.rotations.len() == 4);
+        let set = rotation_set("folds", &rigid).expect("set");
+        assert!(set.folds && !set.swaps && set.rotations.is_empty());
         // A joint name is not a rotation of a rigid model.
         assert!(rotation_set("flip:x;hinge:115", &rigid).is_err());
     }
