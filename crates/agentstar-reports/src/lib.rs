@@ -144,6 +144,32 @@ pub struct NeighbourStep {
 /// thousandths, the segmenter's noise.
 pub const IOU_TIE: f64 = 0.005;
 
+/// The warning `score` prints where the model's print lands where the frames do not show it
+/// in most of the frames that show it at all (`model` under −[`MODEL_MARGIN`] in at least
+/// two frames and half of those whose figure is not 0): the print is on the wrong side of
+/// the model (a mirror image), or the poses sit in a twin. Play-test 20: an agent's badge
+/// on the wrong side of its face turned the tracked sequence end for end, with no word of it.
+pub fn misplaced_print(appearance: &[FrameAppearance]) -> Option<String> {
+    let shown: Vec<(&str, f64)> = appearance
+        .iter()
+        .filter_map(|a| Some((a.frame.as_str(), a.model_ncc?)))
+        .filter(|(_, m)| m.abs() > MODEL_MARGIN)
+        .collect();
+    let against: Vec<&str> = shown
+        .iter()
+        .filter(|(_, m)| *m < -MODEL_MARGIN)
+        .map(|(f, _)| *f)
+        .collect();
+    (against.len() >= 2 && 2 * against.len() >= shown.len()).then(|| {
+        format!(
+            "warning: the model's print lands where the frame does not show it in {} of the {} frames where it is in view ({}): its `model` figure is negative there. Either the print is on the wrong side of the model (mirrored: compare `render` view `side` or `frames` with `model: true`) or these poses sit in a twin (`oapply`).",
+            against.len(),
+            shown.len(),
+            against.join(", ")
+        )
+    })
+}
+
 /// A model figure higher than every other IoU tie's by more than this marks its candidate
 /// ([`twin_columns`]): the margin by which the tracker's appearance term calls a choice.
 pub const MODEL_MARGIN: f64 = 0.05;
@@ -1026,6 +1052,9 @@ pub fn score_table(
         )
         .ok();
     }
+    if let Some(line) = misplaced_print(appearance) {
+        writeln!(t, "{line}").ok();
+    }
     let thin: Vec<String> = scores
         .iter()
         .filter(|s| s.thin_in_view())
@@ -1120,6 +1149,39 @@ mod tests {
         let plain = vec![candidate(0, 0.98, None, &[])];
         let t = twin_columns(&plain);
         assert!(t.header.is_empty() && t.notes.is_empty() && t.cells == vec![String::new()]);
+    }
+
+    #[test]
+    fn a_print_placed_against_most_frames_is_warned_of_and_a_hidden_one_is_not() {
+        let frames = |figures: &[Option<f64>]| -> Vec<FrameAppearance> {
+            figures
+                .iter()
+                .enumerate()
+                .map(|(k, &model_ncc)| FrameAppearance {
+                    frame: format!("{k:06}.png"),
+                    ncc: Some(0.3),
+                    pairs: 100,
+                    model_ncc,
+                })
+                .collect()
+        };
+        // The print in view in four frames, against them in three: warned, naming them.
+        let w = misplaced_print(&frames(&[
+            Some(-0.4),
+            Some(0.0),
+            Some(-0.3),
+            Some(0.5),
+            Some(-0.2),
+        ]))
+        .expect("warning");
+        assert!(
+            w.contains("3 of the 4 frames") && w.contains("000000.png, 000002.png, 000004.png"),
+            "{w}"
+        );
+        // Mostly right, or mostly hidden (0), or one frame alone: nothing.
+        assert!(misplaced_print(&frames(&[Some(0.4), Some(0.3), Some(-0.3), Some(0.5)])).is_none());
+        assert!(misplaced_print(&frames(&[Some(0.0), Some(0.01), Some(-0.3), None])).is_none());
+        assert!(misplaced_print(&frames(&[None, None])).is_none());
     }
 
     #[test]
