@@ -190,27 +190,18 @@ fn face_axes(model: &ObjectModel, transforms: &[agentstar_geom::pose::Rigid]) ->
     // (area-weighted sum of the normals, each turned to the first's side; area)
     let mut directions: Vec<(Vector3, f64)> = Vec::new();
     let mut total = 0.0;
-    for (part, t) in model.parts.iter().zip(transforms) {
-        let mesh = &part.mesh;
-        for tri in &mesh.triangles {
-            let [a, b, c] = tri.map(|k| (t * mesh.positions[k as usize]).coords);
-            let area_vector = 0.5 * (b - a).cross(&(c - a));
-            let area = area_vector.norm();
-            if !(area > 0.0 && area.is_finite()) {
-                continue;
-            }
-            total += area;
-            let normal = area_vector / area;
-            let found = directions
-                .iter_mut()
-                .find(|(sum, _)| sum.normalize().dot(&normal).abs() >= SAME_AXIS_COS);
-            if let Some((sum, weight)) = found {
-                let sign = sum.dot(&normal).signum();
-                *sum += normal * (sign * area);
-                *weight += area;
-            } else if directions.len() < MAX_FACE_DIRECTIONS {
-                directions.push((normal * area, area));
-            }
+    for (_, area_vector, area) in posed_triangles(model, transforms) {
+        total += area;
+        let normal = area_vector / area;
+        let found = directions
+            .iter_mut()
+            .find(|(sum, _)| sum.normalize().dot(&normal).abs() >= SAME_AXIS_COS);
+        if let Some((sum, weight)) = found {
+            let sign = sum.dot(&normal).signum();
+            *sum += normal * (sign * area);
+            *weight += area;
+        } else if directions.len() < MAX_FACE_DIRECTIONS {
+            directions.push((normal * area, area));
         }
     }
     directions.sort_by(|a, b| b.1.total_cmp(&a.1));
@@ -249,25 +240,17 @@ impl Surface {
     ) -> Surface {
         let mut points = Vec::new();
         let mut spacing: f64 = 0.0;
-        for (part, t) in model.parts.iter().zip(transforms) {
-            let mesh = &part.mesh;
-            for tri in &mesh.triangles {
-                let [a, b, c] = tri.map(|k| (t * mesh.positions[k as usize]).coords);
-                let area = 0.5 * (b - a).cross(&(c - a)).norm();
-                if !(area > 0.0 && area.is_finite()) {
-                    continue;
-                }
-                let longest = (b - a).norm().max((c - b).norm()).max((a - c).norm());
-                let m = ((longest / cut).ceil() as usize).clamp(1, MAX_CUTS);
-                spacing = spacing.max(longest / m as f64);
-                let centres = split_centres(m);
-                let share = area / centres.len() as f64;
-                points.extend(
-                    centres
-                        .iter()
-                        .map(|&(u, v)| (a + (b - a) * u + (c - a) * v, share)),
-                );
-            }
+        for ([a, b, c], _, area) in posed_triangles(model, transforms) {
+            let longest = (b - a).norm().max((c - b).norm()).max((a - c).norm());
+            let m = ((longest / cut).ceil() as usize).clamp(1, MAX_CUTS);
+            spacing = spacing.max(longest / m as f64);
+            let centres = split_centres(m);
+            let share = area / centres.len() as f64;
+            points.extend(
+                centres
+                    .iter()
+                    .map(|&(u, v)| (a + (b - a) * u + (c - a) * v, share)),
+            );
         }
         let tolerance = (0.02 * CUTS_PER_EXTENT * cut).max(spacing);
         let mut grid: std::collections::HashMap<[i64; 3], Vec<usize>> = Default::default();
@@ -318,6 +301,23 @@ impl Surface {
         }
         all > 0.0
     }
+}
+
+/// The posed model's triangles with a positive, finite area: corners (posed), the area
+/// vector (half the cross product, along the outward normal) and the area.
+fn posed_triangles<'m>(
+    model: &'m ObjectModel,
+    transforms: &'m [agentstar_geom::pose::Rigid],
+) -> impl Iterator<Item = ([Vector3; 3], Vector3, f64)> + 'm {
+    model.parts.iter().zip(transforms).flat_map(|(part, t)| {
+        let mesh = &part.mesh;
+        mesh.triangles.iter().filter_map(move |tri| {
+            let [a, b, c] = tri.map(|k| (t * mesh.positions[k as usize]).coords);
+            let area_vector = 0.5 * (b - a).cross(&(c - a));
+            let area = area_vector.norm();
+            (area > 0.0 && area.is_finite()).then_some(([a, b, c], area_vector, area))
+        })
+    })
 }
 
 /// Barycentric centres of the m² like triangles a triangle splits into: the upright ones
@@ -405,36 +405,27 @@ fn section_harmonics(
             splits.push(split_centres(splits.len() + 1));
         }
     };
-    for (part, t) in model.parts.iter().zip(transforms) {
-        let mesh = &part.mesh;
-        for tri in &mesh.triangles {
-            let [a, b, c] = tri.map(|k| (t * mesh.positions[k as usize]).coords);
-            let area_vector = 0.5 * (b - a).cross(&(c - a));
-            let area = area_vector.norm();
-            if !(area > 0.0 && area.is_finite()) {
-                continue;
-            }
-            let longest = (b - a).norm().max((c - b).norm()).max((a - c).norm());
-            let m = ((longest / cut).ceil() as usize).clamp(1, MAX_CUTS);
-            centres_of(m, &mut splits);
-            let centres = &splits[m - 1];
-            let share = 1.0 / centres.len() as f64;
-            for &(u, v) in centres {
-                let d = a + (b - a) * u + (c - a) * v - frame.centroid.coords;
-                let weight = if frame.solid {
-                    d.dot(&axis) * area_vector.dot(&axis) * share
-                } else {
-                    area * share
-                };
-                let z = Complex::new(d.dot(&e1), d.dot(&e2));
-                let r = z.norm();
-                let (mut power, mut radius) = (Complex::new(1.0, 0.0), 1.0);
-                for slot in acc.iter_mut() {
-                    power *= z;
-                    radius *= r;
-                    slot.0 += power * weight;
-                    slot.1 += radius * weight;
-                }
+    for ([a, b, c], area_vector, area) in posed_triangles(model, transforms) {
+        let longest = (b - a).norm().max((c - b).norm()).max((a - c).norm());
+        let m = ((longest / cut).ceil() as usize).clamp(1, MAX_CUTS);
+        centres_of(m, &mut splits);
+        let centres = &splits[m - 1];
+        let share = 1.0 / centres.len() as f64;
+        for &(u, v) in centres {
+            let d = a + (b - a) * u + (c - a) * v - frame.centroid.coords;
+            let weight = if frame.solid {
+                d.dot(&axis) * area_vector.dot(&axis) * share
+            } else {
+                area * share
+            };
+            let z = Complex::new(d.dot(&e1), d.dot(&e2));
+            let r = z.norm();
+            let (mut power, mut radius) = (Complex::new(1.0, 0.0), 1.0);
+            for slot in acc.iter_mut() {
+                power *= z;
+                radius *= r;
+                slot.0 += power * weight;
+                slot.1 += radius * weight;
             }
         }
     }

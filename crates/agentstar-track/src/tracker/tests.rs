@@ -39,6 +39,21 @@ fn truth(k: usize) -> GenPose {
     }
 }
 
+/// The L turned `deg` about an oblique axis, 1.2 in front of the camera: a sequence at 16° a
+/// frame moves past a chain's window.
+fn spun(deg: f64) -> GenPose {
+    GenPose {
+        pose: ObjectPose::new(
+            UnitQuaternion::from_axis_angle(
+                &agentstar_geom::nalgebra::Unit::new_normalize(Vector3::new(0.3, 1.0, 0.2)),
+                deg.to_radians(),
+            ),
+            Vector3::new(0.0, 0.0, 1.2),
+        ),
+        states: vec![],
+    }
+}
+
 /// Each pose's silhouette of `model` in [`camera`], as a target (masks only, no hands).
 fn silhouettes(model: &ObjectModel, scale: f64, poses: &[GenPose]) -> Vec<ScoreTarget> {
     poses
@@ -583,17 +598,7 @@ fn a_chains_motion_says_nothing_of_a_turn_about_a_cans_axis() {
 fn a_chain_searches_wider_where_the_object_moved_past_its_window() {
     let model = ell();
     let scale = 0.5;
-    let spin = |deg: f64| GenPose {
-        pose: ObjectPose::new(
-            UnitQuaternion::from_axis_angle(
-                &agentstar_geom::nalgebra::Unit::new_normalize(Vector3::new(0.3, 1.0, 0.2)),
-                deg.to_radians(),
-            ),
-            Vector3::new(0.0, 0.0, 1.2),
-        ),
-        states: vec![],
-    };
-    let truths: Vec<GenPose> = (0..5).map(|k| spin(16.0 * k as f64)).collect();
+    let truths: Vec<GenPose> = (0..5).map(|k| spun(16.0 * k as f64)).collect();
     let targets = silhouettes(&model, scale, &truths);
     let frames = silhouette_frames(&targets);
     let cfg = TrackConfig::default();
@@ -629,17 +634,7 @@ fn the_video_joins_two_keyframes_poses_only_where_it_leads_from_one_to_the_other
     // a global search there may find as well), nor a pose the chain cannot have come from.
     let model = ell();
     let scale = 0.5;
-    let spin = |deg: f64| GenPose {
-        pose: ObjectPose::new(
-            UnitQuaternion::from_axis_angle(
-                &agentstar_geom::nalgebra::Unit::new_normalize(Vector3::new(0.3, 1.0, 0.2)),
-                deg.to_radians(),
-            ),
-            Vector3::new(0.0, 0.0, 1.2),
-        ),
-        states: vec![],
-    };
-    let truths: Vec<GenPose> = (0..5).map(|k| spin(16.0 * k as f64)).collect();
+    let truths: Vec<GenPose> = (0..5).map(|k| spun(16.0 * k as f64)).collect();
     let targets = silhouettes(&model, scale, &truths);
     let frames = silhouette_frames(&targets);
     let cfg = TrackConfig::default();
@@ -667,7 +662,7 @@ fn the_video_joins_two_keyframes_poses_only_where_it_leads_from_one_to_the_other
         states: vec![],
     };
     assert!(!joins(&flipped));
-    assert!(!joins(&spin(-40.0)));
+    assert!(!joins(&spun(-40.0)));
 }
 
 /// An uncoloured mug (the mug of [`mug`], every part one colour) printed all round, seen
