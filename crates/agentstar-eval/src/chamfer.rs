@@ -2,6 +2,7 @@
 //! two surfaces, `(mean_a d(a, B) + mean_b d(b, A)) / 2`. Samples are area-weighted and
 //! seeded, so a metric is reproducible.
 
+use agentstar_geom::nearest::KdTree;
 use agentstar_geom::{Point3, TriMesh};
 use agentstar_optim::Rng;
 
@@ -40,128 +41,8 @@ pub fn sample_surface(mesh: &TriMesh, n: usize, seed: u64) -> Vec<Point3> {
         .collect()
 }
 
-/// Exact nearest-neighbour queries with a k-d tree: median splits on the widest axis down to
-/// leaves of at most 16 points, searched near side first with pruning by the splitting
-/// plane. Splits are by position in the sorted order, not by value, so repeated coordinates
-/// (every flat face gives many) cost nothing. Query time does not grow with the distance
-/// between the two clouds, which a uniform grid's shell search did.
-struct KdTree {
-    points: Vec<Point3>,
-    order: Vec<u32>,
-    nodes: Vec<Node>,
-}
-
-#[derive(Debug, Clone, Copy)]
-enum Node {
-    Leaf {
-        start: u32,
-        end: u32,
-    },
-    Split {
-        axis: u8,
-        value: f64,
-        left: u32,
-        right: u32,
-    },
-}
-
-const LEAF: usize = 16;
-
-impl KdTree {
-    fn new(points: &[Point3]) -> KdTree {
-        let mut g = KdTree {
-            points: points.to_vec(),
-            order: (0..points.len() as u32).collect(),
-            nodes: Vec::with_capacity(2 * points.len() / LEAF + 1),
-        };
-        if !points.is_empty() {
-            g.build(0, points.len());
-        }
-        g
-    }
-
-    /// Builds the subtree over `order[start..end]`; returns its node index.
-    fn build(&mut self, start: usize, end: usize) -> u32 {
-        let id = self.nodes.len() as u32;
-        if end - start <= LEAF {
-            self.nodes.push(Node::Leaf {
-                start: start as u32,
-                end: end as u32,
-            });
-            return id;
-        }
-        let b = agentstar_geom::Aabb::from_points(
-            self.order[start..end]
-                .iter()
-                .map(|&i| &self.points[i as usize]),
-        );
-        let e = b.extent();
-        let axis = if e.x >= e.y && e.x >= e.z {
-            0
-        } else if e.y >= e.z {
-            1
-        } else {
-            2
-        };
-        let mid = (start + end) / 2;
-        let points = &self.points;
-        self.order[start..end].select_nth_unstable_by(mid - start, |&a, &b| {
-            points[a as usize][axis].total_cmp(&points[b as usize][axis])
-        });
-        let value = self.points[self.order[mid] as usize][axis];
-        self.nodes.push(Node::Leaf { start: 0, end: 0 });
-        let left = self.build(start, mid);
-        let right = self.build(mid, end);
-        self.nodes[id as usize] = Node::Split {
-            axis: axis as u8,
-            value,
-            left,
-            right,
-        };
-        id
-    }
-
-    fn nearest(&self, q: &Point3) -> f64 {
-        let mut best_sq = f64::INFINITY;
-        if self.nodes.is_empty() {
-            return best_sq;
-        }
-        // (node, squared lower bound of its distance)
-        let mut stack: Vec<(u32, f64)> = vec![(0, 0.0)];
-        while let Some((n, bound)) = stack.pop() {
-            if bound >= best_sq {
-                continue;
-            }
-            match self.nodes[n as usize] {
-                Node::Leaf { start, end } => {
-                    for &i in &self.order[start as usize..end as usize] {
-                        best_sq = best_sq.min((self.points[i as usize] - q).norm_squared());
-                    }
-                }
-                Node::Split {
-                    axis,
-                    value,
-                    left,
-                    right,
-                } => {
-                    let d = q[axis as usize] - value;
-                    let (near, far) = if d < 0.0 {
-                        (left, right)
-                    } else {
-                        (right, left)
-                    };
-                    // Far first on the stack, so the near side is searched first.
-                    stack.push((far, bound.max(d * d)));
-                    stack.push((near, bound));
-                }
-            }
-        }
-        best_sq.sqrt()
-    }
-}
-
 fn mean_nn(from: &[Point3], to: &KdTree, f: impl Fn(f64) -> f64) -> f64 {
-    from.iter().map(|p| f(to.nearest(p))).sum::<f64>() / from.len() as f64
+    from.iter().map(|p| f(to.nearest_distance(p))).sum::<f64>() / from.len() as f64
 }
 
 /// Symmetric Chamfer distance; `None` when either set is empty.
@@ -181,8 +62,8 @@ pub fn chamfer_both(a: &[Point3], b: &[Point3]) -> Option<(f64, f64)> {
         return None;
     }
     let (ta, tb) = (KdTree::new(a), KdTree::new(b));
-    let da: Vec<f64> = a.iter().map(|p| tb.nearest(p)).collect();
-    let db: Vec<f64> = b.iter().map(|p| ta.nearest(p)).collect();
+    let da: Vec<f64> = a.iter().map(|p| tb.nearest_distance(p)).collect();
+    let db: Vec<f64> = b.iter().map(|p| ta.nearest_distance(p)).collect();
     let mean = |v: &[f64], f: fn(f64) -> f64| v.iter().map(|&d| f(d)).sum::<f64>() / v.len() as f64;
     Some((
         0.5 * (mean(&da, |d| d) + mean(&db, |d| d)),

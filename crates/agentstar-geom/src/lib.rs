@@ -15,6 +15,7 @@ pub mod inside;
 pub mod kinematics;
 pub mod mesh;
 pub mod model;
+pub mod nearest;
 pub mod pose;
 pub mod primitives;
 pub mod simplify;

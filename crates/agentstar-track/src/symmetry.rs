@@ -13,6 +13,7 @@
 
 use crate::hypotheses::{principal_frame, PrincipalFrame};
 use agentstar_geom::nalgebra::{Complex, Unit};
+use agentstar_geom::nearest::KdTree;
 use agentstar_geom::{ObjectModel, Point3, UnitQuaternion, Vector3};
 
 /// The highest order of turn looked for: an octagonal prism's.
@@ -87,19 +88,7 @@ pub fn folds(model: &ObjectModel, states: &[f64]) -> Vec<Fold> {
     };
     let transforms = model.tree.part_transforms(states);
     // The longest cut a triangle's integrals allow: the extent of the model's posed vertices.
-    let (lo, hi) = model.parts.iter().zip(&transforms).fold(
-        (
-            Vector3::repeat(f64::INFINITY),
-            Vector3::repeat(f64::NEG_INFINITY),
-        ),
-        |(lo, hi), (part, t)| {
-            part.mesh.positions.iter().fold((lo, hi), |(lo, hi), p| {
-                let q = (t * p).coords;
-                (lo.inf(&q), hi.sup(&q))
-            })
-        },
-    );
-    let extent = (hi - lo).norm();
+    let extent = model.posed_bounds(states).extent().norm();
     if !(extent > 0.0 && extent.is_finite()) {
         return Vec::new();
     }
@@ -115,6 +104,7 @@ pub fn folds(model: &ObjectModel, states: &[f64]) -> Vec<Fold> {
     }
     let mut out: Vec<Fold> = Vec::new();
     let mut surface: Option<Surface> = None;
+    let mut splits = Splits::default();
     for axis in axes {
         let e1 = axis.cross(&frame.axes[2]);
         let e1 = if e1.norm() > 0.5 {
@@ -124,7 +114,8 @@ pub fn folds(model: &ObjectModel, states: &[f64]) -> Vec<Fold> {
         }
         .normalize();
         let e2 = axis.cross(&e1);
-        let harmonics = section_harmonics(model, &transforms, &frame, axis, (e1, e2), cut);
+        let harmonics =
+            section_harmonics(model, &transforms, &frame, axis, (e1, e2), cut, &mut splits);
         let strength: Vec<f64> = harmonics
             .iter()
             .map(|(sum, bound)| {
@@ -165,7 +156,8 @@ pub fn folds(model: &ObjectModel, states: &[f64]) -> Vec<Fold> {
         // The harmonics of the solid's thickness across an axis are a test the true axes
         // pass and some others too (a cube's about any axis): each turn must also map the
         // surface onto itself.
-        let surface = surface.get_or_insert_with(|| Surface::sample(model, &transforms, cut));
+        let surface = surface
+            .get_or_insert_with(|| Surface::sample(model, &transforms, extent, cut, &mut splits));
         if fold.turns().iter().all(|t| surface.maps_onto_itself(t)) {
             out.push(fold);
         }
@@ -221,66 +213,43 @@ const MAPPED_SHARE: f64 = 0.9;
 /// The most points [`Surface::maps_onto_itself`] moves for one turn.
 const MAX_CHECKED: usize = 2000;
 
-/// Points spread over the posed model's surface by area, in a grid to find the nearest
-/// quickly: what [`folds`] checks a turn against.
+/// Points spread over the posed model's surface by area, with a tree to find the nearest:
+/// what [`folds`] checks a turn against.
 struct Surface {
     /// (point, area it stands for)
-    points: Vec<(Vector3, f64)>,
-    /// The grid's cell and the distance within which a moved point is on the surface: 2% of
-    /// the model's extent, or the points' spacing where that is larger.
+    points: Vec<(Point3, f64)>,
+    nearest: KdTree,
+    /// The distance within which a moved point is on the surface: 2% of the model's extent,
+    /// or the points' spacing where that is larger.
     tolerance: f64,
-    grid: std::collections::HashMap<[i64; 3], Vec<usize>>,
 }
 
 impl Surface {
     fn sample(
         model: &ObjectModel,
         transforms: &[agentstar_geom::pose::Rigid],
+        extent: f64,
         cut: f64,
+        splits: &mut Splits,
     ) -> Surface {
         let mut points = Vec::new();
         let mut spacing: f64 = 0.0;
         for ([a, b, c], _, area) in posed_triangles(model, transforms) {
-            let longest = (b - a).norm().max((c - b).norm()).max((a - c).norm());
-            let m = ((longest / cut).ceil() as usize).clamp(1, MAX_CUTS);
-            spacing = spacing.max(longest / m as f64);
-            let centres = split_centres(m);
+            let (m, centres) = splits.of(&[a, b, c], cut);
+            spacing = spacing.max(longest_side(&[a, b, c]) / m as f64);
             let share = area / centres.len() as f64;
             points.extend(
                 centres
                     .iter()
-                    .map(|&(u, v)| (a + (b - a) * u + (c - a) * v, share)),
+                    .map(|&(u, v)| (Point3::from(a + (b - a) * u + (c - a) * v), share)),
             );
         }
-        let tolerance = (0.02 * CUTS_PER_EXTENT * cut).max(spacing);
-        let mut grid: std::collections::HashMap<[i64; 3], Vec<usize>> = Default::default();
-        for (k, (p, _)) in points.iter().enumerate() {
-            grid.entry(Self::cell(p, tolerance)).or_default().push(k);
-        }
+        let cloud: Vec<Point3> = points.iter().map(|(p, _)| *p).collect();
         Surface {
+            nearest: KdTree::new(&cloud),
             points,
-            tolerance,
-            grid,
+            tolerance: (SURFACE_TOLERANCE * extent).max(spacing),
         }
-    }
-
-    fn cell(p: &Vector3, size: f64) -> [i64; 3] {
-        [0, 1, 2].map(|k| (p[k] / size).floor() as i64)
-    }
-
-    /// Whether a point of the surface lies within the tolerance of `p`.
-    fn near(&self, p: &Vector3) -> bool {
-        let [x, y, z] = Self::cell(p, self.tolerance);
-        (-1..=1).any(|dx| {
-            (-1..=1).any(|dy| {
-                (-1..=1).any(|dz| {
-                    self.grid.get(&[x + dx, y + dy, z + dz]).is_some_and(|ks| {
-                        ks.iter()
-                            .any(|&k| (self.points[k].0 - p).norm() <= self.tolerance)
-                    })
-                })
-            })
-        })
     }
 
     /// Whether `(q, c)` puts at least [`MAPPED_SHARE`] of the surface back on it (at most
@@ -292,7 +261,8 @@ impl Surface {
         // Stops at the first point that puts the share off the surface over the allowance.
         let mut off = 0.0;
         for (p, area) in checked {
-            if !self.near(&(c.coords + q * (p - c.coords))) {
+            let moved = c + q * (p - c);
+            if self.nearest.nearest_distance(&moved) > self.tolerance {
                 off += area;
                 if off > (1.0 - MAPPED_SHARE) * all {
                     return false;
@@ -301,6 +271,31 @@ impl Surface {
         }
         all > 0.0
     }
+}
+
+/// A turn's moved surface points count as on the surface within this share of the model's
+/// extent ([`Surface`]).
+const SURFACE_TOLERANCE: f64 = 0.02;
+
+/// The barycentric centres of each split of a triangle used so far ([`split_centres`]),
+/// made once for all the triangles and axes of one [`folds`].
+#[derive(Default)]
+struct Splits(Vec<Vec<(f64, f64)>>);
+
+impl Splits {
+    /// The split of triangle `corners` that leaves no side longer than `cut` (at most
+    /// [`MAX_CUTS`] cuts a side): `m` and its centres.
+    fn of(&mut self, corners: &[Vector3; 3], cut: f64) -> (usize, &[(f64, f64)]) {
+        let m = ((longest_side(corners) / cut).ceil() as usize).clamp(1, MAX_CUTS);
+        while self.0.len() < m {
+            self.0.push(split_centres(self.0.len() + 1));
+        }
+        (m, &self.0[m - 1])
+    }
+}
+
+fn longest_side([a, b, c]: &[Vector3; 3]) -> f64 {
+    (b - a).norm().max((c - b).norm()).max((a - c).norm())
 }
 
 /// The posed model's triangles with a positive, finite area: corners (posed), the area
@@ -396,20 +391,11 @@ fn section_harmonics(
     axis: Vector3,
     (e1, e2): (Vector3, Vector3),
     cut: f64,
+    splits: &mut Splits,
 ) -> [(Complex<f64>, f64); MAX_FOLD] {
     let mut acc = [(Complex::new(0.0, 0.0), 0.0); MAX_FOLD];
-    // The centres of each split used, made once.
-    let mut splits: Vec<Vec<(f64, f64)>> = Vec::new();
-    let centres_of = |m: usize, splits: &mut Vec<Vec<(f64, f64)>>| {
-        while splits.len() < m {
-            splits.push(split_centres(splits.len() + 1));
-        }
-    };
     for ([a, b, c], area_vector, area) in posed_triangles(model, transforms) {
-        let longest = (b - a).norm().max((c - b).norm()).max((a - c).norm());
-        let m = ((longest / cut).ceil() as usize).clamp(1, MAX_CUTS);
-        centres_of(m, &mut splits);
-        let centres = &splits[m - 1];
+        let (_, centres) = splits.of(&[a, b, c], cut);
         let share = 1.0 / centres.len() as f64;
         for &(u, v) in centres {
             let d = a + (b - a) * u + (c - a) * v - frame.centroid.coords;
