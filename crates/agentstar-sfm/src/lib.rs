@@ -293,6 +293,10 @@ pub struct SfmReport {
     /// Frames the reconstruction ran on, and how many of them it placed.
     pub frames_reconstructed: usize,
     pub frames_placed_by_mapping: usize,
+    /// Runs of COLMAP's mapper: another run, with a smaller initial triangulation angle (16°,
+    /// 8°, 4°), follows one whose largest model holds under half of the frames reconstructed;
+    /// the largest model wins.
+    pub mapping_tries: usize,
     /// Frames placed afterwards by registration against the model.
     pub frames_placed_by_registration: usize,
     /// Pairs of frames matched (reconstruction, registration).

@@ -16,6 +16,15 @@ use std::time::Instant;
 
 /// Pairs matched by one `matches_importer` run: small enough for progress every few seconds.
 const PAIRS_PER_RUN: usize = 150;
+/// The initial pair's least triangulation angle of each run of COLMAP's mapper on the subset
+/// (None: COLMAP's 16°): another run follows one whose largest model holds under half of the
+/// subset. Frames strided from a short hand-held video may hold too little parallax for 16°,
+/// and which pairs COLMAP's matching leaves as planar or panoramic (no use for triangulation)
+/// is an unseeded draw: in 1 run of 4 of the registration test's clip (2026-12-05) the mapper
+/// placed 5 of 12 frames from a database where 8° placed all 12; the others placed all 12
+/// at 16°.
+const MAPPING_INIT_ANGLES_DEG: [Option<f64>; 3] = [None, Some(8.0), Some(4.0)];
+const MAPPING_TRIES: usize = MAPPING_INIT_ANGLES_DEG.len();
 
 fn secs(t: Instant) -> f64 {
     (t.elapsed().as_secs_f64() * 1000.0).round() / 1000.0
@@ -397,13 +406,9 @@ pub fn estimate_cameras(
     run.match_pairs("matching", &subset_pairs, progress)?;
     stage_seconds.insert("matching".to_string(), secs(t));
 
-    // 4. Incremental mapping of the subset.
+    // 4. Incremental mapping of the subset, tried again with a smaller initial triangulation
+    // angle while the largest model holds under half of it ([`MAPPING_INIT_ANGLES_DEG`]).
     let t = Instant::now();
-    let sparse = work.join("sparse");
-    if sparse.exists() {
-        std::fs::remove_dir_all(&sparse).map_err(|e| SfmError::io(&sparse, e))?;
-    }
-    std::fs::create_dir_all(&sparse).map_err(|e| SfmError::io(&sparse, e))?;
     let subset_list = work.join("subset_list.txt");
     let subset_names: Vec<&str> = subset
         .iter()
@@ -411,61 +416,29 @@ pub fn estimate_cameras(
         .collect();
     std::fs::write(&subset_list, subset_names.join("\n") + "\n")
         .map_err(|e| SfmError::io(&subset_list, e))?;
-    let flag = |b: bool| if b { "1" } else { "0" };
-    let args = os(&[
-        "--database_path",
-        path_str(&run.db).as_str(),
-        "--image_path",
-        path_str(&job.image_dir).as_str(),
-        "--image_list_path",
-        path_str(&subset_list).as_str(),
-        "--output_path",
-        path_str(&sparse).as_str(),
-        "--Mapper.num_threads",
-        &run.threads,
-        "--Mapper.ba_refine_focal_length",
-        flag(refine),
-        "--Mapper.ba_refine_principal_point",
-        "0",
-        "--Mapper.ba_refine_extra_params",
-        "0",
-        "--Mapper.min_model_size",
-        "3",
-    ]);
-    let mapping_total = subset.len() as u64;
-    let mut placed = 0u64;
-    progress(Progress {
-        stage: "mapping",
-        done: 0,
-        total: mapping_total,
-    });
-    run.colmap("mapping", "mapper", &args, "mapper.log", &mut |line| {
-        if line.trim_start().starts_with("Registering image #") {
-            placed += 1;
-            progress(Progress {
-                stage: "mapping",
-                done: (placed + 1).min(mapping_total),
-                total: mapping_total,
-            });
-        }
-    })?;
-    // The largest model, as text, read back.
-    let mut models: Vec<PathBuf> = std::fs::read_dir(&sparse)
-        .map_err(|e| SfmError::io(&sparse, e))?
-        .filter_map(|e| e.ok().map(|e| e.path()))
-        .filter(|p| p.is_dir())
-        .collect();
-    models.sort();
-    // COLMAP says "No good initial image pair found" and writes nothing.
     let mut best: Option<(PathBuf, PathBuf, CameraSet)> = None;
-    for (i, m) in models.iter().enumerate() {
-        let txt = work.join(format!("model_txt_{i}"));
-        let set = run.to_text("mapping", m, &txt)?;
-        if best
+    let mut mapping_tries = 0;
+    while mapping_tries < MAPPING_TRIES
+        && best
             .as_ref()
-            .is_none_or(|(_, _, b)| set.by_stem.len() > b.by_stem.len())
-        {
-            best = Some((m.clone(), txt, set));
+            .is_none_or(|(_, _, b)| 2 * b.by_stem.len() < subset.len())
+    {
+        mapping_tries += 1;
+        let tried = map_subset(
+            &run,
+            &subset_list,
+            subset.len(),
+            refine,
+            mapping_tries,
+            progress,
+        )?;
+        if let Some(m) = tried {
+            if best
+                .as_ref()
+                .is_none_or(|(_, _, b)| m.2.by_stem.len() > b.by_stem.len())
+            {
+                best = Some(m);
+            }
         }
     }
     let Some((model_bin, mut model_dir, mut set)) = best else {
@@ -637,6 +610,7 @@ pub fn estimate_cameras(
         frames_needing_cameras: needed.len(),
         frames_reconstructed: subset.len(),
         frames_placed_by_mapping: placed_by_mapping,
+        mapping_tries,
         frames_placed_by_registration: placed_by_registration,
         pairs_matched: [subset_pairs.len(), registration_pairs.len()],
         max_features: settings.max_features,
@@ -700,4 +674,89 @@ pub fn estimate_cameras(
         report,
         keep_dir,
     })
+}
+
+/// One run of COLMAP's incremental mapper on the subset (try `attempt`, from 1): the largest
+/// model it left (binary folder, text folder, cameras), or None where it found no initial pair.
+fn map_subset(
+    run: &Run<'_>,
+    subset_list: &Path,
+    subset_len: usize,
+    refine: bool,
+    attempt: usize,
+    progress: &mut dyn FnMut(Progress),
+) -> Result<Option<(PathBuf, PathBuf, CameraSet)>, SfmError> {
+    let job = run.job;
+    let work = &job.work_dir;
+    let sparse = work.join(format!("sparse_{attempt}"));
+    if sparse.exists() {
+        std::fs::remove_dir_all(&sparse).map_err(|e| SfmError::io(&sparse, e))?;
+    }
+    std::fs::create_dir_all(&sparse).map_err(|e| SfmError::io(&sparse, e))?;
+    let flag = |b: bool| if b { "1" } else { "0" };
+    let mut args = os(&[
+        "--database_path",
+        path_str(&run.db).as_str(),
+        "--image_path",
+        path_str(&job.image_dir).as_str(),
+        "--image_list_path",
+        path_str(subset_list).as_str(),
+        "--output_path",
+        path_str(&sparse).as_str(),
+        "--Mapper.num_threads",
+        &run.threads,
+        "--Mapper.ba_refine_focal_length",
+        flag(refine),
+        "--Mapper.ba_refine_principal_point",
+        "0",
+        "--Mapper.ba_refine_extra_params",
+        "0",
+        "--Mapper.min_model_size",
+        "3",
+    ]);
+    if let Some(angle_deg) = MAPPING_INIT_ANGLES_DEG[attempt - 1] {
+        args.extend(os(&["--Mapper.init_min_tri_angle", &angle_deg.to_string()]));
+    }
+    let mapping_total = subset_len as u64;
+    let mut placed = 0u64;
+    progress(Progress {
+        stage: "mapping",
+        done: 0,
+        total: mapping_total,
+    });
+    let log = if attempt == 1 {
+        "mapper.log".to_string()
+    } else {
+        format!("mapper_try{attempt}.log")
+    };
+    run.colmap("mapping", "mapper", &args, &log, &mut |line| {
+        if line.trim_start().starts_with("Registering image #") {
+            placed += 1;
+            progress(Progress {
+                stage: "mapping",
+                done: (placed + 1).min(mapping_total),
+                total: mapping_total,
+            });
+        }
+    })?;
+    // The largest model, as text, read back.
+    let mut models: Vec<PathBuf> = std::fs::read_dir(&sparse)
+        .map_err(|e| SfmError::io(&sparse, e))?
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| p.is_dir())
+        .collect();
+    models.sort();
+    // COLMAP says "No good initial image pair found" and writes nothing.
+    let mut best: Option<(PathBuf, PathBuf, CameraSet)> = None;
+    for (i, m) in models.iter().enumerate() {
+        let txt = work.join(format!("model_txt_{attempt}_{i}"));
+        let set = run.to_text("mapping", m, &txt)?;
+        if best
+            .as_ref()
+            .is_none_or(|(_, _, b)| set.by_stem.len() > b.by_stem.len())
+        {
+            best = Some((m.clone(), txt, set));
+        }
+    }
+    Ok(best)
 }

@@ -144,8 +144,16 @@ fn write_gt(capture: &Path, clip: &RoomClip) {
         .expect("gt.json");
 }
 
-/// Tracks a capture with the known model and returns the 3-D EPE in centimetres.
-fn track_epe_cm(capture: &Path, scene: &Path, scale: f64) -> f64 {
+/// What tracking a capture with the known model scored against the truth.
+#[derive(Debug)]
+struct TrackErrors {
+    epe_cm: f64,
+    rotation_median_deg: f64,
+    translation_median_cm: f64,
+}
+
+/// Tracks a capture with the known model and evaluates the poses against `gt.json`.
+fn track_errors(capture: &Path, scene: &Path, scale: f64) -> TrackErrors {
     let poses = capture.join("pose.json");
     let scale = scale.to_string();
     let o = agentstar(&[
@@ -162,7 +170,12 @@ fn track_epe_cm(capture: &Path, scene: &Path, scale: f64) -> f64 {
     let o = on_poses("eval", s(capture), s(scene), s(&poses), &["--json"]);
     assert!(o.status.success(), "eval: {}", text(&o));
     let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("eval JSON");
-    v["epe_cm"].as_f64().expect("epe_cm")
+    let figure = |key: &str| v[key].as_f64().unwrap_or_else(|| panic!("{key} in {v}"));
+    TrackErrors {
+        epe_cm: figure("epe_cm"),
+        rotation_median_deg: figure("rotation_median_deg"),
+        translation_median_cm: figure("translation_median_cm"),
+    }
 }
 
 /// The median depth (metres) of the room pixels of the clip's first frame.
@@ -286,10 +299,29 @@ fn sfm_recovers_the_cameras_of_a_hand_held_clip_and_tracking_matches_the_true_ca
     write_gt(&cap, &clip);
     write_gt(&cap_true, &clip);
     let scene = dir.path().join("scene.rhai");
-    let epe_sfm = track_epe_cm(&cap, &scene, clip.scale);
-    let epe_true = track_epe_cm(&cap_true, &scene, clip.scale);
-    eprintln!("track EPE: {epe_sfm:.3} cm on SfM cameras, {epe_true:.3} cm on the true cameras");
-    assert!((epe_sfm - epe_true).abs() <= 0.5, "{epe_sfm} vs {epe_true}");
+    let on_sfm = track_errors(&cap, &scene, clip.scale);
+    let on_truth = track_errors(&cap_true, &scene, clip.scale);
+    eprintln!("tracked on SfM cameras: {on_sfm:?}\ntracked on the true cameras: {on_truth:?}");
+    // The medians over keyframes carry the cameras' share of the error: in 10 runs here on
+    // 2026-12-05 the rotation median read 0.45–1.63° (0.63° on the true cameras) and the
+    // translation median 0.07–0.38 cm (0.17 cm). The mean EPE read 0.21–0.63 cm in 53 runs
+    // (0.30 cm on the true cameras), but once 2.74 cm in CI with cameras as good as ever
+    // (0.19° at worst): a keyframe or two landing elsewhere among near-ties weighs a tenth of
+    // the mean each, and which pose wins a near-tie moves with a tenth of a degree of camera
+    // (COLMAP 3.8 does not repeat itself run to run). Those near-ties are the suites' to
+    // measure; here the mean is bounded only against a tracking that fails throughout.
+    assert!(
+        (on_sfm.rotation_median_deg - on_truth.rotation_median_deg).abs() <= 2.0,
+        "{on_sfm:?} vs {on_truth:?}"
+    );
+    assert!(
+        (on_sfm.translation_median_cm - on_truth.translation_median_cm).abs() <= 0.5,
+        "{on_sfm:?} vs {on_truth:?}"
+    );
+    assert!(
+        on_sfm.epe_cm <= on_truth.epe_cm + 3.0,
+        "{on_sfm:?} vs {on_truth:?}"
+    );
 }
 
 fn failing_capture(dir: &Path, walls: Walls, camera: CameraPath) -> String {
@@ -472,6 +504,9 @@ fn frames_left_out_of_the_reconstruction_are_registered_against_it() {
         .expect("count");
     assert_eq!(by_mapping + by_registration, 30, "{v}");
     assert!(by_registration >= 18, "{v}");
+    let tries = sfm["mapping_tries"].as_u64().expect("mapping_tries");
+    assert!((1..=3).contains(&tries), "{v}");
+    eprintln!("the mapper ran {tries} time(s)");
     assert!(
         sfm["stage_seconds"]["registration"].as_f64().is_some(),
         "{v}"

@@ -206,6 +206,11 @@ pub struct FromVideoArgs {
     /// seconds.
     #[arg(long, default_value_t = agentstar_sfm::DEFAULT_TIME_LIMIT.as_secs(), requires = "cameras")]
     sfm_time_limit_s: u64,
+    /// With --cameras sfm: the threads COLMAP may use (default: all), to leave cores to other
+    /// work. Whatever the threads, COLMAP 3.8's cameras differ by about a tenth of a degree
+    /// from run to run (its RANSAC draws are not seeded).
+    #[arg(long, value_parser = clap::value_parser!(u16).range(1..), requires = "cameras")]
+    sfm_threads: Option<u16>,
     /// Where to write the capture (a new directory).
     #[arg(long)]
     out: PathBuf,
@@ -579,7 +584,7 @@ fn sfm_cameras(
         },
         background_depth_m: a.background_depth_m,
         colmap: None,
-        threads: None,
+        threads: a.sfm_threads.map(usize::from),
     };
     eprintln!(
         "structure from motion with COLMAP: {} frames of the video to choose from, {} keyframes need cameras; at most {} s; logs in {}",
