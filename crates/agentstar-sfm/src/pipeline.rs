@@ -62,6 +62,18 @@ impl Run<'_> {
             .map_err(|e| e.in_stage(stage, self.job.time_limit))
     }
 
+    /// The database, the frames' folder and the list of frames a command works on.
+    fn database_and_images(&self, list: &Path) -> Vec<OsString> {
+        os(&[
+            "--database_path",
+            path_str(&self.db).as_str(),
+            "--image_path",
+            path_str(&self.job.image_dir).as_str(),
+            "--image_list_path",
+            path_str(list).as_str(),
+        ])
+    }
+
     /// Matches `pairs` (positions into the job's frames) with `matches_importer`, in runs of
     /// at most [`PAIRS_PER_RUN`], reporting progress under `stage`.
     fn match_pairs(
@@ -323,13 +335,8 @@ pub fn estimate_cameras(
     let first_octave = plan::first_octave(job.size);
     let first_octave_text = first_octave.to_string();
     let use_gpu = if gpu { "1" } else { "0" };
-    let mut args = os(&[
-        "--database_path",
-        path_str(&run.db).as_str(),
-        "--image_path",
-        path_str(&job.image_dir).as_str(),
-        "--image_list_path",
-        path_str(&list).as_str(),
+    let mut args = run.database_and_images(&list);
+    args.extend(os(&[
         "--ImageReader.mask_path",
         path_str(&masks_dir).as_str(),
         "--ImageReader.camera_model",
@@ -344,7 +351,7 @@ pub fn estimate_cameras(
         &max_features,
         "--SiftExtraction.first_octave",
         &first_octave_text,
-    ]);
+    ]));
     if let Some(p) = &params {
         args.extend(os(&["--ImageReader.camera_params", p]));
     }
@@ -694,13 +701,8 @@ fn map_subset(
     }
     std::fs::create_dir_all(&sparse).map_err(|e| SfmError::io(&sparse, e))?;
     let flag = |b: bool| if b { "1" } else { "0" };
-    let mut args = os(&[
-        "--database_path",
-        path_str(&run.db).as_str(),
-        "--image_path",
-        path_str(&job.image_dir).as_str(),
-        "--image_list_path",
-        path_str(subset_list).as_str(),
+    let mut args = run.database_and_images(subset_list);
+    args.extend(os(&[
         "--output_path",
         path_str(&sparse).as_str(),
         "--Mapper.num_threads",
@@ -713,7 +715,7 @@ fn map_subset(
         "0",
         "--Mapper.min_model_size",
         "3",
-    ]);
+    ]));
     if let Some(angle_deg) = MAPPING_INIT_ANGLES_DEG[attempt - 1] {
         args.extend(os(&["--Mapper.init_min_tri_angle", &angle_deg.to_string()]));
     }
