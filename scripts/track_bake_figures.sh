@@ -11,7 +11,8 @@
 #
 #   scripts/track_bake_figures.sh [OUT]
 #   (AGENTSTAR=path/to/agentstar, SEEDS="17 18 19", OBJECTS="labelcan:300 printmug:302",
-#    CASES="textured.glb,textured.obj,plain.glb,plain.glb --bake")
+#    CASES="textured.glb,textured.obj,plain.glb,plain.glb --bake", BETWEEN=9 for the
+#    captures with 9 in-between frames a keyframe step, as `bench --between 9` makes them)
 #
 # Use a release build (`cargo build --release -p agentstar`); a debug build takes hours.
 set -euo pipefail
@@ -20,16 +21,18 @@ OUT=${1:-/tmp/agentstar-track-bake-figures}
 SEEDS=${SEEDS:-"17 18 19"}
 OBJECTS=${OBJECTS:-"labelcan:300 printmug:302"}
 CASES=${CASES:-"textured.glb,textured.obj,plain.glb,plain.glb --bake"}
+BETWEEN=${BETWEEN:-}
 mkdir -p "$OUT"
 date -u +"started %Y-%m-%dT%H:%M:%SZ on $(nproc) threads, load $(cut -d' ' -f1-3 /proc/loadavg)" >&2
 
 # The hard suite's captures (agentstar-bench's hard_sequence): 20 keyframes at 640×480,
 # hard-held motion, hands up to 60%, 2 px mask noise, the principal point off centre.
 capture() { # object seed
-    local dir="$OUT/$1-s$2"
+    local dir="$OUT/$1-s$2${BETWEEN:+-between$BETWEEN}"
     [ -f "$dir/capture.json" ] || "$BIN" synth "$dir" --object "$1" --motion hard-held \
         --frames 20 --size 640x480 --seed "$2" --mask-noise 2 --no-depth \
-        --principal-point 358,218 --hand-coverage 0.6 --mesh-models >/dev/null
+        --principal-point 358,218 --hand-coverage 0.6 --mesh-models \
+        ${BETWEEN:+--between "$BETWEEN"} >/dev/null
     echo "$dir"
 }
 
@@ -46,6 +49,8 @@ def rot(q):
             [2*(x*z-w*y), 2*(y*z+w*x), 1-2*(x*x+y*y)]]
 full, axis = [], []
 for name, e in t.items():
+    if name not in p:
+        continue  # an in-between frame: keyframes are scored
     qa = e["object_pose"]["quaternion"]
     qb = p[name]["object_pose"]["quaternion"]
     d = abs(sum(a*b for a, b in zip(qa, qb))) / math.sqrt(sum(a*a for a in qa) * sum(b*b for b in qb))
@@ -86,7 +91,7 @@ for spec in $OBJECTS; do
             model=${case%% *}
             flags=""
             [ "$case" != "$model" ] && flags=${case#* }
-            run="$OUT/runs/$object-$seed-${model%%.*}-${model##*.}${flags:+-bake}"
+            run="$OUT/runs/$object-$seed-${model%%.*}-${model##*.}${flags:+-bake}${BETWEEN:+-between$BETWEEN}"
             mkdir -p "$run"
             # shellcheck disable=SC2086
             "$BIN" track "$cap" --model "$cap/model/$model" --scale-from "$cap/model/pose.json" \

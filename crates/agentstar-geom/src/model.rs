@@ -38,11 +38,24 @@ pub struct Part {
 
 impl Part {
     pub fn new(name: impl Into<String>, mesh: TriMesh, color: [f32; 3]) -> Part {
-        let edges = if mesh.volume() > 0.0 {
+        let closed = mesh.volume() > 0.0;
+        let mut edges = if closed {
             mesh.manifold_edges().map(Arc::new)
         } else {
             None
         };
+        // A closed surface whose file repeats each vertex per corner (texture coordinates or
+        // colours per corner) is closed once its coincident vertices are shared: the same
+        // triangles in the same order, so a per-triangle appearance still fits it.
+        let mut mesh = mesh;
+        if closed && edges.is_none() {
+            if let Some(shared) = mesh.with_coincident_vertices_shared() {
+                if let Some(e) = shared.manifold_edges() {
+                    edges = Some(Arc::new(e));
+                    mesh = shared;
+                }
+            }
+        }
         let watertight = edges.is_some();
         let open_edges = (!watertight).then(|| Arc::new(mesh.edge_incidence()));
         let bounds = mesh.bounds();
@@ -459,6 +472,52 @@ mod tests {
     use crate::kinematics::{JointDef, JointKind};
     use crate::primitives::cuboid;
     use crate::Vector3;
+
+    /// `mesh` as a file with per-corner attributes stores it: each triangle its own three
+    /// vertices.
+    fn corner_per_vertex(mesh: &TriMesh) -> TriMesh {
+        let positions = mesh
+            .triangles
+            .iter()
+            .flat_map(|t| t.map(|i| mesh.positions[i as usize]))
+            .collect();
+        let triangles = (0..mesh.triangles.len() as u32)
+            .map(|t| [3 * t, 3 * t + 1, 3 * t + 2])
+            .collect();
+        TriMesh::new(positions, triangles)
+    }
+
+    #[test]
+    fn a_closed_mesh_stored_per_corner_is_a_closed_part_with_its_triangles_in_order() {
+        let cube = cuboid(1.0, 0.5, 0.4).expect("box");
+        let split = corner_per_vertex(&cube);
+        assert!(
+            split.manifold_edges().is_none(),
+            "no triangle shares an edge"
+        );
+        let part = Part::new("body", split.clone(), [0.5; 3]);
+        assert!(part.watertight);
+        assert!(part.edges.is_some() && part.open_edges.is_none());
+        assert_eq!(part.mesh.positions.len(), cube.positions.len());
+        // The same triangles, in the same order, each corner at the same position: a
+        // per-triangle appearance still fits.
+        assert_eq!(part.mesh.triangles.len(), split.triangles.len());
+        for (t, (a, b)) in part.mesh.triangles.iter().zip(&split.triangles).enumerate() {
+            for k in 0..3 {
+                assert_eq!(
+                    part.mesh.positions[a[k] as usize], split.positions[b[k] as usize],
+                    "triangle {t} corner {k}"
+                );
+            }
+        }
+        // A mesh without coincident vertices is left as it is.
+        assert!(cube.with_coincident_vertices_shared().is_none());
+        // An open sheet stored per corner stays open: sharing its vertices closes nothing.
+        let mut sheet = cube.clone();
+        sheet.triangles.truncate(sheet.triangles.len() - 2);
+        let part = Part::new("sheet", corner_per_vertex(&sheet), [0.5; 3]);
+        assert!(!part.watertight && part.open_edges.is_some());
+    }
 
     #[test]
     fn canonical_report_flags_drift() {

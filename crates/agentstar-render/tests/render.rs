@@ -185,8 +185,10 @@ fn silhouette_is_exact_against_ray_casting_over_many_poses() {
 }
 
 /// Meshes that are not closed: a box with its top face missing, a sphere with a cap cut off,
-/// two planes meeting in a T (an edge with three triangles), and a triangle soup (every
-/// triangle on its own vertices, as an STL file gives a mesh).
+/// two planes meeting in a T (an edge with three triangles), and a triangle soup of a cone
+/// without its top (every triangle on its own vertices, as an STL file gives a mesh; a soup
+/// of a closed surface is closed once its coincident vertices are shared, see
+/// `Part::new`).
 fn open_model() -> ObjectModel {
     let without = |mesh: TriMesh, keep: &dyn Fn(&[Point3; 3]) -> bool| {
         let triangles = (0..mesh.triangles.len())
@@ -225,9 +227,17 @@ fn open_model() -> ObjectModel {
             [4, 6, 7],
         ],
     );
-    let cone_mesh = cone(0.15, 0.05, 0.3, 12)
+    let closed_cone = cone(0.15, 0.05, 0.3, 12)
         .expect("cone")
         .translated(Vector3::new(0.0, 0.4, -0.1));
+    let top = closed_cone
+        .positions
+        .iter()
+        .map(|p| p.z)
+        .fold(f64::NEG_INFINITY, f64::max);
+    let cone_mesh = without(closed_cone, &|t| {
+        !t.iter().all(|p| (p.z - top).abs() < 1e-9)
+    });
     let mut soup = TriMesh::default();
     for i in 0..cone_mesh.triangles.len() {
         let base = soup.positions.len() as u32;
