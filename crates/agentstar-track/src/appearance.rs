@@ -21,7 +21,11 @@
 //! group scores the share of the frame's colours that a lit fit of shading alone leaves
 //! unexplained and the model's print, lit the same way, explains ([`ModelFit`]): 0 for a
 //! pose that shows no print, positive where the print lands where the frame shows it,
-//! negative where it lands where the frame is plain. With a model of one colour, a
+//! negative where it lands where the frame is plain. A model painted "about this colour" can
+//! explain its true pose worse than shading alone and score best where it hides its print;
+//! the tracker then weighs its colours as regions ([`ModelColours::AsRegions`]: each set of
+//! parts painted alike fitted on its own, so only where their boundaries fall counts), once
+//! [`model_colours_faithful`] judges them no likeness. With a model of one colour, a
 //! can's angle about its axis is unobservable: every turn scores alike in the masks and in
 //! colour across frames.
 //!
@@ -92,6 +96,21 @@ pub struct AppearanceConfig {
     pub min_std: f64,
     /// Two candidates whose NCC differ by less than this are not told apart.
     pub margin: f64,
+    /// How the model's own colours are weighed ([`ModelColours`]).
+    pub model_colours: ModelColours,
+}
+
+/// How the model's own colours count against a frame.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum ModelColours {
+    /// As painted: the lit fit with the model's albedo against shading alone.
+    #[default]
+    AsPainted,
+    /// As regions: each set of parts painted alike is a region whose colour, light, gain and
+    /// offset are fitted to the frame on their own, so only where the model puts its colour
+    /// boundaries counts, not which colours it gives them ([`model_colours_faithful`]): a
+    /// model painted "about this colour" (an agent's, a hand-made script of a printed can).
+    AsRegions,
 }
 
 impl Default for AppearanceConfig {
@@ -103,6 +122,7 @@ impl Default for AppearanceConfig {
             min_pairs: 24,
             min_std: 4.0,
             margin: 0.05,
+            model_colours: ModelColours::AsPainted,
         }
     }
 }
@@ -240,6 +260,21 @@ struct LitGroup {
 }
 
 impl LitGroup {
+    /// Adds another group's sums: the fit over both groups' samples.
+    fn merge(&mut self, other: &LitGroup) {
+        self.n += other.n;
+        for c in 0..3 {
+            for (a, b) in self.xx[c].iter_mut().zip(&other.xx[c]) {
+                *a += b;
+            }
+            for (a, b) in self.xy[c].iter_mut().zip(&other.xy[c]) {
+                *a += b;
+            }
+            self.sy[c] += other.sy[c];
+            self.syy[c] += other.syy[c];
+        }
+    }
+
     fn add(&mut self, frame: [f64; 3], albedo: [f64; 3], normal: [f64; 3]) {
         self.n += 1;
         for c in 0..3 {
@@ -360,16 +395,65 @@ impl LitGroup {
 
 /// The model's colours against one frame: the lit fit with the model's albedo
 /// ([`LitGroup`]), and the same fit with one albedo everywhere (shading alone).
-#[derive(Debug, Clone, Copy, Default)]
+#[derive(Debug, Clone, Default)]
 struct ModelFit {
     printed: LitGroup,
     plain: LitGroup,
+    /// The same fit with one albedo everywhere, per region (parts painted alike,
+    /// [`colour_regions`]).
+    regions: Vec<LitGroup>,
 }
 
 impl ModelFit {
-    fn add(&mut self, frame: [f64; 3], albedo: [f64; 3], normal: [f64; 3]) {
+    fn with_regions(regions: usize) -> ModelFit {
+        ModelFit {
+            regions: vec![LitGroup::default(); regions],
+            ..ModelFit::default()
+        }
+    }
+
+    fn add(&mut self, frame: [f64; 3], albedo: [f64; 3], normal: [f64; 3], region: usize) {
         self.printed.add(frame, albedo, normal);
         self.plain.add(frame, [255.0; 3], normal);
+        if let Some(r) = self.regions.get_mut(region) {
+            r.add(frame, [255.0; 3], normal);
+        }
+    }
+
+    /// The share of the frame's colours that shading alone leaves unexplained and the
+    /// model's regions explain, each region fitted on its own: `(r₀ − Σ rᵢ) / r₀` (floored
+    /// as [`ModelFit::agreement`]'s), in [−1, 1]. It does not depend on the colours the model
+    /// gives its regions, only on where their boundaries fall: 0 for a pose showing one
+    /// region, near 0 for one putting a boundary where the frame is plain. A region of
+    /// fewer samples than the fit has terms counts as explaining nothing beyond the rest.
+    fn regions_agreement(&self, cfg: &AppearanceConfig) -> Option<f64> {
+        let n = self.plain.n;
+        if n < cfg.min_pairs.max(LIT_TERMS) {
+            return None;
+        }
+        let plain = self.plain.residual();
+        let mut split = 0.0;
+        let mut small = LitGroup::default();
+        for r in &self.regions {
+            if r.n >= cfg.min_pairs.max(LIT_TERMS) {
+                split += r.residual();
+            } else {
+                small.merge(r);
+            }
+        }
+        if small.n > 0 {
+            split += small.residual();
+        }
+        let floor = n as f64 * 3.0 * cfg.min_std * cfg.min_std;
+        Some(((plain - split) / plain.max(floor)).clamp(-1.0, 1.0))
+    }
+
+    /// [`ModelFit::agreement`] or [`ModelFit::regions_agreement`] as `cfg` asks.
+    fn score(&self, cfg: &AppearanceConfig) -> Option<f64> {
+        match cfg.model_colours {
+            ModelColours::AsPainted => self.agreement(cfg),
+            ModelColours::AsRegions => self.regions_agreement(cfg),
+        }
     }
 
     /// The share of the frame's colours that shading alone leaves unexplained and the
@@ -456,6 +540,71 @@ pub fn model_has_appearance(model: &ObjectModel) -> bool {
     })
 }
 
+/// Each part's region: parts whose colours differ by under [`MODEL_COLOUR_STEP`] in every
+/// channel share one (a laptop's lid and base painted alike), numbered from 0 in part order.
+fn colour_regions(model: &ObjectModel) -> Vec<usize> {
+    let mut first_of: Vec<usize> = Vec::new();
+    let mut out = Vec::with_capacity(model.parts.len());
+    for (i, p) in model.parts.iter().enumerate() {
+        let alike = |j: usize| {
+            model.parts[j]
+                .color
+                .iter()
+                .zip(&p.color)
+                .all(|(x, y)| (x - y).abs() < MODEL_COLOUR_STEP)
+        };
+        match first_of.iter().position(|&j| alike(j)) {
+            Some(r) => out.push(r),
+            None => {
+                first_of.push(i);
+                out.push(first_of.len() - 1);
+            }
+        }
+    }
+    out
+}
+
+/// The model's colours against `frame` at each of `candidates` two ways: as painted
+/// ([`ModelColours::AsPainted`]) and as regions ([`ModelColours::AsRegions`]), each the best
+/// over the candidates; `None` for a model without appearance or without samples.
+pub fn model_colour_fits(
+    model: &ObjectModel,
+    scale: f64,
+    frame: &AppearanceFrame<'_>,
+    candidates: &[GenPose],
+    cfg: &AppearanceConfig,
+) -> Option<(f64, f64)> {
+    if !frame.valid() || !model_has_appearance(model) {
+        return None;
+    }
+    let mut best: Option<(f64, f64)> = None;
+    for c in candidates {
+        let g = gather(model, scale, frame, c, &[], cfg);
+        let Some(m) = g.model.as_ref() else {
+            continue;
+        };
+        if let (Some(p), Some(r)) = (m.agreement(cfg), m.regions_agreement(cfg)) {
+            best = Some(best.map_or((p, r), |(bp, br)| (bp.max(p), br.max(r))));
+        }
+    }
+    best
+}
+
+/// Whether a model's colours are a likeness of the frames' ([`ModelColours::AsPainted`]) or
+/// only of where their boundaries fall ([`ModelColours::AsRegions`]), from fits
+/// ([`model_colour_fits`]) over frames showing its print: where the colours as painted
+/// explain under half of what its regions explain, the painting is no likeness. A model
+/// painted right explains nearly what its regions do (its colours are the regions' fitted
+/// ones); one whose parts' colours are wrong explains less than shading alone at the truth,
+/// and best where it hides its print.
+pub fn model_colours_faithful((painted, regions): (f64, f64)) -> ModelColours {
+    if regions > 0.0 && painted < 0.5 * regions {
+        ModelColours::AsRegions
+    } else {
+        ModelColours::AsPainted
+    }
+}
+
 fn gather(
     model: &ObjectModel,
     scale: f64,
@@ -505,7 +654,11 @@ fn gather_from(
             .map(|p| p.color.map(|c| 255.0 * c as f64))
             .collect()
     });
-    let mut model_group = albedo.as_ref().map(|_| ModelFit::default());
+    let regions = colour_regions(model);
+    let region_count = regions.iter().copied().max().map_or(0, |m| m + 1);
+    let mut model_group = albedo
+        .as_ref()
+        .map(|_| ModelFit::with_regions(region_count));
     let (w, h) = (cam.width, cam.height);
     let mut y = stride / 2;
     while y < h {
@@ -532,6 +685,7 @@ fn gather_from(
                         a,
                         model_colour(model, part as usize, triangle, &local, al),
                         normal,
+                        regions[part as usize],
                     );
                 }
                 for (r, view) in references.iter().enumerate() {
@@ -655,7 +809,7 @@ fn finish(
         .model
         .as_ref()
         .filter(|_| with_model)
-        .and_then(|m| Some((m.agreement(cfg)?, m.printed.n)));
+        .and_then(|m| Some((m.score(cfg)?, m.printed.n)));
     if let Some((ncc, n)) = model {
         let w = weight.max(n as f64);
         sum += ncc * w;
@@ -1167,6 +1321,87 @@ pub(crate) mod tests {
             appearance_score(&plain, scale, &frame, &truth, &[], &cfg).ncc,
             None
         );
+    }
+
+    #[test]
+    fn a_model_painted_wrong_is_judged_by_where_its_regions_fall() {
+        // The frames' can (the hard suite's printed can): silver ends, a gold ring, a red
+        // side, a cream label with dark-blue lettering. The model paints its label part the
+        // lettering's dark blue, as a glance at the can might: its label is darker than its
+        // red body where the frames' is lighter.
+        let mut labelled = labelled_model();
+        labelled.parts[1].color = [0.04, 0.08, 0.35];
+        let plain = cylinder_model();
+        let scale = 0.12;
+        let cam = label_camera();
+        let truth = pose(Vector3::y(), 0.0, -100.0);
+        let real_print = |p: &Point3| {
+            let theta = p.y.atan2(p.x);
+            if p.z.abs() > 0.49 {
+                [0.55, 0.56, 0.6]
+            } else if (0.34..0.39).contains(&p.z) {
+                [0.75, 0.55, 0.12]
+            } else if p.z.abs() < 0.3 && theta.abs() < 1.5 {
+                let cell = ((theta / 0.15).floor() as i64).rem_euclid(5);
+                if (0.06..0.22).contains(&p.z.abs()) && cell < 3 {
+                    [0.04, 0.08, 0.35]
+                } else {
+                    [0.85, 0.8, 0.62]
+                }
+            } else {
+                [0.6, 0.04, 0.05]
+            }
+        };
+        let (rgb, mask) = shoot(&plain, scale, &cam, &truth, &real_print);
+        let frame = AppearanceFrame::new(&cam, &rgb, &mask);
+        let painted = AppearanceConfig::default();
+        let regions = AppearanceConfig {
+            model_colours: ModelColours::AsRegions,
+            ..painted
+        };
+        let at = |deg: f64, cfg: &AppearanceConfig| {
+            model_agreement(&labelled, scale, &frame, &spun(&truth, deg), cfg)
+                .ncc
+                .expect("samples")
+        };
+        // As painted, the model prefers the twin that hides its label to the truth.
+        assert!(
+            at(0.0, &painted) < at(180.0, &painted),
+            "painted: truth {} twin {}",
+            at(0.0, &painted),
+            at(180.0, &painted)
+        );
+        // As regions, the truth clearly; the twin shows one region and explains nothing.
+        let (right, turned, twin) = (at(0.0, &regions), at(60.0, &regions), at(180.0, &regions));
+        assert!(right > 0.3, "regions at the truth {right}");
+        assert!(right > turned + 0.05, "truth {right} turned 60° {turned}");
+        assert!(twin.abs() < 0.05, "twin {twin}");
+        // The judgement from the fits at the truth: no likeness.
+        let fits = model_colour_fits(
+            &labelled,
+            scale,
+            &frame,
+            std::slice::from_ref(&truth),
+            &painted,
+        )
+        .expect("fits");
+        assert_eq!(
+            model_colours_faithful(fits),
+            ModelColours::AsRegions,
+            "{fits:?}"
+        );
+        // The model painted as the frames are (its label cream): a likeness.
+        let (rgb, mask) = shoot(&plain, scale, &cam, &truth, &painted_label);
+        let frame = AppearanceFrame::new(&cam, &rgb, &mask);
+        let fits =
+            model_colour_fits(&labelled_model(), scale, &frame, &[truth], &painted).expect("fits");
+        assert_eq!(
+            model_colours_faithful(fits),
+            ModelColours::AsPainted,
+            "{fits:?}"
+        );
+        // Neither fit without a print in view to compare.
+        assert_eq!(model_colours_faithful((0.0, 0.0)), ModelColours::AsPainted);
     }
 
     /// [`cylinder_model`] as one part whose print is a texture: [`painted_label`] over the

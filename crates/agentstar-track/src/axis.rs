@@ -443,9 +443,11 @@ const MODEL_WEIGHT: f64 = 2.0;
 /// evidence, and for a model of one colour ([`model_has_appearance`]): without the model's
 /// own colours the angle is a free choice of the whole sequence (a plain bottle's shading
 /// correlates between frames at some turns, by chance).
+#[allow(clippy::too_many_arguments)]
 pub fn choose_turns(
     model: &ObjectModel,
     scale: f64,
+    cfg: &AppearanceConfig,
     frames: &[Option<AppearanceFrame<'_>>],
     poses: &[GenPose],
     allowed: &[Vec<bool>],
@@ -462,7 +464,6 @@ pub fn choose_turns(
     {
         return vec![0.0; n];
     }
-    let cfg = AppearanceConfig::default();
     let angles = &grid.angles_deg;
     // The turns each frame may take: its own angle and those `allowed` marks.
     let takes = |i: usize, k: usize| k == 0 || allowed[i][k];
@@ -478,7 +479,7 @@ pub fn choose_turns(
                         return None;
                     }
                     let g = axis.turn(&poses[i], scale, deg);
-                    model_agreement(model, scale, &app, &g, &cfg).ncc
+                    model_agreement(model, scale, &app, &g, cfg).ncc
                 })
                 .collect(),
             None => vec![None; angles.len()],
@@ -524,7 +525,7 @@ pub fn choose_turns(
                         &fb,
                         &axis.turn(&poses[i], scale, deg),
                         std::slice::from_ref(va),
-                        &cfg,
+                        cfg,
                     )[0]
                     .ncc;
                     let backward = appearance_each(
@@ -533,7 +534,7 @@ pub fn choose_turns(
                         &fa,
                         &axis.turn(&poses[i - 1], scale, -deg),
                         std::slice::from_ref(vb),
-                        &cfg,
+                        cfg,
                     )[0]
                     .ncc;
                     let ncc = match (forward, backward) {
@@ -747,7 +748,16 @@ mod tests {
         // Every turn keeps a can's outline.
         let every = |grid: &AngleGrid| vec![vec![true; grid.angles_deg.len()]; truths.len()];
         for grid in [AngleGrid::circle(10.0), AngleGrid::around(2.0, 10.0)] {
-            let turns = choose_turns(&can, scale, &frames, &poses, &every(&grid), &axis, &grid);
+            let turns = choose_turns(
+                &can,
+                scale,
+                &AppearanceConfig::default(),
+                &frames,
+                &poses,
+                &every(&grid),
+                &axis,
+                &grid,
+            );
             for (g, deg) in poses.iter_mut().zip(turns) {
                 *g = axis.turn(g, scale, deg);
             }
@@ -771,7 +781,16 @@ mod tests {
         for k in [3, 5] {
             allowed[k] = vec![false; circle.angles_deg.len()];
         }
-        let turns = choose_turns(&can, scale, &frames, &wrong, &allowed, &axis, &circle);
+        let turns = choose_turns(
+            &can,
+            scale,
+            &AppearanceConfig::default(),
+            &frames,
+            &wrong,
+            &allowed,
+            &axis,
+            &circle,
+        );
         assert_eq!((turns[3], turns[5]), (0.0, 0.0), "{turns:?}");
         // The others still turn back (frames 2 and 4 by about −40°).
         for k in [2, 4] {
@@ -785,6 +804,7 @@ mod tests {
         let turns = choose_turns(
             &plain,
             scale,
+            &AppearanceConfig::default(),
             &frames,
             &wrong,
             &every(&circle),

@@ -85,7 +85,16 @@ pub(super) fn axis_pass(
             continue;
         }
         could_turn = true;
-        let turns = choose_turns(s.model, s.scale, &colours, poses, &allowed, &axis, &grid);
+        let turns = choose_turns(
+            s.model,
+            s.scale,
+            &s.appearance_cfg(),
+            &colours,
+            poses,
+            &allowed,
+            &axis,
+            &grid,
+        );
         for (i, &deg) in turns.iter().enumerate() {
             let Some(k) = grid.angles_deg.iter().position(|&a| a == deg) else {
                 continue;

@@ -3,8 +3,7 @@
 
 use super::*;
 use crate::appearance::{
-    appearance_each, model_agreement, model_has_appearance, AppearanceConfig, AppearanceFrame,
-    ReferenceView,
+    appearance_each, model_agreement, model_has_appearance, AppearanceFrame, ReferenceView,
 };
 use crate::axis::{body_axis, AngleGrid};
 use crate::hypotheses::{refine_each_above, same_basin, twin_candidates, LocalWindow, PRUNE_SLACK};
@@ -215,7 +214,7 @@ pub(super) fn choose_sequence(
     // against its frame, no other frame needed; `(1 − NCC) / CHOICE_NCC_UNIT` as for a
     // pair of frames, a hypothesis without evidence counting as uncorrelated.
     let model_cost: Vec<Vec<f64>> = if s.cfg.appearance && model_has_appearance(s.model) {
-        let cfg = AppearanceConfig::default();
+        let cfg = s.appearance_cfg();
         hyps.par_iter()
             .zip(frames.par_iter())
             .map(|(h, f)| match f.appearance() {
@@ -378,7 +377,7 @@ pub(super) fn pair_appearance(
     frames: &[TrackFrame<'_>],
     hyps: &[Vec<(GenPose, f64)>],
 ) -> Vec<Vec<Vec<f64>>> {
-    let cfg = AppearanceConfig::default();
+    let cfg = s.appearance_cfg();
     let n = frames.len();
     (0..n)
         .into_par_iter()
@@ -478,7 +477,7 @@ fn turned_to_print(
     let Some(axis) = axis else {
         return (g, score);
     };
-    let cfg = AppearanceConfig::default();
+    let cfg = s.appearance_cfg();
     let agreement = |p: &GenPose| model_agreement(s.model, s.scale, app, p, &cfg).ncc;
     let problem = s.problem_of(frame, &g);
     let mut ev = problem.evaluator();

@@ -15,7 +15,7 @@
 //! `bake_pass.rs` (`track --bake`: the settled frames, the bake, the warm start on it). Each
 //! pass keeps its constants beside it; those several passes read are in `tuning.rs`.
 
-use crate::appearance::{AppearanceFrame, ReferenceView};
+use crate::appearance::{AppearanceFrame, ModelColours, ReferenceView};
 use crate::hypotheses::{LocalWindow, PRUNE_SLACK};
 use crate::objective::FrameProblem;
 use crate::update::GenPose;
@@ -716,6 +716,72 @@ fn track_on(
 /// and the choice's twins of such a pose match no neighbour's colours, so it kept a block of
 /// the can's keyframes upside down (hard suite labelcan, seeds 17, 18, 19: 3.08, 1.47, 1.40
 /// cm before this session's changes, 0.72, 0.72, 1.05 after them together).
+/// A keyframe counts toward [`judge_model_colours`] where the model's regions explain at
+/// least this share of what shading leaves of its colours at its pose: its print in view.
+const JUDGE_REGIONS_MIN: f64 = 0.1;
+
+/// The fewest keyframes showing the model's print for [`judge_model_colours`] to judge.
+const JUDGE_MIN_FRAMES: usize = 3;
+
+/// Whether the model's colours are a likeness of the frames', judged once the keyframes are
+/// placed: over the keyframes whose print is in view (the model's regions explain at least
+/// [`JUDGE_REGIONS_MIN`] of their colours; [`JUDGE_MIN_FRAMES`] of them at least), the
+/// colours as painted must explain at least half of what the regions do (summed over those
+/// keyframes,
+/// [`crate::appearance::model_colours_faithful`]). Where they do not, every later pass weighs
+/// the model's colours as regions ([`ModelColours::AsRegions`]): by where their boundaries
+/// fall, not by the colours. A model painted "about this colour" (a script of a printed can
+/// with a plain cream label part, red ends where the frames show silver, no lettering) scored
+/// its true poses under shading alone (hard suite labelcan, seed 17, keyframes 140–170: −0.33
+/// to −0.74, 2026-12-05) and best where it hid its label, while its regions preferred the
+/// truth at every one of them (0.11–0.33 against 0.00–0.07). A model painted right explains
+/// nearly what its regions do.
+fn judge_model_colours(
+    s: &Searcher<'_>,
+    frames: &[TrackFrame<'_>],
+    poses: &[GenPose],
+    log: &mut Log<'_>,
+) {
+    use crate::appearance::{model_colour_fits, model_colours_faithful, model_has_appearance};
+    if !model_has_appearance(s.model) || poses.len() != frames.len() {
+        return;
+    }
+    let cfg = s.appearance_cfg();
+    let fits: Vec<(f64, f64)> = frames
+        .par_iter()
+        .zip(poses.par_iter())
+        .filter_map(|(f, g)| {
+            model_colour_fits(
+                s.model,
+                s.scale,
+                &f.appearance()?,
+                std::slice::from_ref(g),
+                &cfg,
+            )
+        })
+        .filter(|&(_, regions)| regions >= JUDGE_REGIONS_MIN)
+        .collect();
+    s.evals
+        .fetch_add(fits.len(), std::sync::atomic::Ordering::Relaxed);
+    let (painted, regions) = fits.iter().fold((0.0, 0.0), |(p, r), f| (p + f.0, r + f.1));
+    if fits.len() < JUDGE_MIN_FRAMES {
+        return;
+    }
+    let k = fits.len() as f64;
+    let judged = model_colours_faithful((painted / k, regions / k));
+    if judged == ModelColours::AsRegions {
+        log.push(format!(
+            "the model's colours: no likeness of the frames' (over {} keyframe(s) showing its print, as painted they explain {:.2} of the colours shading leaves, their regions {:.2}); weighed from here by where their boundaries fall, not by their colours",
+            fits.len(),
+            painted / k,
+            regions / k
+        ));
+        if let Ok(mut m) = s.model_colours.write() {
+            *m = judged;
+        }
+    }
+}
+
 fn after_propagation(
     s: &Searcher<'_>,
     frames: &[TrackFrame<'_>],
@@ -726,6 +792,9 @@ fn after_propagation(
     log: &mut Log<'_>,
 ) -> Result<(), TrackError> {
     let (cfg, n) = (&s.cfg, frames.len());
+    if cfg.appearance {
+        judge_model_colours(s, frames, poses, log);
+    }
     // The basins the sequence choice weighed and did not take, per frame.
     let mut rejected: Vec<Vec<GenPose>> = Vec::new();
     if cfg.consistency_pass && n >= 2 {

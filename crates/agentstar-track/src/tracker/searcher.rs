@@ -2,7 +2,9 @@
 //! its refinements, the global search, twins, rescue, the wide search and settling.
 
 use super::*;
-use crate::appearance::{appearance_score, model_has_appearance, AppearanceConfig, ReferenceView};
+use crate::appearance::{
+    appearance_score, model_has_appearance, AppearanceConfig, ModelColours, ReferenceView,
+};
 use crate::axis::SymmetryAxis;
 use crate::hypotheses::{
     principal_axes, refine_above, refine_each_above, refine_first_pass, refine_local, refine_rest,
@@ -38,6 +40,9 @@ pub(super) struct Searcher<'m> {
     /// The model's round body's axis ([`crate::axis::body_axis`], at rest), found when first
     /// asked for.
     pub(super) body_axis: std::sync::OnceLock<Option<crate::axis::SymmetryAxis>>,
+    /// How the model's own colours count ([`ModelColours`]): as painted until the tracker
+    /// judges them no likeness of the frames ([`super::judge_model_colours`]).
+    pub(super) model_colours: std::sync::RwLock<ModelColours>,
 }
 
 /// The least difference [`Searcher::hold_unseen`] sets back, in a joint's units or radians of
@@ -78,7 +83,20 @@ impl<'m> Searcher<'m> {
             gaps: std::sync::RwLock::new(vec![None; frames.len().saturating_sub(1)]),
             outline_axis: std::sync::OnceLock::new(),
             body_axis: std::sync::OnceLock::new(),
+            model_colours: std::sync::RwLock::new(ModelColours::AsPainted),
         })
+    }
+
+    /// The appearance term's settings, with the model's colours counted as judged
+    /// ([`Self::model_colours`]).
+    pub(super) fn appearance_cfg(&self) -> AppearanceConfig {
+        AppearanceConfig {
+            model_colours: self
+                .model_colours
+                .read()
+                .map_or(ModelColours::AsPainted, |m| *m),
+            ..AppearanceConfig::default()
+        }
     }
 
     /// Counts another searcher's evaluations as this one's (and zeroes them there): the
@@ -538,7 +556,7 @@ impl<'m> Searcher<'m> {
         // The frames' colours against `refs`, and the model's own colours where it has them.
         let evidence = !refs.is_empty() || model_has_appearance(self.model);
         if let Some(app) = frame.appearance().filter(|_| evidence) {
-            let cfg = AppearanceConfig::default();
+            let cfg = self.appearance_cfg();
             let ncc =
                 |g: &GenPose| appearance_score(self.model, self.scale, &app, g, refs, &cfg).ncc;
             let mut scored: Vec<(Option<usize>, f64)> = tied
@@ -675,7 +693,7 @@ impl<'m> Searcher<'m> {
             }
             .turn(from, self.scale, deg)
         };
-        let cfg = AppearanceConfig::default();
+        let cfg = self.appearance_cfg();
         let ncc = |g: &GenPose| appearance_score(self.model, self.scale, &app, g, refs, &cfg).ncc;
         // A turn as it best explains the mask: as turned, or else moved back onto the mask
         // ([`realign`]: the axes pass through the centroid, which a handle pulls off the
