@@ -427,6 +427,95 @@ fn the_axis_pass_turns_a_can_back_about_its_axis_by_its_label_and_keeps_anchors(
     assert_eq!(pinned[1], wrong);
 }
 
+#[test]
+fn a_model_painted_wrong_is_judged_so_and_its_label_turns_a_can_back_by_where_it_falls() {
+    use crate::appearance::tests::{label_of_half_width, pose, shoot};
+    use crate::appearance::ModelColours;
+    // The can of the test above, its frames now printed as a real can is: silver ends, a red
+    // side, a cream label with dark-blue lettering. The model paints its label part the
+    // lettering's dark blue: darker than its red body where the frames' label is lighter.
+    let mut model = label_of_half_width(0.8);
+    model.parts[1].color = [0.04, 0.08, 0.35];
+    let print = |p: &Point3| {
+        let theta = p.y.atan2(p.x);
+        if p.z.abs() > 0.49 {
+            [0.55, 0.56, 0.6]
+        } else if p.z.abs() < 0.3 && theta.abs() < 0.8 {
+            let cell = ((theta / 0.12).floor() as i64).rem_euclid(4);
+            if (0.06..0.22).contains(&p.z.abs()) && cell < 2 {
+                [0.04, 0.08, 0.35]
+            } else {
+                [0.85, 0.8, 0.6]
+            }
+        } else {
+            [0.6, 0.05, 0.05]
+        }
+    };
+    let (scale, cam) = (0.12, camera());
+    let truths: Vec<GenPose> = [(-110.0, 0.0), (-90.0, 20.0), (-70.0, -15.0)]
+        .iter()
+        .map(|&(spin, tilt)| pose(Vector3::new(0.3, 1.0, 0.1), tilt, spin))
+        .collect();
+    let shots: Vec<(Vec<u8>, BitMask)> = truths
+        .iter()
+        .map(|t| shoot(&model, scale, &cam, t, &print))
+        .collect();
+    let targets: Vec<ScoreTarget> = shots
+        .iter()
+        .map(|(_, m)| ScoreTarget::new(m.clone(), None).expect("target"))
+        .collect();
+    let frames = coloured_frames(&cam, &targets, &shots);
+    let cfg = TrackConfig::default();
+    let wrong = spin_about_z(&truths[1], 40.0);
+    let start: Vec<GenPose> = vec![truths[0].clone(), wrong, truths[2].clone()];
+    let began = scores_of(&model, scale, &frames, &start);
+    let observe = |_: &str| {};
+    // Judged no likeness, and said so; the axis pass then turns frame 1 back by where the
+    // label falls.
+    let s = Searcher::new(&model, scale, &frames, &cfg).expect("searcher");
+    let mut log = Log::new(&observe);
+    judge_model_colours(&s, &frames, &start, &mut log);
+    assert_eq!(
+        s.appearance_cfg().model_colours,
+        ModelColours::AsRegions,
+        "{:?}",
+        log.lines
+    );
+    assert!(
+        log.lines.iter().any(|l| l.contains("no likeness")),
+        "{:?}",
+        log.lines
+    );
+    let (mut poses, mut scores) = (start.clone(), began.clone());
+    axis_pass(
+        &s,
+        &frames,
+        (&mut poses, &mut scores),
+        &[false; 3],
+        &mut log,
+    )
+    .expect("axis pass");
+    for (k, (g, t)) in poses.iter().zip(&truths).enumerate() {
+        assert!(
+            error_of(g, t) < 5.0,
+            "frame {k}: {:.1}° off: {:?}",
+            error_of(g, t),
+            log.lines
+        );
+    }
+    // The same can painted as its frames show it (a cream label) is judged a likeness.
+    let right = label_of_half_width(0.8);
+    let s = Searcher::new(&right, scale, &frames, &cfg).expect("searcher");
+    let mut log = Log::new(&observe);
+    judge_model_colours(&s, &frames, &truths, &mut log);
+    assert_eq!(
+        s.appearance_cfg().model_colours,
+        ModelColours::AsPainted,
+        "{:?}",
+        log.lines
+    );
+}
+
 /// Frames `000000.png`, … of one camera: each target with its shot's colours.
 fn coloured_frames<'a>(
     cam: &PinholeCamera,
