@@ -1228,6 +1228,27 @@ pub(crate) mod tests {
 
     /// The can of [`cylinder_model`] with its label as a second part: a shell over the side
     /// at +X (|θ| < 1.5 rad, |z| < 0.3), just outside the can's surface, painted cream.
+    /// A printed can's colours as its frames show them (the hard suite's can): silver ends, a
+    /// gold ring, a red side, and over `half_width_rad` either side of +X a cream label with
+    /// dark-blue lettering, which [`label_of_half_width`]'s plain label part does not have.
+    pub(crate) fn printed_can(p: &Point3, half_width_rad: f64) -> [f64; 3] {
+        let theta = p.y.atan2(p.x);
+        if p.z.abs() > 0.49 {
+            [0.55, 0.56, 0.6]
+        } else if (0.34..0.39).contains(&p.z) {
+            [0.75, 0.55, 0.12]
+        } else if p.z.abs() < 0.3 && theta.abs() < half_width_rad {
+            let cell = ((theta / (0.1 * half_width_rad)).floor() as i64).rem_euclid(5);
+            if (0.06..0.22).contains(&p.z.abs()) && cell < 3 {
+                [0.04, 0.08, 0.35]
+            } else {
+                [0.85, 0.8, 0.62]
+            }
+        } else {
+            [0.6, 0.04, 0.05]
+        }
+    }
+
     pub(crate) fn labelled_model() -> ObjectModel {
         label_of_half_width(1.5)
     }
@@ -1335,23 +1356,7 @@ pub(crate) mod tests {
         let scale = 0.12;
         let cam = label_camera();
         let truth = pose(Vector3::y(), 0.0, -100.0);
-        let real_print = |p: &Point3| {
-            let theta = p.y.atan2(p.x);
-            if p.z.abs() > 0.49 {
-                [0.55, 0.56, 0.6]
-            } else if (0.34..0.39).contains(&p.z) {
-                [0.75, 0.55, 0.12]
-            } else if p.z.abs() < 0.3 && theta.abs() < 1.5 {
-                let cell = ((theta / 0.15).floor() as i64).rem_euclid(5);
-                if (0.06..0.22).contains(&p.z.abs()) && cell < 3 {
-                    [0.04, 0.08, 0.35]
-                } else {
-                    [0.85, 0.8, 0.62]
-                }
-            } else {
-                [0.6, 0.04, 0.05]
-            }
-        };
+        let real_print = |p: &Point3| printed_can(p, 1.5);
         let (rgb, mask) = shoot(&plain, scale, &cam, &truth, &real_print);
         let frame = AppearanceFrame::new(&cam, &rgb, &mask);
         let painted = AppearanceConfig::default();

@@ -371,7 +371,7 @@ fn the_last_appearance_pass_does_not_turn_a_frame_into_a_basin_the_choice_did_no
 
 #[test]
 fn the_axis_pass_turns_a_can_back_about_its_axis_by_its_label_and_keeps_anchors() {
-    use crate::appearance::tests::{label_of_half_width, pose, shoot};
+    use crate::appearance::tests::label_of_half_width;
     // A can with a label over a quarter of its side, seen from three directions with
     // the label in view; frame 1 left 40° off about the can's axis.
     let model = label_of_half_width(0.8);
@@ -383,18 +383,7 @@ fn the_axis_pass_turns_a_can_back_about_its_axis_by_its_label_and_keeps_anchors(
         }
     };
     let (scale, cam) = (0.12, camera());
-    let truths: Vec<GenPose> = [(-110.0, 0.0), (-90.0, 20.0), (-70.0, -15.0)]
-        .iter()
-        .map(|&(spin, tilt)| pose(Vector3::new(0.3, 1.0, 0.1), tilt, spin))
-        .collect();
-    let shots: Vec<(Vec<u8>, BitMask)> = truths
-        .iter()
-        .map(|t| shoot(&model, scale, &cam, t, &paint))
-        .collect();
-    let targets: Vec<ScoreTarget> = shots
-        .iter()
-        .map(|(_, m)| ScoreTarget::new(m.clone(), None).expect("target"))
-        .collect();
+    let (truths, shots, targets) = three_can_views(&model, scale, &cam, &paint);
     let frames = coloured_frames(&cam, &targets, &shots);
     let cfg = TrackConfig::default();
     let s = Searcher::new(&model, scale, &frames, &cfg).expect("searcher");
@@ -429,41 +418,16 @@ fn the_axis_pass_turns_a_can_back_about_its_axis_by_its_label_and_keeps_anchors(
 
 #[test]
 fn a_model_painted_wrong_is_judged_so_and_its_label_turns_a_can_back_by_where_it_falls() {
-    use crate::appearance::tests::{label_of_half_width, pose, shoot};
+    use crate::appearance::tests::{label_of_half_width, printed_can};
     use crate::appearance::ModelColours;
     // The can of the test above, its frames now printed as a real can is: silver ends, a red
     // side, a cream label with dark-blue lettering. The model paints its label part the
     // lettering's dark blue: darker than its red body where the frames' label is lighter.
     let mut model = label_of_half_width(0.8);
     model.parts[1].color = [0.04, 0.08, 0.35];
-    let print = |p: &Point3| {
-        let theta = p.y.atan2(p.x);
-        if p.z.abs() > 0.49 {
-            [0.55, 0.56, 0.6]
-        } else if p.z.abs() < 0.3 && theta.abs() < 0.8 {
-            let cell = ((theta / 0.12).floor() as i64).rem_euclid(4);
-            if (0.06..0.22).contains(&p.z.abs()) && cell < 2 {
-                [0.04, 0.08, 0.35]
-            } else {
-                [0.85, 0.8, 0.6]
-            }
-        } else {
-            [0.6, 0.05, 0.05]
-        }
-    };
+    let print = |p: &Point3| printed_can(p, 0.8);
     let (scale, cam) = (0.12, camera());
-    let truths: Vec<GenPose> = [(-110.0, 0.0), (-90.0, 20.0), (-70.0, -15.0)]
-        .iter()
-        .map(|&(spin, tilt)| pose(Vector3::new(0.3, 1.0, 0.1), tilt, spin))
-        .collect();
-    let shots: Vec<(Vec<u8>, BitMask)> = truths
-        .iter()
-        .map(|t| shoot(&model, scale, &cam, t, &print))
-        .collect();
-    let targets: Vec<ScoreTarget> = shots
-        .iter()
-        .map(|(_, m)| ScoreTarget::new(m.clone(), None).expect("target"))
-        .collect();
+    let (truths, shots, targets) = three_can_views(&model, scale, &cam, &print);
     let frames = coloured_frames(&cam, &targets, &shots);
     let cfg = TrackConfig::default();
     let wrong = spin_about_z(&truths[1], 40.0);
@@ -514,6 +478,33 @@ fn a_model_painted_wrong_is_judged_so_and_its_label_turns_a_can_back_by_where_it
         "{:?}",
         log.lines
     );
+}
+
+/// A rendered frame: its colours (RGB, row-major) and its object mask.
+type Shot = (Vec<u8>, BitMask);
+
+/// A can seen from three directions with its label in view (spins −110°, −90°, −70°, tilted
+/// 0°, 20°, −15°): the true poses, the shots painted by `paint`, and their targets.
+fn three_can_views(
+    model: &ObjectModel,
+    scale: f64,
+    cam: &PinholeCamera,
+    paint: &dyn Fn(&Point3) -> [f64; 3],
+) -> (Vec<GenPose>, Vec<Shot>, Vec<ScoreTarget>) {
+    use crate::appearance::tests::{pose, shoot};
+    let truths: Vec<GenPose> = [(-110.0, 0.0), (-90.0, 20.0), (-70.0, -15.0)]
+        .iter()
+        .map(|&(spin, tilt)| pose(Vector3::new(0.3, 1.0, 0.1), tilt, spin))
+        .collect();
+    let shots: Vec<Shot> = truths
+        .iter()
+        .map(|t| shoot(model, scale, cam, t, paint))
+        .collect();
+    let targets = shots
+        .iter()
+        .map(|(_, m)| ScoreTarget::new(m.clone(), None).expect("target"))
+        .collect();
+    (truths, shots, targets)
 }
 
 /// Frames `000000.png`, … of one camera: each target with its shot's colours.
