@@ -497,6 +497,10 @@ pub struct ScoreReport {
     /// camera.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub facing: Vec<view::FrameFacing>,
+    /// The model's colours judged over the frames scored, where the model has colours of its
+    /// own and at least three frames show them.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub model_colours: Option<ModelColoursVerdict>,
 }
 
 /// One frame's appearance figure in a [`ScoreReport`].
@@ -518,6 +522,28 @@ pub struct FrameAppearance {
     /// plain. `None` for a model of one colour or a frame without an image.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub model_ncc: Option<f64>,
+    /// The same share with each set of the model's parts painted alike fitted to the frame
+    /// in a colour of its own (`agentstar_track::appearance::ModelColours::AsRegions`): where
+    /// the model puts its colour boundaries, whatever colours it gives them. Far above
+    /// `model_ncc` where the pose is right and the model's colours are not.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub model_regions: Option<f64>,
+}
+
+/// The model's colours judged over a sequence at its poses, as the tracker judges them
+/// (`agentstar_track::appearance::judge_fits`): over the keyframes showing its print.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ModelColoursVerdict {
+    /// Keyframes whose print is in view (the model's regions explain at least 0.1 there).
+    pub keyframes: usize,
+    /// The mean `model_ncc` over them: the colours as painted.
+    pub painted: f64,
+    /// The mean `model_regions` over them: the colour boundaries alone.
+    pub regions: f64,
+    /// Whether the colours as painted explain at least half of what their regions do; when
+    /// not, the tracker weighs them by where their boundaries fall.
+    pub likeness: bool,
 }
 
 /// One frame of a [`BakeReport`].
@@ -936,6 +962,7 @@ pub fn score_table(
     scores: &[FrameScore],
     summary: &SequenceScore,
     appearance: &[FrameAppearance],
+    model_colours: Option<&ModelColoursVerdict>,
 ) -> String {
     use std::fmt::Write as _;
     let mut t = String::new();
@@ -1052,7 +1079,14 @@ pub fn score_table(
         )
         .ok();
     }
-    if let Some(line) = misplaced_print(appearance) {
+    if let Some(v) = model_colours.filter(|v| !v.likeness) {
+        writeln!(
+            t,
+            "the model's colours: no likeness of the frames' (over {} keyframe(s) showing its print, as painted they explain {:.2} of the colours shading leaves, their boundaries alone {:.2}): the poses put the model's colour boundaries where the frames show them, but not its colours. The tracker weighs them by where their boundaries fall; repaint the parts as the frames show them (`frames` with `model: true`) to make them evidence again.",
+            v.keyframes, v.painted, v.regions
+        )
+        .ok();
+    } else if let Some(line) = misplaced_print(appearance) {
         writeln!(t, "{line}").ok();
     }
     let thin: Vec<String> = scores
@@ -1162,6 +1196,7 @@ mod tests {
                     ncc: Some(0.3),
                     pairs: 100,
                     model_ncc,
+                    model_regions: None,
                 })
                 .collect()
         };
@@ -1182,6 +1217,51 @@ mod tests {
         assert!(misplaced_print(&frames(&[Some(0.4), Some(0.3), Some(-0.3), Some(0.5)])).is_none());
         assert!(misplaced_print(&frames(&[Some(0.0), Some(0.01), Some(-0.3), None])).is_none());
         assert!(misplaced_print(&frames(&[None, None])).is_none());
+    }
+
+    #[test]
+    fn colours_no_likeness_of_the_frames_are_named_in_place_of_a_misplaced_print() {
+        let scores = [
+            frame_score("a.png", Some(0.99)),
+            frame_score("b.png", Some(0.99)),
+        ];
+        let summary = SequenceScore::of(&scores, GATE_IOU);
+        // The print negative as painted in both frames: on its own, a misplaced print.
+        let looks: Vec<FrameAppearance> = ["a.png", "b.png"]
+            .iter()
+            .map(|f| FrameAppearance {
+                frame: (*f).into(),
+                ncc: Some(0.3),
+                pairs: 40,
+                model_ncc: Some(-0.3),
+                model_regions: Some(0.3),
+            })
+            .collect();
+        let misplaced = score_table(&scores, &summary, &looks, None);
+        assert!(
+            misplaced.contains("print lands where the frame does not show it"),
+            "{misplaced}"
+        );
+        // Judged no likeness: the boundaries are right, the colours are not; said instead.
+        let verdict = ModelColoursVerdict {
+            keyframes: 2,
+            painted: -0.3,
+            regions: 0.3,
+            likeness: false,
+        };
+        let unlike = score_table(&scores, &summary, &looks, Some(&verdict));
+        assert!(
+            unlike.contains("no likeness of the frames' (over 2 keyframe(s) showing its print, as painted they explain -0.30")
+                && unlike.contains("repaint the parts"),
+            "{unlike}"
+        );
+        assert!(!unlike.contains("print lands where"), "{unlike}");
+        // A likeness: nothing said of it.
+        let like = ModelColoursVerdict {
+            likeness: true,
+            ..verdict
+        };
+        assert!(!score_table(&scores, &summary, &looks, Some(&like)).contains("no likeness"));
     }
 
     #[test]
@@ -1284,11 +1364,13 @@ mod tests {
             ncc,
             pairs: 40,
             model_ncc: None,
+            model_regions: None,
         };
         let table = score_table(
             &scores,
             &summary,
             &[look("a.png", Some(0.6)), look("b.png", Some(0.2))],
+            None,
         );
         let last = table.lines().last().expect("lines");
         assert_eq!(
@@ -1298,7 +1380,7 @@ mod tests {
         assert!(table
             .lines()
             .any(|l| l.starts_with("b.png") && l.ends_with('<')));
-        let none = score_table(&scores, &summary, &[look("a.png", None)]);
+        let none = score_table(&scores, &summary, &[look("a.png", None)], None);
         assert!(none.ends_with(
             "appearance: no evidence (no frame's colours vary enough on the model to compare)\n"
         ));
@@ -1318,7 +1400,7 @@ mod tests {
                 ..frame_score("face.png", Some(0.97))
             },
         ];
-        let table = score_table(&thin, &SequenceScore::of(&thin, GATE_IOU), &[]);
+        let table = score_table(&thin, &SequenceScore::of(&thin, GATE_IOU), &[], None);
         let last = table.lines().last().expect("lines");
         assert!(
             last.starts_with("thin in view (the boundary band holds over 50% of the visible mask")

@@ -590,6 +590,37 @@ pub fn model_colour_fits(
     best
 }
 
+/// A keyframe counts toward [`judge_fits`] where the model's regions explain at least this
+/// share of what shading leaves of its colours at its pose: its print in view.
+pub const JUDGE_REGIONS_MIN: f64 = 0.1;
+
+/// The fewest keyframes showing the model's print for [`judge_fits`] to judge.
+pub const JUDGE_MIN_FRAMES: usize = 3;
+
+/// The judgement of a model's colours over a sequence from each keyframe's fits at its pose
+/// (`(painted, regions)`, [`model_colour_fits`]): over the keyframes whose print is in view
+/// (regions at least [`JUDGE_REGIONS_MIN`]; [`JUDGE_MIN_FRAMES`] of them at least), the mean
+/// fits and [`model_colours_faithful`]'s verdict on them, with how many keyframes counted.
+/// `None` with fewer such keyframes.
+pub fn judge_fits(fits: &[(f64, f64)]) -> Option<(ModelColours, f64, f64, usize)> {
+    let shown: Vec<&(f64, f64)> = fits
+        .iter()
+        .filter(|(_, regions)| *regions >= JUDGE_REGIONS_MIN)
+        .collect();
+    if shown.len() < JUDGE_MIN_FRAMES {
+        return None;
+    }
+    let k = shown.len() as f64;
+    let painted = shown.iter().map(|f| f.0).sum::<f64>() / k;
+    let regions = shown.iter().map(|f| f.1).sum::<f64>() / k;
+    Some((
+        model_colours_faithful((painted, regions)),
+        painted,
+        regions,
+        shown.len(),
+    ))
+}
+
 /// Whether a model's colours are a likeness of the frames' ([`ModelColours::AsPainted`]) or
 /// only of where their boundaries fall ([`ModelColours::AsRegions`]), from fits
 /// ([`model_colour_fits`]) over frames showing its print: where the colours as painted

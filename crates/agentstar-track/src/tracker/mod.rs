@@ -716,18 +716,12 @@ fn track_on(
 /// and the choice's twins of such a pose match no neighbour's colours, so it kept a block of
 /// the can's keyframes upside down (hard suite labelcan, seeds 17, 18, 19: 3.08, 1.47, 1.40
 /// cm before this session's changes, 0.72, 0.72, 1.05 after them together).
-/// A keyframe counts toward [`judge_model_colours`] where the model's regions explain at
-/// least this share of what shading leaves of its colours at its pose: its print in view.
-const JUDGE_REGIONS_MIN: f64 = 0.1;
-
-/// The fewest keyframes showing the model's print for [`judge_model_colours`] to judge.
-const JUDGE_MIN_FRAMES: usize = 3;
-
 /// Whether the model's colours are a likeness of the frames', judged once the keyframes are
 /// placed: over the keyframes whose print is in view (the model's regions explain at least
-/// [`JUDGE_REGIONS_MIN`] of their colours; [`JUDGE_MIN_FRAMES`] of them at least), the
-/// colours as painted must explain at least half of what the regions do (summed over those
-/// keyframes,
+/// [`crate::appearance::JUDGE_REGIONS_MIN`] of their colours;
+/// [`crate::appearance::JUDGE_MIN_FRAMES`] of them at least), the colours as painted must
+/// explain at least half of what the regions do ([`crate::appearance::judge_fits`], means over
+/// those keyframes,
 /// [`crate::appearance::model_colours_faithful`]). Where they do not, every later pass weighs
 /// the model's colours as regions ([`ModelColours::AsRegions`]): by where their boundaries
 /// fall, not by the colours. A model painted "about this colour" (a script of a printed can
@@ -742,7 +736,7 @@ fn judge_model_colours(
     poses: &[GenPose],
     log: &mut Log<'_>,
 ) {
-    use crate::appearance::{model_colour_fits, model_colours_faithful, model_has_appearance};
+    use crate::appearance::{judge_fits, model_colour_fits, model_has_appearance};
     if !model_has_appearance(s.model) || poses.len() != frames.len() {
         return;
     }
@@ -759,22 +753,15 @@ fn judge_model_colours(
                 &cfg,
             )
         })
-        .filter(|&(_, regions)| regions >= JUDGE_REGIONS_MIN)
         .collect();
     s.evals
         .fetch_add(fits.len(), std::sync::atomic::Ordering::Relaxed);
-    let (painted, regions) = fits.iter().fold((0.0, 0.0), |(p, r), f| (p + f.0, r + f.1));
-    if fits.len() < JUDGE_MIN_FRAMES {
+    let Some((judged, painted, regions, shown)) = judge_fits(&fits) else {
         return;
-    }
-    let k = fits.len() as f64;
-    let judged = model_colours_faithful((painted / k, regions / k));
+    };
     if judged == ModelColours::AsRegions {
         log.push(format!(
-            "the model's colours: no likeness of the frames' (over {} keyframe(s) showing its print, as painted they explain {:.2} of the colours shading leaves, their regions {:.2}); weighed from here by where their boundaries fall, not by their colours",
-            fits.len(),
-            painted / k,
-            regions / k
+            "the model's colours: no likeness of the frames' (over {shown} keyframe(s) showing its print, as painted they explain {painted:.2} of the colours shading leaves, their regions {regions:.2}); weighed from here by where their boundaries fall, not by their colours"
         ));
         if let Ok(mut m) = s.model_colours.write() {
             *m = judged;

@@ -277,7 +277,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
         views_dir.display(),
         urdf.display()
     );
-    print_table(&scores, &summary, &[]);
+    print_table(&scores, &summary);
     Ok(if summary.below_gate.is_empty() {
         ExitCode::SUCCESS
     } else {

@@ -3,9 +3,12 @@
 use crate::common::OpenSession as _;
 use crate::common::{print_json, select_frames, FrameScore, SessionArgs, PASS_IOU};
 use agentstar_render::DEFAULT_BAND_PX;
-use agentstar_reports::{score_table, FrameAppearance, ScoreReport, SequenceScore};
+use agentstar_reports::{
+    score_table, FrameAppearance, ModelColoursVerdict, ScoreReport, SequenceScore,
+};
 use agentstar_track::appearance::{
-    model_agreement, neighbour_consistency, AppearanceConfig, AppearanceFrame,
+    judge_fits, model_agreement, model_colour_fits, neighbour_consistency, AppearanceConfig,
+    AppearanceFrame, ModelColours,
 };
 use anyhow::{bail, Result};
 use rayon::prelude::*;
@@ -68,21 +71,42 @@ pub fn run(a: Args) -> Result<ExitCode> {
         appearance(&s, &frames)?
     };
     let facing: Vec<_> = frames.iter().filter_map(|&i| s.facing(i)).collect();
+    let model_colours = model_colours_verdict(&appearance);
     if a.json {
         print_json(&ScoreReport {
             frames: scores,
             sequence: summary.clone(),
             appearance,
             facing,
+            model_colours,
         })?;
     } else {
-        print_table(&scores, &summary, &appearance);
+        print!(
+            "{}",
+            score_table(&scores, &summary, &appearance, model_colours.as_ref())
+        );
         print!("{}", agentstar_reports::view::facing_lines(&facing));
     }
     Ok(if summary.below_gate.is_empty() {
         ExitCode::SUCCESS
     } else {
         ExitCode::from(1)
+    })
+}
+
+/// The model's colours judged over the frames' figures as the tracker judges them
+/// ([`judge_fits`] on each frame's `model_ncc` and `model_regions`).
+fn model_colours_verdict(appearance: &[FrameAppearance]) -> Option<ModelColoursVerdict> {
+    let fits: Vec<(f64, f64)> = appearance
+        .iter()
+        .filter_map(|a| Some((a.model_ncc?, a.model_regions?)))
+        .collect();
+    let (judged, painted, regions, keyframes) = judge_fits(&fits)?;
+    Some(ModelColoursVerdict {
+        keyframes,
+        painted,
+        regions,
+        likeness: judged == ModelColours::AsPainted,
     })
 }
 
@@ -118,16 +142,28 @@ fn appearance(s: &crate::common::Session, selected: &[usize]) -> Result<Vec<Fram
             let model_ncc = frames[i]
                 .as_ref()
                 .and_then(|f| model_agreement(&s.model.model, s.scale(), f, &poses[i], &cfg).ncc);
+            let model_regions = frames[i].as_ref().and_then(|f| {
+                model_colour_fits(
+                    &s.model.model,
+                    s.scale(),
+                    f,
+                    std::slice::from_ref(&poses[i]),
+                    &cfg,
+                )
+                .map(|(_, regions)| regions)
+            });
             FrameAppearance {
                 frame: cap.frames[i].name.clone(),
                 ncc: a.ncc,
                 pairs: a.pairs,
                 model_ncc,
+                model_regions,
             }
         })
         .collect())
 }
 
-pub fn print_table(scores: &[FrameScore], summary: &SequenceScore, appearance: &[FrameAppearance]) {
-    print!("{}", score_table(scores, summary, appearance));
+/// The score table without appearance figures (what `track` and `example` print).
+pub fn print_table(scores: &[FrameScore], summary: &SequenceScore) {
+    print!("{}", score_table(scores, summary, &[], None));
 }

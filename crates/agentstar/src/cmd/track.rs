@@ -405,7 +405,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
         if let Some(b) = &bake_report {
             print_bake(b);
         }
-        print_table(&scores, &summary, &[]);
+        print_table(&scores, &summary);
     }
     Ok(ExitCode::SUCCESS)
 }
