@@ -57,6 +57,15 @@ fn synth_writes_a_valid_capture_whose_truth_scores_perfectly() {
     let cap = out.display().to_string();
     let o = agentstar(&["validate", &cap, "--json"]);
     assert!(o.status.success(), "{}", text(&o));
+    // The capture says what made it, not what is in it: the object and its scale are the
+    // truth's (`gt.json`, `model/`), out of an agent's sight.
+    let manifest = std::fs::read_to_string(out.join("capture.json")).expect("capture.json");
+    assert!(
+        manifest.contains("agentstar synth")
+            && !manifest.contains("cabinet")
+            && !manifest.contains("scale_m"),
+        "{manifest}"
+    );
     assert!(
         out.join("depth/000000.npz").is_file(),
         "the orbit has depth"

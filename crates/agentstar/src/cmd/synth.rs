@@ -133,9 +133,12 @@ pub fn write_synth(dir: &Path, s: &SynthCapture) -> Result<()> {
         .collect();
     let info = CaptureInfo {
         dataset: Some(format!("agentstar-synth/{}", s.object.family.as_str())),
+        // What made the capture, not what is in it: the object's name and scale are the
+        // truth (`gt.json`, `model/`), which an agent tracking the capture must not read
+        // (play-test 22's agent found them here).
         source: Some(json!({
-            "producer": "agentstar synth", "object": s.object.name, "motion": s.motion.as_str(),
-            "seed": s.seed, "scale_m": s.scale, "between": s.between.len(),
+            "producer": "agentstar synth", "motion": s.motion.as_str(),
+            "seed": s.seed, "between": s.between.len(),
         })),
         keyframes: (!s.between.is_empty())
             .then(|| s.frames.iter().map(|f| f.name.clone()).collect()),
