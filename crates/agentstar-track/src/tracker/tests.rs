@@ -434,10 +434,16 @@ fn a_model_painted_wrong_is_judged_so_and_its_label_turns_a_can_back_by_where_it
     let start: Vec<GenPose> = vec![truths[0].clone(), wrong, truths[2].clone()];
     let began = scores_of(&model, scale, &frames, &start);
     let observe = |_: &str| {};
-    // Judged no likeness, and said so; the axis pass then turns frame 1 back by where the
-    // label falls.
+    // Judged no likeness where the video carries the basins, and said so.
     let s = Searcher::new(&model, scale, &frames, &cfg).expect("searcher");
     let mut log = Log::new(&observe);
+    // Without the video nothing is judged: the keyframes' basins rest on the colours.
+    judge_model_colours(&s, &frames, &start, &mut log);
+    assert_eq!(s.appearance_cfg().model_colours, ModelColours::AsPainted);
+    // Chains followed the video between the keyframes (the true motion).
+    for g in 0..2 {
+        s.set_gap(g, Gap::between(&frames, g, &truths[g], &truths[g + 1]));
+    }
     judge_model_colours(&s, &frames, &start, &mut log);
     assert_eq!(
         s.appearance_cfg().model_colours,
@@ -450,6 +456,13 @@ fn a_model_painted_wrong_is_judged_so_and_its_label_turns_a_can_back_by_where_it
         "{:?}",
         log.lines
     );
+    // Weighed as regions, the axis pass turns frame 1 back by where the label falls (from the
+    // colours alone here: a searcher without the chains' motion; as painted, the same pass
+    // turned the three frames 164°, 124° and 98° away, 2026-12-05).
+    let s = Searcher::new(&model, scale, &frames, &cfg).expect("searcher");
+    if let Ok(mut m) = s.model_colours.write() {
+        *m = ModelColours::AsRegions;
+    }
     let (mut poses, mut scores) = (start.clone(), began.clone());
     axis_pass(
         &s,
@@ -470,6 +483,9 @@ fn a_model_painted_wrong_is_judged_so_and_its_label_turns_a_can_back_by_where_it
     // The same can painted as its frames show it (a cream label) is judged a likeness.
     let right = label_of_half_width(0.8);
     let s = Searcher::new(&right, scale, &frames, &cfg).expect("searcher");
+    for g in 0..2 {
+        s.set_gap(g, Gap::between(&frames, g, &truths[g], &truths[g + 1]));
+    }
     let mut log = Log::new(&observe);
     judge_model_colours(&s, &frames, &truths, &mut log);
     assert_eq!(
