@@ -564,30 +564,26 @@ fn colour_regions(model: &ObjectModel) -> Vec<usize> {
     out
 }
 
-/// The model's colours against `frame` at each of `candidates` two ways: as painted
-/// ([`ModelColours::AsPainted`]) and as regions ([`ModelColours::AsRegions`]), each the best
-/// over the candidates; `None` for a model without appearance or without samples.
+/// The model's colours against `frame` at `pose` two ways: as painted
+/// ([`ModelColours::AsPainted`], what [`model_agreement`] scores) and as regions
+/// ([`ModelColours::AsRegions`]); `None` for a model without appearance or without samples.
 pub fn model_colour_fits(
     model: &ObjectModel,
     scale: f64,
     frame: &AppearanceFrame<'_>,
-    candidates: &[GenPose],
+    pose: &GenPose,
     cfg: &AppearanceConfig,
 ) -> Option<(f64, f64)> {
     if !frame.valid() || !model_has_appearance(model) {
         return None;
     }
-    let mut best: Option<(f64, f64)> = None;
-    for c in candidates {
-        let g = gather(model, scale, frame, c, &[], cfg);
-        let Some(m) = g.model.as_ref() else {
-            continue;
-        };
-        if let (Some(p), Some(r)) = (m.agreement(cfg), m.regions_agreement(cfg)) {
-            best = Some(best.map_or((p, r), |(bp, br)| (bp.max(p), br.max(r))));
-        }
-    }
-    best
+    let cfg = AppearanceConfig {
+        model_colours: ModelColours::AsRegions,
+        ..*cfg
+    };
+    let g = gather(model, scale, frame, pose, &[], &cfg);
+    let m = g.model.as_ref()?;
+    Some((m.agreement(&cfg)?, m.regions_agreement(&cfg)?))
 }
 
 /// A keyframe counts toward [`judge_fits`] where the model's regions explain at least this
@@ -685,7 +681,13 @@ fn gather_from(
             .map(|p| p.color.map(|c| 255.0 * c as f64))
             .collect()
     });
-    let regions = colour_regions(model);
+    // The regions' fits only where they are read: every sample of every candidate adds to
+    // each fit it keeps.
+    let regions = if cfg.model_colours == ModelColours::AsRegions && albedo.is_some() {
+        colour_regions(model)
+    } else {
+        Vec::new()
+    };
     let region_count = regions.iter().copied().max().map_or(0, |m| m + 1);
     let mut model_group = albedo
         .as_ref()
@@ -716,7 +718,7 @@ fn gather_from(
                         a,
                         model_colour(model, part as usize, triangle, &local, al),
                         normal,
-                        regions[part as usize],
+                        regions.get(part as usize).copied().unwrap_or(usize::MAX),
                     );
                 }
                 for (r, view) in references.iter().enumerate() {
@@ -1413,14 +1415,7 @@ pub(crate) mod tests {
         assert!(right > turned + 0.05, "truth {right} turned 60° {turned}");
         assert!(twin.abs() < 0.05, "twin {twin}");
         // The judgement from the fits at the truth: no likeness.
-        let fits = model_colour_fits(
-            &labelled,
-            scale,
-            &frame,
-            std::slice::from_ref(&truth),
-            &painted,
-        )
-        .expect("fits");
+        let fits = model_colour_fits(&labelled, scale, &frame, &truth, &painted).expect("fits");
         assert_eq!(
             model_colours_faithful(fits),
             ModelColours::AsRegions,
@@ -1430,7 +1425,7 @@ pub(crate) mod tests {
         let (rgb, mask) = shoot(&plain, scale, &cam, &truth, &painted_label);
         let frame = AppearanceFrame::new(&cam, &rgb, &mask);
         let fits =
-            model_colour_fits(&labelled_model(), scale, &frame, &[truth], &painted).expect("fits");
+            model_colour_fits(&labelled_model(), scale, &frame, &truth, &painted).expect("fits");
         assert_eq!(
             model_colours_faithful(fits),
             ModelColours::AsPainted,

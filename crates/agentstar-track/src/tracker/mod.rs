@@ -753,15 +753,7 @@ fn judge_model_colours(
     let fits: Vec<(f64, f64)> = frames
         .par_iter()
         .zip(poses.par_iter())
-        .filter_map(|(f, g)| {
-            model_colour_fits(
-                s.model,
-                s.scale,
-                &f.appearance()?,
-                std::slice::from_ref(g),
-                &cfg,
-            )
-        })
+        .filter_map(|(f, g)| model_colour_fits(s.model, s.scale, &f.appearance()?, g, &cfg))
         .collect();
     s.evals
         .fetch_add(fits.len(), std::sync::atomic::Ordering::Relaxed);

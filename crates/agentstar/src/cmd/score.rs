@@ -7,8 +7,8 @@ use agentstar_reports::{
     score_table, FrameAppearance, ModelColoursVerdict, ScoreReport, SequenceScore,
 };
 use agentstar_track::appearance::{
-    judge_fits, model_agreement, model_colour_fits, neighbour_consistency, AppearanceConfig,
-    AppearanceFrame, ModelColours,
+    judge_fits, model_colour_fits, neighbour_consistency, AppearanceConfig, AppearanceFrame,
+    ModelColours,
 };
 use anyhow::{bail, Result};
 use rayon::prelude::*;
@@ -139,19 +139,11 @@ fn appearance(s: &crate::common::Session, selected: &[usize]) -> Result<Vec<Fram
         .par_iter()
         .map(|&i| {
             let a = neighbour_consistency(&s.model.model, s.scale(), &frames, &poses, i, &cfg);
-            let model_ncc = frames[i]
+            // Both figures from one rendering: as painted (`model_agreement`'s) and as regions.
+            let fits = frames[i]
                 .as_ref()
-                .and_then(|f| model_agreement(&s.model.model, s.scale(), f, &poses[i], &cfg).ncc);
-            let model_regions = frames[i].as_ref().and_then(|f| {
-                model_colour_fits(
-                    &s.model.model,
-                    s.scale(),
-                    f,
-                    std::slice::from_ref(&poses[i]),
-                    &cfg,
-                )
-                .map(|(_, regions)| regions)
-            });
+                .and_then(|f| model_colour_fits(&s.model.model, s.scale(), f, &poses[i], &cfg));
+            let (model_ncc, model_regions) = (fits.map(|f| f.0), fits.map(|f| f.1));
             FrameAppearance {
                 frame: cap.frames[i].name.clone(),
                 ncc: a.ncc,
