@@ -45,6 +45,10 @@ pub const HARD_OBJECTS: [&str; 7] = [
     "shears",
 ];
 
+/// Objects of the library in no suite: made by hand for one figure (`highmug`: the printed
+/// mug with its handle high, for `scripts/track_bake_figures.sh`).
+pub const UNSUITED_OBJECTS: [&str; 1] = ["highmug"];
+
 /// One sequence of the hard suite: built like captures made outside this project (20
 /// keyframes at 640×480, the `hard-held` motion of about 40° mean and up to 150° between
 /// keyframes with a moving camera, hands hiding up to 60% of the object, 2 px segmenter-like
@@ -111,7 +115,10 @@ pub fn suite(name: &str) -> Option<Vec<SequenceSpec>> {
         "full" => {
             let mut v: Vec<SequenceSpec> = LIBRARY
                 .iter()
-                .filter(|o| !HARD_OBJECTS.contains(&o.name.as_ref()))
+                .filter(|o| {
+                    !HARD_OBJECTS.contains(&o.name.as_ref())
+                        && !UNSUITED_OBJECTS.contains(&o.name.as_ref())
+                })
                 .enumerate()
                 .map(|(i, o)| SequenceSpec::new(&o.name, None, 15, (320, 240), 100 + i as u64))
                 .collect();

@@ -42,7 +42,8 @@ pub enum TrackBakeOutcome {
     Used,
     /// Too few frames settled by the outline alone: nothing baked, the plain track kept.
     TooFewSettled,
-    /// The settled frames disagree with each other: nothing used, the plain track kept.
+    /// The settled frames disagree with each other, fewer than two agreeing: nothing used,
+    /// the plain track kept.
     Refused,
 }
 
@@ -75,7 +76,12 @@ pub struct TrackBakeReport {
     pub surface_texels: Option<usize>,
     pub seen_texels: Option<usize>,
     /// Settled frames that disagree with the others (the bake refused), the worst first.
+    /// Where the bake was used after leaving some out, see `left_out`.
     pub disagreeing: Vec<String>,
+    /// Settled frames left out of the bake used because their colours disagreed with the
+    /// others' (a pose a few degrees off, or in a twin), in frame order.
+    #[serde(default)]
+    pub left_out: Vec<String>,
     /// The frames the baked colours moved to another basin (from the plain track's pose).
     pub basin_moves: Vec<BasinMoveRow>,
     /// Where the bake was stored (`--store-bake`); `None`: it lived in memory only.
@@ -113,6 +119,12 @@ impl TrackBakeReport {
                 self.disagreeing.join(", ")
             )),
             TrackBakeOutcome::Used => {
+                if !self.left_out.is_empty() {
+                    lines.push(format!(
+                        "bake: left out {}: their colours disagree with the other settled keyframes' (a pose a few degrees off, or in a twin)",
+                        self.left_out.join(", ")
+                    ));
+                }
                 lines.push(format!(
                     "bake: baked from {} ({} of {} texels seen); {} keyframe(s) moved to another basin by the baked colours{}",
                     self.baked_from.join(", "),

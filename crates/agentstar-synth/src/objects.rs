@@ -503,6 +503,25 @@ part("badge", intersection(sleeve, box(0.4, 0.4, 0.5).translate(0, 0.2, 0)).tran
         ),
     },
     ObjectSpec {
+        name: Cow::Borrowed("highmug"),
+        family: Family::Hot3d,
+        size_m: 0.12,
+        symmetry: Symmetry::None,
+        appearance: Appearance::Printed(paint_printmug),
+        script: Cow::Borrowed(
+            r##"// The printed mug with its handle high on the side, as most mugs are: its outline tells
+// top from bottom where the handle is in view, and is the same under any turn about the
+// body's axis where the handle is hidden. Not in a suite: the figures of `track --bake` on
+// an uncoloured mesh whose handle fixes the basin where it is seen.
+let handle = box(0.22, 0.08, 0.07).translate(0.4, 0, 0.3) + box(0.22, 0.08, 0.07).translate(0.4, 0, -0.06) + box(0.07, 0.08, 0.43).translate(0.475, 0, 0.12);
+let cup = cylinder(0.32, 0.8) - cylinder(0.28, 0.8).translate(0, 0, 0.06);
+part("mug", (cup + handle).translate(-0.095, 0, 0).color("#e9e4d8"));
+let sleeve = cylinder(0.326, 0.4) - cylinder(0.321, 0.42);
+part("badge", intersection(sleeve, box(0.4, 0.4, 0.5).translate(0, 0.2, 0)).translate(-0.095, 0, 0).color("#14339a"));
+"##,
+        ),
+    },
+    ObjectSpec {
         name: Cow::Borrowed("kettle"),
         family: Family::Hot3d,
         size_m: 0.22,

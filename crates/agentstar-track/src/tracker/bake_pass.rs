@@ -15,9 +15,11 @@
 //! the same upside down and under any turn about its axis): baking cannot break a symmetry
 //! every frame shares, and the report says so instead of guessing.
 //!
-//! The bake ([`crate::bake`]) checks the settled frames against each other and is refused
-//! when any disagrees (baked from a wrong pose, the error is locked into the colours); with
-//! fewer than [`MIN_SETTLED`] settled frames nothing is baked. Otherwise the warm start
+//! The bake ([`crate::bake`]) checks the settled frames against each other: a frame whose
+//! colours disagree with the others' is left out and the rest baked again (baked from a
+//! wrong pose, the error is locked into the colours), and the bake is refused when fewer
+//! than [`MIN_SETTLED`] agree; with fewer than [`MIN_SETTLED`] settled frames nothing is
+//! baked. Otherwise the warm start
 //! ([`track_from_video`]) runs on the baked model from the plain track's poses, the settled
 //! frames anchored, and names each frame it moved to another basin.
 
@@ -56,7 +58,9 @@ pub struct SettledFrame {
 pub enum BakeOutcome {
     /// Fewer than [`MIN_SETTLED`] frames settled: nothing baked, the plain result kept.
     TooFewSettled,
-    /// The bake's frames disagree: nothing used, the plain result kept.
+    /// The settled frames' colours disagree and fewer than [`MIN_SETTLED`] agree with the
+    /// others: nothing used, the plain result kept (the last bake tried, its disagreeing
+    /// frames named).
     Refused(Bake),
     /// Baked and used: the warm start on the baked model, its frames moved to other basins.
     Used(Bake, WarmStart),
@@ -66,13 +70,16 @@ pub enum BakeOutcome {
 #[derive(Debug, Clone)]
 pub struct BakePass {
     pub settled: Vec<SettledFrame>,
+    /// Settled frames left out of the bake because their colours disagreed with the
+    /// others' (in frame order): the bake used is made from the rest.
+    pub left_out: Vec<usize>,
     pub outcome: BakeOutcome,
     /// The model coloured by the bake (for a caller that stores it), when used.
     pub baked_model: Option<ObjectModel>,
 }
 
 impl BakePass {
-    /// The frames baked from (settled), in frame order.
+    /// The settled frames (in frame order): those baked from, and those left out.
     pub fn settled_frames(&self) -> Vec<usize> {
         self.settled
             .iter()
@@ -230,43 +237,70 @@ pub fn track_with_bake(
         ));
         return Ok(BakePass {
             settled,
+            left_out: Vec::new(),
             outcome: BakeOutcome::TooFewSettled,
             baked_model: None,
         });
     }
-    let bake_frames: Vec<BakeFrame<'_>> = chosen
-        .iter()
-        .filter_map(|&i| {
-            let f = &frames[i];
-            Some(BakeFrame {
-                name: &f.name,
-                camera: &f.camera,
-                rgb: f.rgb?,
-                mask: f.target.mask(),
-                hand: hands.get(i).and_then(Option::as_ref),
-                pose: &plain.poses[i],
+    // Baked from the settled frames; those whose colours disagree with the others' (a pose
+    // a few degrees off carries the print's edges elsewhere, a twin all of it) are left out
+    // and the rest baked again, until the frames agree or too few are left.
+    let bake_from = |chosen: &[usize]| -> Result<Bake, TrackError> {
+        let bake_frames: Vec<BakeFrame<'_>> = chosen
+            .iter()
+            .filter_map(|&i| {
+                let f = &frames[i];
+                Some(BakeFrame {
+                    name: &f.name,
+                    camera: &f.camera,
+                    rgb: f.rgb?,
+                    mask: f.target.mask(),
+                    hand: hands.get(i).and_then(Option::as_ref),
+                    pose: &plain.poses[i],
+                })
             })
-        })
-        .collect();
-    let b = bake(model, scale, &bake_frames, bake_cfg)?;
+            .collect();
+        bake(model, scale, &bake_frames, bake_cfg)
+    };
+    let mut chosen = chosen;
+    let mut left_out: Vec<usize> = Vec::new();
+    let mut b = bake_from(&chosen)?;
     if !b.disagreeing().is_empty() {
         let names: Vec<String> = b
             .disagreeing()
             .iter()
             .map(|f| format!("{} ({:.0})", f.name, f.residual.unwrap_or(0.0)))
             .collect();
+        let agreeing = b.agreeing();
+        if agreeing.len() < MIN_SETTLED {
+            observe.line(&format!(
+                "bake: refused: settled frame(s) {} disagree with the others (median colour difference in 8-bit units) and fewer than {MIN_SETTLED} agree: nothing used, the plain track kept",
+                names.join(", ")
+            ));
+            return Ok(BakePass {
+                settled,
+                left_out,
+                outcome: BakeOutcome::Refused(b),
+                baked_model: None,
+            });
+        }
+        left_out = (0..chosen.len())
+            .filter(|k| !agreeing.contains(k))
+            .map(|k| chosen[k])
+            .collect();
+        chosen = agreeing.iter().map(|&k| chosen[k]).collect();
+        let left: Vec<&str> = left_out.iter().map(|&i| frames[i].name.as_str()).collect();
         observe.line(&format!(
-            "bake: refused: settled frame(s) {} disagree with the others (median colour difference in 8-bit units): nothing used, the plain track kept",
-            names.join(", ")
+            "bake: settled frame(s) {} disagree with the others (median colour difference in 8-bit units): {} left out, baked again from the {} that agree",
+            names.join(", "),
+            left.join(", "),
+            chosen.len()
         ));
-        return Ok(BakePass {
-            settled,
-            outcome: BakeOutcome::Refused(b),
-            baked_model: None,
-        });
+        b = bake_from(&chosen)?;
     }
+    left_out.sort_unstable();
     observe.line(&format!(
-        "bake: baked from {} settled frame(s), {} of {} texels seen; tracking again with the baked colours, the settled frames anchored",
+        "bake: baked from {} settled frame(s), {} of {} texels seen; tracking again with the baked colours, the frames baked from anchored",
         chosen.len(),
         b.seen_texels,
         b.surface_texels
@@ -283,6 +317,7 @@ pub fn track_with_bake(
     )?;
     Ok(BakePass {
         settled,
+        left_out,
         outcome: BakeOutcome::Used(b, warm),
         baked_model: Some(baked),
     })

@@ -161,8 +161,21 @@ pub fn run(a: Args) -> Result<ExitCode> {
             .iter()
             .map(|f| format!("{} ({:.0})", f.name, f.residual.unwrap_or(0.0)))
             .collect();
+        let agreeing: Vec<&str> = b
+            .agreeing()
+            .iter()
+            .map(|&k| b.frames[k].name.as_str())
+            .collect();
+        let keep = if agreeing.len() >= 2 {
+            format!(
+                " The largest set that agrees: --frames {}.",
+                agreeing.join(",")
+            )
+        } else {
+            " No two of them agree.".to_string()
+        };
         eprintln!(
-            "bake refused: frame(s) {} disagree with the others (median colour difference in 8-bit units, the worst first): their poses put the colours on other parts of the model than the rest do — a pose in a twin of the true one, or wrong. Baked from them, the error is locked into the model's colours. Check those poses, or leave them out with --frames; --force stores the bake anyway. Nothing was written.",
+            "bake refused: frame(s) {} disagree with the others (median colour difference in 8-bit units, the worst first): their poses put the colours on other parts of the model than the rest do — a pose in a twin of the true one, or wrong. Baked from them, the error is locked into the model's colours. Check those poses, or leave them out with --frames; --force stores the bake anyway. Nothing was written.{keep}",
             worst.join(", ")
         );
         return Ok(ExitCode::from(1));

@@ -440,6 +440,7 @@ fn bake_report(
         surface_texels: None,
         seen_texels: None,
         disagreeing: vec![],
+        left_out: pass.left_out.iter().map(|&i| name(i)).collect(),
         basin_moves: vec![],
         stored: None,
     };
