@@ -87,10 +87,9 @@ Alternate two kinds of steps; **each step changes the shape or the poses, never 
    `bake` paints the model from the video; `track` with `bake: true` paints it from the
    keyframes whose outline alone settles their pose and tracks the rest with that print
    (a mug whose handle shows in some keyframes). Baked from a wrong pose, the error
-   becomes the print: `bake` refuses when the keyframes it reads disagree (naming the
-   largest set that agrees), `track` leaves those keyframes out and bakes from the rest
-   when two or more agree, and nothing is baked where every keyframe shares a symmetry (a
-   plain can, upside down).
+   becomes the print: `bake` refuses keyframes that disagree (naming a set that agrees),
+   `track` leaves them out, and nothing is baked where every keyframe shares a symmetry
+   (a plain can, upside down).
 3. Keep notes with `notes`: what the object is, which parts move, what you ruled out. Notes
    survive when older images leave your context.
 
