@@ -658,7 +658,7 @@ fn track_on(
     let fixed = vec![false; n];
     after_propagation(
         &s,
-        frames,
+        (frames, between),
         (&mut poses, &mut scores),
         &fixed,
         &alternatives,
@@ -772,7 +772,7 @@ fn judge_model_colours(
 
 fn after_propagation(
     s: &Searcher<'_>,
-    frames: &[TrackFrame<'_>],
+    (frames, between): (&[TrackFrame<'_>], &[Vec<TrackFrame<'_>>]),
     (poses, scores): (&mut [GenPose], &mut [f64]),
     fixed: &[bool],
     alternatives: &[Vec<(GenPose, f64)>],
@@ -786,10 +786,39 @@ fn after_propagation(
     // The basins the sequence choice weighed and did not take, per frame.
     let mut rejected: Vec<Vec<GenPose>> = Vec::new();
     if cfg.consistency_pass && n >= 2 {
+        let before = poses.to_vec();
         consistency(s, frames, poses, scores, fixed, log)?;
         log.phase("consistency", s);
         log.all_poses(poses);
         log.pass_done("the consistency pass", poses);
+        // The motions measured by chains from keyframes the pass moved to another basin.
+        let (measured, cleared) = remeasure_gaps(s, frames, between, &before, poses)?;
+        if !(measured.is_empty() && cleared.is_empty()) {
+            let names = |gaps: &[usize]| -> String {
+                gaps.iter()
+                    .map(|&g| format!("{}–{}", frames[g].name, frames[g + 1].name))
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            };
+            log.push(format!(
+                "video: the gaps beside keyframes the consistency pass moved to another basin followed again from their new poses: {}{}",
+                if measured.is_empty() {
+                    String::new()
+                } else {
+                    format!("motion measured again across {}", names(&measured))
+                },
+                if cleared.is_empty() {
+                    String::new()
+                } else {
+                    format!(
+                        "{}no motion kept across {} (the video does not join the poses)",
+                        if measured.is_empty() { "" } else { "; " },
+                        names(&cleared)
+                    )
+                }
+            ));
+            log.phase("video", s);
+        }
     }
     if cfg.sequence_choice && n >= 2 {
         if cfg.appearance {

@@ -804,6 +804,61 @@ fn the_video_joins_two_keyframes_poses_only_where_it_leads_from_one_to_the_other
     assert!(!joins(&spun(-40.0)));
 }
 
+#[test]
+fn a_gaps_motion_measured_from_a_pose_since_moved_is_measured_again_or_cleared() {
+    // The L turning 16° a frame; keyframes 0 and 4, frames 1–3 between them. The gap's
+    // motion was measured by a chain from keyframe 0 at a wrong pose (turned −40°); a later
+    // pass moved keyframe 0 to its true pose.
+    let model = ell();
+    let scale = 0.5;
+    let truths: Vec<GenPose> = (0..5).map(|k| spun(16.0 * k as f64)).collect();
+    let targets = silhouettes(&model, scale, &truths);
+    let all = silhouette_frames(&targets);
+    let keyframes = vec![all[0].clone(), all[4].clone()];
+    let between = vec![all[1..4].to_vec()];
+    let s = Searcher::new(&model, scale, &keyframes, &TrackConfig::default()).expect("searcher");
+    let wrong = spun(-40.0);
+    let stale = Gap::between(&keyframes, 0, &wrong, &truths[4]);
+    let right = Gap::between(&keyframes, 0, &truths[0], &truths[4]);
+    assert!(stale.rotation.angle_to(&right.rotation) > 30f64.to_radians());
+    s.set_gap(0, stale);
+    let remeasure = |before: &[GenPose], poses: &[GenPose]| {
+        remeasure_gaps(&s, &keyframes, &between, before, poses).expect("remeasure")
+    };
+    // Nothing moved: the gap is left as it is.
+    let (measured, cleared) = remeasure(
+        &[wrong.clone(), truths[4].clone()],
+        &[wrong.clone(), truths[4].clone()],
+    );
+    assert!(measured.is_empty() && cleared.is_empty());
+    assert!(s.gap(0).expect("kept").rotation.angle_to(&stale.rotation) < 1e-12);
+    // Keyframe 0 moved to its true pose: the video joins it to keyframe 4, and the motion
+    // is the true one.
+    let poses = [truths[0].clone(), truths[4].clone()];
+    let (measured, cleared) = remeasure(&[wrong.clone(), truths[4].clone()], &poses);
+    assert_eq!((measured, cleared), (vec![0], vec![]));
+    assert!(
+        s.gap(0)
+            .expect("measured")
+            .rotation
+            .angle_to(&right.rotation)
+            < 1e-9
+    );
+    // Moved instead to its twin (a half-turn about the long side), which the video does not
+    // lead to keyframe 4 from: no motion is kept.
+    let flipped = GenPose {
+        pose: ObjectPose::new(
+            truths[0].pose.rotation
+                * UnitQuaternion::from_axis_angle(&Vector3::x_axis(), std::f64::consts::PI),
+            truths[0].pose.translation,
+        ),
+        states: vec![],
+    };
+    let (measured, cleared) = remeasure(&poses, &[flipped, truths[4].clone()]);
+    assert_eq!((measured, cleared), (vec![], vec![0]));
+    assert!(s.gap(0).is_none());
+}
+
 /// The spins about its axis at which [`uncoloured_mug`] sees the mug (degrees).
 const MUG_SPINS: [f64; 5] = [-50.0, -80.0, -100.0, -120.0, -150.0];
 

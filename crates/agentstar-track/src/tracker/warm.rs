@@ -417,7 +417,7 @@ fn track_from_on(
         follow_gaps(&s, frames, between, &poses, &mut log)?;
         after_propagation(
             &s,
-            frames,
+            (frames, between),
             (&mut poses, &mut scores),
             &fixed,
             &[],
