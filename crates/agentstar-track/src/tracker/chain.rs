@@ -12,7 +12,6 @@
 //! twins against each other rather than single frames.
 
 use super::*;
-use crate::hypotheses::same_basin;
 use agentstar_geom::UnitQuaternion;
 
 /// The window of a search from the previous video frame: a video frame moves the object a
@@ -232,17 +231,20 @@ pub(super) fn video_joins(
 }
 
 /// The gaps whose motion was measured (by a chain, [`Gap`]) where either keyframe has since
-/// left the basin it had then (`before`: the poses when the motions were measured): each
-/// such gap's video followed again from the keyframe that moved (or the earlier, when both
-/// did) to the other, its motion measured again where the chain arrives at the other's
-/// basin, cleared where it does not. A chain followed from a keyframe in a wrong basin
-/// measures a motion that joins that basin to its neighbour; once a later pass moves the
-/// keyframe (the consistency pass searching it again from its neighbours), that motion
-/// would charge the right pose for not matching it (the printed mug with its handle high,
-/// `highmug`, 9 in-between frames, seed 18: keyframes 140 and 150 followed at IoU 0.95,
-/// moved to 0.98 by the consistency pass, and the sequence choice then put 130, right
-/// all along, 118° off, its own basin's steps costing 69 against the twin's 24).
-/// Returns the gaps measured again and those cleared.
+/// left the basin it had then (`before`: the poses when the motions were measured; turned
+/// more than a chain step's window, [`CHAIN_WINDOW`], leaving out any turn about a round
+/// body's axis, which masks cannot see and the consistency pass moves freely): each such
+/// gap's video followed again from the keyframe that moved (or the earlier, when both did)
+/// to the other, and the motion measured again from the chain's arrival there (polished on
+/// the keyframe, so the turn about a round body's axis is the one the video carried, not the
+/// keyframe's) where it arrives within the window of the other's pose; cleared where it does
+/// not. A chain followed from a keyframe in a wrong basin measures a motion that joins that
+/// basin to its neighbour; once a later pass moves the keyframe (the consistency pass
+/// searching it again from its neighbours), that motion charges the right pose for not
+/// matching it (the printed mug with its handle high, `highmug`, 9 in-between frames, seed
+/// 18: keyframes 140 and 150 followed at IoU 0.95, moved to 0.98 by the consistency pass,
+/// and the sequence choice then put 130, right all along, 118° off, its own basin's steps
+/// costing 69 against the twin's 24). Returns the gaps measured again and those cleared.
 pub(super) fn remeasure_gaps(
     s: &Searcher<'_>,
     frames: &[TrackFrame<'_>],
@@ -251,7 +253,10 @@ pub(super) fn remeasure_gaps(
     poses: &[GenPose],
 ) -> Result<(Vec<usize>, Vec<usize>), TrackError> {
     let n = frames.len().min(poses.len()).min(before.len());
-    let moved: Vec<bool> = (0..n).map(|k| !same_basin(&before[k], &poses[k])).collect();
+    let window = CHAIN_WINDOW.angle_deg.to_radians();
+    let moved: Vec<bool> = (0..n)
+        .map(|k| s.off_chain(&before[k].pose.rotation, &poses[k].pose.rotation) > window)
+        .collect();
     let stale: Vec<usize> = (0..n.saturating_sub(1))
         .filter(|&g| s.gap(g).is_some() && (moved[g] || moved[g + 1]))
         .filter(|&g| between.get(g).is_some_and(|v| !v.is_empty()))
@@ -270,20 +275,39 @@ pub(super) fn remeasure_gaps(
             path.reverse();
         }
         let seed = s.cfg.seed + 4_000_037 * (g as u64 + 1);
-        let joined = video_joins(
+        let followed = follow(
             &cs,
-            (&frames[from], &poses[from]),
+            &frames[from],
+            &poses[from],
             &path,
-            (&frames[to], &poses[to]),
+            &frames[to],
             typical,
             seed,
         )?;
-        if joined {
-            s.set_gap(g, Gap::between(frames, g, &poses[g], &poses[g + 1]));
-            measured.push(g);
-        } else {
-            s.clear_gap(g);
-            cleared.push(g);
+        let near: Vec<&GenPose> = followed
+            .arrival
+            .iter()
+            .filter(|a| s.off_chain(&a.pose.rotation, &poses[to].pose.rotation) < window)
+            .collect();
+        let polished: Vec<Result<(GenPose, f64), TrackError>> = near
+            .par_iter()
+            .enumerate()
+            .map(|(k, a)| s.polish(&frames[to], a, seed + 7 + k as u64))
+            .collect();
+        match best_of(polished)? {
+            Some((arrival, _)) => {
+                let gap = if from == g {
+                    Gap::between(frames, g, &poses[g], &arrival)
+                } else {
+                    Gap::between(frames, g, &arrival, &poses[g + 1])
+                };
+                s.set_gap(g, gap);
+                measured.push(g);
+            }
+            None => {
+                s.clear_gap(g);
+                cleared.push(g);
+            }
         }
     }
     s.absorb_evals(&cs);

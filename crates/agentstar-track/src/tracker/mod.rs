@@ -801,7 +801,7 @@ fn after_propagation(
                     .join(", ")
             };
             log.push(format!(
-                "video: the gaps beside keyframes the consistency pass moved to another basin followed again from their new poses: {}{}",
+                "video: the gaps beside keyframes the consistency pass moved to another basin (leaving out turns about a round body's axis) followed again from their new poses: {}{}",
                 if measured.is_empty() {
                     String::new()
                 } else {

@@ -837,13 +837,14 @@ fn a_gaps_motion_measured_from_a_pose_since_moved_is_measured_again_or_cleared()
     let poses = [truths[0].clone(), truths[4].clone()];
     let (measured, cleared) = remeasure(&[wrong.clone(), truths[4].clone()], &poses);
     assert_eq!((measured, cleared), (vec![0], vec![]));
-    assert!(
-        s.gap(0)
-            .expect("measured")
-            .rotation
-            .angle_to(&right.rotation)
-            < 1e-9
-    );
+    // Measured from the chain's arrival, polished: the true motion within a polish's reach.
+    let off_deg = s
+        .gap(0)
+        .expect("measured")
+        .rotation
+        .angle_to(&right.rotation)
+        .to_degrees();
+    assert!(off_deg < 1.0, "{off_deg:.2}°");
     // Moved instead to its twin (a half-turn about the long side), which the video does not
     // lead to keyframe 4 from: no motion is kept.
     let flipped = GenPose {
