@@ -289,12 +289,7 @@ pub(super) fn remeasure_gaps(
             .iter()
             .filter(|a| s.off_chain(&a.pose.rotation, &poses[to].pose.rotation) < window)
             .collect();
-        let polished: Vec<Result<(GenPose, f64), TrackError>> = near
-            .par_iter()
-            .enumerate()
-            .map(|(k, a)| s.polish(&frames[to], a, seed + 7 + k as u64))
-            .collect();
-        match best_of(polished)? {
+        match polished_arrival(s, &frames[to], &near, seed)? {
             Some((arrival, _)) => {
                 let gap = if from == g {
                     Gap::between(frames, g, &poses[g], &arrival)
@@ -312,6 +307,22 @@ pub(super) fn remeasure_gaps(
     }
     s.absorb_evals(&cs);
     Ok((measured, cleared))
+}
+
+/// The best of a chain's `arrivals` at keyframe `frame` once each is polished there
+/// ([`Searcher::polish`]), with its score; `None` without arrivals.
+pub(super) fn polished_arrival(
+    s: &Searcher<'_>,
+    frame: &TrackFrame<'_>,
+    arrivals: &[&GenPose],
+    seed: u64,
+) -> Result<Option<(GenPose, f64)>, TrackError> {
+    let polished: Vec<Result<(GenPose, f64), TrackError>> = arrivals
+        .par_iter()
+        .enumerate()
+        .map(|(k, a)| s.polish(frame, a, seed + 7 + k as u64))
+        .collect();
+    best_of(polished)
 }
 
 /// The keyframes' median visible pixels: what a frame showing the whole object shows.

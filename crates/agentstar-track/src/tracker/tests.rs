@@ -982,6 +982,30 @@ fn mug_frames<'a>(
         .collect()
 }
 
+/// `track --bake` after the plain `result` with the default bake settings, and its log.
+fn bake_logged(
+    model: &ObjectModel,
+    scale: f64,
+    frames: &[TrackFrame<'_>],
+    hands: &[Option<BitMask>],
+    result: &TrackResult,
+) -> (BakePass, String) {
+    let lines = std::sync::Mutex::new(Vec::new());
+    let keep = |l: &str| lines.lock().expect("lines").push(l.to_string());
+    let pass = track_with_bake(
+        model,
+        scale,
+        (frames, &[]),
+        hands,
+        result,
+        &quick_config(),
+        &crate::bake::BakeConfig::default(),
+        &keep,
+    )
+    .expect("track --bake");
+    (pass, lines.into_inner().expect("lines").join("\n"))
+}
+
 fn plain_result(poses: &[GenPose], scores: Vec<f64>) -> TrackResult {
     TrackResult {
         poses: poses.to_vec(),
@@ -1030,20 +1054,7 @@ fn a_bake_from_the_frames_the_handle_settles_turns_an_uncoloured_mugs_twins_back
     // With it: the frames with the handle in view are settled, baked from, kept; the others
     // are turned back by the print and named.
     let result = plain_result(&plain, scores);
-    let lines = std::sync::Mutex::new(Vec::new());
-    let keep = |l: &str| lines.lock().expect("lines").push(l.to_string());
-    let pass = track_with_bake(
-        &model,
-        scale,
-        (&frames, &[]),
-        &hands,
-        &result,
-        &cfg,
-        &crate::bake::BakeConfig::default(),
-        &keep,
-    )
-    .expect("track --bake");
-    let log = lines.into_inner().expect("lines").join("\n");
+    let (pass, log) = bake_logged(&model, scale, &frames, &hands, &result);
     assert_eq!(pass.settled_frames(), vec![0, 4], "{log}");
     for f in &pass.settled[1..4] {
         let (deg, _) = f.rival.expect("a rival");
@@ -1081,22 +1092,8 @@ fn a_settled_frame_whose_colours_disagree_is_left_out_and_the_rest_baked() {
             }
         });
     let frames = mug_frames(&cam, &targets, &images);
-    let cfg = quick_config();
     let result = plain_result(&plain, scores_of(&model, scale, &frames, &plain));
-    let lines = std::sync::Mutex::new(Vec::new());
-    let keep = |l: &str| lines.lock().expect("lines").push(l.to_string());
-    let pass = track_with_bake(
-        &model,
-        scale,
-        (&frames, &[]),
-        &hands,
-        &result,
-        &cfg,
-        &crate::bake::BakeConfig::default(),
-        &keep,
-    )
-    .expect("track --bake");
-    let log = lines.into_inner().expect("lines").join("\n");
+    let (pass, log) = bake_logged(&model, scale, &frames, &hands, &result);
     assert_eq!(pass.settled_frames(), vec![0, 4, 5], "{log}");
     assert_eq!(pass.left_out, vec![5], "{log}");
     let BakeOutcome::Used(b, w) = &pass.outcome else {

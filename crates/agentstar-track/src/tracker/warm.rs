@@ -485,13 +485,8 @@ fn follow_gaps(
             typical,
             seed,
         )?;
-        let arrivals: Vec<Result<(GenPose, f64), TrackError>> = chain
-            .arrival
-            .par_iter()
-            .enumerate()
-            .map(|(k, a)| s.polish(&frames[g + 1], a, seed + 7 + k as u64))
-            .collect();
-        if let Some((arrival, _)) = best_of(arrivals)? {
+        let arrivals: Vec<&GenPose> = chain.arrival.iter().collect();
+        if let Some((arrival, _)) = polished_arrival(s, &frames[g + 1], &arrivals, seed)? {
             s.set_gap(g, Gap::between(frames, g, &poses[g], &arrival));
             followed += 1;
         }
