@@ -54,6 +54,16 @@ fn spun(deg: f64) -> GenPose {
     }
 }
 
+/// The L at scale 0.5 turning 16° a frame over five frames: the model, the scale, the true
+/// poses and their silhouettes.
+fn turning_ell() -> (ObjectModel, f64, Vec<GenPose>, Vec<ScoreTarget>) {
+    let model = ell();
+    let scale = 0.5;
+    let truths: Vec<GenPose> = (0..5).map(|k| spun(16.0 * k as f64)).collect();
+    let targets = silhouettes(&model, scale, &truths);
+    (model, scale, truths, targets)
+}
+
 /// Each pose's silhouette of `model` in [`camera`], as a target (masks only, no hands).
 fn silhouettes(model: &ObjectModel, scale: f64, poses: &[GenPose]) -> Vec<ScoreTarget> {
     poses
@@ -692,10 +702,7 @@ fn a_chains_motion_says_nothing_of_a_turn_about_a_cans_axis() {
 /// to the masks and catches up with the motion.
 #[test]
 fn a_chain_searches_wider_where_the_object_moved_past_its_window() {
-    let model = ell();
-    let scale = 0.5;
-    let truths: Vec<GenPose> = (0..5).map(|k| spun(16.0 * k as f64)).collect();
-    let targets = silhouettes(&model, scale, &truths);
+    let (model, scale, truths, targets) = turning_ell();
     let frames = silhouette_frames(&targets);
     let cfg = TrackConfig::default();
     let s = Searcher::new(&model, scale, &frames, &cfg).expect("searcher");
@@ -771,10 +778,7 @@ fn the_video_joins_two_keyframes_poses_only_where_it_leads_from_one_to_the_other
     // The L turning 16° a frame: followed back from keyframe 4's true pose, the video
     // reaches keyframe 0's true pose, not its twin (its half-turn about the long side, which
     // a global search there may find as well), nor a pose the chain cannot have come from.
-    let model = ell();
-    let scale = 0.5;
-    let truths: Vec<GenPose> = (0..5).map(|k| spun(16.0 * k as f64)).collect();
-    let targets = silhouettes(&model, scale, &truths);
+    let (model, scale, truths, targets) = turning_ell();
     let frames = silhouette_frames(&targets);
     let cfg = TrackConfig::default();
     let s = Searcher::new(&model, scale, &frames, &cfg).expect("searcher");
@@ -809,10 +813,7 @@ fn a_gaps_motion_measured_from_a_pose_since_moved_is_measured_again_or_cleared()
     // The L turning 16° a frame; keyframes 0 and 4, frames 1–3 between them. The gap's
     // motion was measured by a chain from keyframe 0 at a wrong pose (turned −40°); a later
     // pass moved keyframe 0 to its true pose.
-    let model = ell();
-    let scale = 0.5;
-    let truths: Vec<GenPose> = (0..5).map(|k| spun(16.0 * k as f64)).collect();
-    let targets = silhouettes(&model, scale, &truths);
+    let (model, scale, truths, targets) = turning_ell();
     let all = silhouette_frames(&targets);
     let keyframes = vec![all[0].clone(), all[4].clone()];
     let between = vec![all[1..4].to_vec()];
