@@ -792,30 +792,27 @@ fn after_propagation(
         log.all_poses(poses);
         log.pass_done("the consistency pass", poses);
         // The motions measured by chains from keyframes the pass moved to another basin.
-        let (measured, cleared) = remeasure_gaps(s, frames, between, &before, poses)?;
-        if !(measured.is_empty() && cleared.is_empty()) {
+        let (measured, kept) = remeasure_gaps(s, frames, between, &before, poses)?;
+        if !(measured.is_empty() && kept.is_empty()) {
             let names = |gaps: &[usize]| -> String {
                 gaps.iter()
                     .map(|&g| format!("{}–{}", frames[g].name, frames[g + 1].name))
                     .collect::<Vec<_>>()
                     .join(", ")
             };
+            let mut parts = Vec::new();
+            if !measured.is_empty() {
+                parts.push(format!("motion measured again across {}", names(&measured)));
+            }
+            if !kept.is_empty() {
+                parts.push(format!(
+                    "the motion measured before kept across {} (the video joins the poses from neither end)",
+                    names(&kept)
+                ));
+            }
             log.push(format!(
-                "video: the gaps beside keyframes the consistency pass moved to another basin (leaving out turns about a round body's axis) followed again from their new poses: {}{}",
-                if measured.is_empty() {
-                    String::new()
-                } else {
-                    format!("motion measured again across {}", names(&measured))
-                },
-                if cleared.is_empty() {
-                    String::new()
-                } else {
-                    format!(
-                        "{}no motion kept across {} (the video does not join the poses)",
-                        if measured.is_empty() { "" } else { "; " },
-                        names(&cleared)
-                    )
-                }
+                "video: the gaps beside keyframes the consistency pass moved to another basin (leaving out turns about a round body's axis) followed again from their new poses: {}",
+                parts.join("; ")
             ));
             log.phase("video", s);
         }

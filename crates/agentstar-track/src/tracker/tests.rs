@@ -809,7 +809,7 @@ fn the_video_joins_two_keyframes_poses_only_where_it_leads_from_one_to_the_other
 }
 
 #[test]
-fn a_gaps_motion_measured_from_a_pose_since_moved_is_measured_again_or_cleared() {
+fn a_gaps_motion_measured_from_a_pose_since_moved_is_measured_again_where_the_video_joins() {
     // The L turning 16° a frame; keyframes 0 and 4, frames 1–3 between them. The gap's
     // motion was measured by a chain from keyframe 0 at a wrong pose (turned −40°); a later
     // pass moved keyframe 0 to its true pose.
@@ -827,17 +827,17 @@ fn a_gaps_motion_measured_from_a_pose_since_moved_is_measured_again_or_cleared()
         remeasure_gaps(&s, &keyframes, &between, before, poses).expect("remeasure")
     };
     // Nothing moved: the gap is left as it is.
-    let (measured, cleared) = remeasure(
+    let (measured, kept) = remeasure(
         &[wrong.clone(), truths[4].clone()],
         &[wrong.clone(), truths[4].clone()],
     );
-    assert!(measured.is_empty() && cleared.is_empty());
+    assert!(measured.is_empty() && kept.is_empty());
     assert!(s.gap(0).expect("kept").rotation.angle_to(&stale.rotation) < 1e-12);
     // Keyframe 0 moved to its true pose: the video joins it to keyframe 4, and the motion
     // is the true one.
     let poses = [truths[0].clone(), truths[4].clone()];
-    let (measured, cleared) = remeasure(&[wrong.clone(), truths[4].clone()], &poses);
-    assert_eq!((measured, cleared), (vec![0], vec![]));
+    let (measured, kept) = remeasure(&[wrong.clone(), truths[4].clone()], &poses);
+    assert_eq!((measured, kept), (vec![0], vec![]));
     // Measured from the chain's arrival, polished: the true motion within a polish's reach.
     let off_deg = s
         .gap(0)
@@ -846,8 +846,9 @@ fn a_gaps_motion_measured_from_a_pose_since_moved_is_measured_again_or_cleared()
         .angle_to(&right.rotation)
         .to_degrees();
     assert!(off_deg < 1.0, "{off_deg:.2}°");
-    // Moved instead to its twin (a half-turn about the long side), which the video does not
-    // lead to keyframe 4 from: no motion is kept.
+    // Moved instead to its twin (a half-turn about the long side), which the video joins to
+    // keyframe 4 from neither end: the motion measured before (the true one) is kept, and
+    // charges the twin.
     let flipped = GenPose {
         pose: ObjectPose::new(
             truths[0].pose.rotation
@@ -856,9 +857,10 @@ fn a_gaps_motion_measured_from_a_pose_since_moved_is_measured_again_or_cleared()
         ),
         states: vec![],
     };
-    let (measured, cleared) = remeasure(&poses, &[flipped, truths[4].clone()]);
-    assert_eq!((measured, cleared), (vec![], vec![0]));
-    assert!(s.gap(0).is_none());
+    let before_flip = s.gap(0).expect("measured").rotation;
+    let (measured, kept) = remeasure(&poses, &[flipped, truths[4].clone()]);
+    assert_eq!((measured, kept), (vec![], vec![0]));
+    assert!(s.gap(0).expect("kept").rotation.angle_to(&before_flip) < 1e-12);
 }
 
 /// The spins about its axis at which [`uncoloured_mug`] sees the mug (degrees).
