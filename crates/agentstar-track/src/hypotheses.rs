@@ -205,58 +205,45 @@ fn refine_local_passes(
             Some(c) if f >= COARSE_PASS => c,
             _ => problem,
         };
-        let after_coarse = coarse.is_some()
-            && f < COARSE_PASS
-            && k > range.start
-            && passes[k - 1].0 >= COARSE_PASS;
-        // Scores of the two resolutions do not compare: the first fine pass starts from the
-        // coarse passes' best and keeps its own. The half-resolution optimum may lie off the
-        // full-resolution one by more than the fine pass's window (a turn traded against a
-        // joint where the outline barely changes: the 20-keyframe benchmark's keyframe 17
-        // kept 7.6° and 8° of joint), so the full resolution first searches the narrowest
-        // coarse window again ([`BRIDGE_SHARE`] of the fine pass's budget).
-        let mut stages = vec![(f, n, 0)];
-        if after_coarse {
+        if coarse.is_some() && f < COARSE_PASS && k > range.start && passes[k - 1].0 >= COARSE_PASS
+        {
+            // Scores of the two resolutions do not compare: the first fine pass starts from
+            // the coarse passes' best and keeps its own.
             best_score = f64::NEG_INFINITY;
-            let bridge = (COARSE_PASS, (n as f64 * BRIDGE_SHARE) as usize, BRIDGE_SEED);
-            stages.insert(0, bridge);
         }
-        for (f, n, salt) in stages {
-            let mut p = level.clone();
-            p.pivot = p.model.pivot(&best.states);
-            p.base = best.clone();
-            let space = local_space(
-                p.model,
-                &best,
-                (window.angle_deg * f).max(0.5),
-                (window.shift * f).max(0.002),
-                (window.depth * f).max(0.004),
-                (window.joint_deg * f).max(1.0),
-            );
-            let polish_evals = if polish && salt == 0 {
+        let mut p = level.clone();
+        p.pivot = p.model.pivot(&best.states);
+        p.base = best.clone();
+        let space = local_space(
+            p.model,
+            &best,
+            (window.angle_deg * f).max(0.5),
+            (window.shift * f).max(0.002),
+            (window.depth * f).max(0.004),
+            (window.joint_deg * f).max(1.0),
+        );
+        let cfg = SweepConfig {
+            restarts: 2,
+            total_evals: n.max(40),
+            seed: seed + 1000 * k as u64,
+            polish_evals: if polish {
                 POLISH_PER_DOF * space.ranges.len()
             } else {
                 0
-            };
-            let cfg = SweepConfig {
-                restarts: 2,
-                total_evals: n.max(40),
-                seed: seed + 1000 * k as u64 + salt,
-                polish_evals,
-                ..SweepConfig::default()
-            }
-            .scipy_stop();
-            let r = sweep(&p, &space, &cfg)?;
-            n_evals += r.n_evals;
-            let top = r
-                .ranked
-                .into_iter()
-                .next()
-                .ok_or_else(|| TrackError::Invalid("empty search".into()))?;
-            if top.score.combined >= best_score {
-                best_score = top.score.combined;
-                best = top.pose;
-            }
+            },
+            ..SweepConfig::default()
+        }
+        .scipy_stop();
+        let r = sweep(&p, &space, &cfg)?;
+        n_evals += r.n_evals;
+        let top = r
+            .ranked
+            .into_iter()
+            .next()
+            .ok_or_else(|| TrackError::Invalid("empty search".into()))?;
+        if top.score.combined >= best_score {
+            best_score = top.score.combined;
+            best = top.pose;
         }
     }
     if last_coarse {
@@ -373,17 +360,11 @@ pub const PRUNE_SLACK: f64 = 0.05;
 /// half the resolution when the problem has it ([`FrameProblem::with_coarse`]).
 const COARSE_PASS: f64 = 0.3;
 
-/// The share of the first fine pass's budget that searches the narrowest coarse window again
-/// at full resolution before it ([`refine_local`]).
-const BRIDGE_SHARE: f64 = 0.5;
-
-/// What the seed of that search adds to its pass's.
-const BRIDGE_SEED: u64 = 500;
-
 /// The Nelder–Mead evaluations per searched dimension that polish a local refinement's last
 /// pass (over its two restarts): enough for the simplex to converge (its size under 2·10⁻⁴
 /// of the box) in the 6 to 8 dimensions of a pose with joints, where a fixed 300 stopped it
-/// short (the 20-keyframe benchmark's keyframe 2 at 2.2° and 3.1° of joint).
+/// short (the 20-keyframe benchmark's keyframe 17 ended 7.6° and 8° of joint off with 300;
+/// with 700 or 1,000 in its 7 dimensions, 2.0° and 2.3°, the same poses either way).
 const POLISH_PER_DOF: usize = 100;
 
 /// Every hypothesis refined in `window` (in parallel, seeds `seed + k`), in input order.

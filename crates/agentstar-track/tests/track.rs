@@ -63,8 +63,7 @@ fn sweep_recovers_a_perturbed_pose() {
 fn tracker_recovers_a_rapid_articulated_sequence() {
     let model = case_model();
     let scale = 0.5;
-    // The 20 keyframes of the tracking benchmark (`cargo bench -p agentstar-track -- tracking`).
-    let n = 20;
+    let n = 10;
     let gts: Vec<GenPose> = (0..n).map(|k| truth(k as f64)).collect();
     let targets: Vec<ScoreTarget> = gts.iter().map(|g| target_of(&model, g, scale)).collect();
     let frames = frames_of(&targets);

@@ -72,14 +72,11 @@ pub(super) fn choose_sequence(
     log: &mut Log<'_>,
 ) -> Result<Vec<Vec<GenPose>>, TrackError> {
     let n = frames.len();
-    // Each frame's hypotheses on their own (their seeds depend on the frame alone), and the
-    // frame's own pose where its refinement here improved it.
-    type Hypotheses = (Vec<(GenPose, f64)>, Option<GenPose>);
-    let found: Vec<Hypotheses> = (0..n)
+    // Each frame's hypotheses on their own (their seeds depend on the frame alone).
+    let hyps: Vec<Vec<(GenPose, f64)>> = (0..n)
         .into_par_iter()
-        .map(|i| -> Result<Hypotheses, TrackError> {
+        .map(|i| -> Result<Vec<(GenPose, f64)>, TrackError> {
             let mut h = vec![(poses[i].clone(), scores[i])];
-            let mut own_refined = None;
             if !fixed[i] {
                 let problem = FrameProblem::new(
                     s.model,
@@ -117,7 +114,6 @@ pub(super) fn choose_sequence(
                     s.evals
                         .fetch_add(r.evals, std::sync::atomic::Ordering::Relaxed);
                     if r.score.combined > h[0].1 {
-                        own_refined = Some(r.pose.clone());
                         h[0] = (r.pose, r.score.combined);
                     }
                 }
@@ -175,10 +171,9 @@ pub(super) fn choose_sequence(
                     h.push((poses[i].clone(), scores[i]));
                 }
             }
-            Ok((h, own_refined))
+            Ok(h)
         })
         .collect::<Result<_, _>>()?;
-    let (hyps, own_refined): (Vec<_>, Vec<_>) = found.into_iter().unzip();
     // A round body with a print (a labelled can, a printed mug): every hypothesis turned about
     // the body's axis to where the frame agrees best with the model's print, so that a twin is
     // weighed at its best angle, and a frame's own pose too (a pass before the choice may have
@@ -322,20 +317,12 @@ pub(super) fn choose_sequence(
             let other_basin = to.rotation.angle_to(&from.rotation)
                 >= REJECTED_BASIN_DEG.to_radians()
                 || (to.translation - from.translation).norm() / depth > CHOICE_FAR_SHIFT;
-            // Then polish: the twin was refined in a window centred where it was placed. Not
-            // the frame's own pose refined above, unturned: it was refined where it stands, in
-            // the polish's window at full resolution with twice its budget (polished again,
-            // 12 of the 20-keyframe benchmark's frames cost 78,000 evaluations for moves
-            // under 0.1°).
+            // Then polish: the twin was refined in a window centred where it was placed.
             let (g, sc) = hyps[i][k].clone();
-            let (g, sc) = if own_refined[i].as_ref() == Some(&g) {
-                (g, sc)
-            } else {
-                let seed = s.cfg.seed + 5_000_011 * (i as u64 + 1);
-                match s.polish(&frames[i], &g, seed)? {
-                    (p, psc) if psc > sc => (p, psc),
-                    _ => (g, sc),
-                }
+            let seed = s.cfg.seed + 5_000_011 * (i as u64 + 1);
+            let (g, sc) = match s.polish(&frames[i], &g, seed)? {
+                (p, psc) if psc > sc => (p, psc),
+                _ => (g, sc),
             };
             if other_basin {
                 changed.push(format!(
