@@ -866,15 +866,9 @@ fn a_gaps_motion_measured_from_a_pose_since_moved_is_measured_again_where_the_vi
 /// The spins about its axis at which [`uncoloured_mug`] sees the mug (degrees).
 const MUG_SPINS: [f64; 5] = [-50.0, -80.0, -100.0, -120.0, -150.0];
 
-/// An uncoloured mug (the mug of [`mug`], every part one colour) printed all round, seen
-/// level from five directions: its handle in view at the side in frames 0 and 4, hidden
-/// behind the body in frames 1–3, whose poses are left turned half way about the body (the
-/// handle in front, a hand over it: the masks tie). `paint(k)` paints frame k.
-/// (model, scale, camera, targets' masks and hands, images, truths, the plain poses.)
-#[allow(clippy::type_complexity)]
-fn uncoloured_mug(
-    paint: &dyn Fn(usize, &Point3) -> [f64; 3],
-) -> (
+/// The uncoloured mug's scene: model, scale, camera, targets, hands, images, truths, the
+/// plain poses.
+type MugScene = (
     ObjectModel,
     f64,
     PinholeCamera,
@@ -883,27 +877,21 @@ fn uncoloured_mug(
     Vec<Vec<u8>>,
     Vec<GenPose>,
     Vec<GenPose>,
-) {
+);
+
+/// An uncoloured mug (the mug of [`mug`], every part one colour) printed all round, seen
+/// level from five directions: its handle in view at the side in frames 0 and 4, hidden
+/// behind the body in frames 1–3, whose poses are left turned half way about the body (the
+/// handle in front, a hand over it: the masks tie). `paint(k)` paints frame k.
+/// (model, scale, camera, targets' masks and hands, images, truths, the plain poses.)
+fn uncoloured_mug(paint: &dyn Fn(usize, &Point3) -> [f64; 3]) -> MugScene {
     uncoloured_mug_at(&MUG_SPINS, paint)
 }
 
 /// The uncoloured mug at `spins` (degrees about its axis), painted by `paint(frame, point)`
 /// in the frames; frames 1, 2 and 3 have the handle hidden under a hand and their plain
 /// poses turned half way (a twin), the others their true poses.
-#[allow(clippy::type_complexity)]
-fn uncoloured_mug_at(
-    spins: &[f64],
-    paint: &dyn Fn(usize, &Point3) -> [f64; 3],
-) -> (
-    ObjectModel,
-    f64,
-    PinholeCamera,
-    Vec<ScoreTarget>,
-    Vec<Option<BitMask>>,
-    Vec<Vec<u8>>,
-    Vec<GenPose>,
-    Vec<GenPose>,
-) {
+fn uncoloured_mug_at(spins: &[f64], paint: &dyn Fn(usize, &Point3) -> [f64; 3]) -> MugScene {
     use crate::appearance::tests::{pose, shoot};
     use agentstar_render::render_full;
     let mut model = mug();
