@@ -1,5 +1,6 @@
 //! Benchmark suites: which synthetic sequences to run.
 
+use crate::BenchError;
 use agentstar_synth::{Motion, SynthConfig, LIBRARY};
 
 /// One sequence of a suite: the synthesiser's configuration.
@@ -75,7 +76,8 @@ pub fn hard_sequence(object: &str, seed: u64) -> SequenceSpec {
 
 /// The generated objects of the `general` suite: `gen-N` for N in this range of generator
 /// seeds ([`agentstar_synth::generate`]). Nothing is tuned to any of them; to look at a single
-/// case, pick its seed (`--only gen-7`), and to look at others, change this range, never a
+/// case, pick its seed (`--only gen-7`), and to look at others, run over another range
+/// ([`general_suite_over`], `bench --suite general --objects 24..48`), never change a
 /// constant of the generator or the tracker.
 pub const GENERAL_OBJECT_SEEDS: std::ops::Range<u64> = 0..24;
 
@@ -86,9 +88,17 @@ pub const GENERAL_CAPTURE_SEEDS: usize = 3;
 /// [`GENERAL_CAPTURE_SEEDS`] captures of the hard suite's kind ([`hard_sequence`]), seeds
 /// `1000 + 10·N + k`.
 pub fn general_suite() -> Vec<SequenceSpec> {
-    GENERAL_OBJECT_SEEDS
+    general_suite_over(GENERAL_OBJECT_SEEDS, GENERAL_CAPTURE_SEEDS)
+}
+
+/// The `general` suite over other generated objects: `gen-N` for N in `objects`, each in
+/// `captures` captures (seeds `1000 + 10·N + k`, k < `captures`). Objects no one has looked
+/// at measure the tracker without the bias of the cases studied (`bench --suite general
+/// --objects 24..48 --captures 1`).
+pub fn general_suite_over(objects: std::ops::Range<u64>, captures: usize) -> Vec<SequenceSpec> {
+    objects
         .flat_map(|n| {
-            (0..GENERAL_CAPTURE_SEEDS as u64).map(move |k| {
+            (0..captures as u64).map(move |k| {
                 hard_sequence(
                     &agentstar_synth::generate::object_name(n),
                     1000 + 10 * n + k,
@@ -96,6 +106,25 @@ pub fn general_suite() -> Vec<SequenceSpec> {
             })
         })
         .collect()
+}
+
+/// The most captures of one generated object (`1000 + 10·N + k` stays N's own for k < 10).
+pub const GENERAL_MAX_CAPTURES: usize = 10;
+
+/// `START..END`, a range of generator seeds (END exclusive, START < END).
+pub fn parse_seed_range(text: &str) -> Result<std::ops::Range<u64>, BenchError> {
+    let bad = || {
+        BenchError::Invalid(format!(
+            "`{text}` is not a range of generator seeds: write START..END, START < END (as 24..48)"
+        ))
+    };
+    let (start, end) = text.trim().split_once("..").ok_or_else(bad)?;
+    let start: u64 = start.trim().parse().map_err(|_| bad())?;
+    let end: u64 = end.trim().parse().map_err(|_| bad())?;
+    if start >= end {
+        return Err(bad());
+    }
+    Ok(start..end)
 }
 
 /// The suites: `quick` (one sequence per dataset family, small images, for CI), `full`

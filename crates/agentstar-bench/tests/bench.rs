@@ -684,3 +684,27 @@ fn the_general_table_gives_the_share_within_1cm_3deg_and_quantiles() {
         vec![1, 1, 0, 1]
     );
 }
+
+#[test]
+fn the_general_suite_runs_over_other_generator_seeds_and_captures() {
+    use agentstar_bench::suite::{general_suite, general_suite_over, parse_seed_range};
+    let fresh = general_suite_over(parse_seed_range("24..27").expect("range"), 1);
+    let names: Vec<(&str, u64)> = fresh
+        .iter()
+        .map(|s| (s.synth.object.as_str(), s.synth.seed))
+        .collect();
+    assert_eq!(
+        names,
+        [("gen-24", 1240), ("gen-25", 1250), ("gen-26", 1260)]
+    );
+    // The suite itself is the same function over its own range.
+    let own = general_suite_over(0..24, 3);
+    let suite = general_suite();
+    assert_eq!(own.len(), suite.len());
+    assert!(own.iter().zip(&suite).all(|(a, b)| a.synth == b.synth));
+    for bad in ["48..24", "5..5", "24-48", "a..b", "", "..3"] {
+        let e = parse_seed_range(bad).expect_err(bad).to_string();
+        assert!(e.contains("START..END"), "{bad}: {e}");
+    }
+    assert_eq!(parse_seed_range(" 0..2 ").expect("spaces"), 0..2);
+}

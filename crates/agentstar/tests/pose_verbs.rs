@@ -482,10 +482,15 @@ fn pose_verbs_track_commit_and_diagnose() {
     let label = v["frames"][0]["ranked"][0]["label"]
         .as_str()
         .expect("label");
+    // The start's hinge as tracked (about 10°), named with the region it lies outside.
+    let hinge_deg: Option<f64> = label
+        .split("outside the region: hinge ")
+        .nth(1)
+        .and_then(|rest| rest.strip_suffix(" not in 100..120"))
+        .and_then(|x| x.parse().ok());
     assert!(
         label.starts_with(agentstar_reports::KEPT_START)
-            && label.contains("outside the region: hinge 10.")
-            && label.ends_with(" not in 100..120"),
+            && hinge_deg.is_some_and(|h| (5.0..15.0).contains(&h)),
         "{label}"
     );
 

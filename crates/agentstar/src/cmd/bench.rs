@@ -4,7 +4,10 @@
 
 use crate::cmd::synth::write_synth;
 use crate::common::{print_json, write_tracked_poses};
-use agentstar_bench::suite::SUITES;
+use agentstar_bench::suite::{
+    general_suite_over, parse_seed_range, GENERAL_CAPTURE_SEEDS, GENERAL_MAX_CAPTURES,
+    GENERAL_OBJECT_SEEDS, SUITES,
+};
 use agentstar_bench::table::tables;
 use agentstar_bench::tolerance::{check, record, ToleranceFile};
 use agentstar_bench::{run_sequence_observed, suite, Method, RunConfig, SequenceResult};
@@ -30,6 +33,13 @@ pub struct Args {
     /// Only these objects of the suite (comma separated; the general suite's are gen-N).
     #[arg(long)]
     only: Option<String>,
+    /// The general suite over these generator seeds instead of its own 0..24 (START..END):
+    /// objects no one has looked at, as `--objects 24..48`.
+    #[arg(long, value_name = "START..END")]
+    objects: Option<String>,
+    /// The general suite with this many captures of each object instead of 3 (1 to 10).
+    #[arg(long, value_name = "K")]
+    captures: Option<usize>,
     /// Write every capture and every method's pose.json under this directory.
     #[arg(long)]
     out: Option<PathBuf>,
@@ -161,6 +171,23 @@ pub fn run(a: Args) -> Result<ExitCode> {
             SUITES.join(", ")
         )
     })?;
+    if a.objects.is_some() || a.captures.is_some() {
+        if a.suite != "general" {
+            bail!(
+                "--objects and --captures choose the general suite's objects; this is the {} suite",
+                a.suite
+            );
+        }
+        let objects = match &a.objects {
+            Some(text) => parse_seed_range(text).map_err(|e| anyhow!("--objects: {e}"))?,
+            None => GENERAL_OBJECT_SEEDS,
+        };
+        let captures = a.captures.unwrap_or(GENERAL_CAPTURE_SEEDS);
+        if !(1..=GENERAL_MAX_CAPTURES).contains(&captures) {
+            bail!("--captures {captures}: between 1 and {GENERAL_MAX_CAPTURES}");
+        }
+        specs = general_suite_over(objects, captures);
+    }
     if let Some(only) = &a.only {
         let keep: Vec<&str> = only.split(',').map(str::trim).collect();
         specs.retain(|s| keep.contains(&s.synth.object.as_str()));
