@@ -361,10 +361,11 @@ pub const PRUNE_SLACK: f64 = 0.05;
 const COARSE_PASS: f64 = 0.3;
 
 /// The Nelder–Mead evaluations per searched dimension that polish a local refinement's last
-/// pass (over its two restarts): enough for the simplex to converge (its size under 2·10⁻⁴
-/// of the box) in the 6 to 8 dimensions of a pose with joints, where a fixed 300 stopped it
-/// short (the 20-keyframe benchmark's keyframe 17 ended 7.6° and 8° of joint off with 300;
-/// with 700 or 1,000 in its 7 dimensions, 2.0° and 2.3°, the same poses either way).
+/// pass (over its two restarts), so that the budget grows with the 6 to 8 dimensions of a
+/// pose with joints. A fixed 300 stopped it short: the 20-keyframe benchmark's keyframe 17
+/// ended 7.6° and 8° of joint off with 300, and 2.0° and 2.3° with 700 or 1,000 in its 7
+/// dimensions. Those two budgets gave the same poses, so the simplex stopped on its own
+/// tolerance there (inferred from that, not logged).
 const POLISH_PER_DOF: usize = 100;
 
 /// Every hypothesis refined in `window` (in parallel, seeds `seed + k`), in input order.
