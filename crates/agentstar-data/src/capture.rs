@@ -304,6 +304,29 @@ impl Capture {
                 return Ok(i);
             }
         }
+        if let Some(b) = self.between.iter().find(|f| {
+            f.name == tok || f.stem == tok || f.stem == stem_of(tok) || tok.parse() == Ok(f.number)
+        }) {
+            // An in-between frame: the keyframe tools take keyframes only; name the two it lies
+            // between, so the caller can pick one.
+            let before = self.frames.iter().rev().find(|f| f.number < b.number);
+            let after = self.frames.iter().find(|f| f.number > b.number);
+            let around = match (before, after) {
+                (Some(a), Some(c)) => format!("between keyframes {} and {}", a.name, c.name),
+                (Some(a), None) => format!("after the last keyframe, {}", a.name),
+                (None, Some(c)) => format!("before the first keyframe, {}", c.name),
+                (None, None) => "in a capture without keyframes".to_string(),
+            };
+            return Err(DataError::invalid(
+                Self::manifest_path(&self.dir),
+                format!(
+                    "`{tok}` is an in-between frame ({}, {around}); this takes keyframes only (the capture has {} keyframes and {} in-between frames)",
+                    b.name,
+                    self.frames.len(),
+                    self.between.len()
+                ),
+            ));
+        }
         let names: Vec<&str> = self.frames.iter().map(|f| f.name.as_str()).collect();
         let shown = if names.len() > 8 {
             format!(

@@ -100,7 +100,22 @@ fn keyframes_are_what_tools_index_and_in_between_frames_are_kept_apart() {
         ]
     );
     // Keyframe selection never reaches an in-between frame.
-    assert!(c.select(Some("000010")).is_err());
+    // Named anyway, the refusal says what it is and the keyframes it lies between.
+    for named in ["000010", "000010.png", "10", "000000..000040"] {
+        let err = c.select(Some(named)).expect_err(named).to_string();
+        assert!(
+            err.contains("in-between frame") && err.contains("000000.png and 000030.png")
+                || err.contains("between keyframes 000030.png and 000060.png"),
+            "{named}: {err}"
+        );
+        assert!(err.contains("3 keyframes and 4 in-between frames"), "{err}");
+    }
+    // A frame the capture does not have at all is still refused with the keyframes listed.
+    let err = c.select(Some("000070")).expect_err("none").to_string();
+    assert!(
+        err.contains("unknown frame `000070`") && err.contains("000060.png"),
+        "{err}"
+    );
     assert_eq!(c.select(None).expect("all"), [0, 1, 2]);
     assert!(c.between_note().expect("note").contains("4 in-between"));
     // The same frames without the key: every frame a keyframe, as before.

@@ -42,7 +42,7 @@ pub use track::WarmStart;
 pub use views::{Crop, PoseDiffArgs, TemporalArgs, TurntableArgs};
 
 /// What a `frames` argument takes (the one frame grammar, `Capture::select`).
-pub const FRAMES: &str = "Keyframes: `all`, names (`000010.png`), stems (`000010`), frame numbers, or ranges `a..b`, comma separated.";
+pub const FRAMES: &str = "Keyframes: `all`, names (`000010.png`), stems (`000010`), keyframe numbers, or ranges `a..b`, comma separated. An in-between frame is refused, with the keyframes it lies between named.";
 
 /// A request that cannot be turned into arguments.
 #[derive(Debug, thiserror::Error)]

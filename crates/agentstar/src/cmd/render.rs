@@ -389,18 +389,21 @@ pub fn run(a: Args) -> Result<ExitCode> {
         ));
     }
     let compare_title = compare_sheet_title(has_hand);
+    // The side sheet (each crop with the model beside it) before the sheet of the crops
+    // alone: a reply that shows the first sheet shows the model (play-test 2026-12-05: with
+    // `model: true`, the agent looked at the crops' sheet and found no model).
     for (tiles, stem, title) in [
         (&overlay_tiles, "sheet_overlay", "render over frame"),
         (&compare_tiles, "sheet_compare", compare_title.as_str()),
         (
-            &frame_tiles,
-            "sheet_frames",
-            "keyframes, cropped around the mask",
-        ),
-        (
             &side_tiles,
             "sheet_side",
             "keyframe, then the model opaque, cropped around the mask",
+        ),
+        (
+            &frame_tiles,
+            "sheet_frames",
+            "keyframes, cropped around the mask",
         ),
     ] {
         if tiles.is_empty() {
