@@ -17,6 +17,7 @@ use agentstar_render::ScoreTarget;
 use agentstar_synth::SynthCapture;
 use agentstar_track::appearance::{model_agreement, AppearanceConfig, AppearanceFrame};
 use agentstar_track::objective::FrameProblem;
+use agentstar_track::tracker::ChoiceTrace;
 use agentstar_track::GenPose;
 use serde::{Deserialize, Serialize};
 
@@ -37,6 +38,19 @@ pub enum MissCause {
     Evidence,
 }
 
+/// Whether the sequence-level choice weighed a hypothesis within [`MISS_DEG`] of a missed
+/// keyframe's truth (after the object's symmetries), and what it did with it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Weighed {
+    /// The choice took a pose near the truth: a pass after it moved the frame away.
+    Taken,
+    /// Among the choice's hypotheses, and another taken: the weighing is wrong.
+    NotTaken,
+    /// No hypothesis near the truth: no search proposed it.
+    Absent,
+}
+
 /// One missed keyframe and the evidence at both poses.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct FrameMiss {
@@ -49,6 +63,9 @@ pub struct FrameMiss {
     pub model_ncc_tracked: Option<f64>,
     pub model_ncc_truth: Option<f64>,
     pub cause: MissCause,
+    /// What the sequence-level choice did with the truth; `None` where it did not run.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub weighed: Option<Weighed>,
 }
 
 /// The misses of a sequence, counted by cause.
@@ -63,6 +80,33 @@ pub struct Misses {
 impl Misses {
     pub fn total(&self) -> usize {
         self.frames.len()
+    }
+
+    /// The misses whose truth the sequence-level choice weighed as `w`.
+    pub fn weighed(&self, w: Weighed) -> usize {
+        self.frames.iter().filter(|f| f.weighed == Some(w)).count()
+    }
+}
+
+/// What the choice did with `truth` at one keyframe: its hypotheses there and the index its
+/// path took; each hypothesis measured from the truth's equivalent under the object's
+/// `symmetries` nearest it ([`nearest_equivalent`]).
+pub fn weighed(
+    hypotheses: &[GenPose],
+    taken: usize,
+    truth: &GenPose,
+    symmetries: &[UnitQuaternion],
+) -> Weighed {
+    let near = |g: &GenPose| {
+        let t = nearest_equivalent(truth, g, symmetries);
+        t.pose.rotation.angle_to(&g.pose.rotation).to_degrees() <= MISS_DEG
+    };
+    if hypotheses.get(taken).is_some_and(near) {
+        Weighed::Taken
+    } else if hypotheses.iter().any(near) {
+        Weighed::NotTaken
+    } else {
+        Weighed::Absent
     }
 }
 
@@ -120,6 +164,7 @@ pub fn misses(
     targets: &[ScoreTarget],
     truth: &[GenPose],
     tracked: &[GenPose],
+    choice: Option<&ChoiceTrace>,
 ) -> Misses {
     let cfg = AppearanceConfig::default();
     let mut out = Misses::default();
@@ -156,6 +201,14 @@ pub fn misses(
             MissCause::Colours => out.colours += 1,
             MissCause::Evidence => out.evidence += 1,
         }
+        let weighed = choice.and_then(|c| {
+            Some(weighed(
+                c.hypotheses.get(i)?,
+                *c.path.get(i)?,
+                t,
+                &capture.symmetries,
+            ))
+        });
         out.frames.push(FrameMiss {
             frame: f.name.clone(),
             rotation_deg,
@@ -164,6 +217,7 @@ pub fn misses(
             model_ncc_tracked,
             model_ncc_truth,
             cause,
+            weighed,
         });
     }
     out

@@ -321,6 +321,7 @@ pub fn run_sequence_observed(
             })
             .collect::<Vec<_>>(),
         &pred.poses,
+        tracked.choice.as_ref(),
     );
     let symmetry_reduced = if capture.symmetries.is_empty() {
         None

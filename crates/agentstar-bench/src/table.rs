@@ -2,6 +2,7 @@
 //! geometry, HOT3D-like pose tracking, iTACO-like articulation (mean ± std, the published
 //! units), the ablation over methods, and wall time per sequence.
 
+use crate::misses::Weighed;
 use crate::run::SequenceResult;
 use std::fmt::Write;
 
@@ -517,7 +518,7 @@ pub fn misses_table(results: &[SequenceResult]) -> String {
         return String::new();
     }
     let mut out = String::from(
-        "### Where the misses come from\n\nKeyframes more than 3° off after the symmetries, by what scored the truth higher there: **search**: the mask (gate IoU over 0.005 better; no search reached the truth), **colours**: the masks tie and the model's own colours prefer the truth (the choice did not weigh them), **evidence**: neither (only the frames' colours against each other, or the motion, could tell).\n\n| method | keyframes | missed | search | colours | evidence |\n|---|---|---|---|---|---|\n",
+        "### Where the misses come from\n\nKeyframes more than 3° off after the symmetries, by what scored the truth higher there: **search**: the mask (gate IoU over 0.005 better; no search reached the truth), **colours**: the masks tie and the model's own colours prefer the truth (the choice did not weigh them), **evidence**: neither (only the frames' colours against each other, or the motion, could tell). **Choice**: what the sequence-level choice did with the truth (a hypothesis within 3° of it): **taken** (a pass after the choice moved the frame away), **not taken** (weighed, another preferred), **none** (no search proposed it).\n\n| method | keyframes | missed | search | colours | evidence | choice: taken / not taken / none |\n|---|---|---|---|---|---|---|\n",
     );
     for m in methods(results) {
         let rs: Vec<&SequenceResult> = of(results, None, m).collect();
@@ -527,14 +528,17 @@ pub fn misses_table(results: &[SequenceResult]) -> String {
         };
         let _ = writeln!(
             out,
-            "| {m} | {keyframes} | {} | {} | {} | {} |",
+            "| {m} | {keyframes} | {} | {} | {} | {} | {} / {} / {} |",
             sum(|x| x.total()),
             sum(|x| x.search),
             sum(|x| x.colours),
-            sum(|x| x.evidence)
+            sum(|x| x.evidence),
+            sum(|x| x.weighed(Weighed::Taken)),
+            sum(|x| x.weighed(Weighed::NotTaken)),
+            sum(|x| x.weighed(Weighed::Absent))
         );
     }
-    out.push_str("\n| sequence | method | missed | search | colours | evidence | worst frame: rotation (°), gate IoU tracked / truth, model colours (`score`'s `model`) tracked / truth |\n|---|---|---|---|---|---|---|\n");
+    out.push_str("\n| sequence | method | missed | search | colours | evidence | choice: taken / not taken / none | worst frame: rotation (°), gate IoU tracked / truth, model colours (`score`'s `model`) tracked / truth |\n|---|---|---|---|---|---|---|---|\n");
     for r in with {
         let Some(m) = &r.misses else { continue };
         let worst = m
@@ -554,13 +558,16 @@ pub fn misses_table(results: &[SequenceResult]) -> String {
             });
         let _ = writeln!(
             out,
-            "| {} | {} | {} | {} | {} | {} | {worst} |",
+            "| {} | {} | {} | {} | {} | {} | {} / {} / {} | {worst} |",
             r.info.id,
             r.info.method,
             m.total(),
             m.search,
             m.colours,
-            m.evidence
+            m.evidence,
+            m.weighed(Weighed::Taken),
+            m.weighed(Weighed::NotTaken),
+            m.weighed(Weighed::Absent)
         );
     }
     out.push('\n');

@@ -606,7 +606,7 @@ fn a_generated_object_is_tracked_and_its_errors_reduced_by_its_symmetries() {
 
 #[test]
 fn the_general_table_gives_the_share_within_1cm_3deg_and_quantiles() {
-    use agentstar_bench::misses::{FrameMiss, MissCause, Misses};
+    use agentstar_bench::misses::{FrameMiss, MissCause, Misses, Weighed};
     use agentstar_bench::run::ReducedErrors;
     use agentstar_bench::table::{general_table, histogram, misses_table, quantile};
     let reduced = |epe: f64, rot: f64| ReducedErrors {
@@ -661,6 +661,11 @@ fn the_general_table_gives_the_share_within_1cm_3deg_and_quantiles() {
         model_ncc_tracked: Some(0.1),
         model_ncc_truth: Some(0.5),
         cause,
+        weighed: Some(if rotation_deg > 90.0 {
+            Weighed::NotTaken
+        } else {
+            Weighed::Absent
+        }),
     };
     rs[3].misses = Some(Misses {
         search: 1,
@@ -672,9 +677,12 @@ fn the_general_table_gives_the_share_within_1cm_3deg_and_quantiles() {
         ],
     });
     let t = misses_table(&rs);
-    assert!(t.contains("| tracker | 16 | 2 | 1 | 1 | 0 |"), "{t}");
     assert!(
-        t.contains("| gen-2-hard-held-s1021 | tracker | 2 | 1 | 1 | 0 | 000020.png: 178.5°, 0.9700 / 0.9680, 0.10 / 0.50 |"),
+        t.contains("| tracker | 16 | 2 | 1 | 1 | 0 | 0 / 1 / 1 |"),
+        "{t}"
+    );
+    assert!(
+        t.contains("| gen-2-hard-held-s1021 | tracker | 2 | 1 | 1 | 0 | 0 / 1 / 1 | 000020.png: 178.5°, 0.9700 / 0.9680, 0.10 / 0.50 |"),
         "{t}"
     );
     assert_eq!(quantile(&[], 0.5), None);

@@ -70,7 +70,7 @@ pub(super) fn choose_sequence(
     fixed: &[bool],
     alternatives: &[Vec<(GenPose, f64)>],
     log: &mut Log<'_>,
-) -> Result<Vec<Vec<GenPose>>, TrackError> {
+) -> Result<(Vec<Vec<GenPose>>, ChoiceTrace), TrackError> {
     let n = frames.len();
     // Each frame's hypotheses on their own (their seeds depend on the frame alone).
     let hyps: Vec<Vec<(GenPose, f64)>> = (0..n)
@@ -206,9 +206,16 @@ pub(super) fn choose_sequence(
         .zip(poses.iter())
         .map(|(h, own)| h.iter().filter(|(g, _)| !same_basin(g, own)).count())
         .sum();
+    let trace = |path: Vec<usize>| ChoiceTrace {
+        hypotheses: hyps
+            .iter()
+            .map(|h| h.iter().map(|(g, _)| g.clone()).collect())
+            .collect(),
+        path,
+    };
     if alternatives == 0 {
         log.push("sequence choice: no twin explains any frame as well; poses kept".into());
-        return Ok(vec![Vec::new(); n]);
+        return Ok((vec![Vec::new(); n], trace(vec![0; n])));
     }
     // The model's own colours (a label part, a badge), where it has them: each hypothesis
     // against its frame, no other frame needed; `(1 − NCC) / CHOICE_NCC_UNIT` as for a
@@ -293,6 +300,7 @@ pub(super) fn choose_sequence(
     if path.len() != n {
         return Err(TrackError::Invalid("sequence choice: no path".into()));
     }
+    let weighed = trace(path.clone());
     let rejected: Vec<Vec<GenPose>> = hyps
         .iter()
         .zip(&path)
@@ -357,7 +365,7 @@ pub(super) fn choose_sequence(
             format!("; {adjusted} frame(s) moved within their basin (under {REJECTED_BASIN_DEG}° and {:.0}% of the depth)", 100.0 * CHOICE_FAR_SHIFT)
         }
     ));
-    Ok(rejected)
+    Ok((rejected, weighed))
 }
 
 /// One unit of the sequence choice's cost per this much photometric correlation (NCC)

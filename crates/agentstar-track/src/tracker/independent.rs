@@ -100,5 +100,6 @@ pub(super) fn track_independent_on(
         log: log.lines,
         evaluations: s.evals.into_inner(),
         between: vec![],
+        choice: None,
     })
 }

@@ -163,6 +163,20 @@ pub struct TrackResult {
     /// frames' poses (gap g: between keyframes g and g + 1, in temporal order) and IoU
     /// (`None`: carried at constant velocity, not fitted: hidden or out of view).
     pub between: Vec<Vec<(GenPose, Option<f64>)>>,
+    /// What the sequence-level choice weighed, when it ran: for a benchmark to tell a miss
+    /// the choice never had a hypothesis for from one it weighed and did not take.
+    pub choice: Option<ChoiceTrace>,
+}
+
+/// The hypotheses the sequence-level choice weighed per keyframe (the frame's own pose
+/// first, as the choice refined it; then its twins, the neighbours' poses carried to it and
+/// the basins its global search found) and the one its cheapest path took (`path[i]` indexes
+/// `hypotheses[i]`). Poses on the model the search ran on (a stand-in of a dense mesh);
+/// passes after the choice may have moved the frames since.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ChoiceTrace {
+    pub hypotheses: Vec<Vec<GenPose>>,
+    pub path: Vec<usize>,
 }
 
 /// What a tracking run reports as it goes: each line of its log (progress), and the poses
@@ -656,7 +670,7 @@ fn track_on(
     }
     log.all_poses(&poses);
     let fixed = vec![false; n];
-    after_propagation(
+    let choice = after_propagation(
         &s,
         (frames, between),
         (&mut poses, &mut scores),
@@ -697,6 +711,7 @@ fn track_on(
         log: log.lines,
         evaluations: s.evals.into_inner(),
         between: between_poses,
+        choice,
     })
 }
 
@@ -778,13 +793,14 @@ fn after_propagation(
     alternatives: &[Vec<(GenPose, f64)>],
     first: usize,
     log: &mut Log<'_>,
-) -> Result<(), TrackError> {
+) -> Result<Option<ChoiceTrace>, TrackError> {
     let (cfg, n) = (&s.cfg, frames.len());
     if cfg.appearance {
         judge_model_colours(s, frames, poses, log);
     }
     // The basins the sequence choice weighed and did not take, per frame.
     let mut rejected: Vec<Vec<GenPose>> = Vec::new();
+    let mut trace = None;
     if cfg.consistency_pass && n >= 2 {
         let before = poses.to_vec();
         consistency(s, frames, poses, scores, fixed, log)?;
@@ -823,7 +839,8 @@ fn after_propagation(
             log.phase("appearance", s);
             log.pass_done("the appearance pass before the sequence choice", poses);
         }
-        rejected = choose_sequence(s, frames, (poses, scores), fixed, alternatives, log)?;
+        let (r, t) = choose_sequence(s, frames, (poses, scores), fixed, alternatives, log)?;
+        (rejected, trace) = (r, Some(t));
         log.phase("sequence choice", s);
         log.all_poses(poses);
         log.pass_done("the sequence-level choice", poses);
@@ -837,7 +854,7 @@ fn after_propagation(
             log.pass_done("the axis pass", poses);
         }
     }
-    Ok(())
+    Ok(trace)
 }
 
 /// Runs `search` on the stand-in of a dense `model` ([`crate::standin`]), or on the model

@@ -409,13 +409,14 @@ fn track_from_on(
         rotations(&poses),
     ));
     let first = anchors.first().copied().unwrap_or(0);
+    let mut choice = None;
     if keep {
         log.push(format!(
             "basins kept: every frame refined within its own basin (under {BASIN_ROTATION_DEG}° of rotation and {BASIN_JOINT_DEG}° of joint from its starting pose); the wide search and the passes that move frames between basins (consistency, sequence choice, appearance, axis) did not run"
         ));
     } else {
         follow_gaps(&s, frames, between, &poses, &mut log)?;
-        after_propagation(
+        choice = after_propagation(
             &s,
             (frames, between),
             (&mut poses, &mut scores),
@@ -444,6 +445,7 @@ fn track_from_on(
             log: log.lines,
             evaluations: s.evals.into_inner(),
             between: vec![],
+            choice,
         },
         passes,
     ))

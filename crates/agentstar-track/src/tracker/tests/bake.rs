@@ -144,6 +144,7 @@ fn plain_result(poses: &[GenPose], scores: Vec<f64>) -> TrackResult {
         log: vec![],
         evaluations: 0,
         between: vec![],
+        choice: None,
     }
 }
 

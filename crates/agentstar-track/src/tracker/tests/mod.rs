@@ -100,6 +100,14 @@ fn silhouette_frames(targets: &[ScoreTarget]) -> Vec<TrackFrame<'_>> {
 /// the truth), every other frame true; the chosen poses, with and without the truth among
 /// the basins frame 2's global search found.
 fn choice_with(alternatives_of_2: Vec<(GenPose, f64)>) -> (Vec<GenPose>, Vec<String>) {
+    let (poses, lines, _) = choice_traced(alternatives_of_2);
+    (poses, lines)
+}
+
+/// [`choice_with`], with what the choice weighed.
+fn choice_traced(
+    alternatives_of_2: Vec<(GenPose, f64)>,
+) -> (Vec<GenPose>, Vec<String>, ChoiceTrace) {
     let model = ell();
     let scale = 0.5;
     let truths: Vec<GenPose> = (0..5).map(truth).collect();
@@ -118,7 +126,7 @@ fn choice_with(alternatives_of_2: Vec<(GenPose, f64)>) -> (Vec<GenPose>, Vec<Str
     alternatives[2] = alternatives_of_2;
     let observe = |_: &str| {};
     let mut log = Log::new(&observe);
-    choose_sequence(
+    let (_, trace) = choose_sequence(
         &s,
         &frames,
         (&mut poses, &mut scores),
@@ -127,7 +135,7 @@ fn choice_with(alternatives_of_2: Vec<(GenPose, f64)>) -> (Vec<GenPose>, Vec<Str
         &mut log,
     )
     .expect("choice");
-    (poses, log.lines)
+    (poses, log.lines, trace)
 }
 
 #[test]
@@ -135,8 +143,20 @@ fn the_sequence_choice_takes_a_basin_the_frames_global_search_found() {
     let truth_2 = truth(2);
     // The truth as a global search would have found it, with its IoU (1: the mask is its
     // silhouette).
-    let (poses, log) = choice_with(vec![(truth_2.clone(), 1.0)]);
+    let (poses, log, trace) = choice_traced(vec![(truth_2.clone(), 1.0)]);
     let error = |g: &GenPose| error_of(g, &truth_2);
+    // What the choice weighed: every frame's hypotheses, and the path's pick at frame 2 the
+    // truth (given, and reached by refining the frame's own pose: one basin).
+    assert_eq!(trace.hypotheses.len(), 5);
+    assert_eq!(trace.path.len(), 5);
+    for (h, &k) in trace.hypotheses.iter().zip(&trace.path) {
+        assert!(k < h.len(), "{k} of {}", h.len());
+    }
+    assert!(
+        error(&trace.hypotheses[2][trace.path[2]]) < 1.0,
+        "{:.1}°",
+        error(&trace.hypotheses[2][trace.path[2]])
+    );
     assert!(
         error(&poses[2]) < 1.0,
         "{:.1}°\n{}",
