@@ -285,10 +285,12 @@ impl Capture {
             }
         }
         if out.is_empty() {
-            return Err(DataError::invalid(
-                Self::manifest_path(&self.dir),
-                format!("`{spec}` names no frame (use names, stems, `a..b` ranges or `all`)"),
-            ));
+            return Err(DataError::Selection {
+                dir: self.dir.clone(),
+                message: format!(
+                    "`{spec}` names no frame (use names, stems, `a..b` ranges or `all`)"
+                ),
+            });
         }
         out.sort_unstable();
         out.dedup();
@@ -317,15 +319,15 @@ impl Capture {
                 (None, Some(c)) => format!("before the first keyframe, {}", c.name),
                 (None, None) => "in a capture without keyframes".to_string(),
             };
-            return Err(DataError::invalid(
-                Self::manifest_path(&self.dir),
-                format!(
+            return Err(DataError::Selection {
+                dir: self.dir.clone(),
+                message: format!(
                     "`{tok}` is an in-between frame ({}, {around}); this takes keyframes only (the capture has {} keyframes and {} in-between frames)",
                     b.name,
                     self.frames.len(),
                     self.between.len()
                 ),
-            ));
+            });
         }
         let names: Vec<&str> = self.frames.iter().map(|f| f.name.as_str()).collect();
         let shown = if names.len() > 8 {
@@ -337,10 +339,10 @@ impl Capture {
         } else {
             names.join(", ")
         };
-        Err(DataError::invalid(
-            Self::manifest_path(&self.dir),
-            format!("unknown frame `{tok}`; frames are {shown} (use names, stems, `a..b` ranges or `all`)"),
-        ))
+        Err(DataError::Selection {
+            dir: self.dir.clone(),
+            message: format!("unknown frame `{tok}`; frames are {shown} (use names, stems, `a..b` ranges or `all`)"),
+        })
     }
 
     pub fn load_frame(&self, i: usize) -> Result<image::RgbImage> {

@@ -44,6 +44,10 @@ pub enum DataError {
     },
     #[error("{0}")]
     Scene(#[from] agentstar_scene::SceneError),
+    /// Frames named that the capture does not offer (an unknown frame, an in-between frame
+    /// where keyframes are taken): the request is at fault, not the capture's files.
+    #[error("{message} (capture {dir})")]
+    Selection { dir: PathBuf, message: String },
 }
 
 impl DataError {

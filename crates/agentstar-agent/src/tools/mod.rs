@@ -337,7 +337,12 @@ fn first_line_of(s: &str) -> &str {
     s.lines().next().unwrap_or("")
 }
 
-/// PNG files under `dir`, sheets first, then by name.
+/// PNG files under `dir`, in the order a reply shows them: the sheets that draw the model
+/// (side by side, compared, overlaid), then the sheet of the frames alone, then each
+/// frame's image with the model beside it (`side_…`), then the rest; each kind by name. A
+/// reply keeps only the first few: with `model: true` the first image must show the model
+/// (play-test 2026-12-05: the frames' own sheet came first, by name, and six raw crops took
+/// the rest of the slots).
 fn pngs(dir: &Path) -> Vec<PathBuf> {
     let mut v: Vec<PathBuf> = std::fs::read_dir(dir)
         .into_iter()
@@ -350,9 +355,22 @@ fn pngs(dir: &Path) -> Vec<PathBuf> {
             .file_name()
             .map(|n| n.to_string_lossy().into_owned())
             .unwrap_or_default();
-        (!n.contains("sheet"), n)
+        (image_rank(&n), n)
     });
     v
+}
+
+/// Where a PNG of a view's folder comes in a reply ([`pngs`]).
+fn image_rank(name: &str) -> u8 {
+    if name.starts_with("sheet_frames") {
+        1
+    } else if name.contains("sheet") {
+        0
+    } else if name.starts_with("side_") {
+        2
+    } else {
+        3
+    }
 }
 
 impl Toolbox {

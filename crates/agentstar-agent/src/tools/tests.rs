@@ -523,3 +523,34 @@ fn a_scene_edit_says_pose_json_unchanged_only_when_no_version_was_made() {
         "{header}"
     );
 }
+
+#[test]
+fn a_views_images_come_with_the_model_first() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    for name in [
+        "frame_000000.png",
+        "frame_000004.png",
+        "sheet_frames.png",
+        "sheet_side.png",
+        "side_000000.png",
+        "side_000004.png",
+        "notes.txt",
+    ] {
+        std::fs::write(dir.path().join(name), b"").expect("write");
+    }
+    let names: Vec<String> = pngs(dir.path())
+        .iter()
+        .map(|p| p.file_name().expect("name").to_string_lossy().into_owned())
+        .collect();
+    assert_eq!(
+        names,
+        [
+            "sheet_side.png",
+            "sheet_frames.png",
+            "side_000000.png",
+            "side_000004.png",
+            "frame_000000.png",
+            "frame_000004.png"
+        ]
+    );
+}
