@@ -90,8 +90,9 @@ impl Misses {
 
 /// What the choice did with `truth` at one keyframe: its hypotheses there and the index its
 /// path took; each hypothesis measured from the truth's equivalent under the object's
-/// `symmetries` nearest it ([`nearest_equivalent`]).
-pub fn weighed(
+/// `symmetries` nearest it ([`nearest_equivalent`]), by rotation alone as a miss is (a
+/// hypothesis with a joint off counts as the truth).
+pub fn choice_verdict(
     hypotheses: &[GenPose],
     taken: usize,
     truth: &GenPose,
@@ -202,7 +203,7 @@ pub fn misses(
             MissCause::Evidence => out.evidence += 1,
         }
         let weighed = choice.and_then(|c| {
-            Some(weighed(
+            Some(choice_verdict(
                 c.hypotheses.get(i)?,
                 *c.path.get(i)?,
                 t,

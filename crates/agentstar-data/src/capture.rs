@@ -180,6 +180,11 @@ impl Collector {
     }
 }
 
+/// Whether `name` names `frame`: its file name, its stem, or a file name with its stem.
+fn named_by(frame: &Frame, name: &str) -> bool {
+    frame.name == name || frame.stem == name || frame.stem == stem_of(name)
+}
+
 fn stem_of(name: &str) -> &str {
     Path::new(name)
         .file_stem()
@@ -262,9 +267,7 @@ impl Capture {
         self.manifest.image_size[1]
     }
     pub fn frame_index(&self, name: &str) -> Option<usize> {
-        self.frames
-            .iter()
-            .position(|f| f.name == name || f.stem == name || f.stem == stem_of(name))
+        self.frames.iter().position(|f| named_by(f, name))
     }
 
     /// The one frame grammar (`--frames`, the tools' `frames`, a sub-agent's window): `all`
@@ -306,9 +309,11 @@ impl Capture {
                 return Ok(i);
             }
         }
-        if let Some(b) = self.between.iter().find(|f| {
-            f.name == tok || f.stem == tok || f.stem == stem_of(tok) || tok.parse() == Ok(f.number)
-        }) {
+        if let Some(b) = self
+            .between
+            .iter()
+            .find(|f| named_by(f, tok) || tok.parse() == Ok(f.number))
+        {
             // An in-between frame: the keyframe tools take keyframes only; name the two it lies
             // between, so the caller can pick one.
             let before = self.frames.iter().rev().find(|f| f.number < b.number);

@@ -168,11 +168,13 @@ pub struct TrackResult {
     pub choice: Option<ChoiceTrace>,
 }
 
-/// The hypotheses the sequence-level choice weighed per keyframe (the frame's own pose
-/// first, as the choice refined it; then its twins, the neighbours' poses carried to it and
-/// the basins its global search found) and the one its cheapest path took (`path[i]` indexes
-/// `hypotheses[i]`). Poses on the model the search ran on (a stand-in of a dense mesh);
-/// passes after the choice may have moved the frames since.
+/// The hypotheses the sequence-level choice weighed per keyframe (the frame's own pose as
+/// the choice refined it, its twins, the neighbours' poses carried to it and the basins its
+/// global search found, each within the choice's IoU margin of the frame's best, so the
+/// frame's own pose may be missing; a round body's turned to its print) and the one its
+/// cheapest path took (`path[i]` indexes `hypotheses[i]`), before the path's pick was
+/// polished. Poses on the model the search ran on (a stand-in of a dense mesh); passes after
+/// the choice may have moved the frames since.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ChoiceTrace {
     pub hypotheses: Vec<Vec<GenPose>>,
