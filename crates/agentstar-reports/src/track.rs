@@ -154,19 +154,84 @@ pub struct BasinMoveRow {
     pub iou_after: f64,
     /// The tracker's pass that moved it.
     pub pass: String,
+    /// For a round body (an outline symmetric about an axis of the model): the same rotation
+    /// leaving out its turn about that axis, degrees. Within the bound, the frame turned about
+    /// the axis only: its outline is the one it had, and the print (or a part off the axis)
+    /// decided.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub across_axis_deg: Option<f64>,
 }
 
 impl BasinMoveRow {
-    /// One line for people: `000003.png: turned 179.2° (bound 45°), IoU 0.41 → 0.99, by …`.
+    /// Whether the frame turned about its round body's axis only ([`Self::across_axis_deg`]
+    /// within the bound).
+    pub fn about_round_axis(&self) -> bool {
+        self.across_axis_deg.is_some_and(|a| a <= self.bound_deg)
+    }
+
+    /// One line for people: `000003.png: turned 179.2° (bound 45°), IoU 0.41 → 0.99, by …`;
+    /// a turn about a round body's axis says so.
     pub fn line(&self) -> String {
+        let turn = match self.across_axis_deg {
+            Some(across) if self.about_round_axis() => format!(
+                "turned {:.1}° about the body's round axis ({across:.1}° across it: the outline is the same, the print or a part off the axis decided)",
+                self.rotation_deg
+            ),
+            _ => format!(
+                "turned {:.1}° from its starting pose (bound {}°)",
+                self.rotation_deg, self.bound_deg
+            ),
+        };
         format!(
-            "{}: turned {:.1}° from its starting pose (bound {}°), IoU {:.4} → {:.4}, by {}",
-            self.frame,
-            self.rotation_deg,
-            self.bound_deg,
-            self.iou_before,
-            self.iou_after,
-            self.pass
+            "{}: {turn}, IoU {:.4} → {:.4}, by {}",
+            self.frame, self.iou_before, self.iou_after, self.pass
         )
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn row(across_axis_deg: Option<f64>) -> BasinMoveRow {
+        BasinMoveRow {
+            frame: "000024.png".into(),
+            rotation_deg: 92.0,
+            bound_deg: 45.0,
+            iou_before: 0.97,
+            iou_after: 0.98,
+            pass: "the appearance pass".into(),
+            across_axis_deg,
+        }
+    }
+
+    #[test]
+    fn a_turn_about_a_round_axis_only_says_so_and_a_turn_across_it_is_a_basin_move() {
+        // A round body turned about its axis: the same outline (play-test, 2026-12-05: such a
+        // turn read as a move to another basin).
+        let about = row(Some(1.5));
+        assert!(about.about_round_axis());
+        let line = about.line();
+        assert!(
+            line.contains("about the body's round axis") && line.contains("1.5° across it"),
+            "{line}"
+        );
+        // Across the axis beyond the bound, or no round axis at all: the plain move.
+        for r in [row(Some(60.0)), row(None)] {
+            assert!(!r.about_round_axis());
+            let line = r.line();
+            assert!(
+                line.contains("turned 92.0° from its starting pose (bound 45°)"),
+                "{line}"
+            );
+        }
+        // Reports written before the field read as no round axis, and it is left out of
+        // those without one.
+        let old = r#"{"frame": "000003.png", "rotation_deg": 179.2, "bound_deg": 45.0,
+            "iou_before": 0.41, "iou_after": 0.99, "pass": "the sequence choice"}"#;
+        let parsed: BasinMoveRow = serde_json::from_str(old).expect("an older report");
+        assert_eq!(parsed.across_axis_deg, None);
+        let json = serde_json::to_string(&row(None)).expect("json");
+        assert!(!json.contains("across_axis_deg"), "{json}");
     }
 }

@@ -5,7 +5,7 @@
 //! (`oapply`, `osweep`).
 
 use crate::objective::{CandidateScore, FrameProblem};
-use crate::search::{rank, sweep, SweepConfig, SweepResult};
+use crate::search::{rank, sweep, Candidate, SweepConfig, SweepResult};
 use crate::space::{joint_default, pose_ranges, Dof, DofRange, SearchSpace};
 use crate::symmetry::fold_turns;
 use crate::update::{apply_object_rotation, flip, GenPose};
@@ -379,8 +379,36 @@ pub fn refine_each(
     refine_each_above(problem, hypotheses, window, seed, f64::NEG_INFINITY)
 }
 
+/// Refined candidates this close to a better-ranked one are the same pose reached from two
+/// starts ([`refine_ranked`] lists it once): 1° of rotation, 0.5% of the depth, 0.02 of
+/// every joint state (about 1°, or 0.02 model units).
+const CONVERGED_DEG: f64 = 1.0;
+const CONVERGED_DEPTH: f64 = 0.005;
+const CONVERGED_STATE: f64 = 0.02;
+
+/// Whether two refined poses are one ([`CONVERGED_DEG`] and the rest).
+fn converged(a: &GenPose, b: &GenPose) -> bool {
+    let depth = a
+        .pose
+        .translation
+        .z
+        .abs()
+        .max(b.pose.translation.z.abs())
+        .max(1e-9);
+    a.pose.rotation.angle_to(&b.pose.rotation).to_degrees() < CONVERGED_DEG
+        && (a.pose.translation - b.pose.translation).norm() < CONVERGED_DEPTH * depth
+        && a.states.len() == b.states.len()
+        && a.states
+            .iter()
+            .zip(&b.states)
+            .all(|(x, y)| (x - y).abs() < CONVERGED_STATE)
+}
+
 /// A sweep's ranked candidates each refined in `window` and ranked again by their refined
 /// scores (the start, when kept, stays as it is): what `oapply` and `osweep` rank by default.
+/// Candidates whose refinements end at one pose ([`converged`]) are listed once, the best
+/// of them kept with its own start (play-test, 2026-12-05: `osweep` listed one pose twice,
+/// from `rz:-30` and from `rz:-15`); the result's list is that much shorter.
 pub fn refine_ranked(
     problem: &FrameProblem<'_>,
     mut result: SweepResult,
@@ -399,7 +427,14 @@ pub fn refine_ranked(
         c.pose = r.pose;
         c.score = r.score;
     }
-    result.ranked = rank(result.ranked, n);
+    let ranked = rank(result.ranked, n);
+    let mut kept: Vec<Candidate> = Vec::with_capacity(ranked.len());
+    for c in ranked {
+        if !kept.iter().any(|k| converged(&k.pose, &c.pose)) {
+            kept.push(c);
+        }
+    }
+    result.ranked = rank(kept, n);
     Ok(result)
 }
 

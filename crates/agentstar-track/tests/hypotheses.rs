@@ -6,9 +6,12 @@ use agentstar_geom::pose::ObjectPose;
 use agentstar_geom::primitives::cuboid;
 use agentstar_geom::{KinematicTree, ObjectModel, Part, Point3, UnitQuaternion, Vector3};
 use agentstar_track::hypotheses::{
-    basins, refine_above, refine_each, refine_first_pass, refine_local, refine_rest, LocalWindow,
+    basins, refine_above, refine_each, refine_first_pass, refine_local, refine_ranked, refine_rest,
+    LocalWindow,
 };
 use agentstar_track::objective::FrameProblem;
+use agentstar_track::search::{sweep, Strategy, SweepConfig};
+use agentstar_track::space::{Dof, DofRange, SearchSpace};
 use agentstar_track::update::{apply_object_rotation, flip, GenPose};
 
 mod common;
@@ -322,4 +325,75 @@ fn a_refinement_above_its_floor_is_the_whole_one_and_under_it_stops_after_one_pa
     assert_eq!(first_score, ev.combined(&first));
     let (rest, rest_score, _) = refine_rest(&problem, &near, &first, &window, 3).expect("rest");
     assert_eq!((rest, rest_score), (whole, whole_score));
+}
+
+#[test]
+fn starts_that_refine_to_one_pose_are_ranked_once() {
+    let model = case_model();
+    let scale = 0.5;
+    let gt = truth(3.0);
+    let target = target_of(&model, &gt, scale);
+    // The pose left 8° off the truth; object-frame candidates about z: three starts in the
+    // truth's basin (-10°, 0°, +10° from the left pose) and the end-for-end flip.
+    let left = GenPose {
+        pose: ObjectPose::new(tilt(8.0) * gt.pose.rotation, gt.pose.translation),
+        states: gt.states.clone(),
+    };
+    let problem = FrameProblem::new(&model, camera(), &target, scale, left);
+    let space = SearchSpace {
+        ranges: [Dof::Rx, Dof::Ry, Dof::Rz]
+            .into_iter()
+            .map(|dof| DofRange {
+                dof,
+                lo: -360.0,
+                hi: 360.0,
+                steps: None,
+            })
+            .collect(),
+        notes: vec![],
+    };
+    let starts = vec![
+        vec![0.0, 0.0, -10.0],
+        vec![0.0, 0.0, 0.0],
+        vec![0.0, 0.0, 10.0],
+        vec![180.0, 0.0, 0.0],
+    ];
+    let cfg = SweepConfig {
+        topk: starts.len(),
+        strategy: Strategy::Candidates(starts.clone()),
+        ..SweepConfig::default()
+    };
+    let placed = sweep(&problem, &space, &cfg).expect("sweep");
+    assert_eq!(placed.ranked.len(), 4, "every start placed");
+    let refined = refine_ranked(&problem, placed, &LocalWindow::basin(), 17).expect("refine");
+    // The three starts in the truth's basin end at the truth: one row, the best first.
+    let at_truth = refined
+        .ranked
+        .iter()
+        .filter(|c| rotation_error_deg(&c.pose, &gt) < 3.0)
+        .count();
+    assert_eq!(
+        at_truth,
+        1,
+        "{:?}",
+        refined
+            .ranked
+            .iter()
+            .map(|c| (&c.x, rotation_error_deg(&c.pose, &gt)))
+            .collect::<Vec<_>>()
+    );
+    assert!(rotation_error_deg(&refined.ranked[0].pose, &gt) < 3.0);
+    // The flip stays its own row, and ranks are consecutive.
+    assert!(refined.ranked.len() >= 2, "the flip is kept");
+    assert!(refined.ranked.iter().enumerate().all(|(i, c)| c.rank == i));
+    for (i, a) in refined.ranked.iter().enumerate() {
+        for b in &refined.ranked[i + 1..] {
+            assert!(
+                rotation_error_deg(&a.pose, &b.pose) >= 1.0
+                    || (a.pose.pose.translation - b.pose.pose.translation).norm()
+                        > 0.005 * a.pose.pose.translation.z,
+                "two rows at one pose"
+            );
+        }
+    }
 }

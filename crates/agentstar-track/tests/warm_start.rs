@@ -224,6 +224,8 @@ fn a_warm_start_names_the_frames_it_moves_to_another_basin_and_keep_basins_moves
     for m in &free.basin_moves {
         assert!(m.rotation_deg > 170.0, "{m:?}");
         assert!(m.pass.starts_with("the "), "{m:?}");
+        // The case is no round body: no turn is about an axis of its outline.
+        assert_eq!(m.across_axis_deg, None, "{m:?}");
         let line = free
             .result
             .log

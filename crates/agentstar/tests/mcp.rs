@@ -1136,3 +1136,40 @@ fn servers_killed_mid_commit_leave_no_pose_version_without_its_step() {
         steps.len()
     );
 }
+
+#[test]
+fn a_tools_error_leads_with_the_error_not_the_captures_notes() {
+    // A capture with in-between frames: every command that opens it notes them on stderr.
+    let dir = tempfile::tempdir().expect("tmp");
+    let (cap, run) = (dir.path().join("cap"), dir.path().join("run"));
+    let o = synth_object(
+        support::path_str(&cap),
+        "box",
+        &[
+            "--frames",
+            "3",
+            "--between",
+            "2",
+            "--seed",
+            "7",
+            "--size",
+            "160x120",
+        ],
+    );
+    assert!(o.status.success(), "{}", text(&o));
+    init_run(&run, &cap, Some((&cap.join("model/scene.rhai"), "0.24")));
+    let (mut c, _) = McpClient::initialised(&run);
+    // An in-between frame where keyframes are taken: the refusal is the whole message.
+    c.call(2, "score", json!({"frames": "000001"}));
+    let (r, _) = c.response(2);
+    assert_eq!(r["result"]["isError"], true, "{r}");
+    let message = McpClient::text_of(&r);
+    assert!(
+        message.contains("is an in-between frame") && !message.contains("note:"),
+        "{message}"
+    );
+    assert!(
+        !message.contains("holds 4 in-between frame(s)"),
+        "the capture's note is not the error: {message}"
+    );
+}

@@ -74,12 +74,12 @@ impl Toolbox {
         let (ok, stdout, stderr) = self.exec(call.args())?;
         let report: Option<BakeReport> = serde_json::from_str(&stdout).ok();
         if !ok {
-            return Ok(ToolOutput::error(stderr.trim().to_string()));
+            return Ok(ToolOutput::error(failure_text(&stderr)));
         }
         let Some(report) = report else {
             return Ok(ToolOutput::error(format!(
                 "bake printed no bake report: {}",
-                stderr.trim()
+                failure_text(&stderr)
             )));
         };
         let mut text = format!(

@@ -161,6 +161,19 @@ impl Invocation {
     }
 }
 
+/// A failed child command's stderr as the call's error: without the lines the commands
+/// print for a person at a terminal before they start (`note: …`, such as how many in-between
+/// frames the capture holds besides its keyframes), which read as the error's first line.
+pub(super) fn failure_text(stderr: &str) -> String {
+    stderr
+        .lines()
+        .filter(|l| !l.starts_with("note: "))
+        .collect::<Vec<_>>()
+        .join("\n")
+        .trim()
+        .to_string()
+}
+
 impl Toolbox {
     /// Runs the executable (the one runner of every child tool); returns (success,
     /// stdout, stderr). A child that runs past `timeout_s` is killed.
@@ -235,7 +248,7 @@ impl Toolbox {
             .with(request)?;
         let (ok, stdout, stderr) = self.exec(call.args())?;
         if !ok {
-            return Ok((ToolOutput::error(stderr.trim().to_string()), out, stdout));
+            return Ok((ToolOutput::error(failure_text(&stderr)), out, stdout));
         }
         let images = pngs(&out);
         Ok((

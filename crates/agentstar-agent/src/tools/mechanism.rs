@@ -520,7 +520,7 @@ impl Toolbox {
             _ => {
                 return vec![format!(
                     "the mechanism check could not read the scene: {}",
-                    stderr.trim()
+                    failure_text(&stderr)
                 )]
             }
         };

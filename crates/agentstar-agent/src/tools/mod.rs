@@ -434,7 +434,7 @@ impl Toolbox {
             .with(&Score { frames, json: true })?;
         let (_, stdout, stderr) = self.exec(call.args())?;
         // `score` exits 1 when a frame is under the gate; its JSON is the result.
-        serde_json::from_str(&stdout).map_err(|_| AgentError::Tool(stderr.trim().to_string()))
+        serde_json::from_str(&stdout).map_err(|_| AgentError::Tool(failure_text(&stderr)))
     }
 
     /// Each keyframe's visible IoU (0 where no mask pixel is visible), in capture order.

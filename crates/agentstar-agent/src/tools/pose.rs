@@ -56,7 +56,7 @@ pub(super) fn track_text(
     }
     if !r.basin_moves.is_empty() {
         text.push_str(&format!(
-            "moved to another basin ({} frame(s), further than {}° from their pose in `from`; check them, or track again with `keep_basins: true` to keep the basins you settled):\n",
+            "moved to another basin ({} frame(s), further than {}° from their pose in `from`; a turn about a round body's axis only keeps the outline and says so; check them, or track again with `keep_basins: true` to keep the basins you settled):\n",
             r.basin_moves.len(),
             r.basin_moves[0].bound_deg
         ));
@@ -308,7 +308,7 @@ tool!(Temporal, "temporal", Diagnostic, Nothing, TemporalArgs,
             .with(&Plot { plot: &plot })?;
         let (ok, stdout, stderr) = tb.exec(call.args())?;
         if !ok {
-            return Ok(ToolOutput::error(stderr.trim().to_string()));
+            return Ok(ToolOutput::error(failure_text(&stderr)));
         }
         Ok(ToolOutput { text: stdout, images: pngs(&out), ..Default::default() })
     });
@@ -326,7 +326,7 @@ tool!(
             .with(&a)?;
         let (ok, stdout, stderr) = tb.exec(call.args())?;
         if !ok {
-            return Ok(ToolOutput::error(stderr.trim().to_string()));
+            return Ok(ToolOutput::error(failure_text(&stderr)));
         }
         let report: PoseDiffReport = serde_json::from_str(&stdout)
             .map_err(|e| AgentError::Tool(format!("pose-diff printed no report ({e})")))?;
@@ -524,7 +524,7 @@ impl Toolbox {
         let call = Invocation::new(&["pose", "commit"]).with(&request)?;
         let (ok, stdout, stderr) = self.exec(call.args())?;
         if !ok {
-            return Ok(ToolOutput::error(stderr.trim().to_string()));
+            return Ok(ToolOutput::error(failure_text(&stderr)));
         }
         let r: CommitReport = serde_json::from_str(&stdout).map_err(|e| {
             AgentError::Tool(format!(
@@ -604,7 +604,7 @@ impl Toolbox {
             .with(&request)?;
         let (ok, stdout, stderr) = self.exec(call.args())?;
         if !ok {
-            let mut text = stderr.trim().to_string();
+            let mut text = failure_text(&stderr);
             // What the stopped run had tracked (the command keeps it beside the pose file).
             let partial = agentstar_data::posefile::partial_path(&self.run.poses);
             if partial.is_file() {
@@ -672,7 +672,7 @@ impl Toolbox {
             let call = Invocation::new(&["pose", "history"]).with(&request)?;
             let (ok, stdout, stderr) = self.exec(call.args())?;
             if !ok {
-                return Ok(ToolOutput::error(stderr.trim().to_string()));
+                return Ok(ToolOutput::error(failure_text(&stderr)));
             }
             let r: HistoryReport = serde_json::from_str(&stdout).map_err(|e| {
                 AgentError::Tool(format!("pose history printed no history report ({e})"))
@@ -699,7 +699,7 @@ impl Toolbox {
         let call = Invocation::new(&["pose", "history"]).with(&request)?;
         let (ok, stdout, stderr) = self.exec(call.args())?;
         if !ok {
-            return Ok(ToolOutput::error(stderr.trim().to_string()));
+            return Ok(ToolOutput::error(failure_text(&stderr)));
         }
         let r: FrameHistoryReport = serde_json::from_str(&stdout).map_err(|e| {
             AgentError::Tool(format!("pose history printed no frame history ({e})"))
@@ -826,7 +826,7 @@ impl Toolbox {
             .with(&Json { json: true })?;
         let (ok, stdout, stderr) = self.exec(call.args())?;
         if !ok {
-            return Err(AgentError::Tool(stderr.trim().to_string()));
+            return Err(AgentError::Tool(failure_text(&stderr)));
         }
         serde_json::from_str(&stdout)
             .map_err(|e| AgentError::Tool(format!("temporal printed no report ({e})")))

@@ -165,7 +165,7 @@ impl Toolbox {
         if !ok {
             return Ok(ToolOutput::error(format!(
                 "the scene was not changed: {}",
-                stderr.trim().replace(&shown, "scene.rhai")
+                failure_text(&stderr).replace(&shown, "scene.rhai")
             )));
         }
         #[cfg(unix)]

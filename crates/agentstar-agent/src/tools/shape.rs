@@ -129,7 +129,7 @@ impl Toolbox {
         let method = a.method.as_str();
         let (ok, stdout, stderr) = self.exec(call.args())?;
         if !ok {
-            return Ok(ToolOutput::error(stderr.trim().to_string()));
+            return Ok(ToolOutput::error(failure_text(&stderr)));
         }
         let report: agentstar_reports::fit::ScaleReport =
             serde_json::from_str(&stdout).map_err(|e| {

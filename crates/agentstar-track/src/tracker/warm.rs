@@ -52,6 +52,10 @@ pub struct BasinMove {
     pub iou_after: f64,
     /// The pass that moved it (the first after which it stayed beyond the bound).
     pub pass: String,
+    /// For a round body ([`crate::axis::outline_axis`]): the rotation leaving out its turn
+    /// about the body's axis, degrees; within [`BASIN_ROTATION_DEG`] the frame turned about
+    /// the axis only, which keeps its outline (the print decided).
+    pub across_axis_deg: Option<f64>,
 }
 
 /// A warm start's result: the track, and the frames it moved to another basin.
@@ -173,6 +177,8 @@ pub fn track_from_video(
             .combined(g)
     };
     let mut basin_moves = Vec::new();
+    // The round body's axis, in the object's frame, where the outline has one.
+    let round_axis = crate::axis::outline_axis(model, &model.tree.rest_states());
     for i in 0..frames.len().min(start.len()) {
         if anchors.contains(&i) {
             continue;
@@ -210,17 +216,28 @@ pub fn track_from_video(
             Some(k) => passes.get(k + 1).map(|p| p.0.clone()),
         }
         .unwrap_or_else(|| "the polish on the model's own mesh".to_string());
+        let turn = start[i].pose.rotation.inverse() * result.poses[i].pose.rotation;
+        let across_axis_deg = round_axis
+            .as_ref()
+            .map(|a| crate::axis::angle_across(&turn, &a.axis).to_degrees());
         let m = BasinMove {
             frame: i,
             rotation_deg,
             iou_before: score_at(i, &start[i]),
             iou_after: result.scores[i],
             pass,
+            across_axis_deg,
         };
-        let line = format!(
-            "{}: moved to another basin: turned {:.1}° from its starting pose (over {BASIN_ROTATION_DEG}°), IoU {:.4} → {:.4}, by {}",
-            frames[i].name, m.rotation_deg, m.iou_before, m.iou_after, m.pass
-        );
+        let line = match m.across_axis_deg {
+            Some(across) if across <= BASIN_ROTATION_DEG => format!(
+                "{}: turned {:.1}° about the body's round axis only ({across:.1}° across it: the same outline), IoU {:.4} → {:.4}, by {}",
+                frames[i].name, m.rotation_deg, m.iou_before, m.iou_after, m.pass
+            ),
+            _ => format!(
+                "{}: moved to another basin: turned {:.1}° from its starting pose (over {BASIN_ROTATION_DEG}°), IoU {:.4} → {:.4}, by {}",
+                frames[i].name, m.rotation_deg, m.iou_before, m.iou_after, m.pass
+            ),
+        };
         observe.line(&line);
         result.log.push(line);
         basin_moves.push(m);

@@ -395,7 +395,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
         }
         if !basin_moves.is_empty() {
             println!(
-                "{} frame(s) moved to another basin (further than {BASIN_ROTATION_DEG}° from the --from pose; --keep-basins keeps them):",
+                "{} frame(s) moved to another basin (further than {BASIN_ROTATION_DEG}° from the --from pose; a turn about a round body's axis only keeps the outline and says so; --keep-basins keeps them):",
                 basin_moves.len()
             );
             for m in &basin_moves {
@@ -488,6 +488,7 @@ fn basin_move_rows(moves: &[BasinMove], name: impl Fn(usize) -> String) -> Vec<B
             iou_before: m.iou_before,
             iou_after: m.iou_after,
             pass: m.pass.clone(),
+            across_axis_deg: m.across_axis_deg,
         })
         .collect()
 }

@@ -264,3 +264,59 @@ fn coloured_frames<'a>(
         })
         .collect()
 }
+
+#[test]
+fn a_warm_start_that_turns_a_can_about_its_axis_says_the_outline_stayed() {
+    use crate::appearance::tests::label_of_half_width;
+    // The labelled can of the axis pass's test, frame 1 started 70° off about the can's axis:
+    // `track --from` turns it back by its label, and reports a turn about the round axis, not
+    // a move to another outline (play-test, 2026-12-05).
+    let model = label_of_half_width(0.8);
+    let paint = |p: &Point3| {
+        if p.z.abs() < 0.3 && p.y.atan2(p.x).abs() < 0.8 {
+            [0.85, 0.8, 0.6]
+        } else {
+            [0.6, 0.05, 0.05]
+        }
+    };
+    let (scale, cam) = (0.12, camera());
+    let (truths, shots, targets) = three_can_views(&model, scale, &cam, &paint);
+    let frames = coloured_frames(&cam, &targets, &shots);
+    let start: Vec<GenPose> = vec![
+        truths[0].clone(),
+        spin_about_z(&truths[1], 70.0),
+        truths[2].clone(),
+    ];
+    let w = track_from_with(
+        &model,
+        scale,
+        &frames,
+        (&start, &[]),
+        BasinPolicy::Search,
+        &TrackConfig::default(),
+        &|_: &str| {},
+    )
+    .expect("track");
+    assert!(
+        error_of(&w.result.poses[1], &truths[1]) < 5.0,
+        "{:.1}° off: {:?}",
+        error_of(&w.result.poses[1], &truths[1]),
+        w.result.log
+    );
+    let m = w
+        .basin_moves
+        .iter()
+        .find(|m| m.frame == 1)
+        .unwrap_or_else(|| panic!("frame 1 reported: {:?}", w.basin_moves));
+    let across = m.across_axis_deg.expect("a round body");
+    assert!(m.rotation_deg > 60.0 && across < 5.0, "{m:?}");
+    assert!(
+        w.result
+            .log
+            .iter()
+            .any(|l| l.starts_with("000001.png: turned")
+                && l.contains("about the body's round axis only")),
+        "{:?}",
+        w.result.log
+    );
+}

@@ -178,8 +178,16 @@ pub fn run_osweep(a: OsweepArgs) -> Result<ExitCode> {
             )
         };
         let mut r = sweep(&p, &space, &cfg)?;
+        let mut notes = space.notes.clone();
         if !a.no_refine {
+            let placed = r.ranked.len();
             r = refine_ranked(&p, r, &LocalWindow::basin(), 17)?;
+            let merged = placed - r.ranked.len();
+            if merged > 0 {
+                notes.push(format!(
+                    "{merged} candidate(s) refined to the pose of a better-ranked one and are listed once, under its start"
+                ));
+            }
         }
         let mut rows = rows_from(r, &space, tree);
         annotate(&s, i, &mut rows)?;
@@ -193,7 +201,7 @@ pub fn run_osweep(a: OsweepArgs) -> Result<ExitCode> {
             frame: s.capture.frames[i].name.clone(),
             rows,
             extra: json!({"method": "osweep", "space": space_json(&space, tree)}),
-            notes: space.notes.clone(),
+            notes,
             pages: vec![],
             // Every candidate of a preset or a set is drawn.
             draw_all: a.request.opreset.is_some(),
