@@ -175,10 +175,11 @@ Call `finish` only when all of these hold; it checks them and tells you what is 
    here; the model's lid is rigid"}}}`.
 2. `turntable` was looked at after the last shape change, and the shape is coherent in every
    joint state.
-3. `temporal` was looked at after the last pose change, and every large step is either
-   confirmed or fixed. A step over 90° that stays is named in `finish`'s `steps_checked`
-   with what you found, after `oapply` (or `osweep`, `render`, `frames`) on one of its
-   frames: `{"steps_checked": {"000040->000045": "oapply on 000045: no twin within 0.01"}}`.
+3. `temporal` was looked at after the last pose change (a rescale is one), and every large
+   step is confirmed or fixed. A step over 90° that stays is named in `finish`'s
+   `steps_checked` with what you found, after `oapply` (or `osweep`, `render`, `frames`) on
+   one of its frames since their last pose change: `{"steps_checked": {"000040->000045":
+   "oapply: no twin within 0.01"}}`.
 4. Every revolute joint of the current scene has a `mechanism_pick` made for this scene
    version that names the arm about the declared axis. Run `mechanism`, compare arms A and
    B with the frames, and pick with evidence naming at least three interior states by
@@ -191,8 +192,8 @@ Call `finish` only when all of these hold; it checks them and tells you what is 
 ## Budgets
 
 A run has limits on steps, wall time and tokens; the harness tells you what is left. Spend
-early steps on the shape (it limits every pose), then poses, then the gates. Do not repeat a
-search that failed: change the region or the shape.
+early steps on the shape (it limits every pose), then poses, then the gates. Never repeat a
+failed search: change the region or the shape.
 
 "#;
 

@@ -235,6 +235,7 @@ fn runners_up(
     out
 }
 
+/// Best first (a stable sort: candidates that score alike keep the order they came in).
 pub(crate) fn rank(mut c: Vec<Candidate>, topk: usize) -> Vec<Candidate> {
     c.sort_by(|a, b| b.score.combined.total_cmp(&a.score.combined));
     c.truncate(topk.max(1));
@@ -342,7 +343,22 @@ pub fn sweep(
             });
             let n_evals = pts.len();
             let mut best: Vec<&agentstar_optim::GridPoint> = pts.iter().collect();
-            best.sort_by(|p, q| p.f.total_cmp(&q.f));
+            // Points that score exactly alike (a part the mask cannot see: hidden behind the
+            // body or under a hand) rank by how little they change the start, each DOF as a
+            // share of its range: the start's own value first where the grid holds it
+            // (play-test, 2026-12-05: a flat joint grid ranked its lower bound first).
+            let x0 = problem.start_vector(space);
+            let change = |x: &[f64]| -> f64 {
+                x.iter()
+                    .zip(&x0)
+                    .zip(&bounds)
+                    .map(|((v, s), (lo, hi))| ((v - s) / (hi - lo).abs().max(1e-12)).powi(2))
+                    .sum()
+            };
+            best.sort_by(|p, q| {
+                p.f.total_cmp(&q.f)
+                    .then_with(|| change(&p.x).total_cmp(&change(&q.x)))
+            });
             best.dedup_by(|p, q| p.x == q.x);
             let mut cands: Vec<Candidate> = best
                 .into_iter()

@@ -210,3 +210,55 @@ fn a_de_sweep_ranks_other_basins_it_passed_through() {
         .windows(2)
         .all(|w| w[0].score.combined >= w[1].score.combined));
 }
+
+/// Play-test, 2026-12-05: a grid over a joint whose part the mask cannot see scores every
+/// value alike, and ranked the range's lower bound first; committing rank 0 wrote it.
+#[test]
+fn a_flat_grid_ranks_the_starts_own_value_first() {
+    use agentstar_geom::primitives::cuboid;
+    use agentstar_geom::Part;
+    // A small block turning on a hinge inside a closed box: no state shows in the outline.
+    let body = cuboid(1.0, 0.6, 0.4).expect("body");
+    let inner = cuboid(0.1, 0.1, 0.1).expect("inner");
+    let model = common::case::hinged::with_lid_hinge(
+        vec![
+            Part::new("body", body, [0.5; 3]),
+            Part::new("lid", inner, [0.9, 0.2, 0.2]),
+        ],
+        Vector3::zeros(),
+        Vector3::z(),
+        90.0,
+    );
+    let scale = 0.5;
+    let mut gt = truth(2.0);
+    gt.states = vec![50f64.to_radians()];
+    let target = target_of(&model, &gt, scale);
+    let problem = FrameProblem::new(&model, camera(), &target, scale, gt.clone());
+    let space = parse_spec("hinge:0,90,10", &model.tree, Grammar::Object).expect("space");
+    let r = sweep(
+        &problem,
+        &space,
+        &SweepConfig {
+            strategy: agentstar_track::search::Strategy::Grid {
+                default_steps: 10,
+                refine: 1,
+                shrink: 0.5,
+            },
+            topk: 5,
+            ..SweepConfig::default()
+        },
+    )
+    .expect("sweep");
+    // Every value ties (the precondition), and the one nearest the start's 50° comes first.
+    assert!(r
+        .ranked
+        .iter()
+        .all(|c| c.score.combined == r.ranked[0].score.combined));
+    let first = r.ranked[0].pose.states[0].to_degrees();
+    assert!((first - 50.0).abs() <= 5.0 + 1e-9, "rank 0 at {first:.1}°");
+    let second = r.ranked[1].pose.states[0].to_degrees();
+    assert!(
+        (second - 50.0).abs() >= (first - 50.0).abs(),
+        "{second:.1}°"
+    );
+}
