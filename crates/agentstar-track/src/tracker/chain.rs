@@ -30,6 +30,12 @@ const CHAIN_WINDOW: LocalWindow = LocalWindow {
 /// mask does not see them there. A lever in view moves the IoU by more when turned away.
 pub(super) const CHAIN_HOLD_TIE: f64 = 0.002;
 
+/// A keyframe a chain arrived at is searched globally all the same when its band IoU falls
+/// this far under the band that sends a frame to the global search ([`rescue_band`]: the
+/// median of the keyframes tracked so far, less a little): more than the segmenter's noise
+/// on the whole outline ([`APPEARANCE_TIE`]) under what right poses of this object score.
+pub(super) const CHAIN_REFUSED_BELOW: f64 = APPEARANCE_TIE;
+
 /// A chain frame whose mask shows less than this share of the object seen in the keyframes
 /// (visible pixels, outside the hands; median over the keyframes) is carried at constant
 /// velocity, not fitted: a hand over most of it, or the object leaving the image.
@@ -209,25 +215,138 @@ pub(super) fn follow(
     })
 }
 
-/// Whether the video between two keyframes joins their poses: followed from `from`'s pose
-/// through `path` (the in-between frames in that order), it arrives at `to`'s frame within
-/// a chain step's window ([`CHAIN_WINDOW`], leaving out any turn about a round body's axis,
-/// [`Searcher::off_chain`]) of `to`'s pose. A chain that lost the object on the way arrives
-/// in another basin, and then the two poses are joined by no motion the video shows.
-pub(super) fn video_joins(
-    s: &Searcher<'_>,
-    (from, from_pose): (&TrackFrame<'_>, &GenPose),
-    path: &[&TrackFrame<'_>],
-    (to, to_pose): (&TrackFrame<'_>, &GenPose),
-    typical_visible: usize,
-    seed: u64,
-) -> Result<bool, TrackError> {
-    let followed = follow(s, from, from_pose, path, to, typical_visible, seed)?;
+/// What following the video back from a keyframe that the global search moved found
+/// ([`follow_back`]).
+#[derive(Debug, Default)]
+pub(super) struct FollowedBack {
+    /// The keyframe whose pose the video joined, if it joined one.
+    pub(super) joined: Option<usize>,
+    /// Keyframes the video reached away from their poses: each arrival, polished there and
+    /// scored, a hypothesis of that keyframe for the sequence-level choice.
+    pub(super) hypotheses: Vec<(usize, (GenPose, f64))>,
+    /// The gap whose motion was forgotten: the video from the keyframe reached neither its
+    /// neighbour's pose nor a pose its neighbour's mask takes.
+    pub(super) cleared: Option<usize>,
+}
+
+impl FollowedBack {
+    /// The tracker's log, after the global search's own words.
+    pub(super) fn describe(&self, frames: &[TrackFrame<'_>]) -> String {
+        let name = |k: usize| frames[k].name.as_str();
+        let mut text = String::new();
+        if !self.hypotheses.is_empty() {
+            let reached: Vec<&str> = self.hypotheses.iter().map(|(k, _)| name(*k)).collect();
+            text.push_str(&format!(
+                "; the video followed back from it reaches {} away from their poses (each arrival a hypothesis of the sequence choice, each gap's motion measured along it)",
+                reached.join(", ")
+            ));
+        }
+        match (self.joined, self.cleared) {
+            (Some(k), _) if self.hypotheses.is_empty() => text.push_str(&format!(
+                "; the video followed back from it reaches {}'s basin: the gap's motion measured again",
+                name(k)
+            )),
+            (Some(k), _) => text.push_str(&format!(", then joins {}'s pose", name(k))),
+            (None, Some(_)) => text.push_str(
+                "; the video followed back from it reaches no pose its neighbour's mask takes: no motion kept for the gap",
+            ),
+            (None, None) => {}
+        }
+        text
+    }
+}
+
+/// Follows the video back from keyframe `i` at `pose` (where the global search moved it, away
+/// from the chain's arrival) toward the keyframes tracked before it (`dir`: the step to the
+/// one it was reached from), gap by gap, each gap's motion measured again along the way:
+/// - where the chain arrives within a chain step's window ([`CHAIN_WINDOW`]) of the next
+///   keyframe's pose, the whole turn (about a round body's axis too: the side a lever is on
+///   is in that turn), the video joins them and the walk stops;
+/// - where it arrives elsewhere and its arrival, polished there, scores within
+///   [`CHOICE_KEEP`] of that keyframe's pose, the arrival is a hypothesis of that keyframe
+///   and the walk goes on from it;
+/// - else it stops, and the first gap's motion is forgotten.
+///
+/// A chain carries its basin both ways: keyframes tracked from a wrong start keep the wrong
+/// basin, and a global search that puts one keyframe right (its mask refusing the chain's
+/// pose) leaves the others where they were, joined to it by a motion the video never showed
+/// (general suite gen-67, a cylinder with a side lever: keyframes 000020–000060 a turn of
+/// 60–90° about the axis off, 000010 put right by its global search, 2026-12-05). Followed
+/// back, the video proposes their right poses, and the choice weighs both sequences.
+pub(super) fn follow_back(
+    (s, cs): (&Searcher<'_>, &Searcher<'_>),
+    (frames, between): (&[TrackFrame<'_>], &[Vec<TrackFrame<'_>>]),
+    (poses, scores): (&[Option<GenPose>], &[f64]),
+    (i, pose): (usize, &GenPose),
+    dir: isize,
+    typical: usize,
+) -> Result<FollowedBack, TrackError> {
     let window = CHAIN_WINDOW.angle_deg.to_radians();
-    Ok(followed
-        .arrival
-        .iter()
-        .any(|a| s.off_chain(&a.pose.rotation, &to_pose.pose.rotation) < window))
+    let mut out = FollowedBack::default();
+    let (mut k, mut from_pose) = (i, pose.clone());
+    loop {
+        let next = k as isize + dir;
+        if next < 0 || next as usize >= frames.len() {
+            break;
+        }
+        let next = next as usize;
+        let Some(at_next) = poses.get(next).and_then(Option::as_ref) else {
+            break;
+        };
+        let gap = k.min(next);
+        let mut path: Vec<&TrackFrame<'_>> =
+            between.get(gap).map_or(vec![], |v| v.iter().collect());
+        if path.is_empty() {
+            break;
+        }
+        if next < k {
+            path.reverse();
+        }
+        let seed = s.cfg.seed + 1_500_007 * (gap as u64 + 1) + u64::from(dir == 1);
+        let followed = follow(
+            cs,
+            &frames[k],
+            &from_pose,
+            &path,
+            &frames[next],
+            typical,
+            seed,
+        )?;
+        // The motion across the gap from `from_pose` (at k) to `to` (at next).
+        let measured = |to: &GenPose| {
+            if k < next {
+                Gap::between(frames, gap, &from_pose, to)
+            } else {
+                Gap::between(frames, gap, to, &from_pose)
+            }
+        };
+        if followed
+            .arrival
+            .iter()
+            .any(|a| a.pose.rotation.angle_to(&at_next.pose.rotation) < window)
+        {
+            s.set_gap(gap, measured(at_next));
+            out.joined = Some(next);
+            break;
+        }
+        let arrivals: Vec<&GenPose> = followed.arrival.iter().collect();
+        match polished_arrival(s, &frames[next], &arrivals, seed)? {
+            Some((arrival, score)) if score >= scores[next] - CHOICE_KEEP => {
+                s.set_gap(gap, measured(&arrival));
+                out.hypotheses.push((next, (arrival.clone(), score)));
+                from_pose = arrival;
+                k = next;
+            }
+            _ => {
+                if k == i {
+                    s.clear_gap(gap);
+                    out.cleared = Some(gap);
+                }
+                break;
+            }
+        }
+    }
+    Ok(out)
 }
 
 /// The gaps whose motion was measured (by a chain, [`Gap`]) where either keyframe has since

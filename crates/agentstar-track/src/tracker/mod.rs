@@ -541,7 +541,8 @@ fn track_on(
         // A keyframe reached through the video keeps the chain's basin unless its mask clearly
         // refuses it: a global search there picks by the outline alone, which is what the
         // twins share (the chain's pose stays a hypothesis of the sequence choice).
-        let chain_holds = chained.is_some() && sc >= cfg.drop_threshold;
+        let refused = band < rescue_band(&bands) - CHAIN_REFUSED_BELOW;
+        let chain_holds = chained.is_some() && sc >= cfg.drop_threshold && !refused;
         let arrival = chained.as_ref().map(|_| (g.clone(), sc));
         if band < rescue_band(&bands) && !chain_holds {
             // The joint grid, and the states found here and at the neighbour: joints move
@@ -559,29 +560,21 @@ fn track_on(
                 how = "global";
                 note = format!("; {text}");
                 // The gap's motion was measured to the chain's arrival, which the mask refused:
-                // it joins the neighbour to a pose no longer held.
+                // it joins the neighbour to a pose no longer held. The video is followed back
+                // from the pose taken ([`follow_back`]).
                 if let (Some(cs), true) = (&chain_s, chained.is_some()) {
-                    let mut back: Vec<&TrackFrame<'_>> = gap_frames(gap).iter().collect();
-                    if dir == -1 {
-                        back.reverse();
-                    }
-                    let seed = cfg.seed + 1_500_007 * (gap as u64 + 1) + (dir == 1) as u64;
-                    let joined = video_joins(
-                        cs,
-                        (&frames[i], &g),
-                        &back,
-                        (&frames[prev_i], &prev),
+                    let back = follow_back(
+                        (&s, cs),
+                        (frames, between),
+                        (&poses, &scores),
+                        (i, &g),
+                        dir,
                         typical,
-                        seed,
                     )?;
                     s.absorb_evals(cs);
-                    if joined {
-                        let (at_g, at_next) = if dir == -1 { (&prev, &g) } else { (&g, &prev) };
-                        s.set_gap(gap, Gap::between(frames, gap, at_g, at_next));
-                        note.push_str(&format!("; the video followed back from it reaches {}'s basin: the gap's motion measured again", frames[prev_i].name));
-                    } else {
-                        s.clear_gap(gap);
-                        note.push_str(&format!("; the video followed back from it misses {}'s basin: no motion kept for the gap", frames[prev_i].name));
+                    note.push_str(&back.describe(frames));
+                    for (k, hypothesis) in back.hypotheses {
+                        alternatives[k].push(hypothesis);
                     }
                 }
             }

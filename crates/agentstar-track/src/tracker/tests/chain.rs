@@ -172,28 +172,44 @@ fn a_chain_finds_a_turn_from_its_first_frame_without_a_velocity() {
 }
 
 #[test]
-fn the_video_joins_two_keyframes_poses_only_where_it_leads_from_one_to_the_other() {
-    // The L turning 16° a frame: followed back from keyframe 4's true pose, the video
-    // reaches keyframe 0's true pose, not its twin (its half-turn about the long side, which
-    // a global search there may find as well), nor a pose the chain cannot have come from.
+fn the_video_followed_back_joins_the_pose_it_leads_to_and_proposes_it_where_a_twin_was_kept() {
+    // The L turning 16° a frame; keyframes 0 and 4 with frames 1–3 between. Keyframe 4 was
+    // just put at its true pose by a global search (reached from keyframe 0: `dir` -1).
     let (model, scale, truths, targets) = turning_ell();
-    let frames = silhouette_frames(&targets);
-    let cfg = TrackConfig::default();
-    let s = Searcher::new(&model, scale, &frames, &cfg).expect("searcher");
-    let back: Vec<&TrackFrame<'_>> = frames[1..4].iter().rev().collect();
-    let typical = typical_visible(&frames);
-    let joins = |to: &GenPose| {
-        video_joins(
-            &s,
-            (&frames[4], &truths[4]),
-            &back,
-            (&frames[0], to),
+    let all = silhouette_frames(&targets);
+    let keyframes = vec![all[0].clone(), all[4].clone()];
+    let between = vec![all[1..4].to_vec()];
+    let s = Searcher::new(&model, scale, &keyframes, &TrackConfig::default()).expect("searcher");
+    let typical = typical_visible(&keyframes);
+    let score = |g: &GenPose| scores_of(&model, scale, &keyframes[..1], std::slice::from_ref(g))[0];
+    let back = |at_0: &GenPose, score_0: f64| {
+        follow_back(
+            (&s, &s),
+            (&keyframes, &between),
+            (
+                &[Some(at_0.clone()), Some(truths[4].clone())],
+                &[score_0, 1.0],
+            ),
+            (1, &truths[4]),
+            -1,
             typical,
-            9,
         )
-        .expect("follow")
+        .expect("follow back")
     };
-    assert!(joins(&truths[0]));
+    // Keyframe 0 at its true pose: the video joins it, and the gap's motion is the true one.
+    let joined = back(&truths[0], score(&truths[0]));
+    assert_eq!(joined.joined, Some(0));
+    assert!(joined.hypotheses.is_empty() && joined.cleared.is_none());
+    let right = Gap::between(&keyframes, 0, &truths[0], &truths[4]);
+    assert!(
+        s.gap(0)
+            .expect("measured")
+            .rotation
+            .angle_to(&right.rotation)
+            < 2f64.to_radians()
+    );
+    // Keyframe 0 kept in its twin (a half-turn about the long side, the same outline): the
+    // video does not join it, and proposes the true pose, polished, for the choice.
     let flipped = GenPose {
         pose: ObjectPose::new(
             truths[0].pose.rotation
@@ -202,8 +218,25 @@ fn the_video_joins_two_keyframes_poses_only_where_it_leads_from_one_to_the_other
         ),
         states: vec![],
     };
-    assert!(!joins(&flipped));
-    assert!(!joins(&spun(-40.0)));
+    let proposed = back(&flipped, score(&flipped));
+    assert_eq!(proposed.joined, None);
+    let (k, (pose, _)) = proposed.hypotheses.first().expect("a hypothesis");
+    assert_eq!(*k, 0);
+    let off = pose
+        .pose
+        .rotation
+        .angle_to(&truths[0].pose.rotation)
+        .to_degrees();
+    assert!(off < 3.0, "{off:.1}° from the truth");
+    assert!(proposed
+        .describe(&keyframes)
+        .contains("000000 away from their poses"));
+    // A keyframe whose mask takes nothing near where the video leads (its pose scoring far
+    // above any arrival): nothing proposed, and the gap's motion forgotten.
+    let refused = back(&spun(-40.0), 2.0);
+    assert!(refused.hypotheses.is_empty() && refused.joined.is_none());
+    assert_eq!(refused.cleared, Some(0));
+    assert!(s.gap(0).is_none());
 }
 
 #[test]
