@@ -45,12 +45,17 @@ pub struct SweepConfig {
     pub min_generations: usize,
     /// SciPy's relative tolerance, `std ≤ tol_relative · |mean|`, added to `tol_iou` (0 = off).
     pub tol_relative: f64,
-    /// DE: up to this many other places the search passed through, ranked beside the
-    /// restarts' results: the best evaluated points turned at least [`RUNNER_UP_DEG`] (or a
-    /// joint that far) from every candidate kept, as evaluated (not refined). Where the box
-    /// holds another basin they show it; where it holds one, they are its slope 10° out.
-    /// 0 keeps none and records nothing (the tracker's refinements).
+    /// Up to this many other places the search passed through, ranked beside its results
+    /// (DE: the restarts' results; a grid: its best points): the best evaluated points turned
+    /// at least [`SweepConfig::runner_up_deg`] (or a joint that far) from every candidate
+    /// kept, as evaluated (not refined). Where the box holds another basin they show it;
+    /// where it holds one, they are its slope that far out. 0 keeps none and records nothing
+    /// (the tracker's refinements).
     pub runners_up: usize,
+    /// How far a runner-up lies from every candidate kept and from each other:
+    /// [`RUNNER_UP_DEG`] unless a caller that refines the candidates afterwards wants them a
+    /// refinement's reach apart (`osweep`).
+    pub runner_up_deg: f64,
 }
 
 /// How far a runner-up of a DE sweep ([`SweepConfig::runners_up`]) lies from every
@@ -73,6 +78,7 @@ impl Default for SweepConfig {
             min_generations: 10,
             tol_relative: 0.0,
             runners_up: 0,
+            runner_up_deg: RUNNER_UP_DEG,
         }
     }
 }
@@ -197,25 +203,25 @@ fn distinct_poses(cands: Vec<Candidate>) -> Vec<Candidate> {
 }
 
 /// Up to `n` of the `seen` points (search vectors with their scores), best first, each
-/// turned at least [`RUNNER_UP_DEG`] (or a joint that far) from every candidate in `kept`
-/// and from each other, scored in full.
+/// turned at least `apart_deg` (or a joint that far) from every candidate in `kept` and from
+/// each other, scored in full.
 fn runners_up(
     problem: &FrameProblem<'_>,
     space: &SearchSpace,
     kept: &[Candidate],
     mut seen: Vec<(Vec<f64>, f64)>,
-    n: usize,
+    (n, apart_deg): (usize, f64),
 ) -> Vec<Candidate> {
     if n == 0 {
         return vec![];
     }
     seen.sort_by(|a, b| b.1.total_cmp(&a.1));
     let apart = |a: &GenPose, b: &GenPose| {
-        a.pose.rotation.angle_to(&b.pose.rotation) >= RUNNER_UP_DEG.to_radians()
+        a.pose.rotation.angle_to(&b.pose.rotation) >= apart_deg.to_radians()
             || a.states
                 .iter()
                 .zip(&b.states)
-                .any(|(p, q)| (p - q).abs() >= RUNNER_UP_DEG.to_radians())
+                .any(|(p, q)| (p - q).abs() >= apart_deg.to_radians())
     };
     let mut ev = problem.evaluator();
     let mut out: Vec<Candidate> = Vec::new();
@@ -373,8 +379,18 @@ pub fn sweep(
                 })
                 .collect();
             keep_start(problem, space, &mut cands);
+            if cfg.runners_up > 0 {
+                let seen: Vec<(Vec<f64>, f64)> = pts.iter().map(|p| (p.x.clone(), -p.f)).collect();
+                cands.extend(runners_up(
+                    problem,
+                    space,
+                    &cands,
+                    seen,
+                    (cfg.runners_up, cfg.runner_up_deg),
+                ));
+            }
             Ok(SweepResult {
-                ranked: rank(cands, cfg.topk),
+                ranked: rank(cands, cfg.topk + cfg.runners_up),
                 restarts: vec![],
                 n_evals,
                 score_field,
@@ -455,7 +471,13 @@ pub fn sweep(
             keep_start(problem, space, &mut cands);
             let mut cands = distinct_poses(cands);
             let kept = cands.len();
-            cands.extend(runners_up(problem, space, &cands, seen, cfg.runners_up));
+            cands.extend(runners_up(
+                problem,
+                space,
+                &cands,
+                seen,
+                (cfg.runners_up, cfg.runner_up_deg),
+            ));
             Ok(SweepResult {
                 ranked: rank(cands, kept + cfg.runners_up),
                 restarts: records,

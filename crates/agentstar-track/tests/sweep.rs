@@ -262,3 +262,62 @@ fn a_flat_grid_ranks_the_starts_own_value_first() {
         "{second:.1}°"
     );
 }
+
+/// Play-test, 2026-12-05: a whole-turn grid's best points all lay around the frame's own
+/// basin. With runners-up, a grid also ranks its best points that far from those kept and
+/// from each other: one per other basin.
+#[test]
+fn a_grids_runners_up_lie_apart_from_its_best_points_and_each_other() {
+    let model = case_model();
+    let scale = 0.5;
+    let gt = truth(2.0);
+    let target = target_of(&model, &gt, scale);
+    let problem = FrameProblem::new(&model, camera(), &target, scale, gt.clone());
+    let space = parse_spec("rz:-180,180,25", &model.tree, Grammar::Object).expect("space");
+    let grid = agentstar_track::search::Strategy::Grid {
+        default_steps: 25,
+        refine: 0,
+        shrink: 0.5,
+    };
+    let run = |runners_up: usize| {
+        sweep(
+            &problem,
+            &space,
+            &SweepConfig {
+                strategy: grid.clone(),
+                topk: 3,
+                runners_up,
+                runner_up_deg: 40.0,
+                ..SweepConfig::default()
+            },
+        )
+        .expect("sweep")
+    };
+    let apart = |a: &agentstar_track::Candidate, b: &agentstar_track::Candidate| {
+        a.pose
+            .pose
+            .rotation
+            .angle_to(&b.pose.pose.rotation)
+            .to_degrees()
+    };
+    // Without: the three best points of a 15° grid, all around the truth.
+    let plain = run(0);
+    assert_eq!(plain.ranked.len(), 3);
+    assert!(plain
+        .ranked
+        .iter()
+        .all(|c| apart(c, &plain.ranked[0]) <= 30.0 + 1e-9));
+    // With three: each at least 40° from the best points and from each other.
+    let with = run(3);
+    let (best, seen): (Vec<_>, Vec<_>) = with.ranked.iter().partition(|c| !c.runner_up);
+    assert_eq!(
+        (best.len(), seen.len()),
+        (3, 3),
+        "{:?}",
+        with.ranked.iter().map(|c| &c.x).collect::<Vec<_>>()
+    );
+    for (k, r) in seen.iter().enumerate() {
+        assert!(best.iter().all(|b| apart(r, b) >= 40.0 - 1e-9));
+        assert!(seen[k + 1..].iter().all(|o| apart(r, o) >= 40.0 - 1e-9));
+    }
+}

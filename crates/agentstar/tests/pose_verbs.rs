@@ -230,6 +230,50 @@ fn pose_verbs_track_commit_and_diagnose() {
         .collect();
     let norm = turn.iter().map(|d| d * d).sum::<f64>().sqrt();
     assert!(norm < 3.0, "{best}");
+    // A whole turn's grid ranks, beside its best points (all around the pose), its best
+    // points a refinement's reach from those (`seen`): refined, they end in other basins
+    // (play-test, 2026-12-05: every row within 38° of the frame's pose).
+    let v: serde_json::Value = json_of(&verb(
+        "osweep",
+        "osweep-whole",
+        &[
+            "--frames",
+            "000005",
+            "--ranges",
+            "rz:-180,180,13",
+            "--topk",
+            "2",
+            "--json",
+        ],
+    ));
+    let turns: Vec<f64> = v["frames"][0]["ranked"]
+        .as_array()
+        .expect("ranked")
+        .iter()
+        .map(|r| {
+            let label = r["label"].as_str().expect("label");
+            label
+                .split(" → ")
+                .nth(1)
+                .expect("refined")
+                .split(" [")
+                .next()
+                .expect("turn")
+                .split(';')
+                .take(3)
+                .map(|t| {
+                    t.split_once(':')
+                        .expect("term")
+                        .1
+                        .parse::<f64>()
+                        .expect("deg")
+                })
+                .map(|d| d * d)
+                .sum::<f64>()
+                .sqrt()
+        })
+        .collect();
+    assert!(turns.iter().any(|&t| t > 30.0), "{turns:?}: {v}");
 
     // A preset's every candidate is ranked and drawn (play-test: `so3:24` drew 6 of 25),
     // paged, each page naming its ranks; a turn of 135° is labelled where it ended.

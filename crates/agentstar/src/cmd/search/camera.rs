@@ -102,7 +102,12 @@ pub fn run_sweep(a: SweepArgs) -> Result<ExitCode> {
         seed: a.seed,
         polish_evals: a.polish,
         topk: a.topk,
-        runners_up: a.runners_up,
+        // DE's (a grid ranks its own best points).
+        runners_up: if matches!(strategy, Strategy::De) {
+            a.runners_up
+        } else {
+            0
+        },
         ..SweepConfig::default()
     };
     let frames = default_frame(&s, a.frames.as_deref())?;

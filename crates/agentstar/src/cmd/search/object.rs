@@ -133,6 +133,11 @@ fn opreset_candidates(spec: &str, seed: u64) -> Result<Vec<(String, [f64; 3])>> 
     Ok(out)
 }
 
+/// How far apart the grid points that `osweep` adds as runners-up lie (rotation, or a
+/// joint): past the reach of the refinement that follows ([`LocalWindow::basin`]: 25°), so
+/// that each refines to a basin of its own.
+const OSWEEP_BASIN_APART_DEG: f64 = 30.0;
+
 pub fn run_osweep(a: OsweepArgs) -> Result<ExitCode> {
     // One of --opreset and --ranges (the rule the `osweep` tool checks too).
     let region = a.request.region().map_err(|e| anyhow!(e))?;
@@ -173,6 +178,12 @@ pub fn run_osweep(a: OsweepArgs) -> Result<ExitCode> {
                 SweepConfig {
                     strategy: a.grid.strategy(),
                     topk: a.topk,
+                    // The grid's best points lie around one basin, and refined they end at
+                    // its optimum (play-test, 2026-12-05: every row of a whole-turn grid
+                    // within 38° of the frame's pose): as many again of its best points a
+                    // refinement's reach from those and from each other, one per basin.
+                    runners_up: if a.no_refine { 0 } else { a.topk },
+                    runner_up_deg: OSWEEP_BASIN_APART_DEG,
                     ..SweepConfig::default()
                 },
             )
