@@ -942,10 +942,14 @@ pub fn check_text(report: &CheckReport, previous: Option<&[String]>) -> String {
         writeln!(t, "warning: {w}").ok();
     }
     if !kept.is_empty() {
+        // Each named by its opening words, so that a warning carried over stays in sight
+        // (play-test, 2026-12-05: an off-centre model's warning went unseen until `scale`).
+        let gists: Vec<String> = kept.iter().map(|w| warning_gist(w)).collect();
         writeln!(
             t,
-            "{} warning(s) as in the scene this replaced, not repeated (`scene_read` lists them)",
-            kept.len()
+            "{} warning(s) as in the scene this replaced, not repeated (`scene_read` lists them): {}",
+            kept.len(),
+            gists.join("; ")
         )
         .ok();
     }
@@ -953,6 +957,28 @@ pub fn check_text(report: &CheckReport, previous: Option<&[String]>) -> String {
         writeln!(t, "no warnings").ok();
     }
     t
+}
+
+/// A warning's opening words: up to its first semicolon, without what it says in brackets,
+/// at most 12 words.
+fn warning_gist(warning: &str) -> String {
+    let mut head = String::new();
+    let mut depth = 0usize;
+    for c in warning.chars() {
+        match c {
+            ';' if depth == 0 => break,
+            '(' => depth += 1,
+            ')' => depth = depth.saturating_sub(1),
+            _ if depth == 0 => head.push(c),
+            _ => {}
+        }
+    }
+    let words: Vec<&str> = head.split_whitespace().collect();
+    if words.len() > 12 {
+        format!("{} …", words[..12].join(" "))
+    } else {
+        words.join(" ")
+    }
 }
 
 /// The score table a person reads (the CLI's `score`, the MCP tool's text): one row per
@@ -1448,6 +1474,19 @@ mod tests {
         assert!(!again.contains("warning: off centre"), "{again}");
         assert!(again.contains("warning: not at rest"), "{again}");
         assert!(again.contains("1 warning(s) as in the scene this replaced, not repeated"));
+        // ... named by its opening words.
+        assert!(
+            again.contains("(`scene_read` lists them): off centre"),
+            "{again}"
+        );
+        assert_eq!(
+            warning_gist("bounding-box centre (0.000, -0.044, 0.004) is off the origin; centre it"),
+            "bounding-box centre is off the origin"
+        );
+        assert_eq!(
+            warning_gist("one two three four five six seven eight nine ten eleven twelve thirteen"),
+            "one two three four five six seven eight nine ten eleven twelve …"
+        );
         let clean = CheckReport {
             warnings: vec![],
             ..report
