@@ -202,6 +202,24 @@ fn distinct_poses(cands: Vec<Candidate>) -> Vec<Candidate> {
     out
 }
 
+/// `cands` with [`SweepConfig::runners_up`] of the `seen` points added ([`runners_up`]).
+fn add_runners_up(
+    problem: &FrameProblem<'_>,
+    space: &SearchSpace,
+    cands: &mut Vec<Candidate>,
+    seen: Vec<(Vec<f64>, f64)>,
+    cfg: &SweepConfig,
+) {
+    let more = runners_up(
+        problem,
+        space,
+        cands,
+        seen,
+        (cfg.runners_up, cfg.runner_up_deg),
+    );
+    cands.extend(more);
+}
+
 /// Up to `n` of the `seen` points (search vectors with their scores), best first, each
 /// turned at least `apart_deg` (or a joint that far) from every candidate in `kept` and from
 /// each other, scored in full.
@@ -381,13 +399,7 @@ pub fn sweep(
             keep_start(problem, space, &mut cands);
             if cfg.runners_up > 0 {
                 let seen: Vec<(Vec<f64>, f64)> = pts.iter().map(|p| (p.x.clone(), -p.f)).collect();
-                cands.extend(runners_up(
-                    problem,
-                    space,
-                    &cands,
-                    seen,
-                    (cfg.runners_up, cfg.runner_up_deg),
-                ));
+                add_runners_up(problem, space, &mut cands, seen, cfg);
             }
             Ok(SweepResult {
                 ranked: rank(cands, cfg.topk + cfg.runners_up),
@@ -471,13 +483,7 @@ pub fn sweep(
             keep_start(problem, space, &mut cands);
             let mut cands = distinct_poses(cands);
             let kept = cands.len();
-            cands.extend(runners_up(
-                problem,
-                space,
-                &cands,
-                seen,
-                (cfg.runners_up, cfg.runner_up_deg),
-            ));
+            add_runners_up(problem, space, &mut cands, seen, cfg);
             Ok(SweepResult {
                 ranked: rank(cands, kept + cfg.runners_up),
                 restarts: records,

@@ -93,19 +93,10 @@ fn the_last_appearance_pass_does_not_turn_a_frame_into_a_basin_the_choice_did_no
 
 #[test]
 fn the_axis_pass_turns_a_can_back_about_its_axis_by_its_label_and_keeps_anchors() {
-    use crate::appearance::tests::label_of_half_width;
     // A can with a label over a quarter of its side, seen from three directions with
     // the label in view; frame 1 left 40° off about the can's axis.
-    let model = label_of_half_width(0.8);
-    let paint = |p: &Point3| {
-        if p.z.abs() < 0.3 && p.y.atan2(p.x).abs() < 0.8 {
-            [0.85, 0.8, 0.6]
-        } else {
-            [0.6, 0.05, 0.05]
-        }
-    };
-    let (scale, cam) = (0.12, camera());
-    let (truths, shots, targets) = three_can_views(&model, scale, &cam, &paint);
+    let (model, scale, cam) = labelled_can();
+    let (truths, shots, targets) = three_can_views(&model, scale, &cam, &label_paint);
     let frames = coloured_frames(&cam, &targets, &shots);
     let cfg = TrackConfig::default();
     let s = Searcher::new(&model, scale, &frames, &cfg).expect("searcher");
@@ -223,6 +214,24 @@ type Shot = (Vec<u8>, BitMask);
 
 /// A can seen from three directions with its label in view (spins −110°, −90°, −70°, tilted
 /// 0°, 20°, −15°): the true poses, the shots painted by `paint`, and their targets.
+/// A can with a label over a quarter of its side ([`label_paint`]), its scale and camera.
+fn labelled_can() -> (ObjectModel, f64, PinholeCamera) {
+    (
+        crate::appearance::tests::label_of_half_width(0.8),
+        0.12,
+        camera(),
+    )
+}
+
+/// The colours of [`labelled_can`]: a cream label on a red can.
+fn label_paint(p: &Point3) -> [f64; 3] {
+    if p.z.abs() < 0.3 && p.y.atan2(p.x).abs() < 0.8 {
+        [0.85, 0.8, 0.6]
+    } else {
+        [0.6, 0.05, 0.05]
+    }
+}
+
 fn three_can_views(
     model: &ObjectModel,
     scale: f64,
@@ -267,20 +276,11 @@ fn coloured_frames<'a>(
 
 #[test]
 fn a_warm_start_that_turns_a_can_about_its_axis_says_the_outline_stayed() {
-    use crate::appearance::tests::label_of_half_width;
     // The labelled can of the axis pass's test, frame 1 started 70° off about the can's axis:
     // `track --from` turns it back by its label, and reports a turn about the round axis, not
     // a move to another outline (play-test, 2026-12-05).
-    let model = label_of_half_width(0.8);
-    let paint = |p: &Point3| {
-        if p.z.abs() < 0.3 && p.y.atan2(p.x).abs() < 0.8 {
-            [0.85, 0.8, 0.6]
-        } else {
-            [0.6, 0.05, 0.05]
-        }
-    };
-    let (scale, cam) = (0.12, camera());
-    let (truths, shots, targets) = three_can_views(&model, scale, &cam, &paint);
+    let (model, scale, cam) = labelled_can();
+    let (truths, shots, targets) = three_can_views(&model, scale, &cam, &label_paint);
     let frames = coloured_frames(&cam, &targets, &shots);
     let start: Vec<GenPose> = vec![
         truths[0].clone(),
