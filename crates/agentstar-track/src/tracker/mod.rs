@@ -539,8 +539,10 @@ fn track_on(
         let band = s.band_iou(&frames[i], i, &g);
         let mut note = String::new();
         // A keyframe reached through the video keeps the chain's basin unless its mask clearly
-        // refuses it: a global search there picks by the outline alone, which is what the
-        // twins share (the chain's pose stays a hypothesis of the sequence choice).
+        // refuses it (its IoU under the drop threshold, or its band IoU a tie under the band
+        // that sends any frame to the global search, [`CHAIN_REFUSED_BELOW`]): a global search
+        // there picks by the outline alone, which is what the twins share (the chain's pose
+        // stays a hypothesis of the sequence choice).
         let refused = band < rescue_band(&bands) - CHAIN_REFUSED_BELOW;
         let chain_holds = chained.is_some() && sc >= cfg.drop_threshold && !refused;
         let arrival = chained.as_ref().map(|_| (g.clone(), sc));
@@ -660,7 +662,8 @@ fn track_on(
             ));
             (poses[init], scores[init]) = r;
         }
-        alternatives[init] = rescue.basins;
+        // Beside any the video followed back from a later keyframe proposed ([`follow_back`]).
+        alternatives[init].extend(rescue.basins);
         log.phase("global", &s);
     }
     log.all_poses(&poses);
