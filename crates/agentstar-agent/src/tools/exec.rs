@@ -163,15 +163,21 @@ impl Invocation {
 
 /// A failed child command's stderr as the call's error: without the lines the commands
 /// print for a person at a terminal before they start (`note: …`, such as how many in-between
-/// frames the capture holds besides its keyframes), which read as the error's first line.
+/// frames the capture holds besides its keyframes), which read as the error's first line;
+/// all of it where nothing else is left (a child that died without a word of its own).
 pub(super) fn failure_text(stderr: &str) -> String {
-    stderr
+    let error = stderr
         .lines()
         .filter(|l| !l.starts_with("note: "))
         .collect::<Vec<_>>()
         .join("\n")
         .trim()
-        .to_string()
+        .to_string();
+    if error.is_empty() {
+        stderr.trim().to_string()
+    } else {
+        error
+    }
 }
 
 impl Toolbox {

@@ -554,3 +554,15 @@ fn a_views_images_come_with_the_model_first() {
         ]
     );
 }
+
+#[test]
+fn a_failures_text_is_its_error_without_the_notes_or_the_notes_when_that_is_all() {
+    let stderr = "note: cap holds 4 in-between frame(s) besides its 3 keyframes; this works on the keyframes\nerror: `000001` is an in-between frame\n";
+    assert_eq!(
+        failure_text(stderr),
+        "error: `000001` is an in-between frame"
+    );
+    let only = "note: cap holds 4 in-between frame(s)\n";
+    assert_eq!(failure_text(only), "note: cap holds 4 in-between frame(s)");
+    assert_eq!(failure_text(""), "");
+}
