@@ -36,6 +36,12 @@ pub(super) const CHAIN_HOLD_TIE: f64 = 0.002;
 /// on the whole outline ([`APPEARANCE_TIE`]) under what right poses of this object score.
 pub(super) const CHAIN_REFUSED_BELOW: f64 = APPEARANCE_TIE;
 
+/// Whether a keyframe a chain arrived at, scoring `band` (band IoU), is refused by its mask
+/// ([`CHAIN_REFUSED_BELOW`] under [`rescue_band`] of `bands`, the keyframes tracked so far).
+pub(super) fn chain_refused(band: f64, bands: &[f64]) -> bool {
+    band < rescue_band(bands) - CHAIN_REFUSED_BELOW
+}
+
 /// A chain frame whose mask shows less than this share of the object seen in the keyframes
 /// (visible pixels, outside the hands; median over the keyframes) is carried at constant
 /// velocity, not fitted: a hand over most of it, or the object leaving the image.

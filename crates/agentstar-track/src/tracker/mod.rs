@@ -543,7 +543,7 @@ fn track_on(
         // that sends any frame to the global search, [`CHAIN_REFUSED_BELOW`]): a global search
         // there picks by the outline alone, which is what the twins share (the chain's pose
         // stays a hypothesis of the sequence choice).
-        let refused = band < rescue_band(&bands) - CHAIN_REFUSED_BELOW;
+        let refused = chain_refused(band, &bands);
         let chain_holds = chained.is_some() && sc >= cfg.drop_threshold && !refused;
         let arrival = chained.as_ref().map(|_| (g.clone(), sc));
         if band < rescue_band(&bands) && !chain_holds {

@@ -355,3 +355,23 @@ fn a_chain_holds_what_the_mask_cannot_see_where_the_motion_put_it() {
     let (g, sc) = s.hold_unseen(&frames[0], (truths[0].clone(), at), &wrong, CHAIN_HOLD_TIE);
     assert_eq!((g, sc), (truths[0].clone(), at));
 }
+
+#[test]
+fn a_chains_keyframe_is_refused_only_well_under_what_the_sequence_scores() {
+    // Masks whose right poses score about 0.999 (the band that sends a frame to the global
+    // search is capped at RESCUE_BAND, 0.998): a tie under it refuses the chain's pose.
+    let sharp = [0.9990, 0.9992, 0.9988, 0.9991];
+    let line = RESCUE_BAND - CHAIN_REFUSED_BELOW;
+    assert!(chain_refused(line - 0.001, &sharp));
+    assert!(!chain_refused(line + 0.001, &sharp));
+    // Thin parts under a segmenter's noise: right poses score about 0.97, and the line
+    // follows the median down rather than refusing every keyframe.
+    let thin = [0.970, 0.972, 0.968, 0.971, 0.969];
+    let median = 0.970;
+    let line = median - RESCUE_BELOW_TYPICAL - CHAIN_REFUSED_BELOW;
+    assert!(!chain_refused(0.968, &thin));
+    assert!(!chain_refused(line + 0.0005, &thin));
+    assert!(chain_refused(line - 0.0005, &thin));
+    // gen-67 (2026-12-05): keyframe 000000 arrived 0.019 under the median, and was refused.
+    assert!(chain_refused(0.9987 - 0.019, &[0.9987; 9]));
+}
