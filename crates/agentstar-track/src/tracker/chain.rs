@@ -107,6 +107,20 @@ impl Gap {
             rotation: at_next.pose.rotation * carried.rotation.inverse(),
         }
     }
+
+    /// [`Gap::between`] from two neighbouring keyframes' poses given in either order (a chain
+    /// followed forward or back).
+    pub(super) fn across(
+        frames: &[TrackFrame<'_>],
+        (k, at_k): (usize, &GenPose),
+        (m, at_m): (usize, &GenPose),
+    ) -> Gap {
+        if k < m {
+            Gap::between(frames, k, at_k, at_m)
+        } else {
+            Gap::between(frames, m, at_m, at_k)
+        }
+    }
 }
 
 /// The visible object pixels of a target (outside the hands).
@@ -319,13 +333,7 @@ pub(super) fn follow_back(
             seed,
         )?;
         // The motion across the gap from `from_pose` (at k) to `to` (at next).
-        let measured = |to: &GenPose| {
-            if k < next {
-                Gap::between(frames, gap, &from_pose, to)
-            } else {
-                Gap::between(frames, gap, to, &from_pose)
-            }
-        };
+        let measured = |to: &GenPose| Gap::across(frames, (k, &from_pose), (next, to));
         if followed
             .arrival
             .iter()
@@ -429,11 +437,7 @@ pub(super) fn remeasure_gaps(
                 .filter(|a| s.off_chain(&a.pose.rotation, &poses[to].pose.rotation) < window)
                 .collect();
             if let Some((arrival, _)) = polished_arrival(s, &frames[to], &near, seed)? {
-                joined = Some(if from == g {
-                    Gap::between(frames, g, &poses[g], &arrival)
-                } else {
-                    Gap::between(frames, g, &arrival, &poses[g + 1])
-                });
+                joined = Some(Gap::across(frames, (from, &poses[from]), (to, &arrival)));
                 break;
             }
         }

@@ -485,8 +485,7 @@ fn track_on(
         let mut how = "local";
         if let Some(followed) = &chained {
             // The motion the chain measured, for the passes over the sequence.
-            let (at_g, at_next) = if dir == -1 { (&prev, &g) } else { (&g, &prev) };
-            s.set_gap(gap, Gap::between(frames, gap, at_g, at_next));
+            s.set_gap(gap, Gap::across(frames, (prev_i, &prev), (i, &g)));
             how = "followed";
             log.push(format!(
                 "{} ← {}: followed {} in-between frame(s) ({} fitted, the rest carried)",
