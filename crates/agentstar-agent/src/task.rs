@@ -73,11 +73,12 @@ Alternate two kinds of steps; **each step changes the shape or the poses, never 
    or the object-frame verbs (`osweep`, `oapply` with `flips` for near-symmetric objects,
    `oapply_all` when the model is built the wrong way round), look at the candidate sheet, and
    commit the candidate you believe with `pose_commit` (the search's report and the
-   candidate's rank). A high IoU on a wrong pose is still
-   wrong: a mirror or 180° flip of a symmetric-looking object can score well. `oapply` and
+   candidate's rank). A high IoU on a wrong pose (a mirror, a
+   180° flip of a symmetric-looking object) is still wrong. `oapply` and
    `osweep` rows read `asked → where it ended` (the turn from the frame's pose as
    `rx;ry;rz`, the final joint states, the whole turn as an angle about an axis); commit by
-   the row, never by the asked label. Every candidate of a preset or a set is drawn; a note says which sheet page holds
+   the row, never by the asked label. `hold: true` keeps `oapply`'s asked turn (within 3°).
+   Every candidate is drawn; a note says which sheet page holds
    which ranks. `track` runs the automatic tracker over every keyframe; use it once the
    shape is right to start the poses. `track` with `from: "pose.json"` refines the current
    poses and names every frame it moved to another basin (turned over 45° from its pose

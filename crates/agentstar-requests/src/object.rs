@@ -69,9 +69,19 @@ pub struct OapplyArgs {
     /// candidate (degrees, or canonical units for a prismatic joint): `flip:x;hinge:115`.
     #[arg(long)]
     pub set: Option<String>,
+    /// Keep each candidate's turn as asked: its refinement still moves the position and the
+    /// joints as far as usual, but the rotation at most 3°. For a turn that
+    /// the mask alone would undo while you know it is right (a print or a part the outline
+    /// does not show: a turn about a nearly round body's axis).
+    #[arg(long)]
+    #[serde(default)]
+    pub hold: bool,
 }
 
 impl OapplyArgs {
+    /// How far a held candidate's refinement may turn it ([`OapplyArgs::hold`]).
+    pub const HOLD_TURN_DEG: f64 = 3.0;
+
     /// The set when none is named.
     pub const DEFAULT_SET: &'static str = "flips|swaps|folds";
 

@@ -341,6 +341,25 @@ fn pose_verbs_track_commit_and_diagnose() {
         (said_deg - ended.angle().to_degrees()).abs() < 0.6,
         "{label}"
     );
+    // A turn within the refinement's reach of the frame's pose is undone by it unless held
+    // (play-test 14: "refine all but the asked rotation").
+    let turned_by = |tag: &str, extra: &[&str]| -> f64 {
+        let mut args = vec!["--frames", "000005", "--set", "rz:18", "--json"];
+        args.extend_from_slice(extra);
+        let v: serde_json::Value = json_of(&verb("oapply", tag, &args));
+        let row = &v["frames"][0]["ranked"][0];
+        (rotation_of(&start["frames"]["000005.png"]["object_pose"]).inverse()
+            * rotation_of(&row["pose"]))
+        .angle()
+        .to_degrees()
+    };
+    let free = turned_by("oapply-free", &[]);
+    let held = turned_by("oapply-held", &["--hold"]);
+    assert!(free < 6.0, "the refinement kept {free:.1}° of 18°");
+    assert!(
+        (held - 18.0).abs() <= 3.5,
+        "held, the refinement left {held:.1}° of 18°"
+    );
 
     // Apply a bad order, commit it, see it in the history, restore the original.
     let o = verb(

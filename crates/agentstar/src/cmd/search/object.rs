@@ -523,10 +523,17 @@ pub fn run_oapply(a: OapplyArgs) -> Result<ExitCode> {
             .collect();
         if !a.no_refine {
             let placed: Vec<GenPose> = rows.iter().map(|r| r.pose.clone()).collect();
-            for (r, f) in rows
-                .iter_mut()
-                .zip(refine_each(&p, &placed, &LocalWindow::basin(), 17)?)
-            {
+            // Held: the basin window's position and joints, the rotation kept near the turn
+            // asked (the window's bound is about each of three axes).
+            let window = if a.request.hold {
+                LocalWindow {
+                    angle_deg: requests::OapplyArgs::HOLD_TURN_DEG / 3f64.sqrt(),
+                    ..LocalWindow::basin()
+                }
+            } else {
+                LocalWindow::basin()
+            };
+            for (r, f) in rows.iter_mut().zip(refine_each(&p, &placed, &window, 17)?) {
                 r.extra = json!({"unrefined": f.unrefined.combined});
                 (r.pose, r.score) = (f.pose, f.score);
             }
@@ -546,7 +553,7 @@ pub fn run_oapply(a: OapplyArgs) -> Result<ExitCode> {
         outputs.push(FrameOutput {
             frame: s.capture.frames[i].name.clone(),
             rows,
-            extra: json!({"method": "oapply", "set": a.request.set()}),
+            extra: json!({"method": "oapply", "set": a.request.set(), "hold": a.request.hold}),
             notes: vec![],
             pages: vec![],
             // Every candidate of a preset or a set is drawn.
