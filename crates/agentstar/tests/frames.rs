@@ -138,7 +138,8 @@ fn render_and_frames_zoom_into_a_box_and_say_which_side_faces_the_camera() {
     );
     assert!(!err, "{body}");
     assert!(
-        body.contains("crop at (40, 30), 20×15 frame pixels, zoom 4.00"),
+        body.contains("crop at (40, 30), 20×15 frame pixels, zoom 4.00")
+            && body.contains("pixel (u, v) is frame pixel (x + u / zoom, y + v / zoom)"),
         "{body}"
     );
     let side = image::open(reply_dir(&body).join("side_000000.png"))

@@ -265,5 +265,11 @@ fn crop_lines(report: &RenderReport) -> String {
             ));
         }
     }
+    if !text.is_empty() {
+        // Play-test 14 read positions off a crop and gave them to `crop` as frame pixels.
+        text.push_str(
+            "\n(in a crop image, pixel (u, v) is frame pixel (x + u / zoom, y + v / zoom), with the crop's (x, y) above; `crop` takes frame pixels. A sheet's tiles are scaled to fit it: read positions off the crop images)",
+        );
+    }
     text
 }
