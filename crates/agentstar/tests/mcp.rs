@@ -173,6 +173,13 @@ fn every_tool_runs_over_stdio_with_schema_arguments_and_typed_results() {
                 assert_eq!(r.frames.len(), 3);
                 // Three keyframes far apart at 160×120.
                 assert!(r.sequence.min_iou_visible > 0.8, "{r:?}");
+                // The earlier poses are named by the tools that reach them (play-test 15
+                // looked for a folder named pose_history).
+                assert!(
+                    body.contains("`pose_history` lists the earlier versions")
+                        && body.contains("`pose_restore` with `version` and `frames`"),
+                    "{body}"
+                );
             }
             "sweep" | "apply" | "osweep" | "oapply" | "oapply_all" => {
                 let r: SearchReport =

@@ -231,7 +231,7 @@ pub struct DelegateArgs {
 }
 
 tool!(Track, "track", Pose, Poses, TrackArgs,
-    "Run the automatic tracker over every keyframe with the current model and scale (a pose step for all keyframes; the result is a new pose version, the previous ones stay in pose_history). Use it once the shape is right, then fix the frames it gets wrong with sweeps and flips. After a shape edit, `from: \"pose.json\"` refines the current poses instead of starting over (cheap), and `anchors` keeps the keyframes you trust exactly and carries them to their neighbours; with `from`, it names every frame it moved to another basin (over 45° from its pose there), and `keep_basins: true` polishes only, keeping each frame within 45° of its pose (no flips or twins). `bake: true` paints the model from the keyframes whose outline alone settles their basin and tracks the others again with that print (a model without a print whose twins only colours tell apart, once some keyframes show what the outline cannot: a mug's handle). Progress notifications carry its latest line; a run that is stopped keeps what it had tracked in pose.partial.json.",
+    "Run the automatic tracker over every keyframe with the current model and scale (a pose step for all keyframes; the result is a new pose version, the previous ones stay: the tool `pose_history` lists them, `pose_restore` brings one back for some keyframes). Use it once the shape is right, then fix the frames it gets wrong with sweeps and flips. After a shape edit, `from: \"pose.json\"` refines the current poses instead of starting over (cheap), and `anchors` keeps the keyframes you trust exactly and carries them to their neighbours; with `from`, it names every frame it moved to another basin (over 45° from its pose there), and `keep_basins: true` polishes only, keeping each frame within 45° of its pose (no flips or twins). `bake: true` paints the model from the keyframes whose outline alone settles their basin and tracks the others again with that print (a model without a print whose twins only colours tell apart, once some keyframes show what the outline cannot: a mug's handle). Progress notifications carry its latest line; a run that is stopped keeps what it had tracked in pose.partial.json.",
     |tb, a, step| tb.track(&a, step));
 
 tool!(Sweep, "sweep", Pose, Nothing, WithSheet<SweepArgs>,
@@ -635,9 +635,15 @@ impl Toolbox {
                     Err(e) => format!("(joint states not shown: {e})\n"),
                     Ok(_) => String::new(),
                 };
+                // Play-test 15 looked for a folder named pose_history, and asked for the
+                // restore of some keyframes that `pose_restore` already does.
+                let before = match version.checked_sub(1) {
+                    Some(v) => format!(" (version {v} holds the poses before this track)"),
+                    None => String::new(),
+                };
                 format!(
-                    "{}{unread}pose.json is version {version}; the earlier versions are in pose_history.",
-                    track_text(&report, poses.ok().as_ref())
+                    "{}{unread}pose.json is version {version}; the tool `pose_history` lists the earlier versions (with `frame`, one keyframe's pose in each), and `pose_restore` with `version` and `frames` brings a version back for those keyframes only{before}.",
+                    track_text(&report, poses.ok().as_ref()),
                 )
             },
             pose_changed: true,
