@@ -495,6 +495,12 @@ fn pose_verbs_track_commit_and_diagnose() {
         ],
     );
     assert!(o.status.success(), "{}", text(&o));
+    // What it did not search is named (play-test 15 added dpx, dpy and tz to learn it).
+    assert!(
+        text(&o).contains("held at the frame's pose (not searched; name them in `ranges` to search them): roll, pitch, dpx, dpy, tz"),
+        "{}",
+        text(&o)
+    );
     for f in [
         "sweep.json",
         "sweep.txt",

@@ -129,6 +129,7 @@ pub fn run_sweep(a: SweepArgs) -> Result<ExitCode> {
             "score_field": r.score_field.as_ref().map(|f| json!({"dofs": [space.ranges[0].dof.name(tree), space.ranges[1].dof.name(tree)], "a_values": f.a, "b_values": f.b, "scores": f.scores})),
         });
         let mut notes = space.notes.clone();
+        notes.extend(held_note(&space, tree));
         if r.ranked
             .first()
             .is_some_and(|c| !c.kept_start && converged_to(&c.pose, &p.base, tree))
@@ -380,4 +381,28 @@ mod tests {
         // Many joints: capped.
         assert_eq!(default_evals(&Strategy::De, 40, 6), MAX_DEFAULT_EVALS);
     }
+}
+
+/// Which of the pose's and the joints' degrees of freedom a camera-frame sweep left where the
+/// frame's pose has them (play-test 15 added `dpx`, `dpy` and `tz` to a sweep to learn whether
+/// they were refined); `None` when it searched them all.
+fn held_note(space: &agentstar_track::SearchSpace, tree: &KinematicTree) -> Option<String> {
+    use agentstar_track::Dof;
+    let searched = |d: &Dof| space.ranges.iter().any(|r| &r.dof == d);
+    let held: Vec<String> = [Dof::Roll, Dof::Yaw, Dof::Pitch, Dof::Dpx, Dof::Dpy, Dof::Tz]
+        .into_iter()
+        .chain(
+            (0..tree.joints().len())
+                .filter(|&j| tree.joints()[j].kind.has_state())
+                .map(Dof::Joint),
+        )
+        .filter(|d| !searched(d))
+        .map(|d| d.name(tree))
+        .collect();
+    (!held.is_empty()).then(|| {
+        format!(
+            "held at the frame's pose (not searched; name them in `ranges` to search them): {}",
+            held.join(", ")
+        )
+    })
 }
