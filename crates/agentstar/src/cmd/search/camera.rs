@@ -362,27 +362,6 @@ pub fn run_apply(a: ApplyArgs) -> Result<ExitCode> {
     )
 }
 
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn a_de_sweep_without_evals_gets_twenty_generations_however_many_dimensions() {
-        // 6 restarts, 8 per dimension: 7 dimensions need 6·56·20.
-        assert_eq!(default_evals(&Strategy::De, 7, 6), 6 * 56 * 20);
-        // Few dimensions keep the floor.
-        assert_eq!(default_evals(&Strategy::De, 3, 6), DEFAULT_EVALS);
-        let grid = Strategy::Grid {
-            default_steps: 5,
-            refine: 1,
-            shrink: 0.5,
-        };
-        assert_eq!(default_evals(&grid, 7, 6), DEFAULT_EVALS);
-        // Many joints: capped.
-        assert_eq!(default_evals(&Strategy::De, 40, 6), MAX_DEFAULT_EVALS);
-    }
-}
-
 /// Which of the pose's and the joints' degrees of freedom a camera-frame sweep left where the
 /// frame's pose has them (play-test 15 added `dpx`, `dpy` and `tz` to a sweep to learn whether
 /// they were refined); `None` when it searched them all.
@@ -405,4 +384,25 @@ fn held_note(space: &agentstar_track::SearchSpace, tree: &KinematicTree) -> Opti
             held.join(", ")
         )
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_de_sweep_without_evals_gets_twenty_generations_however_many_dimensions() {
+        // 6 restarts, 8 per dimension: 7 dimensions need 6·56·20.
+        assert_eq!(default_evals(&Strategy::De, 7, 6), 6 * 56 * 20);
+        // Few dimensions keep the floor.
+        assert_eq!(default_evals(&Strategy::De, 3, 6), DEFAULT_EVALS);
+        let grid = Strategy::Grid {
+            default_steps: 5,
+            refine: 1,
+            shrink: 0.5,
+        };
+        assert_eq!(default_evals(&grid, 7, 6), DEFAULT_EVALS);
+        // Many joints: capped.
+        assert_eq!(default_evals(&Strategy::De, 40, 6), MAX_DEFAULT_EVALS);
+    }
 }
