@@ -35,7 +35,7 @@ pub mod track;
 pub mod views;
 
 pub use bake::BakeArgs;
-pub use object::{OapplyAllArgs, OapplyArgs, OsweepArgs, Region};
+pub use object::{OapplyAllArgs, OapplyArgs, OsweepArgs, Region, RowOrder};
 pub use scale::{ScaleMethod, SizeAxis};
 pub use sheet::{SheetView, WithSheet};
 pub use track::WarmStart;

@@ -8,6 +8,21 @@ use crate::FRAMES;
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
+/// How `osweep` and `oapply` rank their rows.
+#[derive(
+    Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize, JsonSchema, clap::ValueEnum,
+)]
+#[serde(rename_all = "lowercase")]
+pub enum RowOrder {
+    /// By the mask (the combined IoU score), best first: the default.
+    #[default]
+    Iou,
+    /// By the frame's colours against the model's own (the `model` figure), best first;
+    /// rows without that figure last, ties by the mask. Among rows whose outlines tie, the
+    /// basin the print settles comes first.
+    Model,
+}
+
 /// Where `osweep` searches: a preset or grid ranges, in some keyframes.
 #[derive(clap::Args, Debug, Clone, PartialEq, Deserialize, Serialize, JsonSchema)]
 #[group(skip)]
@@ -27,6 +42,11 @@ pub struct OsweepArgs {
     /// Give this or `opreset`.
     #[arg(long)]
     pub ranges: Option<String>,
+    /// How the rows are ranked: `iou` (the mask; default) or `model` (the frame's colours
+    /// against the model's own, best first): to find among many rows the one the print
+    /// settles where the outlines tie. Read each row's IoU before committing it.
+    #[arg(long, value_enum)]
+    pub order: Option<RowOrder>,
 }
 
 /// Where an `osweep` searches: its preset or its grid ranges ([`OsweepArgs::region`]).
@@ -76,6 +96,10 @@ pub struct OapplyArgs {
     #[arg(long)]
     #[serde(default)]
     pub hold: bool,
+    /// How the rows are ranked: `iou` (the mask; default) or `model` (the frame's colours
+    /// against the model's own, best first). Read each row's IoU before committing it.
+    #[arg(long, value_enum)]
+    pub order: Option<RowOrder>,
 }
 
 impl OapplyArgs {

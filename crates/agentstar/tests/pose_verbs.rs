@@ -353,6 +353,27 @@ fn pose_verbs_track_commit_and_diagnose() {
         .angle()
         .to_degrees()
     };
+    // Ranked by the model's colours (play-test 15: the basin its print settled was rank 7
+    // of 25 by the mask): the figures fall down the rows, the ranks count from 0.
+    let v: serde_json::Value = json_of(&verb(
+        "oapply",
+        "oapply-model",
+        &[
+            "--frames", "000005", "--set", "flips", "--order", "model", "--json",
+        ],
+    ));
+    let ranked = v["frames"][0]["ranked"].as_array().expect("ranked");
+    let figures: Vec<f64> = ranked
+        .iter()
+        .map(|r| r["model_ncc"].as_f64().expect("a figure"))
+        .collect();
+    assert!(
+        figures.windows(2).all(|w| w[0] >= w[1]) && figures.len() == 4,
+        "{figures:?}"
+    );
+    for (k, r) in ranked.iter().enumerate() {
+        assert_eq!(r["rank"].as_u64(), Some(k as u64), "{r}");
+    }
     let free = turned_by("oapply-free", &[]);
     let held = turned_by("oapply-held", &["--hold"]);
     assert!(free < 6.0, "the refinement kept {free:.1}° of 18°");
