@@ -217,9 +217,10 @@ pub fn body_axis(model: &ObjectModel, states: &[f64]) -> Option<SymmetryAxis> {
 }
 
 /// The axis of a body whose outline every turn about it keeps (its footprint along the axis
-/// keeps [`ROUND_IOU`] under turns, and its reach from the axis in every direction across it
-/// lies within [`OUTLINE_SPREAD`] of the farthest): a can's or a bottle's, not a mug's (its
-/// handle shows the turn) nor an octagonal prism's (seen from the side its outline narrows
+/// keeps [`ROUND_IOU`] under turns, and the reach of its parts that no joint moves lies
+/// within [`OUTLINE_SPREAD`] of the farthest in every direction across it,
+/// [`reach_spread`]): a can's or a bottle's (with a lever on its side or not), not a mug's
+/// (its handle shows the turn) nor an octagonal prism's (seen from the side its outline narrows
 /// by 8% between a corner and a face, which masks measure). Silhouettes cannot measure a
 /// turn about it at all.
 pub fn outline_axis(model: &ObjectModel, states: &[f64]) -> Option<SymmetryAxis> {
@@ -235,17 +236,24 @@ pub fn outline_axis(model: &ObjectModel, states: &[f64]) -> Option<SymmetryAxis>
 /// of a 200-px-wide body) do not count as round.
 pub const OUTLINE_SPREAD: f64 = 0.03;
 
-/// The spread of the model's reach from `axis` over the directions across it (its support
-/// function in the plane across the axis, about the axis's centre, every 1°): 1 − the
-/// least reach over the farthest. 0 for a body of revolution.
+/// The spread of the reach from `axis` of the model's parts that no joint moves, over the
+/// directions across it (their support function in the plane across the axis, about the
+/// axis's centre, every 1°): 1 − the least reach over the farthest. 0 for a body of
+/// revolution. A part a joint moves (a lever on a can's side) shows the turn only where it
+/// is in view, so a chain cannot follow the turn through the frames that hide it; the body's
+/// own outline shows it in every frame (an octagonal prism's).
 pub fn reach_spread(model: &ObjectModel, states: &[f64], axis: &SymmetryAxis) -> f64 {
     let (u, v) = plane_basis(&axis.axis);
     let transforms = model.tree.part_transforms(states);
+    let tree = &model.tree;
+    let rooted = (0..model.parts.len()).any(|k| tree.part_joint(k).is_none());
     let across: Vec<(f64, f64)> = model
         .parts
         .iter()
         .zip(&transforms)
-        .flat_map(|(part, t)| part.mesh.positions.iter().map(move |p| t * p))
+        .enumerate()
+        .filter(|(k, _)| !rooted || tree.part_joint(*k).is_none())
+        .flat_map(|(_, (part, t))| part.mesh.positions.iter().map(move |p| t * p))
         .map(|p| {
             let d = p - axis.centre;
             (d.dot(&u), d.dot(&v))
@@ -762,6 +770,38 @@ mod tests {
                 "{name}: reach spread {spread:.4}"
             );
         }
+        // A lever hinged on a can's side: the can's outline is round all the same (the lever
+        // shows the turn only where it is in view).
+        let mut lever_can = one(primitives::cylinder(0.3, 0.8, 48).expect("can"));
+        lever_can.parts.push(Part::new(
+            "lever",
+            primitives::cuboid(0.03, 0.05, 0.3)
+                .expect("lever")
+                .translated(Vector3::new(0.33, 0.0, -0.05)),
+            [0.1, 0.2, 0.6],
+        ));
+        lever_can.tree = KinematicTree::new(
+            vec![agentstar_geom::JointDef {
+                name: "lever_hinge".into(),
+                kind: agentstar_geom::JointKind::Revolute,
+                parent: None,
+                child: vec!["lever".into()],
+                origin: Vector3::new(0.33, 0.0, 0.1),
+                axis: Vector3::new(0.0, -1.0, 0.0),
+                limit: Some((0.0, 60.0)),
+            }],
+            &lever_can.part_names(),
+        )
+        .expect("tree");
+        let rest = lever_can.tree.rest_states();
+        let axis = outline_axis(&lever_can, &rest).expect("the can with a lever is round");
+        assert!(axis.axis.z.abs() > 0.99, "{axis:?}");
+        // The whole model's reach, lever and all, spreads past the bound.
+        let whole = ObjectModel {
+            tree: KinematicTree::rigid(2),
+            ..lever_can.clone()
+        };
+        assert!(reach_spread(&whole, &[], &axis) > OUTLINE_SPREAD);
         // An octagon's reach from its axis: between its faces' distance and its corners'.
         let body = body_axis(&octagon, &[]).expect("axis");
         let expected = 1.0 - (std::f64::consts::PI / 8.0).cos();
