@@ -247,6 +247,38 @@ fn tracked_from_truth(dir: &Path) -> (std::path::PathBuf, Session, serde_json::V
 }
 
 #[test]
+fn a_track_that_moves_a_keyframe_committed_since_the_last_one_says_how_to_bring_it_back() {
+    let dir = tempfile::tempdir().expect("tmp");
+    let (run, mut c, _) = tracked_from_truth(dir.path());
+    // A keyframe committed turned 60° (as an agent's wrong choice would be), then a track
+    // from scratch: it puts the keyframe back where its mask says.
+    c.commit_order("000005", "yaw:60");
+    let committed = PoseFile::read(&run.join("pose.json")).expect("poses");
+    let r = c.call("track", json!({}));
+    assert_eq!(r["result"]["isError"], false, "{r}");
+    let text = McpClient::text_of(&r);
+    let t: TrackReport =
+        serde_json::from_value(r["result"]["structuredContent"].clone()).expect("track");
+    let version = t.pose_version.expect("version");
+    let after = PoseFile::read(&run.join("pose.json")).expect("poses");
+    assert_ne!(
+        after.frames["000005.png"].object_pose,
+        committed.frames["000005.png"].object_pose
+    );
+    assert!(
+        text.contains("Keyframes you committed since the last track that this track moved to another basin: 000005.png (")
+            && text.contains(&format!("`pose_restore` with `version: {}` and `frames: \"000005.png\"`", version - 1)),
+        "{text}"
+    );
+    // Only since the last track: a second one has nothing to say about it.
+    let r = c.call("track", json!({"from": "pose.json"}));
+    assert!(
+        !McpClient::text_of(&r).contains("Keyframes you committed since the last track"),
+        "{r}"
+    );
+}
+
+#[test]
 fn finish_takes_categorised_reasons_and_refuses_too_many_frames_under_the_gate() {
     let dir = tempfile::tempdir().expect("tmp");
     // The tracker over MCP, warm-started from the true poses: a pose version.

@@ -602,6 +602,11 @@ impl Toolbox {
         }
         let call = Invocation::new(&["track".to_string(), self.run.capture.display().to_string()])
             .with(&request)?;
+        // The keyframes committed since the last track, and their poses now: a track that
+        // moves one of them to another basin says so (play-tests 14 and 15: a track undid a
+        // keyframe the agent had settled by eye).
+        let committed = self.committed_since_track();
+        let before = rotations_of(&self.run.poses);
         let (ok, stdout, stderr) = self.exec(call.args())?;
         if !ok {
             let mut text = failure_text(&stderr);
@@ -637,12 +642,25 @@ impl Toolbox {
                 };
                 // Play-test 15 looked for a folder named pose_history, and asked for the
                 // restore of some keyframes that `pose_restore` already does.
-                let before = match version.checked_sub(1) {
+                let before_note = match version.checked_sub(1) {
                     Some(v) => format!(" (version {v} holds the poses before this track)"),
                     None => String::new(),
                 };
+                let undone = undone_commits(&committed, &before, &rotations_of(&self.run.poses));
+                let undone = match (undone.is_empty(), version.checked_sub(1)) {
+                    (false, Some(previous)) => format!(
+                        "\nKeyframes you committed since the last track that this track moved to another basin: {}. `pose_restore` with `version: {previous}` and `frames: \"{}\"` brings them back; `track` with `from: \"pose.json\"` and `anchors` keeps such keyframes as they are.",
+                        undone
+                            .iter()
+                            .map(|(f, deg)| format!("{f} ({deg:.0}°)"))
+                            .collect::<Vec<_>>()
+                            .join(", "),
+                        undone.iter().map(|(f, _)| f.as_str()).collect::<Vec<_>>().join(","),
+                    ),
+                    _ => String::new(),
+                };
                 format!(
-                    "{}{unread}pose.json is version {version}; the tool `pose_history` lists the earlier versions (with `frame`, one keyframe's pose in each), and `pose_restore` with `version` and `frames` brings a version back for those keyframes only{before}.",
+                    "{}{unread}pose.json is version {version}; the tool `pose_history` lists the earlier versions (with `frame`, one keyframe's pose in each), and `pose_restore` with `version` and `frames` brings a version back for those keyframes only{before_note}.{undone}",
                     track_text(&report, poses.ok().as_ref()),
                 )
             },
@@ -836,5 +854,81 @@ impl Toolbox {
         }
         serde_json::from_str(&stdout)
             .map_err(|e| AgentError::Tool(format!("temporal printed no report ({e})")))
+    }
+}
+
+/// Each keyframe's rotation in a pose file (`[w, x, y, z]`); empty where it does not read.
+fn rotations_of(path: &Path) -> BTreeMap<String, [f64; 4]> {
+    agentstar_data::posefile::PoseFile::read(path)
+        .map(|p| {
+            p.frames
+                .into_iter()
+                .filter_map(|(name, e)| Some((name, e.object_pose?.quaternion)))
+                .collect()
+        })
+        .unwrap_or_default()
+}
+
+/// The keyframes of `committed` that turned more than [`UNDONE_DEG`] from `before` to `after`,
+/// with the turn (degrees).
+fn undone_commits(
+    committed: &std::collections::BTreeSet<String>,
+    before: &BTreeMap<String, [f64; 4]>,
+    after: &BTreeMap<String, [f64; 4]>,
+) -> Vec<(String, f64)> {
+    committed
+        .iter()
+        .filter_map(|f| {
+            let (a, b) = (before.get(f)?, after.get(f)?);
+            let norm = |q: &[f64; 4]| q.iter().map(|v| v * v).sum::<f64>().sqrt().max(1e-12);
+            let dot = a.iter().zip(b).map(|(x, y)| x * y).sum::<f64>() / (norm(a) * norm(b));
+            let deg = 2.0 * dot.abs().clamp(0.0, 1.0).acos().to_degrees();
+            (deg > UNDONE_DEG).then(|| (f.clone(), deg))
+        })
+        .collect()
+}
+
+/// A committed keyframe turned further than this by a track was moved to another basin (as
+/// `track --from` counts a frame moved).
+const UNDONE_DEG: f64 = 45.0;
+
+impl Toolbox {
+    /// The keyframes a `pose_commit` or `pose_restore` set since the last `track` of the
+    /// ledger (every keyframe for a step that named none); none where the ledger does not
+    /// read (the track itself does not depend on it).
+    fn committed_since_track(&self) -> std::collections::BTreeSet<String> {
+        let path = self.run.ledger_path();
+        let Ok((entries, _)) = agentstar_data::ledger::read(&path) else {
+            return Default::default();
+        };
+        let last_track = entries.iter().rposition(|e| e.tool == "track");
+        entries
+            .iter()
+            .skip(last_track.map_or(0, |k| k + 1))
+            .filter(|e| e.tool == "pose_commit" || e.tool == "pose_restore")
+            .filter(|e| !e.scores.contains_key("error"))
+            .filter_map(|e| {
+                let named = e.args.get("frames").and_then(|v| v.as_str());
+                // A commit of a search report without `frames` sets the report's frames; of
+                // a pose file (or a restore without `frames`), every keyframe; of `last`
+                // (the newest report then, perhaps not now), none that can be named.
+                let committed_report = || -> Option<Vec<String>> {
+                    let report = e.args.get("report")?.as_str()?.trim();
+                    if report == "last" {
+                        return Some(Vec::new());
+                    }
+                    let path = self.confine(report).ok()?;
+                    match SearchReport::read(&path) {
+                        Ok(r) => Some(r.frames.into_iter().map(|f| f.frame).collect()),
+                        Err(_) => self.frame_names(None).ok(),
+                    }
+                };
+                match (named, e.tool.as_str()) {
+                    (None, "pose_commit") => committed_report(),
+                    _ => self.frame_names(named).ok(),
+                }
+            })
+            .flatten()
+            .collect()
     }
 }
