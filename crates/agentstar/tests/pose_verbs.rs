@@ -374,6 +374,16 @@ fn pose_verbs_track_commit_and_diagnose() {
     for (k, r) in ranked.iter().enumerate() {
         assert_eq!(r["rank"].as_u64(), Some(k as u64), "{r}");
     }
+    assert!(
+        v["frames"][0]["notes"]
+            .as_array()
+            .expect("notes")
+            .iter()
+            .any(|n| n
+                .as_str()
+                .is_some_and(|n| n.starts_with("rows ranked by the model's colours"))),
+        "{v}"
+    );
     let free = turned_by("oapply-free", &[]);
     let held = turned_by("oapply-held", &["--hold"]);
     assert!(free < 6.0, "the refinement kept {free:.1}° of 18°");

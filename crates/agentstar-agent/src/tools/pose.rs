@@ -642,12 +642,13 @@ impl Toolbox {
                 };
                 // Play-test 15 looked for a folder named pose_history, and asked for the
                 // restore of some keyframes that `pose_restore` already does.
-                let before_note = match version.checked_sub(1) {
+                let previous = version.checked_sub(1);
+                let before_note = match previous {
                     Some(v) => format!(" (version {v} holds the poses before this track)"),
                     None => String::new(),
                 };
                 let undone = undone_commits(&committed, &before, &rotations_of(&self.run.poses));
-                let undone = match (undone.is_empty(), version.checked_sub(1)) {
+                let undone = match (undone.is_empty(), previous) {
                     (false, Some(previous)) => format!(
                         "\nKeyframes you committed since the last track that this track moved to another basin: {}. `pose_restore` with `version: {previous}` and `frames: \"{}\"` brings them back; `track` with `from: \"pose.json\"` and `anchors` keeps such keyframes as they are.",
                         undone
@@ -857,13 +858,19 @@ impl Toolbox {
     }
 }
 
-/// Each keyframe's rotation in a pose file (`[w, x, y, z]`); empty where it does not read.
-fn rotations_of(path: &Path) -> BTreeMap<String, [f64; 4]> {
+/// Each keyframe's rotation in a pose file; empty where it does not read.
+fn rotations_of(path: &Path) -> BTreeMap<String, agentstar_geom::UnitQuaternion> {
     agentstar_data::posefile::PoseFile::read(path)
         .map(|p| {
             p.frames
                 .into_iter()
-                .filter_map(|(name, e)| Some((name, e.object_pose?.quaternion)))
+                .filter_map(|(name, e)| {
+                    let pose = e.object_pose?;
+                    let pose =
+                        agentstar_geom::ObjectPose::from_wxyz(pose.quaternion, pose.translation)
+                            .ok()?;
+                    Some((name, pose.rotation))
+                })
                 .collect()
         })
         .unwrap_or_default()
@@ -873,23 +880,21 @@ fn rotations_of(path: &Path) -> BTreeMap<String, [f64; 4]> {
 /// with the turn (degrees).
 fn undone_commits(
     committed: &std::collections::BTreeSet<String>,
-    before: &BTreeMap<String, [f64; 4]>,
-    after: &BTreeMap<String, [f64; 4]>,
+    before: &BTreeMap<String, agentstar_geom::UnitQuaternion>,
+    after: &BTreeMap<String, agentstar_geom::UnitQuaternion>,
 ) -> Vec<(String, f64)> {
     committed
         .iter()
         .filter_map(|f| {
-            let (a, b) = (before.get(f)?, after.get(f)?);
-            let norm = |q: &[f64; 4]| q.iter().map(|v| v * v).sum::<f64>().sqrt().max(1e-12);
-            let dot = a.iter().zip(b).map(|(x, y)| x * y).sum::<f64>() / (norm(a) * norm(b));
-            let deg = 2.0 * dot.abs().clamp(0.0, 1.0).acos().to_degrees();
+            let deg = before.get(f)?.angle_to(after.get(f)?).to_degrees();
             (deg > UNDONE_DEG).then(|| (f.clone(), deg))
         })
         .collect()
 }
 
-/// A committed keyframe turned further than this by a track was moved to another basin (as
-/// `track --from` counts a frame moved).
+/// A committed keyframe turned further than this by a track was moved to another basin: the
+/// tracker's `BASIN_ROTATION_DEG`, by which `track --from` names the frames it moved (this
+/// crate does not depend on the tracker's).
 const UNDONE_DEG: f64 = 45.0;
 
 impl Toolbox {
