@@ -3,11 +3,13 @@
 //! coarse-to-fine refinement, and a seeded random generator. Nothing here knows about
 //! images, poses or renderers; every search is deterministic for its seed.
 
+pub mod cma;
 pub mod de;
 pub mod grid;
 pub mod nelder_mead;
 pub mod rng;
 
+pub use cma::{cma_es, CmaConfig, CmaResult};
 pub use de::{differential_evolution, DeConfig, DeResult, Termination};
 pub use grid::{grid_search, GridConfig, GridPoint};
 pub use nelder_mead::{nelder_mead, NelderMeadConfig};

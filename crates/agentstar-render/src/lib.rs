@@ -17,7 +17,7 @@ pub mod views;
 
 pub use agentstar_mask::{BitMask, DepthObservation};
 pub use full::{render_full, FullRenderer, RenderBuffers, NO_PART};
-pub use raster::{Affine, Instance, SilhouetteRenderer};
+pub use raster::{Affine, Instance, RowSpan, SilhouetteRenderer};
 pub use scene::{visible_part_pixels, PosedModel};
 pub use score::{boundary_band, IouScore, ScoreTarget, DEFAULT_BAND_PX, GATE_IOU};
 

@@ -135,6 +135,16 @@ impl ScanTriangle {
     /// Inclusive pixel span of row `j` (pixel centre y = j + 0.5), clamped to the width.
     #[inline(always)]
     pub(crate) fn span(&self, j: u32, width: u32) -> Option<(u32, u32)> {
+        let (xl, xr) = self.crossing(j);
+        let i0 = ceil_i64(xl - 0.5).max(0);
+        let i1 = floor_i64(xr - 0.5).min(width as i64 - 1);
+        (i0 <= i1).then_some((i0 as u32, i1 as u32))
+    }
+
+    /// Where the line of row `j`'s pixel centres enters and leaves the triangle (x, left
+    /// first), for a row in [`ScanTriangle::rows`].
+    #[inline(always)]
+    fn crossing(&self, j: u32) -> (f64, f64) {
         let y = j as f64 + 0.5;
         let [v0, v1, v2] = self.v;
         let xa = v0[0] + (y - v0[1]) * self.inv02;
@@ -143,10 +153,22 @@ impl ScanTriangle {
         } else {
             v0[0] + (y - v0[1]) * self.inv01
         };
-        let (xl, xr) = if xa <= xb { (xa, xb) } else { (xb, xa) };
-        let i0 = ceil_i64(xl - 0.5).max(0);
-        let i1 = floor_i64(xr - 0.5).min(width as i64 - 1);
-        (i0 <= i1).then_some((i0 as u32, i1 as u32))
+        if xa <= xb {
+            (xa, xb)
+        } else {
+            (xb, xa)
+        }
+    }
+}
+
+/// A triangle's covered stretches, row by row, for [`SilhouetteRenderer::render_spans`].
+fn record_triangle(spans: &mut Vec<RowSpan>, st: &ScanTriangle, h: u32) {
+    let Some((r0, r1)) = st.rows(h) else { return };
+    for row in r0..=r1 {
+        let (x0, x1) = st.crossing(row);
+        if x1 > x0 {
+            spans.push(RowSpan { row, x0, x1 });
+        }
     }
 }
 
@@ -326,6 +348,16 @@ struct ContourScratch {
     crossings: Vec<(f64, i32, i32)>,
 }
 
+/// One covered stretch of a row of a render, at sub-pixel precision: the row (its pixel
+/// centres at y = row + 0.5) and where the outline crosses that line, `x0 ≤ x1`, in pixels
+/// (pixel i spans [i, i + 1)). Stretches of one render may overlap (two parts, two faces).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RowSpan {
+    pub row: u32,
+    pub x0: f64,
+    pub x1: f64,
+}
+
 /// Renders silhouettes into a reusable bit mask.
 #[derive(Debug)]
 pub struct SilhouetteRenderer {
@@ -334,6 +366,10 @@ pub struct SilhouetteRenderer {
     contour: ContourScratch,
     /// Rows written since the last clear (inclusive), so clearing touches only those.
     dirty: Option<(u32, u32)>,
+    /// The covered stretches of the last [`SilhouetteRenderer::render_spans`].
+    spans: Vec<RowSpan>,
+    /// Whether the render in progress records [`RowSpan`]s.
+    record: bool,
 }
 
 impl SilhouetteRenderer {
@@ -343,7 +379,25 @@ impl SilhouetteRenderer {
             scratch: VertexScratch::default(),
             contour: ContourScratch::default(),
             dirty: None,
+            spans: Vec::new(),
+            record: false,
         }
+    }
+
+    /// Renders like [`SilhouetteRenderer::render`] and also returns where each covered row
+    /// stretch begins and ends at sub-pixel precision (unmerged; rows whose pixel centres
+    /// the outline crosses, clipped to the image's rows but not to its width): what a score
+    /// smooth in the image's x needs ([`crate::ScoreTarget::soft_gate`]).
+    pub fn render_spans(
+        &mut self,
+        camera: &PinholeCamera,
+        instances: &[Instance<'_>],
+    ) -> &mut [RowSpan] {
+        self.spans.clear();
+        self.record = true;
+        self.render(camera, instances);
+        self.record = false;
+        &mut self.spans
     }
 
     /// The silhouette of `instances` seen by `camera` (whose size must match the renderer's).
@@ -389,6 +443,7 @@ impl SilhouetteRenderer {
                         w,
                         h,
                         &mut dirty,
+                        self.record.then_some(&mut self.spans),
                     );
                     continue;
                 }
@@ -414,6 +469,7 @@ impl SilhouetteRenderer {
                         w,
                         h,
                         &mut dirty,
+                        self.record.then_some(&mut self.spans),
                     );
                     continue;
                 }
@@ -434,6 +490,9 @@ impl SilhouetteRenderer {
                         for k in 1..n - 1 {
                             if let Some(st) = ScanTriangle::new(p[0], p[k], p[k + 1]) {
                                 fill(&mut self.mask, &st, w, h, &mut dirty);
+                                if self.record {
+                                    record_triangle(&mut self.spans, &st, h);
+                                }
                             }
                         }
                     }
@@ -453,6 +512,9 @@ impl SilhouetteRenderer {
                 }
                 if let Some(st) = ScanTriangle::new(a, b, c) {
                     fill(&mut self.mask, &st, w, h, &mut dirty);
+                    if self.record {
+                        record_triangle(&mut self.spans, &st, h);
+                    }
                 }
             }
         }
@@ -552,6 +614,7 @@ fn fill_from_contour(
     w: u32,
     h: u32,
     dirty: &mut (u32, u32),
+    spans: Option<&mut Vec<RowSpan>>,
 ) {
     cs.facing.clear();
     cs.facing.extend(mesh.triangles.iter().map(|t| {
@@ -578,11 +641,14 @@ fn fill_from_contour(
         w,
         h,
         dirty,
+        spans,
     );
 }
 
 /// The fill of [`fill_from_contour`] once `cs.facing` holds every face's facing; `screen`
-/// gives a vertex's pixel position (called only for the contour's vertices).
+/// gives a vertex's pixel position (called only for the contour's vertices). Each covered
+/// stretch is also pushed to `spans` when given.
+#[allow(clippy::too_many_arguments)]
 fn fill_contour(
     mask: &mut BitMask,
     cs: &mut ContourScratch,
@@ -591,6 +657,7 @@ fn fill_contour(
     w: u32,
     h: u32,
     dirty: &mut (u32, u32),
+    mut spans: Option<&mut Vec<RowSpan>>,
 ) {
     if cs.row_start.len() != h as usize + 2 {
         cs.row_start.clear();
@@ -691,6 +758,15 @@ fn fill_contour(
             front += row[k].1;
             back += row[k].2;
             if front != 0 || back != 0 {
+                if let Some(spans) = spans.as_deref_mut() {
+                    if row[k + 1].0 > row[k].0 {
+                        spans.push(RowSpan {
+                            row: r as u32,
+                            x0: row[k].0,
+                            x1: row[k + 1].0,
+                        });
+                    }
+                }
                 let i0 = ceil_i64(row[k].0 - 0.5).max(0);
                 let i1 = floor_i64(row[k + 1].0 - 0.5).min(w as i64 - 1);
                 if i0 <= i1 {

@@ -6,6 +6,7 @@
 //! `IoU − w · min(depth error in canonical units, 1)`.
 
 use crate::full::RenderBuffers;
+use crate::raster::RowSpan;
 use crate::RenderError;
 use agentstar_mask::{BitMask, DepthObservation};
 
@@ -219,6 +220,73 @@ impl ScoreTarget {
         ratio(inter, render_visible + self.visible_mask_px - inter)
     }
 
+    /// [`ScoreTarget::gate`] with the render's coverage measured at sub-pixel precision
+    /// along each row: a pixel counts the share of its width that the render's stretches
+    /// cover (`spans`, from [`crate::SilhouetteRenderer::render_spans`]; sorted and merged
+    /// here, in place), the target's pixels stay whole. The value moves smoothly as an
+    /// outline slides sideways, where the gate moves a pixel at a time: what a fine local
+    /// search climbs. Its maximum is at the true pose up to a pixel's rounding, and the
+    /// exact silhouette scores a little under 1 (its boundary pixels half covered).
+    pub fn soft_gate(&self, spans: &mut [RowSpan]) -> f64 {
+        spans.sort_unstable_by(|a, b| a.row.cmp(&b.row).then(a.x0.total_cmp(&b.x0)));
+        let (w, h) = (self.mask.width(), self.mask.height());
+        let (mut inter, mut render_visible) = (0.0, 0.0);
+        let mut add = |row: u32, x0: f64, x1: f64| {
+            if row >= h {
+                return;
+            }
+            let (a, b) = (x0.max(0.0), x1.min(w as f64));
+            if b.is_nan() || a.is_nan() || b <= a {
+                return;
+            }
+            let (ia, ib) = (a.floor() as u32, (b.floor() as u32).min(w));
+            let mask = self.mask.row(row);
+            let keep = self.keep.as_ref().map(|k| k.row(row));
+            let bit = |words: &[u64], x: u32| (words[(x >> 6) as usize] >> (x & 63)) & 1 == 1;
+            let mut pixel = |x: u32, share: f64| {
+                if keep.is_none_or(|k| bit(k, x)) {
+                    render_visible += share;
+                    if bit(mask, x) {
+                        inter += share;
+                    }
+                }
+            };
+            if ia == ib {
+                pixel(ia, b - a);
+                return;
+            }
+            pixel(ia, (ia + 1) as f64 - a);
+            if ib < w && b > ib as f64 {
+                pixel(ib, b - ib as f64);
+            }
+            // The whole pixels between.
+            let (kept, both) = count_whole(mask, keep, ia + 1, ib);
+            render_visible += kept as f64;
+            inter += both as f64;
+        };
+        let mut current: Option<RowSpan> = None;
+        for s in spans.iter() {
+            match &mut current {
+                Some(c) if c.row == s.row && s.x0 <= c.x1 => c.x1 = c.x1.max(s.x1),
+                _ => {
+                    if let Some(c) = current {
+                        add(c.row, c.x0, c.x1);
+                    }
+                    current = Some(*s);
+                }
+            }
+        }
+        if let Some(c) = current {
+            add(c.row, c.x0, c.x1);
+        }
+        let union = render_visible + self.visible_mask_px as f64 - inter;
+        if union > 0.0 {
+            inter / union
+        } else {
+            0.0
+        }
+    }
+
     /// Every figure of the score.
     pub fn score(&self, render: &BitMask) -> IouScore {
         let r = render.words();
@@ -266,6 +334,24 @@ impl ScoreTarget {
             band_share: self.band_share,
         }
     }
+}
+
+/// Of a row's pixels `x0..x1` (end excluded): how many are kept (all without `keep`), and
+/// how many are kept and in `mask`.
+fn count_whole(mask: &[u64], keep: Option<&[u64]>, x0: u32, x1: u32) -> (u64, u64) {
+    let (mut kept, mut both) = (0u64, 0u64);
+    let mut x = x0;
+    while x < x1 {
+        let word = (x >> 6) as usize;
+        let lo = x & 63;
+        let hi = (x1 - (x - lo)).min(64);
+        let bits = (u64::MAX << lo) & (u64::MAX >> (64 - hi));
+        let k = keep.map_or(bits, |k| k[word] & bits);
+        kept += u64::from(k.count_ones());
+        both += u64::from((k & mask[word]).count_ones());
+        x = x - lo + 64;
+    }
+    (kept, both)
 }
 
 /// The pixels whose centre lies within `band_px` of the boundary of `mask`, on either side:
@@ -430,6 +516,65 @@ mod tests {
         assert!((t.gate(&render) - 0.5).abs() < 1e-12);
         let plain = ScoreTarget::new(mask, None).expect("ok");
         assert_eq!(plain.score(&render).iou_visible, Some(5.0 / 15.0));
+    }
+
+    /// The stretches `x0..x1` on rows `rows`.
+    fn stretches(rows: std::ops::Range<u32>, x0: f64, x1: f64) -> Vec<RowSpan> {
+        rows.map(|row| RowSpan { row, x0, x1 }).collect()
+    }
+
+    #[test]
+    fn the_sub_pixel_gate_counts_the_covered_share_of_each_pixel() {
+        // Mask: columns 4..12, rows 2..6 of 20×8.
+        let (w, h) = (20, 8);
+        let mask = BitMask::from_fn(w, h, |x, y| (4..12).contains(&x) && (2..6).contains(&y));
+        let t = ScoreTarget::new(mask.clone(), None).expect("sizes");
+        // Stretches on the pixels' edges: the gate itself.
+        assert!((t.soft_gate(&mut stretches(2..6, 4.0, 12.0)) - 1.0).abs() < 1e-12);
+        // The right edge 0.3 px out: the union grows by 0.3 a row.
+        let out = t.soft_gate(&mut stretches(2..6, 4.0, 12.3));
+        assert!((out - 32.0 / 33.2).abs() < 1e-12, "{out}");
+        // 0.3 px in: the intersection shrinks by 0.3 a row.
+        let inside = t.soft_gate(&mut stretches(2..6, 4.0, 11.7));
+        assert!((inside - 30.8 / 32.0).abs() < 1e-12, "{inside}");
+        // Smooth where the gate is not: every 0.05 px moves it, monotonically.
+        let mut last = f64::NEG_INFINITY;
+        for k in 0..=20 {
+            let x1 = 10.5 + 0.05 * k as f64;
+            let v = t.soft_gate(&mut stretches(2..6, 4.0, x1));
+            assert!(v > last, "{x1}: {v} after {last}");
+            last = v;
+        }
+        // A stretch within one pixel, and stretches past the image's sides and rows.
+        let one = t.soft_gate(&mut [RowSpan {
+            row: 3,
+            x0: 5.25,
+            x1: 5.75,
+        }]);
+        assert!((one - 0.5 / 32.0).abs() < 1e-12, "{one}");
+        let wide = t.soft_gate(&mut stretches(0..h + 3, -5.0, 40.0));
+        assert!((wide - 32.0 / 160.0).abs() < 1e-12, "{wide}");
+    }
+
+    #[test]
+    fn the_sub_pixel_gate_merges_overlaps_and_leaves_out_hands() {
+        let (w, h) = (150, 4);
+        // A mask across two words of each row.
+        let mask = BitMask::from_fn(w, h, |x, _| (30..100).contains(&x));
+        let t = ScoreTarget::new(mask.clone(), None).expect("sizes");
+        let single = t.soft_gate(&mut stretches(0..h, 29.5, 100.25));
+        // The same cover from two overlapping parts, out of order.
+        let mut two = stretches(0..h, 60.0, 100.25);
+        two.extend(stretches(0..h, 29.5, 70.0));
+        assert!((t.soft_gate(&mut two) - single).abs() < 1e-12);
+        assert!((single - 70.0 / 70.75).abs() < 1e-12, "{single}");
+        // Hands over columns 90..140: neither the render nor the mask counts there.
+        let hand = BitMask::from_fn(w, h, |x, _| (90..140).contains(&x));
+        let t = ScoreTarget::new(mask, Some(hand)).expect("sizes");
+        let v = t.soft_gate(&mut stretches(0..h, 29.5, 130.0));
+        assert!((v - 60.0 / 60.5).abs() < 1e-12, "{v}");
+        // Nothing rendered, nothing in view: 0.
+        assert_eq!(t.soft_gate(&mut []), 0.0);
     }
 
     #[test]

@@ -320,6 +320,56 @@ fn geometry_crossing_the_near_plane_is_clipped_not_dropped() {
     assert_eq!(raster, exact);
 }
 
+/// The stretches of `render_spans` cover exactly the pixels whose centres the mask holds:
+/// over a closed model (the contour fill), an open one, and geometry crossing the near
+/// plane (the per-triangle fill).
+#[test]
+fn render_spans_cover_exactly_the_masks_pixel_centres() {
+    let check = |cam: &PinholeCamera, model: &ObjectModel, states: &[f64], pose: &Similarity| {
+        let mut r = SilhouetteRenderer::new(cam.width, cam.height);
+        let posed = PosedModel::new(model, states, pose);
+        let mask = r.render(cam, &posed.instances).clone();
+        let spans = r.render_spans(cam, &posed.instances).to_vec();
+        assert!(!spans.is_empty());
+        let covered = BitMask::from_fn(cam.width, cam.height, |x, y| {
+            let c = x as f64 + 0.5;
+            spans.iter().any(|s| s.row == y && s.x0 <= c && c <= s.x1)
+        });
+        assert_eq!(covered, mask);
+        // Recording the stretches leaves the mask as a plain render draws it.
+        assert_eq!(r.mask(), &mask);
+    };
+    let cam = PinholeCamera::new(300.0, 300.0, 160.0, 120.0, 320, 240).expect("camera");
+    let mut rng = Rng(7);
+    let model = test_model();
+    for _ in 0..6 {
+        let mut pose = rng.pose_in_view();
+        pose.translation *= 2.0;
+        check(&cam, &model, &[0.4], &pose);
+    }
+    let open = open_model();
+    for _ in 0..3 {
+        let mut pose = rng.pose_in_view();
+        pose.translation *= 2.0;
+        check(&cam, &open, &[], &pose);
+    }
+    let slab = ObjectModel {
+        tree: KinematicTree::rigid(1),
+        parts: vec![Part::new(
+            "slab",
+            cuboid(4.0, 4.0, 0.01).expect("box"),
+            [1.0; 3],
+        )],
+    };
+    let through = Similarity {
+        scale: 1.0,
+        rotation: UnitQuaternion::from_axis_angle(&Vector3::x_axis(), 1.3),
+        translation: Vector3::new(0.0, 0.05, 0.5),
+    };
+    let small = PinholeCamera::new(40.0, 40.0, 24.0, 16.0, 48, 32).expect("camera");
+    check(&small, &slab, &[], &through);
+}
+
 #[test]
 fn renderer_reuse_clears_previous_frames() {
     let model = test_model();

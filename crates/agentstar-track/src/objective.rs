@@ -274,6 +274,24 @@ impl Evaluator<'_, '_> {
         }
     }
 
+    /// The combined score with the silhouette's coverage measured at sub-pixel precision
+    /// along rows ([`ScoreTarget::soft_gate`]), for a fine local search; the combined score
+    /// itself when the problem scores depth.
+    pub fn soft_combined(&mut self, g: &GenPose) -> f64 {
+        let p = self.problem;
+        if p.depth.is_some() && p.depth_weight > 0.0 {
+            return self.score(g).combined;
+        }
+        let sim = g.pose.with_scale(p.scale);
+        if pivot_in_camera(&g.pose, p.scale, &p.pivot).z <= 0.0 {
+            return BEHIND_CAMERA;
+        }
+        self.builder
+            .build(p.model, &g.states, &sim, &mut self.instances);
+        p.target
+            .soft_gate(self.renderer.render_spans(&p.camera, &self.instances))
+    }
+
     /// The combined score only, for search loops (no depth: one silhouette and popcounts).
     pub fn combined(&mut self, g: &GenPose) -> f64 {
         let p = self.problem;
