@@ -1,6 +1,6 @@
 //! Derivative-free optimisers over bounded boxes, generic over the objective: differential
-//! evolution with SciPy's `best1bin` behaviour, bounded Nelder–Mead polish, grids with
-//! coarse-to-fine refinement, and a seeded random generator. Nothing here knows about
+//! evolution with SciPy's `best1bin` behaviour, bounded Nelder–Mead polish, bounded CMA-ES,
+//! grids with coarse-to-fine refinement, and a seeded random generator. Nothing here knows about
 //! images, poses or renderers; every search is deterministic for its seed.
 
 pub mod cma;

@@ -29,8 +29,8 @@ pub struct LocalWindow {
 
 impl LocalWindow {
     /// Around a pose that is already close: 12°, 4% shift, 8% depth, 20° of joint, 1,200
-    /// evaluations in the first pass (about 2,500 in all, and 100 of Nelder–Mead a dimension):
-    /// the tracker's polish.
+    /// evaluations in the first pass (about 3,000 in all, 180 of CMA-ES a dimension among
+    /// them): the tracker's polish.
     pub fn polish() -> Self {
         LocalWindow {
             angle_deg: 12.0,
