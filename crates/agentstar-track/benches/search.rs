@@ -10,7 +10,7 @@
 use agentstar_geom::pose::ObjectPose;
 use agentstar_geom::{KinematicTree, ObjectModel, Part, PinholeCamera, UnitQuaternion, Vector3};
 use agentstar_render::{PosedModel, ScoreTarget, SilhouetteRenderer};
-use agentstar_track::hypotheses::{refine_local, LocalWindow};
+use agentstar_track::hypotheses::{refine_local_with, LastPass, LocalWindow};
 use agentstar_track::objective::FrameProblem;
 use agentstar_track::search::{sweep, SweepConfig};
 use agentstar_track::space::{parse_spec, Grammar};
@@ -200,8 +200,15 @@ fn tracking() {
 /// seeded axis, its joint 3° off (each sign), shifted 0.3% of the depth; three starts a
 /// frame. The masks are exact (the truth scores IoU 1.0), so every degree left is the
 /// optimiser's: how far from the truth it ends (the larger of rotation and joint error),
-/// and in how many evaluations.
+/// and in how many evaluations. Each way of searching the narrow end ([`LastPass`]): the
+/// tracker's, then CMA-ES on the sub-pixel score.
 fn refine() {
+    for last in [LastPass::NelderMead, LastPass::CmaSoft] {
+        refine_with(last);
+    }
+}
+
+fn refine_with(last: LastPass) {
     let model = case::case_model();
     let cam = PinholeCamera::new(300.0, 300.0, 160.0, 120.0, 320, 240).expect("camera");
     let scale = 0.5;
@@ -227,7 +234,8 @@ fn refine() {
                 FrameProblem::new(&model, cam, &target, scale, start.clone()).with_coarse(&halved);
             let t0 = Instant::now();
             let (found, _, n) =
-                refine_local(&problem, &start, &LocalWindow::polish(), 7 + trial).expect("refine");
+                refine_local_with(&problem, &start, &LocalWindow::polish(), 7 + trial, last)
+                    .expect("refine");
             times.push(t0.elapsed().as_secs_f64());
             evaluations += n;
             let rotation = truth
@@ -243,7 +251,7 @@ fn refine() {
     rotation_deg.sort_by(f64::total_cmp);
     let n = errors_deg.len();
     println!(
-        "refine: {n} polishes from 2.5° and 3° of joint off the truth: median {:.4} s each, {} evaluations each; error left (the larger of rotation and joint) median {:.2}°, 90% {:.2}°, max {:.2}°; {} of {n} over 1° (rotation alone: median {:.2}°, max {:.2}°)",
+        "refine ({last:?}): {n} polishes from 2.5° and 3° of joint off the truth: median {:.4} s each, {} evaluations each; error left (the larger of rotation and joint) median {:.2}°, 90% {:.2}°, max {:.2}°; {} of {n} over 1° (rotation alone: median {:.2}°, max {:.2}°)",
         median(times),
         evaluations / n,
         errors_deg[n / 2],

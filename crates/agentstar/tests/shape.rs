@@ -121,11 +121,9 @@ fn fit_shape_recovers_two_wrong_proportions_and_holds_the_rest() {
     assert!(run.join(".agentstar/scenes/0002.rhai").is_file());
     // The refined poses are pose.json, and score there as the fit said.
     let now = score(&cap, &run.join("scene.rhai"), &run.join("pose.json"));
-    // To a pixel: the poses read back from the file may put one pixel centre on the other
-    // side of an edge it touched (1.0 against 0.99998 on one frame, 2026-12-06).
     let mean = now.iter().sum::<f64>() / now.len() as f64;
     assert!(
-        (mean - r.iou_mean_after).abs() < 5e-5,
+        (mean - r.iou_mean_after).abs() < 1e-6,
         "{mean} vs {}",
         r.iou_mean_after
     );
@@ -183,11 +181,9 @@ fn fit_shape_names_the_fixed_proportion_its_parameters_cannot_reach() {
     let v = r.views.as_ref().expect("residuals by viewing direction");
     let [x, y, z] = v.all.want;
     let (x, y, z) = (x.expect("x"), y.expect("y"), z.expect("z"));
-    // X is wanted longer than the others (the common part is the scale, which silhouettes
-    // do not say): by less than 1 / 0.85 − 1 = 18%, as the refined poses absorb part of the
-    // missing width (6.5% against Y, 2026-12-06; 8% and more before the local refinement's
-    // last pass became CMA-ES, which fits each pose closer to the wrong box).
-    assert!(x - y > 0.04 && x - z > 0.04, "{x} {y} {z}\n{body}");
+    // X is wanted about 1 / 0.85 − 1 = 18% longer than the others (the common part is the
+    // scale, which silhouettes do not say).
+    assert!(x - y > 0.08 && x - z > 0.08, "{x} {y} {z}\n{body}");
     assert!(!v.groups.is_empty(), "{body}");
     assert!(
         v.verdict.iter().any(|l| l.contains("longer along X")),

@@ -158,13 +158,9 @@ pub(super) fn choose_sequence(
                     .chain(carried)
                     .map(|r| (r.pose, r.score.combined))
                     .chain(alternatives.get(i).into_iter().flatten().cloned());
-                // One of a basin kept, the best scoring: a global search's pose may sit at
-                // the optimum of the basin that a refinement reached only near.
                 for (g, sc) in found {
-                    match h.iter_mut().find(|(b, _)| same_basin(b, &g)) {
-                        Some(kept) if sc > kept.1 => *kept = (g, sc),
-                        Some(_) => {}
-                        None => h.push((g, sc)),
+                    if !h.iter().any(|(b, _)| same_basin(b, &g)) {
+                        h.push((g, sc));
                     }
                 }
                 let best = h.iter().map(|x| x.1).fold(f64::NEG_INFINITY, f64::max);
