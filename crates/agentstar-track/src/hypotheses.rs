@@ -270,17 +270,7 @@ fn refine_local_passes_with(
             // the coarse passes' best and keeps its own.
             best_score = f64::NEG_INFINITY;
         }
-        let mut p = level.clone();
-        p.pivot = p.model.pivot(&best.states);
-        p.base = best.clone();
-        let space = local_space(
-            p.model,
-            &best,
-            (window.angle_deg * f).max(0.5),
-            (window.shift * f).max(0.002),
-            (window.depth * f).max(0.004),
-            (window.joint_deg * f).max(1.0),
-        );
+        let (p, space) = rebased(level, &best, window, f);
         let cfg = SweepConfig {
             restarts: 2,
             total_evals: n.max(40),
@@ -306,17 +296,7 @@ fn refine_local_passes_with(
         }
     }
     if last == LastPass::CmaSoft && range.end == LOCAL_PASSES {
-        let mut p = problem.clone();
-        p.pivot = p.model.pivot(&best.states);
-        p.base = best.clone();
-        let space = local_space(
-            p.model,
-            &best,
-            (window.angle_deg * CMA_SHARE).max(0.5),
-            (window.shift * CMA_SHARE).max(0.002),
-            (window.depth * CMA_SHARE).max(0.004),
-            (window.joint_deg * CMA_SHARE).max(1.0),
-        );
+        let (p, space) = rebased(problem, &best, window, CMA_SHARE);
         let (pose, score, n) = cma_pass(&p, &space, seed + 1000 * LOCAL_PASSES as u64)?;
         n_evals += n;
         // The passes before were at half the resolution, or the same pass's start scores
@@ -337,6 +317,28 @@ fn refine_local_passes_with(
         }
         _ => Ok((best, best_score, n_evals)),
     }
+}
+
+/// `level` re-based on `best` (its pivot following) and the box of one pass around it:
+/// `share` of the window, never under 0.5°, 0.2% shift, 0.4% depth and 1° of joint.
+fn rebased<'a>(
+    level: &FrameProblem<'a>,
+    best: &GenPose,
+    window: &LocalWindow,
+    share: f64,
+) -> (FrameProblem<'a>, SearchSpace) {
+    let mut p = level.clone();
+    p.pivot = p.model.pivot(&best.states);
+    p.base = best.clone();
+    let space = local_space(
+        p.model,
+        best,
+        (window.angle_deg * share).max(0.5),
+        (window.shift * share).max(0.002),
+        (window.depth * share).max(0.004),
+        (window.joint_deg * share).max(1.0),
+    );
+    (p, space)
 }
 
 /// CMA-ES over `space` from `problem`'s base (the search's start vector), first on the

@@ -278,32 +278,40 @@ impl Evaluator<'_, '_> {
     /// along rows ([`ScoreTarget::soft_gate`]), for a fine local search; the combined score
     /// itself when the problem scores depth.
     pub fn soft_combined(&mut self, g: &GenPose) -> f64 {
+        if let Err(known) = self.silhouette_instances(g) {
+            return known;
+        }
         let p = self.problem;
-        if p.depth.is_some() && p.depth_weight > 0.0 {
-            return self.score(g).combined;
-        }
-        let sim = g.pose.with_scale(p.scale);
-        if pivot_in_camera(&g.pose, p.scale, &p.pivot).z <= 0.0 {
-            return BEHIND_CAMERA;
-        }
-        self.builder
-            .build(p.model, &g.states, &sim, &mut self.instances);
         p.target
             .soft_gate(self.renderer.render_spans(&p.camera, &self.instances))
     }
 
-    /// The combined score only, for search loops (no depth: one silhouette and popcounts).
-    pub fn combined(&mut self, g: &GenPose) -> f64 {
+    /// `g`'s instances built for a silhouette score, or `Err` with the score where none is
+    /// needed: the whole score when the problem scores depth, [`BEHIND_CAMERA`] behind it.
+    fn silhouette_instances(&mut self, g: &GenPose) -> Result<(), f64> {
         let p = self.problem;
         if p.depth.is_some() && p.depth_weight > 0.0 {
-            return self.score(g).combined;
+            return Err(self.score(g).combined);
         }
-        let sim = g.pose.with_scale(p.scale);
+        // The frozen pivot, as in `score`.
         if pivot_in_camera(&g.pose, p.scale, &p.pivot).z <= 0.0 {
-            return BEHIND_CAMERA;
+            return Err(BEHIND_CAMERA);
         }
-        self.builder
-            .build(p.model, &g.states, &sim, &mut self.instances);
+        self.builder.build(
+            p.model,
+            &g.states,
+            &g.pose.with_scale(p.scale),
+            &mut self.instances,
+        );
+        Ok(())
+    }
+
+    /// The combined score only, for search loops (no depth: one silhouette and popcounts).
+    pub fn combined(&mut self, g: &GenPose) -> f64 {
+        if let Err(known) = self.silhouette_instances(g) {
+            return known;
+        }
+        let p = self.problem;
         self.renderer.render(&p.camera, &self.instances);
         p.target
             .gate_rows(self.renderer.mask(), self.renderer.rows())
