@@ -133,7 +133,7 @@ pub fn refine_local(
     window: &LocalWindow,
     seed: u64,
 ) -> Result<(GenPose, f64, usize), TrackError> {
-    refine_passes_from(problem, base, base, window, seed, 0..LOCAL_PASSES)
+    refine_local_with(problem, base, window, seed, LastPass::NelderMead)
 }
 
 /// How the narrow end of a local refinement searches.
@@ -159,28 +159,18 @@ pub fn refine_local_with(
     seed: u64,
     last: LastPass,
 ) -> Result<(GenPose, f64, usize), TrackError> {
-    let (start_score, n_start) = start_score(problem, base);
-    let (pose, score, n) = refine_local_passes_with(
-        problem,
-        base,
-        window,
-        seed,
-        0..LOCAL_PASSES,
-        Some((base, start_score)),
-        last,
-    )?;
-    Ok((pose, score, n + n_start))
+    refine_passes_from(problem, base, base, window, seed, (0..LOCAL_PASSES, last))
 }
 
-/// The passes `range` of [`refine_local`] from `from`, never worse than `base` (with the
-/// evaluation that scores `base` counted).
+/// The passes `range` of [`refine_local`] from `from`, its narrow end searched as `last`
+/// says, never worse than `base` (with the evaluation that scores `base` counted).
 fn refine_passes_from(
     problem: &FrameProblem<'_>,
     base: &GenPose,
     from: &GenPose,
     window: &LocalWindow,
     seed: u64,
-    range: std::ops::Range<usize>,
+    (range, last): (std::ops::Range<usize>, LastPass),
 ) -> Result<(GenPose, f64, usize), TrackError> {
     let (start_score, n_start) = start_score(problem, base);
     let (pose, score, n) = refine_local_passes(
@@ -190,6 +180,7 @@ fn refine_passes_from(
         seed,
         range,
         Some((base, start_score)),
+        last,
     )?;
     Ok((pose, score, n + n_start))
 }
@@ -209,29 +200,9 @@ fn start_score(problem: &FrameProblem<'_>, base: &GenPose) -> (f64, usize) {
 /// The passes `range` of [`refine_local`] (the same windows, budgets and seeds) from `base`;
 /// the score returned is at full resolution, and `origin` (a pose and its score) is
 /// returned instead when it scores better.
+/// With [`LastPass::CmaSoft`], one CMA-ES pass ([`cma_pass`]) instead of the passes after
+/// the half-resolution ones.
 fn refine_local_passes(
-    problem: &FrameProblem<'_>,
-    base: &GenPose,
-    window: &LocalWindow,
-    seed: u64,
-    range: std::ops::Range<usize>,
-    origin: Option<(&GenPose, f64)>,
-) -> Result<(GenPose, f64, usize), TrackError> {
-    refine_local_passes_with(
-        problem,
-        base,
-        window,
-        seed,
-        range,
-        origin,
-        LastPass::NelderMead,
-    )
-}
-
-/// [`refine_local_passes`] with its narrow end searched as `last` says: with
-/// [`LastPass::CmaSoft`], one CMA-ES pass ([`cma_pass`]) instead of the passes after the
-/// half-resolution ones.
-fn refine_local_passes_with(
     problem: &FrameProblem<'_>,
     base: &GenPose,
     window: &LocalWindow,
@@ -432,7 +403,15 @@ pub fn refine_first_pass(
     window: &LocalWindow,
     seed: u64,
 ) -> Result<(GenPose, f64, usize), TrackError> {
-    refine_local_passes(problem, base, window, seed, 0..1, None)
+    refine_local_passes(
+        problem,
+        base,
+        window,
+        seed,
+        0..1,
+        None,
+        LastPass::NelderMead,
+    )
 }
 
 /// The passes of [`refine_local`] after [`refine_first_pass`] (same window and seed) from
@@ -445,7 +424,14 @@ pub fn refine_rest(
     window: &LocalWindow,
     seed: u64,
 ) -> Result<(GenPose, f64, usize), TrackError> {
-    refine_passes_from(problem, base, first, window, seed, 1..LOCAL_PASSES)
+    refine_passes_from(
+        problem,
+        base,
+        first,
+        window,
+        seed,
+        (1..LOCAL_PASSES, LastPass::NelderMead),
+    )
 }
 
 /// [`refine_local`] that stops after its first pass when the score there (or `base`'s)
