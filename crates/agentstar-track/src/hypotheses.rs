@@ -503,7 +503,8 @@ const CMA_STEP: f64 = 0.1;
 /// ([`LastPass::NelderMead`]) stall 1–6° away: 25 of 60 over 1°, median 0.65°. CMA-ES
 /// learns the ridge's direction from the steps that paid: 7 of 60 over 1° on the score
 /// itself, median 0.04°, but near the truth the score is a staircase of single pixels and
-/// its steps collapse on a stair 2–3° out (the case at keyframe 2, IoU 0.9990). On the
+/// its steps collapse on a stair 2–3° out (keyframe 2 of the 10-keyframe tracking test, IoU
+/// 0.9990). On the
 /// sub-pixel score, then settled on the score: 3 of 60 over 1°, median 0.07°, 90% 0.68°, in
 /// 20% more evaluations.
 ///

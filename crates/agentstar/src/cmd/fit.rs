@@ -14,8 +14,8 @@ use agentstar_render::frames::{crop_box, crop_zoomed};
 use agentstar_render::views::{contact_sheet, silhouette_comparison};
 use agentstar_render::{PosedModel, ScoreTarget, SilhouetteRenderer};
 use agentstar_reports::fit::{FitFrame, FitParam, FitReport, FitRoundRow, HeldParam};
-use agentstar_scene::{build_scene_with, format_param_value, set_param_values, Limits, ParamDecl};
-use agentstar_track::shape::{fit_shape, frame_ious, ShapeFitConfig, ShapeFrame, ShapeParam};
+use agentstar_scene::{build_scene_with, set_param_values, Limits, ParamDecl};
+use agentstar_track::shape::{fit_shape, ShapeFitConfig, ShapeFrame, ShapeParam};
 use agentstar_track::GenPose;
 use anyhow::{anyhow, bail, Context, Result};
 use std::collections::BTreeMap;
@@ -209,22 +209,12 @@ pub fn run(a: Args) -> Result<ExitCode> {
     );
     let fit = fit_shape(&build, &params, &frames, s.scale(), &cfg)?;
     let dir = out_dir(&a.out)?;
-    // The values as the script holds them (six decimals), the model they build and each
-    // frame's IoU with it: what `score` reads back from the files. A polish that ends on a
-    // pixel's edge reads 1.0 there against 0.99998 at the values unrounded.
-    let written: Vec<f64> = fit
-        .values
-        .iter()
-        .map(|&v| format_param_value(v).parse().unwrap_or(v))
-        .collect();
-    let written_model = build(&written).map_err(|e| anyhow!("{}: {e}", model_path.display()))?;
-    let after = frame_ious(&written_model, &frames, &fit.poses, s.scale());
 
     // The script with the fitted values, and every frame's pose for it.
     let values: BTreeMap<String, f64> = wanted
         .iter()
         .cloned()
-        .zip(written.iter().copied())
+        .zip(fit.values.iter().copied())
         .collect();
     let fitted_source =
         set_param_values(&source, &values).map_err(|e| anyhow!("{}: {e}", model_path.display()))?;
@@ -259,7 +249,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
         let hand = s.capture.load_hand(i)?;
         let pair = [
             ("before", &start_model, &frames[k].pose, fit.before[k]),
-            ("after", &written_model, &fit.poses[k], after[k]),
+            ("after", &fit.model, &fit.poses[k], fit.after[k]),
         ]
         .map(|(label, m, g, iou)| {
             let sil = silhouette(m, g, s.scale(), &frames[k].camera);
@@ -298,7 +288,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
     let mut report = FitReport {
         params: params
             .iter()
-            .zip(&written)
+            .zip(&fit.values)
             .map(|(p, &v)| FitParam {
                 name: p.name.clone(),
                 before: p.start,
@@ -322,9 +312,9 @@ pub fn run(a: Args) -> Result<ExitCode> {
             .map(|(k, f)| FitFrame {
                 frame: f.name.clone(),
                 iou_before: fit.before[k],
-                iou_after: after[k],
+                iou_after: fit.after[k],
                 iou_band_after: Some(agentstar_track::objective::band_iou(
-                    &written_model,
+                    &fit.model,
                     f.camera,
                     &f.target
                         .clone()
@@ -335,9 +325,9 @@ pub fn run(a: Args) -> Result<ExitCode> {
             })
             .collect(),
         iou_mean_before: mean(&fit.before),
-        iou_mean_after: mean(&after),
+        iou_mean_after: mean(&fit.after),
         iou_min_before: min(&fit.before),
-        iou_min_after: min(&after),
+        iou_min_after: min(&fit.after),
         rounds: fit
             .rounds
             .iter()
