@@ -52,6 +52,20 @@ impl SymmetryAxis {
     }
 }
 
+impl SymmetryAxis {
+    /// `pose` with its turn about the axis set back to `base`'s: the object-frame turn from
+    /// `base` to `pose` less its twist about the axis (its swing), the axis's line kept
+    /// where `pose` puts it. For a round outline the silhouette is unchanged.
+    pub fn without_twist(&self, base: &GenPose, pose: &GenPose, scale: f64) -> GenPose {
+        let turn = base.pose.rotation.inverse() * pose.pose.rotation;
+        let twist = twist_deg(&turn, &self.axis);
+        if twist == 0.0 {
+            return pose.clone();
+        }
+        self.turn(pose, scale, -twist)
+    }
+}
+
 /// The part of `turn` about `axis` (degrees, signed, in (−180°, 180°]: the twist of a
 /// swing-twist decomposition); 0 for a zero axis.
 pub fn twist_deg(turn: &UnitQuaternion, axis: &Vector3) -> f64 {
@@ -659,6 +673,45 @@ mod tests {
     };
     use agentstar_geom::{primitives, KinematicTree, Part, PinholeCamera};
     use agentstar_render::BitMask;
+
+    /// A pose turned from a base about a can's axis and tilted across it: without its twist
+    /// it keeps the tilt, turns as the base does about the axis, and keeps the axis's line
+    /// where the pose put it (its silhouette unchanged).
+    #[test]
+    fn without_its_twist_a_pose_keeps_its_swing_and_the_axis_line() {
+        let model = labelled_model();
+        let axis = outline_axis(&model, &model.tree.rest_states()).expect("a can is round");
+        let scale = 0.12;
+        let base = pose(Vector3::new(0.3, 1.0, 0.1), 10.0, -90.0);
+        let across = Unit::new_normalize(axis.axis.cross(&Vector3::new(0.3, 0.5, 0.1)));
+        let mut moved = axis.turn(&base, scale, 35.0);
+        moved.pose = apply_object_rotation(
+            &moved.pose,
+            scale,
+            &axis.centre,
+            &UnitQuaternion::from_axis_angle(&across, 12f64.to_radians()),
+        );
+        moved.pose.translation += Vector3::new(0.01, -0.02, 0.03);
+        let held = axis.without_twist(&base, &moved, scale);
+        let turn = base.pose.rotation.inverse() * held.pose.rotation;
+        assert!(twist_deg(&turn, &axis.axis).abs() < 1e-9);
+        let swing = |g: &GenPose| {
+            angle_across(
+                &(base.pose.rotation.inverse() * g.pose.rotation),
+                &axis.axis,
+            )
+        };
+        assert!((swing(&held) - swing(&moved)).abs() < 1e-9);
+        assert!((swing(&held).to_degrees() - 12.0).abs() < 1e-6);
+        // Two points of the axis's line land where the moved pose puts them.
+        for t in [-0.4, 0.3] {
+            let p = axis.centre + axis.axis.normalize() * t;
+            let at = |g: &GenPose| g.pose.with_scale(scale).transform_point(&p);
+            assert!((at(&held) - at(&moved)).norm() < 1e-12);
+        }
+        // Without a twist to take out, the pose is kept.
+        assert_eq!(axis.without_twist(&base, &base, scale), base);
+    }
 
     #[test]
     fn a_twist_is_the_part_of_a_turn_about_the_axis() {

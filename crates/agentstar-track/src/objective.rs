@@ -32,6 +32,11 @@ pub struct FrameProblem<'a> {
     /// The same frame at half the resolution ([`FrameProblem::with_coarse`]), for the wide
     /// first passes of a local refinement; `None`: every pass at full resolution.
     pub coarse: Option<(PinholeCamera, &'a ScoreTarget)>,
+    /// An axis of the model (canonical frame) whose turn the silhouette cannot measure (a
+    /// round outline's, [`crate::axis::outline_axis`]): the CMA-ES end of a local
+    /// refinement keeps the base's turn about it ([`crate::axis::SymmetryAxis::without_twist`]).
+    /// `None`: every turn is searched.
+    pub held_axis: Option<crate::axis::SymmetryAxis>,
 }
 
 /// The figures of one candidate.
@@ -69,7 +74,14 @@ impl<'a> FrameProblem<'a> {
             base,
             pivot,
             coarse: None,
+            held_axis: None,
         }
+    }
+
+    /// This problem with `axis` held ([`FrameProblem::held_axis`]).
+    pub fn with_held_axis(mut self, axis: Option<crate::axis::SymmetryAxis>) -> Self {
+        self.held_axis = axis;
+        self
     }
 
     /// This problem with `halved` (the target at half the resolution,

@@ -36,7 +36,7 @@ pub(super) struct Searcher<'m> {
     pub(super) gaps: std::sync::RwLock<Vec<Option<Gap>>>,
     /// The model's outline axis ([`crate::axis::outline_axis`], at rest), found when first
     /// asked: a chain cannot measure a turn about it.
-    pub(super) outline_axis: std::sync::OnceLock<Option<agentstar_geom::Vector3>>,
+    pub(super) outline_axis: std::sync::OnceLock<Option<crate::axis::SymmetryAxis>>,
     /// The model's round body's axis ([`crate::axis::body_axis`], at rest), found when first
     /// asked for.
     pub(super) body_axis: std::sync::OnceLock<Option<crate::axis::SymmetryAxis>>,
@@ -124,6 +124,14 @@ impl<'m> Searcher<'m> {
         }
     }
 
+    /// The model's outline axis ([`crate::axis::outline_axis`], at rest), found when first
+    /// asked for.
+    pub(super) fn round_outline_axis(&self) -> Option<crate::axis::SymmetryAxis> {
+        *self
+            .outline_axis
+            .get_or_init(|| crate::axis::outline_axis(self.model, &self.model.tree.rest_states()))
+    }
+
     /// How far `to` is turned from the pose a chain predicts (`predicted`; both rotations of
     /// one frame's camera from the object), in radians, leaving out any turn about the
     /// model's outline axis ([`crate::axis::outline_axis`]: a can's, a bottle's): the masks
@@ -135,13 +143,10 @@ impl<'m> Searcher<'m> {
         predicted: &agentstar_geom::UnitQuaternion,
         to: &agentstar_geom::UnitQuaternion,
     ) -> f64 {
-        let axis = self.outline_axis.get_or_init(|| {
-            crate::axis::outline_axis(self.model, &self.model.tree.rest_states()).map(|a| a.axis)
-        });
         // The turn in the object's frame.
         let turn = predicted.inverse() * to;
-        match axis {
-            Some(axis) => crate::axis::angle_across(&turn, axis),
+        match self.round_outline_axis() {
+            Some(axis) => crate::axis::angle_across(&turn, &axis.axis),
             None => turn.angle(),
         }
     }
@@ -430,7 +435,8 @@ impl<'m> Searcher<'m> {
             frame.target,
             self.scale,
             base.clone(),
-        );
+        )
+        .with_held_axis(self.round_outline_axis());
         match self.halved_of(frame) {
             Some(h) => problem.with_coarse(h),
             None => problem,
