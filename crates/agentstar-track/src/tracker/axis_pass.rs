@@ -18,8 +18,9 @@ pub(super) const AXIS_FINE_DEG: f64 = 2.0;
 /// [`AXIS_COARSE_DEG`] round the circle, then every [`AXIS_FINE_DEG`] around that. Each frame
 /// takes only the turns that keep its IoU within [`APPEARANCE_TIE`] (a can: every turn; a
 /// mug: those that keep its handle where the mask has it, or hidden). `fixed` frames keep
-/// their pose. Whether the pass ran (the model has such an axis, the same joint states in
-/// every frame, and some frame could turn).
+/// their pose. Whether the pass ran (the model has such an axis and some frame could turn).
+/// Frames at different joint states (a can's lever moving) all turn about the body's axis
+/// at rest.
 pub(super) fn axis_pass(
     s: &Searcher<'_>,
     frames: &[TrackFrame<'_>],
@@ -30,10 +31,18 @@ pub(super) fn axis_pass(
     let Some(first) = poses.first() else {
         return Ok(false);
     };
-    if !model_has_appearance(s.model) || poses.iter().any(|g| g.states != first.states) {
+    if !model_has_appearance(s.model) {
         return Ok(false);
     }
-    let Some(axis) = body_axis(s.model, &first.states) else {
+    // One axis for every frame (the steps' colours compare two frames turned alike): the
+    // body's at the frames' joint states where they share them, else at rest
+    // ([`Searcher::round_body`]), the body being the parts no joint moves.
+    let axis = if poses.iter().all(|g| g.states == first.states) {
+        body_axis(s.model, &first.states)
+    } else {
+        s.round_body().copied()
+    };
+    let Some(axis) = axis else {
         return Ok(false);
     };
     let colours: Vec<Option<AppearanceFrame<'_>>> =

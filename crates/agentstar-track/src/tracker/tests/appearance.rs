@@ -330,3 +330,87 @@ fn a_warm_start_that_turns_a_can_about_its_axis_says_the_outline_stayed() {
         w.result.log
     );
 }
+
+/// [`labelled_can`] with a lever hinged at the back of its side (away from the label,
+/// painted as the can) and the lever's joint states of three frames (0°, 6°, 12°).
+fn labelled_can_with_a_lever() -> (ObjectModel, Vec<Vec<f64>>) {
+    let (mut model, _, _) = labelled_can();
+    model.parts.push(agentstar_geom::Part::new(
+        "lever",
+        agentstar_geom::primitives::cuboid(0.03, 0.05, 0.3)
+            .expect("lever")
+            .translated(Vector3::new(-0.33, 0.0, -0.05)),
+        [0.6, 0.05, 0.05],
+    ));
+    model.tree = agentstar_geom::KinematicTree::new(
+        vec![agentstar_geom::JointDef {
+            name: "lever_hinge".into(),
+            kind: agentstar_geom::JointKind::Revolute,
+            parent: None,
+            child: vec!["lever".into()],
+            origin: Vector3::new(-0.33, 0.0, 0.1),
+            axis: Vector3::new(0.0, 1.0, 0.0),
+            limit: Some((0.0, 60.0)),
+        }],
+        &model.part_names(),
+    )
+    .expect("tree");
+    let joint = &model.tree.joints()[0];
+    let states = [0.0, 6.0, 12.0]
+        .iter()
+        .map(|&deg| vec![joint.to_internal(deg)])
+        .collect();
+    (model, states)
+}
+
+#[test]
+fn the_axis_pass_turns_a_can_back_about_its_axis_where_its_levers_state_differs_by_frame() {
+    // The labelled can of the test before with a lever at its back (hidden behind the can in
+    // every view, at a different state in each frame); frame 1 left 40° off about the axis.
+    // One axis for every frame: the body's at rest. (Until 2026-12-06 the pass ran only where
+    // every frame had the same joint states: never on a can with a lever that moves.)
+    let (model, states) = labelled_can_with_a_lever();
+    let (_, scale, cam) = labelled_can();
+    let (mut truths, _, _) = three_can_views(&model, scale, &cam, &label_paint);
+    for (t, st) in truths.iter_mut().zip(&states) {
+        t.states = st.clone();
+    }
+    let shots: Vec<Shot> = truths
+        .iter()
+        .map(|t| crate::appearance::tests::shoot(&model, scale, &cam, t, &label_paint))
+        .collect();
+    let targets: Vec<ScoreTarget> = shots
+        .iter()
+        .map(|(_, m)| ScoreTarget::new(m.clone(), None).expect("target"))
+        .collect();
+    let frames = coloured_frames(&cam, &targets, &shots);
+    let s = Searcher::new(&model, scale, &frames, &TrackConfig::default()).expect("searcher");
+    let axis = *s.round_body().expect("the can has a round body");
+    let start: Vec<GenPose> = vec![
+        truths[0].clone(),
+        axis.turn(&truths[1], scale, 40.0),
+        truths[2].clone(),
+    ];
+    let began = scores_of(&model, scale, &frames, &start);
+    let (mut poses, mut scores) = (start.clone(), began.clone());
+    let observe = |_: &str| {};
+    let mut log = Log::new(&observe);
+    let ran = axis_pass(
+        &s,
+        &frames,
+        (&mut poses, &mut scores),
+        &[false, false, false],
+        &mut log,
+    )
+    .expect("axis pass");
+    let lines = log.lines;
+    assert!(ran, "{lines:?}");
+    for (k, (g, t)) in poses.iter().zip(&truths).enumerate() {
+        assert!(
+            error_of(g, t) < 5.0,
+            "frame {k}: {:.1}° off: {lines:?}",
+            error_of(g, t)
+        );
+        assert_eq!(g.states, t.states, "frame {k}: its joint state kept");
+    }
+}
