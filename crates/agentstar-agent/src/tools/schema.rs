@@ -97,7 +97,7 @@ pub(super) fn drop_null(p: &mut Value) {
 }
 
 /// Deserialises a tool's arguments (missing = `{}`); the error names the tool.
-pub fn parse_args<A: DeserializeOwned>(tool: &str, args: &Value) -> Result<A> {
+pub fn parse_args<A: DeserializeOwned + JsonSchema>(tool: &str, args: &Value) -> Result<A> {
     let v = match args {
         Value::Null => Value::Object(Default::default()),
         Value::Object(_) => args.clone(),
@@ -107,7 +107,30 @@ pub fn parse_args<A: DeserializeOwned>(tool: &str, args: &Value) -> Result<A> {
             )))
         }
     };
-    serde_json::from_value(v).map_err(|e| AgentError::Tool(format!("{tool}: bad arguments: {e}")))
+    serde_json::from_value(v).map_err(|e| {
+        AgentError::Tool(format!(
+            "{tool}: bad arguments: {}",
+            unknown_field_named(&e.to_string(), &schema_of::<A>()).unwrap_or_else(|| e.to_string())
+        ))
+    })
+}
+
+/// `serde`'s "unknown field `x`, expected one of …" names only the fields of the outer
+/// struct, not those of a flattened one (`osweep`'s `crop` and `zoom`): the same error with
+/// every argument the schema has. `None` for any other error.
+fn unknown_field_named(error: &str, schema: &Value) -> Option<String> {
+    let rest = error.strip_prefix("unknown field `")?;
+    let field = &rest[..rest.find('`')?];
+    let names: Vec<String> = schema
+        .get("properties")
+        .and_then(Value::as_object)?
+        .keys()
+        .map(|k| format!("`{k}`"))
+        .collect();
+    Some(format!(
+        "unknown field `{field}`; the arguments are {}",
+        names.join(", ")
+    ))
 }
 
 /// The bounds of a schema that `serde` does not check: `minimum`, `maximum`,

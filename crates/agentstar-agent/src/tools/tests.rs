@@ -384,6 +384,24 @@ fn the_render_description_names_the_colours_the_images_use() {
     assert!(t.contains("seen: a place the search passed through"), "{t}");
 }
 
+/// An unknown argument is answered with every argument the tool takes, those of flattened
+/// structs too (play-test 2026-12-06: `osweep`'s error listed `frames`, `opreset`,
+/// `ranges` and `order`, not `crop` and `zoom`).
+#[test]
+fn an_unknown_argument_is_answered_with_every_argument_the_tool_takes() {
+    let def = registry()
+        .into_iter()
+        .find(|d| d.name == "osweep")
+        .expect("osweep");
+    let err = def
+        .parse_args(&json!({"frames": "000000", "rotations": "z:flip"}))
+        .expect_err("unknown field")
+        .to_string();
+    for says in ["unknown field `rotations`", "`ranges`", "`crop`", "`zoom`"] {
+        assert!(err.contains(says), "{says} not in: {err}");
+    }
+}
+
 #[test]
 fn arguments_are_checked_against_the_schema_before_anything_runs() {
     let t = toolbox(None);
