@@ -390,7 +390,7 @@ fn the_render_description_names_the_colours_the_images_use() {
 #[test]
 fn an_unknown_argument_is_answered_with_every_argument_the_tool_takes() {
     let def = registry()
-        .into_iter()
+        .iter()
         .find(|d| d.name == "osweep")
         .expect("osweep");
     let err = def
