@@ -47,6 +47,13 @@ pub struct OsweepArgs {
     /// settles where the outlines tie. Read each row's IoU before committing it.
     #[arg(long, value_enum)]
     pub order: Option<RowOrder>,
+    /// Keep each grid point's turn as asked, as `oapply`'s `hold` does: the refinement moves
+    /// the position and the joints as far as usual, the rotation at most 3°. With `order:
+    /// model`, a grid of turns about a round body's axis ranked by the print, which the
+    /// mask alone would pull back to the frame's pose.
+    #[arg(long)]
+    #[serde(default)]
+    pub hold: bool,
 }
 
 /// Where an `osweep` searches: its preset or its grid ranges ([`OsweepArgs::region`]).

@@ -391,6 +391,33 @@ fn pose_verbs_track_commit_and_diagnose() {
         (held - 18.0).abs() <= 3.5,
         "held, the refinement left {held:.1}° of 18°"
     );
+    // `osweep` holds its grid's turns the same way (play-test 2026-12-06: a grid of turns
+    // about a round body's axis came back refined to within 17° of the frame's pose): a
+    // one-point grid at 18°.
+    let swept_by = |tag: &str, extra: &[&str]| -> f64 {
+        let mut args = vec!["--frames", "000005", "--ranges", "rz:18,18,1", "--json"];
+        args.extend_from_slice(extra);
+        let v: serde_json::Value = json_of(&verb("osweep", tag, &args));
+        let ranked = v["frames"][0]["ranked"].as_array().expect("ranked");
+        let row = ranked
+            .iter()
+            .find(|r| asked(r).starts_with("rz:18"))
+            .unwrap_or_else(|| panic!("no row from the grid point: {ranked:?}"));
+        (rotation_of(&start["frames"]["000005.png"]["object_pose"]).inverse()
+            * rotation_of(&row["pose"]))
+        .angle()
+        .to_degrees()
+    };
+    let swept_free = swept_by("osweep-free", &[]);
+    let swept_held = swept_by("osweep-held", &["--hold"]);
+    assert!(
+        swept_free < 6.0,
+        "the refinement kept {swept_free:.1}° of 18°"
+    );
+    assert!(
+        (swept_held - 18.0).abs() <= 3.5,
+        "held, the osweep refinement left {swept_held:.1}° of 18°"
+    );
 
     // Apply a bad order, commit it, see it in the history, restore the original.
     let o = verb(

@@ -138,6 +138,20 @@ fn opreset_candidates(spec: &str, seed: u64) -> Result<Vec<(String, [f64; 3])>> 
 /// that each refines to a basin of its own.
 const OSWEEP_BASIN_APART_DEG: f64 = 30.0;
 
+/// The window each candidate of `osweep` and `oapply` is refined in: the basin's, or, held,
+/// the basin's position and joints with the rotation kept near the turn asked (the
+/// window's bound is about each of three axes; [`requests::OapplyArgs::HOLD_TURN_DEG`]).
+fn refine_window(hold: bool) -> LocalWindow {
+    if hold {
+        LocalWindow {
+            angle_deg: requests::OapplyArgs::HOLD_TURN_DEG / 3f64.sqrt(),
+            ..LocalWindow::basin()
+        }
+    } else {
+        LocalWindow::basin()
+    }
+}
+
 pub fn run_osweep(a: OsweepArgs) -> Result<ExitCode> {
     // One of --opreset and --ranges (the rule the `osweep` tool checks too).
     let region = a.request.region().map_err(|e| anyhow!(e))?;
@@ -192,7 +206,7 @@ pub fn run_osweep(a: OsweepArgs) -> Result<ExitCode> {
         let mut notes = space.notes.clone();
         if !a.no_refine {
             let placed = r.ranked.len();
-            r = refine_ranked(&p, r, &LocalWindow::basin(), 17)?;
+            r = refine_ranked(&p, r, &refine_window(a.request.hold), 17)?;
             let merged = placed - r.ranked.len();
             if merged > 0 {
                 notes.push(format!(
@@ -214,7 +228,7 @@ pub fn run_osweep(a: OsweepArgs) -> Result<ExitCode> {
         outputs.push(FrameOutput {
             frame: s.capture.frames[i].name.clone(),
             rows,
-            extra: json!({"method": "osweep", "space": space_json(&space, tree)}),
+            extra: json!({"method": "osweep", "space": space_json(&space, tree), "hold": a.request.hold}),
             notes,
             pages: vec![],
             // Every candidate of a preset or a set is drawn.
@@ -549,16 +563,7 @@ pub fn run_oapply(a: OapplyArgs) -> Result<ExitCode> {
             .collect();
         if !a.no_refine {
             let placed: Vec<GenPose> = rows.iter().map(|r| r.pose.clone()).collect();
-            // Held: the basin window's position and joints, the rotation kept near the turn
-            // asked (the window's bound is about each of three axes).
-            let window = if a.request.hold {
-                LocalWindow {
-                    angle_deg: requests::OapplyArgs::HOLD_TURN_DEG / 3f64.sqrt(),
-                    ..LocalWindow::basin()
-                }
-            } else {
-                LocalWindow::basin()
-            };
+            let window = refine_window(a.request.hold);
             for (r, f) in rows.iter_mut().zip(refine_each(&p, &placed, &window, 17)?) {
                 r.extra = json!({"unrefined": f.unrefined.combined});
                 (r.pose, r.score) = (f.pose, f.score);
