@@ -65,8 +65,7 @@ Alternate two kinds of steps; **each step changes the shape or the poses, never 
    When a shape edit moves the canonical origin, `scene_write` and
    `fit_shape` carry every pose so that one part stays where it was in the images: the part
    most in view (by its visible pixels in the keyframes), or the one you name with `hold`
-   (a small handle is a poor anchor for a body that grew); the result says which part was
-   held. `check` (in `scene_write` and `scene_read`) warns about a part hidden entirely
+   (a small handle anchors a grown body poorly); the result says which part was held. `check` (in `scene_write` and `scene_read`) warns about a part hidden entirely
    inside another: it never shows, so its shape and colour cannot be seen.
 2. **Pose step.** Pick the worst keyframes (`score`, `temporal`), name a bounded region with
    `sweep` (camera-frame ranges and joint ranges, e.g. `yaw:-30,30;pitch:-20,20;hinge:0,90`)
@@ -77,7 +76,8 @@ Alternate two kinds of steps; **each step changes the shape or the poses, never 
    180° flip of a symmetric-looking object) is still wrong. `oapply` and
    `osweep` rows read `asked → where it ended` (the turn from the frame's pose as
    `rx;ry;rz`, the final joint states, the whole turn as an angle about an axis); commit by
-   the row, never by the asked label. `hold: true` keeps `oapply`'s asked turn (within 3°).
+   the row, never by the asked label. `hold: true` keeps `oapply`'s and `osweep`'s asked
+   turns (within 3°): with `order: model`, a round body's turns ranked by its print.
    Every candidate is drawn; a note says which sheet page holds
    which ranks. `track` runs the automatic tracker over every keyframe; use it once the
    shape is right to start the poses. `track` with `from: "pose.json"` refines the current
@@ -88,9 +88,8 @@ Alternate two kinds of steps; **each step changes the shape or the poses, never 
    `bake` paints the model from the video; `track` with `bake: true` paints it from the
    keyframes whose outline alone settles their pose and tracks the rest with that print
    (a mug whose handle shows in some keyframes). Baked from a wrong pose, the error
-   becomes the print: `bake` refuses keyframes that disagree (naming a set that agrees),
-   `track` leaves them out, and nothing is baked where every keyframe shares a symmetry
-   (a plain can, upside down).
+   becomes the print: `bake` refuses keyframes that disagree, `track` leaves them out, and
+   a symmetry every keyframe shares (a plain can, upside down) is never baked.
 3. Keep notes with `notes`: what the object is, which parts move, what you ruled out. Notes
    survive when older images leave your context.
 
