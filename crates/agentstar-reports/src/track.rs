@@ -32,6 +32,36 @@ pub struct TrackReport {
     /// frames the baked colours moved to another basin.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub bake: Option<TrackBakeReport>,
+    /// The turns the frames' colours wanted and the video's motion refused, still apart from
+    /// the frames' poses: the frames to check first.
+    #[serde(default)]
+    pub refused_turns: Vec<RefusedTurnRow>,
+}
+
+/// A turn a keyframe's colours wanted that the tracker refused because the video's motion
+/// from a neighbouring keyframe keeps the frame where it is.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RefusedTurnRow {
+    pub frame: String,
+    /// The turn and its evidence (the frame's colours and IoU before and after it).
+    pub what: String,
+}
+
+/// The lines for people of the refused turns (none for none): what the video cannot settle
+/// and how to check it.
+pub fn refused_turns_text(rows: &[RefusedTurnRow]) -> String {
+    if rows.is_empty() {
+        return String::new();
+    }
+    let mut text = format!(
+        "{} frame(s) whose colours wanted a turn that the video's motion refused (a chain cannot tell every twin apart: a capsule's outline is the same end over end); look at them (`render` with `side`, `oapply` with `order: model` and `hold: true`):\n",
+        rows.len()
+    );
+    for r in rows {
+        text.push_str(&format!("  {}: {}\n", r.frame, r.what));
+    }
+    text
 }
 
 /// What became of `track --bake`'s bake.

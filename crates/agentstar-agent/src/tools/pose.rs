@@ -67,6 +67,7 @@ pub(super) fn track_text(
     if let Some(b) = &r.bake {
         text.push_str(&bake_text(b));
     }
+    text.push_str(&agentstar_reports::refused_turns_text(&r.refused_turns));
     text.push_str("\nwhat the tracker did:\n");
     for line in &r.log {
         text.push_str(&format!("  {line}\n"));

@@ -34,9 +34,28 @@ fn a_tracks_text_leads_with_its_summary_then_its_log_then_the_frames() {
         keep_basins: false,
         basin_moves: vec![],
         bake: None,
+        refused_turns: vec![],
     };
     let text = track_text(&report, None);
     assert!(text.starts_with("tracked 2 frame(s) in 4.0 s"), "{text}");
+    assert!(!text.contains("refused"), "{text}");
+    // A turn the video refused is listed before the log, with how to check it.
+    let refused = TrackReport {
+        refused_turns: vec![agentstar_reports::RefusedTurnRow {
+            frame: "000005.png".into(),
+            what: "appearance: turned +180° about the model's +x (NCC -0.50 → 0.16)".into(),
+        }],
+        ..report.clone()
+    };
+    let with = track_text(&refused, None);
+    let listed = with
+        .find("1 frame(s) whose colours wanted a turn that the video's motion refused")
+        .expect("the refused turns");
+    assert!(
+        with.contains("  000005.png: appearance: turned +180°")
+            && listed < with.find("what the tracker did").expect("the log"),
+        "{with}"
+    );
     assert!(
         text.contains("under the gate, worst first: 000005.png"),
         "{text}"

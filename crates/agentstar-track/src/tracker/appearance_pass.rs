@@ -90,11 +90,27 @@ pub(super) fn appearance_pass(
                 .collect();
             if let Some((g, sc, text)) = s.settle(&frames[i], &poses[i], scores[i], &refs, &barred)
             {
+                let overruled = model_colours_overrule(s, &frames[i], &poses[i], &g);
+                if let Some((from, to)) = overruled {
+                    log.push(format!(
+                        "{}: {text}: taken against the video's motion from a neighbour: the model's own colours prefer it ({from:.2} → {to:.2}) (final appearance pass)",
+                        frames[i].name
+                    ));
+                    poses[i] = g;
+                    scores[i] = sc;
+                    changed += 1;
+                    continue;
+                }
                 if leaves_the_chain(s, frames, poses, i, &g) {
                     log.push(format!(
                         "{}: {text}: not taken, the video's motion from a neighbour keeps the frame where it is",
                         frames[i].name
                     ));
+                    log.refused.push(RefusedTurn {
+                        frame: i,
+                        what: text,
+                        pose: g,
+                    });
                     continue;
                 }
                 log.push(format!(
@@ -110,6 +126,33 @@ pub(super) fn appearance_pass(
             break;
         }
     }
+}
+
+/// Where the model's own colours count as painted (judged a likeness of the frames,
+/// [`super::judge_model_colours`]) and prefer `to` over `from` by more than the appearance
+/// term's margin: their agreement at `from` and at `to`. Such colours are evidence of where
+/// the print lies whatever the other frames' poses, unlike the frames' colours against
+/// each other, and a chain's motion does not outweigh them: a chain through an end-on view
+/// of a capsule or a can, whose outline is a circle there, may come out end over end (a
+/// generated capsule with a lever and a label, play-test 2026-12-06: keyframe 000110 left
+/// 164° off, its colours' turn refused as leaving the chain). `None` otherwise, and
+/// whenever the colours count only where their boundaries fall (a model painted "about
+/// this colour").
+pub(super) fn model_colours_overrule(
+    s: &Searcher<'_>,
+    frame: &TrackFrame<'_>,
+    from: &GenPose,
+    to: &GenPose,
+) -> Option<(f64, f64)> {
+    let cfg = s.appearance_cfg();
+    if cfg.model_colours != ModelColours::AsPainted {
+        return None;
+    }
+    let app = frame.appearance()?;
+    let agreement =
+        |g: &GenPose| crate::appearance::model_agreement(s.model, s.scale, &app, g, &cfg).ncc;
+    let (a, b) = (agreement(from)?, agreement(to)?);
+    (b > a + cfg.margin).then_some((a, b))
 }
 
 /// Whether turning frame `i` to `to` takes it out of the basin the video between it and a

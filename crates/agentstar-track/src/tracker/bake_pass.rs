@@ -63,7 +63,7 @@ pub enum BakeOutcome {
     /// frames named).
     Refused(Bake),
     /// Baked and used: the warm start on the baked model, its frames moved to other basins.
-    Used(Bake, WarmStart),
+    Used(Bake, Box<WarmStart>),
 }
 
 /// The settled frames, the outcome, and the baked model when it was used.
@@ -318,7 +318,7 @@ pub fn track_with_bake(
     Ok(BakePass {
         settled,
         left_out,
-        outcome: BakeOutcome::Used(b, warm),
+        outcome: BakeOutcome::Used(b, Box::new(warm)),
         baked_model: Some(baked),
     })
 }

@@ -101,5 +101,6 @@ pub(super) fn track_independent_on(
         evaluations: s.evals.into_inner(),
         between: vec![],
         choice: None,
+        refused_turns: vec![],
     })
 }

@@ -166,6 +166,43 @@ pub struct TrackResult {
     /// What the sequence-level choice weighed, when it ran: for a benchmark to tell a miss
     /// the choice never had a hypothesis for from one it weighed and did not take.
     pub choice: Option<ChoiceTrace>,
+    /// The turns the frames' colours wanted and the video's motion refused, each frame's last
+    /// one still apart from its final pose ([`RefusedTurn`]): for a person or an agent to
+    /// check.
+    pub refused_turns: Vec<RefusedTurn>,
+}
+
+/// A turn the final appearance pass found a frame's colours preferring and did not take,
+/// because the video's motion from a neighbouring keyframe keeps the frame where it is
+/// ([`appearance_pass`]'s chain test). The video cannot settle every basin (a capsule's
+/// outline is the same end over end), so the refusal is reported, not only logged
+/// (play-test 2026-12-06: the one frame left 164° off was refused so, on a line among many).
+#[derive(Debug, Clone, PartialEq)]
+pub struct RefusedTurn {
+    /// The keyframe.
+    pub frame: usize,
+    /// The turn and its evidence, as the pass wrote it (its colours and IoU before and
+    /// after).
+    pub what: String,
+    /// The pose the colours wanted.
+    pub pose: GenPose,
+}
+
+/// Of `refused`, each frame's last turn, kept where the frame's final pose (`poses`) still
+/// lies half [`REJECTED_BASIN_DEG`] or more from it (a later pass may have taken it).
+fn still_refused(refused: Vec<RefusedTurn>, poses: &[GenPose]) -> Vec<RefusedTurn> {
+    let mut last: std::collections::BTreeMap<usize, RefusedTurn> = Default::default();
+    for r in refused {
+        last.insert(r.frame, r);
+    }
+    last.into_values()
+        .filter(|r| {
+            poses.get(r.frame).is_some_and(|g| {
+                g.pose.rotation.angle_to(&r.pose.pose.rotation)
+                    >= 0.5 * REJECTED_BASIN_DEG.to_radians()
+            })
+        })
+        .collect()
 }
 
 /// The hypotheses the sequence-level choice weighed per keyframe (the frame's own pose as
@@ -201,6 +238,8 @@ impl<F: Fn(&str) + Sync> TrackObserver for F {
 /// and the time and evaluations of each phase, for the closing line ([`Log::phases`]).
 struct Log<'o> {
     lines: Vec<String>,
+    /// The turns the appearance pass refused ([`RefusedTurn`]), in the order refused.
+    refused: Vec<RefusedTurn>,
     observe: &'o dyn TrackObserver,
     phases: Vec<(&'static str, f64, usize)>,
     phase_start: (std::time::Instant, usize),
@@ -213,6 +252,7 @@ impl<'o> Log<'o> {
     fn new(observe: &'o dyn TrackObserver) -> Self {
         Log {
             lines: Vec::new(),
+            refused: Vec::new(),
             observe,
             phases: Vec::new(),
             phase_start: (std::time::Instant::now(), 0),
@@ -701,6 +741,7 @@ fn track_on(
         log.phase("video", &s);
     }
     log.phases_line();
+    let refused_turns = still_refused(log.refused, &poses);
     Ok(TrackResult {
         poses,
         scores,
@@ -709,6 +750,7 @@ fn track_on(
         evaluations: s.evals.into_inner(),
         between: between_poses,
         choice,
+        refused_turns,
     })
 }
 

@@ -454,6 +454,7 @@ fn track_from_on(
             .max_by(|&a, &b| scores[a].total_cmp(&scores[b]))
             .unwrap_or(0)
     });
+    let refused_turns = still_refused(log.refused, &poses);
     Ok((
         TrackResult {
             poses,
@@ -463,6 +464,7 @@ fn track_from_on(
             evaluations: s.evals.into_inner(),
             between: vec![],
             choice,
+            refused_turns,
         },
         passes,
     ))

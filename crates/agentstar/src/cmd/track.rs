@@ -13,7 +13,10 @@ use agentstar_data::posefile::{partial_path, PoseFile};
 use agentstar_data::scenefile::load_model_unbaked;
 use agentstar_render::BitMask;
 use agentstar_render::ScoreTarget;
-use agentstar_reports::{BasinMoveRow, SettledRow, TrackBakeOutcome, TrackBakeReport, TrackReport};
+use agentstar_reports::{
+    refused_turns_text, BasinMoveRow, RefusedTurnRow, SettledRow, TrackBakeOutcome,
+    TrackBakeReport, TrackReport,
+};
 use agentstar_track::bake::BakeConfig;
 use agentstar_track::tracker::{
     track_from_video, track_video, track_with_bake, BakeOutcome, BakePass, BasinMove, BasinPolicy,
@@ -366,6 +369,14 @@ pub fn run(a: Args) -> Result<ExitCode> {
         .map(|i| s.score(i, 0.0))
         .collect::<Result<_>>()?;
     let summary = summarise(&scores, PASS_IOU);
+    let refused_turns: Vec<RefusedTurnRow> = r
+        .refused_turns
+        .iter()
+        .map(|t| RefusedTurnRow {
+            frame: capture.frames[t.frame].name.clone(),
+            what: t.what.clone(),
+        })
+        .collect();
     if a.json {
         print_json(&TrackReport {
             poses: a.out.clone(),
@@ -379,6 +390,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
             keep_basins: a.keep_basins,
             basin_moves,
             bake: bake_report,
+            refused_turns,
         })?;
     } else {
         println!(
@@ -405,6 +417,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
         if let Some(b) = &bake_report {
             print_bake(b);
         }
+        print!("{}", refused_turns_text(&refused_turns));
         print_table(&scores, &summary);
     }
     Ok(ExitCode::SUCCESS)

@@ -414,3 +414,51 @@ fn the_axis_pass_turns_a_can_back_about_its_axis_where_its_levers_state_differs_
         assert_eq!(g.states, t.states, "frame {k}: its joint state kept");
     }
 }
+
+#[test]
+fn a_models_faithful_colours_overrule_the_chain_and_colours_judged_unlike_do_not() {
+    // The labelled can seen with its label in view, painted as the model is: the pose with
+    // the label turned 90° away agrees worse with the model's own colours than the truth by
+    // far more than the margin, so a turn back to the truth may leave a chain's basin. The
+    // same colours judged no likeness of the frames (weighed by where their boundaries
+    // fall) overrule nothing, and neither does a turn toward a worse agreement.
+    let (model, scale, cam) = labelled_can();
+    let (truths, shots, targets) = three_can_views(&model, scale, &cam, &label_paint);
+    let frames = coloured_frames(&cam, &targets, &shots);
+    let s = Searcher::new(&model, scale, &frames, &TrackConfig::default()).expect("searcher");
+    let axis = *s.round_body().expect("a can has a round body");
+    let away = axis.turn(&truths[1], scale, 90.0);
+    let (from, to) = model_colours_overrule(&s, &frames[1], &away, &truths[1])
+        .expect("the model's colours prefer the truth");
+    assert!(to > from + 0.05, "{from} -> {to}");
+    assert!(model_colours_overrule(&s, &frames[1], &truths[1], &away).is_none());
+    *s.model_colours.write().expect("lock") = crate::appearance::ModelColours::AsRegions;
+    assert!(model_colours_overrule(&s, &frames[1], &away, &truths[1]).is_none());
+}
+
+#[test]
+fn a_refused_turn_is_reported_once_per_frame_and_not_where_the_frame_took_it_after() {
+    let (model, scale, _) = labelled_can();
+    let axis = crate::axis::outline_axis(&model, &model.tree.rest_states()).expect("round");
+    let at = crate::appearance::tests::pose(Vector3::new(0.3, 1.0, 0.1), 10.0, -90.0);
+    let turned = |g: &GenPose, deg: f64| axis.turn(g, scale, deg);
+    let refused = |frame: usize, what: &str, pose: GenPose| RefusedTurn {
+        frame,
+        what: what.into(),
+        pose,
+    };
+    let poses = vec![at.clone(), at.clone(), turned(&at, 170.0)];
+    let kept = still_refused(
+        vec![
+            refused(0, "first", turned(&at, 90.0)),
+            refused(0, "second", turned(&at, 120.0)),
+            // Frame 1's refused turn lies within half a basin of its final pose.
+            refused(1, "near", turned(&at, 10.0)),
+            // Frame 2 took the turn after all.
+            refused(2, "taken", turned(&at, 175.0)),
+        ],
+        &poses,
+    );
+    assert_eq!(kept.len(), 1, "{kept:?}");
+    assert_eq!((kept[0].frame, kept[0].what.as_str()), (0, "second"));
+}

@@ -145,6 +145,7 @@ fn plain_result(poses: &[GenPose], scores: Vec<f64>) -> TrackResult {
         evaluations: 0,
         between: vec![],
         choice: None,
+        refused_turns: vec![],
     }
 }
 
