@@ -90,18 +90,14 @@ pub(super) fn appearance_pass(
                 .collect();
             if let Some((g, sc, text)) = s.settle(&frames[i], &poses[i], scores[i], &refs, &barred)
             {
-                let overruled = model_colours_overrule(s, &frames[i], &poses[i], &g);
-                if let Some((from, to)) = overruled {
-                    log.push(format!(
+                let line = if let Some((from, to)) =
+                    model_colours_overrule(s, &frames[i], &poses[i], &g)
+                {
+                    format!(
                         "{}: {text}: taken against the video's motion from a neighbour: the model's own colours prefer it ({from:.2} → {to:.2}) (final appearance pass)",
                         frames[i].name
-                    ));
-                    poses[i] = g;
-                    scores[i] = sc;
-                    changed += 1;
-                    continue;
-                }
-                if leaves_the_chain(s, frames, poses, i, &g) {
+                    )
+                } else if leaves_the_chain(s, frames, poses, i, &g) {
                     log.push(format!(
                         "{}: {text}: not taken, the video's motion from a neighbour keeps the frame where it is",
                         frames[i].name
@@ -112,11 +108,10 @@ pub(super) fn appearance_pass(
                         pose: g,
                     });
                     continue;
-                }
-                log.push(format!(
-                    "{}: {text} (final appearance pass)",
-                    frames[i].name
-                ));
+                } else {
+                    format!("{}: {text} (final appearance pass)", frames[i].name)
+                };
+                log.push(line);
                 poses[i] = g;
                 scores[i] = sc;
                 changed += 1;

@@ -113,13 +113,7 @@ fn the_axis_pass_turns_a_can_back_about_its_axis_by_its_label_and_keeps_anchors(
     };
     let (ran, poses, scores, lines) = run(&[false, false, false]);
     assert!(ran, "{lines:?}");
-    for (k, (g, t)) in poses.iter().zip(&truths).enumerate() {
-        assert!(
-            error_of(g, t) < 5.0,
-            "frame {k}: {:.1}° off: {lines:?}",
-            error_of(g, t)
-        );
-    }
+    assert_each_within(&poses, &truths, 5.0, &lines);
     // Every turn held within the IoU tie of where the frame began.
     for (k, (sc, b)) in scores.iter().zip(&began).enumerate() {
         assert!(*sc >= b - APPEARANCE_TIE - 1e-9, "frame {k}: {b} -> {sc}");
@@ -405,12 +399,8 @@ fn the_axis_pass_turns_a_can_back_about_its_axis_where_its_levers_state_differs_
     .expect("axis pass");
     let lines = log.lines;
     assert!(ran, "{lines:?}");
+    assert_each_within(&poses, &truths, 5.0, &lines);
     for (k, (g, t)) in poses.iter().zip(&truths).enumerate() {
-        assert!(
-            error_of(g, t) < 5.0,
-            "frame {k}: {:.1}° off: {lines:?}",
-            error_of(g, t)
-        );
         assert_eq!(g.states, t.states, "frame {k}: its joint state kept");
     }
 }
@@ -461,4 +451,15 @@ fn a_refused_turn_is_reported_once_per_frame_and_not_where_the_frame_took_it_aft
     );
     assert_eq!(kept.len(), 1, "{kept:?}");
     assert_eq!((kept[0].frame, kept[0].what.as_str()), (0, "second"));
+}
+
+/// Every pose within `deg` of its truth, the pass's log shown otherwise.
+fn assert_each_within(poses: &[GenPose], truths: &[GenPose], deg: f64, lines: &[String]) {
+    for (k, (g, t)) in poses.iter().zip(truths).enumerate() {
+        assert!(
+            error_of(g, t) < deg,
+            "frame {k}: {:.1}° off: {lines:?}",
+            error_of(g, t)
+        );
+    }
 }
