@@ -50,9 +50,7 @@ impl SymmetryAxis {
             states: pose.states.clone(),
         }
     }
-}
 
-impl SymmetryAxis {
     /// `pose` with its turn about the axis set back to `base`'s: the object-frame turn from
     /// `base` to `pose` less its twist about the axis (its swing), the axis's line kept
     /// where `pose` puts it. For a round outline the silhouette is unchanged.

@@ -90,14 +90,16 @@ pub(super) fn appearance_pass(
                 .collect();
             if let Some((g, sc, text)) = s.settle(&frames[i], &poses[i], scores[i], &refs, &barred)
             {
-                let line = if let Some((from, to)) =
+                let line = if !leaves_the_chain(s, frames, poses, i, &g) {
+                    format!("{}: {text} (final appearance pass)", frames[i].name)
+                } else if let Some((from, to)) =
                     model_colours_overrule(s, &frames[i], &poses[i], &g)
                 {
                     format!(
                         "{}: {text}: taken against the video's motion from a neighbour: the model's own colours prefer it ({from:.2} → {to:.2}) (final appearance pass)",
                         frames[i].name
                     )
-                } else if leaves_the_chain(s, frames, poses, i, &g) {
+                } else {
                     log.push(format!(
                         "{}: {text}: not taken, the video's motion from a neighbour keeps the frame where it is",
                         frames[i].name
@@ -108,8 +110,6 @@ pub(super) fn appearance_pass(
                         pose: g,
                     });
                     continue;
-                } else {
-                    format!("{}: {text} (final appearance pass)", frames[i].name)
                 };
                 log.push(line);
                 poses[i] = g;
