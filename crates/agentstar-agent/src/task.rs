@@ -73,7 +73,7 @@ Alternate two kinds of steps; **each step changes the shape or the poses, never 
    `oapply_all` when the model is built the wrong way round), look at the candidate sheet, and
    commit the candidate you believe with `pose_commit` (the search's report and the
    candidate's rank). A high IoU on a wrong pose (a mirror, a
-   180° flip of a symmetric-looking object) is still wrong. `oapply` and
+   flip) is still wrong. `oapply` and
    `osweep` rows read `asked → where it ended` (the turn from the frame's pose as
    `rx;ry;rz`, the final joint states, the whole turn as an angle about an axis); commit by
    the row, never by the asked label. `hold: true` keeps `oapply`'s and `osweep`'s asked
@@ -123,10 +123,10 @@ part (a lid at its joint state), so you need not compute it from pose.json.
 - **mechanism**: each joint swept through its range about the declared axis and about
   the negated one, as arms A and B (which is declared is not shown), the other joints at
   rest, two views 40° off the axis, one column per state (labelled with its value), beside
-  the keyframe where the joint is most open. One arm opens the part the way the frames
-  show; the other swings it the mirror way (a lid into the box).
+  the keyframe showing the part most open and least under hands. One arm opens it the way
+  the frames show; the other swings it the mirror way (a lid into the box).
 - Every image is at most {MAX_SIDE} px on its long side and {MAX_MP} megapixels; larger
-  sets come as several sheets (pages), never one stretched image.
+  sets come as several sheets (pages).
 - **temporal plot**: rotation and translation from keyframe to keyframe after removing the
   camera's motion; a spike is either real fast motion or a wrong pose (usually a flip).
 

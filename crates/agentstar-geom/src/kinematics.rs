@@ -284,6 +284,26 @@ impl KinematicTree {
         self.part_joint[part]
     }
 
+    /// The parts joint `joint` moves (those it carries and those of the joints below it),
+    /// by part index, ascending.
+    pub fn parts_moved_by(&self, joint: usize) -> Vec<usize> {
+        let below = |mut k: usize| loop {
+            if k == joint {
+                return true;
+            }
+            match self.parent_index.get(k).copied().flatten() {
+                Some(p) => k = p,
+                None => return false,
+            }
+        };
+        self.part_joint
+            .iter()
+            .enumerate()
+            .filter(|(_, j)| j.is_some_and(below))
+            .map(|(p, _)| p)
+            .collect()
+    }
+
     /// Warnings about the limits themselves: a revolute joint whose range spans a full
     /// turn (e.g. `[0, 360]`) reaches both θ and 360 − θ, which a part symmetric about a
     /// plane through its axis renders alike, so searches can alias between them.
@@ -500,6 +520,26 @@ mod tests {
             axis: Vector3::from(axis),
             limit: Some((-180.0, 180.0)),
         }
+    }
+
+    #[test]
+    fn a_joint_moves_its_own_parts_and_those_of_the_joints_below_it() {
+        let tree = KinematicTree::new(
+            vec![
+                hinge("arm", None, "arm", [0.0; 3], [0.0, 0.0, 1.0]),
+                hinge(
+                    "wrist",
+                    Some("arm"),
+                    "hand",
+                    [1.0, 0.0, 0.0],
+                    [0.0, 1.0, 0.0],
+                ),
+            ],
+            &names(&["base", "arm", "hand", "lamp"]),
+        )
+        .expect("tree");
+        assert_eq!(tree.parts_moved_by(0), [1, 2]);
+        assert_eq!(tree.parts_moved_by(1), [2]);
     }
 
     #[test]

@@ -53,6 +53,23 @@ impl RenderBuffers {
         counts
     }
 
+    /// Each of the first `parts` parts' pixels in view that `cover` (a mask of the camera's
+    /// size, e.g. the hands) leaves uncovered, indexed by part id.
+    pub fn part_pixels_outside(&self, parts: usize, cover: &crate::BitMask) -> Vec<u64> {
+        let mut counts = vec![0u64; parts];
+        for (k, &p) in self.part.iter().enumerate() {
+            let (x, y) = (
+                (k % self.width as usize) as u32,
+                (k / self.width as usize) as u32,
+            );
+            let covered = x < cover.width() && y < cover.height() && cover.get(x, y);
+            if let (Some(c), false) = (counts.get_mut(p as usize), covered) {
+                *c += 1;
+            }
+        }
+        counts
+    }
+
     pub fn covered(&self, x: u32, y: u32) -> bool {
         self.part[(y * self.width + x) as usize] != NO_PART
     }
@@ -201,4 +218,25 @@ fn draw_full(
         }
     }
     (rows.0 <= rows.1).then_some(rows)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::BitMask;
+
+    #[test]
+    fn part_pixels_outside_a_cover_leave_the_covered_ones_out() {
+        // Row 0: part 0, part 0, part 1; row 1: part 1, nothing, part 0.
+        let mut buffers = RenderBuffers::new(3, 2);
+        buffers.part = vec![0, 0, 1, 1, NO_PART, 0];
+        let cover = BitMask::from_fn(3, 2, |x, _| x == 0);
+        assert_eq!(buffers.part_pixels(2), [3, 2]);
+        assert_eq!(buffers.part_pixels_outside(2, &cover), [2, 1]);
+        // A cover smaller than the render covers nothing beyond its edge.
+        assert_eq!(
+            buffers.part_pixels_outside(2, &BitMask::from_fn(1, 1, |_, _| true)),
+            [2, 2]
+        );
+    }
 }

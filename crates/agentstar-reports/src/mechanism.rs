@@ -53,7 +53,9 @@ pub struct MechanismView {
     pub off_swing_plane_deg: f64,
 }
 
-/// The keyframe where the joint is most open, cropped around its mask, for comparison.
+/// The keyframe that shows the joint's part most open and in view, cropped around its mask,
+/// for comparison: openness (the joint's distance from its held state) weighed by the share
+/// of the part's pixels in view that no hand covers.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct MechanismFrame {
@@ -61,6 +63,28 @@ pub struct MechanismFrame {
     /// The joint's state there in interface units (degrees, model units).
     pub state: f64,
     pub image: PathBuf,
+    /// The parts the joint moves (its own and those of the joints below it).
+    #[serde(default)]
+    pub parts: Vec<String>,
+    /// The share (0 to 1) of those parts' rendered pixels in view there that the hand mask
+    /// leaves uncovered (0 where they show no pixel).
+    #[serde(default)]
+    pub part_in_view_share: f64,
+    /// The most open keyframe, where it is not the one shown: its hands hide more of the
+    /// parts.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub more_open: Option<MechanismFramePassedOver>,
+}
+
+/// A keyframe more open than the one shown, passed over because less of the part is in view.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MechanismFramePassedOver {
+    pub frame: String,
+    /// The joint's state there in interface units.
+    pub state: f64,
+    /// As [`MechanismFrame::part_in_view_share`].
+    pub part_in_view_share: f64,
 }
 
 /// One joint swept through its range twice.
@@ -84,7 +108,7 @@ pub struct MechanismJoint {
     /// Sheets of arm B.
     pub sheets_b: Vec<PathBuf>,
     pub views: Vec<MechanismView>,
-    /// The keyframe where the joint is most open, when the poses say.
+    /// The keyframe that shows the joint's part most open and in view, when the poses say.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub frame: Option<MechanismFrame>,
     /// The label of the arm about the declared axis (the other is about its negation):

@@ -112,13 +112,20 @@ fn a_mirrored_hinge_is_caught_by_the_blind_arms_and_finish_names_the_sign() {
         .count();
     assert_eq!(images, 3, "{body}");
     assert!(body.contains("states 0, 18, 37, 55, 73, 92, 110"), "{body}");
-    assert!(body.contains("most open in"), "{body}");
+    assert!(body.contains("shown open in"), "{body}");
+    assert!(body.contains("% of lid in view"), "{body}");
     assert!(!body.contains("declared\""), "{body}");
     assert!(r["result"].get("structuredContent").is_none(), "{r}");
     let report = report_of(dir.path());
     let joint = &report.joints[0];
     assert_eq!(joint.joint, "lid_hinge");
     assert_eq!(joint.states.len(), 7);
+    let shown = joint.frame.as_ref().expect("a keyframe shown");
+    assert_eq!(shown.parts, ["lid"]);
+    assert!(
+        shown.part_in_view_share > 0.0 && shown.part_in_view_share <= 1.0,
+        "{shown:?}"
+    );
     assert!(
         joint
             .views

@@ -118,7 +118,7 @@ pub struct PicksRecord {
 }
 
 tool!(Mechanism, "mechanism", Diagnostic, Nothing, MechanismArgs,
-    "The mechanism check of the joints (a mirrored axis sign is invisible in a turntable at one state): each joint is swept through its range twice, about its declared axis and about the negated axis, the other joints at rest, as two arms labelled A and B (which one is declared is not shown), from two views 40° off the joint's axis, the framing fixed per joint; with the keyframe where the joint is most open. Compare the arms with the frames and name the matching arm per joint with `mechanism_pick`; `finish` needs a pick for every revolute joint of the current scene.",
+    "The mechanism check of the joints (a mirrored axis sign is invisible in a turntable at one state): each joint is swept through its range twice, about its declared axis and about the negated axis, the other joints at rest, as two arms labelled A and B (which one is declared is not shown), from two views 40° off the joint's axis, the framing fixed per joint; with the keyframe that shows the joint's part most open, openness weighed by the share of the part no hand covers (the reply says that share). Compare the arms with the frames and name the matching arm per joint with `mechanism_pick`; `finish` needs a pick for every revolute joint of the current scene.",
     |tb, a, step| tb.mechanism(&a, step));
 
 tool!(MechanismPick, "mechanism_pick", Diagnostic, Picks, MechanismPickArgs,
@@ -317,7 +317,7 @@ impl Toolbox {
             text.push_str(" The model has no joint to sweep: nothing to check.");
         } else {
             text.push_str(
-                " Each joint is swept through its range twice, about its declared axis and about the negated axis: arms A and B (which is which is not shown). Compare each arm with the frames (the keyframe where the joint is most open comes with its sheets): which arm moves the part the way the object does?",
+                " Each joint is swept through its range twice, about its declared axis and about the negated axis: arms A and B (which is which is not shown). Compare each arm with the frames (the keyframe that shows the joint's part most open and least hidden by hands comes with its sheets): which arm moves the part the way the object does?",
             );
         }
         for j in &report.joints {
@@ -345,12 +345,22 @@ impl Toolbox {
                     .join(", "),
             ));
             if let Some(f) = &j.frame {
+                let parts = f.parts.join(", ");
                 text.push_str(&format!(
-                    "\n  most open in {} ({}{unit}): {}",
+                    "\n  shown open in {} ({}{unit}; {:.0}% of {parts} in view, the rest under a hand or hidden): {}",
                     f.frame,
                     num(f.state),
+                    f.part_in_view_share * 100.0,
                     f.image.display()
                 ));
+                if let Some(m) = &f.more_open {
+                    text.push_str(&format!(
+                        "\n  ({} is more open, {}{unit}, but only {:.0}% of {parts} is in view there)",
+                        m.frame,
+                        num(m.state),
+                        m.part_in_view_share * 100.0
+                    ));
+                }
             }
             images.extend(j.sheets_a.iter().take(1).cloned());
             images.extend(j.sheets_b.iter().take(1).cloned());

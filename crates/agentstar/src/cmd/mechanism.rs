@@ -5,7 +5,9 @@
 //! from two viewpoints off the swing plane (40° off the axis, away from edge-on), at
 //! `--samples` states from one end of the range to the other, with the framing fixed per
 //! joint (the union of both arms' swept extents) so the arms differ only in their motion.
-//! The keyframe where the joint is most open is written beside the sheets for comparison.
+//! The keyframe that shows the joint's part most open is written beside the sheets for
+//! comparison: openness weighed by the share of the part in view that no hand covers, so a
+//! frame whose hand hides the part gives way to one nearly as open that shows it.
 
 use crate::common::{open_capture, open_model, out_dir, print_json, SessionArgs};
 use agentstar_data::images::save_png_rgb;
@@ -16,11 +18,13 @@ use agentstar_geom::{
     JointKind, KinematicTree, ObjectModel, PinholeCamera, Point3, Similarity, Vector3,
 };
 use agentstar_render::frames::{frame_view, FrameViewOptions};
+use agentstar_render::full::{FullRenderer, RenderBuffers};
 use agentstar_render::sheet::sheet_pages;
 use agentstar_render::views::{flatten, shade_model, ShadeOptions, TURNTABLE_BACKGROUND};
-use agentstar_render::{render_full, PosedModel};
+use agentstar_render::{render_full, BitMask, PosedModel};
 use agentstar_reports::mechanism::{
-    ArmLabel, MechanismFrame, MechanismJoint, MechanismReport, MechanismView,
+    ArmLabel, MechanismFrame, MechanismFramePassedOver, MechanismJoint, MechanismReport,
+    MechanismView,
 };
 use anyhow::{anyhow, bail, Result};
 use image::RgbImage;
@@ -247,6 +251,62 @@ fn render_tile(
     )
 }
 
+/// One keyframe's parts as the camera sees them: each part's pixels in view, and those the
+/// hand mask leaves uncovered (indexed like the model's parts).
+#[derive(Debug, Clone, PartialEq)]
+pub struct PartsInView {
+    pub rendered: Vec<u64>,
+    pub uncovered: Vec<u64>,
+}
+
+impl PartsInView {
+    /// `buffers` (the model posed in the frame) under `hand` (none: nothing covered).
+    pub fn new(buffers: &RenderBuffers, parts: usize, hand: Option<&BitMask>) -> Self {
+        let rendered = buffers.part_pixels(parts);
+        let uncovered = match hand {
+            Some(h) => buffers.part_pixels_outside(parts, h),
+            None => rendered.clone(),
+        };
+        PartsInView {
+            rendered,
+            uncovered,
+        }
+    }
+
+    /// The share of `parts`' rendered pixels that no hand covers; 0 where they show none.
+    pub fn share(&self, parts: &[usize]) -> f64 {
+        let sum = |v: &[u64]| parts.iter().filter_map(|&p| v.get(p)).sum::<u64>();
+        match sum(&self.rendered) {
+            0 => 0.0,
+            n => sum(&self.uncovered) as f64 / n as f64,
+        }
+    }
+}
+
+/// A keyframe weighed for showing a joint's part.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ShownCandidate {
+    pub frame: usize,
+    /// The joint's distance from its held state (internal units).
+    pub openness: f64,
+    /// [`PartsInView::share`] of the joint's parts.
+    pub part_in_view_share: f64,
+}
+
+/// The keyframe to show: the largest openness weighed by the share of the part in view;
+/// where no frame shows any of it, the most open. Frames that do not open the joint are
+/// never shown.
+pub fn choose_shown(candidates: &[ShownCandidate]) -> Option<ShownCandidate> {
+    let open = candidates.iter().filter(|c| c.openness > 1e-9);
+    let weighed = |c: &&ShownCandidate| c.openness * c.part_in_view_share;
+    let best = open
+        .clone()
+        .max_by(|x, y| weighed(x).total_cmp(&weighed(y)))
+        .filter(|c| weighed(c) > 0.0);
+    best.or_else(|| open.max_by(|x, y| x.openness.total_cmp(&y.openness)))
+        .copied()
+}
+
 /// Writes `pages` as `DIR/STEM.png`, `STEM_p2.png`, …
 fn save_pages(dir: &Path, stem: &str, pages: &[RgbImage]) -> Result<Vec<PathBuf>> {
     let mut out = Vec::new();
@@ -277,6 +337,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
     let capture = open_capture(&a.session.capture)?;
     let resolved = PoseFile::read(&a.session.poses).and_then(|pf| {
         pf.resolve(&capture, tree)
+            .map(|r| (pf.scale, r))
             .map_err(|e| agentstar_data::DataError::invalid(&a.session.poses, e.to_string()))
     });
     let resolved = match resolved {
@@ -298,7 +359,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
             let [i] = idx.as_slice() else {
                 bail!("--hold `{spec}` names {} keyframes; name one", idx.len());
             };
-            if let Some(r) = &resolved {
+            if let Some((_, r)) = &resolved {
                 hold.clone_from(&r[*i].generalised.states);
             }
             capture.frames[*i].name.clone()
@@ -330,6 +391,21 @@ pub fn run(a: Args) -> Result<ExitCode> {
         }
     }
     let dir = out_dir(&a.out)?;
+    // Each keyframe's parts in view of the hands, rendered once for every joint.
+    let mut in_view = Vec::new();
+    if let Some((scale, r)) = &resolved {
+        let mut renderer = FullRenderer::default();
+        for (i, p) in r.iter().enumerate() {
+            let posed = PosedModel::new(
+                model,
+                &p.generalised.states,
+                &p.generalised.pose.with_scale(*scale),
+            );
+            let buffers = renderer.render(&capture.frames[i].camera, &posed.instances);
+            let hand = capture.load_hand(i)?;
+            in_view.push(PartsInView::new(buffers, model.parts.len(), hand.as_ref()));
+        }
+    }
     let mut joints_out = Vec::new();
     for (j, def) in tree.joints().iter().enumerate() {
         if wanted.as_ref().is_some_and(|w| !w.contains(&def.name)) {
@@ -419,15 +495,26 @@ pub fn run(a: Args) -> Result<ExitCode> {
                 &pages,
             )?;
         }
-        // The keyframe where the joint is furthest from its held state.
+        // The keyframe that shows the joint's parts furthest from its held state and least
+        // covered by hands.
         let mut frame = None;
-        if let Some(r) = &resolved {
-            let best = r
+        if let Some((_, r)) = &resolved {
+            let moved = tree.parts_moved_by(j);
+            let candidates: Vec<ShownCandidate> = r
                 .iter()
+                .zip(&in_view)
                 .enumerate()
-                .map(|(i, p)| (i, (p.generalised.states[j] - hold[j]).abs()))
-                .max_by(|x, y| x.1.total_cmp(&y.1));
-            if let Some((i, _)) = best.filter(|(_, d)| *d > 1e-9) {
+                .map(|(i, (p, seen))| ShownCandidate {
+                    frame: i,
+                    openness: (p.generalised.states[j] - hold[j]).abs(),
+                    part_in_view_share: seen.share(&moved),
+                })
+                .collect();
+            let most_open = candidates
+                .iter()
+                .max_by(|x, y| x.openness.total_cmp(&y.openness));
+            if let Some(shown) = choose_shown(&candidates) {
+                let i = shown.frame;
                 let img = capture.load_frame(i)?;
                 let mask = capture.load_mask(i)?;
                 let hand = capture.load_hand(i)?;
@@ -444,6 +531,15 @@ pub fn run(a: Args) -> Result<ExitCode> {
                     frame: capture.frames[i].name.clone(),
                     state: def.to_interface(r[i].generalised.states[j]),
                     image: p,
+                    parts: moved.iter().map(|&k| model.parts[k].name.clone()).collect(),
+                    part_in_view_share: shown.part_in_view_share,
+                    more_open: most_open
+                        .filter(|m| m.frame != i && m.openness > shown.openness)
+                        .map(|m| MechanismFramePassedOver {
+                            frame: capture.frames[m.frame].name.clone(),
+                            state: def.to_interface(r[m.frame].generalised.states[j]),
+                            part_in_view_share: m.part_in_view_share,
+                        }),
                 });
             }
         }
@@ -521,6 +617,108 @@ mod tests {
             }
             assert!(v[0].dot(&v[1]) <= 1e-9, "{v:?}");
         }
+    }
+
+    /// A slab with a lid hinged along its near edge, seen from the front and above.
+    fn lidded_box() -> (ObjectModel, PinholeCamera, Similarity) {
+        use agentstar_geom::kinematics::JointDef;
+        use agentstar_geom::primitives::cuboid;
+        use agentstar_geom::Part;
+        let body = cuboid(1.0, 1.0, 0.2).expect("box");
+        let lid = cuboid(1.0, 1.0, 0.05)
+            .expect("box")
+            .translated(Vector3::new(0.0, 0.0, 0.125));
+        let hinge = JointDef {
+            name: "hinge".into(),
+            kind: JointKind::Revolute,
+            parent: None,
+            child: vec!["lid".into()],
+            origin: Vector3::new(0.0, -0.5, 0.1),
+            axis: Vector3::x(),
+            limit: Some((0.0, 120.0)),
+        };
+        let parts = vec![
+            Part::new("body", body, [0.8, 0.2, 0.2]),
+            Part::new("lid", lid, [0.2, 0.8, 0.2]),
+        ];
+        let names: Vec<String> = parts.iter().map(|p| p.name.clone()).collect();
+        let model = ObjectModel {
+            tree: KinematicTree::new(vec![hinge], &names).expect("tree"),
+            parts,
+        };
+        let camera = PinholeCamera {
+            fx: 60.0,
+            fy: 60.0,
+            cx: 48.0,
+            cy: 36.0,
+            width: 96,
+            height: 72,
+        };
+        let eye = Point3::new(0.0, -3.0, 2.0);
+        let pose = Similarity::from_rigid(&look_at(&eye, &Point3::origin(), &Vector3::z()));
+        (model, camera, pose)
+    }
+
+    #[test]
+    fn a_frame_nearly_as_open_that_shows_the_part_beats_one_whose_hand_hides_it() {
+        let (model, camera, pose) = lidded_box();
+        let def = &model.tree.joints()[0];
+        let lid = model.tree.parts_moved_by(0);
+        assert_eq!(lid, [1]);
+        // Keyframe 0 opens the lid to 90 deg with a hand over all of it; keyframe 1 opens
+        // it to 85 deg and no hand is in the way.
+        let states = [vec![def.to_internal(90.0)], vec![def.to_internal(85.0)]];
+        let buffers: Vec<RenderBuffers> = states
+            .iter()
+            .map(|s| render_full(&camera, &PosedModel::new(&model, s, &pose).instances))
+            .collect();
+        let lid_pixels = |b: &RenderBuffers| {
+            BitMask::from_fn(b.width, b.height, |x, y| {
+                b.part[(y * b.width + x) as usize] == 1
+            })
+        };
+        let hand = lid_pixels(&buffers[0]);
+        assert!(hand.count() > 50, "the lid is in view: {}", hand.count());
+        let weigh = |hands: [Option<&BitMask>; 2]| -> Vec<ShownCandidate> {
+            (0..2)
+                .map(|i| ShownCandidate {
+                    frame: i,
+                    openness: states[i][0],
+                    part_in_view_share: PartsInView::new(&buffers[i], 2, hands[i]).share(&lid),
+                })
+                .collect()
+        };
+        let hidden = weigh([Some(&hand), None]);
+        assert_eq!(hidden[0].part_in_view_share, 0.0);
+        assert_eq!(hidden[1].part_in_view_share, 1.0);
+        let shown = choose_shown(&hidden).expect("a frame");
+        assert_eq!(shown.frame, 1);
+        // Without the hand the most open frame is shown, as before.
+        let bare = choose_shown(&weigh([None, None])).expect("a frame");
+        assert_eq!(bare.frame, 0);
+        // A hand over half the lid weighs the frame by half: 90 × 0.5 < 85.
+        let half = BitMask::from_fn(hand.width(), hand.height(), |x, y| x < 48 && hand.get(x, y));
+        let partial = weigh([Some(&half), None]);
+        assert!(
+            (0.3..0.7).contains(&partial[0].part_in_view_share),
+            "{}",
+            partial[0].part_in_view_share
+        );
+        assert_eq!(choose_shown(&partial).expect("a frame").frame, 1);
+    }
+
+    #[test]
+    fn with_no_part_in_view_anywhere_the_most_open_frame_is_shown() {
+        let at = |frame, openness| ShownCandidate {
+            frame,
+            openness,
+            part_in_view_share: 0.0,
+        };
+        assert_eq!(
+            choose_shown(&[at(0, 0.5), at(1, 1.2), at(2, 0.0)]).map(|c| c.frame),
+            Some(1)
+        );
+        assert_eq!(choose_shown(&[at(0, 0.0)]), None);
     }
 
     #[test]
