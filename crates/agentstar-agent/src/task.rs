@@ -64,8 +64,8 @@ Alternate two kinds of steps; **each step changes the shape or the poses, never 
    rescales the poses.
    When a shape edit moves the canonical origin, `scene_write` and
    `fit_shape` carry every pose so that one part stays where it was in the images: the part
-   most in view (by its visible pixels in the keyframes), or the one you name with `hold`
-   (a small handle anchors a grown body poorly); the result says which part was held. `check` (in `scene_write` and `scene_read`) warns about a part hidden entirely
+   most in view (by its visible pixels in the keyframes), or the one you name with `hold`;
+   the result says which part was held. `check` (in `scene_write` and `scene_read`) warns about a part hidden entirely
    inside another: it never shows, so its shape and colour cannot be seen.
 2. **Pose step.** Pick the worst keyframes (`score`, `temporal`), name a bounded region with
    `sweep` (camera-frame ranges and joint ranges, e.g. `yaw:-30,30;pitch:-20,20;hinge:0,90`)
@@ -144,7 +144,7 @@ so a high IoU does not rule them out:
   sits at its limit in many keyframes often has its axis reversed or its limit too tight.
   Check: limit joints to the range they really move (the scene check warns about full
   turns); look at `turntable` at the joint's min, median and max (it warns when many
-  keyframes sit at a limit) and at `frames` where the part is visible.
+  keyframes sit at a limit; `acknowledge_limits: true` shortens one you checked) and at `frames` where the part is visible.
 - **A mirrored joint axis.** A hinge declared about −x instead of +x moves its part the
   mirror way, yet at the keyframes' states the tracker can still fit the outline (with the
   states negated, or the part swung through the body). Check: `mechanism`, and name the

@@ -97,6 +97,26 @@ impl JointDef {
     }
 }
 
+/// Which end of a joint's limit.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
+pub enum LimitEnd {
+    Lower,
+    Upper,
+}
+
+/// A joint whose state piles up at one end of its limit ([`KinematicTree::at_limit`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct AtLimit {
+    pub joint: String,
+    pub end: LimitEnd,
+    /// The limit there, interface units.
+    pub bound: f64,
+    /// The frames at it, in the order given.
+    pub frames: Vec<String>,
+    /// Frames in all.
+    pub keyframes: usize,
+}
+
 /// A validated set of joints over a set of part names.
 #[derive(Debug, Clone, PartialEq)]
 pub struct KinematicTree {
@@ -320,39 +340,37 @@ impl KinematicTree {
             .collect()
     }
 
-    /// Warnings for joints whose state sits at a limit (within 0.5% of the range) in at
-    /// least 3 frames and a quarter of them, but not in all: a sign that the limit is too tight, the axis
+    /// Joints whose state sits at a limit (within 0.5% of the range) in at least 3 frames
+    /// and a quarter of them, but not in all: a sign that the limit is too tight, the axis
     /// reversed or the part built in the wrong place. `states` holds each frame's
-    /// internal-unit states, `names` the frames' names.
-    pub fn at_limit_warnings(&self, states: &[Vec<f64>], names: &[String]) -> Vec<String> {
+    /// internal-unit states, `names` the frames' names. In joint order, the lower limit first.
+    pub fn at_limit(&self, states: &[Vec<f64>], names: &[String]) -> Vec<AtLimit> {
         let mut out = Vec::new();
         for (k, j) in self.joints.iter().enumerate() {
             let Some((lo, hi)) = j.limit.filter(|(lo, hi)| hi > lo) else {
                 continue;
             };
             let tol = 0.005 * (hi - lo);
-            for (bound, which) in [(lo, "lower"), (hi, "upper")] {
-                let at: Vec<&str> = states
+            for (bound, end) in [(lo, LimitEnd::Lower), (hi, LimitEnd::Upper)] {
+                let at: Vec<String> = states
                     .iter()
                     .zip(names)
                     .filter(|(s, _)| {
                         s.get(k)
                             .is_some_and(|&v| (j.to_interface(v) - bound).abs() <= tol)
                     })
-                    .map(|(_, n)| n.as_str())
+                    .map(|(_, n)| n.clone())
                     .collect();
                 // Every frame at the limit is a joint that never moved (or was never
                 // searched), not one that piles up against its limit.
                 if at.len() >= 3 && at.len() * 4 >= states.len() && at.len() < states.len() {
-                    let shown: Vec<&str> = at.iter().take(6).copied().collect();
-                    out.push(format!(
-                        "joint `{}` sits at its {which} limit {bound} in {} of {} keyframes ({}{}): the limit may be too tight, the axis reversed, or the part built in the wrong place; check it in the frames and with a turntable at the joint's min, median and max",
-                        j.name,
-                        at.len(),
-                        states.len(),
-                        shown.join(", "),
-                        if at.len() > shown.len() { ", …" } else { "" }
-                    ));
+                    out.push(AtLimit {
+                        joint: j.name.clone(),
+                        end,
+                        bound,
+                        frames: at,
+                        keyframes: states.len(),
+                    });
                 }
             }
         }
@@ -561,17 +579,24 @@ mod tests {
             })
             .collect();
         let frames: Vec<String> = (0..8).map(|k| format!("{k:06}.png")).collect();
-        let w = tree.at_limit_warnings(&states, &frames);
-        assert_eq!(w.len(), 1, "{w:?}");
-        assert!(
-            w[0].contains("`lid` sits at its lower limit 0 in 4 of 8"),
-            "{w:?}"
+        let piled = tree.at_limit(&states, &frames);
+        assert_eq!(
+            piled,
+            [AtLimit {
+                joint: "lid".into(),
+                end: LimitEnd::Lower,
+                bound: 0.0,
+                frames: ["000000.png", "000002.png", "000004.png", "000006.png"]
+                    .map(String::from)
+                    .to_vec(),
+                keyframes: 8,
+            }]
         );
         // Every frame at the rest state (nothing tracked yet) is not a pile-up.
         let rest = vec![vec![0.0, 0.0]; 8];
-        assert!(tree.at_limit_warnings(&rest, &frames).is_empty());
+        assert!(tree.at_limit(&rest, &frames).is_empty());
         // Two frames of eight are not "many".
-        let w = tree.at_limit_warnings(&states[..3], &frames[..3]);
+        let w = tree.at_limit(&states[..3], &frames[..3]);
         assert!(w.is_empty(), "{w:?}");
         assert!(KinematicTree::new(vec![], &names(&["body"]))
             .expect("tree")

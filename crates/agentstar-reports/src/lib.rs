@@ -11,6 +11,7 @@
 //! [`serde_json::Value`] inside the typed reports.
 
 pub mod fit;
+pub mod limits;
 pub mod mechanism;
 pub mod track;
 pub mod view;
@@ -797,7 +798,11 @@ pub struct TemporalReport {
     /// Those steps over the whole sequence (whatever `--frames` shows), in order: `finish`
     /// asks for each to be checked.
     pub large_steps: Vec<TemporalLargeStep>,
+    /// Warnings other than joints piled at a limit.
     pub warnings: Vec<String>,
+    /// Joints piled at a limit over the keyframes.
+    #[serde(default)]
+    pub at_limit: Vec<limits::JointAtLimit>,
     pub frames: Vec<TemporalRow>,
 }
 

@@ -101,6 +101,9 @@ pub struct TurntableReport {
     pub sheets: Vec<PathBuf>,
     /// Every file written (the sheets, and the single views with `--each`).
     pub files: Vec<PathBuf>,
-    /// Joint limits that alias, joints piled at a limit.
+    /// Joint limits that alias.
     pub warnings: Vec<String>,
+    /// Joints piled at a limit over the keyframes.
+    #[serde(default)]
+    pub at_limit: Vec<crate::limits::JointAtLimit>,
 }

@@ -17,6 +17,13 @@ pub struct TurntableArgs {
     #[arg(long)]
     #[schemars(length(min = 1, max = 4000))]
     pub states: Option<String>,
+    /// Acknowledge the joint-limit warnings this reply finds (a joint at its lower or upper
+    /// limit in many keyframes): later replies summarise each in one line while it stays the
+    /// same joint, limit and keyframes; a new one still warns in full.
+    // The agent's tools keep the record; not a flag of the command.
+    #[arg(skip)]
+    #[serde(default)]
+    pub acknowledge_limits: bool,
 }
 
 impl TurntableArgs {
@@ -54,6 +61,12 @@ pub struct TemporalArgs {
         help = "Sort by |value| descending: vel.rot, vel.trans, vel.radial, accel.rot, accel.trans, accel.radial, <joint>.vel, <joint>.accel."
     )]
     pub sort_by: Option<String>,
+    /// Acknowledge the joint-limit warnings this reply finds, as `turntable`'s
+    /// `acknowledge_limits` does.
+    // The agent's tools keep the record; not a flag of the command.
+    #[arg(skip)]
+    #[serde(default)]
+    pub acknowledge_limits: bool,
 }
 
 /// The part of a frame a view shows: around the object mask (and the model's silhouette)

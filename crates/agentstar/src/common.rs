@@ -8,6 +8,7 @@ use agentstar_render::score::{combined_score, depth_score, DepthScore, DEFAULT_B
 use agentstar_render::{
     render_full, IouScore, PosedModel, RenderBuffers, ScoreTarget, SilhouetteRenderer,
 };
+use agentstar_reports::limits::{AcknowledgedLimits, JointAtLimit, LimitEnd};
 pub use agentstar_reports::FrameScore;
 use anyhow::{anyhow, Context, Result};
 use serde::Serialize;
@@ -316,6 +317,30 @@ fn tracked_pose_file(
 }
 
 /// Prints JSON to stdout.
+/// A joint piled at a limit as the reports carry it.
+pub fn joint_at_limit(at: agentstar_geom::kinematics::AtLimit) -> JointAtLimit {
+    JointAtLimit {
+        joint: at.joint,
+        end: match at.end {
+            agentstar_geom::kinematics::LimitEnd::Lower => LimitEnd::Lower,
+            agentstar_geom::kinematics::LimitEnd::Upper => LimitEnd::Upper,
+        },
+        bound: at.bound,
+        frames: at.frames,
+        keyframes: at.keyframes,
+    }
+}
+
+/// The joint-limit warnings acknowledged in `path` (none where there is no such file).
+pub fn read_acknowledged_limits(path: Option<&Path>) -> Result<AcknowledgedLimits> {
+    let Some(path) = path.filter(|p| p.is_file()) else {
+        return Ok(AcknowledgedLimits::default());
+    };
+    let text = agentstar_data::read_text(path)?;
+    serde_json::from_str(&text)
+        .with_context(|| format!("{}: not a record of acknowledged limits", path.display()))
+}
+
 pub fn print_json<T: Serialize>(value: &T) -> Result<()> {
     println!(
         "{}",

@@ -210,6 +210,7 @@ macro_rules! tool {
 mod bake;
 mod exec;
 mod finish;
+mod limits;
 mod mechanism;
 mod pose;
 mod scene;

@@ -293,7 +293,7 @@ tool!(
 );
 
 tool!(Temporal, "temporal", Diagnostic, Nothing, TemporalArgs,
-    "The temporal report: rotation (with the step's axis in the model's frame: `+z` is a spin about the model's z axis), translation and radial velocity and acceleration from keyframe to keyframe (camera motion removed), joint velocities, and a plot. Large steps are either real or wrong poses (often flips): confirm them in the frames or fix them.",
+    "The temporal report: rotation (with the step's axis in the model's frame: `+z` is a spin about the model's z axis), translation and radial velocity and acceleration from keyframe to keyframe (camera motion removed), joint velocities, and a plot. Large steps are either real or wrong poses (often flips): confirm them in the frames or fix them. A joint piled at a limit is warned of; once checked, `acknowledge_limits: true` turns that warning into one line in later replies.",
     |tb, a, step| {
         let out = tb.run.step_dir(step, Temporal::NAME);
         std::fs::create_dir_all(&out).map_err(|e| agentstar_data::DataError::io(&out, e))?;
@@ -301,15 +301,25 @@ tool!(Temporal, "temporal", Diagnostic, Nothing, TemporalArgs,
         #[derive(serde::Serialize)]
         struct Plot<'a> {
             plot: &'a Path,
+            limits_acknowledged: &'a Path,
         }
-        let request = TemporalArgs { sort_by: nonblank(&a.sort_by).map(str::to_string) };
+        let request = TemporalArgs {
+            sort_by: nonblank(&a.sort_by).map(str::to_string),
+            acknowledge_limits: false,
+        };
+        let acknowledged = tb.acknowledged_limits_path();
         let call = Invocation::new(&["temporal"])
             .with(&tb.session())?
             .with(&request)?
-            .with(&Plot { plot: &plot })?;
-        let (ok, stdout, stderr) = tb.exec(call.args())?;
+            .with(&Plot { plot: &plot, limits_acknowledged: &acknowledged })?;
+        let (ok, mut stdout, stderr) = tb.exec(call.args())?;
         if !ok {
             return Ok(ToolOutput::error(failure_text(&stderr)));
+        }
+        if a.acknowledge_limits {
+            let found = tb.temporal_report()?.at_limit;
+            stdout.push_str(&tb.acknowledge_limits(&found)?);
+            stdout.push('\n');
         }
         Ok(ToolOutput { text: stdout, images: pngs(&out), ..Default::default() })
     });

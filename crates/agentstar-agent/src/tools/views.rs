@@ -189,9 +189,10 @@ tool!(Score, "score", Diagnostic, Nothing, FramesArgs,
     });
 
 tool!(Turntable, "turntable", Diagnostic, Nothing, TurntableArgs,
-    "Eight views around the upright model (canonical +Z up) on a light background, one sheet per joint state: by default each joint's min, median and max over the keyframes (`states`: `all` or keyframes for others). The 3-D shape check after every shape step: parts floating, intersecting or missing from the back, and joints that move the wrong part or the wrong way.",
+    "Eight views around the upright model (canonical +Z up) on a light background, one sheet per joint state: by default each joint's min, median and max over the keyframes (`states`: `all` or keyframes for others). The 3-D shape check after every shape step: parts floating, intersecting or missing from the back, and joints that move the wrong part or the wrong way. A joint piled at a limit is warned of; once checked, `acknowledge_limits: true` turns that warning into one line in later replies.",
     |tb, a, step| {
-        let (mut o, out, stdout) = tb.cli(&["turntable"], step, Turntable::NAME, &a)?;
+        let request = TurntableArgs { acknowledge_limits: false, ..a.clone() };
+        let (mut o, out, stdout) = tb.cli(&["turntable"], step, Turntable::NAME, &request)?;
         if o.is_error {
             return Ok(o);
         }
@@ -215,8 +216,13 @@ tool!(Turntable, "turntable", Diagnostic, Nothing, TurntableArgs,
                 if joints.is_empty() { "no joints".to_string() } else { joints.join(", ") }
             ));
         }
-        for w in &report.warnings {
+        let acknowledged = tb.acknowledged_limits()?;
+        for w in report.warnings.iter().chain(&acknowledged.lines(&report.at_limit)) {
             text.push_str(&format!("\nwarning: {w}"));
+        }
+        if a.acknowledge_limits {
+            text.push('\n');
+            text.push_str(&tb.acknowledge_limits(&report.at_limit)?);
         }
         o.text = text;
         Ok(o)

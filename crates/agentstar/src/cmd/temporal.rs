@@ -2,9 +2,12 @@
 //! `agentstar pose-diff` (the residual between two frames).
 
 use crate::common::OpenSession as _;
-use crate::common::{print_json, select_frames, Session, SessionArgs};
+use crate::common::{
+    joint_at_limit, print_json, read_acknowledged_limits, select_frames, Session, SessionArgs,
+};
 use agentstar_data::images::save_png_rgb;
 use agentstar_render::text::{draw_text, fill_rect};
+use agentstar_reports::limits::JointAtLimit;
 use agentstar_reports::{
     JointMotion, Motion, PoseDiffReport, TemporalLargeStep, TemporalReport, TemporalRow,
     TemporalUnits,
@@ -37,6 +40,10 @@ pub struct Args {
     /// Print the result as JSON on stdout.
     #[arg(long)]
     json: bool,
+    /// A record of acknowledged joint-limit warnings (JSON, as the agent's tools keep it in
+    /// a run's `.agentstar/limits_acknowledged.json`): those are summarised in one line.
+    #[arg(long)]
+    limits_acknowledged: Option<PathBuf>,
 }
 
 #[derive(clap::Args)]
@@ -96,12 +103,19 @@ fn cell(v: Option<f64>) -> String {
 pub fn run(a: Args) -> Result<ExitCode> {
     let s = a.session.open()?;
     let samples = samples(&s);
-    let mut rep = report(&samples, s.scale(), &s.model.model.tree);
+    let rep = report(&samples, s.scale(), &s.model.model.tree);
     // Joints piled at a limit over the sequence (a too-tight limit or a reversed axis).
     let states: Vec<Vec<f64>> = samples.iter().map(|x| x.states.clone()).collect();
     let names: Vec<String> = samples.iter().map(|x| x.frame.clone()).collect();
-    rep.warnings
-        .extend(s.model.model.tree.at_limit_warnings(&states, &names));
+    let at_limit: Vec<JointAtLimit> = s
+        .model
+        .model
+        .tree
+        .at_limit(&states, &names)
+        .into_iter()
+        .map(joint_at_limit)
+        .collect();
+    let acknowledged = read_acknowledged_limits(a.limits_acknowledged.as_deref())?;
     let keep = select_frames(&s.capture, a.frames.as_deref())?;
     let mut rows: Vec<&Row> = keep.iter().map(|&i| &rep.rows[i]).collect();
     let joint_names: Vec<String> = s
@@ -183,6 +197,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
                 })
                 .collect(),
             warnings: rep.warnings.clone(),
+            at_limit,
             frames: rows
                 .iter()
                 .map(|r| TemporalRow {
@@ -283,7 +298,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
         "pose frame: {} (rotation in degrees, translation in object units, per step)",
         rep.pose_frame
     );
-    for w in &rep.warnings {
+    for w in rep.warnings.iter().chain(&acknowledged.lines(&at_limit)) {
         println!("warning: {w}");
     }
     Ok(ExitCode::SUCCESS)

@@ -3,7 +3,7 @@
 //! minimum, median and maximum over the keyframes) or the ones asked for, as one sheet per
 //! state within the image limits.
 
-use crate::common::{open_capture, open_model, out_dir, print_json};
+use crate::common::{joint_at_limit, open_capture, open_model, out_dir, print_json};
 use agentstar_data::images::save_png_rgb;
 use agentstar_data::posefile::PoseFile;
 use agentstar_geom::{KinematicTree, ObjectModel, UnitQuaternion};
@@ -192,7 +192,8 @@ pub fn run(a: Args) -> Result<ExitCode> {
     let tree = &model.tree;
     let mut rotation = upright();
     let mut states: Vec<(String, String, Vec<f64>)> = Vec::new();
-    let mut warnings = tree.limit_warnings();
+    let warnings = tree.limit_warnings();
+    let mut at_limit = Vec::new();
     let explicit = a.request.states().contains(':');
     if explicit {
         states = explicit_states(a.request.states(), tree)?;
@@ -213,7 +214,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
                 .map(|r| r.generalised.states.clone())
                 .collect();
             let names: Vec<String> = capture.frames.iter().map(|f| f.name.clone()).collect();
-            warnings.extend(tree.at_limit_warnings(&all, &names));
+            at_limit.extend(tree.at_limit(&all, &names).into_iter().map(joint_at_limit));
             match a.request.states() {
                 _ if explicit => {}
                 "representative" | "" => {
@@ -302,7 +303,11 @@ pub fn run(a: Args) -> Result<ExitCode> {
             sheets,
         });
     }
-    for w in &warnings {
+    for w in warnings
+        .iter()
+        .cloned()
+        .chain(at_limit.iter().map(|w| w.warning()))
+    {
         eprintln!("warning: {w}");
     }
     if a.json {
@@ -311,6 +316,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
             sheets: all_sheets,
             files,
             warnings,
+            at_limit,
         })?;
     } else {
         println!(
