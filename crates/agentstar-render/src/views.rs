@@ -534,10 +534,13 @@ pub fn contact_sheet(tiles: &[(String, RgbImage)], columns: usize, title: &str) 
 /// scaled by `zoom`): the frame's own pixels on the left, the render opaque over `background`
 /// on the right, with a gap of [`SIDE_GAP_PX`]. Nothing of one shows through the other, so
 /// a print on the model can be compared with the print in the frame (an overlay blends
-/// them).
+/// them). Where `hand` (the frame's hand mask) covers the frame, both halves are hatched in
+/// [`SIDE_HAND_HATCH`], so the part of the model the hand hides in the frame shows as
+/// such; every other pixel is as without hands.
 pub fn side_by_side(
     frame: &RgbImage,
     render: &RgbaImage,
+    hand: Option<&BitMask>,
     crop: [u32; 4],
     zoom: f64,
     background: Rgb<u8>,
@@ -548,7 +551,11 @@ pub fn side_by_side(
         let w = w.min(img.width() - x0).max(1);
         let h = h.min(img.height() - y0).max(1);
         let part = image::imageops::crop_imm(img, x0, y0, w, h).to_image();
-        scaled(&part, zoom)
+        let mut out = scaled(&part, zoom);
+        if let Some(hand) = hand {
+            hatch_hand(&mut out, hand, [x0, y0, w, h]);
+        }
+        out
     };
     let left = cut(frame);
     let right = cut(&flatten(render, background));
@@ -564,6 +571,35 @@ pub fn side_by_side(
 
 /// The white gap between the two halves of [`side_by_side`], in pixels.
 pub const SIDE_GAP_PX: u32 = 6;
+
+/// The hand's hatching in [`side_by_side`]: the cyan the frames view outlines hands in,
+/// a colour objects rarely have.
+pub const SIDE_HAND_HATCH: Rgb<u8> = crate::frames::HAND_OUTLINE;
+
+/// Hatches the pixels of `img` (the crop `[x0, y0, w, h]` of a frame, scaled to `img`'s
+/// size) whose frame pixel `hand` covers: solid stripes of [`SIDE_HAND_HATCH`] on the
+/// diagonal, the pixels between them tinted half way to it. Each output pixel reads its
+/// nearest frame pixel, so the hatching stops at the hand's edge whatever the zoom.
+fn hatch_hand(img: &mut RgbImage, hand: &BitMask, [x0, y0, w, h]: [u32; 4]) {
+    let (out_w, out_h) = img.dimensions();
+    for oy in 0..out_h {
+        let sy = y0 + ((oy as u64 * h as u64) / out_h as u64) as u32;
+        for ox in 0..out_w {
+            let sx = x0 + ((ox as u64 * w as u64) / out_w as u64) as u32;
+            if !(sx < hand.width() && sy < hand.height() && hand.get(sx, sy)) {
+                continue;
+            }
+            let p = img.get_pixel_mut(ox, oy);
+            if ((ox + oy) / 3) % 3 == 0 {
+                *p = SIDE_HAND_HATCH;
+            } else {
+                for c in 0..3 {
+                    p[c] = ((p[c] as u16 + SIDE_HAND_HATCH[c] as u16) / 2) as u8;
+                }
+            }
+        }
+    }
+}
 
 /// Composites an RGBA render over a solid background.
 pub fn flatten(render: &RgbaImage, background: Rgb<u8>) -> RgbImage {
@@ -703,7 +739,7 @@ mod tests {
             }
         });
         let bg = Rgb([255, 255, 255]);
-        let img = side_by_side(&frame, &render, [8, 6, 16, 16], 2.0, bg);
+        let img = side_by_side(&frame, &render, None, [8, 6, 16, 16], 2.0, bg);
         assert_eq!(img.dimensions(), (32 + SIDE_GAP_PX + 32, 32));
         // Left: the frame's red, untouched by the render's blue.
         assert_eq!(*img.get_pixel(2 * (15 - 8), 2 * (15 - 6)), Rgb([200, 0, 0]));
@@ -715,8 +751,61 @@ mod tests {
         );
         assert_eq!(*img.get_pixel(right + 1, 30), bg);
         // A crop past the edge is cut at the edge.
-        let edge = side_by_side(&frame, &render, [30, 20, 20, 20], 1.0, bg);
+        let edge = side_by_side(&frame, &render, None, [30, 20, 20, 20], 1.0, bg);
         assert_eq!(edge.dimensions(), (10 + SIDE_GAP_PX + 10, 10));
+    }
+
+    #[test]
+    fn side_by_side_hatches_the_hand_on_both_halves_and_nothing_else() {
+        // A frame of smooth shades (so no pixel is the hatch's cyan), a render with an
+        // opaque square, and a hand over a corner of both.
+        let frame = RgbImage::from_fn(40, 30, |x, y| Rgb([(4 * x) as u8, (5 * y) as u8, 90]));
+        let render = RgbaImage::from_fn(40, 30, |x, y| {
+            if (12..28).contains(&x) && (8..22).contains(&y) {
+                Rgba([200, 60, 30, 255])
+            } else {
+                Rgba([0, 0, 0, 0])
+            }
+        });
+        let hand = BitMask::from_fn(40, 30, |x, y| (20..34).contains(&x) && (4..16).contains(&y));
+        let bg = Rgb([255, 255, 255]);
+        let crop = [8, 2, 30, 24];
+        for zoom in [1.0, 2.0, 3.0] {
+            let bare = side_by_side(&frame, &render, None, crop, zoom, bg);
+            let hatched = side_by_side(&frame, &render, Some(&hand), crop, zoom, bg);
+            assert_eq!(bare.dimensions(), hatched.dimensions());
+            let half = (bare.width() - SIDE_GAP_PX) / 2;
+            let (mut differ, mut hand_px) = (0, 0);
+            for (ox, oy, p) in hatched.enumerate_pixels() {
+                // The frame pixel this output pixel shows, on either half.
+                let local = if ox < half {
+                    Some(ox)
+                } else if ox >= half + SIDE_GAP_PX {
+                    Some(ox - half - SIDE_GAP_PX)
+                } else {
+                    None
+                };
+                let under_hand = local.is_some_and(|lx| {
+                    let sx = crop[0] + (lx as u64 * crop[2] as u64 / half as u64) as u32;
+                    let sy = crop[1] + (oy as u64 * crop[3] as u64 / bare.height() as u64) as u32;
+                    hand.get(sx, sy)
+                });
+                let same = p == bare.get_pixel(ox, oy);
+                if under_hand {
+                    hand_px += 1;
+                    differ += usize::from(!same);
+                    assert!(!same, "zoom {zoom}: hand pixel ({ox}, {oy}) unmarked");
+                } else {
+                    assert!(same, "zoom {zoom}: pixel ({ox}, {oy}) off the hand changed");
+                }
+            }
+            // Both halves hold hand pixels: the frame's and the model's.
+            assert!(hand_px > 0 && differ == hand_px, "{hand_px} {differ}");
+            let right_hand = (half + SIDE_GAP_PX..hatched.width()).any(|ox| {
+                hatched.get_pixel(ox, bare.height() / 3) != bare.get_pixel(ox, bare.height() / 3)
+            });
+            assert!(right_hand, "zoom {zoom}: the model's half is not hatched");
+        }
     }
 
     #[test]

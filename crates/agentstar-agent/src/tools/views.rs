@@ -15,7 +15,8 @@ pub struct RenderArgs {
     pub frames: Option<String>,
     /// Comma separated: overlay, compare, ids, shaded, side (the keyframe cropped around its
     /// mask beside the model rendered opaque over the same crop, with a sheet: to compare a
-    /// print without one showing through the other). Default overlay,compare.
+    /// print without one showing through the other; the hand mask hatched in cyan on both
+    /// halves, so the model's parts a hand hides show). Default overlay,compare.
     pub views: Option<String>,
     /// Output pixels per frame pixel of every view's crop (1 to 8; default 1): to look at a
     /// detail of a few pixels (a hole, a letter). Above 1 the overlay and ids are cropped

@@ -54,7 +54,7 @@ pub struct Args {
     /// Views, comma separated: overlay, compare, ids, shaded, depth, frame (the raw
     /// keyframe cropped around its mask, with a sheet of them), side (the cropped keyframe
     /// beside the model rendered opaque over the same crop, with a sheet: prints compared
-    /// without one showing through the other).
+    /// without one showing through the other; the hand mask hatched in cyan on both halves).
     #[arg(long, default_value = "overlay,compare")]
     views: String,
     /// Output directory.
@@ -340,12 +340,25 @@ pub fn run(a: Args) -> Result<ExitCode> {
                 let crop = window;
                 let [x0, y0, w, h] = crop;
                 let background = Rgb([255, 255, 255]);
-                let img =
-                    fit_to_limits(side_by_side(&frame_img, &shaded, crop, a.zoom, background));
+                let img = fit_to_limits(side_by_side(
+                    &frame_img,
+                    &shaded,
+                    hand.as_ref(),
+                    crop,
+                    a.zoom,
+                    background,
+                ));
                 let p = dir.join(format!("side_{}.png", f.stem));
                 save_png_rgb(&img, &p)?;
                 written.push(p);
-                let tile = side_by_side(&frame_img, &shaded, crop, tile_zoom(w, h), background);
+                let tile = side_by_side(
+                    &frame_img,
+                    &shaded,
+                    hand.as_ref(),
+                    crop,
+                    tile_zoom(w, h),
+                    background,
+                );
                 out.side_tile = Some((format!("{} at {x0},{y0} {w}x{h}", f.stem), tile));
             }
             out.row.files = written;
