@@ -203,6 +203,18 @@ struct Group {
 }
 
 impl Group {
+    /// Adds another group's sums: one group over both groups' pairs.
+    fn merge(&mut self, other: &Group) {
+        self.n += other.n;
+        for c in 0..3 {
+            self.sa[c] += other.sa[c];
+            self.sb[c] += other.sb[c];
+            self.saa[c] += other.saa[c];
+            self.sbb[c] += other.sbb[c];
+            self.sab[c] += other.sab[c];
+        }
+    }
+
     fn add(&mut self, a: [f64; 3], b: [f64; 3]) {
         self.n += 1;
         for c in 0..3 {
@@ -915,6 +927,47 @@ pub fn appearance_each(
         .collect()
 }
 
+/// The appearance score of `candidate` against one reference with every part's pairs in one
+/// group (without the model's own colours): where [`appearance_each`] scores each part on its
+/// own, this sees where one part's colour meets another's. A label or a badge painted one
+/// colour is flat within itself, so per part it says nothing at the right turn and little
+/// elsewhere; pooled, its edges against the body correlate only where the two frames put
+/// them alike. What two video frames a few degrees apart compare ([`crate::axis`]).
+/// Samples hidden in the reference count as uncorrelated, as in [`appearance_score`].
+pub fn appearance_pooled(
+    model: &ObjectModel,
+    scale: f64,
+    frame: &AppearanceFrame<'_>,
+    candidate: &GenPose,
+    reference: &ReferenceView<'_>,
+    cfg: &AppearanceConfig,
+) -> AppearanceScore {
+    if !frame.valid() {
+        return AppearanceScore::NONE;
+    }
+    let g = gather(
+        model,
+        scale,
+        frame,
+        candidate,
+        std::slice::from_ref(reference),
+        cfg,
+    );
+    let mut pooled = Group::default();
+    for group in &g.groups {
+        pooled.merge(group);
+    }
+    let occluded = g.occluded.iter().sum::<usize>();
+    match pooled.ncc(cfg) {
+        Some(ncc) => AppearanceScore {
+            ncc: Some(ncc * pooled.n as f64 / (pooled.n + occluded) as f64),
+            pairs: pooled.n,
+            groups: 1,
+        },
+        None => AppearanceScore::NONE,
+    }
+}
+
 /// The appearance figure of frame `i` of a sequence at its pose: photometric consistency
 /// ([`appearance_score`]) with its neighbours in the sequence (the frames just before and
 /// after, at their poses), as `score` reports it beside the IoU. `frames[k]` is `None` for a
@@ -1159,6 +1212,79 @@ pub(crate) mod tests {
         assert!(r - t > 0.3, "true {right:?} against twin {twin:?}");
         assert_eq!(choose(&[twin, right], &cfg), Choice::Best(1));
         assert!(right.cost().expect("cost") < twin.cost().expect("cost"));
+    }
+
+    #[test]
+    fn pooled_the_edges_of_a_label_painted_one_colour_tell_a_turn_where_each_part_alone_cannot() {
+        // Two video frames of a can with a cream label a few degrees apart: frame b at its
+        // truth and turned 15° about the can's axis, against frame a as it is.
+        let model = label_of_half_width(0.8);
+        let paint = |p: &Point3| {
+            if p.y.atan2(p.x).abs() < 0.8 && p.z.abs() < 0.3 {
+                [0.85, 0.8, 0.6]
+            } else {
+                [0.6, 0.05, 0.05]
+            }
+        };
+        let (scale, cam) = (
+            0.12,
+            PinholeCamera::new(300.0, 300.0, 160.0, 120.0, 320, 240).expect("camera"),
+        );
+        let (a, b) = (
+            pose(Vector3::x(), 10.0, -100.0),
+            pose(Vector3::x(), 10.0, -92.0),
+        );
+        let (shot_a, shot_b) = (
+            shoot(&model, scale, &cam, &a, &paint),
+            shoot(&model, scale, &cam, &b, &paint),
+        );
+        fn frame_of<'a>(
+            cam: &'a PinholeCamera,
+            shot: &'a (Vec<u8>, BitMask),
+        ) -> AppearanceFrame<'a> {
+            AppearanceFrame {
+                camera: cam,
+                rgb: &shot.0,
+                mask: &shot.1,
+            }
+        }
+        let frame = |shot| frame_of(&cam, shot);
+        let view = ReferenceView::new(&model, scale, frame(&shot_a), &a).expect("view");
+        let cfg = AppearanceConfig::default();
+        let turned = {
+            let mut g = b.clone();
+            g.pose.rotation *=
+                UnitQuaternion::from_axis_angle(&Vector3::z_axis(), 15f64.to_radians());
+            g
+        };
+        let pooled = |g: &GenPose| {
+            appearance_pooled(&model, scale, &frame(&shot_b), g, &view, &cfg)
+                .ncc
+                .expect("evidence")
+        };
+        assert!(
+            pooled(&b) > pooled(&turned) + 0.05,
+            "{} against {}",
+            pooled(&b),
+            pooled(&turned)
+        );
+        // Each part alone: the label is one colour, flat at the truth, so it says no more.
+        let each = |g: &GenPose| {
+            appearance_each(
+                &model,
+                scale,
+                &frame(&shot_b),
+                g,
+                std::slice::from_ref(&view),
+                &cfg,
+            )[0]
+            .ncc
+        };
+        let (at_truth, at_turn) = (each(&b), each(&turned));
+        assert!(
+            at_truth.zip(at_turn).is_none_or(|(t, w)| t < w + 0.05),
+            "{at_truth:?} against {at_turn:?}"
+        );
     }
 
     #[test]

@@ -18,11 +18,11 @@
 //! No I/O; the tracker applies the turns and checks them on the masks.
 
 use crate::appearance::{
-    appearance_each, model_agreement, model_has_appearance, AppearanceConfig, AppearanceFrame,
-    ReferenceView,
+    appearance_each, appearance_pooled, model_agreement, model_has_appearance, AppearanceConfig,
+    AppearanceFrame, ReferenceView,
 };
 use crate::hypotheses::principal_axes;
-use crate::sequence::cheapest_path;
+use crate::sequence::{cheapest_path, cheapest_path_bent};
 use crate::temporal::signed_deg;
 use crate::update::{apply_object_rotation, GenPose};
 use agentstar_geom::nalgebra::Unit;
@@ -496,13 +496,41 @@ const MOVE_COST_PER_HALF_TURN: f64 = 0.005;
 /// 3.2 / 7.4 / 4.4° at weight 1.5, 2.7 / 2.9 / 3.7° at 2 and 2.7 / 2.8 / 3.1° at 3.
 const MODEL_WEIGHT: f64 = 2.0;
 
+/// What [`choose_turns`]'s frames are, and so how it weighs a step between two of them.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Steps<'a> {
+    /// Keyframes far apart, whose views share little but each part's shading and print:
+    /// each part's colours on their own ([`appearance_each`]), and no cost for a turn of one
+    /// frame against the next.
+    Keyframes,
+    /// Every video frame, a few degrees apart: every part's colours in one group
+    /// ([`appearance_pooled`]: a label's edge against its body is the evidence). Where
+    /// `measured[i]` and `measured[i − 1]`, the steps into frames i − 1 and i are ones a
+    /// chain followed (the frames at the poses the video's motion carried them to), and a
+    /// change between the two steps' turns costs [`MOTION_COST_PER_HALF_TURN`]: the chain's
+    /// motion is kept up to a steady correction, so where the print is hidden a stretch of
+    /// frames turns on at the rate the frames around it show. A step into a keyframe (whose
+    /// pose the chain did not give) is weighed by colours only. For a round body, whose turn
+    /// the masks do not see: the chain held it as the motion predicted (a chain fitted to a
+    /// prism's outline may slip a face). The tie-break toward the current angle is shared by
+    /// all frames ([`MOVE_COST_PER_HALF_TURN`] over the sequence).
+    Video { measured: &'a [bool] },
+}
+
+/// In [`Steps::Video`], a change of turn between two followed steps costs this much NCC per
+/// 180°: a half turn as much as a print's whole disagreement, 20° about 0.11 (what a print
+/// in view says about such a turn: its NCC falls by 0.1–0.3).
+const MOTION_COST_PER_HALF_TURN: f64 = 1.0;
+
 /// The turn of every frame (degrees, one of `grid`'s) that best explains the colours: the
 /// most total NCC of each frame against the model's own colours and of each pair of
 /// neighbouring frames against each other (both directions, averaged), a frame or a step
 /// without evidence counting alike at every turn. Frame `i` takes only its own angle (0) and
 /// the turns `allowed[i]` marks (a mug's turns that keep its handle hidden; the tracker marks
 /// those that keep the frame's IoU, and none for a frame it keeps fixed).
-/// `frames[i]` is `None` for a frame without colours. Every turn is 0 when nothing has
+/// `turned(i, deg)`: frame `i`'s pose turned by `deg` about the axis (its joints fitted again
+/// where a turn moves what they hold in the mask). `frames[i]` is `None` for a frame without
+/// colours. Every turn is 0 when nothing has
 /// evidence, and for a model of one colour ([`model_has_appearance`]): without the model's
 /// own colours the angle is a free choice of the whole sequence (a plain bottle's shading
 /// correlates between frames at some turns, by chance).
@@ -510,11 +538,11 @@ const MODEL_WEIGHT: f64 = 2.0;
 pub fn choose_turns(
     model: &ObjectModel,
     scale: f64,
-    cfg: &AppearanceConfig,
+    (cfg, steps): (&AppearanceConfig, Steps<'_>),
     frames: &[Option<AppearanceFrame<'_>>],
     poses: &[GenPose],
     allowed: &[Vec<bool>],
-    axis: &SymmetryAxis,
+    turned: &(dyn Fn(usize, f64) -> GenPose + Sync),
     grid: &AngleGrid,
 ) -> Vec<f64> {
     let n = frames.len();
@@ -541,7 +569,7 @@ pub fn choose_turns(
                     if !takes(i, k) {
                         return None;
                     }
-                    let g = axis.turn(&poses[i], scale, deg);
+                    let g = turned(i, deg);
                     model_agreement(model, scale, &app, &g, cfg).ncc
                 })
                 .collect(),
@@ -582,24 +610,18 @@ pub fn choose_turns(
                 .iter()
                 .map(|&d| {
                     let deg = d as f64 / 1000.0;
-                    let forward = appearance_each(
-                        model,
-                        scale,
-                        &fb,
-                        &axis.turn(&poses[i], scale, deg),
-                        std::slice::from_ref(va),
-                        cfg,
-                    )[0]
-                    .ncc;
-                    let backward = appearance_each(
-                        model,
-                        scale,
-                        &fa,
-                        &axis.turn(&poses[i - 1], scale, -deg),
-                        std::slice::from_ref(vb),
-                        cfg,
-                    )[0]
-                    .ncc;
+                    let score = |frame: &AppearanceFrame<'_>, g: &GenPose, view| match steps {
+                        Steps::Keyframes => {
+                            appearance_each(model, scale, frame, g, std::slice::from_ref(view), cfg)
+                                [0]
+                            .ncc
+                        }
+                        Steps::Video { .. } => {
+                            appearance_pooled(model, scale, frame, g, view, cfg).ncc
+                        }
+                    };
+                    let forward = score(&fb, &turned(i, deg), va);
+                    let backward = score(&fa, &turned(i - 1, -deg), vb);
                     let ncc = match (forward, backward) {
                         (Some(f), Some(b)) => Some(0.5 * (f + b)),
                         (f, b) => f.or(b),
@@ -634,6 +656,10 @@ pub fn choose_turns(
         .iter()
         .map(|r| r.iter().any(|e| e.1.is_some()))
         .collect();
+    let move_cost = match steps {
+        Steps::Keyframes => MOVE_COST_PER_HALF_TURN,
+        Steps::Video { .. } => MOVE_COST_PER_HALF_TURN / n as f64,
+    };
     let unary_cost: Vec<Vec<f64>> = (0..n)
         .map(|i| {
             angles
@@ -644,7 +670,7 @@ pub fn choose_turns(
                         return f64::INFINITY;
                     }
                     MODEL_WEIGHT * cost_of(unary_evidence[i], unary[i][k])
-                        + MOVE_COST_PER_HALF_TURN * (key(deg) as f64 / 1000.0).abs() / 180.0
+                        + move_cost * (key(deg) as f64 / 1000.0).abs() / 180.0
                 })
                 .collect()
         })
@@ -656,7 +682,26 @@ pub fn choose_turns(
             Err(_) => 0.0,
         }
     };
-    let path = cheapest_path(&unary_cost, &step);
+    let path = match steps {
+        Steps::Keyframes => cheapest_path(&unary_cost, &step),
+        Steps::Video { measured } => {
+            // A change of turn rate over two steps a chain followed: the chain's motion (the
+            // turn it carried, at the velocity it predicted where the masks did not see it)
+            // is kept up to a steady correction.
+            let followed = |i: usize| measured.get(i).copied().unwrap_or(false);
+            let bend = |i: usize, z: usize, a: usize, b: usize| -> f64 {
+                if !(followed(i) && followed(i - 1)) {
+                    return 0.0;
+                }
+                let (before, after) = (
+                    signed_deg(angles[a] - angles[z]),
+                    signed_deg(angles[b] - angles[a]),
+                );
+                MOTION_COST_PER_HALF_TURN * signed_deg(after - before).abs() / 180.0
+            };
+            cheapest_path_bent(&unary_cost, &step, &bend)
+        }
+    };
     if path.len() != n {
         return vec![0.0; n];
     }
@@ -918,11 +963,11 @@ mod tests {
             let turns = choose_turns(
                 &can,
                 scale,
-                &AppearanceConfig::default(),
+                (&AppearanceConfig::default(), Steps::Keyframes),
                 &frames,
                 &poses,
                 &every(&grid),
-                &axis,
+                &|i: usize, d: f64| axis.turn(&poses[i], scale, d),
                 &grid,
             );
             for (g, deg) in poses.iter_mut().zip(turns) {
@@ -951,11 +996,11 @@ mod tests {
         let turns = choose_turns(
             &can,
             scale,
-            &AppearanceConfig::default(),
+            (&AppearanceConfig::default(), Steps::Keyframes),
             &frames,
             &wrong,
             &allowed,
-            &axis,
+            &|i: usize, d: f64| axis.turn(&wrong[i], scale, d),
             &circle,
         );
         assert_eq!((turns[3], turns[5]), (0.0, 0.0), "{turns:?}");
@@ -971,11 +1016,11 @@ mod tests {
         let turns = choose_turns(
             &plain,
             scale,
-            &AppearanceConfig::default(),
+            (&AppearanceConfig::default(), Steps::Keyframes),
             &frames,
             &wrong,
             &every(&circle),
-            &axis,
+            &|i: usize, d: f64| axis.turn(&wrong[i], scale, d),
             &circle,
         );
         assert!(turns.iter().all(|&d| d == 0.0), "{turns:?}");

@@ -213,6 +213,59 @@ fn a_clip_with_in_between_frames_goes_from_video_to_report() {
 }
 
 #[test]
+fn track_reads_the_in_between_frames_colours_for_the_axis_pass_over_the_video() {
+    // A can printed on half its side, 4 keyframes with 4 frames kept between each pair: the
+    // axis pass chooses the angle about the can's axis over all 16 video frames. Without
+    // the appearance term no image is read, and neither pass runs.
+    let dir = tempfile::tempdir().expect("tmp");
+    let p = |n: &str| dir.path().join(n);
+    let o = synth_object(
+        &s(&p("clip")),
+        "labelcan",
+        &[
+            "--motion",
+            "hard-held",
+            "--frames",
+            "4",
+            "--size",
+            "160x120",
+            "--seed",
+            "5",
+            "--between",
+            "4",
+        ],
+    );
+    assert!(o.status.success(), "synth: {}", text(&o));
+    let track = |out: &str, extra: &[&str]| {
+        let (clip, model, truth, out) = (
+            s(&p("clip")),
+            s(&p("clip/model/scene.rhai")),
+            s(&p("clip/model/pose.json")),
+            s(&p(out)),
+        );
+        let mut args = vec![
+            "track",
+            &clip,
+            "--model",
+            &model,
+            "--scale-from",
+            &truth,
+            "--out",
+            &out,
+            "--json",
+        ];
+        args.extend_from_slice(extra);
+        let o = agentstar(&args);
+        assert!(o.status.success(), "track {extra:?}: {}", text(&o));
+        json_of::<Value>(&o)["log"].to_string()
+    };
+    let log = track("run/pose.json", &[]);
+    assert!(log.contains("over all 16 video frames"), "{log}");
+    let log = track("plain/pose.json", &["--no-appearance"]);
+    assert!(!log.contains("axis:"), "{log}");
+}
+
+#[test]
 fn bad_in_between_options_are_refused_with_messages() {
     let dir = tempfile::tempdir().expect("tmp");
     let p = |n: &str| dir.path().join(n);

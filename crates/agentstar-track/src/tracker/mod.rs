@@ -888,7 +888,7 @@ fn after_propagation(
         appearance_pass(s, frames, (poses, scores), fixed, first, &rejected, log);
         log.phase("appearance", s);
         log.pass_done("the appearance pass", poses);
-        if axis_pass(s, frames, (poses, scores), fixed, log)? {
+        if axis_pass(s, (frames, between), (poses, scores), fixed, log)? {
             log.phase("axis", s);
             log.pass_done("the axis pass", poses);
         }

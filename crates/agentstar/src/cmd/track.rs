@@ -146,6 +146,41 @@ fn image_of(capture: &Capture, frame: &Frame) -> Option<image::RgbImage> {
     }
 }
 
+/// The most bytes of in-between frames' images `track` holds at once (1 GiB: 1,165 frames
+/// of 640×480, 172 of 1920×1080); a longer or larger video's in-between frames are tracked
+/// by their masks alone, and the axis pass weighs the keyframes' colours only.
+const BETWEEN_IMAGES_MAX_BYTES: u64 = 1 << 30;
+
+/// Each gap's in-between frames' images (`None` for one that cannot be read or is not its
+/// camera's size, with a warning), or none at all without the appearance term or over
+/// [`BETWEEN_IMAGES_MAX_BYTES`] (said on stderr).
+fn between_images(
+    capture: &Capture,
+    gaps: &[Vec<&Frame>],
+    no_appearance: bool,
+) -> Vec<Vec<Option<image::RgbImage>>> {
+    let none = || gaps.iter().map(|g| vec![None; g.len()]).collect();
+    if no_appearance {
+        return none();
+    }
+    let bytes: u64 = gaps
+        .iter()
+        .flatten()
+        .map(|f| 3 * u64::from(f.camera.width) * u64::from(f.camera.height))
+        .sum();
+    if bytes > BETWEEN_IMAGES_MAX_BYTES {
+        eprintln!(
+            "track: the in-between frames' images would take {} MiB (over {} MiB): they are tracked by their masks alone, and the axis pass weighs the keyframes' colours only",
+            bytes >> 20,
+            BETWEEN_IMAGES_MAX_BYTES >> 20
+        );
+        return none();
+    }
+    gaps.iter()
+        .map(|g| g.iter().map(|f| image_of(capture, f)).collect())
+        .collect()
+}
+
 fn track_frame<'a>(
     frame: &Frame,
     target: &'a ScoreTarget,
@@ -222,16 +257,18 @@ pub fn run(a: Args) -> Result<ExitCode> {
         .iter()
         .map(|gap| gap.iter().map(|f| target_of(&capture, f)).collect())
         .collect::<Result<_>>()?;
-    // Their masks only: a chain searches each in-between frame by its silhouette (the
-    // colours are weighed at the keyframes), so their images are not read.
-    let no_image = None;
+    // Their images, for the axis pass's colours between neighbouring video frames (a chain
+    // searches each in-between frame by its silhouette alone), within a bound on memory.
+    let between_images = between_images(&capture, &gaps, a.no_appearance);
     let between: Vec<Vec<TrackFrame>> = gaps
         .iter()
         .zip(&between_targets)
-        .map(|(gap, targets)| {
+        .zip(&between_images)
+        .map(|((gap, targets), images)| {
             gap.iter()
                 .zip(targets)
-                .map(|(f, t)| track_frame(f, t, &no_image))
+                .zip(images)
+                .map(|((f, t), img)| track_frame(f, t, img))
                 .collect()
         })
         .collect();
