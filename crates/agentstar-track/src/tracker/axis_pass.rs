@@ -208,7 +208,11 @@ pub(super) fn axis_pass(
             &colours,
             &seq_poses,
             &allowed,
-            &|i: usize, deg: f64| match grid.angles_deg.iter().position(|&a| (a - deg).abs() < 1e-6)
+            // A step's difference of turns comes signed (−10° for the circle's 350°).
+            &|i: usize, deg: f64| match grid
+                .angles_deg
+                .iter()
+                .position(|&a| signed_deg(a - deg).abs() < 1e-6)
             {
                 Some(k) => candidates[i][k].0.clone(),
                 None => axis.turn(&seq_poses[i], s.scale, deg),
@@ -293,17 +297,16 @@ fn refit_states(
         }
         let step = (hi - lo) / (REFIT_SAMPLES - 1) as f64;
         let fine = step / REFIT_SAMPLES as f64;
-        let coarse: Vec<f64> = (0..REFIT_SAMPLES).map(|k| lo + step * k as f64).collect();
-        let mut centre = best.0.states[j];
-        for values in [coarse, Vec::new()] {
-            let values = if values.is_empty() {
-                let half = REFIT_SAMPLES as f64 / 2.0;
-                (0..REFIT_SAMPLES)
-                    .map(|k| (centre + fine * (k as f64 - half)).clamp(lo, hi))
-                    .collect()
-            } else {
-                values
-            };
+        let half = REFIT_SAMPLES as f64 / 2.0;
+        for round in 0..2 {
+            // Round 0 over the whole range, round 1 around the best of it.
+            let centre = best.0.states[j];
+            let values: Vec<f64> = (0..REFIT_SAMPLES)
+                .map(|k| match round {
+                    0 => lo + step * k as f64,
+                    _ => (centre + fine * (k as f64 - half)).clamp(lo, hi),
+                })
+                .collect();
             for v in values {
                 let mut g = best.0.clone();
                 g.states[j] = v;
@@ -312,7 +315,6 @@ fn refit_states(
                     best = (g, sc);
                 }
             }
-            centre = best.0.states[j];
         }
     }
     best

@@ -103,20 +103,7 @@ fn the_axis_pass_turns_a_can_back_about_its_axis_by_its_label_and_keeps_anchors(
     let wrong = spin_about_z(&truths[1], 40.0);
     let start: Vec<GenPose> = vec![truths[0].clone(), wrong.clone(), truths[2].clone()];
     let began = scores_of(&model, scale, &frames, &start);
-    let run = |fixed: &[bool]| {
-        let (mut poses, mut scores) = (start.clone(), began.clone());
-        let observe = |_: &str| {};
-        let mut log = Log::new(&observe);
-        let ran = axis_pass(
-            &s,
-            (&frames, &[]),
-            (&mut poses, &mut scores),
-            fixed,
-            &mut log,
-        )
-        .expect("axis pass");
-        (ran, poses, scores, log.lines)
-    };
+    let run = |fixed: &[bool]| run_axis_pass(&s, (&frames, &[]), &start, fixed);
     let (ran, poses, scores, lines) = run(&[false, false, false]);
     assert!(ran, "{lines:?}");
     assert_each_within(&poses, &truths, 5.0, &lines);
@@ -391,19 +378,7 @@ fn the_axis_pass_turns_a_can_back_about_its_axis_where_its_levers_state_differs_
         axis.turn(&truths[1], scale, 40.0),
         truths[2].clone(),
     ];
-    let began = scores_of(&model, scale, &frames, &start);
-    let (mut poses, mut scores) = (start.clone(), began.clone());
-    let observe = |_: &str| {};
-    let mut log = Log::new(&observe);
-    let ran = axis_pass(
-        &s,
-        (&frames, &[]),
-        (&mut poses, &mut scores),
-        &[false, false, false],
-        &mut log,
-    )
-    .expect("axis pass");
-    let lines = log.lines;
+    let (ran, poses, _, lines) = run_axis_pass(&s, (&frames, &[]), &start, &[false; 3]);
     assert!(ran, "{lines:?}");
     assert_each_within(&poses, &truths, 5.0, &lines);
     for (k, (g, t)) in poses.iter().zip(&truths).enumerate() {
@@ -457,20 +432,9 @@ fn the_axis_pass_over_the_video_turns_a_keyframe_whose_label_is_hidden_by_the_fr
         axis.turn(&truths[1], scale, 40.0),
         truths[2].clone(),
     ];
-    let began = scores_of(&model, scale, &frames, &start);
     let run = |between: &[Vec<TrackFrame<'_>>]| {
-        let (mut poses, mut scores) = (start.clone(), began.clone());
-        let observe = |_: &str| {};
-        let mut log = Log::new(&observe);
-        axis_pass(
-            &s,
-            (&frames, between),
-            (&mut poses, &mut scores),
-            &[false, false, false],
-            &mut log,
-        )
-        .expect("axis pass");
-        (poses, log.lines)
+        let (_, poses, _, lines) = run_axis_pass(&s, (&frames, between), &start, &[false; 3]);
+        (poses, lines)
     };
     // The keyframes alone leave keyframe 1 where it was.
     let (alone, lines) = run(&[]);
@@ -534,6 +498,29 @@ fn a_refused_turn_is_reported_once_per_frame_and_not_where_the_frame_took_it_aft
     );
     assert_eq!(kept.len(), 1, "{kept:?}");
     assert_eq!((kept[0].frame, kept[0].what.as_str()), (0, "second"));
+}
+
+/// [`axis_pass`] from `start` (scored on the frames' masks): whether it ran, the poses, their
+/// scores and the log.
+fn run_axis_pass(
+    s: &Searcher<'_>,
+    (frames, between): (&[TrackFrame<'_>], &[Vec<TrackFrame<'_>>]),
+    start: &[GenPose],
+    fixed: &[bool],
+) -> (bool, Vec<GenPose>, Vec<f64>, Vec<String>) {
+    let mut poses = start.to_vec();
+    let mut scores = scores_of(s.model, s.scale, frames, start);
+    let observe = |_: &str| {};
+    let mut log = Log::new(&observe);
+    let ran = axis_pass(
+        s,
+        (frames, between),
+        (&mut poses, &mut scores),
+        fixed,
+        &mut log,
+    )
+    .expect("axis pass");
+    (ran, poses, scores, log.lines)
 }
 
 /// Every pose within `deg` of its truth, the pass's log shown otherwise.
