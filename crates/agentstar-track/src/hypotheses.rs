@@ -368,6 +368,31 @@ fn cma_pass(
     Ok((pose, score, climb.nfev + settle.nfev + 1))
 }
 
+/// The last polish of a pose already refined: CMA-ES in a box [`CMA_SHARE`] of `window`
+/// around `base`, on the sub-pixel score and then settled on the score ([`cma_pass`]), at
+/// full resolution, with `problem`'s held axis held. `base` itself (and its score) where the
+/// polish does not score strictly higher, so it never loses; with the evaluations spent
+/// (scoring `base` included).
+///
+/// This is [`LastPass::CmaSoft`] run once more after a refinement's own passes instead of
+/// in place of them: the box (3.6° and 6° of joint in the polish window) reaches no other
+/// basin, so it cannot undo a choice made before it.
+pub fn polish_last(
+    problem: &FrameProblem<'_>,
+    base: &GenPose,
+    window: &LocalWindow,
+    seed: u64,
+) -> Result<(GenPose, f64, usize), TrackError> {
+    let base_score = problem.evaluator().combined(base);
+    let (p, space) = rebased(problem, base, window, CMA_SHARE);
+    let (pose, score, n) = cma_pass(&p, &space, seed)?;
+    if score > base_score {
+        Ok((pose, score, n + 1))
+    } else {
+        Ok((base.clone(), base_score, n + 1))
+    }
+}
+
 /// Like [`refine_each`] (which is this with no floor, `f64::NEG_INFINITY`), but a
 /// hypothesis whose score after the first (widest) pass is under `floor` stops there: its
 /// pose and score are that pass's. For callers that drop every

@@ -32,6 +32,7 @@ mod chain;
 mod choice;
 mod independent;
 mod place;
+mod polish_pass;
 mod searcher;
 #[cfg(test)]
 mod tests;
@@ -45,6 +46,7 @@ use chain::*;
 use choice::*;
 pub use independent::*;
 use place::*;
+use polish_pass::*;
 use searcher::*;
 use tuning::*;
 pub use warm::*;
@@ -100,6 +102,9 @@ pub struct TrackConfig {
     /// With in-between frames: also return every in-between frame's pose, followed from the
     /// final keyframe poses ([`TrackResult::between`]).
     pub between_poses: bool,
+    /// Polish every keyframe's pose once more at the end, where it scores higher
+    /// ([`crate::hypotheses::polish_last`]; a few degrees, no other basin).
+    pub last_polish: bool,
 }
 
 impl Default for TrackConfig {
@@ -116,6 +121,7 @@ impl Default for TrackConfig {
             sequence_choice: true,
             appearance: true,
             between_poses: false,
+            last_polish: true,
         }
     }
 }
@@ -892,6 +898,12 @@ fn after_propagation(
             log.phase("axis", s);
             log.pass_done("the axis pass", poses);
         }
+    }
+    if cfg.last_polish {
+        polish_pass(s, frames, (poses, scores), fixed, log)?;
+        log.phase("polish", s);
+        log.all_poses(poses);
+        log.pass_done("the last polish", poses);
     }
     Ok(trace)
 }
