@@ -171,7 +171,7 @@ impl ObjectModel {
         } else {
             if center.coords.norm() > 0.05 * longest.max(1e-9) {
                 warnings.push(format!(
-                    "bounding-box centre ({:.3}, {:.3}, {:.3}) is off the origin by {:.3} (more than 5% of the longest side); centre the model",
+                    "bounding-box centre ({:.3}, {:.3}, {:.3}) is off the origin by {:.3} (more than 5% of the longest side); centre the body (advisory: the gates and tools work either way, and a part that sticks out, as a handle or a peg, may leave it so)",
                     center.x, center.y, center.z, center.coords.norm()
                 ));
             }

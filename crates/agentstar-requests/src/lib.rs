@@ -37,7 +37,7 @@ pub mod views;
 pub use bake::BakeArgs;
 pub use object::{OapplyAllArgs, OapplyArgs, OsweepArgs, Region, RowOrder};
 pub use scale::{ScaleMethod, SizeAxis};
-pub use sheet::{SheetView, WithSheet};
+pub use sheet::{RankRange, SheetView, WithSheet};
 pub use track::WarmStart;
 pub use views::{Crop, PoseDiffArgs, TemporalArgs, TurntableArgs};
 

@@ -42,6 +42,118 @@ pub struct SheetView {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     #[schemars(range(min = 1.0, max = 8.0))]
     pub zoom: Option<f64>,
+    /// The candidates the sheet draws, by rank: `6-11`, or one rank `7` (default the first
+    /// six; more than six go on further pages).
+    #[arg(
+        long,
+        help = "The candidates the candidate sheet draws, by rank: `6-11`, or one rank `7` (default the first six, or --sheet of them; more than six go on further pages): the ranks a first sheet listed as not drawn"
+    )]
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub draw: Option<RankRange>,
+}
+
+/// Ranks `from` to `to` (inclusive) of a ranked list of candidates: written `6-11`, or `7`
+/// for one.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct RankRange {
+    pub from: usize,
+    pub to: usize,
+}
+
+impl RankRange {
+    /// Whether `rank` lies in the range.
+    pub fn contains(&self, rank: usize) -> bool {
+        (self.from..=self.to).contains(&rank)
+    }
+
+    /// How many ranks the range holds.
+    pub fn len(&self) -> usize {
+        self.to - self.from + 1
+    }
+
+    /// Never empty (`to` ≥ `from` by construction).
+    pub fn is_empty(&self) -> bool {
+        false
+    }
+}
+
+/// The most ranks one `draw` range may name (a sheet page holds six candidates).
+pub const MAX_DRAWN_RANKS: usize = 60;
+
+impl std::str::FromStr for RankRange {
+    type Err = String;
+    fn from_str(s: &str) -> Result<RankRange, String> {
+        let t = s.trim().trim_start_matches('#');
+        let bad =
+            || format!("draw `{s}`: give ranks as `6-11` (from and to, inclusive) or one rank `7`");
+        let (from, to) = match t.split_once(['-', '–']) {
+            Some((a, b)) => (
+                a.trim()
+                    .trim_start_matches('#')
+                    .parse::<usize>()
+                    .map_err(|_| bad())?,
+                b.trim()
+                    .trim_start_matches('#')
+                    .parse::<usize>()
+                    .map_err(|_| bad())?,
+            ),
+            None => {
+                let k = t.parse::<usize>().map_err(|_| bad())?;
+                (k, k)
+            }
+        };
+        if to < from {
+            return Err(format!("draw `{s}`: the range ends before it starts"));
+        }
+        if to - from + 1 > MAX_DRAWN_RANKS {
+            return Err(format!(
+                "draw `{s}`: at most {MAX_DRAWN_RANKS} ranks at once"
+            ));
+        }
+        Ok(RankRange { from, to })
+    }
+}
+
+impl std::fmt::Display for RankRange {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        if self.from == self.to {
+            write!(f, "{}", self.from)
+        } else {
+            write!(f, "{}-{}", self.from, self.to)
+        }
+    }
+}
+
+impl Serialize for RankRange {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        s.collect_str(self)
+    }
+}
+
+impl<'de> Deserialize<'de> for RankRange {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<RankRange, D::Error> {
+        // A whole number is one rank, as its text is.
+        match Value::deserialize(d)? {
+            Value::String(s) => s.parse().map_err(serde::de::Error::custom),
+            Value::Number(n) => n.to_string().parse().map_err(serde::de::Error::custom),
+            other => Err(serde::de::Error::custom(format!(
+                "draw {other}: give ranks as `6-11` or one rank `7`"
+            ))),
+        }
+    }
+}
+
+impl JsonSchema for RankRange {
+    fn schema_name() -> std::borrow::Cow<'static, str> {
+        "RankRange".into()
+    }
+    fn json_schema(_: &mut schemars::SchemaGenerator) -> schemars::Schema {
+        schemars::json_schema!({
+            "type": "string",
+            "pattern": "^\\s*#?\\d+(\\s*[-–]\\s*#?\\d+)?\\s*$",
+            "description": "Ranks `from-to` (inclusive), e.g. `6-11`, or one rank, e.g. `7`."
+        })
+    }
 }
 
 impl SheetView {
@@ -80,7 +192,7 @@ impl<T> std::ops::Deref for WithSheet<T> {
 }
 
 /// The names of [`SheetView`]'s fields, as they appear among a tool's arguments.
-const SHEET_FIELDS: [&str; 2] = ["crop", "zoom"];
+const SHEET_FIELDS: [&str; 3] = ["crop", "zoom", "draw"];
 
 impl<'de, T: DeserializeOwned> Deserialize<'de> for WithSheet<T> {
     fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
@@ -151,6 +263,29 @@ impl<T: JsonSchema> JsonSchema for WithSheet<T> {
 mod tests {
     use super::*;
 
+    #[test]
+    fn rank_ranges_parse_print_and_refuse_what_is_no_range() {
+        let r: RankRange = " 6 - 11".parse().expect("range");
+        assert_eq!(r, RankRange { from: 6, to: 11 });
+        assert_eq!(r.to_string(), "6-11");
+        assert_eq!(r.len(), 6);
+        assert!(r.contains(6) && r.contains(11) && !r.contains(5) && !r.contains(12));
+        assert_eq!("#7".parse::<RankRange>(), Ok(RankRange { from: 7, to: 7 }));
+        assert_eq!(
+            "#6–#17".parse::<RankRange>(),
+            Ok(RankRange { from: 6, to: 17 })
+        );
+        assert_eq!(RankRange { from: 7, to: 7 }.to_string(), "7");
+        for bad in ["", "a", "3-", "11-6", "-2", "0-100", "1,2"] {
+            assert!(bad.parse::<RankRange>().is_err(), "{bad}");
+        }
+        assert_eq!(
+            serde_json::from_value::<RankRange>(serde_json::json!(7)).expect("number"),
+            RankRange { from: 7, to: 7 }
+        );
+        assert!(serde_json::from_value::<RankRange>(serde_json::json!([1, 2])).is_err());
+    }
+
     #[derive(Debug, PartialEq, Deserialize, Serialize, JsonSchema)]
     #[serde(deny_unknown_fields)]
     struct Request {
@@ -182,6 +317,14 @@ mod tests {
             back,
             serde_json::json!({"frames": "1", "zoom": 4.0, "crop": "1,2,30,40"})
         );
+        let drawn: WithSheet<Request> =
+            serde_json::from_value(serde_json::json!({"frames": "1", "draw": "6-11"}))
+                .expect("parse");
+        assert_eq!(drawn.sheet.draw, Some(RankRange { from: 6, to: 11 }));
+        assert_eq!(
+            serde_json::to_value(&drawn).expect("serialise"),
+            serde_json::json!({"frames": "1", "draw": "6-11"})
+        );
         let plain: WithSheet<Request> =
             serde_json::from_value(serde_json::json!({"frames": "2"})).expect("parse");
         assert_eq!(plain.sheet, SheetView::default());
@@ -211,7 +354,7 @@ mod tests {
         let props = schema["properties"].as_object().expect("properties");
         let mut names: Vec<&str> = props.keys().map(String::as_str).collect();
         names.sort_unstable();
-        assert_eq!(names, ["crop", "evals", "frames", "zoom"]);
+        assert_eq!(names, ["crop", "draw", "evals", "frames", "zoom"]);
         assert_eq!(props["zoom"]["maximum"], 8.0);
         assert_eq!(props["zoom"]["minimum"], 1.0);
         assert!(props["crop"]["description"]
@@ -223,7 +366,11 @@ mod tests {
 
     #[test]
     fn zoom_keeps_its_bounds() {
-        let view = |zoom: Option<f64>| SheetView { crop: None, zoom };
+        let view = |zoom: Option<f64>| SheetView {
+            crop: None,
+            zoom,
+            draw: None,
+        };
         assert_eq!(view(None).zoom(), Ok(1.0));
         assert_eq!(view(Some(8.0)).zoom(), Ok(8.0));
         for bad in [0.5, 9.0, f64::NAN] {

@@ -525,8 +525,25 @@ fn finish_asks_for_each_large_step_to_be_checked_and_named() {
     let r = c.call("pose_restore", json!({"version": 1, "frames": "000015"}));
     assert_eq!(r["result"]["isError"], false, "{r}");
     c.call("temporal", json!({}));
-    let body = finish(&mut c, named);
+    let body = finish(&mut c, named.clone());
     assert!(body.starts_with("All gates hold"), "{body}");
+    // A rescale keeps every rotation and view: the look stands (play-test 17). A pose change
+    // of one of the step's frames after it still asks for a new look.
+    let r = c.call(
+        "scale",
+        json!({"method": "size", "axis": "x", "metres": 0.5, "apply": true}),
+    );
+    assert_eq!(r["result"]["isError"], false, "{r}");
+    c.call("temporal", json!({}));
+    let body = finish(&mut c, named.clone());
+    assert!(body.starts_with("All gates hold"), "{body}");
+    c.commit_order("000000", "yaw:1");
+    c.call("temporal", json!({}));
+    let body = finish(&mut c, named);
+    assert!(
+        body.contains("neither frame was looked at since their poses last changed"),
+        "{body}"
+    );
 }
 
 #[test]

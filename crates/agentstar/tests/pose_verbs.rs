@@ -315,6 +315,53 @@ fn pose_verbs_track_commit_and_diagnose() {
         note.contains(&format!("page {}/{}", pages.len(), pages.len())),
         "{note}"
     );
+    // `--draw` (the tools' `draw`) draws the ranks asked for, on one page here, and says
+    // which it left and how to draw them (play-test 17: a sheet drew 6 of 18, and the
+    // turns of 55–166° could not be looked at).
+    let v: serde_json::Value = json_of(&verb(
+        "osweep",
+        "osweep-draw",
+        &[
+            "--frames",
+            "000005",
+            "--opreset",
+            "so3:24",
+            "--draw",
+            "20-22",
+            "--json",
+        ],
+    ));
+    let f = &v["frames"][0];
+    let pages = f["pages"].as_array().expect("pages");
+    assert_eq!(pages.len(), 1, "{f}");
+    assert_eq!(pages[0]["ranks"], serde_json::json!([20, 21, 22]), "{f}");
+    let note = f["notes"]
+        .as_array()
+        .expect("notes")
+        .iter()
+        .filter_map(|n| n.as_str())
+        .find(|n| n.starts_with("sheet: 3 of 25 candidates drawn"))
+        .unwrap_or_else(|| panic!("no page note: {f}"));
+    assert!(
+        note.contains("not drawn: #0–#19, #23, #24") && note.contains("`draw: \"0-19\"`"),
+        "{note}"
+    );
+    let o = verb(
+        "osweep",
+        "osweep-draw-none",
+        &[
+            "--frames",
+            "000005",
+            "--opreset",
+            "so3:24",
+            "--draw",
+            "40-45",
+        ],
+    );
+    assert_failed_saying(
+        &o,
+        &["--draw 40-45", "no candidate of those ranks", "#0–#24"],
+    );
     let v: serde_json::Value = json_of(&verb(
         "oapply",
         "oapply-135",
@@ -394,22 +441,27 @@ fn pose_verbs_track_commit_and_diagnose() {
     // `osweep` holds its grid's turns the same way (play-test 2026-12-06: a grid of turns
     // about a round body's axis came back refined to within 17° of the frame's pose): a
     // one-point grid at 18°.
-    let swept_by = |tag: &str, extra: &[&str]| -> f64 {
+    // The turn the grid point's row ended at from the frame's pose; `None` when it has no
+    // row: its refinement ended on the frame's own pose, which is listed once, as the start.
+    let swept_by = |tag: &str, extra: &[&str]| -> (Option<f64>, String) {
         let mut args = vec!["--frames", "000005", "--ranges", "rz:18,18,1", "--json"];
         args.extend_from_slice(extra);
         let v: serde_json::Value = json_of(&verb("osweep", tag, &args));
         let ranked = v["frames"][0]["ranked"].as_array().expect("ranked");
-        let row = ranked
+        let turn = ranked
             .iter()
             .find(|r| asked(r).starts_with("rz:18"))
-            .unwrap_or_else(|| panic!("no row from the grid point: {ranked:?}"));
-        (rotation_of(&start["frames"]["000005.png"]["object_pose"]).inverse()
-            * rotation_of(&row["pose"]))
-        .angle()
-        .to_degrees()
+            .map(|row| {
+                (rotation_of(&start["frames"]["000005.png"]["object_pose"]).inverse()
+                    * rotation_of(&row["pose"]))
+                .angle()
+                .to_degrees()
+            });
+        (turn, format!("{ranked:?}"))
     };
-    let swept_free = swept_by("osweep-free", &[]);
-    let swept_held = swept_by("osweep-held", &["--hold"]);
+    let swept_free = swept_by("osweep-free", &[]).0.unwrap_or(0.0);
+    let (held, ranked) = swept_by("osweep-held", &["--hold"]);
+    let swept_held = held.unwrap_or_else(|| panic!("no row from the grid point: {ranked}"));
     assert!(
         swept_free < 6.0,
         "the refinement kept {swept_free:.1}° of 18°"

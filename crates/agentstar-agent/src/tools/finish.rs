@@ -289,7 +289,10 @@ impl Toolbox {
         // A step is checked by a call that scores or shows the twins of one of its frames,
         // or shows the frame, when no pose change of either frame came after it (a look at
         // poses since replaced is no check of these; play-test 8: a change elsewhere did
-        // not need new looks here).
+        // not need new looks here). A rescale (`scale` with `apply`) is no such change: it
+        // keeps every rotation and joint state and scales the translations, so every view
+        // stays what it was (play-test 17: a rescale before `finish` asked for three looks
+        // again).
         let looks = [Oapply::NAME, Osweep::NAME, Render::NAME, Keyframes::NAME];
         let checked_since = |from: &str, to: &str| {
             entries.iter().any(|look| {
@@ -299,6 +302,7 @@ impl Toolbox {
                     && !entries.iter().any(|change| {
                         change.step > look.step
                             && change.pose_version.is_some()
+                            && change.tool != Scale::NAME
                             && ok(change)
                             && (names(change, from, true) || names(change, to, true))
                     })

@@ -229,9 +229,25 @@ fn candidate_sheet(
     let (target, _) = s.target(i)?;
     let cam = s.capture.frames[i].camera;
     let hand = target.keep().map(|k| k.not());
+    if let Some(d) = view.draw {
+        if !rows.iter().any(|r| d.contains(r.rank)) {
+            let ranks: Vec<usize> = rows.iter().map(|r| r.rank).collect();
+            bail!(
+                "--draw {d}: frame {} has no candidate of those ranks (it ranked {})",
+                s.capture.frames[i].name,
+                rank_list(&ranks)
+            );
+        }
+    }
+    // The ranks asked for (`--draw`), else the first `limit`.
     let shown: Vec<(&Row, agentstar_render::RenderBuffers, image::RgbaImage)> = rows
         .iter()
-        .take(limit.max(1))
+        .filter(|r| view.draw.is_none_or(|d| d.contains(r.rank)))
+        .take(if view.draw.is_some() {
+            usize::MAX
+        } else {
+            limit.max(1)
+        })
         .map(|r| {
             let posed = PosedModel::new(
                 &s.model.model,
@@ -350,18 +366,45 @@ fn zoom_note(
 /// compared.
 const TILES_PER_CANDIDATE: usize = 3;
 
-/// The ranks `ranks` as people read them: `0–5`, or `0, 2, 7` where they are not a run.
-fn rank_list(ranks: &[usize]) -> String {
-    match ranks {
-        [] => "none".to_string(),
-        [one] => format!("#{one}"),
-        [first, .., last] if last - first + 1 == ranks.len() => format!("#{first}–#{last}"),
-        _ => ranks
-            .iter()
-            .map(|r| format!("#{r}"))
-            .collect::<Vec<_>>()
-            .join(", "),
+/// The first run of consecutive ranks in `ranks` as `draw` takes it: `6-17` (one rank
+/// alone: `7`), at most [`agentstar_requests::sheet::MAX_DRAWN_RANKS`] long.
+fn rank_span(ranks: &[usize]) -> String {
+    let runs = rank_runs(ranks);
+    let (lo, hi) = runs.first().copied().unwrap_or((0, 0));
+    let hi = hi.min(lo + agentstar_requests::sheet::MAX_DRAWN_RANKS - 1);
+    agentstar_requests::RankRange { from: lo, to: hi }.to_string()
+}
+
+/// `ranks` (ascending, or in any order) as runs of consecutive ranks, in order.
+fn rank_runs(ranks: &[usize]) -> Vec<(usize, usize)> {
+    let mut sorted = ranks.to_vec();
+    sorted.sort_unstable();
+    sorted.dedup();
+    let mut runs: Vec<(usize, usize)> = Vec::new();
+    for r in sorted {
+        match runs.last_mut() {
+            Some((_, hi)) if *hi + 1 == r => *hi = r,
+            _ => runs.push((r, r)),
+        }
     }
+    runs
+}
+
+/// The ranks `ranks` as people read them: `#0–#5`, `#0–#19, #23, #24`, or `#0, #2, #7`
+/// (runs of three or more joined).
+fn rank_list(ranks: &[usize]) -> String {
+    if ranks.is_empty() {
+        return "none".to_string();
+    }
+    rank_runs(ranks)
+        .into_iter()
+        .map(|(lo, hi)| match hi - lo {
+            0 => format!("#{lo}"),
+            1 => format!("#{lo}, #{hi}"),
+            _ => format!("#{lo}–#{hi}"),
+        })
+        .collect::<Vec<_>>()
+        .join(", ")
 }
 
 /// The least width over height of a sweep sheet's tile, and the long side its crop is
@@ -493,8 +536,19 @@ fn write_outputs(
                 ));
             }
             if drawn < o.rows.len() {
-                let rest: Vec<usize> = o.rows.iter().skip(drawn).map(|r| r.rank).collect();
-                line.push_str(&format!("; not drawn: {}", rank_list(&rest)));
+                let on_pages: Vec<usize> =
+                    sheet_pages.iter().flat_map(|p| p.ranks.clone()).collect();
+                let rest: Vec<usize> = o
+                    .rows
+                    .iter()
+                    .map(|r| r.rank)
+                    .filter(|k| !on_pages.contains(k))
+                    .collect();
+                line.push_str(&format!(
+                    "; not drawn: {} (`draw: \"{}\"` draws them)",
+                    rank_list(&rest),
+                    rank_span(&rest)
+                ));
             }
             o.notes.push(line);
         }
@@ -667,7 +721,11 @@ mod tests {
 
     #[test]
     fn the_reply_says_the_zoom_the_tiles_came_out_at() {
-        let view = |zoom: Option<f64>| agentstar_requests::SheetView { crop: None, zoom };
+        let view = |zoom: Option<f64>| agentstar_requests::SheetView {
+            crop: None,
+            zoom,
+            draw: None,
+        };
         // Play-test 15: a crop about the mask's box (480 px), zoom 2: the three tiles a row
         // keep the image limits, so the tiles come out near the size of an unzoomed sheet's.
         let plain = drawn(480, 1.0, 2);
