@@ -70,6 +70,37 @@ impl RenderBuffers {
         counts
     }
 
+    /// Each of the first `parts` parts' pixels in view that `hidden` (the hands, when given)
+    /// leaves uncovered, and how many of those lie outside `mask` (the object's mask), indexed
+    /// by part id: where each part sits against the frame. Masks of another size than the
+    /// render count as covering nothing.
+    pub fn part_pixels_off_mask(
+        &self,
+        parts: usize,
+        mask: &crate::BitMask,
+        hidden: Option<&crate::BitMask>,
+    ) -> Vec<(u64, u64)> {
+        let mut counts = vec![(0u64, 0u64); parts];
+        let inside =
+            |m: &crate::BitMask, x: u32, y: u32| x < m.width() && y < m.height() && m.get(x, y);
+        for (k, &p) in self.part.iter().enumerate() {
+            let (x, y) = (
+                (k % self.width as usize) as u32,
+                (k / self.width as usize) as u32,
+            );
+            if hidden.is_some_and(|h| inside(h, x, y)) {
+                continue;
+            }
+            if let Some(c) = counts.get_mut(p as usize) {
+                c.0 += 1;
+                if !inside(mask, x, y) {
+                    c.1 += 1;
+                }
+            }
+        }
+        counts
+    }
+
     pub fn covered(&self, x: u32, y: u32) -> bool {
         self.part[(y * self.width + x) as usize] != NO_PART
     }

@@ -13,6 +13,7 @@
 pub mod fit;
 pub mod limits;
 pub mod mechanism;
+pub mod parts;
 pub mod track;
 pub mod view;
 
@@ -502,6 +503,10 @@ pub struct ScoreReport {
     /// own and at least three frames show them.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub model_colours: Option<ModelColoursVerdict>,
+    /// Parts on the object's mask in some frames and off it in others
+    /// ([`parts::parts_off_mask`]).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub parts_off_mask: Vec<parts::PartOffMask>,
 }
 
 /// One frame's appearance figure in a [`ScoreReport`].

@@ -144,13 +144,9 @@ impl Session {
         self.poses[i].generalised.clone()
     }
 
-    /// Which side of the model and of each part faces the camera in frame `i`, with each
-    /// part's pixels in view; `None` when the camera sits at the model's centre.
-    pub fn facing(&self, i: usize) -> Option<agentstar_reports::view::FrameFacing> {
-        self.facing_in(i, &self.render_buffers(i))
-    }
-
-    /// [`Self::facing`] from frame `i`'s full render `buffers`, where the caller has one.
+    /// Which side of the model and of each part faces the camera in frame `i` (its full
+    /// render `buffers`), with each part's pixels in view; `None` when the camera sits at the
+    /// model's centre.
     pub fn facing_in(
         &self,
         i: usize,

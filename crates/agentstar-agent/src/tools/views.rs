@@ -152,7 +152,7 @@ tool!(Keyframes, "frames", Diagnostic, Nothing, KeyframesArgs,
     });
 
 tool!(Score, "score", Diagnostic, Nothing, FramesArgs,
-    "Per keyframe: band IoU (the visible IoU without ±2 px around the mask's outline, where segmenters err: the gate is 0.98 on it), visible IoU (hands excluded), raw IoU, pixel counts, depth error when the capture has depth, and the appearance figure (colour agreement with the neighbouring keyframes and, where the model's parts differ in colour, with the model's own colours, pooled), with the agreement with the model's own colours alone beside it (`model_ncc`: does the pose put the model's print where the frame shows it) and with its colour boundaries alone (`model_regions`); where the model's colours as painted explain under half of what their boundaries do over the keyframes showing its print, it says they are no likeness of the frames (the parts painted otherwise than the frames show them, or poses in twins). Lists the keyframes under the gate, and per keyframe which side of the model (+X … −Z, with each axis's angle to the camera ray: face-on or edge-on) and of each part (at its joint states) faces the camera.",
+    "Per keyframe: band IoU (the visible IoU without ±2 px around the mask's outline, where segmenters err: the gate is 0.98 on it), visible IoU (hands excluded), raw IoU, pixel counts, depth error when the capture has depth, and the appearance figure (colour agreement with the neighbouring keyframes and, where the model's parts differ in colour, with the model's own colours, pooled), with the agreement with the model's own colours alone beside it (`model_ncc`: does the pose put the model's print where the frame shows it) and with its colour boundaries alone (`model_regions`); where the model's colours as painted explain under half of what their boundaries do over the keyframes showing its print, it says they are no likeness of the frames (the parts painted otherwise than the frames show them, or poses in twins). Lists the keyframes under the gate, and per keyframe which side of the model (+X … −Z, with each axis's angle to the camera ray: face-on or edge-on) and of each part (at its joint states) faces the camera. Names a part that lies off the object mask in some keyframes and on it in others (a part modelled rigid that moves against the body, or a joint wrong there).",
     |tb, a, _step| {
         let report = tb.score_report(a.frames.as_deref())?;
         let mut o = ToolOutput::default();
@@ -176,14 +176,15 @@ tool!(Score, "score", Diagnostic, Nothing, FramesArgs,
         }
         // The table a person reads; the report's numbers are the structured content.
         o.text = format!(
-            "{head}\n{}{}",
+            "{head}\n{}{}{}",
             agentstar_reports::score_table(
                 &report.frames,
                 &report.sequence,
                 &report.appearance,
                 report.model_colours.as_ref(),
             ),
-            agentstar_reports::view::facing_lines(&report.facing)
+            agentstar_reports::view::facing_lines(&report.facing),
+            agentstar_reports::parts::parts_off_mask_text(&report.parts_off_mask)
         );
         o.structured = serde_json::to_value(&report).ok();
         Ok(o)

@@ -45,6 +45,13 @@ pub struct Args {
     json: bool,
 }
 
+/// One frame's full render, read: which side faces the camera, and each part's pixels in
+/// view outside the hands with how many of them lie off the object mask.
+type FrameRender = (
+    Option<agentstar_reports::view::FrameFacing>,
+    Vec<(u64, u64)>,
+);
+
 /// The sequence summary of `scores` against `pass_iou`.
 pub fn summarise(scores: &[FrameScore], pass_iou: f64) -> SequenceScore {
     SequenceScore::of(scores, pass_iou)
@@ -70,7 +77,40 @@ pub fn run(a: Args) -> Result<ExitCode> {
     } else {
         appearance(&s, &frames)?
     };
-    let facing: Vec<_> = frames.iter().filter_map(|&i| s.facing(i)).collect();
+    // Each frame's full render at its pose: which side faces the camera, and where each part
+    // sits against the object's mask.
+    let n_parts = s.model.model.parts.len();
+    let per_frame: Vec<FrameRender> = frames
+        .par_iter()
+        .map(|&i| {
+            let buffers = s.render_buffers(i);
+            let mask = s.capture.load_mask(i)?;
+            let hand = s.capture.load_hand(i)?;
+            Ok((
+                s.facing_in(i, &buffers),
+                buffers.part_pixels_off_mask(n_parts, &mask, hand.as_ref()),
+            ))
+        })
+        .collect::<Result<_>>()?;
+    let facing: Vec<_> = per_frame.iter().filter_map(|(f, _)| f.clone()).collect();
+    let tree = &s.model.model.tree;
+    let jointed: Vec<bool> = (0..n_parts)
+        .map(|k| (0..tree.joints().len()).any(|j| tree.parts_moved_by(j).contains(&k)))
+        .collect();
+    let parts: Vec<(String, bool)> = s
+        .model
+        .model
+        .parts
+        .iter()
+        .zip(jointed)
+        .map(|(p, j)| (p.name.clone(), j))
+        .collect();
+    let counts: Vec<(String, Vec<(u64, u64)>)> = frames
+        .iter()
+        .zip(per_frame)
+        .map(|(&i, (_, c))| (s.capture.frames[i].name.clone(), c))
+        .collect();
+    let parts_off_mask = agentstar_reports::parts::parts_off_mask(&counts, &parts);
     let model_colours = model_colours_verdict(&appearance);
     if a.json {
         print_json(&ScoreReport {
@@ -79,6 +119,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
             appearance,
             facing,
             model_colours,
+            parts_off_mask,
         })?;
     } else {
         print!(
@@ -86,6 +127,10 @@ pub fn run(a: Args) -> Result<ExitCode> {
             score_table(&scores, &summary, &appearance, model_colours.as_ref())
         );
         print!("{}", agentstar_reports::view::facing_lines(&facing));
+        print!(
+            "{}",
+            agentstar_reports::parts::parts_off_mask_text(&parts_off_mask)
+        );
     }
     Ok(if summary.below_gate.is_empty() {
         ExitCode::SUCCESS
