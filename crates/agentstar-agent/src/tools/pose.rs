@@ -91,7 +91,20 @@ pub(super) fn track_text(
         let joints: String = joints_of(&f.frame)
             .into_iter()
             .flatten()
-            .map(|(name, v)| format!("  {name} {v:.1}"))
+            .map(|(name, v)| {
+                // A slide's state in model units wants three decimals (play-test 18 read a
+                // lid 0.045 off as `0.0`); a hinge's degrees, one.
+                let prismatic = poses.is_some_and(|p| {
+                    p.joint_defs
+                        .iter()
+                        .any(|d| &d.name == name && d.kind == "prismatic")
+                });
+                if prismatic {
+                    format!("  {name} {v:.3}")
+                } else {
+                    format!("  {name} {v:.1}")
+                }
+            })
             .collect();
         text.push_str(&format!(
             "{:<12} {band:>8}  {visible:>11}{joints}\n",

@@ -50,11 +50,32 @@ pub(super) fn fit_saves_nothing(
     }
 }
 
+/// A list of names, or one string of names separated by commas (play-test 18 wrote
+/// `"radius,lid_h"` as every other list of the tools is written).
+fn names_or_comma_list<'de, D: serde::Deserializer<'de>>(d: D) -> Result<Vec<String>, D::Error> {
+    #[derive(Deserialize)]
+    #[serde(untagged)]
+    enum Names {
+        List(Vec<String>),
+        Text(String),
+    }
+    Ok(match Names::deserialize(d)? {
+        Names::List(v) => v,
+        Names::Text(t) => t
+            .split(',')
+            .map(str::trim)
+            .filter(|n| !n.is_empty())
+            .map(str::to_string)
+            .collect(),
+    })
+}
+
 #[derive(Debug, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct FitShapeArgs {
-    /// The parameters to fit: names of the scene's `param("name", value, min, max)` calls. Only these move, and only within their bounds; every other parameter keeps its value.
+    /// The parameters to fit: names of the scene's `param("name", value, min, max)` calls (a list; `"a,b"` is read as the list of a and b, as `frames` is). Only these move, and only within their bounds; every other parameter keeps its value.
     #[schemars(length(min = 1, max = 12))]
+    #[serde(deserialize_with = "names_or_comma_list")]
     pub params: Vec<String>,
     #[schemars(description = FRAMES)]
     pub frames: Option<String>,

@@ -70,9 +70,10 @@ fn a_tracks_text_leads_with_its_summary_then_its_log_then_the_frames() {
     let poses: agentstar_data::posefile::PoseFile = serde_json::from_value(json!({
         "scale": 0.2,
         "reference_frame": "000000.png",
+        "joint_defs": [{"name": "cap_slide", "type": "prismatic", "child": "cap"}],
         "frames": {
-            "000000.png": {"joints": {"lid_hinge": 0.5}},
-            "000005.png": {"joints": {"lid_hinge": 195.25}}
+            "000000.png": {"joints": {"lid_hinge": 0.5, "cap_slide": 0.0}},
+            "000005.png": {"joints": {"lid_hinge": 195.25, "cap_slide": 0.045}}
         }
     }))
     .expect("a pose file");
@@ -82,7 +83,12 @@ fn a_tracks_text_leads_with_its_summary_then_its_log_then_the_frames() {
         .lines()
         .find(|l| l.starts_with("000005.png"))
         .expect("the frame's line");
-    assert!(line.ends_with("0.9500  lid_hinge 195.2"), "{line}");
+    // A hinge's degrees to one decimal, a slide's model units to three (play-test 18 read a
+    // lid 0.045 off as `0.0`).
+    assert!(
+        line.ends_with("0.9500  cap_slide 0.045  lid_hinge 195.2"),
+        "{line}"
+    );
 }
 use serde_json::json;
 
@@ -531,6 +537,12 @@ fn a_bad_call_is_answered_with_what_the_tool_takes() {
         "{fit}"
     );
     assert!(fit.contains("- `rounds` (integer 1–10)"), "{fit}");
+    // Its names as a list or as one string of them separated by commas (play-test 18).
+    for params in [json!(["radius", "lid_h"]), json!("radius, lid_h")] {
+        let a: FitShapeArgs = serde_json::from_value(json!({ "params": params })).expect("args");
+        assert_eq!(a.params, ["radius", "lid_h"]);
+    }
+    assert!(serde_json::from_value::<FitShapeArgs>(json!({"params": 3})).is_err());
     // A nested argument shows its shape: each category with its own fields.
     let finish = arguments_help("finish", &schema_of::<FinishArgs>());
     assert!(
