@@ -815,7 +815,7 @@ fn osweep_without_a_region_or_with_two_is_refused_and_searches_nothing() {
         "a refused search writes no report"
     );
     // Arguments of the wrong shape: the error says what the tool takes.
-    c.call(5, "fit_shape", json!({"params": "a,b"}));
+    c.call(5, "fit_shape", json!({"params": 3}));
     let (r, _) = c.response(5);
     assert_eq!(r["result"]["isError"], true, "{r}");
     let text = McpClient::text_of(&r);
