@@ -87,6 +87,11 @@ impl SearchVerb {
     pub fn sheet_path(self, dir: &Path, frame_stem: &str) -> PathBuf {
         dir.join(format!("{}_sheet_{frame_stem}.png", self.stem()))
     }
+
+    /// The frame alone, at the crop and scale of the sheet's tiles, beside the sheet.
+    pub fn frame_alone_path(self, dir: &Path, frame_stem: &str) -> PathBuf {
+        dir.join(format!("{}_frame_{frame_stem}.png", self.stem()))
+    }
 }
 
 /// One ranked candidate of a search.
@@ -269,6 +274,10 @@ pub struct SearchFrame {
     /// is `sheet`).
     #[serde(default)]
     pub pages: Vec<SheetPage>,
+    /// The frame alone at the crop and scale of the sheet's tiles (play-test 18 compared a
+    /// 7×25 px lever between a sheet and a `frames` crop drawn at another zoom).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub frame_alone: Option<PathBuf>,
 }
 
 /// Which candidate of a search report a commit takes in each frame.

@@ -335,6 +335,12 @@ fn pose_verbs_track_commit_and_diagnose() {
     let pages = f["pages"].as_array().expect("pages");
     assert_eq!(pages.len(), 1, "{f}");
     assert_eq!(pages[0]["ranks"], serde_json::json!([20, 21, 22]), "{f}");
+    // Beside the sheet, the frame alone at its tiles' crop and scale (play-test 18), as
+    // large as a tile on the page.
+    let alone = std::path::PathBuf::from(f["frame_alone"].as_str().expect("frame_alone"));
+    let (w, h) = image::image_dimensions(&alone).expect("the frame alone");
+    let (pw, _) = image::image_dimensions(pages[0]["path"].as_str().expect("page")).expect("page");
+    assert!(w > 0 && h > 0 && 3 * w <= pw, "{w}×{h} on a page {pw} wide");
     let note = f["notes"]
         .as_array()
         .expect("notes")

@@ -337,6 +337,7 @@ fn the_render_description_names_the_colours_the_images_use() {
             notes: vec![],
             search: json!({}),
             pages: vec![],
+            frame_alone: None,
             ranked: vec![agentstar_reports::Candidate {
                 rank: 0,
                 label: "flip:y;rz:30".into(),

@@ -310,6 +310,8 @@ fn candidate_sheet(
     let ranks: Vec<usize> = shown.iter().map(|(r, _, _)| r.rank).collect();
     let pages = sheet_pages(&tiles, TILES_PER_CANDIDATE, title);
     let groups: Vec<Vec<usize>> = ranks.chunks(per_page).map(<[usize]>::to_vec).collect();
+    // The frame alone, as the tiles cut it, at the size they are drawn.
+    let frame_alone = agentstar_render::sheet::scaled(&cut(&frame), layout.tile_factor);
     Ok(CandidateSheet {
         pages: pages
             .into_iter()
@@ -317,6 +319,7 @@ fn candidate_sheet(
             .collect(),
         crop,
         zoom: drawn_zoom,
+        frame_alone,
     })
 }
 
@@ -327,6 +330,8 @@ struct CandidateSheet {
     pages: Vec<(RgbImage, Vec<usize>)>,
     crop: [u32; 4],
     zoom: f64,
+    /// The frame alone, cut and drawn as the tiles are.
+    frame_alone: RgbImage,
 }
 
 /// A tile's long side for a crop `long` frame pixels long at `zoom`: at least
@@ -499,6 +504,12 @@ fn write_outputs(
         if let Some(line) = zoom_note(&c.view, zoom, &drawn) {
             o.notes.push(line);
         }
+        let frame_alone = verb.frame_alone_path(&dir, &s.capture.frames[i].stem);
+        save_png_rgb(&drawn.frame_alone, &frame_alone)?;
+        o.notes.push(format!(
+            "the frame alone at the tiles' crop and scale: {}",
+            frame_alone.display()
+        ));
         let mut sheet_pages = Vec::new();
         for (k, (page, ranks)) in drawn.pages.iter().enumerate() {
             // The first page is the report's sheet; further pages beside it.
@@ -574,6 +585,7 @@ fn write_outputs(
             search: o.extra.clone(),
             pages: o.pages.clone(),
             ranked,
+            frame_alone: Some(frame_alone),
         });
     }
     let gates: Vec<f64> = outputs
