@@ -728,6 +728,7 @@ mod tests {
             pages: vec![],
             crop: [10, 20, long, long * 3 / 4],
             zoom: side as f64 * layout.tile_factor / long as f64,
+            frame_alone: RgbImage::new(1, 1),
         }
     }
 
