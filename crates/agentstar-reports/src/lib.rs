@@ -274,8 +274,9 @@ pub struct SearchFrame {
     /// is `sheet`).
     #[serde(default)]
     pub pages: Vec<SheetPage>,
-    /// The frame alone at the crop and scale of the sheet's tiles (play-test 18 compared a
-    /// 7×25 px lever between a sheet and a `frames` crop drawn at another zoom).
+    /// With a crop or a zoom over 1, the frame alone at the crop and scale of the sheet's tiles
+    /// (play-test 18 compared a 7×25 px lever between a sheet and a `frames` crop drawn at
+    /// another zoom).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub frame_alone: Option<PathBuf>,
 }

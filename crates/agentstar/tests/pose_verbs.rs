@@ -284,6 +284,7 @@ fn pose_verbs_track_commit_and_diagnose() {
     ));
     let f = &v["frames"][0];
     assert_eq!(f["ranked"].as_array().expect("ranked").len(), 25, "{f}");
+    assert!(f.get("frame_alone").is_none(), "{f}");
     let pages = f["pages"].as_array().expect("pages");
     let mut drawn: Vec<u64> = vec![];
     for p in pages {
@@ -328,6 +329,8 @@ fn pose_verbs_track_commit_and_diagnose() {
             "so3:24",
             "--draw",
             "20-22",
+            "--zoom",
+            "2",
             "--json",
         ],
     ));
@@ -335,8 +338,8 @@ fn pose_verbs_track_commit_and_diagnose() {
     let pages = f["pages"].as_array().expect("pages");
     assert_eq!(pages.len(), 1, "{f}");
     assert_eq!(pages[0]["ranks"], serde_json::json!([20, 21, 22]), "{f}");
-    // Beside the sheet, the frame alone at its tiles' crop and scale (play-test 18), as
-    // large as a tile on the page.
+    // Zoomed, beside the sheet, the frame alone at its tiles' crop and scale (play-test
+    // 18), as large as a tile on the page; without a crop or a zoom, none (the call above).
     let alone = std::path::PathBuf::from(f["frame_alone"].as_str().expect("frame_alone"));
     let (w, h) = image::image_dimensions(&alone).expect("the frame alone");
     let (pw, _) = image::image_dimensions(pages[0]["path"].as_str().expect("page")).expect("page");

@@ -504,12 +504,17 @@ fn write_outputs(
         if let Some(line) = zoom_note(&c.view, zoom, &drawn) {
             o.notes.push(line);
         }
-        let frame_alone = verb.frame_alone_path(&dir, &s.capture.frames[i].stem);
-        save_png_rgb(&drawn.frame_alone, &frame_alone)?;
-        o.notes.push(format!(
-            "the frame alone at the tiles' crop and scale: {}",
-            frame_alone.display()
-        ));
+        // With a crop or a zoom over 1 (a detail to judge), the frame alone as the tiles show it: one
+        // image more a frame, only where it is asked for.
+        let frame_alone = (c.view.crop.is_some() || zoom > 1.0)
+            .then(|| verb.frame_alone_path(&dir, &s.capture.frames[i].stem));
+        if let Some(path) = &frame_alone {
+            save_png_rgb(&drawn.frame_alone, path)?;
+            o.notes.push(format!(
+                "the frame alone at the tiles' crop and scale: {}",
+                path.display()
+            ));
+        }
         let mut sheet_pages = Vec::new();
         for (k, (page, ranks)) in drawn.pages.iter().enumerate() {
             // The first page is the report's sheet; further pages beside it.
@@ -585,7 +590,7 @@ fn write_outputs(
             search: o.extra.clone(),
             pages: o.pages.clone(),
             ranked,
-            frame_alone: Some(frame_alone),
+            frame_alone,
         });
     }
     let gates: Vec<f64> = outputs
