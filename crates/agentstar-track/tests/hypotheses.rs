@@ -210,6 +210,17 @@ fn a_twin_candidate_swaps_equal_slabs_exactly_at_any_opening() {
     }
 }
 
+/// A rigid can's pose, turned askew a metre from the camera.
+fn a_rigid_can_seen_askew() -> GenPose {
+    GenPose {
+        pose: ObjectPose::new(
+            UnitQuaternion::from_euler_angles(1.2, 0.4, -0.3),
+            Vector3::new(0.01, 0.02, 1.0),
+        ),
+        states: vec![],
+    }
+}
+
 #[test]
 fn a_half_turn_about_a_principal_axis_keeps_the_outline_of_a_shape_heavy_at_one_end() {
     // A can with a heavy slab inside its bottom (as a mug's solid base under its open
@@ -227,13 +238,7 @@ fn a_half_turn_about_a_principal_axis_keeps_the_outline_of_a_shape_heavy_at_one_
         ],
     };
     let scale = 0.3;
-    let gt = GenPose {
-        pose: ObjectPose::new(
-            UnitQuaternion::from_euler_angles(1.2, 0.4, -0.3),
-            Vector3::new(0.01, 0.02, 1.0),
-        ),
-        states: vec![],
-    };
+    let gt = a_rigid_can_seen_askew();
     let target = target_of(&model, &gt, scale);
     let problem = FrameProblem::new(&model, camera(), &target, scale, gt.clone());
     let mut ev = problem.evaluator();
@@ -395,13 +400,7 @@ fn the_last_polish_keeps_the_turn_about_a_held_axis() {
         parts: vec![Part::new("can", can, [0.5, 0.5, 0.5])],
     };
     let scale = 0.3;
-    let gt = GenPose {
-        pose: ObjectPose::new(
-            UnitQuaternion::from_euler_angles(1.2, 0.4, -0.3),
-            Vector3::new(0.01, 0.02, 1.0),
-        ),
-        states: vec![],
-    };
+    let gt = a_rigid_can_seen_askew();
     let target = target_of(&model, &gt, scale);
     let axis = agentstar_track::axis::SymmetryAxis {
         centre: Point3::origin(),
