@@ -44,46 +44,53 @@ impl RenderBuffers {
     /// Each of the first `parts` parts' pixels in view (the nearest surface), indexed by
     /// part id.
     pub fn part_pixels(&self, parts: usize) -> Vec<u64> {
-        let mut counts = vec![0u64; parts];
-        for &p in &self.part {
-            if let Some(c) = counts.get_mut(p as usize) {
-                *c += 1;
-            }
-        }
-        counts
+        self.part_counts(parts, None, None)
+            .into_iter()
+            .map(|c| c.0)
+            .collect()
     }
 
     /// Each of the first `parts` parts' pixels in view that `cover` (a mask of the camera's
     /// size, e.g. the hands) leaves uncovered, indexed by part id.
     pub fn part_pixels_outside(&self, parts: usize, cover: &crate::BitMask) -> Vec<u64> {
-        let mut counts = vec![0u64; parts];
-        for (k, &p) in self.part.iter().enumerate() {
-            let (x, y) = (
-                (k % self.width as usize) as u32,
-                (k / self.width as usize) as u32,
-            );
-            let covered = x < cover.width() && y < cover.height() && cover.get(x, y);
-            if let (Some(c), false) = (counts.get_mut(p as usize), covered) {
-                *c += 1;
-            }
-        }
-        counts
+        self.part_counts(parts, Some(cover), None)
+            .into_iter()
+            .map(|c| c.0)
+            .collect()
     }
 
     /// Each of the first `parts` parts' pixels in view that `hidden` (the hands, when given)
     /// leaves uncovered, and how many of those lie outside `mask` (the object's mask), indexed
-    /// by part id: where each part sits against the frame. Masks of another size than the
-    /// render count as covering nothing.
+    /// by part id: where each part sits against the frame.
     pub fn part_pixels_off_mask(
         &self,
         parts: usize,
         mask: &crate::BitMask,
         hidden: Option<&crate::BitMask>,
     ) -> Vec<(u64, u64)> {
+        self.part_counts(parts, hidden, Some(mask))
+    }
+
+    /// The counts behind the three above: per part, its pixels in view outside `hidden`, and
+    /// of those the ones outside `mask` (0 without one). Masks of another size than the render
+    /// count as covering nothing.
+    fn part_counts(
+        &self,
+        parts: usize,
+        hidden: Option<&crate::BitMask>,
+        mask: Option<&crate::BitMask>,
+    ) -> Vec<(u64, u64)> {
         let mut counts = vec![(0u64, 0u64); parts];
         let inside =
             |m: &crate::BitMask, x: u32, y: u32| x < m.width() && y < m.height() && m.get(x, y);
         for (k, &p) in self.part.iter().enumerate() {
+            let Some(c) = counts.get_mut(p as usize) else {
+                continue;
+            };
+            if hidden.is_none() && mask.is_none() {
+                c.0 += 1;
+                continue;
+            }
             let (x, y) = (
                 (k % self.width as usize) as u32,
                 (k / self.width as usize) as u32,
@@ -91,11 +98,9 @@ impl RenderBuffers {
             if hidden.is_some_and(|h| inside(h, x, y)) {
                 continue;
             }
-            if let Some(c) = counts.get_mut(p as usize) {
-                c.0 += 1;
-                if !inside(mask, x, y) {
-                    c.1 += 1;
-                }
+            c.0 += 1;
+            if mask.is_some_and(|m| !inside(m, x, y)) {
+                c.1 += 1;
             }
         }
         counts
@@ -264,6 +269,18 @@ mod tests {
         let cover = BitMask::from_fn(3, 2, |x, _| x == 0);
         assert_eq!(buffers.part_pixels(2), [3, 2]);
         assert_eq!(buffers.part_pixels_outside(2, &cover), [2, 1]);
+        // Against an object mask over the first two columns, the cover as the hands: of the
+        // pixels left in view (part 0 at (1, 0) and (2, 1), part 1 at (2, 0)), those in the
+        // third column lie off the mask.
+        let mask = BitMask::from_fn(3, 2, |x, _| x <= 1);
+        assert_eq!(
+            buffers.part_pixels_off_mask(2, &mask, Some(&cover)),
+            [(2, 1), (1, 1)]
+        );
+        assert_eq!(
+            buffers.part_pixels_off_mask(2, &mask, None),
+            [(3, 1), (2, 1)]
+        );
         // A cover smaller than the render covers nothing beyond its edge.
         assert_eq!(
             buffers.part_pixels_outside(2, &BitMask::from_fn(1, 1, |_, _| true)),

@@ -65,16 +65,6 @@ impl RankRange {
     pub fn contains(&self, rank: usize) -> bool {
         (self.from..=self.to).contains(&rank)
     }
-
-    /// How many ranks the range holds.
-    pub fn len(&self) -> usize {
-        self.to - self.from + 1
-    }
-
-    /// Never empty (`to` ≥ `from` by construction).
-    pub fn is_empty(&self) -> bool {
-        false
-    }
 }
 
 /// The most ranks one `draw` range may name (a sheet page holds six candidates).
@@ -268,7 +258,6 @@ mod tests {
         let r: RankRange = " 6 - 11".parse().expect("range");
         assert_eq!(r, RankRange { from: 6, to: 11 });
         assert_eq!(r.to_string(), "6-11");
-        assert_eq!(r.len(), 6);
         assert!(r.contains(6) && r.contains(11) && !r.contains(5) && !r.contains(12));
         assert_eq!("#7".parse::<RankRange>(), Ok(RankRange { from: 7, to: 7 }));
         assert_eq!(

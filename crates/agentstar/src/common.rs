@@ -192,14 +192,29 @@ impl Session {
 
     /// Scores frame `i`; `depth_weight` enters the combined score when the capture has depth.
     pub fn score(&self, i: usize, depth_weight: f64) -> Result<FrameScore> {
+        let inputs = self.target(i)?;
+        let buffers = inputs.1.as_ref().map(|_| self.render_buffers(i));
+        self.score_on(i, &inputs, buffers.as_ref(), depth_weight)
+    }
+
+    /// [`Self::score`] on frame `i`'s inputs read already ([`Self::target`]); `buffers`: its
+    /// full render at its pose, which the depth term needs (rendered here when the capture
+    /// has depth and none is given).
+    pub fn score_on(
+        &self,
+        i: usize,
+        (target, observed_depth): &FrameInputs,
+        buffers: Option<&RenderBuffers>,
+        depth_weight: f64,
+    ) -> Result<FrameScore> {
         let f = &self.capture.frames[i];
-        let mask = self.capture.load_mask(i)?;
-        let hand = self.capture.load_hand(i)?;
-        let target = ScoreTarget::new(mask, hand)?.with_band(self.band_px);
         let mut r = SilhouetteRenderer::new(f.camera.width, f.camera.height);
         let s = target.score(r.render(&f.camera, &self.posed(i).instances));
-        let depth = match self.capture.load_depth(i)? {
-            Some(obs) => depth_score(&self.render_buffers(i), &obs, &target, self.scale(), 0.1)?,
+        let depth = match observed_depth {
+            Some(obs) => match buffers {
+                Some(b) => depth_score(b, obs, target, self.scale(), 0.1)?,
+                None => depth_score(&self.render_buffers(i), obs, target, self.scale(), 0.1)?,
+            },
             None => None,
         };
         let combined = combined_score(s.gate(), depth.as_ref(), depth_weight);

@@ -67,31 +67,33 @@ pub fn run(a: Args) -> Result<ExitCode> {
     let mut s = a.session.open()?;
     s.band_px = a.band_px;
     let frames = select_frames(&s.capture, a.frames.as_deref())?;
-    let scores: Vec<FrameScore> = frames
+    // Per frame, one read of its masks and one full render at its pose: its scores, which
+    // side faces the camera, and where each part sits against the object's mask.
+    let n_parts = s.model.model.parts.len();
+    let per_frame: Vec<(FrameScore, FrameRender)> = frames
         .par_iter()
-        .map(|&i| s.score(i, a.depth_weight))
+        .map(|&i| {
+            let inputs = s.target(i)?;
+            let buffers = s.render_buffers(i);
+            let score = s.score_on(i, &inputs, Some(&buffers), a.depth_weight)?;
+            let target = &inputs.0;
+            let hand = target.keep().map(|k| k.not());
+            Ok((
+                score,
+                (
+                    s.facing_in(i, &buffers),
+                    buffers.part_pixels_off_mask(n_parts, target.mask(), hand.as_ref()),
+                ),
+            ))
+        })
         .collect::<Result<_>>()?;
+    let (scores, per_frame): (Vec<FrameScore>, Vec<FrameRender>) = per_frame.into_iter().unzip();
     let summary = summarise(&scores, a.pass_iou);
     let appearance = if a.no_appearance {
         vec![]
     } else {
         appearance(&s, &frames)?
     };
-    // Each frame's full render at its pose: which side faces the camera, and where each part
-    // sits against the object's mask.
-    let n_parts = s.model.model.parts.len();
-    let per_frame: Vec<FrameRender> = frames
-        .par_iter()
-        .map(|&i| {
-            let buffers = s.render_buffers(i);
-            let mask = s.capture.load_mask(i)?;
-            let hand = s.capture.load_hand(i)?;
-            Ok((
-                s.facing_in(i, &buffers),
-                buffers.part_pixels_off_mask(n_parts, &mask, hand.as_ref()),
-            ))
-        })
-        .collect::<Result<_>>()?;
     let facing: Vec<_> = per_frame.iter().filter_map(|(f, _)| f.clone()).collect();
     let tree = &s.model.model.tree;
     let jointed: Vec<bool> = (0..n_parts)
