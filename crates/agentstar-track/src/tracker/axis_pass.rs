@@ -54,6 +54,14 @@ pub(super) fn axis_pass(
         .read()
         .map(|m| *m == crate::appearance::ModelColours::AsPainted)
         .unwrap_or(false);
+    // A body whose outline shows the turn (a prism's faces) with video between its keyframes:
+    // the sequence choice weighed the steady motion through every frame between
+    // ([`video_fit`]); the keyframes' colours alone are weaker evidence (general suite gen-1,
+    // an octagonal prism with a badge: keyframes the choice put right turned 40° and 90° off
+    // by this pass, 2026-12-06).
+    if !round && between.iter().any(|g| !g.is_empty()) {
+        return Ok(false);
+    }
     let video = round && painted && between.iter().flatten().any(|f| f.rgb.is_some());
     let flat: Vec<TrackFrame<'_>> = if video {
         between.iter().flatten().cloned().collect()

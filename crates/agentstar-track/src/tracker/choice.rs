@@ -59,13 +59,103 @@ pub(super) fn far_step(from: &GenPose, to: &GenPose) -> bool {
         || angle_deg(&(to.pose.rotation * from.pose.rotation.inverse())) > CHOICE_STEP_CAP_DEG
 }
 
+/// A frame of the video between keyframes counts toward a pair's [`video_fit`] at most this
+/// IoU under the best pair's there: a frame the steady motion cannot explain (the hand
+/// turned the object faster in the middle of the gap, a segmenter's miss) costs every pair
+/// alike past it.
+pub(super) const VIDEO_FIT_CAP: f64 = 0.05;
+/// The in-between frames of one gap weigh this much against a keyframe's own IoU: they are
+/// as real as a keyframe's mask, but the steady motion only approximates a hand's, and their
+/// masks are searched at half the resolution.
+pub(super) const VIDEO_FIT_WEIGHT: f64 = 0.5;
+/// A pair of the chosen path whose [`video_fit`] lies within this of its gap's best pair is
+/// what the video shows: its motion becomes the gap's ([`Gap`]).
+pub(super) const VIDEO_JOINED: f64 = 5.0;
+
+/// `cost[i][a][b]`: how far hypothesis `a` at keyframe `i − 1` and `b` at keyframe `i`,
+/// joined by the steadiest motion ([`steady_between`]), miss the masks of the video between
+/// them: over the gap's in-between frames, each pair's IoU short of the best pair's at that
+/// frame (at most [`VIDEO_FIT_CAP`]), in units of [`CHOICE_IOU_UNIT`], times
+/// [`VIDEO_FIT_WEIGHT`]. Empty where the gap has no in-between frames.
+///
+/// A chain's measured motion ([`Gap`]) joins whatever pair lies in the basins it carried;
+/// where the outline hardly shows a turn (a prism's faces, a lever under a hand) a chain can
+/// drift a face or two across a gap, and then it charges the right pair. The steady motion
+/// tests both ends against every frame between them: a pair whose ends sit in different
+/// twins turns the object through poses the masks between do not show. A pair whose ends
+/// are the same twin of the truth scores as the truth does; colours tell those apart.
+pub(super) fn video_fit(
+    s: &Searcher<'_>,
+    (frames, between): (&[TrackFrame<'_>], &[Vec<TrackFrame<'_>>]),
+    hyps: &[Vec<(GenPose, f64)>],
+) -> Vec<Vec<Vec<f64>>> {
+    let n = frames.len().min(hyps.len());
+    (0..n)
+        .into_par_iter()
+        .map(|i| {
+            let Some(path) = i.checked_sub(1).and_then(|g| between.get(g)) else {
+                return vec![];
+            };
+            if path.is_empty() {
+                return vec![];
+            }
+            let (ha, hb) = (&hyps[i - 1], &hyps[i]);
+            let m = path.len();
+            let mut cost = vec![vec![0.0; hb.len()]; ha.len()];
+            let mut evaluated = 0usize;
+            for (j, here) in path.iter().enumerate() {
+                let t = (j + 1) as f64 / (m + 1) as f64;
+                let problem =
+                    FrameProblem::new(s.model, here.camera, here.target, s.scale, ha[0].0.clone());
+                let mut ev = problem.evaluator();
+                let iou: Vec<Vec<f64>> = ha
+                    .iter()
+                    .map(|(a, _)| {
+                        hb.iter()
+                            .map(|(b, _)| {
+                                let g = steady_between(
+                                    s.model,
+                                    s.scale,
+                                    (&frames[i - 1], a),
+                                    (&frames[i], b),
+                                    here,
+                                    t,
+                                );
+                                ev.combined(&g)
+                            })
+                            .collect()
+                    })
+                    .collect();
+                evaluated += ha.len() * hb.len();
+                let best = iou
+                    .iter()
+                    .flatten()
+                    .copied()
+                    .fold(f64::NEG_INFINITY, f64::max);
+                for (row, r) in cost.iter_mut().zip(&iou) {
+                    for (c, x) in row.iter_mut().zip(r) {
+                        *c += (best - x).min(VIDEO_FIT_CAP) / CHOICE_IOU_UNIT * VIDEO_FIT_WEIGHT;
+                    }
+                }
+            }
+            s.evals
+                .fetch_add(evaluated, std::sync::atomic::Ordering::Relaxed);
+            cost
+        })
+        .collect()
+}
+
 /// One hypothesis per frame for the whole sequence: every frame's current pose and its twins
 /// ([`twin_candidates`]: flips, principal half-turns) that place close enough to matter,
 /// refined; then the cheapest path through them ([`cheapest_path`]: the frame's IoU shortfall
 /// against the step through the cameras and joint states). Fixed frames keep their pose.
+/// Across a gap with in-between frames (`between[g]`: the video between keyframes g and
+/// g + 1) a step's turn is weighed by the steady motion through them ([`video_fit`]) instead
+/// of a chain's measured motion, and the chosen pair's motion becomes the gap's where the
+/// video explains it.
 pub(super) fn choose_sequence(
     s: &Searcher<'_>,
-    frames: &[TrackFrame<'_>],
+    (frames, between): (&[TrackFrame<'_>], &[Vec<TrackFrame<'_>>]),
     (poses, scores): (&mut [GenPose], &mut [f64]),
     fixed: &[bool],
     alternatives: &[Vec<(GenPose, f64)>],
@@ -259,7 +349,16 @@ pub(super) fn choose_sequence(
     } else {
         vec![]
     };
+    // How far each pair across a gap with video misses the in-between frames' masks when
+    // joined by the steadiest motion.
+    let video = video_fit(s, (frames, between), &hyps);
     let step = |i: usize, a: usize, b: usize| {
+        let steady = video
+            .get(i)
+            .and_then(|m| m.get(a))
+            .and_then(|r| r.get(b))
+            .copied()
+            .unwrap_or(0.0);
         let colour = appearance
             .get(i)
             .and_then(|m| m.get(a))
@@ -284,7 +383,14 @@ pub(super) fn choose_sequence(
         } else {
             angle_deg(&(to.pose.rotation * carried.rotation.inverse()))
         };
-        let rot = off_deg.min(cap_deg) / unit_deg;
+        // Where the video between the two keyframes weighs the pair ([`video_fit`]), it
+        // stands in for the motion a chain measured: a chain can drift where the outline
+        // hardly shows a turn, the steady motion tests both ends against every frame.
+        let rot = if video.get(i).is_some_and(|m| !m.is_empty()) {
+            0.0
+        } else {
+            off_deg.min(cap_deg) / unit_deg
+        };
         let joint = from
             .states
             .iter()
@@ -294,7 +400,7 @@ pub(super) fn choose_sequence(
             / CHOICE_STEP_DEG;
         let depth = carried.translation.z.abs().max(1e-9);
         let shift = (to.pose.translation - carried.translation).norm() / depth / CHOICE_STEP_DEPTH;
-        rot * rot + joint * joint + shift * shift + colour
+        rot * rot + joint * joint + shift * shift + colour + steady
     };
     let path = cheapest_path(&unary, &step);
     if path.len() != n {
@@ -346,13 +452,36 @@ pub(super) fn choose_sequence(
             scores[i] = sc;
         }
     }
+    // Each gap whose pair on the path the video between explains (within [`VIDEO_JOINED`] of
+    // its best pair): the motion between the two chosen poses is the gap's from here, so that
+    // the passes after the choice ([`leaves_the_chain`]) keep to the video's motion rather
+    // than a chain's that drifted.
+    let (mut video_steps, mut joined) = (0, 0);
+    for i in 1..n {
+        let Some(m) = video.get(i).filter(|m| !m.is_empty()) else {
+            continue;
+        };
+        video_steps += 1;
+        let best = m.iter().flatten().copied().fold(f64::INFINITY, f64::min);
+        if m[path[i - 1]][path[i]] <= best + VIDEO_JOINED {
+            s.set_gap(i - 1, Gap::between(frames, i - 1, &poses[i - 1], &poses[i]));
+            joined += 1;
+        }
+    }
     let colour_steps = appearance.iter().filter(|m| !m.is_empty()).count();
     log.push(format!(
-        "sequence choice: {alternatives} twin hypotheses kept over {n} frames, {}; {}{}",
+        "sequence choice: {alternatives} twin hypotheses kept over {n} frames, {}{}; {}{}",
         if colour_steps > 0 {
             format!("appearance compared at {colour_steps} of {} steps", n - 1)
         } else {
             "no appearance evidence (masks alone)".to_string()
+        },
+        if video_steps > 0 {
+            format!(
+                ", the steady motion through the video between keyframes at {video_steps} (its motion kept across {joined})"
+            )
+        } else {
+            String::new()
         },
         if changed.is_empty() {
             "every frame keeps its basin".to_string()

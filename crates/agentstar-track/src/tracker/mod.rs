@@ -884,7 +884,14 @@ fn after_propagation(
             log.phase("appearance", s);
             log.pass_done("the appearance pass before the sequence choice", poses);
         }
-        let (r, t) = choose_sequence(s, frames, (poses, scores), fixed, alternatives, log)?;
+        let (r, t) = choose_sequence(
+            s,
+            (frames, between),
+            (poses, scores),
+            fixed,
+            alternatives,
+            log,
+        )?;
         (rejected, trace) = (r, Some(t));
         log.phase("sequence choice", s);
         log.all_poses(poses);

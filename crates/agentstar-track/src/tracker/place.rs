@@ -217,6 +217,59 @@ pub(super) fn extrapolate_through(
     extrapolate(&before_here, carried, tree)
 }
 
+/// The pose at `here`, a video frame a share `t` (0 to 1) of the way from keyframe `from` (at
+/// pose `a`) to keyframe `to` (at `b`), on the steadiest motion joining them: the object turns
+/// about its pivot (the middle of its posed bounds) at a steady rate through the shortest
+/// rotation between the two orientations in the world, its pivot moves on a straight line and
+/// its joint states linearly. A hand's motion over the third of a second between keyframes
+/// ten video frames apart is close to that. Through the world where all three frames have a
+/// camera pose; in the camera's frame (a still camera) otherwise.
+pub(super) fn steady_between(
+    model: &ObjectModel,
+    scale: f64,
+    (from, a): (&TrackFrame<'_>, &GenPose),
+    (to, b): (&TrackFrame<'_>, &GenPose),
+    here: &TrackFrame<'_>,
+    t: f64,
+) -> GenPose {
+    let through_world = match (
+        from.world_from_camera,
+        to.world_from_camera,
+        here.world_from_camera,
+    ) {
+        (Some(wa), Some(wb), Some(wh)) => Some((wa, wb, wh)),
+        _ => None,
+    };
+    let into = |w: &Rigid, p: &ObjectPose| ObjectPose {
+        rotation: w.rotation * p.rotation,
+        translation: w.rotation * p.translation + w.translation.vector,
+    };
+    let (wa, wb) = match &through_world {
+        Some((ca, cb, _)) => (into(ca, &a.pose), into(cb, &b.pose)),
+        None => (a.pose, b.pose),
+    };
+    let mut states: Vec<f64> = a
+        .states
+        .iter()
+        .zip(&b.states)
+        .map(|(x, y)| x + t * (y - x))
+        .collect();
+    model.tree.clamp_states(&mut states);
+    let rotation = (wb.rotation * wa.rotation.inverse()).powf(t) * wa.rotation;
+    let centre_a = crate::update::pivot_in_camera(&wa, scale, &model.pivot(&a.states));
+    let centre_b = crate::update::pivot_in_camera(&wb, scale, &model.pivot(&b.states));
+    let centre = centre_a + t * (centre_b - centre_a);
+    let in_world = ObjectPose::new(
+        rotation,
+        centre - rotation * (model.pivot(&states).coords * scale),
+    );
+    let pose = match &through_world {
+        Some((_, _, wh)) => into(&wh.inverse(), &in_world),
+        None => in_world,
+    };
+    GenPose { pose, states }
+}
+
 /// Constant-velocity extrapolation from two previous poses (in the later one's camera).
 pub(super) fn extrapolate(
     prev2: &GenPose,

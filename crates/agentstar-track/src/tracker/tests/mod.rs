@@ -13,6 +13,7 @@ use agentstar_render::{PosedModel, SilhouetteRenderer};
 mod appearance;
 mod bake;
 mod chain;
+mod video_fit;
 
 /// An L of two boxes: no rotation maps its outline onto itself.
 fn ell() -> ObjectModel {
@@ -128,7 +129,7 @@ fn choice_traced(
     let mut log = Log::new(&observe);
     let (_, trace) = choose_sequence(
         &s,
-        &frames,
+        (&frames, &[]),
         (&mut poses, &mut scores),
         &[false; 5],
         &alternatives,
