@@ -242,6 +242,18 @@ pub fn outline_axis(model: &ObjectModel, states: &[f64]) -> Option<SymmetryAxis>
         .filter(|axis| reach_spread(model, states, axis) <= OUTLINE_SPREAD)
 }
 
+/// The axis of a faceted body: one whose footprint along it keeps [`ROUND_IOU`] under turns
+/// (as a round body's does) while its outline seen across it narrows by more than
+/// [`OUTLINE_SPREAD`] as it turns (an octagonal prism's faces, 7.6%): every frame's mask shows
+/// its turn a little, so the video between keyframes can follow it. Not a can's (round) nor
+/// a mug's (its handle breaks the footprint).
+pub fn faceted_axis(model: &ObjectModel, states: &[f64]) -> Option<SymmetryAxis> {
+    scored_body_axis(model, states)
+        .filter(|b| b.0 >= ROUND_IOU)
+        .map(|b| b.1)
+        .filter(|axis| reach_spread(model, states, axis) > OUTLINE_SPREAD)
+}
+
 /// How much the model's outline seen across `axis` may narrow as it turns, a share of its
 /// widest: a 48-sided cylinder's 0.2%, a label standing 1% proud of a can; a 16-sided
 /// prism's 1.9%; a 12-sided prism's 3.4% and an octagon's 7.6% (at 640×480, 7 and 15 px
@@ -844,7 +856,7 @@ mod tests {
     }
 
     #[test]
-    fn a_can_and_a_labelled_can_have_a_round_outline_and_an_octagonal_prism_has_not() {
+    fn a_can_and_a_labelled_can_have_a_round_outline_and_an_octagonal_prism_a_faceted_one() {
         let one = |mesh: agentstar_geom::TriMesh| ObjectModel {
             tree: KinematicTree::rigid(1),
             parts: vec![Part::new("body", mesh, [0.5, 0.5, 0.5])],
@@ -865,6 +877,8 @@ mod tests {
                 round,
                 "{name}: reach spread {spread:.4}"
             );
+            // Not round, its footprint round all the same: faceted.
+            assert_eq!(faceted_axis(model, &[]).is_some(), !round, "{name}");
         }
         // A lever hinged on a can's side: the can's outline is round all the same (the lever
         // shows the turn only where it is in view).

@@ -54,12 +54,16 @@ pub(super) fn axis_pass(
         .read()
         .map(|m| *m == crate::appearance::ModelColours::AsPainted)
         .unwrap_or(false);
-    // A body whose outline shows the turn (a prism's faces) with video between its keyframes:
-    // the sequence choice weighed the steady motion through every frame between
-    // ([`video_fit`]); the keyframes' colours alone are weaker evidence (general suite gen-1,
-    // an octagonal prism with a badge: keyframes the choice put right turned 40° and 90° off
-    // by this pass, 2026-12-06).
-    if !round && between.iter().any(|g| !g.is_empty()) {
+    // A faceted body ([`crate::axis::faceted_axis`]: its faces show the turn in every mask)
+    // with video between its keyframes: the sequence choice weighed the steady motion through
+    // every frame between ([`video_fit`]), and the keyframes' colours alone are weaker
+    // evidence (general suite gen-1, an octagonal prism with a badge: keyframes the choice
+    // put right turned 40° and 90° off by this pass, 2026-12-06). A mug's turn shows only
+    // where its handle does: the pass runs.
+    if !round
+        && between.iter().any(|g| !g.is_empty())
+        && crate::axis::faceted_axis(s.model, &s.model.tree.rest_states()).is_some()
+    {
         return Ok(false);
     }
     let video = round && painted && between.iter().flatten().any(|f| f.rgb.is_some());

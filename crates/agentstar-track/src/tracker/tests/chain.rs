@@ -86,6 +86,8 @@ fn a_chains_motion_says_nothing_of_a_turn_about_a_cans_axis() {
     // The L and the mug: every turn counts.
     for model in [ell(), mug()] {
         assert!(crate::axis::outline_axis(&model, &model.tree.rest_states()).is_none());
+        // Nor faceted: a mug's handle shows its turn, not its body's faces.
+        assert!(crate::axis::faceted_axis(&model, &model.tree.rest_states()).is_none());
         let s = Searcher::new(&model, 0.5, &frames, &cfg).expect("searcher");
         let off = s
             .off_chain(&predicted, &turned(Vector3::z(), 70.0))
