@@ -361,19 +361,18 @@ pub(super) fn choose_sequence(
     } else {
         video_fit(s, (frames, between), &hyps)
     };
+    // A pair's cost at step i from a per-step table, 0 where the step has none.
+    let pair = |table: &[Vec<Vec<f64>>], i: usize, a: usize, b: usize| {
+        table
+            .get(i)
+            .and_then(|m| m.get(a))
+            .and_then(|r| r.get(b))
+            .copied()
+            .unwrap_or(0.0)
+    };
     let step = |i: usize, a: usize, b: usize| {
-        let steady = video
-            .get(i)
-            .and_then(|m| m.get(a))
-            .and_then(|r| r.get(b))
-            .copied()
-            .unwrap_or(0.0);
-        let colour = appearance
-            .get(i)
-            .and_then(|m| m.get(a))
-            .and_then(|r| r.get(b))
-            .copied()
-            .unwrap_or(0.0);
+        let steady = pair(&video, i, a, b);
+        let colour = pair(&appearance, i, a, b);
         let from = &hyps[i - 1][a].0;
         let to = &hyps[i][b].0;
         let mut carried = transfer(&from.pose, &frames[i - 1], &frames[i]);

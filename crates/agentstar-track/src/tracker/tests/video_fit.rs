@@ -16,6 +16,17 @@ fn square_prism() -> ObjectModel {
     }
 }
 
+/// The pose of [`square_prism`] a share `t` of its steady turn of `step_deg` a keyframe
+/// about an oblique axis (t = 1: the next keyframe), 1.4 in front of the camera.
+fn turning_prism(step_deg: f64) -> impl Fn(f64) -> GenPose {
+    let start = turn(Vector3::new(1.0, 0.2, 0.1), 70.0);
+    let spin = turn(Vector3::new(0.2, 1.0, 0.5), step_deg);
+    move |t: f64| GenPose {
+        pose: ObjectPose::new(spin.powf(t) * start, Vector3::new(0.0, 0.02, 1.4)),
+        states: vec![],
+    }
+}
+
 fn turn(axis: Vector3, deg: f64) -> UnitQuaternion {
     UnitQuaternion::from_axis_angle(
         &agentstar_geom::nalgebra::Unit::new_normalize(axis),
@@ -118,12 +129,7 @@ fn the_steady_motion_passes_through_both_keyframes_and_turns_steadily_in_the_wor
 fn pairs_of_keyframe_poses_in_different_twins_miss_the_video_between_them() {
     let model = square_prism();
     let scale = 0.5;
-    let start = turn(Vector3::new(1.0, 0.2, 0.1), 70.0);
-    let spin = turn(Vector3::new(0.2, 1.0, 0.5), 70.0);
-    let at = |t: f64| GenPose {
-        pose: ObjectPose::new(spin.powf(t) * start, Vector3::new(0.0, 0.02, 1.4)),
-        states: vec![],
-    };
+    let at = turning_prism(70.0);
     let keys = silhouettes(&model, scale, &[at(0.0), at(1.0)]);
     let between_poses: Vec<GenPose> = (1..10).map(|j| at(j as f64 / 10.0)).collect();
     let between_targets = silhouettes(&model, scale, &between_poses);
@@ -165,12 +171,7 @@ fn pairs_of_keyframe_poses_in_different_twins_miss_the_video_between_them() {
 fn the_choice_follows_the_steady_motion_through_the_video_over_a_drifted_chain() {
     let model = square_prism();
     let scale = 0.5;
-    let start = turn(Vector3::new(1.0, 0.2, 0.1), 70.0);
-    let spin = turn(Vector3::new(0.2, 1.0, 0.5), 60.0);
-    let at = |t: f64| GenPose {
-        pose: ObjectPose::new(spin.powf(t) * start, Vector3::new(0.0, 0.02, 1.4)),
-        states: vec![],
-    };
+    let at = turning_prism(60.0);
     let truths: Vec<GenPose> = (0..3).map(|k| at(k as f64)).collect();
     let keys = silhouettes(&model, scale, &truths);
     let frames = silhouette_frames(&keys);
