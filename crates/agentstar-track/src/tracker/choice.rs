@@ -100,13 +100,16 @@ pub(super) fn video_fit(
                 return vec![];
             }
             let (ha, hb) = (&hyps[i - 1], &hyps[i]);
+            let Some((first, _)) = ha.first() else {
+                return vec![];
+            };
             let m = path.len();
             let mut cost = vec![vec![0.0; hb.len()]; ha.len()];
             let mut evaluated = 0usize;
             for (j, here) in path.iter().enumerate() {
                 let t = (j + 1) as f64 / (m + 1) as f64;
                 let problem =
-                    FrameProblem::new(s.model, here.camera, here.target, s.scale, ha[0].0.clone());
+                    FrameProblem::new(s.model, here.camera, here.target, s.scale, first.clone());
                 let mut ev = problem.evaluator();
                 let iou: Vec<Vec<f64>> = ha
                     .iter()
