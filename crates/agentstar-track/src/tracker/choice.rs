@@ -358,7 +358,7 @@ pub(super) fn choose_sequence(
     // its axis, the one turn its masks cannot see and a chain could drift in; the steady
     // motion would weigh that turn through the path it bends, from keyframe turns the print
     // set only to a few degrees (hard suite labelcan with it, 2026-12-06: seed 18 2.5° →
-    // 58.5° mean, seed 19 1.7° → 34.6°, a block of keyframes in the wrong basin).
+    // 58.5° mean, seed 19 2.8° → 34.6°, a block of keyframes in the wrong basin).
     let video = if s.round_outline_axis().is_some() {
         vec![]
     } else {

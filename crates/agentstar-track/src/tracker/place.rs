@@ -256,12 +256,22 @@ pub(super) fn steady_between(
         .collect();
     model.tree.clamp_states(&mut states);
     let rotation = (wb.rotation * wa.rotation.inverse()).powf(t) * wa.rotation;
-    let centre_a = crate::update::pivot_in_camera(&wa, scale, &model.pivot(&a.states));
-    let centre_b = crate::update::pivot_in_camera(&wb, scale, &model.pivot(&b.states));
+    // The pivot walks the model's vertices: once where the joint states agree (a rigid model,
+    // a joint held), as they mostly do; `video_fit` calls this per pair and frame.
+    let pivot_a = model.pivot(&a.states);
+    let pivot_of = |st: &[f64]| {
+        if st == a.states.as_slice() {
+            pivot_a
+        } else {
+            model.pivot(st)
+        }
+    };
+    let centre_a = crate::update::pivot_in_camera(&wa, scale, &pivot_a);
+    let centre_b = crate::update::pivot_in_camera(&wb, scale, &pivot_of(&b.states));
     let centre = centre_a + t * (centre_b - centre_a);
     let in_world = ObjectPose::new(
         rotation,
-        centre - rotation * (model.pivot(&states).coords * scale),
+        centre - rotation * (pivot_of(&states).coords * scale),
     );
     let pose = match &through_world {
         Some((_, _, wh)) => into(&wh.inverse(), &in_world),
