@@ -267,10 +267,26 @@ pub const OUTLINE_SPREAD: f64 = 0.03;
 /// is in view, so a chain cannot follow the turn through the frames that hide it; the body's
 /// own outline shows it in every frame (an octagonal prism's).
 pub fn reach_spread(model: &ObjectModel, states: &[f64], axis: &SymmetryAxis) -> f64 {
+    spread_of_reach(model, states, axis, false)
+}
+
+/// [`reach_spread`] over every part, those a joint moves too (at `states`): above
+/// [`OUTLINE_SPREAD`] where a lever or a handle on a round body shows its turn in the frames
+/// that see it.
+pub fn reach_spread_all(model: &ObjectModel, states: &[f64], axis: &SymmetryAxis) -> f64 {
+    spread_of_reach(model, states, axis, true)
+}
+
+fn spread_of_reach(
+    model: &ObjectModel,
+    states: &[f64],
+    axis: &SymmetryAxis,
+    with_jointed: bool,
+) -> f64 {
     let (u, v) = plane_basis(&axis.axis);
     let transforms = model.tree.part_transforms(states);
     let tree = &model.tree;
-    let rooted = (0..model.parts.len()).any(|k| tree.part_joint(k).is_none());
+    let rooted = !with_jointed && (0..model.parts.len()).any(|k| tree.part_joint(k).is_none());
     let across: Vec<(f64, f64)> = model
         .parts
         .iter()
@@ -912,6 +928,11 @@ mod tests {
             ..lever_can.clone()
         };
         assert!(reach_spread(&whole, &[], &axis) > OUTLINE_SPREAD);
+        // So does the jointed model's, counting the parts its joints move; the plain can's
+        // does not.
+        assert!(reach_spread_all(&lever_can, &rest, &axis) > OUTLINE_SPREAD);
+        let can_axis = body_axis(&can, &[]).expect("axis");
+        assert!(reach_spread_all(&can, &[], &can_axis) < 0.005);
         // An octagon's reach from its axis: between its faces' distance and its corners'.
         let body = body_axis(&octagon, &[]).expect("axis");
         let expected = 1.0 - (std::f64::consts::PI / 8.0).cos();

@@ -292,7 +292,7 @@ fn refine_local_passes(
 
 /// `level` re-based on `best` (its pivot following) and the box of one pass around it:
 /// `share` of the window, never under 0.5°, 0.2% shift, 0.4% depth and 1° of joint.
-fn rebased<'a>(
+pub(crate) fn rebased<'a>(
     level: &FrameProblem<'a>,
     best: &GenPose,
     window: &LocalWindow,
@@ -324,10 +324,49 @@ fn cma_pass(
     space: &SearchSpace,
     seed: u64,
 ) -> Result<(GenPose, f64, usize), TrackError> {
+    let mut evaluator = problem.evaluator();
+    cma_pass_by(
+        problem,
+        space,
+        seed,
+        CmaBudget {
+            step: CMA_STEP,
+            per_dof: CMA_PER_DOF,
+        },
+        &mut |g, soft| {
+            if soft {
+                evaluator.soft_combined(g)
+            } else {
+                evaluator.combined(g)
+            }
+        },
+    )
+}
+
+/// The first step (a share of the box) and the evaluations per searched dimension of a
+/// [`cma_pass_by`]'s climb on the sub-pixel score; its settling run takes
+/// [`CMA_SETTLE_PER_DOF`] a dimension and a step a fifth as long.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct CmaBudget {
+    pub step: f64,
+    pub per_dof: usize,
+}
+
+/// [`cma_pass`] on a score of the caller's (`score(pose, soft)`: the sub-pixel score when
+/// `soft`, the score itself otherwise; higher is better), over `problem`'s candidates (its
+/// held axis held): what a refinement on more than the frame's own mask searches by (the
+/// video refinement: the keyframe and the in-between frames beside it). The best pose of
+/// the settling run, its score and the evaluations spent.
+pub(crate) fn cma_pass_by(
+    problem: &FrameProblem<'_>,
+    space: &SearchSpace,
+    seed: u64,
+    budget: CmaBudget,
+    score: &mut dyn FnMut(&GenPose, bool) -> f64,
+) -> Result<(GenPose, f64, usize), TrackError> {
     let bounds: Vec<(f64, f64)> = space.ranges.iter().map(|r| (r.lo, r.hi)).collect();
     let start = problem.start_vector(space);
     let dims = space.ranges.len();
-    let mut evaluator = problem.evaluator();
     // The candidate with the turn about a held axis set back to the base's: the silhouette
     // cannot measure it, and CMA-ES wanders along a flat direction.
     let at = |x: &[f64]| {
@@ -338,12 +377,12 @@ fn cma_pass(
         }
     };
     let climb = cma_es(
-        &mut |x| -evaluator.soft_combined(&at(x)),
+        &mut |x| -score(&at(x), true),
         &bounds,
         &start,
         &CmaConfig {
-            max_evals: CMA_PER_DOF * dims,
-            initial_step: CMA_STEP,
+            max_evals: budget.per_dof * dims,
+            initial_step: budget.step,
             xtol: 1e-4,
             ftol: 1e-9,
             seed,
@@ -351,7 +390,7 @@ fn cma_pass(
     )
     .map_err(|e| TrackError::Invalid(format!("local refinement: {e}")))?;
     let settle = cma_es(
-        &mut |x| -evaluator.combined(&at(x)),
+        &mut |x| -score(&at(x), false),
         &bounds,
         &climb.x,
         &CmaConfig {
@@ -364,8 +403,8 @@ fn cma_pass(
     )
     .map_err(|e| TrackError::Invalid(format!("local refinement: {e}")))?;
     let pose = at(&settle.x);
-    let score = evaluator.combined(&pose);
-    Ok((pose, score, climb.nfev + settle.nfev + 1))
+    let s = score(&pose, false);
+    Ok((pose, s, climb.nfev + settle.nfev + 1))
 }
 
 /// The last polish of a pose already refined: CMA-ES in a box [`CMA_SHARE`] of `window`

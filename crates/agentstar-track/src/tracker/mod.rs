@@ -11,7 +11,9 @@
 //! `searcher.rs` the searcher every pass uses (refinement, the global search, twins, rescue,
 //! the wide search, settling); `place.rs` placing a model on a mask; one file per pass:
 //! `appearance_pass.rs` (and the consistency pass), `choice.rs` (the sequence-level choice),
-//! `axis_pass.rs`, `warm.rs` (`track_from`), `independent.rs` (the per-frame baseline),
+//! `axis_pass.rs`, `video_pass.rs` (every keyframe refined on the in-between frames beside
+//! it), `polish_pass.rs` (the last polish), `warm.rs` (`track_from`), `independent.rs` (the
+//! per-frame baseline),
 //! `bake_pass.rs` (`track --bake`: the settled frames, the bake, the warm start on it). Each
 //! pass keeps its constants beside it; those several passes read are in `tuning.rs`.
 
@@ -37,6 +39,7 @@ mod searcher;
 #[cfg(test)]
 mod tests;
 mod tuning;
+mod video_pass;
 mod warm;
 
 use appearance_pass::*;
@@ -49,6 +52,7 @@ use place::*;
 use polish_pass::*;
 use searcher::*;
 use tuning::*;
+use video_pass::*;
 pub use warm::*;
 
 /// One frame to track.
@@ -762,8 +766,9 @@ fn track_on(
 
 /// The passes over the whole sequence once every frame has a pose (from the propagation,
 /// or a warm start's), as the configuration asks for them: the consistency pass, the
-/// sequence-level choice, the last appearance pass (outward from `first`) and the axis pass
-/// ([`axis_pass`]); `fixed` frames keep their poses. The observer gets the poses after each
+/// sequence-level choice, the last appearance pass (outward from `first`), the axis pass
+/// ([`axis_pass`]), the video refinement ([`video_pass`]: with the sequence choice, where
+/// the capture has in-between frames) and the last polish; `fixed` frames keep their poses. The observer gets the poses after each
 /// pass.
 ///
 /// The axis pass may turn a frame about a round body's axis into a basin the sequence
@@ -905,6 +910,14 @@ fn after_propagation(
             log.phase("axis", s);
             log.pass_done("the axis pass", poses);
         }
+    }
+    if cfg.sequence_choice
+        && n >= 2
+        && video_pass(s, (frames, between), (poses, scores), fixed, log)?
+    {
+        log.phase("video refinement", s);
+        log.all_poses(poses);
+        log.pass_done("the video refinement", poses);
     }
     if cfg.last_polish {
         polish_pass(s, frames, (poses, scores), fixed, log)?;

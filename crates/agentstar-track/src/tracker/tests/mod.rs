@@ -14,6 +14,7 @@ mod appearance;
 mod bake;
 mod chain;
 mod video_fit;
+mod video_pass;
 
 /// An L of two boxes: no rotation maps its outline onto itself.
 fn ell() -> ObjectModel {
