@@ -232,6 +232,27 @@ pub(super) fn steady_between(
     here: &TrackFrame<'_>,
     t: f64,
 ) -> GenPose {
+    let pivot_a = model.pivot(&a.states);
+    let pivot_b = if b.states == a.states {
+        pivot_a
+    } else {
+        model.pivot(&b.states)
+    };
+    steady_between_pivots(model, scale, (from, a, pivot_a), (to, b, pivot_b), here, t)
+}
+
+/// [`steady_between`] with the model's pivot at each keyframe's joint states given (a walk
+/// over every vertex each; callers that place many frames between the same keyframes find
+/// them once). Between the keyframes the pivot, in the object's frame, moves on the line
+/// between the two (where the joint states agree, as they do for a rigid model, it stays).
+pub(super) fn steady_between_pivots(
+    model: &ObjectModel,
+    scale: f64,
+    (from, a, pivot_a): (&TrackFrame<'_>, &GenPose, Point3),
+    (to, b, pivot_b): (&TrackFrame<'_>, &GenPose, Point3),
+    here: &TrackFrame<'_>,
+    t: f64,
+) -> GenPose {
     let through_world = match (
         from.world_from_camera,
         to.world_from_camera,
@@ -256,23 +277,11 @@ pub(super) fn steady_between(
         .collect();
     model.tree.clamp_states(&mut states);
     let rotation = (wb.rotation * wa.rotation.inverse()).powf(t) * wa.rotation;
-    // The pivot walks the model's vertices: once where the joint states agree (a rigid model,
-    // a joint held), as they mostly do; `video_fit` calls this per pair and frame.
-    let pivot_a = model.pivot(&a.states);
-    let pivot_of = |st: &[f64]| {
-        if st == a.states.as_slice() {
-            pivot_a
-        } else {
-            model.pivot(st)
-        }
-    };
     let centre_a = crate::update::pivot_in_camera(&wa, scale, &pivot_a);
-    let centre_b = crate::update::pivot_in_camera(&wb, scale, &pivot_of(&b.states));
+    let centre_b = crate::update::pivot_in_camera(&wb, scale, &pivot_b);
     let centre = centre_a + t * (centre_b - centre_a);
-    let in_world = ObjectPose::new(
-        rotation,
-        centre - rotation * (pivot_of(&states).coords * scale),
-    );
+    let pivot = pivot_a.coords + t * (pivot_b.coords - pivot_a.coords);
+    let in_world = ObjectPose::new(rotation, centre - rotation * (pivot * scale));
     let pose = match &through_world {
         Some((_, _, wh)) => into(&wh.inverse(), &in_world),
         None => in_world,

@@ -17,6 +17,7 @@
 
 use super::*;
 use crate::hypotheses::{cma_pass_by, rebased, CmaBudget};
+use agentstar_geom::Point3;
 
 /// The box the video refinement searches around a keyframe's pose: 20° (the "absent"
 /// misses lie 5–25° off), 4% shift, 6% depth, 20° of joint.
@@ -37,9 +38,10 @@ const VIDEO_CMA: CmaBudget = CmaBudget {
 
 /// Sweeps over the keyframes (each refines the even keyframes, then the odd ones, each
 /// against its neighbours' latest poses) until none turns more than [`VIDEO_SETTLED_DEG`] in
-/// a sweep, at most this many: a keyframe's pose moves its neighbours' paths, so a turn
+/// a sweep, at most this many (each a CMA-ES run per keyframe of [`VIDEO_CMA`]'s budget): a
+/// keyframe's pose moves its neighbours' paths, so a turn
 /// set right at one keyframe lets its neighbours follow in the next sweep.
-const VIDEO_ROUNDS: usize = 4;
+const VIDEO_ROUNDS: usize = 2;
 
 /// A sweep in which no keyframe turns more than this (degrees) ends the video refinement.
 const VIDEO_SETTLED_DEG: f64 = 1.0;
@@ -60,7 +62,8 @@ struct Joined<'f, 'a> {
     /// The keyframe's weight on this frame: how far along the steady motion the keyframe's
     /// pose carries it (1 at the keyframe, 0 at the neighbour).
     weight: f64,
-    neighbour: (&'f TrackFrame<'a>, GenPose),
+    /// The neighbour's keyframe, pose and the model's pivot at its joint states.
+    neighbour: (&'f TrackFrame<'a>, GenPose, Point3),
     /// Whether the neighbour comes first (the gap before the keyframe).
     neighbour_first: bool,
 }
@@ -180,7 +183,11 @@ fn refine_on_video(
                 problem,
                 t,
                 weight: if neighbour_first { t } else { 1.0 - t },
-                neighbour: (&frames[neighbour], poses[neighbour].clone()),
+                neighbour: (
+                    &frames[neighbour],
+                    poses[neighbour].clone(),
+                    s.model.pivot(&poses[neighbour].states),
+                ),
                 neighbour_first,
             });
         }
@@ -203,6 +210,8 @@ fn refine_on_video(
     let mut evaluators: Vec<_> = joined.iter().map(|j| j.problem.evaluator()).collect();
     let video_weight = joined.iter().map(|j| j.weight).sum::<f64>();
     let own_last = std::cell::Cell::new(0.0);
+    // A rigid model's pivot, or the keyframe's at its states (a search mostly keeps them).
+    let pivot_held = Some((poses[i].states.clone(), s.model.pivot(&poses[i].states)));
     let mut score = |g: &GenPose, soft: bool| -> f64 {
         let mine = if soft {
             own.soft_combined(g)
@@ -211,12 +220,31 @@ fn refine_on_video(
         };
         own_last.set(mine);
         let mut sum = 0.0;
+        // The candidate's pivot, once for every frame (a walk over the model's vertices).
+        let pivot = match &pivot_held {
+            Some((states, p)) if *states == g.states => *p,
+            _ => s.model.pivot(&g.states),
+        };
         for (jn, ev) in joined.iter().zip(evaluators.iter_mut()) {
-            let (nf, np) = (&jn.neighbour.0, &jn.neighbour.1);
+            let (nf, np, npivot) = (jn.neighbour.0, &jn.neighbour.1, jn.neighbour.2);
             let path = if jn.neighbour_first {
-                steady_between(s.model, s.scale, (nf, np), (frame, g), jn.here, jn.t)
+                steady_between_pivots(
+                    s.model,
+                    s.scale,
+                    (nf, np, npivot),
+                    (frame, g, pivot),
+                    jn.here,
+                    jn.t,
+                )
             } else {
-                steady_between(s.model, s.scale, (frame, g), (nf, np), jn.here, jn.t)
+                steady_between_pivots(
+                    s.model,
+                    s.scale,
+                    (frame, g, pivot),
+                    (nf, np, npivot),
+                    jn.here,
+                    jn.t,
+                )
             };
             let x = if soft {
                 ev.soft_combined(&path)
