@@ -227,25 +227,13 @@ fn refine_on_video(
         };
         for (jn, ev) in joined.iter().zip(evaluators.iter_mut()) {
             let (nf, np, npivot) = (jn.neighbour.0, &jn.neighbour.1, jn.neighbour.2);
-            let path = if jn.neighbour_first {
-                steady_between_pivots(
-                    s.model,
-                    s.scale,
-                    (nf, np, npivot),
-                    (frame, g, pivot),
-                    jn.here,
-                    jn.t,
-                )
+            let (neighbour, keyframe) = ((nf, np, npivot), (frame, g, pivot));
+            let (earlier, later) = if jn.neighbour_first {
+                (neighbour, keyframe)
             } else {
-                steady_between_pivots(
-                    s.model,
-                    s.scale,
-                    (frame, g, pivot),
-                    (nf, np, npivot),
-                    jn.here,
-                    jn.t,
-                )
+                (keyframe, neighbour)
             };
+            let path = steady_between_pivots(s.model, s.scale, earlier, later, jn.here, jn.t);
             let x = if soft {
                 ev.soft_combined(&path)
             } else {
