@@ -537,12 +537,20 @@ fn track_on(
             // The motion the chain measured, for the passes over the sequence.
             s.set_gap(gap, Gap::across(frames, (prev_i, &prev), (i, &g)));
             how = "followed";
+            let carried = followed.poses.len().saturating_sub(followed.fitted);
+            let how_followed = if carried == 0 {
+                "each fitted to its mask".to_string()
+            } else {
+                format!(
+                    "{} fitted to their masks, {carried} carried by the motion (masks too hidden, or that no pose near the motion explains)",
+                    followed.fitted
+                )
+            };
             log.push(format!(
-                "{} ← {}: followed {} in-between frame(s) ({} fitted, the rest carried)",
+                "{} ← {}: followed {} in-between frame(s), {how_followed}",
                 frames[i].name,
                 frames[prev_i].name,
                 followed.poses.len(),
-                followed.fitted
             ));
             if let Some(cs) = &chain_s {
                 s.absorb_evals(cs);
