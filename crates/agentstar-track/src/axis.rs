@@ -737,7 +737,7 @@ pub fn choose_turns(
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use crate::appearance::tests::{
         cylinder_model, label_of_half_width, labelled_model, pose, shoot,
@@ -871,6 +871,41 @@ mod tests {
         assert_eq!(body_axis(&square, &[]), None);
     }
 
+    /// A can (radius 0.3, height 0.8, 48 sides) with a box lever of `size` hinged on its
+    /// side (a revolute joint about −Y, 0–60°, at `reach` from the axis and `hinge_z` up):
+    /// its outline is round all the same, the lever a jointed part.
+    pub(crate) fn lever_can(size: [f64; 3], reach: f64, hinge_z: f64) -> ObjectModel {
+        let mut model = ObjectModel {
+            tree: KinematicTree::rigid(1),
+            parts: vec![Part::new(
+                "body",
+                primitives::cylinder(0.3, 0.8, 48).expect("can"),
+                [0.5, 0.5, 0.5],
+            )],
+        };
+        model.parts.push(Part::new(
+            "lever",
+            primitives::cuboid(size[0], size[1], size[2])
+                .expect("lever")
+                .translated(Vector3::new(reach, 0.0, hinge_z - size[2] / 2.0)),
+            [0.1, 0.2, 0.6],
+        ));
+        model.tree = KinematicTree::new(
+            vec![agentstar_geom::JointDef {
+                name: "lever_hinge".into(),
+                kind: agentstar_geom::JointKind::Revolute,
+                parent: None,
+                child: vec!["lever".into()],
+                origin: Vector3::new(reach, 0.0, hinge_z),
+                axis: Vector3::new(0.0, -1.0, 0.0),
+                limit: Some((0.0, 60.0)),
+            }],
+            &model.part_names(),
+        )
+        .expect("tree");
+        model
+    }
+
     #[test]
     fn a_can_and_a_labelled_can_have_a_round_outline_and_an_octagonal_prism_a_faceted_one() {
         let one = |mesh: agentstar_geom::TriMesh| ObjectModel {
@@ -898,27 +933,7 @@ mod tests {
         }
         // A lever hinged on a can's side: the can's outline is round all the same (the lever
         // shows the turn only where it is in view).
-        let mut lever_can = one(primitives::cylinder(0.3, 0.8, 48).expect("can"));
-        lever_can.parts.push(Part::new(
-            "lever",
-            primitives::cuboid(0.03, 0.05, 0.3)
-                .expect("lever")
-                .translated(Vector3::new(0.33, 0.0, -0.05)),
-            [0.1, 0.2, 0.6],
-        ));
-        lever_can.tree = KinematicTree::new(
-            vec![agentstar_geom::JointDef {
-                name: "lever_hinge".into(),
-                kind: agentstar_geom::JointKind::Revolute,
-                parent: None,
-                child: vec!["lever".into()],
-                origin: Vector3::new(0.33, 0.0, 0.1),
-                axis: Vector3::new(0.0, -1.0, 0.0),
-                limit: Some((0.0, 60.0)),
-            }],
-            &lever_can.part_names(),
-        )
-        .expect("tree");
+        let lever_can = lever_can([0.03, 0.05, 0.3], 0.33, 0.1);
         let rest = lever_can.tree.rest_states();
         let axis = outline_axis(&lever_can, &rest).expect("the can with a lever is round");
         assert!(axis.axis.z.abs() > 0.99, "{axis:?}");

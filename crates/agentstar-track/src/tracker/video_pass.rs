@@ -20,7 +20,8 @@ use crate::hypotheses::{cma_pass_by, rebased, CmaBudget};
 use agentstar_geom::Point3;
 
 /// The box the video refinement searches around a keyframe's pose: 20° (the "absent"
-/// misses lie 5–25° off), 4% shift, 6% depth, 20° of joint.
+/// misses lie 5–25° off), 4% shift, 6% depth, 20° of joint. Its `evals` is unused: the
+/// budget is [`VIDEO_CMA`]'s.
 const VIDEO_WINDOW: LocalWindow = LocalWindow {
     angle_deg: 20.0,
     shift: 0.04,

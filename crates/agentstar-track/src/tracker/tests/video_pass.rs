@@ -31,40 +31,6 @@ fn mask_of(model: &ObjectModel, scale: f64, cam: &PinholeCamera, g: &GenPose) ->
     r.render(cam, &posed.instances).clone()
 }
 
-/// A can (radius 0.3, height 0.8) with a lever hinged on its side: its outline is round
-/// (the lever is a jointed part), and the lever shows its turn where it is in view.
-fn lever_can() -> ObjectModel {
-    let mut model = ObjectModel {
-        tree: KinematicTree::rigid(1),
-        parts: vec![Part::new(
-            "body",
-            agentstar_geom::primitives::cylinder(0.3, 0.8, 48).expect("can"),
-            [0.5, 0.5, 0.5],
-        )],
-    };
-    model.parts.push(Part::new(
-        "lever",
-        cuboid(0.04, 0.06, 0.4)
-            .expect("lever")
-            .translated(Vector3::new(0.32, 0.0, -0.05)),
-        [0.1, 0.2, 0.6],
-    ));
-    model.tree = KinematicTree::new(
-        vec![agentstar_geom::JointDef {
-            name: "lever_hinge".into(),
-            kind: agentstar_geom::JointKind::Revolute,
-            parent: None,
-            child: vec!["lever".into()],
-            origin: Vector3::new(0.32, 0.0, 0.15),
-            axis: Vector3::new(0.0, -1.0, 0.0),
-            limit: Some((0.0, 60.0)),
-        }],
-        &model.part_names(),
-    )
-    .expect("tree");
-    model
-}
-
 /// Three keyframes of `model` turning steadily ([`turning`]), the middle one under a hand
 /// over wherever part `hidden` (its index in the model, as the full renderer's part buffer
 /// holds it) is for
@@ -186,7 +152,7 @@ fn the_video_beside_a_keyframe_puts_right_a_turn_its_own_mask_cannot_see() {
 /// (the lever shows it in the frames between) and takes back most of the turn.
 #[test]
 fn the_video_frees_a_round_outlines_turn_where_a_jointed_part_shows_it() {
-    let model = lever_can();
+    let model = crate::axis::tests::lever_can([0.04, 0.06, 0.4], 0.32, 0.15);
     let rest = model.tree.rest_states();
     assert!(crate::axis::outline_axis(&model, &rest).is_some());
     // Left 15° off; the lever is thin (a few pixels proud of the outline at half
