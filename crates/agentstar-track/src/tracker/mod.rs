@@ -919,13 +919,14 @@ fn after_propagation(
             log.pass_done("the axis pass", poses);
         }
     }
-    if cfg.sequence_choice
-        && n >= 2
-        && video_pass(s, (frames, between), (poses, scores), fixed, log)?
-    {
+    if cfg.sequence_choice && n >= 2 && between.iter().any(|g| !g.is_empty()) {
+        // Its time counted whether or not a keyframe moved (else the polish's line has it).
+        let moved = video_pass(s, (frames, between), (poses, scores), fixed, log)?;
         log.phase("video refinement", s);
-        log.all_poses(poses);
-        log.pass_done("the video refinement", poses);
+        if moved {
+            log.all_poses(poses);
+            log.pass_done("the video refinement", poses);
+        }
     }
     if cfg.last_polish {
         polish_pass(s, frames, (poses, scores), fixed, log)?;
